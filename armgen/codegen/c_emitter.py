@@ -1,0 +1,158 @@
+"""Emit C99 from a CasADi SX ``Function``, instruction by instruction.
+
+CasADi's own ``CodeGenerator`` writes ``sin``/``cos`` and double literals even with
+``casadi_real=float``, so armgen walks the SX algorithm itself (``instruction_id`` /
+``instruction_input`` / ``instruction_output`` / ``instruction_constant``) and writes each
+step through the precision macros of the header: ``<P>_LIT(x)`` pastes an ``f`` suffix in
+float mode and ``<P>_SIN`` … map to ``sinf`` …, so one source compiles to true single or
+double precision with no promotion. The work vector (already register-allocated by
+CasADi) becomes scalar locals, which the C compiler keeps in registers.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+import casadi as ca
+
+from ..errors import ArmgenError
+
+# op code -> (category for op counts, C template over operand names a, b and macro prefix P)
+_BINARY = {
+    ca.OP_ADD: ("add", "{a} + {b}"),
+    ca.OP_SUB: ("add", "{a} - {b}"),
+    ca.OP_MUL: ("mul", "{a} * {b}"),
+    ca.OP_DIV: ("div", "{a} / {b}"),
+    ca.OP_POW: ("pow", "{P}_POW({a}, {b})"),
+    ca.OP_CONSTPOW: ("pow", "{P}_POW({a}, {b})"),
+    ca.OP_ATAN2: ("trig", "{P}_ATAN2({a}, {b})"),
+    ca.OP_HYPOT: ("sqrt", "{P}_HYPOT({a}, {b})"),
+    ca.OP_FMIN: ("minmax", "{P}_FMIN({a}, {b})"),
+    ca.OP_FMAX: ("minmax", "{P}_FMAX({a}, {b})"),
+    ca.OP_FMOD: ("div", "{P}_FMOD({a}, {b})"),
+    ca.OP_COPYSIGN: ("minmax", "{P}_COPYSIGN({a}, {b})"),
+    ca.OP_LT: ("compare", "({P}_real)({a} < {b})"),
+    ca.OP_LE: ("compare", "({P}_real)({a} <= {b})"),
+    ca.OP_EQ: ("compare", "({P}_real)({a} == {b})"),
+    ca.OP_NE: ("compare", "({P}_real)({a} != {b})"),
+    ca.OP_AND: ("compare", "({P}_real)({a} != {P}_LIT(0.0) && {b} != {P}_LIT(0.0))"),
+    ca.OP_OR: ("compare", "({P}_real)({a} != {P}_LIT(0.0) || {b} != {P}_LIT(0.0))"),
+    ca.OP_IF_ELSE_ZERO: ("select", "({a} != {P}_LIT(0.0) ? {b} : {P}_LIT(0.0))"),
+}
+_UNARY = {
+    ca.OP_ASSIGN: ("copy", "{a}"),
+    ca.OP_NEG: ("add", "-{a}"),
+    ca.OP_SQ: ("mul", "{a} * {a}"),
+    ca.OP_TWICE: ("add", "{a} + {a}"),
+    ca.OP_INV: ("div", "{P}_LIT(1.0) / {a}"),
+    ca.OP_SQRT: ("sqrt", "{P}_SQRT({a})"),
+    ca.OP_SIN: ("trig", "{P}_SIN({a})"),
+    ca.OP_COS: ("trig", "{P}_COS({a})"),
+    ca.OP_TAN: ("trig", "{P}_TAN({a})"),
+    ca.OP_ASIN: ("trig", "{P}_ASIN({a})"),
+    ca.OP_ACOS: ("trig", "{P}_ACOS({a})"),
+    ca.OP_ATAN: ("trig", "{P}_ATAN({a})"),
+    ca.OP_EXP: ("exp", "{P}_EXP({a})"),
+    ca.OP_LOG: ("exp", "{P}_LOG({a})"),
+    ca.OP_FABS: ("minmax", "{P}_FABS({a})"),
+    ca.OP_FLOOR: ("minmax", "{P}_FLOOR({a})"),
+    ca.OP_CEIL: ("minmax", "{P}_CEIL({a})"),
+    ca.OP_SIGN: ("compare", "({a} > {P}_LIT(0.0) ? {P}_LIT(1.0) : ({a} < {P}_LIT(0.0) ? {P}_LIT(-1.0) : {a}))"),
+    ca.OP_NOT: ("compare", "({P}_real)({a} == {P}_LIT(0.0))"),
+}
+
+# The math macros every generated header defines, in both precisions.
+MATH_MACROS = ("SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN", "ATAN2", "SQRT", "HYPOT", "POW", "EXP", "LOG",
+               "FABS", "FLOOR", "CEIL", "FMIN", "FMAX", "FMOD", "COPYSIGN")
+
+
+def c_literal(value: float, macro_prefix: str) -> str:
+    """A literal through the precision macro; shortest round-trip decimal of the double."""
+    if value != value or value in (float("inf"), float("-inf")):
+        raise ArmgenError(f"non-finite constant {value} in a symbolic expression")
+    text = repr(abs(float(value)))
+    if "." not in text and "e" not in text:
+        text += ".0"
+    if "e" in text and "." not in text.split("e")[0]:
+        mantissa, exponent = text.split("e")
+        text = f"{mantissa}.0e{exponent}"
+    lit = f"{macro_prefix}_LIT({text})"
+    return f"(-{lit})" if value < 0 else lit
+
+
+@dataclass
+class EmittedFunction:
+    name: str
+    body: str
+    op_counts: Counter = field(default_factory=Counter)
+    work_reals: int = 0
+
+    @property
+    def flops(self) -> int:
+        return sum(v for k, v in self.op_counts.items() if k not in ("copy", "const", "input", "output"))
+
+
+def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], res_names: list[str],
+              res_scalar: list[bool], macro_prefix: str, indent: str = "  ") -> EmittedFunction:
+    """The statements of ``func``'s SX algorithm as C; inputs/outputs by the given names.
+
+    Outputs must be dense (see ``casadi.densify``); the nonzero index then equals the
+    column-major element index. A scalar input is a value, a scalar output ``x`` is ``*x``.
+    """
+    if not func.is_a("SXFunction"):
+        raise ArmgenError(f"function {func.name()} is not an SX function")
+    for k in range(func.n_out()):
+        if func.sparsity_out(k).nnz() != func.sparsity_out(k).numel():
+            raise ArmgenError(f"output {func.name_out(k)} of {func.name()} is sparse; densify it before emitting")
+    counts: Counter = Counter()
+    lines: list[str] = []
+    used = set()
+    for k in range(func.n_instructions()):
+        op = func.instruction_id(k)
+        ins = func.instruction_input(k)
+        outs = func.instruction_output(k)
+        if op == ca.OP_INPUT:
+            counts["input"] += 1
+            source = arg_names[ins[0]] if arg_scalar[ins[0]] else f"{arg_names[ins[0]]}[{ins[1]}]"
+            lines.append(f"w{outs[0]} = {source};")
+            used.add(outs[0])
+        elif op == ca.OP_OUTPUT:
+            counts["output"] += 1
+            target = f"*{res_names[outs[0]]}" if res_scalar[outs[0]] else f"{res_names[outs[0]]}[{outs[1]}]"
+            lines.append(f"{target} = w{ins[0]};")
+        elif op == ca.OP_CONST:
+            counts["const"] += 1
+            lines.append(f"w{outs[0]} = {c_literal(func.instruction_constant(k), macro_prefix)};")
+            used.add(outs[0])
+        elif op in _BINARY:
+            category, template = _BINARY[op]
+            counts[category] += 1
+            expr = template.format(a=f"w{ins[0]}", b=f"w{ins[1]}", P=macro_prefix)
+            lines.append(f"w{outs[0]} = {expr};")
+            used.add(outs[0])
+        elif op in _UNARY:
+            category, template = _UNARY[op]
+            counts[category] += 1
+            expr = template.format(a=f"w{ins[0]}", P=macro_prefix)
+            lines.append(f"w{outs[0]} = {expr};")
+            used.add(outs[0])
+        else:
+            raise ArmgenError(f"function {func.name()}: CasADi operation {op} has no C translation in armgen")
+    read_args = {func.instruction_input(k)[0] for k in range(func.n_instructions())
+                 if func.instruction_id(k) == ca.OP_INPUT}
+    # an input the expression does not depend on (e.g. q of a constant criterion) is still
+    # part of the fixed API; mark it used for -Wunused-parameter
+    decl = [f"(void){arg_names[k]};" for k in range(func.n_in()) if k not in read_args]
+    if used:
+        names = [f"w{i}" for i in sorted(used)]
+        for start in range(0, len(names), 12):
+            decl.insert(0, f"{macro_prefix.lower()}_real {', '.join(names[start:start + 12])};")
+    body = "\n".join(indent + line for line in decl + lines)
+    return EmittedFunction(func.name(), body, counts, len(used))
+
+
+def describe_counts(counts: Counter) -> str:
+    order = ("add", "mul", "div", "sqrt", "trig", "pow", "exp", "minmax", "compare", "select")
+    parts = [f"{counts[k]} {k}" for k in order if counts.get(k)]
+    return ", ".join(parts) if parts else "no arithmetic"

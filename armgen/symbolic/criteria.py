@@ -1,0 +1,101 @@
+"""Redundancy criteria in CasADi SX (angles in rad, lengths in m).
+
+- Zghal joint-limit criterion ``H_L`` (spec 20; no 1/4 factor, as the spec writes it).
+- Repetitive criterion ``H_R = ½‖q − q_init‖²``.
+- Joint manipulability ``ω_i`` (spec 30): the manipulability left when joint i locks,
+  ``ω_i = sqrt(det(J₋ᵢ J₋ᵢᵀ) + δ²)`` — the smooth form with an explicit ``δ``; for a square
+  ``J₋ᵢ`` this is ``sqrt(det(J₋ᵢ)² + δ²)``, and ``δ`` when ``J₋ᵢ`` has fewer columns than rows.
+- Manipulability ``w = sqrt(det(J Jᵀ) + δ²)``.
+- Continuous weights ``w_c`` (spec 35).
+
+Determinants are computed division-free by the Cauchy–Binet formula,
+``det(A Aᵀ) = Σ_S det(A_S)²`` over the m-column subsets S of the m×n matrix A, with all the
+minors built once by expansion along rows (a table over column subsets). Every ``ω_i``
+reuses the same minors (the subsets that avoid column i), so the index costs little more
+than ``w`` itself and has no division that could blow up at a singular pose.
+"""
+
+from __future__ import annotations
+
+from itertools import combinations
+from math import comb
+
+import casadi as ca
+
+# Smallest damping-band fraction Ω used in w_c: keeps the band division finite when a
+# caller passes Ω = 0 (a band of 1e-6 of the range is a step function for practical purposes).
+MIN_BAND_FRACTION = 1e-6
+
+# Cauchy-Binet enumerates C(n, m) column subsets; past this count the criterion functions
+# are not derived (e.g. the 25-DOF snake with a 6-row task has 177 100 subsets).
+MAX_MINOR_SUBSETS = 2000
+
+
+def minors_supported(n: int, m: int) -> bool:
+    return m > n or comb(n, m) <= MAX_MINOR_SUBSETS
+
+
+def all_maximal_minors(a: ca.SX) -> dict[tuple[int, ...], ca.SX]:
+    """All m×m minors of the m×n matrix ``a``, keyed by their (sorted) column subset."""
+    m, n = a.shape
+    table: dict[tuple[int, ...], ca.SX] = {(): ca.SX(1)}
+    for row in range(m):
+        nxt: dict[tuple[int, ...], ca.SX] = {}
+        for subset in combinations(range(n), row + 1):
+            # Laplace expansion along row `row` (the last of the first row+1 rows).
+            terms = []
+            for pos, col in enumerate(subset):
+                sign = 1 if (pos + row) % 2 == 0 else -1
+                rest = subset[:pos] + subset[pos + 1:]
+                terms.append(sign * a[row, col] * table[rest])
+            nxt[subset] = ca.sum1(ca.vertcat(*terms)) if terms else ca.SX(0)
+        table = nxt
+    return table
+
+
+def gram_determinants(a: ca.SX) -> tuple[ca.SX, list[ca.SX]]:
+    """(det(A Aᵀ), [det(A₋ᵢ A₋ᵢᵀ) for each column i]) by Cauchy–Binet."""
+    m, n = a.shape
+    if m > n:
+        return ca.SX(0), [ca.SX(0)] * n
+    minors = all_maximal_minors(a)
+    squares = {s: v * v for s, v in minors.items()}
+    full = ca.sum1(ca.vertcat(*squares.values()))
+    if m > n - 1:
+        return full, [ca.SX(0)] * n
+    reduced = [ca.sum1(ca.vertcat(*[v for s, v in squares.items() if i not in s])) for i in range(n)]
+    return full, reduced
+
+
+def zghal(q: ca.SX, qmin, qmax) -> ca.SX:
+    """H_L = Σ (q_max − q_min)² / ((q_max − q)(q − q_min))."""
+    terms = [(hi - lo) ** 2 / ((hi - q[i]) * (q[i] - lo)) for i, (lo, hi) in enumerate(zip(qmin, qmax))]
+    return ca.sum1(ca.vertcat(*terms))
+
+
+def repetitive(q: ca.SX, q_init: ca.SX) -> ca.SX:
+    e = q - q_init
+    return 0.5 * ca.dot(e, e)
+
+
+def smoothstep(d):
+    """g(d) = −2d³ + 3d² (g(0)=0, g(1)=1, zero slope at both ends)."""
+    return d * d * (3 - 2 * d)
+
+
+def continuous_weights(q: ca.SX, qmin, qmax, band: ca.SX) -> ca.SX:
+    """w_c(q_i) of spec 35: 1 beyond a limit, smoothstep in the damping bands, 0 in the free band.
+
+    ``band`` is Ω, the damping-band width as a fraction of each joint's range (0 < Ω < ½).
+    """
+    band = ca.fmax(band, MIN_BAND_FRACTION)
+    out = []
+    for i, (lo, hi) in enumerate(zip(qmin, qmax)):
+        t_lo = lo + band * (hi - lo)  # (1−Ω) q_min + Ω q_max
+        t_hi = hi - band * (hi - lo)  # Ω q_min + (1−Ω) q_max
+        width = band * (hi - lo)
+        d_lo = ca.fmin(ca.fmax((t_lo - q[i]) / width, 0), 1)
+        d_hi = ca.fmin(ca.fmax((q[i] - t_hi) / width, 0), 1)
+        # At most one of d_lo, d_hi is non-zero since the bands do not overlap (Ω < ½).
+        out.append(smoothstep(d_lo) + smoothstep(d_hi))
+    return ca.vertcat(*out)

@@ -1,0 +1,148 @@
+"""The symbolic model of a robot: every derived quantity as a named ``casadi.Function``.
+
+Inputs and outputs are named (``q``, ``xdot``, ``damping`` …) and dense. Task-space
+quantities use the robot's task rows (``robot.task_rows``, all six by default), so ``m``
+is the task dimension and ``n`` the number of joints.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import casadi as ca
+
+from ..robot import Robot
+from . import criteria, steps
+from .kinematics import chain, geometric_jacobian
+
+KINEMATIC_FUNCTIONS = ("fk", "jacobian", "fk_jacobian")
+CRITERION_FUNCTIONS = ("zghal", "repetitive", "joint_manipulability", "manipulability", "continuous_weights")
+STEP_FUNCTIONS = ("step_gpm", "step_wln")
+ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + CRITERION_FUNCTIONS + STEP_FUNCTIONS
+
+# One-line descriptions, used in the generated header and by `armgen show`.
+DESCRIPTIONS = {
+    "fk": "tool pose T (4x4 homogeneous) in the base frame",
+    "jacobian": "geometric Jacobian J (6xn, rows [v; w] of the tool origin, base frame)",
+    "fk_jacobian": "tool pose T and geometric Jacobian J in one call (shared trig)",
+    "zghal": "Zghal joint-limit criterion H_L and its gradient (rad)",
+    "repetitive": "repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient",
+    "joint_manipulability": "joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), "
+                            "H_M = sum a_i omega_i and its gradient",
+    "manipulability": "manipulability w = sqrt(det(J J^T) + delta^2) and its gradient",
+    "continuous_weights": "continuous joint-limit weights w_c (spec 35), band = damping-band fraction",
+    "step_gpm": "damped gradient projection qdot = J# xdot + (I - J# J) alpha",
+    "step_wln": "damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot",
+}
+
+
+@dataclass(frozen=True)
+class ModelOptions:
+    """What to derive. ``functions`` None means every function the robot supports."""
+
+    functions: tuple[str, ...] | None = None
+
+
+class SymbolicModel:
+    def __init__(self, robot: Robot, options: ModelOptions | None = None):
+        self.robot = robot
+        self.options = options or ModelOptions()
+        self.n = robot.n
+        self.m = len(robot.task_rows)
+        self.q = ca.SX.sym("q", self.n)
+
+    # -- shared expressions -------------------------------------------------------
+    @cached_property
+    def _kinematics(self) -> tuple[ca.SX, ca.SX]:
+        axis_frames, _, tool = chain(self.robot, self.q)
+        return tool, geometric_jacobian(self.robot, axis_frames, tool)
+
+    @property
+    def tool(self) -> ca.SX:
+        return self._kinematics[0]
+
+    @property
+    def jac(self) -> ca.SX:
+        return self._kinematics[1]
+
+    @property
+    def task_jac(self) -> ca.SX:
+        return self.jac[list(self.robot.task_rows), :]
+
+    @property
+    def supports_minors(self) -> bool:
+        return criteria.minors_supported(self.n, self.m)
+
+    def available(self) -> tuple[str, ...]:
+        names = list(ALL_FUNCTIONS)
+        if not self.supports_minors:
+            names = [f for f in names if f not in ("joint_manipulability", "manipulability")]
+        return tuple(names)
+
+    def selected(self) -> tuple[str, ...]:
+        wanted = self.options.functions or self.available()
+        unknown = [f for f in wanted if f not in self.available()]
+        if unknown:
+            raise ValueError(f"functions not available for robot '{self.robot.name}': {', '.join(unknown)} "
+                             f"(available: {', '.join(self.available())})")
+        return tuple(wanted)
+
+    # -- the functions ---------------------------------------------------------------
+    def function(self, name: str) -> ca.Function:
+        return self._functions[name]
+
+    @cached_property
+    def _functions(self) -> dict[str, ca.Function]:
+        return {name: self._build(name) for name in self.available()}
+
+    def functions(self) -> dict[str, ca.Function]:
+        return {name: self.function(name) for name in self.selected()}
+
+    def _build(self, name: str) -> ca.Function:
+        q, robot = self.q, self.robot
+        qmin, qmax = robot.qmin.tolist(), robot.qmax.tolist()
+        dense = ca.densify
+        if name == "fk":
+            return ca.Function("fk", [q], [dense(self.tool)], ["q"], ["T"])
+        if name == "jacobian":
+            return ca.Function("jacobian", [q], [dense(self.jac)], ["q"], ["J"])
+        if name == "fk_jacobian":
+            return ca.Function("fk_jacobian", [q], [dense(self.tool), dense(self.jac)], ["q"], ["T", "J"])
+        if name == "zghal":
+            h = criteria.zghal(q, qmin, qmax)
+            return ca.Function("zghal", [q], [h, dense(ca.gradient(h, q))], ["q"], ["H_L", "grad_H_L"])
+        if name == "repetitive":
+            q_init = ca.SX.sym("q_init", self.n)
+            h = criteria.repetitive(q, q_init)
+            return ca.Function("repetitive", [q, q_init], [h, dense(ca.gradient(h, q))],
+                               ["q", "q_init"], ["H_R", "grad_H_R"])
+        if name == "joint_manipulability":
+            a = ca.SX.sym("a", self.n)
+            delta = ca.SX.sym("delta")
+            _, reduced = criteria.gram_determinants(self.task_jac)
+            omega = ca.vertcat(*[ca.sqrt(g + delta * delta) for g in reduced])
+            h = ca.dot(a, omega)
+            return ca.Function("joint_manipulability", [q, a, delta], [dense(omega), h, dense(ca.gradient(h, q))],
+                               ["q", "a", "delta"], ["omega", "H_M", "grad_H_M"])
+        if name == "manipulability":
+            delta = ca.SX.sym("delta")
+            full, _ = criteria.gram_determinants(self.task_jac)
+            w = ca.sqrt(full + delta * delta)
+            return ca.Function("manipulability", [q, delta], [w, dense(ca.gradient(w, q))],
+                               ["q", "delta"], ["w", "grad_w"])
+        if name == "continuous_weights":
+            band = ca.SX.sym("band")
+            return ca.Function("continuous_weights", [q, band], [dense(criteria.continuous_weights(q, qmin, qmax, band))],
+                               ["q", "band"], ["w_c"])
+        if name == "step_gpm":
+            xdot, alpha, damping = ca.SX.sym("xdot", self.m), ca.SX.sym("alpha", self.n), ca.SX.sym("damping")
+            qdot = steps.step_gpm(self.task_jac, xdot, alpha, damping)
+            return ca.Function("step_gpm", [q, xdot, alpha, damping], [dense(qdot)],
+                               ["q", "xdot", "alpha", "damping"], ["qdot"])
+        if name == "step_wln":
+            xdot, weights, damping = ca.SX.sym("xdot", self.m), ca.SX.sym("W", self.n), ca.SX.sym("damping")
+            qdot = steps.step_wln(self.task_jac, xdot, weights, damping)
+            return ca.Function("step_wln", [q, xdot, weights, damping], [dense(qdot)],
+                               ["q", "xdot", "W", "damping"], ["qdot"])
+        raise KeyError(name)
