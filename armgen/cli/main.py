@@ -1,0 +1,141 @@
+"""The ``armgen`` command line. It only strings library stages together; every command
+maps an :class:`ArmgenError` to its exit code and a one-paragraph message on stderr."""
+
+from __future__ import annotations
+
+import functools
+import math
+import sys
+from pathlib import Path
+
+import click
+import numpy as np
+
+from .. import __version__
+from ..errors import ArmgenError
+
+
+def _handle_errors(func):
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        try:
+            return func(*args, **kwargs)
+        except ArmgenError as exc:
+            click.echo(f"error: {exc}", err=True)
+            sys.exit(exc.exit_code)
+    return wrapper
+
+
+@click.group()
+@click.version_option(__version__, prog_name="armgen")
+def cli() -> None:
+    """armgen: redundant-arm kinematics to verified embedded C, and trajectory planning."""
+
+
+@cli.command("robots")
+@_handle_errors
+def robots_cmd() -> None:
+    """List the bundled robots."""
+    from ..robot import bundled_robots, load_robot
+
+    for name in bundled_robots():
+        robot = load_robot(name)
+        click.echo(f"{name:12s} {robot.n:3d} DOF  {robot.convention:8s}  {robot.description}")
+
+
+@cli.command("show")
+@click.argument("robot")
+@_handle_errors
+def show_cmd(robot: str) -> None:
+    """Print a robot's DH table, limits and named configurations (mm, deg)."""
+    from ..robot import load_robot
+
+    r = load_robot(robot)
+    click.echo(f"{r.name}: {r.description}")
+    click.echo(f"file {r.source} (sha256 {r.sha256[:16]}…), {r.convention} DH, {r.n} joints")
+    prefix = "a_{i-1}, alpha_{i-1}" if r.convention == "modified" else "a_i, alpha_i"
+    click.echo(f"columns: joint, type, offset/theta, d [mm], a [mm], alpha [deg] ({prefix}), qlim")
+    for j in r.joints:
+        fixed = f"theta={math.degrees(j.theta):8.3f}" if not j.revolute else f"offset={math.degrees(j.offset):7.3f}"
+        lim = (f"[{math.degrees(j.qlim[0]):8.3f}, {math.degrees(j.qlim[1]):8.3f}] deg" if j.revolute
+               else f"[{j.qlim[0] * 1e3:8.3f}, {j.qlim[1] * 1e3:8.3f}] mm")
+        click.echo(f"  {j.name:8s} {j.type:9s} {fixed}  d={j.d * 1e3:9.3f}  a={j.a * 1e3:9.3f}  "
+                   f"alpha={math.degrees(j.alpha):8.3f}  qlim={lim}")
+    for name, T in (("base", r.base), ("tool", r.tool)):
+        if not np.allclose(T, np.eye(4)):
+            click.echo(f"{name}: xyz = {np.round(T[:3, 3] * 1e3, 4).tolist()} mm")
+    units = np.array([180 / math.pi if j.revolute else 1e3 for j in r.joints])
+    for name, q in r.configurations.items():
+        click.echo(f"configuration {name}: {np.round(q * units, 4).tolist()} (deg / mm)")
+
+
+@cli.command("gen")
+@click.argument("robot")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="output directory (default: generated/<robot>/)")
+@click.option("--precision", type=click.Choice(["double", "float"]), default="double", show_default=True,
+              help="the header's default real type (one switch; -D<PREFIX>_USE_FLOAT overrides)")
+@click.option("--prefix", default="", help="C identifier prefix (default: the robot name)")
+@click.option("--function", "functions", multiple=True, help="generate only these functions (repeatable)")
+@_handle_errors
+def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functions: tuple[str, ...]) -> None:
+    """Derive the robot's functions symbolically and write C (header, source, manifest)."""
+    from ..codegen.generate import generate_robot
+
+    try:
+        code, paths = generate_robot(robot, out_dir, precision, prefix, functions or None)
+    except ValueError as exc:
+        raise ArmgenError(str(exc)) from None
+    for path in paths:
+        click.echo(f"wrote {path}")
+    flops = ", ".join(f"{e.name} {e.flops}" for e in code.emitted)
+    click.echo(f"generated {len(code.emitted)} functions in {code.generation_seconds:.2f} s; flops: {flops}")
+
+
+@cli.command("plan")
+@click.argument("task_file", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+              help="CSV to write (default: <task name>.csv in the current directory); plan.json goes beside it")
+@click.option("--backend", type=click.Choice(["symbolic", "c"]), default="symbolic", show_default=True)
+@click.option("--set", "overrides", multiple=True, help="override a task field: key=value (dotted keys, TOML values)")
+@click.option("--units", type=click.Choice(["rad", "deg"]), default="rad", show_default=True,
+              help="angle unit of the CSV columns")
+@_handle_errors
+def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[str, ...], units: str) -> None:
+    """Plan a task file to CSV plus JSON metadata (written atomically)."""
+    from ..planning.result import write_plan
+    from ..planning.tasks import apply_overrides, load_task, run_task
+
+    task, sha = load_task(task_file)
+    apply_overrides(task, list(overrides))
+    result = run_task(task, task_file, sha, backend)
+    out = Path(output) if output else Path(Path(task_file).stem + ".csv")
+    csv_path, json_path = write_plan(result, out, units)
+    click.echo(f"wrote {csv_path} ({result.data.shape[0]} samples) and {json_path}")
+    summary = result.metadata.get("summary", {})
+    for key, value in summary.items():
+        click.echo(f"  {key}: {value}")
+
+
+@cli.command("plot")
+@click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="PNG to write (default: beside the CSV)")
+@_handle_errors
+def plot_cmd(plan_csv: str, output: str | None) -> None:
+    """Draw a plan: joint angles, velocities, criteria and task error."""
+    from ..planning.result import read_plan
+
+    result = read_plan(plan_csv)
+    out = Path(output) if output else Path(plan_csv).with_suffix(".png")
+    planner = result.metadata.get("planner")
+    if planner == "ptp":
+        from ..planning.ptp_plot import plot_ptp
+
+        plot_ptp(result, out)
+    else:
+        raise ArmgenError(f"{plan_csv}: no plot for planner {planner!r} (plan.json missing or unknown planner)")
+    click.echo(f"wrote {out}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    cli()

@@ -1,0 +1,88 @@
+"""An independent derivation in SymPy, used only to cross-check the CasADi core.
+
+It shares nothing with :mod:`armgen.symbolic.kinematics` but the robot data: the DH
+transforms are the textbook 4×4 products with ``θ = q + offset`` inside the trig
+functions, the linear Jacobian rows are the derivatives of the tool position, and the
+angular rows come from ``Ṙ Rᵀ`` (the skew-symmetric angular-velocity matrix) instead of
+the ``z × (p − o)`` construction. Criteria gradients are the closed forms of the specs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import sympy as sp
+
+from ..robot import Robot
+
+
+def _rz(t):
+    return sp.Matrix([[sp.cos(t), -sp.sin(t), 0, 0], [sp.sin(t), sp.cos(t), 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+
+
+def _rx(t):
+    return sp.Matrix([[1, 0, 0, 0], [0, sp.cos(t), -sp.sin(t), 0], [0, sp.sin(t), sp.cos(t), 0], [0, 0, 0, 1]])
+
+
+def _tz(d):
+    return sp.Matrix([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, d], [0, 0, 0, 1]])
+
+
+def _tx(a):
+    return sp.Matrix([[1, 0, 0, a], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+
+
+def sympy_fk(robot: Robot, q: list[sp.Symbol]) -> sp.Matrix:
+    """Tool transform base·A_1⋯A_n·tool with the DH products written out literally."""
+    T = sp.Matrix(robot.base.tolist())
+    for i, j in enumerate(robot.joints):
+        theta = q[i] + j.offset if j.revolute else sp.Float(j.theta)
+        d = j.d if j.revolute else j.d + j.offset + q[i]
+        if robot.convention == "standard":
+            A = _rz(theta) * _tz(d) * _tx(j.a) * _rx(j.alpha)
+        else:
+            A = _rx(j.alpha) * _tx(j.a) * _rz(theta) * _tz(d)
+        T = T * A
+    return T * sp.Matrix(robot.tool.tolist())
+
+
+def sympy_fk_jacobian(robot: Robot):
+    """Numeric (T(q), J(q)) from the SymPy derivation (lambdified, no simplification)."""
+    q = list(sp.symbols(f"q0:{robot.n}", real=True))
+    T = sympy_fk(robot, q)
+    dT = sp.Matrix.hstack(*[T[:3, :].diff(qk) for qk in q])  # [dT/dq_1 | … ] top 3 rows
+    fk = sp.lambdify([q], T, "numpy")
+    dfk = sp.lambdify([q], dT, "numpy")
+
+    def jacobian(qv) -> np.ndarray:
+        R = np.array(fk(list(qv)), dtype=float)[:3, :3]
+        d = np.array(dfk(list(qv)), dtype=float)
+        J = np.zeros((6, robot.n))
+        for k in range(robot.n):
+            dk = d[:, 4 * k:4 * k + 4]
+            J[:3, k] = dk[:, 3]
+            omega_hat = dk[:, :3] @ R.T  # skew(ω_k) for a unit rate of joint k
+            J[3:, k] = [omega_hat[2, 1], omega_hat[0, 2], omega_hat[1, 0]]
+        return J
+
+    return (lambda qv: np.array(fk(list(qv)), dtype=float)), jacobian
+
+
+def zghal_gradient_closed_form(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray) -> np.ndarray:
+    """∂H_L/∂q_i = (q_max − q_min)² (2q_i − q_max − q_min) / ((q_max − q_i)² (q_i − q_min)²) (spec 20)."""
+    return (qmax - qmin) ** 2 * (2 * q - qmax - qmin) / ((qmax - q) ** 2 * (q - qmin) ** 2)
+
+
+def zghal_closed_form(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray) -> float:
+    return float(np.sum((qmax - qmin) ** 2 / ((qmax - q) * (q - qmin))))
+
+
+def planar3_closed_form(q: np.ndarray, lengths: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Position (x, y) and the 2×3 position Jacobian of a planar 3R arm, by hand."""
+    c = np.cumsum(q)
+    x = sum(l * np.cos(a) for l, a in zip(lengths, c))
+    y = sum(l * np.sin(a) for l, a in zip(lengths, c))
+    J = np.zeros((2, 3))
+    for k in range(3):
+        J[0, k] = -sum(lengths[i] * np.sin(c[i]) for i in range(k, 3))
+        J[1, k] = sum(lengths[i] * np.cos(c[i]) for i in range(k, 3))
+    return np.array([x, y]), J
