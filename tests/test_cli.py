@@ -1,0 +1,50 @@
+"""The command line: listing, showing, generating, and clean failures with exit codes."""
+
+import json
+
+from click.testing import CliRunner
+
+from armgen.cli.main import cli
+
+
+def run(*args):
+    return CliRunner().invoke(cli, list(args))
+
+
+def test_robots_and_show():
+    out = run("robots")
+    assert out.exit_code == 0
+    for name in ("modular8", "iiwa14", "panda", "planar3"):
+        assert name in out.output
+    out = run("show", "panda")
+    assert out.exit_code == 0
+    assert "modified DH" in out.output and "a_{i-1}" in out.output and "tool: xyz = [0.0, 0.0, 107.0] mm" in out.output
+
+
+def test_gen_to_out_dir_with_prefix_and_precision(tmp_path):
+    out = run("gen", "planar3", "--out", str(tmp_path), "--precision", "float", "--prefix", "arm")
+    assert out.exit_code == 0, out.output
+    header = (tmp_path / "arm.h").read_text()
+    assert "#define ARM_USE_FLOAT 1" in header and "#define ARM_NDOF 3" in header
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["options"] == {"precision": "float", "prefix": "arm", "functions": manifest["options"]["functions"]}
+    assert set(manifest["files"]) == {"arm.h", "arm.c"}
+
+
+def test_gen_selected_functions(tmp_path):
+    out = run("gen", "planar3", "--out", str(tmp_path), "--function", "fk", "--function", "jacobian")
+    assert out.exit_code == 0, out.output
+    assert json.loads((tmp_path / "manifest.json").read_text())["options"]["functions"] == ["fk", "jacobian"]
+    out = run("gen", "planar3", "--out", str(tmp_path), "--function", "nope")
+    assert out.exit_code != 0 and "nope" in out.output
+
+
+def test_errors_have_exit_codes_and_write_nothing(tmp_path):
+    out = run("show", "no_such_robot")
+    assert out.exit_code == 2 and "unknown robot 'no_such_robot'" in out.output
+    bad = tmp_path / "bad.toml"
+    bad.write_text('name = "x"\nconvention = "standard"\n[[joints]]\ntype = "revolute"\na = 0\nd = 0\nalpha = 0\nqlim = [1, -1]\n')
+    target = tmp_path / "out"
+    out = run("gen", str(bad), "--out", str(target))
+    assert out.exit_code == 2 and "qlim" in out.output and "reversed" in out.output
+    assert not target.exists()
