@@ -24,6 +24,7 @@ else:  # pragma: no cover
 # planner name -> module implementing plan_task(task: dict, source: str, backend: str)
 PLANNERS = {
     "ptp": "armgen.planning.ptp",
+    "cartesian": "armgen.planning.cartesian",
 }
 
 
