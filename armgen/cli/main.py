@@ -132,6 +132,10 @@ def plot_cmd(plan_csv: str, output: str | None) -> None:
         from ..planning.ptp_plot import plot_ptp
 
         plot_ptp(result, out)
+    elif planner == "cartesian":
+        from ..planning.plots import plot_resolved_rate
+
+        plot_resolved_rate(result, out)
     else:
         raise ArmgenError(f"{plan_csv}: no plot for planner {planner!r} (plan.json missing or unknown planner)")
     click.echo(f"wrote {out}")

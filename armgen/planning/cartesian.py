@@ -362,7 +362,8 @@ class CartesianPlanner:
         travel = np.sum(np.abs(np.diff(q, axis=0)), axis=0)
         return {
             "method": task.method.name,
-            "robot": {"name": self.robot.name, "file": self.robot.source, "sha256": self.robot.sha256},
+            "robot": {"name": self.robot.name, "file": self.robot.source, "sha256": self.robot.sha256,
+                      "qlim_rad": [list(j.qlim) for j in self.robot.joints]},
             "parameters": {k: getattr(task.method, k) for k in task.method.__dataclass_fields__},
             "integrator": {"method": task.integrator, "step_s": task.step, "clik_gain": task.clik_gain,
                            "open_loop": task.clik_gain == 0},

@@ -46,6 +46,8 @@ class JointWindows:
         hold_min = self.t_sum - self.t_smo
         for i in range(self.n):
             st = self.state[i]
+            if st == RAMP_DOWN:  # the value reached at t, from which a re-entry ramps up
+                self.value[i] = max(1.0 - ramp((t - self.t_event[i]) / self.t_smo, self.shape), 0.0)
             if st in (IDLE, RAMP_DOWN) and in_band[i]:
                 self.state[i], self.t_event[i], self.v_event[i] = RAMP_UP, t, self.value[i]
                 self.openings[i] += 1
@@ -59,7 +61,6 @@ class JointWindows:
                 if t - self.t_event[i] >= hold_min and not in_band[i]:
                     self.state[i], self.t_event[i], self.v_event[i] = RAMP_DOWN, t, 1.0
             elif st == RAMP_DOWN:
-                self.value[i] = 1.0 - ramp((t - self.t_event[i]) / self.t_smo, self.shape)
                 if self.value[i] <= 0.0:
                     self.state[i], self.value[i] = IDLE, 0.0
         return self.value.copy()
