@@ -177,8 +177,10 @@ def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
 
 
 def orientation_error(r_actual: np.ndarray, r_desired: np.ndarray) -> np.ndarray:
-    """½ Σ r_i × r_d,i (columns): the usual small-angle orientation error, base frame."""
-    return 0.5 * sum(np.cross(r_actual[:, k], r_desired[:, k]) for k in range(3))
+    """½ Σ r_i × r_d,i over the columns (the usual small-angle orientation error, base frame),
+    computed as ½ vee(R_d Rᵀ − R R_dᵀ)."""
+    s = r_desired @ r_actual.T
+    return 0.5 * np.array([s[2, 1] - s[1, 2], s[0, 2] - s[2, 0], s[1, 0] - s[0, 1]])
 
 
 class CartesianPlanner:
