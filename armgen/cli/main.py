@@ -117,6 +117,27 @@ def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[
         click.echo(f"  {key}: {value}")
 
 
+@cli.command("verify")
+@click.argument("robot")
+@click.option("--plan", "plan_csv", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="a plan CSV (with its plan.json) to replay through the C backend")
+@click.option("--samples", type=click.IntRange(min=1), default=10_000, show_default=True,
+              help="seeded samples per function in the callbacks stage")
+@click.option("--precision", type=click.Choice(["double", "float"]), default=None, help="only this precision (default: both)")
+@click.option("--target", type=click.Choice(["cortex-m4"]), default=None, help="also run on an emulated target")
+@click.option("--report", type=click.Path(dir_okay=False), default=None, help="write the JSON report here")
+@_handle_errors
+def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | None, target: str | None,
+               report: str | None) -> None:
+    """Check that the generated C does what the symbolic reference does (spec 60)."""
+    from ..errors import VerificationError
+    from ..verify.pipeline import verify
+
+    if not verify(robot, plan_csv, samples, precision, target, report, click.echo):
+        raise VerificationError("verification failed: see the FAIL stages above")
+    click.echo("all stages passed")
+
+
 @cli.command("plot")
 @click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="PNG to write (default: beside the CSV)")
