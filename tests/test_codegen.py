@@ -130,3 +130,12 @@ def test_callback_is_a_casadi_function(tmp_path):
     qv = np.array([0.3, -0.2, 0.5])
     expected = np.array(functions["jacobian"](qv)) @ qv
     np.testing.assert_array_equal(np.array(graph(qv)).ravel(), expected.ravel())
+
+
+def test_checked_in_ptp_evaluator_is_fresh(tmp_path):
+    from armgen.codegen.ptp_c import generate_ptp_evaluator
+
+    for path in generate_ptp_evaluator(tmp_path):
+        checked_in = REPO_GENERATED_DIR / "ptp" / path.name
+        assert checked_in.is_file() and checked_in.read_bytes() == path.read_bytes(), \
+            f"{checked_in} is stale or missing: run `armgen gen-ptp`"

@@ -92,6 +92,21 @@ def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functi
     click.echo(f"generated {len(code.emitted)} functions in {code.generation_seconds:.2f} s; flops: {flops}")
 
 
+@cli.command("gen-ptp")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="output directory (default: generated/ptp/)")
+@click.option("--precision", type=click.Choice(["double", "float"]), default="double", show_default=True)
+@click.option("--prefix", default="armgen", show_default=True, help="C identifier prefix")
+@_handle_errors
+def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
+    """Write the C evaluator of PTP segment polynomials (the firmware's playback)."""
+    from ..codegen.generate import REPO_GENERATED_DIR
+    from ..codegen.ptp_c import generate_ptp_evaluator
+
+    for path in generate_ptp_evaluator(Path(out_dir) if out_dir else REPO_GENERATED_DIR / "ptp", prefix, precision):
+        click.echo(f"wrote {path}")
+
+
 @cli.command("plan")
 @click.argument("task_file", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,

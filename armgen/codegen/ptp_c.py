@@ -128,7 +128,8 @@ def render_ptp_evaluator(prefix: str = "armgen", precision: str = "double") -> d
     fmt = {"p": prefix, "P": prefix.upper(), "float_default": 1 if precision == "float" else 0}
     header, source = _HEADER.format(**fmt), _SOURCE.format(**fmt)
     digest = hashlib.sha256((header + source).encode()).hexdigest()
-    preamble = c_preamble(SOURCE_NAME, digest, "armgen PTP segment-polynomial evaluator (theta, omega, eps from coefficients)")
+    preamble = c_preamble(SOURCE_NAME, digest, "armgen PTP segment-polynomial evaluator (theta, omega, eps from coefficients)",
+                          regenerate="armgen gen-ptp")
     return {f"{prefix}_ptp.h": f"{preamble}\n{header}", f"{prefix}_ptp.c": f"{preamble}\n{source}"}
 
 
