@@ -172,6 +172,14 @@ def plot_cmd(plan_csv: str, output: str | None) -> None:
         from ..planning.plots import plot_resolved_rate
 
         plot_resolved_rate(result, out)
+    elif planner == "snake":
+        from ..planning.snake_plot import plot_snake
+
+        plot_snake(result, out)
+    elif planner in ("fault_tolerant", "wgpm"):
+        from ..planning.plots import plot_fault_tolerant, plot_wgpm
+
+        (plot_fault_tolerant if planner == "fault_tolerant" else plot_wgpm)(result, out)
     else:
         raise ArmgenError(f"{plan_csv}: no plot for planner {planner!r} (plan.json missing or unknown planner)")
     click.echo(f"wrote {out}")

@@ -18,7 +18,8 @@ import casadi as ca
 
 from ..errors import ArmgenError
 
-# op code -> (category for op counts, C template over operand names a, b and macro prefix P)
+# op code -> (category for op counts, C template over operand names a, b, the macro prefix P
+# and the type prefix p (the lower-case prefix of <p>_real))
 _BINARY = {
     ca.OP_ADD: ("add", "{a} + {b}"),
     ca.OP_SUB: ("add", "{a} - {b}"),
@@ -32,12 +33,12 @@ _BINARY = {
     ca.OP_FMAX: ("minmax", "{P}_FMAX({a}, {b})"),
     ca.OP_FMOD: ("div", "{P}_FMOD({a}, {b})"),
     ca.OP_COPYSIGN: ("minmax", "{P}_COPYSIGN({a}, {b})"),
-    ca.OP_LT: ("compare", "({P}_real)({a} < {b})"),
-    ca.OP_LE: ("compare", "({P}_real)({a} <= {b})"),
-    ca.OP_EQ: ("compare", "({P}_real)({a} == {b})"),
-    ca.OP_NE: ("compare", "({P}_real)({a} != {b})"),
-    ca.OP_AND: ("compare", "({P}_real)({a} != {P}_LIT(0.0) && {b} != {P}_LIT(0.0))"),
-    ca.OP_OR: ("compare", "({P}_real)({a} != {P}_LIT(0.0) || {b} != {P}_LIT(0.0))"),
+    ca.OP_LT: ("compare", "({p}_real)({a} < {b})"),
+    ca.OP_LE: ("compare", "({p}_real)({a} <= {b})"),
+    ca.OP_EQ: ("compare", "({p}_real)({a} == {b})"),
+    ca.OP_NE: ("compare", "({p}_real)({a} != {b})"),
+    ca.OP_AND: ("compare", "({p}_real)({a} != {P}_LIT(0.0) && {b} != {P}_LIT(0.0))"),
+    ca.OP_OR: ("compare", "({p}_real)({a} != {P}_LIT(0.0) || {b} != {P}_LIT(0.0))"),
     ca.OP_IF_ELSE_ZERO: ("select", "({a} != {P}_LIT(0.0) ? {b} : {P}_LIT(0.0))"),
 }
 _UNARY = {
@@ -59,7 +60,7 @@ _UNARY = {
     ca.OP_FLOOR: ("minmax", "{P}_FLOOR({a})"),
     ca.OP_CEIL: ("minmax", "{P}_CEIL({a})"),
     ca.OP_SIGN: ("compare", "({a} > {P}_LIT(0.0) ? {P}_LIT(1.0) : ({a} < {P}_LIT(0.0) ? {P}_LIT(-1.0) : {a}))"),
-    ca.OP_NOT: ("compare", "({P}_real)({a} == {P}_LIT(0.0))"),
+    ca.OP_NOT: ("compare", "({p}_real)({a} == {P}_LIT(0.0))"),
 }
 
 # The math macros every generated header defines, in both precisions.
@@ -128,13 +129,13 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
         elif op in _BINARY:
             category, template = _BINARY[op]
             counts[category] += 1
-            expr = template.format(a=f"w{ins[0]}", b=f"w{ins[1]}", P=macro_prefix)
+            expr = template.format(a=f"w{ins[0]}", b=f"w{ins[1]}", P=macro_prefix, p=macro_prefix.lower())
             lines.append(f"w{outs[0]} = {expr};")
             used.add(outs[0])
         elif op in _UNARY:
             category, template = _UNARY[op]
             counts[category] += 1
-            expr = template.format(a=f"w{ins[0]}", P=macro_prefix)
+            expr = template.format(a=f"w{ins[0]}", P=macro_prefix, p=macro_prefix.lower())
             lines.append(f"w{outs[0]} = {expr};")
             used.add(outs[0])
         else:

@@ -25,6 +25,9 @@ else:  # pragma: no cover
 PLANNERS = {
     "ptp": "armgen.planning.ptp",
     "cartesian": "armgen.planning.cartesian",
+    "fault_tolerant": "armgen.planning.fault_tolerant",
+    "wgpm": "armgen.planning.wgpm",
+    "snake": "armgen.planning.snake",
 }
 
 

@@ -99,3 +99,82 @@ def continuous_weights(q: ca.SX, qmin, qmax, band: ca.SX) -> ca.SX:
         # At most one of d_lo, d_hi is non-zero since the bands do not overlap (Ω < ½).
         out.append(smoothstep(d_lo) + smoothstep(d_hi))
     return ca.vertcat(*out)
+
+
+# -- spec 30/35 additions ------------------------------------------------------------------
+
+# Smallest δ of the smooth forms sqrt(det + δ²) used by the fault-tolerant and weighted-GPM
+# functions: their gradients divide by sqrt(det + δ²) ≥ δ, so δ = 0 (or below 1e-9, in the
+# unit of ω: m³ for a 6-row task) counts as 1e-9.
+MIN_SMOOTH_DELTA = 1e-9
+# Zghal's (q_max − q)(q − q_min) is floored at this fraction of the squared range, i.e. the
+# barrier saturates ~1e-6 of the range from a limit (and stays finite beyond it).
+ZGHAL_GAP_FLOOR = 1e-6
+# Floors of the normalisation span H_hi − H_lo and of the gain band λ (divisors).
+CRITERION_SPAN_FLOOR = 1e-12
+GAIN_BAND_FLOOR = 1e-6
+# Floors of ω_floor and of the smooth-WLN velocity band (divisors), rad/s or index units.
+OMEGA_FLOOR_MIN = 1e-12
+VELOCITY_BAND_FLOOR = 1e-9
+
+
+def smooth_delta(delta: ca.SX) -> ca.SX:
+    return ca.fmax(delta, MIN_SMOOTH_DELTA)
+
+
+def zghal_safe(q: ca.SX, qmin, qmax) -> ca.SX:
+    """Zghal H_L with each (q_max − q)(q − q_min) floored at ZGHAL_GAP_FLOOR · range²: the same
+    value inside the limits (away from the last 1e-6 of the range), finite everywhere."""
+    terms = []
+    for i, (lo, hi) in enumerate(zip(qmin, qmax)):
+        span2 = (hi - lo) ** 2
+        terms.append(span2 / ca.fmax((hi - q[i]) * (q[i] - lo), ZGHAL_GAP_FLOOR * span2))
+    return ca.sum1(ca.vertcat(*terms))
+
+
+def condition_index(j: ca.SX, det_jjt: ca.SX, delta: ca.SX) -> ca.SX:
+    """Smooth condition index κ_s = tr(J Jᵀ) / (m (det(J Jᵀ) + δ²)^{1/m}): the ratio of the
+    arithmetic to the geometric mean of the σ_i², 1 for an isotropic J, growing without bound
+    toward a singularity (κ_s ≤ κ² = (σ_max/σ_min)²), differentiable everywhere for δ > 0."""
+    m = j.shape[0]
+    trace = ca.sum1(ca.sum2(j * j))
+    return trace / (m * (det_jjt + delta * delta) ** (1.0 / m))
+
+
+def band_parts(q: ca.SX, qmin, qmax, band: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """(g(d_lo), g(d_hi)) per joint: the lower and upper damping-band parts of w_c (spec 35);
+    w_c = lower + upper and the repulsive field is t_rmax (lower − upper)."""
+    band = ca.fmax(band, MIN_BAND_FRACTION)
+    lower, upper = [], []
+    for i, (lo, hi) in enumerate(zip(qmin, qmax)):
+        t_lo = lo + band * (hi - lo)
+        t_hi = hi - band * (hi - lo)
+        width = band * (hi - lo)
+        lower.append(smoothstep(ca.fmin(ca.fmax((t_lo - q[i]) / width, 0), 1)))
+        upper.append(smoothstep(ca.fmin(ca.fmax((q[i] - t_hi) / width, 0), 1)))
+    return ca.vertcat(*lower), ca.vertcat(*upper)
+
+
+def online_gain(u: ca.SX, k_hi: ca.SX, k_lo: ca.SX, u_th: ca.SX, u_band: ca.SX) -> ca.SX:
+    """f_norm(u) = k_hi − (k_hi − k_lo) g((u − u_th)/λ) clipped: k_hi for u ≤ u_th, k_lo for
+    u ≥ u_th + λ, the zero-slope cubic between (λ floored at GAIN_BAND_FLOOR)."""
+    d = ca.fmin(ca.fmax((u - u_th) / ca.fmax(u_band, GAIN_BAND_FLOOR), 0), 1)
+    return k_hi - (k_hi - k_lo) * smoothstep(d)
+
+
+def wln_weights(grad: ca.SX, omega: ca.SX, qdot_prev: ca.SX, mask: ca.SX, b: ca.SX, omega_floor: ca.SX,
+                v_band: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """WLN weights of spec 30: W_i = 1 + b |∂H/∂q_i| / max(ω_i, ω_floor) · a_i (locked joints: 1).
+
+    Activation a_i: the plain rule (v_band ≤ 0) is 1 when (∂H/∂q_i) q̇_i,prev < 0 (the joint
+    moved so as to lower H), else 0. The smooth rule (v_band > 0) ramps a_i = g(v/v_band),
+    v = −sign(∂H/∂q_i) q̇_i,prev clipped to [0, v_band] (the joint's speed against the
+    gradient): a_i is continuous in q̇_prev, and W is continuous where ∂H/∂q_i changes sign
+    because the penalty is multiplied by |∂H/∂q_i|."""
+    plain = grad * qdot_prev < 0
+    v = -ca.sign(grad) * qdot_prev
+    smooth = smoothstep(ca.fmin(ca.fmax(v / ca.fmax(v_band, VELOCITY_BAND_FLOOR), 0), 1))
+    active = ca.if_else(v_band > 0, smooth, plain)
+    floor = ca.fmax(omega_floor, OMEGA_FLOOR_MIN)
+    weights = 1 + mask * b * ca.fabs(grad) / ca.fmax(omega, floor) * active
+    return weights, mask * active

@@ -17,8 +17,11 @@ from . import criteria, steps
 from .kinematics import chain, geometric_jacobian
 
 KINEMATIC_FUNCTIONS = ("fk", "jacobian", "fk_jacobian")
-CRITERION_FUNCTIONS = ("zghal", "repetitive", "joint_manipulability", "manipulability", "continuous_weights")
-STEP_FUNCTIONS = ("step_gpm", "step_wln")
+CRITERION_FUNCTIONS = ("zghal", "repetitive", "joint_manipulability", "manipulability", "continuous_weights",
+                       "ft_index", "wln_weights")
+STEP_FUNCTIONS = ("step_gpm", "step_wln", "step_fault", "step_wgpm")
+# Functions that need the Cauchy–Binet minors (not derived past MAX_MINOR_SUBSETS).
+MINOR_FUNCTIONS = ("joint_manipulability", "manipulability", "ft_index", "step_wgpm")
 ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + CRITERION_FUNCTIONS + STEP_FUNCTIONS
 
 # One-line descriptions, used in the generated header and by `armgen show`.
@@ -34,6 +37,14 @@ DESCRIPTIONS = {
     "continuous_weights": "continuous joint-limit weights w_c (spec 35), band = damping-band fraction",
     "step_gpm": "damped gradient projection qdot = J# xdot + (I - J# J) alpha",
     "step_wln": "damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot",
+    "ft_index": "joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): "
+                "omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients",
+    "wln_weights": "WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off "
+                   "rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30)",
+    "step_fault": "masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), "
+                  "S = mask/W, variable damping from sigma_min (Jacobi) (spec 30)",
+    "step_wgpm": "multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from "
+                 "sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains",
 }
 
 
@@ -77,7 +88,7 @@ class SymbolicModel:
     def available(self) -> tuple[str, ...]:
         names = list(ALL_FUNCTIONS)
         if not self.supports_minors:
-            names = [f for f in names if f not in ("joint_manipulability", "manipulability")]
+            names = [f for f in names if f not in MINOR_FUNCTIONS]
         return tuple(names)
 
     def selected(self) -> tuple[str, ...]:
@@ -145,4 +156,44 @@ class SymbolicModel:
             qdot = steps.step_wln(self.task_jac, xdot, weights, damping)
             return ca.Function("step_wln", [q, xdot, weights, damping], [dense(qdot)],
                                ["q", "xdot", "W", "damping"], ["qdot"])
+        if name == "ft_index":
+            mask, a, delta = ca.SX.sym("mask", self.n), ca.SX.sym("a", self.n), ca.SX.sym("delta")
+            d = criteria.smooth_delta(delta)
+            full, reduced = criteria.gram_determinants(self.task_jac @ ca.diag(mask))
+            omega = ca.vertcat(*[ca.sqrt(g + d * d) for g in reduced])
+            h = ca.dot(mask * a, omega)
+            w = ca.sqrt(full + d * d)
+            return ca.Function("ft_index", [q, mask, a, delta],
+                               [dense(omega), h, dense(ca.gradient(h, q)), w, dense(ca.gradient(w, q))],
+                               ["q", "mask", "a", "delta"], ["omega", "H_M", "grad_H_M", "w", "grad_w"])
+        if name == "wln_weights":
+            grad, omega = ca.SX.sym("grad_H", self.n), ca.SX.sym("omega", self.n)
+            qdot_prev, mask = ca.SX.sym("qdot_prev", self.n), ca.SX.sym("mask", self.n)
+            b, omega_floor, v_band = ca.SX.sym("b"), ca.SX.sym("omega_floor"), ca.SX.sym("v_band")
+            weights, active = criteria.wln_weights(grad, omega, qdot_prev, mask, b, omega_floor, v_band)
+            return ca.Function("wln_weights", [grad, omega, qdot_prev, mask, b, omega_floor, v_band],
+                               [dense(weights), dense(active)],
+                               ["grad_H", "omega", "qdot_prev", "mask", "b", "omega_floor", "v_band"],
+                               ["W", "active"])
+        if name == "step_fault":
+            xdot, mask = ca.SX.sym("xdot", self.m), ca.SX.sym("mask", self.n)
+            weights, alpha = ca.SX.sym("W", self.n), ca.SX.sym("alpha", self.n)
+            epsilon, lambda_max = ca.SX.sym("epsilon"), ca.SX.sym("lambda_max")
+            qdot, lam, sigma = steps.step_fault(self.task_jac, xdot, mask, weights, alpha, epsilon, lambda_max)
+            return ca.Function("step_fault", [q, xdot, mask, weights, alpha, epsilon, lambda_max],
+                               [dense(qdot), lam, sigma],
+                               ["q", "xdot", "mask", "W", "alpha", "epsilon", "lambda_max"],
+                               ["qdot", "damping", "sigma_min"])
+        if name == "step_wgpm":
+            nc = len(steps.WGPM_CRITERIA)
+            scalar_names = ("band", "t_rmax", "epsilon", "rho_max", "delta", "ramp")
+            vector_names = ("H_lo", "H_hi", "k_hi", "k_lo", "u_th", "u_band")
+            scalars = [ca.SX.sym(s) for s in scalar_names]
+            vectors = [ca.SX.sym(s, nc) for s in vector_names]
+            xdot = ca.SX.sym("xdot", self.m)
+            out = steps.step_wgpm(self.task_jac, q, qmin, qmax, xdot, *scalars, *vectors)
+            names_out = ["qdot", "w_c", "rho", "sigma_min", "gains", "H"]
+            inputs = [q, xdot, *scalars, *vectors]
+            return ca.Function("step_wgpm", inputs, [dense(out[k]) for k in names_out],
+                               ["q", "xdot", *scalar_names, *vector_names], names_out)
         raise KeyError(name)

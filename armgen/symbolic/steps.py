@@ -52,3 +52,134 @@ def step_wln(j: ca.SX, xdot: ca.SX, weights: ca.SX, damping: ca.SX) -> ca.SX:
     weights are 1 + a non-negative penalty, and the floor keeps W⁻¹ finite)."""
     w_inv = 1 / ca.fmax(weights, 1)
     return w_inv * ca.mtimes(j.T, spd_solve(damped_gram(j, damping, w_inv), xdot))
+
+
+# -- spec 30/35 additions: variable damping from σ_min, masked and weighted steps -----------
+
+# Cyclic Jacobi sweeps used to estimate λ_min(J S Jᵀ) (σ_min² of the weighted Jacobian).
+# Cyclic Jacobi converges quadratically; on the bundled robots (m ≤ 6) the off-diagonal
+# mass after 6 sweeps is at rounding level (see tests/test_wgpm.py for the measured error).
+JACOBI_SWEEPS = 6
+# Added to numerator and denominator of cos 2θ so that an already diagonal 2×2 block
+# (a_pq = 0, a_pp = a_qq) gives the identity rotation instead of 0/0; 1e-30 is
+# representable in float (min normal 1.2e-38) and far below any Jacobian entry squared.
+JACOBI_TINY = 1e-30
+# Smallest damping threshold ε the steps use (ε enters as 1/ε²): 1e-9 (m or rad).
+EPSILON_FLOOR = 1e-9
+
+
+def jacobi_min_eigenvalue(a: ca.SX, sweeps: int = JACOBI_SWEEPS) -> ca.SX:
+    """Smallest eigenvalue of the symmetric m×m matrix ``a`` after ``sweeps`` cyclic Jacobi
+    sweeps (rotations with |θ| ≤ π/4 from half-angle formulas, renormalised so they stay
+    orthogonal; no division by anything that can vanish). Returns the minimum diagonal entry."""
+    m = a.shape[0]
+    A = [[a[i, j] for j in range(m)] for i in range(m)]
+    for _ in range(sweeps):
+        for p in range(m - 1):
+            for q in range(p + 1, m):
+                apq, app, aqq = A[p][q], A[p][p], A[q][q]
+                d = aqq - app
+                r = ca.sqrt(d * d + 4 * apq * apq)
+                sgn = ca.if_else(d >= 0, 1, -1)
+                cos2 = (ca.fabs(d) + JACOBI_TINY) / (r + JACOBI_TINY)  # in [0, 1]
+                sin2 = sgn * 2 * apq / (r + JACOBI_TINY)
+                c = ca.sqrt((1 + cos2) / 2)  # ≥ 1/√2
+                s = sin2 / (2 * c)
+                norm = ca.sqrt(c * c + s * s)  # ≥ 1/√2: makes (c, s) exactly a rotation
+                c, s = c / norm, s / norm
+                # A ← Gᵀ A G with G = I except G_pp = G_qq = c, G_pq = s, G_qp = −s
+                for k in range(m):
+                    if k in (p, q):
+                        continue
+                    akp, akq = A[k][p], A[k][q]
+                    A[k][p] = A[p][k] = c * akp - s * akq
+                    A[k][q] = A[q][k] = s * akp + c * akq
+                cc, ss, cs = c * c, s * s, c * s
+                A[p][p] = cc * app - 2 * cs * apq + ss * aqq
+                A[q][q] = ss * app + 2 * cs * apq + cc * aqq
+                A[p][q] = A[q][p] = ca.SX(0)
+    out = A[0][0]
+    for i in range(1, m):
+        out = ca.fmin(out, A[i][i])
+    return out
+
+
+def variable_damping_sq(lam_min: ca.SX, epsilon: ca.SX, damping_max: ca.SX) -> ca.SX:
+    """ρ² = ρ_max² (1 − σ_min²/ε²) below ε, 0 above, with σ_min² = ``lam_min`` (so no sqrt);
+    ε is floored at EPSILON_FLOOR."""
+    eps = ca.fmax(epsilon, EPSILON_FLOOR)
+    return damping_max * damping_max * ca.fmax(0, 1 - lam_min / (eps * eps))
+
+
+def scaled_step(j: ca.SX, xdot: ca.SX, scale: ca.SX, z: ca.SX, damping_sq: ca.SX) -> ca.SX:
+    """q̇ = z + S Jᵀ (J S Jᵀ + ρ² I)⁻¹ (ẋ − J z), S = diag(scale ≥ 0).
+
+    With S = W_b² this is W_b J_wb^# ẋ + N_wb z (spec 35); with S = mask ⊙ W⁻¹ and z = 0 the
+    masked WLN; with S = mask and z = mask ⊙ α the masked GPM (spec 30)."""
+    m = j.shape[0]
+    gram = ca.mtimes(j @ ca.diag(scale), j.T) + damping_sq * ca.SX.eye(m)
+    return z + scale * ca.mtimes(j.T, spd_solve(gram, xdot - ca.mtimes(j, z)))
+
+
+def step_fault(j: ca.SX, xdot: ca.SX, mask: ca.SX, weights: ca.SX, alpha: ca.SX, epsilon: ca.SX,
+               damping_max: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """Masked weighted GPM with variable damping (spec 30). Locked joints have mask 0.
+
+    q̇ = μα + S Jᵀ (J S Jᵀ + λ² I)⁻¹ (ẋ − J μα), S = diag(μ / max(W, 1)), μ = mask;
+    λ² = λ_max² (1 − σ²/ε²)₊ with σ² = λ_min(J S Jᵀ) (Jacobi). Returns (q̇, λ, σ_min)."""
+    scale = mask / ca.fmax(weights, 1)
+    gram = ca.mtimes(j @ ca.diag(scale), j.T)
+    lam_min = jacobi_min_eigenvalue(gram)
+    damping_sq = variable_damping_sq(lam_min, epsilon, damping_max)
+    qdot = scaled_step(j, xdot, scale, mask * alpha, damping_sq)
+    return qdot, ca.sqrt(damping_sq), ca.sqrt(ca.fmax(lam_min, 0))
+
+
+# The criteria of step_wgpm, in the order of its H_lo/H_hi/k_hi/k_lo/u_th/u_band inputs and
+# its H/k outputs, and whether each is maximised (+1) or minimised (−1).
+WGPM_CRITERIA = ("manipulability", "joint_manipulability", "zghal", "condition")
+WGPM_SENSE = (1, 1, -1, -1)
+
+
+def step_wgpm(j: ca.SX, q: ca.SX, qmin, qmax, xdot: ca.SX, band: ca.SX, t_rmax: ca.SX, epsilon: ca.SX,
+              rho_max: ca.SX, delta: ca.SX, ramp: ca.SX, h_lo: ca.SX, h_hi: ca.SX, k_hi: ca.SX, k_lo: ca.SX,
+              u_th: ca.SX, u_band: ca.SX) -> dict[str, ca.SX]:
+    """The multi-constraint weighted GPM step of spec 35, in one expression:
+
+    w_c (continuous weights), W_b = I − W_c, J_wb = J W_b, σ_min² = λ_min(J_wb J_wbᵀ) (Jacobi),
+    ρ² = ρ_max² (1 − σ_min²/ε²)₊, t_r = t_rmax (w_lo − w_hi), H_j (WGPM_CRITERIA),
+    H_nj = clip((H_j − H_lo)/(H_hi − H_lo)), u_j = H_nj or 1 − H_nj, k_j = ± f_norm(u_j),
+    z = ramp (t_r + W_b Σ_j k_j ∇H_j/(H_hi − H_lo)),
+    q̇ = W_b J_wb^# ẋ + N_wb z = z + W_b² Jᵀ (J_wb J_wbᵀ + ρ² I)⁻¹ (ẋ − J z).
+    """
+    from . import criteria
+
+    lower, upper = criteria.band_parts(q, qmin, qmax, band)
+    w_c = lower + upper
+    w_b = 1 - w_c
+    t_r = t_rmax * (lower - upper)
+    d = criteria.smooth_delta(delta)
+    full, reduced = criteria.gram_determinants(j)
+    h = ca.vertcat(
+        ca.sqrt(full + d * d),
+        ca.sum1(ca.vertcat(*[ca.sqrt(g + d * d) for g in reduced])),
+        criteria.zghal_safe(q, qmin, qmax),
+        criteria.condition_index(j, full, d),
+    )
+    sense = ca.DM(WGPM_SENSE)
+    span = ca.fmax(h_hi - h_lo, criteria.CRITERION_SPAN_FLOOR)
+    h_n = ca.fmin(ca.fmax((h - h_lo) / span, 0), 1)
+    u = ca.if_else(sense > 0, h_n, 1 - h_n)
+    gains = sense * criteria.online_gain(u, k_hi, k_lo, u_th, u_band)
+    # Σ_j k_j ∇H_j / span_j by one reverse sweep: gradient of c·H with c held constant,
+    # then c substituted (the gains are not differentiated, as the spec's formula says).
+    c = ca.SX.sym("c", h.shape[0])
+    combined = ca.substitute(ca.gradient(ca.dot(c, h), q), c, gains / span)
+    z = ramp * (t_r + w_b * combined)
+    scale = w_b * w_b
+    gram = ca.mtimes(j @ ca.diag(scale), j.T)
+    lam_min = jacobi_min_eigenvalue(gram)
+    rho_sq = variable_damping_sq(lam_min, epsilon, rho_max)
+    qdot = scaled_step(j, xdot, scale, z, rho_sq)
+    return {"qdot": qdot, "w_c": w_c, "rho": ca.sqrt(rho_sq), "sigma_min": ca.sqrt(ca.fmax(lam_min, 0)),
+            "gains": gains, "H": h}

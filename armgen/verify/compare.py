@@ -38,6 +38,14 @@ FLOAT_BOUNDS = {
     "continuous_weights": 1e-4,  # [band edges from float-rounded limits]
     "step_gpm": 2e-2,  # [condition number (σ_max/λ)² ≤ 1e4 with λ ≥ 1e-2, times float eps]
     "step_wln": 2e-2,
+    "ft_index": 1e-3,  # [as joint_manipulability: the same minors, masked columns; seen 4.5e-5]
+    "wln_weights": 2e-6,  # [a few arithmetic ops per joint; seen 2.3e-7]
+    # [σ_min² by Jacobi carries ~1e-7 ‖JJᵀ‖ absolute error, amplified by (λ_max/ε)² ≤ 2.8 into
+    # ρ² and by the conditioning (σ_max/ε)² of the damped solve; seen 9e-4]
+    "step_fault": 1e-2,
+    # [step_fault's error plus the criteria gradients (condition index ~δ^{-2(m+1)/m} at a
+    # singularity, float draws δ ≥ 1e-2) and the clipped gains; seen 5.7e-3 on planar3]
+    "step_wgpm": 5e-2,
 }
 
 

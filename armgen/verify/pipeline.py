@@ -6,8 +6,13 @@ Stages (each a function returning a :class:`Stage` with a table of rows):
 3. callbacks — each compiled function as a ``casadi.Callback`` against the interpreter at N
    seeded samples (near-singular and near-limit included), per-precision bounds;
 4. replay   — rerun the plan's task with the C backend (the same planner code) and compare
-   with the plan CSV sample by sample; the firmware stub's host run when it is built;
-5. target   — (``--target cortex-m4``) the firmware on an emulated Cortex-M4F, if available.
+   with the plan CSV sample by sample; then run the firmware stub (``firmware_stub/``) on the
+   same task on the host — double with ASan/UBSan, and float — and compare it the same way;
+5. target   — (``--target cortex-m4``) the firmware cross-compiled for the Cortex-M4F (float),
+   run under ``qemu-system-arm -M mps2-an386``, compared with the plan (and with the host
+   float run); fails naming the apt packages when the toolchain or QEMU is missing.
+
+Bounds of the firmware comparisons and why: :mod:`armgen.verify.firmware`.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from ..planning.tasks import run_task
 from ..robot import Robot, load_robot
 from ..symbolic.model import SymbolicModel
 from .compare import compare_model
+from . import firmware as fw
 from .compiled import CompiledModel, build_library
 from .harness import run_sanitized
 
@@ -118,19 +124,74 @@ def stage_callbacks(config: VerifyConfig, libraries: dict[str, Path], functions)
     return Stage("callbacks", passed, ["function", "precision", "samples", "max error", "bound", "ok"], rows)
 
 
-def stage_replay(config: VerifyConfig) -> Stage:
+def _angle_columns(plan) -> list[str]:
+    """Joint-angle columns: q<i>_rad (resolved rate) or theta_<joint>_rad (ptp)."""
+    return [c for c in plan.columns if (c.startswith("q") or c.startswith("theta_")) and c.endswith("_rad")]
+
+
+def _firmware_builder(config: VerifyConfig, work: Path | None,
+                      builder: fw.FirmwareBuilder | None) -> fw.FirmwareBuilder:
+    if builder is not None:
+        return builder
+    base = work if work is not None else Path(tempfile.mkdtemp(prefix="armgen-firmware-"))
+    return fw.FirmwareBuilder(config.robot, base / "firmware")
+
+
+def _firmware_task(config: VerifyConfig, plan, label: str) -> tuple[fw.FirmwareTask | None, list[Any]]:
+    """The plan as a controller task, or the failing row that says why it cannot be one."""
+    reason = fw.refusal(plan)
+    if reason is None:
+        try:
+            task = fw.task_from_plan(plan, str(config.plan), config.robot)
+        except ArmgenError as exc:
+            reason = str(exc).splitlines()[0]
+        else:
+            if task.robot.sha256 != config.robot.sha256:
+                reason = f"the plan is for robot '{task.robot.name}', not '{config.robot.name}'"
+            else:
+                return task, []
+    return None, [label, "plan accepted", reason, "a plan the controller can run", False]
+
+
+def firmware_replay_rows(config: VerifyConfig, plan, work: Path | None = None,
+                         builder: fw.FirmwareBuilder | None = None) -> tuple[list[list[Any]], bool]:
+    """Host firmware runs of the plan's task (double with ASan/UBSan, float), compared with the plan."""
+    task, refused = _firmware_task(config, plan, "host firmware")
+    if task is None:
+        return [refused], False
+    builder = _firmware_builder(config, work, builder)
+    rows, passed = [], True
+    for precision in config.precisions:
+        sanitize = precision == "double"
+        label = f"host firmware, {precision}" + (", ASan/UBSan" if sanitize else "")
+        variant = fw.Variant("host", precision, sanitize=sanitize, opt="-O1" if sanitize else "-O2")
+        try:
+            run = fw.run_host(builder.executable(variant, task, f"replay_{precision}"))
+        except ArmgenError as exc:
+            rows.append([label, "build and run", str(exc).splitlines()[0], "exit 0, clean", False])
+            passed = False
+            continue
+        cmp = fw.compare_with_plan(plan, run, task, precision, label)
+        rows += cmp.rows
+        passed &= cmp.passed
+    return rows, passed
+
+
+def stage_replay(config: VerifyConfig, work: Path | None = None,
+                 builder: fw.FirmwareBuilder | None = None) -> Stage:
     if config.plan is None:
         return Stage("replay", True, ["source"], [], "skipped: no --plan given")
     plan = read_plan(config.plan)
     task = plan.metadata.get("task")
     if not task:
         raise ArmgenError(f"{config.plan}: no task in its plan.json; replay needs the JSON sidecar written by `armgen plan`")
+    columns = ["run", "quantity", "value", "bound", "ok"]
     replay = run_task(json.loads(json.dumps(task)), str(config.plan), plan.metadata.get("task_sha256", ""), "c")
-    q_cols = [c for c in plan.columns if c.startswith("q") and c.endswith("_rad")]
+    q_cols = _angle_columns(plan)
     rows, passed = [], True
     if replay.data.shape != plan.data.shape:
         return Stage("replay", False, ["source"], [], f"sample count differs: plan {plan.data.shape}, replay {replay.data.shape}")
-    dq = max(float(np.max(np.abs(replay.column(c) - plan.column(c)))) for c in q_cols)
+    dq = max((float(np.max(np.abs(replay.column(c) - plan.column(c)))) for c in q_cols), default=0.0)
     ok = dq <= REPLAY_DOUBLE_BOUND_RAD
     rows.append(["planner, C backend via casadi.Callback", "max |Δq| [rad]", dq, REPLAY_DOUBLE_BOUND_RAD, ok])
     passed &= ok
@@ -139,7 +200,88 @@ def stage_replay(config: VerifyConfig) -> Stage:
         ok = de <= REPLAY_TASK_ERROR_BOUND_M
         rows.append(["planner, C backend via casadi.Callback", "max |Δ task error| [m]", de, REPLAY_TASK_ERROR_BOUND_M, ok])
         passed &= ok
-    return Stage("replay", passed, ["run", "quantity", "value", "bound", "ok"], rows)
+    fw_rows, fw_passed = firmware_replay_rows(config, plan, work, builder)
+    rows += fw_rows
+    passed &= fw_passed
+    failed = sorted({r[0] for r in rows if r[-1] is False})
+    message = "" if passed else "differs from the plan: " + "; ".join(failed)
+    return Stage("replay", passed, columns, rows, message)
+
+
+def _default_target_plan(config: VerifyConfig, work: Path) -> Path:
+    """Without --plan: a short line (5 cm along x in 1 s, minimum norm) from the robot's
+    first named configuration (q0 when it has one), planned with the symbolic backend."""
+    from ..planning.result import write_plan
+
+    robot = config.robot
+    names = sorted(robot.configurations)
+    start = "q0" if "q0" in robot.configurations else (names[0] if names else None)
+    q = robot.configuration(start) if start else 0.5 * (robot.qmin + robot.qmax)
+    pose = SymbolicModel(robot).function("fk")(q)
+    p = np.array(pose)[:3, 3] + np.array([0.05, 0.0, 0.0])
+    try:  # a bundled robot by name, else its file
+        ref = robot.name if load_robot(robot.name).sha256 == robot.sha256 else robot.source
+    except ArmgenError:
+        ref = robot.source
+    task = {"planner": "cartesian", "robot": ref, "start": start if start else q.tolist(),
+            "path": {"type": "line", "end": p.tolist()}, "timing": {"duration": 1.0},
+            "integrator": {"method": "euler", "step": 0.005}, "method": {"name": "pinv"}}
+    result = run_task(task, "target smoke task")
+    path = work / "target_plan.csv"
+    write_plan(result, path)
+    return path
+
+
+def stage_target(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder | None = None) -> Stage:
+    """The firmware on an emulated Cortex-M4F (float): build, run under QEMU, compare."""
+    columns = ["run", "quantity", "value", "bound", "ok"]
+    label = f"{config.target} (QEMU mps2-an386), float"
+    if config.target != "cortex-m4":
+        return Stage("target", False, columns, [[config.target, "target", "unknown", "cortex-m4", False]],
+                     f"unknown target {config.target!r}")
+    try:
+        fw.arm_tools()
+    except ArmgenError as exc:
+        return Stage("target", False, columns, [[label, "toolchain", str(exc), "installed", False]],
+                     f"the Cortex-M4F toolchain or QEMU is missing; apt-get install -y {fw.APT_PACKAGES}")
+    try:
+        plan_path = config.plan if config.plan is not None else _default_target_plan(config, work)
+    except ArmgenError as exc:
+        return Stage("target", False, columns, [[label, "smoke-test plan", str(exc).splitlines()[0], "planned", False]],
+                     "no --plan given and the default smoke-test line could not be planned; pass --plan")
+    plan = read_plan(plan_path)
+    target_config = VerifyConfig(config.robot, Path(plan_path), config.samples, config.precisions, config.target)
+    task, refused = _firmware_task(target_config, plan, label)
+    if task is None:
+        return Stage("target", False, columns, [refused], "the controller cannot run this plan")
+    builder = _firmware_builder(config, work, builder)
+    rows, passed = [], True
+    try:
+        run = fw.run_qemu(builder.executable(fw.ARM_VARIANT, task, "target"))
+    except ArmgenError as exc:
+        return Stage("target", False, columns, [[label, "build and run", str(exc).splitlines()[0], "exit 0", False]],
+                     "the Cortex-M4F build or the QEMU run failed")
+    cmp = fw.compare_with_plan(plan, run, task, "float", label)
+    rows += cmp.rows
+    passed &= cmp.passed
+    try:  # the same task on the host in float: how much of the difference is the target's
+        host = fw.run_host(builder.executable(fw.Variant("host", "float"), task, "target_host_float"))
+        n = task.robot.n
+        ticks = sorted(set(run.by_tick()) & set(host.by_tick()))
+        a, b = run.by_tick(), host.by_tick()
+        d = max((float(np.max(np.abs(a[k][2:2 + n] - b[k][2:2 + n]))) for k in ticks), default=0.0)
+        bound = fw.bounds_for("float", task.mode)[0]
+        rows.append([f"{config.target} vs host firmware, float", "max |Δq| [rad]", d, bound, d <= bound])
+        passed &= d <= bound
+    except ArmgenError as exc:
+        rows.append(["host firmware, float", "build and run", str(exc).splitlines()[0], "exit 0", False])
+        passed = False
+    ipt = fw.instructions_per_tick(run)
+    rows.append([label, "instructions per tick, mean / max", f"{ipt['mean']:.0f} / {ipt['max']:.0f}",
+                 "(informative)", True])
+    rows.append([label, "peak stack [bytes]", run.summary.get("stack_peak_bytes", "?"), "(informative)", True])
+    message = "" if passed else "the Cortex-M4F run differs from the plan: see the rows marked FAIL"
+    return Stage("target", passed, columns, rows, message)
 
 
 def run_pipeline(config: VerifyConfig, report_path: Path | None = None,
@@ -155,11 +297,11 @@ def run_pipeline(config: VerifyConfig, report_path: Path | None = None,
         echo(compile_stage.render())
         stages.append(stage_callbacks(config, libraries, functions))
         echo(stages[-1].render())
-        stages.append(stage_replay(config))
+        builder = fw.FirmwareBuilder(config.robot, work / "firmware") if (config.plan or config.target) else None
+        stages.append(stage_replay(config, work, builder))
         echo(stages[-1].render())
         if config.target is not None:
-            stages.append(Stage("target", False, ["target"], [[config.target]],
-                                "the Cortex-M firmware run is not available in this version"))
+            stages.append(stage_target(config, work, builder))
             echo(stages[-1].render())
     if report_path is not None:
         report = {"robot": config.robot.name, "passed": all(s.passed for s in stages),

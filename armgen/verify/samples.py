@@ -5,7 +5,9 @@ joint at ``10^-k`` of its range from a bound, k in [2, 7]), where the Zghal term
 up; and near-singular (every joint at a multiple of 90° plus 1e-7 noise, which aligns
 axes of DH chains built from 0/±90° twists). The other inputs are drawn per function:
 task velocities and null-space vectors ~N(0, 1), damping in {0, 1e-4, 1e-2, 0.1},
-``δ`` and the band fraction in sensible ranges, WLN weights in [1, 11].
+``δ`` and the band fraction in sensible ranges, WLN weights in [1, 11]; lock masks with up to
+two zeros, variable-damping thresholds, criterion ranges and gains of the spec 30/35 functions
+in their documented ranges (see ``function_inputs``).
 """
 
 from __future__ import annotations
@@ -24,6 +26,18 @@ DAMPING_CHOICES = (0.0, 1e-4, 1e-2, 0.1)
 # Float precision cannot resolve a task velocity through a nearly singular Jacobian without
 # damping, so float comparisons draw damping from the damped choices only.
 FLOAT_DAMPING_CHOICES = (1e-2, 0.1)
+# Variable damping (step_fault, step_wgpm): threshold ε and maximum λ (ρ_max). Float draws ε ≥ 0.03
+# and λ_max ≤ 0.05, so that the slope ∂ρ²/∂σ² = (λ_max/ε)² ≤ 2.8 does not amplify the float error
+# of the Jacobi estimate of σ_min² (~1e-7 ‖J Jᵀ‖) into the step.
+EPSILON_RANGE = {"double": (0.005, 0.1), "float": (0.03, 0.1)}
+LAMBDA_MAX_RANGE = {"double": (0.01, 0.1), "float": (0.01, 0.05)}
+# step_wgpm's condition index tr(JJᵀ)/(m (det JJᵀ + δ²)^{1/m}) has a gradient that scales like
+# δ^{-2(m+1)/m} at an exact singularity, where ∂det/∂q is pure rounding: float needs δ ≥ 1e-2
+# (documented in docs/wgpm.md), so float draws log10 δ from [-2, -1] for that function.
+FLOAT_WGPM_MIN_LOG_DELTA = -2
+# Typical magnitudes of step_wgpm's criteria (w, H_M, H_L per joint, condition index): H_lo is
+# drawn in [0, 1]·scale and H_hi = H_lo + [0.5, 2]·scale.
+CRITERION_SCALES = (0.1, 0.5, 8.0, 20.0)
 
 
 def joint_samples(robot: Robot, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -62,13 +76,48 @@ def function_inputs(func: ca.Function, robot: Robot, q: np.ndarray, rng: np.rand
         elif name == "damping":
             args.append(float(rng.choice(damping)))
         elif name == "delta":
-            args.append(float(10 ** rng.uniform(-4, -1)))
+            lo = FLOAT_WGPM_MIN_LOG_DELTA if (precision == "float" and func.name() == "step_wgpm") else -4
+            args.append(float(10 ** rng.uniform(lo, -1)))
         elif name == "band":
             args.append(float(rng.uniform(0.02, 0.3)))
         elif name == "a":
             args.append(rng.uniform(0.5, 2.0, size=shape[0]))
         elif name == "W":
             args.append(1 + rng.uniform(0, 10, size=shape[0]))
+        elif name == "mask":  # 0 = locked; up to two locked joints, at least m healthy when possible
+            mask = np.ones(shape[0])
+            mask[rng.choice(shape[0], size=int(rng.integers(0, min(3, shape[0]))), replace=False)] = 0.0
+            args.append(mask)
+        elif name == "epsilon":
+            args.append(float(rng.uniform(*EPSILON_RANGE[precision])))
+        elif name in ("lambda_max", "rho_max"):
+            args.append(float(rng.uniform(*LAMBDA_MAX_RANGE[precision])))
+        elif name == "t_rmax":
+            args.append(float(rng.uniform(0, 0.5)))
+        elif name == "ramp":
+            args.append(float(rng.choice([0.0, 1.0, rng.uniform(0, 1)])))
+        elif name == "H_lo":
+            scales = np.array(CRITERION_SCALES) * np.where(np.arange(4) == 2, robot.n, 1)
+            args.append(rng.uniform(0, 1, size=shape[0]) * scales)
+        elif name == "H_hi":
+            scales = np.array(CRITERION_SCALES) * np.where(np.arange(4) == 2, robot.n, 1)
+            args.append(args[func.name_in().index("H_lo")] + rng.uniform(0.5, 2, size=shape[0]) * scales)
+        elif name == "k_hi":
+            args.append(rng.uniform(0, 1, size=shape[0]))
+        elif name == "k_lo":
+            args.append(args[func.name_in().index("k_hi")] * rng.uniform(0, 1, size=shape[0]))
+        elif name == "u_th":
+            args.append(rng.uniform(0, 0.6, size=shape[0]))
+        elif name == "u_band":
+            args.append(rng.uniform(0.1, 0.5, size=shape[0]))
+        elif name == "omega":
+            args.append(rng.uniform(0, 0.3, size=shape[0]))
+        elif name == "b":
+            args.append(float(rng.uniform(0, 5)))
+        elif name == "omega_floor":
+            args.append(float(10 ** rng.uniform(-4, -2)))
+        elif name == "v_band":  # 0 selects the plain on/off rule
+            args.append(float(rng.choice([0.0, rng.uniform(0.05, 0.5)])))
         else:
             args.append(rng.normal(size=shape[0]))
     return args

@@ -148,6 +148,38 @@ void iiwa14_manipulability(const iiwa14_real q[IIWA14_NDOF], iiwa14_real delta, 
 #define IIWA14_CONTINUOUS_WEIGHTS_W_C_COLS 1
 #define IIWA14_CONTINUOUS_WEIGHTS_WORK_REALS 14
 void iiwa14_continuous_weights(const iiwa14_real q[IIWA14_NDOF], iiwa14_real band, iiwa14_real w_c[IIWA14_NDOF]);
+/* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
+ * ops: 1857 add, 2466 mul, 14 div, 8 sqrt, 36 trig, 1 minmax; work: 356 reals. */
+#define IIWA14_FT_INDEX_Q_ROWS 7
+#define IIWA14_FT_INDEX_Q_COLS 1
+#define IIWA14_FT_INDEX_MASK_ROWS 7
+#define IIWA14_FT_INDEX_MASK_COLS 1
+#define IIWA14_FT_INDEX_A_ROWS 7
+#define IIWA14_FT_INDEX_A_COLS 1
+#define IIWA14_FT_INDEX_OMEGA_ROWS 7
+#define IIWA14_FT_INDEX_OMEGA_COLS 1
+#define IIWA14_FT_INDEX_GRAD_H_M_ROWS 7
+#define IIWA14_FT_INDEX_GRAD_H_M_COLS 1
+#define IIWA14_FT_INDEX_GRAD_W_ROWS 7
+#define IIWA14_FT_INDEX_GRAD_W_COLS 1
+#define IIWA14_FT_INDEX_WORK_REALS 356
+void iiwa14_ft_index(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF], iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
+/* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
+ * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 24 reals. */
+#define IIWA14_WLN_WEIGHTS_GRAD_H_ROWS 7
+#define IIWA14_WLN_WEIGHTS_GRAD_H_COLS 1
+#define IIWA14_WLN_WEIGHTS_OMEGA_ROWS 7
+#define IIWA14_WLN_WEIGHTS_OMEGA_COLS 1
+#define IIWA14_WLN_WEIGHTS_QDOT_PREV_ROWS 7
+#define IIWA14_WLN_WEIGHTS_QDOT_PREV_COLS 1
+#define IIWA14_WLN_WEIGHTS_MASK_ROWS 7
+#define IIWA14_WLN_WEIGHTS_MASK_COLS 1
+#define IIWA14_WLN_WEIGHTS_W_ROWS 7
+#define IIWA14_WLN_WEIGHTS_W_COLS 1
+#define IIWA14_WLN_WEIGHTS_ACTIVE_ROWS 7
+#define IIWA14_WLN_WEIGHTS_ACTIVE_COLS 1
+#define IIWA14_WLN_WEIGHTS_WORK_REALS 24
+void iiwa14_wln_weights(const iiwa14_real grad_H[IIWA14_NDOF], const iiwa14_real omega[IIWA14_NDOF], const iiwa14_real qdot_prev[IIWA14_NDOF], const iiwa14_real mask[IIWA14_NDOF], iiwa14_real b, iiwa14_real omega_floor, iiwa14_real v_band, iiwa14_real W[IIWA14_NDOF], iiwa14_real active[IIWA14_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
  * ops: 302 add, 385 mul, 21 div, 12 trig, 6 minmax; work: 78 reals. */
 #define IIWA14_STEP_GPM_Q_ROWS 7
@@ -172,6 +204,50 @@ iiwa14_status iiwa14_step_gpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_WLN_QDOT_COLS 1
 #define IIWA14_STEP_WLN_WORK_REALS 83
 iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real W[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
+/* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (Jacobi) (spec 30).
+ * ops: 2355 add, 3036 mul, 569 div, 272 sqrt, 12 trig, 111 minmax, 180 compare, 180 select; work: 138 reals. */
+#define IIWA14_STEP_FAULT_Q_ROWS 7
+#define IIWA14_STEP_FAULT_Q_COLS 1
+#define IIWA14_STEP_FAULT_XDOT_ROWS 6
+#define IIWA14_STEP_FAULT_XDOT_COLS 1
+#define IIWA14_STEP_FAULT_MASK_ROWS 7
+#define IIWA14_STEP_FAULT_MASK_COLS 1
+#define IIWA14_STEP_FAULT_W_ROWS 7
+#define IIWA14_STEP_FAULT_W_COLS 1
+#define IIWA14_STEP_FAULT_ALPHA_ROWS 7
+#define IIWA14_STEP_FAULT_ALPHA_COLS 1
+#define IIWA14_STEP_FAULT_QDOT_ROWS 7
+#define IIWA14_STEP_FAULT_QDOT_COLS 1
+#define IIWA14_STEP_FAULT_WORK_REALS 138
+iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
+/* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
+ * ops: 3682 add, 4548 mul, 620 div, 280 sqrt, 24 trig, 2 pow, 165 minmax, 194 compare, 180 select; work: 377 reals. */
+#define IIWA14_STEP_WGPM_Q_ROWS 7
+#define IIWA14_STEP_WGPM_Q_COLS 1
+#define IIWA14_STEP_WGPM_XDOT_ROWS 6
+#define IIWA14_STEP_WGPM_XDOT_COLS 1
+#define IIWA14_STEP_WGPM_H_LO_ROWS 4
+#define IIWA14_STEP_WGPM_H_LO_COLS 1
+#define IIWA14_STEP_WGPM_H_HI_ROWS 4
+#define IIWA14_STEP_WGPM_H_HI_COLS 1
+#define IIWA14_STEP_WGPM_K_HI_ROWS 4
+#define IIWA14_STEP_WGPM_K_HI_COLS 1
+#define IIWA14_STEP_WGPM_K_LO_ROWS 4
+#define IIWA14_STEP_WGPM_K_LO_COLS 1
+#define IIWA14_STEP_WGPM_U_TH_ROWS 4
+#define IIWA14_STEP_WGPM_U_TH_COLS 1
+#define IIWA14_STEP_WGPM_U_BAND_ROWS 4
+#define IIWA14_STEP_WGPM_U_BAND_COLS 1
+#define IIWA14_STEP_WGPM_QDOT_ROWS 7
+#define IIWA14_STEP_WGPM_QDOT_COLS 1
+#define IIWA14_STEP_WGPM_W_C_ROWS 7
+#define IIWA14_STEP_WGPM_W_C_COLS 1
+#define IIWA14_STEP_WGPM_GAINS_ROWS 4
+#define IIWA14_STEP_WGPM_GAINS_COLS 1
+#define IIWA14_STEP_WGPM_H_ROWS 4
+#define IIWA14_STEP_WGPM_H_COLS 1
+#define IIWA14_STEP_WGPM_WORK_REALS 377
+iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 
 #ifdef __cplusplus
 }

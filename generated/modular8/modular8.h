@@ -148,6 +148,38 @@ void modular8_manipulability(const modular8_real q[MODULAR8_NDOF], modular8_real
 #define MODULAR8_CONTINUOUS_WEIGHTS_W_C_COLS 1
 #define MODULAR8_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void modular8_continuous_weights(const modular8_real q[MODULAR8_NDOF], modular8_real band, modular8_real w_c[MODULAR8_NDOF]);
+/* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
+ * ops: 4046 add, 4918 mul, 36 div, 9 sqrt, 42 trig, 1 minmax; work: 640 reals. */
+#define MODULAR8_FT_INDEX_Q_ROWS 8
+#define MODULAR8_FT_INDEX_Q_COLS 1
+#define MODULAR8_FT_INDEX_MASK_ROWS 8
+#define MODULAR8_FT_INDEX_MASK_COLS 1
+#define MODULAR8_FT_INDEX_A_ROWS 8
+#define MODULAR8_FT_INDEX_A_COLS 1
+#define MODULAR8_FT_INDEX_OMEGA_ROWS 8
+#define MODULAR8_FT_INDEX_OMEGA_COLS 1
+#define MODULAR8_FT_INDEX_GRAD_H_M_ROWS 8
+#define MODULAR8_FT_INDEX_GRAD_H_M_COLS 1
+#define MODULAR8_FT_INDEX_GRAD_W_ROWS 8
+#define MODULAR8_FT_INDEX_GRAD_W_COLS 1
+#define MODULAR8_FT_INDEX_WORK_REALS 640
+void modular8_ft_index(const modular8_real q[MODULAR8_NDOF], const modular8_real mask[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF], modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
+/* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
+ * ops: 40 add, 64 mul, 16 div, 34 minmax, 18 compare, 16 select; work: 26 reals. */
+#define MODULAR8_WLN_WEIGHTS_GRAD_H_ROWS 8
+#define MODULAR8_WLN_WEIGHTS_GRAD_H_COLS 1
+#define MODULAR8_WLN_WEIGHTS_OMEGA_ROWS 8
+#define MODULAR8_WLN_WEIGHTS_OMEGA_COLS 1
+#define MODULAR8_WLN_WEIGHTS_QDOT_PREV_ROWS 8
+#define MODULAR8_WLN_WEIGHTS_QDOT_PREV_COLS 1
+#define MODULAR8_WLN_WEIGHTS_MASK_ROWS 8
+#define MODULAR8_WLN_WEIGHTS_MASK_COLS 1
+#define MODULAR8_WLN_WEIGHTS_W_ROWS 8
+#define MODULAR8_WLN_WEIGHTS_W_COLS 1
+#define MODULAR8_WLN_WEIGHTS_ACTIVE_ROWS 8
+#define MODULAR8_WLN_WEIGHTS_ACTIVE_COLS 1
+#define MODULAR8_WLN_WEIGHTS_WORK_REALS 26
+void modular8_wln_weights(const modular8_real grad_H[MODULAR8_NDOF], const modular8_real omega[MODULAR8_NDOF], const modular8_real qdot_prev[MODULAR8_NDOF], const modular8_real mask[MODULAR8_NDOF], modular8_real b, modular8_real omega_floor, modular8_real v_band, modular8_real W[MODULAR8_NDOF], modular8_real active[MODULAR8_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
  * ops: 358 add, 441 mul, 21 div, 14 trig, 6 minmax; work: 82 reals. */
 #define MODULAR8_STEP_GPM_Q_ROWS 8
@@ -172,6 +204,50 @@ modular8_status modular8_step_gpm(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_WLN_QDOT_COLS 1
 #define MODULAR8_STEP_WLN_WORK_REALS 88
 modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real W[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
+/* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (Jacobi) (spec 30).
+ * ops: 2432 add, 3127 mul, 570 div, 272 sqrt, 14 trig, 112 minmax, 180 compare, 180 select; work: 144 reals. */
+#define MODULAR8_STEP_FAULT_Q_ROWS 8
+#define MODULAR8_STEP_FAULT_Q_COLS 1
+#define MODULAR8_STEP_FAULT_XDOT_ROWS 6
+#define MODULAR8_STEP_FAULT_XDOT_COLS 1
+#define MODULAR8_STEP_FAULT_MASK_ROWS 8
+#define MODULAR8_STEP_FAULT_MASK_COLS 1
+#define MODULAR8_STEP_FAULT_W_ROWS 8
+#define MODULAR8_STEP_FAULT_W_COLS 1
+#define MODULAR8_STEP_FAULT_ALPHA_ROWS 8
+#define MODULAR8_STEP_FAULT_ALPHA_COLS 1
+#define MODULAR8_STEP_FAULT_QDOT_ROWS 8
+#define MODULAR8_STEP_FAULT_QDOT_COLS 1
+#define MODULAR8_STEP_FAULT_WORK_REALS 144
+modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
+/* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
+ * ops: 5131 add, 6093 mul, 626 div, 281 sqrt, 28 trig, 2 pow, 170 minmax, 196 compare, 180 select; work: 600 reals. */
+#define MODULAR8_STEP_WGPM_Q_ROWS 8
+#define MODULAR8_STEP_WGPM_Q_COLS 1
+#define MODULAR8_STEP_WGPM_XDOT_ROWS 6
+#define MODULAR8_STEP_WGPM_XDOT_COLS 1
+#define MODULAR8_STEP_WGPM_H_LO_ROWS 4
+#define MODULAR8_STEP_WGPM_H_LO_COLS 1
+#define MODULAR8_STEP_WGPM_H_HI_ROWS 4
+#define MODULAR8_STEP_WGPM_H_HI_COLS 1
+#define MODULAR8_STEP_WGPM_K_HI_ROWS 4
+#define MODULAR8_STEP_WGPM_K_HI_COLS 1
+#define MODULAR8_STEP_WGPM_K_LO_ROWS 4
+#define MODULAR8_STEP_WGPM_K_LO_COLS 1
+#define MODULAR8_STEP_WGPM_U_TH_ROWS 4
+#define MODULAR8_STEP_WGPM_U_TH_COLS 1
+#define MODULAR8_STEP_WGPM_U_BAND_ROWS 4
+#define MODULAR8_STEP_WGPM_U_BAND_COLS 1
+#define MODULAR8_STEP_WGPM_QDOT_ROWS 8
+#define MODULAR8_STEP_WGPM_QDOT_COLS 1
+#define MODULAR8_STEP_WGPM_W_C_ROWS 8
+#define MODULAR8_STEP_WGPM_W_C_COLS 1
+#define MODULAR8_STEP_WGPM_GAINS_ROWS 4
+#define MODULAR8_STEP_WGPM_GAINS_COLS 1
+#define MODULAR8_STEP_WGPM_H_ROWS 4
+#define MODULAR8_STEP_WGPM_H_COLS 1
+#define MODULAR8_STEP_WGPM_WORK_REALS 600
+modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 
 #ifdef __cplusplus
 }

@@ -148,6 +148,38 @@ void panda_manipulability(const panda_real q[PANDA_NDOF], panda_real delta, pand
 #define PANDA_CONTINUOUS_WEIGHTS_W_C_COLS 1
 #define PANDA_CONTINUOUS_WEIGHTS_WORK_REALS 12
 void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, panda_real w_c[PANDA_NDOF]);
+/* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
+ * ops: 1923 add, 2523 mul, 14 div, 8 sqrt, 36 trig, 1 minmax; work: 360 reals. */
+#define PANDA_FT_INDEX_Q_ROWS 7
+#define PANDA_FT_INDEX_Q_COLS 1
+#define PANDA_FT_INDEX_MASK_ROWS 7
+#define PANDA_FT_INDEX_MASK_COLS 1
+#define PANDA_FT_INDEX_A_ROWS 7
+#define PANDA_FT_INDEX_A_COLS 1
+#define PANDA_FT_INDEX_OMEGA_ROWS 7
+#define PANDA_FT_INDEX_OMEGA_COLS 1
+#define PANDA_FT_INDEX_GRAD_H_M_ROWS 7
+#define PANDA_FT_INDEX_GRAD_H_M_COLS 1
+#define PANDA_FT_INDEX_GRAD_W_ROWS 7
+#define PANDA_FT_INDEX_GRAD_W_COLS 1
+#define PANDA_FT_INDEX_WORK_REALS 360
+void panda_ft_index(const panda_real q[PANDA_NDOF], const panda_real mask[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF], panda_real *w, panda_real grad_w[PANDA_NDOF]);
+/* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
+ * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 24 reals. */
+#define PANDA_WLN_WEIGHTS_GRAD_H_ROWS 7
+#define PANDA_WLN_WEIGHTS_GRAD_H_COLS 1
+#define PANDA_WLN_WEIGHTS_OMEGA_ROWS 7
+#define PANDA_WLN_WEIGHTS_OMEGA_COLS 1
+#define PANDA_WLN_WEIGHTS_QDOT_PREV_ROWS 7
+#define PANDA_WLN_WEIGHTS_QDOT_PREV_COLS 1
+#define PANDA_WLN_WEIGHTS_MASK_ROWS 7
+#define PANDA_WLN_WEIGHTS_MASK_COLS 1
+#define PANDA_WLN_WEIGHTS_W_ROWS 7
+#define PANDA_WLN_WEIGHTS_W_COLS 1
+#define PANDA_WLN_WEIGHTS_ACTIVE_ROWS 7
+#define PANDA_WLN_WEIGHTS_ACTIVE_COLS 1
+#define PANDA_WLN_WEIGHTS_WORK_REALS 24
+void panda_wln_weights(const panda_real grad_H[PANDA_NDOF], const panda_real omega[PANDA_NDOF], const panda_real qdot_prev[PANDA_NDOF], const panda_real mask[PANDA_NDOF], panda_real b, panda_real omega_floor, panda_real v_band, panda_real W[PANDA_NDOF], panda_real active[PANDA_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
  * ops: 320 add, 400 mul, 21 div, 12 trig, 6 minmax; work: 78 reals. */
 #define PANDA_STEP_GPM_Q_ROWS 7
@@ -172,6 +204,50 @@ panda_status panda_step_gpm(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_WLN_QDOT_COLS 1
 #define PANDA_STEP_WLN_WORK_REALS 83
 panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real W[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
+/* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (Jacobi) (spec 30).
+ * ops: 2373 add, 3051 mul, 569 div, 272 sqrt, 12 trig, 111 minmax, 180 compare, 180 select; work: 138 reals. */
+#define PANDA_STEP_FAULT_Q_ROWS 7
+#define PANDA_STEP_FAULT_Q_COLS 1
+#define PANDA_STEP_FAULT_XDOT_ROWS 6
+#define PANDA_STEP_FAULT_XDOT_COLS 1
+#define PANDA_STEP_FAULT_MASK_ROWS 7
+#define PANDA_STEP_FAULT_MASK_COLS 1
+#define PANDA_STEP_FAULT_W_ROWS 7
+#define PANDA_STEP_FAULT_W_COLS 1
+#define PANDA_STEP_FAULT_ALPHA_ROWS 7
+#define PANDA_STEP_FAULT_ALPHA_COLS 1
+#define PANDA_STEP_FAULT_QDOT_ROWS 7
+#define PANDA_STEP_FAULT_QDOT_COLS 1
+#define PANDA_STEP_FAULT_WORK_REALS 138
+panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
+/* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
+ * ops: 3724 add, 4584 mul, 620 div, 280 sqrt, 24 trig, 2 pow, 165 minmax, 194 compare, 180 select; work: 380 reals. */
+#define PANDA_STEP_WGPM_Q_ROWS 7
+#define PANDA_STEP_WGPM_Q_COLS 1
+#define PANDA_STEP_WGPM_XDOT_ROWS 6
+#define PANDA_STEP_WGPM_XDOT_COLS 1
+#define PANDA_STEP_WGPM_H_LO_ROWS 4
+#define PANDA_STEP_WGPM_H_LO_COLS 1
+#define PANDA_STEP_WGPM_H_HI_ROWS 4
+#define PANDA_STEP_WGPM_H_HI_COLS 1
+#define PANDA_STEP_WGPM_K_HI_ROWS 4
+#define PANDA_STEP_WGPM_K_HI_COLS 1
+#define PANDA_STEP_WGPM_K_LO_ROWS 4
+#define PANDA_STEP_WGPM_K_LO_COLS 1
+#define PANDA_STEP_WGPM_U_TH_ROWS 4
+#define PANDA_STEP_WGPM_U_TH_COLS 1
+#define PANDA_STEP_WGPM_U_BAND_ROWS 4
+#define PANDA_STEP_WGPM_U_BAND_COLS 1
+#define PANDA_STEP_WGPM_QDOT_ROWS 7
+#define PANDA_STEP_WGPM_QDOT_COLS 1
+#define PANDA_STEP_WGPM_W_C_ROWS 7
+#define PANDA_STEP_WGPM_W_C_COLS 1
+#define PANDA_STEP_WGPM_GAINS_ROWS 4
+#define PANDA_STEP_WGPM_GAINS_COLS 1
+#define PANDA_STEP_WGPM_H_ROWS 4
+#define PANDA_STEP_WGPM_H_COLS 1
+#define PANDA_STEP_WGPM_WORK_REALS 380
+panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 
 #ifdef __cplusplus
 }

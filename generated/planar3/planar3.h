@@ -148,6 +148,38 @@ void planar3_manipulability(const planar3_real q[PLANAR3_NDOF], planar3_real del
 #define PLANAR3_CONTINUOUS_WEIGHTS_W_C_COLS 1
 #define PLANAR3_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void planar3_continuous_weights(const planar3_real q[PLANAR3_NDOF], planar3_real band, planar3_real w_c[PLANAR3_NDOF]);
+/* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
+ * ops: 51 add, 98 mul, 1 div, 1 sqrt, 12 trig, 4 minmax; work: 32 reals. */
+#define PLANAR3_FT_INDEX_Q_ROWS 3
+#define PLANAR3_FT_INDEX_Q_COLS 1
+#define PLANAR3_FT_INDEX_MASK_ROWS 3
+#define PLANAR3_FT_INDEX_MASK_COLS 1
+#define PLANAR3_FT_INDEX_A_ROWS 3
+#define PLANAR3_FT_INDEX_A_COLS 1
+#define PLANAR3_FT_INDEX_OMEGA_ROWS 3
+#define PLANAR3_FT_INDEX_OMEGA_COLS 1
+#define PLANAR3_FT_INDEX_GRAD_H_M_ROWS 3
+#define PLANAR3_FT_INDEX_GRAD_H_M_COLS 1
+#define PLANAR3_FT_INDEX_GRAD_W_ROWS 3
+#define PLANAR3_FT_INDEX_GRAD_W_COLS 1
+#define PLANAR3_FT_INDEX_WORK_REALS 32
+void planar3_ft_index(const planar3_real q[PLANAR3_NDOF], const planar3_real mask[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF], planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
+/* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
+ * ops: 15 add, 24 mul, 6 div, 14 minmax, 8 compare, 6 select; work: 16 reals. */
+#define PLANAR3_WLN_WEIGHTS_GRAD_H_ROWS 3
+#define PLANAR3_WLN_WEIGHTS_GRAD_H_COLS 1
+#define PLANAR3_WLN_WEIGHTS_OMEGA_ROWS 3
+#define PLANAR3_WLN_WEIGHTS_OMEGA_COLS 1
+#define PLANAR3_WLN_WEIGHTS_QDOT_PREV_ROWS 3
+#define PLANAR3_WLN_WEIGHTS_QDOT_PREV_COLS 1
+#define PLANAR3_WLN_WEIGHTS_MASK_ROWS 3
+#define PLANAR3_WLN_WEIGHTS_MASK_COLS 1
+#define PLANAR3_WLN_WEIGHTS_W_ROWS 3
+#define PLANAR3_WLN_WEIGHTS_W_COLS 1
+#define PLANAR3_WLN_WEIGHTS_ACTIVE_ROWS 3
+#define PLANAR3_WLN_WEIGHTS_ACTIVE_COLS 1
+#define PLANAR3_WLN_WEIGHTS_WORK_REALS 16
+void planar3_wln_weights(const planar3_real grad_H[PLANAR3_NDOF], const planar3_real omega[PLANAR3_NDOF], const planar3_real qdot_prev[PLANAR3_NDOF], const planar3_real mask[PLANAR3_NDOF], planar3_real b, planar3_real omega_floor, planar3_real v_band, planar3_real W[PLANAR3_NDOF], planar3_real active[PLANAR3_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
  * ops: 53 add, 54 mul, 6 div, 6 trig, 3 minmax; work: 21 reals. */
 #define PLANAR3_STEP_GPM_Q_ROWS 3
@@ -172,6 +204,50 @@ planar3_status planar3_step_gpm(const planar3_real q[PLANAR3_NDOF], const planar
 #define PLANAR3_STEP_WLN_QDOT_COLS 1
 #define PLANAR3_STEP_WLN_WORK_REALS 21
 planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real W[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
+/* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (Jacobi) (spec 30).
+ * ops: 365 add, 382 mul, 118 div, 56 sqrt, 6 trig, 29 minmax, 36 compare, 36 select; work: 45 reals. */
+#define PLANAR3_STEP_FAULT_Q_ROWS 3
+#define PLANAR3_STEP_FAULT_Q_COLS 1
+#define PLANAR3_STEP_FAULT_XDOT_ROWS 3
+#define PLANAR3_STEP_FAULT_XDOT_COLS 1
+#define PLANAR3_STEP_FAULT_MASK_ROWS 3
+#define PLANAR3_STEP_FAULT_MASK_COLS 1
+#define PLANAR3_STEP_FAULT_W_ROWS 3
+#define PLANAR3_STEP_FAULT_W_COLS 1
+#define PLANAR3_STEP_FAULT_ALPHA_ROWS 3
+#define PLANAR3_STEP_FAULT_ALPHA_COLS 1
+#define PLANAR3_STEP_FAULT_QDOT_ROWS 3
+#define PLANAR3_STEP_FAULT_QDOT_COLS 1
+#define PLANAR3_STEP_FAULT_WORK_REALS 45
+planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min);
+/* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
+ * ops: 507 add, 517 mul, 145 div, 57 sqrt, 12 trig, 2 pow, 68 minmax, 42 compare, 36 select; work: 69 reals. */
+#define PLANAR3_STEP_WGPM_Q_ROWS 3
+#define PLANAR3_STEP_WGPM_Q_COLS 1
+#define PLANAR3_STEP_WGPM_XDOT_ROWS 3
+#define PLANAR3_STEP_WGPM_XDOT_COLS 1
+#define PLANAR3_STEP_WGPM_H_LO_ROWS 4
+#define PLANAR3_STEP_WGPM_H_LO_COLS 1
+#define PLANAR3_STEP_WGPM_H_HI_ROWS 4
+#define PLANAR3_STEP_WGPM_H_HI_COLS 1
+#define PLANAR3_STEP_WGPM_K_HI_ROWS 4
+#define PLANAR3_STEP_WGPM_K_HI_COLS 1
+#define PLANAR3_STEP_WGPM_K_LO_ROWS 4
+#define PLANAR3_STEP_WGPM_K_LO_COLS 1
+#define PLANAR3_STEP_WGPM_U_TH_ROWS 4
+#define PLANAR3_STEP_WGPM_U_TH_COLS 1
+#define PLANAR3_STEP_WGPM_U_BAND_ROWS 4
+#define PLANAR3_STEP_WGPM_U_BAND_COLS 1
+#define PLANAR3_STEP_WGPM_QDOT_ROWS 3
+#define PLANAR3_STEP_WGPM_QDOT_COLS 1
+#define PLANAR3_STEP_WGPM_W_C_ROWS 3
+#define PLANAR3_STEP_WGPM_W_C_COLS 1
+#define PLANAR3_STEP_WGPM_GAINS_ROWS 4
+#define PLANAR3_STEP_WGPM_GAINS_COLS 1
+#define PLANAR3_STEP_WGPM_H_ROWS 4
+#define PLANAR3_STEP_WGPM_H_COLS 1
+#define PLANAR3_STEP_WGPM_WORK_REALS 69
+planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 
 #ifdef __cplusplus
 }

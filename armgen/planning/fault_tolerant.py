@@ -1,0 +1,767 @@
+"""Fault-tolerant planning (spec 30): joint-manipulability index, GPM vs WLN, locked joints.
+
+``planner = "fault_tolerant"``. The tool follows a Cartesian path (the Cartesian planner's
+circle or line, optionally relative to the start pose and run for several turns); from
+``fault.time`` the joints in ``fault.joints`` are locked (``q̇_k = 0``): their Jacobian
+columns are removed and the index is recomputed on the healthy columns. Per step:
+
+- index ``H`` and ``∇H`` (``method.index``): ``omega`` — ``H_M = Σ a_i ω_i`` by the generated
+  ``ft_index`` (smooth ``ω_i = sqrt(det(J₋ᵢJ₋ᵢᵀ) + δ²)`` on the healthy columns, AD gradient);
+  ``relative`` — ``H_M / w`` (quotient rule on ``ft_index``'s outputs); ``sigma_min`` —
+  ``Σ a_i σ_min(J₋ᵢ)`` by NumPy SVD with a central-difference gradient (numeric only);
+- ``gpm``: ``q̇ = J⁺ẋ + K (I − J⁺J) ∇H`` (maximise); ``wln``: ``q̇ = W⁻¹Jᵀ(JW⁻¹Jᵀ)⁻¹ẋ``
+  with the weights of the generated ``wln_weights`` (plain on/off rule or the smooth ramp);
+  ``pinv``: minimum norm (baseline);
+- the solve is the generated ``step_fault`` (lock mask, weights, null-space vector, variable
+  damping from σ_min of the weighted healthy Jacobian, estimated in the C by Jacobi sweeps);
+- explicit Euler, closed loop ``ẋ + K_p e`` by default (recorded in the metadata).
+
+For a 7-DOF arm with a spherical shoulder and wrist (detected from the joint axes) the
+shoulder–wrist distance is fixed by the elbow alone, so the wrist-centre path — known
+without inverse kinematics because the path fixes the tool pose — shows before planning
+whether the path needs a longer (or shorter) arm than the elbow allows; that is reported
+as infeasible (``check.reach = "error"``, default) or recorded and planned anyway
+(``"report"``).
+
+``python -m armgen.planning.fault_tolerant --sweep TASK.toml …`` runs the sweep over K, b
+and the locked joint and prints the verdict table (see :func:`main`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..errors import ArmgenError, PlanningError, TaskFileError
+from ..progress import progress
+from ..robot import Robot
+from .backends import Backend, make_backend
+from .cartesian import _number, _table
+from .result import PlanResult
+from .taskpath import (PathTask, TaskPath, base_columns, base_row, limit_report, parse_path_task, path_metadata,
+                       smoothness, tracking)
+
+METHODS = ("gpm", "wln", "pinv")
+INDEX_VARIANTS = ("omega", "relative", "sigma_min")
+WEIGHT_RULES = ("plain", "smooth")
+CHECK_MODES = ("error", "report")
+TOP_FIELDS = {"planner", "robot", "start", "units", "path", "timing", "integrator", "damping", "method", "fault",
+              "completion", "sweep", "check", "description"}
+# Central-difference step of the σ_min variant's gradient (rad): truncation ~h² and rounding
+# ~eps/h balance near 1e-6 for O(1) singular values.
+SIGMA_FD_STEP = 1e-6
+# Sweep defaults (spec 30: "choose K and b by a sweep that the example can rerun").
+DEFAULT_SWEEP_K = (0.0, 0.5, 1.0, 2.0, 4.0)
+DEFAULT_SWEEP_B = (0.0, 0.5, 1.0, 2.0, 4.0)
+# A WLN weight "switch" must move the weight by more than this (W ≥ 1, so 1 %).
+SWITCH_MIN_DW = 0.01
+# Sweep choice (see choose()): manipulability left after the lock within 5 % of the best and
+# peak |q̈| within 10 % of the smoothest count as equal.
+SWEEP_W_TOLERANCE = 0.05
+SWEEP_DDQ_TOLERANCE = 0.10
+# Tolerance of the spherical-shoulder/wrist test: axes meet within 1e-9 m.
+SRS_AXIS_TOL = 1e-9
+
+
+@dataclass(frozen=True)
+class FaultSpec:
+    joints: tuple[int, ...] = ()  # 0-based
+    time: float = 0.0
+
+    def mask(self, n: int, locked: bool) -> np.ndarray:
+        mask = np.ones(n)
+        if locked:
+            mask[list(self.joints)] = 0.0
+        return mask
+
+
+@dataclass(frozen=True)
+class FaultMethod:
+    name: str = "gpm"
+    index: str = "omega"
+    K: float = 1.0
+    b: float = 1.0
+    weight_rule: str = "smooth"
+    v_band: float = 0.2  # rad/s: the smooth rule's activation band
+    omega_floor: float = 1e-3
+    delta: float = 1e-4
+    a: tuple[float, ...] = ()
+
+    @property
+    def label(self) -> str:
+        if self.name == "gpm":
+            return f"gpm K={self.K:g}"
+        if self.name == "wln":
+            return f"wln-{self.weight_rule} b={self.b:g}"
+        return "pinv"
+
+
+@dataclass(frozen=True)
+class Completion:
+    """A locked-joint run completes the task when, after the lock, the tool stays within these
+    errors, no joint is faster than ``max_joint_speed`` and no joint leaves its limits."""
+
+    pos_tol: float = 1e-3  # m
+    ori_tol: float = math.radians(1.0)  # rad
+    max_joint_speed: float = math.radians(120.0)  # rad/s (the iiwa 14's slowest axes: 85-135 deg/s)
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    K: tuple[float, ...] = DEFAULT_SWEEP_K
+    b: tuple[float, ...] = DEFAULT_SWEEP_B
+    rules: tuple[str, ...] = WEIGHT_RULES
+    joints: tuple[int, ...] = ()  # 0-based; empty = every joint
+    fine_step: float = 0.005
+
+
+@dataclass(frozen=True)
+class FaultTolerantTask:
+    path: PathTask
+    fault: FaultSpec
+    method: FaultMethod
+    completion: Completion = Completion()
+    sweep: SweepSpec = SweepSpec()
+    check_mode: str = "error"
+    raw: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def robot(self) -> Robot:
+        return self.path.robot
+
+
+# -- parsing -------------------------------------------------------------------------------
+
+def _choice(table: dict, key: str, where: str, source: str, choices: Sequence[str], default: str) -> str:
+    value = table.get(key, default)
+    if value not in choices:
+        raise TaskFileError(f"{source}: field '{where}.{key}' = {value!r} is not one of {', '.join(choices)}")
+    return value
+
+
+def _number_list(table: dict, key: str, where: str, source: str, default: Sequence[float], nonneg: bool = True,
+                 scale: float = 1.0) -> tuple[float, ...]:
+    value = table.get(key, list(default))
+    if not isinstance(value, list) or not value or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
+        raise TaskFileError(f"{source}: field '{where}.{key}' must be a non-empty list of finite numbers, got {value!r}")
+    if nonneg and any(v < 0 for v in value):
+        raise TaskFileError(f"{source}: field '{where}.{key}' = {value} has a negative entry; gains must be ≥ 0 "
+                            "(the index is maximised; a negative gain would minimise it)")
+    return tuple(float(v) * scale for v in value)
+
+
+def parse_joints(value: Any, robot: Robot, where: str, source: str) -> tuple[int, ...]:
+    """Joint numbers (1-based) or names → sorted 0-based indices; errors name the bad entry."""
+    if not isinstance(value, list):
+        raise TaskFileError(f"{source}: field '{where}' must be a list of joint numbers (1..{robot.n}) or names, "
+                            f"got {value!r}")
+    names = [j.name for j in robot.joints]
+    out: list[int] = []
+    for k, item in enumerate(value):
+        if isinstance(item, str) and item in names:
+            idx = names.index(item)
+        elif isinstance(item, int) and not isinstance(item, bool) and 1 <= item <= robot.n:
+            idx = item - 1
+        else:
+            raise TaskFileError(
+                f"{source}: field '{where}'[{k}] = {item!r} is not a joint of robot '{robot.name}': give a number "
+                f"1..{robot.n} or a name ({', '.join(names)})")
+        if idx in out:
+            raise TaskFileError(f"{source}: field '{where}' names joint {names[idx]} twice")
+        out.append(idx)
+    return tuple(sorted(out))
+
+
+def parse_fault_tolerant_task(task: dict, source: str) -> FaultTolerantTask:
+    path = parse_path_task(task, source, TOP_FIELDS)
+    robot, as_ = path.robot, path.angle_scale
+
+    f = _table(task, "fault", source)
+    unknown = set(f) - {"joints", "time"}
+    if unknown:
+        raise TaskFileError(f"{source}: unknown field(s) fault.{', fault.'.join(sorted(unknown))}; allowed: joints, time")
+    joints = parse_joints(f.get("joints", []), robot, "fault.joints", source)
+    if len(joints) == robot.n:
+        raise TaskFileError(f"{source}: fault.joints locks all {robot.n} joints of '{robot.name}': nothing could move; "
+                            f"lock at most {robot.n - 1} (a single joint reproduces spec 30)")
+    t_f = _number(f, "time", "fault", source, path.duration / 2)
+    if not 0.0 <= t_f <= path.duration:
+        raise TaskFileError(f"{source}: fault.time = {t_f} s is outside the plan [0, {path.duration:g}] s; "
+                            "choose a time within timing.duration")
+
+    m = _table(task, "method", source)
+    unknown = set(m) - {"name", "index", "K", "b", "weight_rule", "v_band", "omega_floor", "delta", "a"}
+    if unknown:
+        raise TaskFileError(f"{source}: unknown field(s) method.{', method.'.join(sorted(unknown))}")
+    name = _choice(m, "name", "method", source, METHODS, "gpm")
+    for key in ("K", "b"):
+        if key in m and isinstance(m[key], (int, float)) and not isinstance(m[key], bool) and m[key] < 0:
+            raise TaskFileError(f"{source}: field 'method.{key}' = {m[key]} must be ≥ 0 (a negative gain would "
+                                "drive the joint-manipulability index down instead of up)")
+    a = _number_list(m, "a", "method", source, [1.0] * robot.n) if "a" in m else (1.0,) * robot.n
+    if len(a) != robot.n:
+        raise TaskFileError(f"{source}: field 'method.a' needs {robot.n} entries (one per joint), got {len(a)}")
+    method = FaultMethod(
+        name=name,
+        index=_choice(m, "index", "method", source, INDEX_VARIANTS, "omega"),
+        K=_number(m, "K", "method", source, 1.0, nonneg=True),
+        b=_number(m, "b", "method", source, 1.0, nonneg=True),
+        weight_rule=_choice(m, "weight_rule", "method", source, WEIGHT_RULES, "smooth"),
+        v_band=_number(m, "v_band", "method", source, 0.2 / as_, positive=True) * as_,
+        omega_floor=_number(m, "omega_floor", "method", source, 1e-3, positive=True),
+        delta=_number(m, "delta", "method", source, 1e-4, positive=True),
+        a=a,
+    )
+
+    c = _table(task, "completion", source)
+    ls = path.length_scale
+    completion = Completion(
+        pos_tol=_number(c, "pos_tol", "completion", source, 1e-3 / ls, positive=True) * ls,
+        ori_tol=_number(c, "ori_tol", "completion", source, math.radians(1.0) / as_, positive=True) * as_,
+        max_joint_speed=_number(c, "max_joint_speed", "completion", source, math.radians(120.0) / as_,
+                                positive=True) * as_,
+    )
+
+    s = _table(task, "sweep", source)
+    rules = s.get("rules", list(WEIGHT_RULES))
+    if not isinstance(rules, list) or not rules or any(r not in WEIGHT_RULES for r in rules):
+        raise TaskFileError(f"{source}: field 'sweep.rules' = {rules!r} must list some of {', '.join(WEIGHT_RULES)}")
+    sweep_joints = s.get("joints", "all")
+    sweep = SweepSpec(
+        K=_number_list(s, "K", "sweep", source, DEFAULT_SWEEP_K),
+        b=_number_list(s, "b", "sweep", source, DEFAULT_SWEEP_B),
+        rules=tuple(rules),
+        joints=tuple(range(robot.n)) if sweep_joints == "all" else parse_joints(sweep_joints, robot, "sweep.joints",
+                                                                                 source),
+        fine_step=_number(s, "fine_step", "sweep", source, 0.005, positive=True),
+    )
+    check = _table(task, "check", source)
+    return FaultTolerantTask(path=path, fault=FaultSpec(joints, t_f), method=method, completion=completion,
+                             sweep=sweep, check_mode=_choice(check, "reach", "check", source, CHECK_MODES, "error"),
+                             raw=task)
+
+
+# -- the spherical-shoulder/wrist reach test -------------------------------------------------
+
+def _axes(jac: np.ndarray, pose: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(point, unit direction) of each revolute joint axis from the geometric Jacobian: with
+    v = z × (p − o), the point p + z × v lies on the axis."""
+    p = pose[:3, 3]
+    return [(p + np.cross(jac[3:, i], jac[:3, i]), jac[3:, i] / np.linalg.norm(jac[3:, i])) for i in range(jac.shape[1])]
+
+
+def _common_point(lines: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, float]:
+    """Least-squares meeting point of lines and the largest distance of it from a line."""
+    a = sum(np.eye(3) - np.outer(d, d) for _, d in lines)
+    b = sum((np.eye(3) - np.outer(d, d)) @ x for x, d in lines)
+    if np.linalg.cond(a) > 1e12:
+        return np.zeros(3), math.inf  # parallel axes: no single point
+    point = np.linalg.solve(a, b)
+    return point, max(float(np.linalg.norm((np.eye(3) - np.outer(d, d)) @ (point - x))) for x, d in lines)
+
+
+@dataclass
+class ReachCheck:
+    """Shoulder–wrist distance needed along the path vs the range the elbow allows."""
+
+    elbow: str
+    distance_range_m: tuple[float, float]
+    needed_range_m: tuple[float, float]
+    first_bad_t_s: float | None
+    needed_at_bad_m: float | None
+
+    @property
+    def feasible(self) -> bool:
+        return self.first_bad_t_s is None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "spherical shoulder and wrist", "elbow": self.elbow, "feasible": self.feasible,
+                "elbow_distance_range_mm": [v * 1e3 for v in self.distance_range_m],
+                "needed_distance_range_mm": [v * 1e3 for v in self.needed_range_m],
+                "first_infeasible_t_s": self.first_bad_t_s}
+
+
+def srs_reach_check(robot: Robot, backend: Backend, q_start: np.ndarray, path: TaskPath) -> ReachCheck | None:
+    """For a 7-DOF arm whose axes 1–3 meet at a shoulder point and 5–7 at a wrist centre,
+    compare the shoulder–wrist distance the path needs with the elbow's range; None otherwise."""
+    if robot.n != 7 or not all(j.revolute for j in robot.joints):
+        return None
+    pose, jac = backend.call("fk_jacobian", q_start)
+    axes = _axes(jac, pose)
+    shoulder, err_s = _common_point(axes[:3])
+    wrist, err_w = _common_point(axes[4:])
+    if err_s > SRS_AXIS_TOL or err_w > SRS_AXIS_TOL:
+        return None
+    wrist_in_tool = pose[:3, :3].T @ (wrist - pose[:3, 3])
+    lo, hi = robot.joints[3].qlim
+    distances = []
+    for q4 in np.linspace(lo, hi, 721):
+        q = q_start.copy()
+        q[3] = q4
+        pq, jq = backend.call("fk_jacobian", q)
+        s_q, _ = _common_point(_axes(jq, pq)[:3])
+        distances.append(float(np.linalg.norm(pq[:3, 3] + pq[:3, :3] @ wrist_in_tool - s_q)))
+    d_min, d_max = min(distances), max(distances)
+    needed = [(t, float(np.linalg.norm(p + r @ wrist_in_tool - shoulder))) for t, p, r in path.sample(800)]
+    values = [d for _, d in needed]
+    bad = [(t, d) for t, d in needed if d > d_max + 1e-6 or d < d_min - 1e-6]
+    return ReachCheck(robot.joints[3].name, (d_min, d_max), (min(values), max(values)),
+                      bad[0][0] if bad else None, bad[0][1] if bad else None)
+
+
+# -- the planner ---------------------------------------------------------------------------
+
+@dataclass
+class StepInfo:
+    pose: np.ndarray
+    jac: np.ndarray
+    pos_err: np.ndarray
+    ori_err: np.ndarray
+    cmd: np.ndarray
+    H: float
+    w: float
+    per_joint: np.ndarray
+    W: np.ndarray
+    active: np.ndarray
+    damping: float
+    sigma_min: float
+
+
+@dataclass
+class Segment:
+    rows: list[list[float]] = field(default_factory=list)
+    qd: list[np.ndarray] = field(default_factory=list)
+    active: list[np.ndarray] = field(default_factory=list)
+    W: list[np.ndarray] = field(default_factory=list)
+    masks: list[np.ndarray] = field(default_factory=list)
+    damped: int = 0
+
+
+class FaultTolerantPlanner:
+    """Integrates one task; ``run`` plans it, ``run_locks`` shares the pre-fault segment among
+    several locked joints (the sweep)."""
+
+    FUNCTIONS = ("fk_jacobian", "jacobian", "ft_index", "wln_weights", "step_fault")
+
+    def __init__(self, task: FaultTolerantTask, backend_kind: str = "symbolic", backend: Backend | None = None):
+        self.task = task
+        self.robot = task.robot
+        self.rows = list(self.robot.task_rows)
+        self.backend = backend or make_backend(self.robot, backend_kind, self.FUNCTIONS)
+        pose0, _ = self.backend.call("fk_jacobian", task.path.q_start)
+        self.path = TaskPath(task.path, pose0)
+        self.reach = srs_reach_check(self.robot, self.backend, task.path.q_start, self.path)
+        if self.reach is not None and not self.reach.feasible and task.check_mode == "error":
+            raise PlanningError(self.infeasible_message())
+
+    def infeasible_message(self) -> str:
+        r, p = self.reach, self.task.path
+        assert r is not None and r.first_bad_t_s is not None and r.needed_at_bad_m is not None
+        lo, hi = r.distance_range_m
+        what = (f"at most {hi * 1e3:.1f} mm (elbow {r.elbow} straight)" if r.needed_at_bad_m > hi
+                else f"at least {lo * 1e3:.1f} mm (elbow {r.elbow} fully bent)")
+        return (f"start '{p.start_label}' is infeasible for this path: at t = {r.first_bad_t_s:.2f} s the wrist centre "
+                f"must be {r.needed_at_bad_m * 1e3:.1f} mm from the shoulder, but the arm reaches {what}; the elbow "
+                "would hit full stretch and the arm turn singular. Start with the elbow bent further (robot iiwa14: "
+                "start = \"q0_feasible\", elbow −60°) or shrink the path; check.reach = \"report\" plans it anyway")
+
+    # -- one step -------------------------------------------------------------------------
+    def index(self, q: np.ndarray, mask: np.ndarray, method: FaultMethod) -> tuple[float, np.ndarray, np.ndarray, float]:
+        """(H, ∇H, per-joint index values, w) on the healthy columns."""
+        a = np.asarray(method.a or (1.0,) * self.robot.n)
+        omega, h_m, grad, w, grad_w = self.backend.call("ft_index", q, mask, a, method.delta)
+        omega, grad, grad_w = omega.ravel(), grad.ravel(), grad_w.ravel()
+        h_m, w = float(h_m.ravel()[0]), float(w.ravel()[0])
+        if method.index == "omega":
+            return h_m, grad, omega, w
+        if method.index == "relative":
+            return h_m / w, grad / w - h_m * grad_w / (w * w), omega / w, w
+        per = self._sigma_terms(q, mask)
+        h = float(np.dot(mask * a, per))
+        grad = np.zeros(self.robot.n)
+        for k in np.flatnonzero(mask):
+            e = np.zeros(self.robot.n)
+            e[k] = SIGMA_FD_STEP
+            grad[k] = (np.dot(mask * a, self._sigma_terms(q + e, mask))
+                       - np.dot(mask * a, self._sigma_terms(q - e, mask))) / (2 * SIGMA_FD_STEP)
+        return h, grad, per, w
+
+    def _sigma_terms(self, q: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """σ_min(J₋ᵢ) of the healthy Jacobian per healthy joint i (0 with fewer columns than rows)."""
+        (jac,) = self.backend.call("jacobian", q)
+        jh = jac[self.rows] * mask
+        out = np.zeros(self.robot.n)
+        for i in np.flatnonzero(mask):
+            out[i] = np.linalg.svd(np.delete(jh, i, axis=1), compute_uv=False)[len(self.rows) - 1] \
+                if jh.shape[1] - 1 >= len(self.rows) else 0.0
+        return out
+
+    def evaluate(self, t: float, q: np.ndarray, qd_prev: np.ndarray, mask: np.ndarray,
+                 method: FaultMethod) -> tuple[np.ndarray, StepInfo]:
+        p = self.task.path
+        pose, jac = self.backend.call("fk_jacobian", q)
+        p_d, r_d, xdot = self.path(t)
+        pos_err, ori_err = tracking(pose, p_d, r_d)
+        cmd = xdot + (p.clik_gain * np.concatenate([pos_err, ori_err]) if p.clik else 0.0)
+        h, grad, per, w = self.index(q, mask, method)
+        n = self.robot.n
+        weights, active, alpha = np.ones(n), np.zeros(n), np.zeros(n)
+        if method.name == "gpm":
+            alpha = method.K * grad
+        elif method.name == "wln":
+            if method.weight_rule == "smooth":
+                # the direction test on the unweighted (minimum-norm) motion of this step:
+                # continuous in t and independent of W, so the weights cannot feed back on it
+                probe, _, _ = self.backend.call("step_fault", q, cmd[self.rows], mask, np.ones(n), np.zeros(n),
+                                                p.damping_epsilon, p.damping_max)
+                v_band, reference = method.v_band, probe.ravel()
+            else:
+                v_band, reference = 0.0, qd_prev
+            weights, active = (x.ravel() for x in self.backend.call(
+                "wln_weights", grad, per, reference, mask, method.b, method.omega_floor, v_band))
+        qd, lam, sigma = self.backend.call("step_fault", q, cmd[self.rows], mask, weights, alpha,
+                                           p.damping_epsilon, p.damping_max)
+        info = StepInfo(pose, jac, pos_err, ori_err, cmd, h, w, per, weights, active,
+                        float(lam.ravel()[0]), float(sigma.ravel()[0]))
+        return qd.ravel(), info
+
+    def segment(self, q: np.ndarray, qd_prev: np.ndarray, k0: int, k1: int, mask: np.ndarray, method: FaultMethod,
+                seg: Segment, bar, last: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Steps k0 … k1−1 (and the final sample k1 when ``last``); returns (q, q̇) after k1−1."""
+        h = self.task.path.step
+        stop = k1 + 1 if last else k1
+        for k in range(k0, stop):
+            t = k * h
+            qd, info = self.evaluate(t, q, qd_prev, mask, method)
+            seg.damped += info.damping > 0
+            residual = float(np.linalg.norm((info.jac @ qd - info.cmd)[self.rows]))
+            seg.rows.append(base_row(t, q, qd, info.pose, info.pos_err, info.ori_err, residual, info.damping,
+                                     info.sigma_min)
+                            + [info.H, info.w, *info.per_joint, *(1.0 - mask), *info.W, *info.active])
+            seg.qd.append(qd)
+            seg.active.append(info.active)
+            seg.W.append(info.W)
+            seg.masks.append(mask)
+            if k == k1:
+                break
+            q = q + h * qd
+            qd_prev = qd
+            if not np.all(np.isfinite(q)):
+                raise PlanningError(f"joint angles became non-finite at t = {t + h:.3f} s; lower integrator.step or "
+                                    "the method gains (method.K / method.b)")
+            bar.update(1)
+        return q, qd_prev
+
+    def lock_step(self) -> int:
+        """First step index at which the fault applies (steps + 1 without a fault)."""
+        f, p = self.task.fault, self.task.path
+        if not f.joints:
+            return p.steps + 1
+        return int(math.ceil(f.time / p.step - 1e-9))
+
+    def run_locks(self, method: FaultMethod | None = None,
+                  lock_sets: Sequence[tuple[int, ...]] | None = None) -> list[PlanResult]:
+        method = method or self.task.method
+        p = self.task.path
+        lock_sets = [self.task.fault.joints] if lock_sets is None else list(lock_sets)
+        k_f = self.lock_step() if any(lock_sets) else p.steps + 1
+        healthy = np.ones(self.robot.n)
+        results = []
+        started = time.perf_counter()
+        total = min(k_f, p.steps) + len(lock_sets) * max(p.steps - k_f, 0)
+        with progress(total, f"planning {method.label}") as bar:
+            pre = Segment()
+            q, qd_prev = self.segment(p.q_start.copy(), np.zeros(self.robot.n), 0, min(k_f, p.steps), healthy, method,
+                                      pre, bar, last=k_f > p.steps)
+            for joints in lock_sets:
+                seg = Segment(list(pre.rows), list(pre.qd), list(pre.active), list(pre.W), list(pre.masks), pre.damped)
+                if k_f <= p.steps:
+                    fault = FaultSpec(joints, self.task.fault.time)
+                    self.segment(q.copy(), qd_prev.copy(), k_f, p.steps, fault.mask(self.robot.n, True), method,
+                                 seg, bar, last=True)
+                results.append(self._result(seg, method, joints, k_f, time.perf_counter() - started))
+        return results
+
+    def run(self) -> PlanResult:
+        return self.run_locks()[0]
+
+    # -- output ---------------------------------------------------------------------------
+    def columns(self) -> list[str]:
+        n = self.robot.n
+        return (base_columns(n) + ["H_M_1", "w_1"] + [f"omega{i + 1}_1" for i in range(n)]
+                + [f"lock{i + 1}_1" for i in range(n)] + [f"W{i + 1}_1" for i in range(n)]
+                + [f"active{i + 1}_1" for i in range(n)])
+
+    def _result(self, seg: Segment, method: FaultMethod, joints: tuple[int, ...], k_f: int,
+                elapsed: float) -> PlanResult:
+        p = self.task.path
+        data = np.array(seg.rows)
+        keep = [k for k in range(len(seg.rows)) if k % p.output_every == 0 or k == len(seg.rows) - 1]
+        result = PlanResult(self.columns(), data[keep], {})
+        result.metadata = self._metadata(data, seg, method, joints, k_f, elapsed)
+        return result
+
+    def verdict(self, data: np.ndarray, seg: Segment, method: FaultMethod, joints: tuple[int, ...],
+                k_f: int) -> dict[str, Any]:
+        """Spec 30's per-lock report: completion, H_M over time, smoothness, weight switches."""
+        n, h, cols = self.robot.n, self.task.path.step, self.columns()
+        col = {c: data[:, k] for k, c in enumerate(cols)}
+        t = col["t_s"]
+        q = data[:, 1:1 + n]
+        qd = np.array(seg.qd)
+        after = t >= (k_f * h - 1e-12) if k_f < len(t) else np.zeros(len(t), dtype=bool)
+        window = after if after.any() else np.ones(len(t), dtype=bool)
+        violations, margin = limit_report(self.robot, t, q)
+        c = self.task.completion
+        pos = float(np.max(col["pos_err_m"][window]))
+        ori = float(np.max(col["ori_err_rad"][window]))
+        speed = float(np.max(np.abs(qd[window])))
+        completed = pos <= c.pos_tol and ori <= c.ori_tol and speed <= c.max_joint_speed and not violations
+        skip = (k_f - 1,) if 0 < k_f < len(t) else ()
+        smooth = smoothness(qd, h, skip)
+        active = np.array(seg.active)
+        masks = np.array(seg.masks)
+        both = (masks[1:] > 0) & (masks[:-1] > 0)
+        weights = np.array(seg.W)
+        jumps = np.abs(np.diff(weights, axis=0)) * both
+        # a switch: the activation crosses ½ and the weight moves by more than SWITCH_MIN_DW
+        # (joints whose ∂H/∂q_i is rounding noise, e.g. the base joint, toggle without effect)
+        switches = int(np.sum(((active[1:] > 0.5) != (active[:-1] > 0.5)) & both & (jumps > SWITCH_MIN_DW)))
+        h_m = col["H_M_1"]
+        before = ~after
+        reasons = []
+        if pos > c.pos_tol:
+            reasons.append(f"position error {pos * 1e3:.2f} mm")
+        if ori > c.ori_tol:
+            reasons.append(f"orientation error {math.degrees(ori):.2f} deg")
+        if speed > c.max_joint_speed:
+            reasons.append(f"joint speed {math.degrees(speed):.0f} deg/s")
+        if violations:
+            reasons.append("joint limits left: " + ", ".join(v["joint"] for v in violations))
+        return {
+            "method": method.label,
+            "locked": [self.robot.joints[j].name for j in joints],
+            "completed": bool(completed),
+            "why_not": "; ".join(reasons),
+            "max_pos_err_after_lock_mm": pos * 1e3,
+            "max_ori_err_after_lock_deg": math.degrees(ori),
+            "peak_joint_speed_after_lock_deg_s": math.degrees(speed),
+            "H_M_start": float(h_m[0]),
+            "H_M_before_lock": float(h_m[before][-1]) if before.any() else float(h_m[0]),
+            "H_M_min_after_lock": float(np.min(h_m[after])) if after.any() else None,
+            "H_M_end": float(h_m[-1]),
+            "w_min_after_lock": float(np.min(col["w_1"][after])) if after.any() else float(np.min(col["w_1"])),
+            "peak_ddq_deg_s2": math.degrees(smooth["peak_ddq_rad_s2"]),
+            "lock_jump_deg_s": float(np.degrees(np.max(np.abs(qd[k_f] - qd[k_f - 1])))) if skip else 0.0,
+            "total_variation_dq_deg_s": math.degrees(smooth["total_variation_dq_rad_s"]),
+            "weight_switches": switches,
+            "weight_total_variation": float(np.sum(jumps)),
+            "max_weight_step": float(np.max(jumps)) if jumps.size else 0.0,
+            "limit_violations": violations,
+            "min_limit_margin_deg": math.degrees(margin),
+            "damped_steps": int(seg.damped),
+        }
+
+    def _metadata(self, data: np.ndarray, seg: Segment, method: FaultMethod, joints: tuple[int, ...], k_f: int,
+                  elapsed: float) -> dict[str, Any]:
+        task = self.task
+        meta = path_metadata(task.path)
+        verdict = self.verdict(data, seg, method, joints, k_f)
+        meta.update({
+            "method": method.name,
+            "parameters": {"index": method.index, "K": method.K, "b": method.b, "weight_rule": method.weight_rule,
+                           "v_band_rad_s": method.v_band, "omega_floor": method.omega_floor, "delta": method.delta,
+                           "a": list(method.a)},
+            "fault": {"joints": [self.robot.joints[j].name for j in joints], "time_s": task.fault.time,
+                      "first_locked_step": k_f if joints else None},
+            "completion": {"pos_tol_mm": task.completion.pos_tol * 1e3,
+                           "ori_tol_deg": math.degrees(task.completion.ori_tol),
+                           "max_joint_speed_deg_s": math.degrees(task.completion.max_joint_speed)},
+            "reach_check": self.reach.to_dict() if self.reach is not None else None,
+            "sweep": {"K": list(task.sweep.K), "b": list(task.sweep.b), "rules": list(task.sweep.rules),
+                      "joints": [self.robot.joints[j].name for j in task.sweep.joints],
+                      "fine_step_s": task.sweep.fine_step},
+            "verdict": verdict,
+            "summary": {
+                "task_completed": verdict["completed"],
+                "max_pos_error_mm": float(np.max(data[:, self.columns().index("pos_err_m")]) * 1e3),
+                "max_ori_error_deg": float(np.degrees(np.max(data[:, self.columns().index("ori_err_rad")]))),
+                "max_pos_error_after_lock_mm": verdict["max_pos_err_after_lock_mm"],
+                "peak_joint_speed_after_lock_deg_s": verdict["peak_joint_speed_after_lock_deg_s"],
+                "H_M_before_lock": verdict["H_M_before_lock"],
+                "peak_ddq_deg_s2": verdict["peak_ddq_deg_s2"],
+                "weight_switches": verdict["weight_switches"],
+                "limit_violations": verdict["limit_violations"],
+                "max_abs_q_deg": np.degrees(np.max(np.abs(data[:, 1:1 + self.robot.n]), axis=0)).tolist(),
+                "damped_steps": int(seg.damped),
+                "plan_seconds": elapsed,
+            },
+        })
+        if self.reach is not None and not self.reach.feasible:
+            meta["summary"]["infeasible_start"] = self.infeasible_message()
+        return meta
+
+
+def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
+    parsed = parse_fault_tolerant_task(task, source)
+    return FaultTolerantPlanner(parsed, backend).run()
+
+
+# -- the sweep -----------------------------------------------------------------------------
+
+def sweep_methods(task: FaultTolerantTask) -> list[FaultMethod]:
+    base = task.method
+    out = [replace(base, name="gpm", K=k) for k in task.sweep.K]
+    for rule in task.sweep.rules:
+        out += [replace(base, name="wln", b=b, weight_rule=rule) for b in task.sweep.b]
+    return out
+
+
+def choose(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The sweep's pick for one method family, by the outcomes in order: the most locks
+    completed; a mean manipulability left after the lock within SWEEP_W_TOLERANCE of the best;
+    a peak |q̈| (completed locks) within SWEEP_DDQ_TOLERANCE of the smoothest; then the
+    highest H_M just before the lock (the quantity the method exists to raise)."""
+    best = max(r["completed"] for r in rows)
+    rows = [r for r in rows if r["completed"] == best]
+    top = max(r["mean_w_after_mm3"] for r in rows)
+    rows = [r for r in rows if r["mean_w_after_mm3"] >= (1 - SWEEP_W_TOLERANCE) * top]
+    smooth = min(r["peak_ddq_deg_s2"] for r in rows)
+    rows = [r for r in rows if r["peak_ddq_deg_s2"] <= (1 + SWEEP_DDQ_TOLERANCE) * smooth]
+    return max(rows, key=lambda r: r["H_M_before_lock"])
+
+
+def run_sweep(task: FaultTolerantTask, backend_kind: str = "symbolic", step: float | None = None,
+              methods: Sequence[FaultMethod] | None = None) -> dict[str, Any]:
+    """Every method of the sweep (or ``methods``) × every locked joint of ``sweep.joints``;
+    per method family (gpm, wln-plain, wln-smooth) the chosen parameter."""
+    if step is not None:
+        task = replace(task, path=replace(task.path, step=step))
+    planner = FaultTolerantPlanner(task, backend_kind)
+    locks = [(j,) for j in task.sweep.joints]
+    families: dict[str, list[dict[str, Any]]] = {}
+    per_lock: dict[str, list[dict[str, Any]]] = {}
+    for method in methods or sweep_methods(task):
+        results = planner.run_locks(method, locks)
+        verdicts = [r.metadata["verdict"] for r in results]
+        family = "gpm" if method.name == "gpm" else f"wln-{method.weight_rule}"
+        row = {"family": family, "method": method.label, "K": method.K, "b": method.b,
+               "completed": sum(v["completed"] for v in verdicts), "locks": len(verdicts),
+               "H_M_before_lock": verdicts[0]["H_M_before_lock"],
+               "mean_w_after_mm3": float(np.mean([v["w_min_after_lock"] for v in verdicts])) * 1e9,
+               "peak_ddq_deg_s2": max([v["peak_ddq_deg_s2"] for v in verdicts if v["completed"]] or [math.inf]),
+               "weight_switches": max(v["weight_switches"] for v in verdicts),
+               "max_weight_step": max(v["max_weight_step"] for v in verdicts)}
+        families.setdefault(family, []).append(row)
+        per_lock[method.label] = verdicts
+    chosen = {fam: choose(rows) for fam, rows in families.items()}
+    infeasible = planner.reach is not None and not planner.reach.feasible
+    return {"robot": task.robot.name, "start": task.path.start_label, "step_s": task.path.step,
+            "families": families, "chosen": chosen, "per_lock": per_lock,
+            "reach_check": planner.reach.to_dict() if planner.reach is not None else None,
+            "infeasible": planner.infeasible_message() if infeasible else None,
+            "chosen_methods": [m for m in (methods or sweep_methods(task))
+                               if m.label in {c["method"] for c in chosen.values()}]}
+
+
+def format_sweep_table(report: dict[str, Any]) -> str:
+    lines = [f"## {report['robot']} from '{report['start']}', h = {report['step_s']} s: parameter sweep "
+             "(locks completed; H_M just before the lock; mean over the locks of the smallest "
+             "manipulability w left after the lock, mm^3 = 1e-9 m^3; peak abs(ddq) over the completed locks; "
+             "most WLN weight switches and largest weight step of one lock run)", "",
+             "| method | completed | H_M(t_f-) | mean min w after lock mm^3 | peak abs(ddq) deg/s^2 | switches | "
+             "max weight step |",
+             "|---|---|---|---|---|---|---|"]
+    for fam, rows in report["families"].items():
+        for r in rows:
+            mark = " **(chosen)**" if r is report["chosen"][fam] else ""
+            lines.append(f"| {r['method']}{mark} | {r['completed']}/{r['locks']} | {r['H_M_before_lock']:.4f} | "
+                         f"{r['mean_w_after_mm3']:.3g} | "
+                         f"{'n/a' if math.isinf(r['peak_ddq_deg_s2']) else format(r['peak_ddq_deg_s2'], '.0f')} | "
+                         f"{r['weight_switches']} | "
+                         f"{r['max_weight_step']:.2f} |")
+    return "\n".join(lines)
+
+
+def format_verdict_table(report: dict[str, Any]) -> str:
+    lines = [f"## {report['robot']} from '{report['start']}', h = {report['step_s']} s: verdict per locked joint "
+             "(chosen parameters)", "",
+             "| method | locked | completed | pos err mm | ori err deg | peak abs(dq) deg/s | H_M: start / t_f- / "
+             "min after / end | min w after mm^3 | peak abs(ddq) deg/s^2 | TV(dq) deg/s | switches |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for fam, chosen in report["chosen"].items():
+        for v in report["per_lock"][chosen["method"]]:
+            hm_after = v["H_M_min_after_lock"]
+            lines.append(
+                f"| {v['method']} | {','.join(v['locked'])} | {'yes' if v['completed'] else 'NO: ' + v['why_not']} | "
+                f"{v['max_pos_err_after_lock_mm']:.3f} | {v['max_ori_err_after_lock_deg']:.3f} | "
+                f"{v['peak_joint_speed_after_lock_deg_s']:.1f} | {v['H_M_start']:.4f} / {v['H_M_before_lock']:.4f} / "
+                f"{hm_after if hm_after is None else format(hm_after, '.4f')} / {v['H_M_end']:.4f} | "
+                f"{v['w_min_after_lock'] * 1e9:.3g} | {v['peak_ddq_deg_s2']:.0f} | "
+                f"{v['total_variation_dq_deg_s']:.0f} | {v['weight_switches']} |")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m armgen.planning.fault_tolerant --sweep TASK.toml [TASK.toml …] [--fine]``."""
+    from .tasks import apply_overrides, check_finite_tree, load_task
+
+    parser = argparse.ArgumentParser(prog="python -m armgen.planning.fault_tolerant",
+                                     description="Spec 30 sweep over K, b and the locked joint; prints the verdicts.")
+    parser.add_argument("--sweep", nargs="+", required=True, metavar="TASK", help="fault_tolerant task files")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], help="key=value override")
+    parser.add_argument("--fine", action="store_true", help="also rerun the chosen parameters at sweep.fine_step")
+    parser.add_argument("--backend", choices=("symbolic", "c"), default="symbolic")
+    parser.add_argument("--json", default=None, metavar="FILE", help="also write every report (per-lock verdicts) as JSON")
+    args = parser.parse_args(argv)
+    reports: dict[str, Any] = {}
+    try:
+        for path in args.sweep:
+            raw, _ = load_task(path)
+            apply_overrides(raw, list(args.overrides))
+            check_finite_tree(raw, "", path)
+            task = parse_fault_tolerant_task(raw, path)
+            if task.check_mode == "error":  # report, don't stop, in the sweep
+                task = replace(task, check_mode="report")
+            started = time.perf_counter()
+            report = run_sweep(task, args.backend)
+            reports[path] = {k: v for k, v in report.items() if k != "chosen_methods"}
+            if report["infeasible"]:
+                print(f"## {path}: INFEASIBLE start — {report['infeasible']}\n")
+            print(format_sweep_table(report))
+            print()
+            print(format_verdict_table(report))
+            print(f"\n({path}: {time.perf_counter() - started:.1f} s)\n")
+            if args.fine:
+                started = time.perf_counter()
+                fine = run_sweep(task, args.backend, step=task.sweep.fine_step, methods=report["chosen_methods"])
+                reports[path]["fine"] = {k: v for k, v in fine.items() if k != "chosen_methods"}
+                print(format_verdict_table(fine))
+                print(f"\n({path}, fine step: {time.perf_counter() - started:.1f} s)\n")
+        if args.json:
+            _write_json(args.json, reports)
+    except ArmgenError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    return 0
+
+
+def _write_json(path: str, data: Any) -> None:
+    import json
+
+    from ..fileio import write_text_atomic
+    from .result import _finite_json, _json_default
+
+    write_text_atomic(path, json.dumps(_finite_json(json.loads(json.dumps(data, default=_json_default))), indent=2)
+                      + "\n")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,232 @@
+"""Shared parts of the resolved-rate planners of specs 30 and 35 (``fault_tolerant``, ``wgpm``):
+the task-file fields they share with the Cartesian planner (robot, start, path, timing,
+integrator, damping), the desired pose and twist along the path, the base CSV columns and
+the smoothness/tracking metrics.
+
+Paths are :mod:`armgen.planning.paths`' circle and line. Two additions for these planners:
+``path.relative = true`` gives ``via``/``end`` as offsets from the start tool position (so
+a task file can state "a circle of radius R beside the start" for any start), and
+``path.turns`` (circle only) runs the circle that many times over the duration (spec 30's
+twist ``ẋ = [0, πR sin πt, −πR cos πt, 0, 0, 0]`` over T = 4 s is two turns at constant
+speed: ``via = [0, R, −R]``, ``end = [0, 2R, 0]`` relative, ``law = "constant"``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import PlanningError, TaskFileError
+from ..robot import Robot, load_robot, matrix_rpy, rpy_matrix
+from .cartesian import ANGLE_SCALE, LENGTH_SCALE, _number, _table, _vector, orientation_error
+from .paths import CirclePath, LinePath, TimeLaw
+
+PATH_TYPES = ("circle", "line")
+# Default closed-loop gain K_p (1/s) of ẋ + K_p e: spec 30 wants CLIK on by default. With
+# explicit Euler the error contracts by (1 − K_p h) per step, so K_p h = 0.2 at h = 0.02 s.
+DEFAULT_CLIK_GAIN = 10.0
+
+
+@dataclass(frozen=True)
+class PathTask:
+    """The fields every resolved-rate task shares (SI units)."""
+
+    robot: Robot
+    q_start: np.ndarray
+    start_label: str
+    path_type: str
+    via: np.ndarray | None
+    end: np.ndarray
+    relative: bool
+    turns: float
+    end_rotation: np.ndarray | None
+    duration: float
+    law: TimeLaw
+    step: float
+    clik: bool
+    clik_gain: float
+    damping_epsilon: float
+    damping_max: float
+    output_every: int
+    length_scale: float
+    angle_scale: float
+    raw: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def steps(self) -> int:
+        return int(round(self.duration / self.step))
+
+
+def _bool(table: dict, key: str, where: str, source: str, default: bool) -> bool:
+    value = table.get(key, default)
+    if not isinstance(value, bool):
+        raise TaskFileError(f"{source}: field '{where}.{key}' = {value!r} must be true or false")
+    return value
+
+
+def parse_path_task(task: dict, source: str, known_top: set[str]) -> PathTask:
+    unknown = set(task) - known_top
+    if unknown:
+        raise TaskFileError(f"{source}: unknown field(s) {', '.join(sorted(unknown))}; allowed: "
+                            f"{', '.join(sorted(known_top))}")
+    robot_name = task.get("robot")
+    if not isinstance(robot_name, str):
+        raise TaskFileError(f"{source}: missing field 'robot' (a bundled name or a robot file path)")
+    robot = load_robot(robot_name)
+    units = _table(task, "units", source)
+    lunit, aunit = units.get("length", "m"), units.get("angle", "rad")
+    if lunit not in LENGTH_SCALE or aunit not in ANGLE_SCALE:
+        raise TaskFileError(f"{source}: [units] length must be m|mm and angle rad|deg, got {lunit!r}, {aunit!r}")
+    ls, as_ = LENGTH_SCALE[lunit], ANGLE_SCALE[aunit]
+
+    start = task.get("start", "q0")
+    if isinstance(start, str):
+        q_start, label = robot.configuration(start), start
+    else:
+        q_units = np.array([as_ if j.revolute else ls for j in robot.joints])
+        q_start, label = _vector(task, "start", "task", source, robot.n, 1.0) * q_units, "explicit"
+    robot.check_within_limits(q_start, f"{source}: field 'start'")
+
+    path = _table(task, "path", source)
+    path_type = path.get("type", "circle")
+    if path_type not in PATH_TYPES:
+        raise TaskFileError(f"{source}: field 'path.type' = {path_type!r} is not one of {', '.join(PATH_TYPES)}")
+    via = _vector(path, "via", "path", source, 3, ls) if path_type == "circle" else None
+    end = _vector(path, "end", "path", source, 3, ls)
+    relative = _bool(path, "relative", "path", source, False)
+    turns = _number(path, "turns", "path", source, 1.0, positive=True)
+    if path_type == "line" and turns != 1.0:
+        raise TaskFileError(f"{source}: path.turns = {turns} is for circles only; remove it or set path.type = 'circle'")
+    orientation = path.get("orientation", "hold")
+    if orientation not in ("hold", "interpolate"):
+        raise TaskFileError(f"{source}: field 'path.orientation' = {orientation!r} must be 'hold' or 'interpolate'")
+    end_rotation = None
+    if orientation == "interpolate":
+        if path_type != "line":
+            raise TaskFileError(f"{source}: path.orientation = 'interpolate' needs path.type = 'line'")
+        end_rotation = rpy_matrix(*_vector(path, "end_rpy", "path", source, 3, as_))
+
+    timing = _table(task, "timing", source)
+    duration = _number(timing, "duration", "timing", source, positive=True)
+    law = TimeLaw(timing.get("law", "cubic"), _number(timing, "blend", "timing", source, 0.2))
+
+    integ = _table(task, "integrator", source)
+    method = integ.get("method", "euler")
+    if method != "euler":
+        raise TaskFileError(f"{source}: integrator.method = {method!r}: this planner integrates with explicit Euler "
+                            "only (its weights use the previous step's velocity); remove the field or set 'euler'")
+    step = _number(integ, "step", "integrator", source, 0.02, positive=True)
+    if step > duration:
+        raise TaskFileError(f"{source}: integrator.step = {step} is longer than timing.duration = {duration}")
+    steps = int(round(duration / step))
+    if abs(steps * step - duration) > 1e-9 * duration:
+        raise TaskFileError(f"{source}: timing.duration = {duration} s is not a multiple of integrator.step = {step} s")
+    damping = _table(task, "damping", source)
+    return PathTask(
+        robot=robot, q_start=q_start, start_label=label, path_type=path_type, via=via, end=end, relative=relative,
+        turns=turns, end_rotation=end_rotation, duration=duration, law=law, step=step,
+        clik=_bool(integ, "clik", "integrator", source, True),
+        clik_gain=_number(integ, "clik_gain", "integrator", source, DEFAULT_CLIK_GAIN, nonneg=True),
+        damping_epsilon=_number(damping, "epsilon", "damping", source, 0.01, positive=True),
+        damping_max=_number(damping, "lambda_max", "damping", source, 0.05, nonneg=True),
+        output_every=int(_number(integ, "output_every", "integrator", source, 1, positive=True)),
+        length_scale=ls, angle_scale=as_, raw=task,
+    )
+
+
+def reach_radius(robot: Robot) -> float:
+    """Radius of a sphere about the base that contains every reachable tool position."""
+    reach = sum(math.hypot(j.a, j.d) + (j.qlim[1] if not j.revolute else 0.0) for j in robot.joints)
+    return reach + float(np.linalg.norm(robot.tool[:3, 3]))
+
+
+class TaskPath:
+    """The desired pose and twist of a :class:`PathTask` from the start pose."""
+
+    def __init__(self, task: PathTask, start_pose: np.ndarray):
+        self.task = task
+        self.p0, self.r0 = start_pose[:3, 3].copy(), start_pose[:3, :3].copy()
+        offset = self.p0 if task.relative else np.zeros(3)
+        if task.path_type == "circle":
+            self.path = CirclePath(self.p0, task.via + offset, task.end + offset, self.r0)
+        else:
+            r_end = task.end_rotation if task.end_rotation is not None else self.r0
+            self.path = LinePath(self.p0, task.end + offset, self.r0, r_end)
+        points = self.path.sample_points()
+        dist = np.linalg.norm(points - task.robot.base[:3, 3], axis=1)
+        reach = reach_radius(task.robot)
+        if dist.max() > reach:
+            k = int(np.argmax(dist))
+            raise PlanningError(
+                f"the path is unreachable: point {np.round(points[k] * 1e3, 1).tolist()} mm is {dist[k] * 1e3:.0f} mm "
+                f"from the base, beyond the arm's reach of {reach * 1e3:.0f} mm; move path.via/path.end closer")
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(position, rotation, twist [v; ω]) at time t."""
+        T = self.task.duration
+        s, ds = self.task.law(t / T)
+        turns = self.task.turns
+        p, dp, rot, dw = self.path(turns * s)
+        sdot = turns * ds / T if 0.0 <= t <= T else 0.0
+        return p, rot, np.concatenate([dp * sdot, dw * sdot])
+
+    def sample(self, count: int = 400) -> list[tuple[float, np.ndarray, np.ndarray]]:
+        """(t, position, rotation) at ``count + 1`` times over the plan."""
+        T = self.task.duration
+        return [(k * T / count, *self(k * T / count)[:2]) for k in range(count + 1)]
+
+
+def tracking(pose: np.ndarray, p_d: np.ndarray, r_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return p_d - pose[:3, 3], orientation_error(pose[:3, :3], r_d)
+
+
+def base_columns(n: int) -> list[str]:
+    return (["t_s"] + [f"q{i + 1}_rad" for i in range(n)] + [f"dq{i + 1}_rad_s" for i in range(n)]
+            + ["x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad", "pos_err_m", "ori_err_rad",
+               "task_residual_1", "damping_1", "sigma_min_1"])
+
+
+def base_row(t: float, q: np.ndarray, qd: np.ndarray, pose: np.ndarray, pos_err: np.ndarray, ori_err: np.ndarray,
+             residual: float, damping: float, sigma_min: float) -> list[float]:
+    return [t, *q, *qd, *pose[:3, 3], *matrix_rpy(pose[:3, :3]), float(np.linalg.norm(pos_err)),
+            float(np.linalg.norm(ori_err)), residual, damping, sigma_min]
+
+
+def smoothness(qd: np.ndarray, h: float, skip: tuple[int, ...] = ()) -> dict[str, float]:
+    """Peak |q̈| (finite differences of q̇ between steps; transitions listed in ``skip``
+    excluded, e.g. the instant a joint locks) and the total variation Σ|Δq̇| (rad/s)."""
+    diff = np.abs(np.diff(qd, axis=0))
+    keep = np.ones(diff.shape[0], dtype=bool)
+    for k in skip:
+        if 0 <= k < keep.size:
+            keep[k] = False
+    peak = float(np.max(diff[keep]) / h) if keep.any() else 0.0
+    return {"peak_ddq_rad_s2": peak, "total_variation_dq_rad_s": float(np.sum(diff))}
+
+
+def limit_report(robot: Robot, t: np.ndarray, q: np.ndarray) -> tuple[list[dict], float]:
+    """(violations per joint, smallest margin to a limit over the plan in rad; < 0 = beyond)."""
+    violations = []
+    for i, j in enumerate(robot.joints):
+        bad = (q[:, i] > j.qlim[1]) | (q[:, i] < j.qlim[0])
+        if bad.any():
+            violations.append({"joint": j.name, "first_t_s": float(t[np.argmax(bad)]),
+                               "max_abs_deg": float(np.degrees(np.max(np.abs(q[:, i]))))})
+    margin = np.minimum(q - robot.qmin, robot.qmax - q)
+    return violations, float(np.min(margin))
+
+
+def path_metadata(task: PathTask) -> dict[str, Any]:
+    return {
+        "robot": {"name": task.robot.name, "file": task.robot.source, "sha256": task.robot.sha256,
+                  "qlim_rad": [list(j.qlim) for j in task.robot.joints]},
+        "start": {"label": task.start_label, "q_rad": task.q_start.tolist()},
+        "path": {"type": task.path_type, "relative": task.relative, "turns": task.turns,
+                 "duration_s": task.duration, "law": task.law.kind},
+        "integrator": {"method": "euler", "step_s": task.step, "clik": task.clik,
+                       "clik_gain": task.clik_gain if task.clik else 0.0, "open_loop": not task.clik},
+        "damping": {"epsilon": task.damping_epsilon, "lambda_max": task.damping_max},
+    }

@@ -1,0 +1,444 @@
+"""Multi-constraint weighted GPM with damped least squares (spec 35).
+
+``planner = "wgpm"``. The tool follows a Cartesian path (the Cartesian planner's circle or
+line, optionally relative to the start and over several turns) and each step is one call of
+the generated ``step_wgpm`` — continuous joint-limit weights ``W_b = I − W_c``, repulsive
+field ``t_r``, variable damping from σ_min of ``J W_b`` (Jacobi estimate in the C), the oblique
+projector ``N_wb = I − W_b J_wb^# J``, normalised criteria with online gains:
+
+    q̇ = W_b J_wb^# ẋ + N_wb · ramp(t) · (t_r + W_b Σ_j k_j ∇H_nj)
+
+``ramp(t)`` brings the secondary terms in from rest over ``method.ramp_time`` (and, by
+default, out again before the end, so the plan is rest-to-rest). For comparison the same
+planner runs ``method.name = "pinv"`` (the damped pseudo-inverse, nothing else) and
+``"clamp"`` (a binary clamp: a joint that would cross its limit in this step is frozen — its
+column removed through the generated ``step_fault`` mask — and released as soon as the
+unclamped solution moves it back inside).
+
+``python -m armgen.planning.wgpm --compare TASK.toml`` prints the spec's comparison table;
+``--survey N`` runs N random tasks (see :func:`survey`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..errors import ArmgenError, PlanningError, TaskFileError
+from ..progress import progress
+from ..symbolic.steps import WGPM_CRITERIA, WGPM_SENSE
+from .backends import Backend, make_backend
+from .cartesian import _number, _table
+from .result import PlanResult
+from .taskpath import (PathTask, TaskPath, base_columns, base_row, limit_report, parse_path_task, path_metadata,
+                       smoothness, tracking)
+
+METHODS = ("wgpm", "pinv", "clamp")
+TOP_FIELDS = {"planner", "robot", "start", "units", "path", "timing", "integrator", "damping", "method", "tracking",
+              "description"}
+CRITERION_FIELDS = {"k_hi", "k_lo", "H_lo", "H_hi", "u_th", "u_band"}
+SHORT = {"manipulability": "w", "joint_manipulability": "M", "zghal": "L", "condition": "kappa"}
+# A plan "tracks" when its tool stays within these of the path (spec 35 asks whether the method
+# both respects the limits and tracks); task-file [tracking] overrides them.
+DEFAULT_POS_TOL = 1e-3  # m
+DEFAULT_ORI_TOL = math.radians(1.0)  # rad
+
+
+@dataclass(frozen=True)
+class Criterion:
+    """One normalised criterion: gain k_hi when it is bad (u ≤ u_th), k_lo when good
+    (u ≥ u_th + u_band); off when both gains are 0."""
+
+    k_hi: float = 0.0
+    k_lo: float = 0.0
+    H_lo: float = 0.0
+    H_hi: float = 1.0
+    u_th: float = 0.3
+    u_band: float = 0.4
+
+
+@dataclass(frozen=True)
+class WgpmMethod:
+    name: str = "wgpm"
+    band: float = 0.1  # Ω: damping-band width as a fraction of each joint's range
+    t_rmax: float = math.radians(10.0)  # rad/s
+    delta: float = 1e-4
+    ramp_time: float = 2.0  # s
+    ramp_out: bool = True
+    criteria: tuple[Criterion, ...] = tuple(Criterion() for _ in WGPM_CRITERIA)
+
+    def vectors(self) -> list[np.ndarray]:
+        """The step's H_lo, H_hi, k_hi, k_lo, u_th, u_band inputs."""
+        return [np.array([getattr(c, k) for c in self.criteria]) for k in ("H_lo", "H_hi", "k_hi", "k_lo", "u_th",
+                                                                            "u_band")]
+
+
+@dataclass(frozen=True)
+class WgpmTask:
+    path: PathTask
+    method: WgpmMethod
+    pos_tol: float = DEFAULT_POS_TOL
+    ori_tol: float = DEFAULT_ORI_TOL
+    raw: dict[str, Any] = field(default_factory=dict)
+
+
+def parse_wgpm_task(task: dict, source: str) -> WgpmTask:
+    path = parse_path_task(task, source, TOP_FIELDS)
+    as_ = path.angle_scale
+    m = _table(task, "method", source)
+    unknown = set(m) - {"name", "band", "t_rmax", "delta", "ramp_time", "ramp_out", "criteria"}
+    if unknown:
+        raise TaskFileError(f"{source}: unknown field(s) method.{', method.'.join(sorted(unknown))}; allowed: name, "
+                            "band, t_rmax, delta, ramp_time, ramp_out, criteria")
+    name = m.get("name", "wgpm")
+    if name not in METHODS:
+        raise TaskFileError(f"{source}: field 'method.name' = {name!r} is not one of {', '.join(METHODS)}")
+    band = _number(m, "band", "method", source, 0.1, positive=True)
+    if band >= 0.5:
+        raise TaskFileError(f"{source}: method.band = {band} must be < 0.5 (two damping bands and a free band share "
+                            "each joint's range)")
+    t_rmax = _number(m, "t_rmax", "method", source, math.radians(10.0) / as_) * as_
+    if t_rmax < 0:
+        raise TaskFileError(f"{source}: method.t_rmax = {t_rmax / as_:g} must be ≥ 0 (the repulsive field pushes "
+                            "joints back into the free band)")
+    ramp_out = m.get("ramp_out", True)
+    if not isinstance(ramp_out, bool):
+        raise TaskFileError(f"{source}: method.ramp_out = {ramp_out!r} must be true or false")
+    crit_table = m.get("criteria", {})
+    if not isinstance(crit_table, dict):
+        raise TaskFileError(f"{source}: method.criteria must be a table of criteria ({', '.join(WGPM_CRITERIA)})")
+    unknown = set(crit_table) - set(WGPM_CRITERIA)
+    if unknown:
+        raise TaskFileError(f"{source}: unknown criterion/criteria {', '.join(sorted(unknown))} in method.criteria; "
+                            f"offered: {', '.join(WGPM_CRITERIA)}")
+    criteria = []
+    for cname in WGPM_CRITERIA:
+        c = crit_table.get(cname, {})
+        where = f"method.criteria.{cname}"
+        if not isinstance(c, dict):
+            raise TaskFileError(f"{source}: {where} must be a table")
+        bad = set(c) - CRITERION_FIELDS
+        if bad:
+            raise TaskFileError(f"{source}: unknown field(s) {', '.join(sorted(bad))} in {where}; allowed: "
+                                f"{', '.join(sorted(CRITERION_FIELDS))}")
+        for key in ("k_hi", "k_lo"):
+            value = c.get(key, 0.0)
+            if isinstance(value, (int, float)) and not isinstance(value, bool) and value < 0:
+                raise TaskFileError(f"{source}: field '{where}.{key}' = {value} must be ≥ 0: the sign comes from the "
+                                    f"criterion ({cname} is {'maximised' if WGPM_SENSE[WGPM_CRITERIA.index(cname)] > 0 else 'minimised'})")
+        crit = Criterion(
+            k_hi=_number(c, "k_hi", where, source, 0.0, nonneg=True),
+            k_lo=_number(c, "k_lo", where, source, 0.0, nonneg=True),
+            H_lo=_number(c, "H_lo", where, source, 0.0),
+            H_hi=_number(c, "H_hi", where, source, 1.0),
+            u_th=_number(c, "u_th", where, source, 0.3),
+            u_band=_number(c, "u_band", where, source, 0.4, positive=True),
+        )
+        if crit.k_lo > crit.k_hi:
+            raise TaskFileError(f"{source}: {where}.k_lo = {crit.k_lo} exceeds k_hi = {crit.k_hi}; the gain must be "
+                                "largest when the criterion is bad (k_hi ≥ k_lo)")
+        if not crit.H_hi > crit.H_lo:
+            raise TaskFileError(f"{source}: {where}: H_hi = {crit.H_hi} must exceed H_lo = {crit.H_lo} (the range "
+                                "that normalises the criterion to [0, 1])")
+        if not 0.0 <= crit.u_th <= 1.0:
+            raise TaskFileError(f"{source}: {where}.u_th = {crit.u_th} must be in [0, 1]")
+        criteria.append(crit)
+    method = WgpmMethod(
+        name=name, band=band, t_rmax=t_rmax,
+        delta=_number(m, "delta", "method", source, 1e-4, positive=True),
+        ramp_time=_number(m, "ramp_time", "method", source, 2.0, nonneg=True),
+        ramp_out=ramp_out, criteria=tuple(criteria),
+    )
+    if 2 * method.ramp_time > path.duration and method.ramp_out:
+        raise TaskFileError(f"{source}: method.ramp_time = {method.ramp_time} s is more than half of timing.duration = "
+                            f"{path.duration} s; shorten it or set method.ramp_out = false")
+    tr = _table(task, "tracking", source)
+    return WgpmTask(
+        path=path, method=method,
+        pos_tol=_number(tr, "pos_tol", "tracking", source, DEFAULT_POS_TOL / path.length_scale,
+                        positive=True) * path.length_scale,
+        ori_tol=_number(tr, "ori_tol", "tracking", source, DEFAULT_ORI_TOL / as_, positive=True) * as_,
+        raw=task,
+    )
+
+
+def smoothstep(x: float) -> float:
+    x = min(max(x, 0.0), 1.0)
+    return x * x * (3 - 2 * x)
+
+
+class WgpmPlanner:
+    FUNCTIONS = ("fk_jacobian", "step_wgpm", "step_fault")
+
+    def __init__(self, task: WgpmTask, backend_kind: str = "symbolic", backend: Backend | None = None):
+        self.task = task
+        self.robot = task.path.robot
+        self.rows = list(self.robot.task_rows)
+        self.backend = backend or make_backend(self.robot, backend_kind, self.FUNCTIONS)
+        pose0, _ = self.backend.call("fk_jacobian", task.path.q_start)
+        self.path = TaskPath(task.path, pose0)
+
+    def ramp(self, t: float, method: WgpmMethod) -> float:
+        if method.ramp_time <= 0:
+            return 1.0
+        up = smoothstep(t / method.ramp_time)
+        down = smoothstep((self.task.path.duration - t) / method.ramp_time) if method.ramp_out else 1.0
+        return up * down
+
+    def evaluate(self, t: float, q: np.ndarray, method: WgpmMethod) -> tuple[np.ndarray, dict[str, Any]]:
+        p = self.task.path
+        pose, jac = self.backend.call("fk_jacobian", q)
+        p_d, r_d, xdot = self.path(t)
+        pos_err, ori_err = tracking(pose, p_d, r_d)
+        cmd = xdot + (p.clik_gain * np.concatenate([pos_err, ori_err]) if p.clik else 0.0)
+        ramp = self.ramp(t, method) if method.name == "wgpm" else 0.0
+        qd, w_c, rho, sigma, gains, h = (x.ravel() for x in self.backend.call(
+            "step_wgpm", q, cmd[self.rows], method.band, method.t_rmax, p.damping_epsilon, p.damping_max,
+            method.delta, ramp, *method.vectors()))
+        n = self.robot.n
+        if method.name != "wgpm":  # step_wgpm still reports the criteria; the step is step_fault's
+            mask = np.ones(n)
+            for _ in range(n if method.name == "clamp" else 1):
+                qd, lam, sig = (x.ravel() for x in self.backend.call(
+                    "step_fault", q, cmd[self.rows], mask, np.ones(n), np.zeros(n), p.damping_epsilon, p.damping_max))
+                if method.name != "clamp":
+                    break
+                nxt = q + p.step * qd
+                out = (mask > 0) & ((nxt > self.robot.qmax) | (nxt < self.robot.qmin))
+                if not out.any():
+                    break
+                mask[out] = 0.0
+            w_c, rho, sigma, gains = 1.0 - mask, lam, sig, np.zeros_like(gains)
+        info = {"pose": pose, "jac": jac, "pos_err": pos_err, "ori_err": ori_err, "cmd": cmd, "ramp": ramp,
+                "w_c": w_c, "rho": float(rho[0]), "sigma_min": float(sigma[0]), "gains": gains, "H": h}
+        return qd, info
+
+    def columns(self) -> list[str]:
+        n = self.robot.n
+        return (base_columns(n) + ["ramp_1"] + [f"H_{SHORT[c]}_1" for c in WGPM_CRITERIA]
+                + [f"k_{SHORT[c]}_1" for c in WGPM_CRITERIA] + [f"wc{i + 1}_1" for i in range(n)])
+
+    def run(self, method: WgpmMethod | None = None) -> PlanResult:
+        method = method or self.task.method
+        p = self.task.path
+        h = p.step
+        q = p.q_start.copy()
+        rows, qds = [], []
+        damped = 0
+        started = time.perf_counter()
+        with progress(p.steps, f"planning {method.name}") as bar:
+            for k in range(p.steps + 1):
+                t = k * h
+                qd, info = self.evaluate(t, q, method)
+                damped += info["rho"] > 0
+                residual = float(np.linalg.norm((info["jac"] @ qd - info["cmd"])[self.rows]))
+                rows.append(base_row(t, q, qd, info["pose"], info["pos_err"], info["ori_err"], residual, info["rho"],
+                                     info["sigma_min"])
+                            + [info["ramp"], *info["H"], *info["gains"], *info["w_c"]])
+                qds.append(qd)
+                if k == p.steps:
+                    break
+                q = q + h * qd
+                if not np.all(np.isfinite(q)):
+                    raise PlanningError(f"joint angles became non-finite at t = {t + h:.3f} s; lower integrator.step "
+                                        "or the criterion gains")
+                bar.update(1)
+        data = np.array(rows)
+        keep = [k for k in range(len(rows)) if k % p.output_every == 0 or k == len(rows) - 1]
+        result = PlanResult(self.columns(), data[keep], {})
+        result.metadata = self._metadata(data, np.array(qds), method, damped, time.perf_counter() - started)
+        return result
+
+    def _metadata(self, data: np.ndarray, qd: np.ndarray, method: WgpmMethod, damped: int,
+                  elapsed: float) -> dict[str, Any]:
+        n, task = self.robot.n, self.task
+        cols = self.columns()
+        t = data[:, 0]
+        q = data[:, 1:1 + n]
+        violations, margin = limit_report(self.robot, t, q)
+        pos = float(np.max(data[:, cols.index("pos_err_m")]))
+        ori = float(np.max(data[:, cols.index("ori_err_rad")]))
+        smooth = smoothness(qd, task.path.step)
+        tracks = pos <= task.pos_tol and ori <= task.ori_tol
+        meta = path_metadata(task.path)
+        meta.update({
+            "method": method.name,
+            "parameters": {"band": method.band, "t_rmax_rad_s": method.t_rmax, "delta": method.delta,
+                           "ramp_time_s": method.ramp_time, "ramp_out": method.ramp_out,
+                           "criteria": {c: vars(k) for c, k in zip(WGPM_CRITERIA, method.criteria)}},
+            "tracking": {"pos_tol_mm": task.pos_tol * 1e3, "ori_tol_deg": math.degrees(task.ori_tol)},
+            "summary": {
+                "within_limits": not violations,
+                "tracks": bool(tracks),
+                "limit_violations": violations,
+                "max_abs_q_deg": np.degrees(np.max(np.abs(q), axis=0)).tolist(),
+                "max_abs_q_overall_deg": float(np.degrees(np.max(np.abs(q)))),
+                "min_limit_margin_deg": math.degrees(margin),
+                "max_pos_error_mm": pos * 1e3,
+                "max_ori_error_deg": math.degrees(ori),
+                "peak_ddq_deg_s2": math.degrees(smooth["peak_ddq_rad_s2"]),
+                "total_variation_dq_deg_s": math.degrees(smooth["total_variation_dq_rad_s"]),
+                "peak_dq_deg_s": float(np.degrees(np.max(np.abs(qd)))),
+                "start_joint_speed_deg_s": float(np.degrees(np.linalg.norm(qd[0]))),
+                "end_joint_speed_deg_s": float(np.degrees(np.linalg.norm(qd[-1]))),
+                "damped_steps": int(damped),
+                "plan_seconds": elapsed,
+            },
+        })
+        return meta
+
+
+def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
+    return WgpmPlanner(parse_wgpm_task(task, source), backend).run()
+
+
+# -- comparison and survey -------------------------------------------------------------------
+
+COMPARE_KEYS = (("max abs(q) deg", "max_abs_q_overall_deg", "{:.1f}"), ("margin to limit deg", "min_limit_margin_deg",
+                                                                      "{:.2f}"),
+                ("max pos err mm", "max_pos_error_mm", "{:.3f}"), ("max ori err deg", "max_ori_error_deg", "{:.3f}"),
+                ("peak abs(ddq) deg/s^2", "peak_ddq_deg_s2", "{:.1f}"), ("damped steps", "damped_steps", "{}"))
+
+
+def compare(task: WgpmTask, backend_kind: str = "symbolic") -> dict[str, dict[str, Any]]:
+    """The spec's comparison: the same task by plain pseudo-inverse, binary clamp and wgpm."""
+    planner = WgpmPlanner(task, backend_kind)
+    return {name: planner.run(replace(task.method, name=name)).metadata["summary"] for name in ("pinv", "clamp", "wgpm")}
+
+
+def format_compare(summaries: dict[str, dict[str, Any]], title: str) -> str:
+    lines = [f"## {title}", "", "| method | within limits | tracks | " + " | ".join(k for k, _, _ in COMPARE_KEYS) + " |",
+             "|---" * (3 + len(COMPARE_KEYS)) + "|"]
+    for name, s in summaries.items():
+        cells = [fmt.format(s[key]) for _, key, fmt in COMPARE_KEYS]
+        lines.append(f"| {name} | {'yes' if s['within_limits'] else 'NO'} | {'yes' if s['tracks'] else 'NO'} | "
+                     + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def random_task(base: WgpmTask, rng: np.random.Generator, planner: WgpmPlanner) -> WgpmTask:
+    """A random start inside the free band and a random circle beside it (radius 50–250 mm,
+    random plane) or a random line (100–400 mm); the base task's timing and method."""
+    robot = base.path.robot
+    span = robot.qmax - robot.qmin
+    for _ in range(100):
+        q0 = rng.uniform(robot.qmin + base.method.band * span, robot.qmax - base.method.band * span)
+        _, jac = planner.backend.call("fk_jacobian", q0)
+        if np.linalg.svd(jac[planner.rows], compute_uv=False)[-1] > 0.05:
+            break
+    u, v = np.linalg.qr(rng.normal(size=(3, 2)))[0].T
+    if rng.random() < 0.5:
+        r = rng.uniform(0.05, 0.25)
+        path = replace(base.path, q_start=q0, start_label="random", path_type="circle", relative=True, turns=1.0,
+                       via=r * (u + v), end=2 * r * u, end_rotation=None)
+    else:
+        path = replace(base.path, q_start=q0, start_label="random", path_type="line", relative=True, turns=1.0,
+                       via=None, end=rng.uniform(0.1, 0.4) * u, end_rotation=None)
+    return replace(base, path=path)
+
+
+def survey(base: WgpmTask, count: int, seed: int = 1, backend_kind: str = "symbolic",
+           methods: Sequence[str] = ("pinv", "clamp", "wgpm")) -> dict[str, Any]:
+    """Random tasks, each planned by every method: how often each respects the limits and
+    tracks. Unreachable random tasks (the path leaves the reach sphere) are redrawn."""
+    planner = WgpmPlanner(base, backend_kind)
+    rng = np.random.default_rng(seed)
+    outcomes: list[dict[str, Any]] = []
+    while len(outcomes) < count:
+        task = random_task(base, rng, planner)
+        try:
+            sub = WgpmPlanner(task, backend=planner.backend)
+        except PlanningError:
+            continue
+        row = {}
+        for name in methods:
+            s = sub.run(replace(task.method, name=name)).metadata["summary"]
+            row[name] = {k: s[k] for k in ("within_limits", "tracks", "max_pos_error_mm", "min_limit_margin_deg",
+                                           "peak_ddq_deg_s2", "damped_steps")}
+        outcomes.append(row)
+    stats: dict[str, Any] = {"tasks": count, "seed": seed, "duration_s": base.path.duration, "step_s": base.path.step}
+    hard = [o for o in outcomes if not o["pinv"]["within_limits"]] if "pinv" in methods else outcomes
+    for name in methods:
+        def frac(rows, pred):
+            return (sum(pred(r[name]) for r in rows), len(rows))
+        stats[name] = {
+            "within_limits": frac(outcomes, lambda s: s["within_limits"]),
+            "tracks": frac(outcomes, lambda s: s["tracks"]),
+            "both": frac(outcomes, lambda s: s["within_limits"] and s["tracks"]),
+            "both_where_pinv_violates": frac(hard, lambda s: s["within_limits"] and s["tracks"]),
+            "median_peak_ddq_deg_s2": float(np.median([o[name]["peak_ddq_deg_s2"] for o in outcomes])),
+        }
+    stats["outcomes"] = outcomes
+    return stats
+
+
+def format_survey(stats: dict[str, Any]) -> str:
+    methods = [m for m in METHODS[::-1] if m in stats] if "pinv" in stats else [m for m in METHODS if m in stats]
+    hard = stats[methods[0]]["both_where_pinv_violates"][1]
+    lines = [f"## survey: {stats['tasks']} random tasks (seed {stats['seed']}, T = {stats['duration_s']:g} s, "
+             f"h = {stats['step_s']:g} s); pinv leaves the limits in {hard} of them", "",
+             "| method | within limits | tracks | both | both, where pinv leaves the limits | median peak abs(ddq) "
+             "deg/s^2 |", "|---|---|---|---|---|---|"]
+    for name in ("pinv", "clamp", "wgpm"):
+        if name not in stats:
+            continue
+        s = stats[name]
+        cell = lambda v: f"{v[0]}/{v[1]}"  # noqa: E731
+        lines.append(f"| {name} | {cell(s['within_limits'])} | {cell(s['tracks'])} | {cell(s['both'])} | "
+                     f"{cell(s['both_where_pinv_violates'])} | {s['median_peak_ddq_deg_s2']:.0f} |")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m armgen.planning.wgpm --compare TASK.toml`` and/or ``--survey N``."""
+    from .tasks import apply_overrides, check_finite_tree, load_task
+
+    parser = argparse.ArgumentParser(prog="python -m armgen.planning.wgpm",
+                                     description="Spec 35: pinv vs binary clamp vs weighted GPM; random-task survey.")
+    parser.add_argument("task", help="a wgpm task file (the demo; the survey uses its timing and method)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], help="key=value override")
+    parser.add_argument("--compare", action="store_true", help="plan the task by pinv, clamp and wgpm; print the table")
+    parser.add_argument("--survey", type=int, default=0, metavar="N", help="also run N random tasks")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--survey-duration", type=float, default=None, help="duration of the random tasks (s)")
+    parser.add_argument("--backend", choices=("symbolic", "c"), default="symbolic")
+    parser.add_argument("--json", default=None, metavar="FILE", help="also write the results (every task) as JSON")
+    args = parser.parse_args(argv)
+    results: dict[str, Any] = {}
+    try:
+        raw, _ = load_task(args.task)
+        apply_overrides(raw, list(args.overrides))
+        check_finite_tree(raw, "", args.task)
+        task = parse_wgpm_task(raw, args.task)
+        if args.compare:
+            started = time.perf_counter()
+            results["compare"] = compare(task, args.backend)
+            print(format_compare(results["compare"], f"{args.task}: {task.path.robot.name}, "
+                                 f"T = {task.path.duration:g} s, h = {task.path.step:g} s"))
+            print(f"\n({time.perf_counter() - started:.1f} s)\n")
+        if args.survey:
+            base = task
+            if args.survey_duration:
+                base = replace(task, path=replace(task.path, duration=args.survey_duration))
+            started = time.perf_counter()
+            results["survey"] = survey(base, args.survey, args.seed, args.backend)
+            print(format_survey(results["survey"]))
+            print(f"\n({time.perf_counter() - started:.1f} s)\n")
+        if args.json:
+            from .fault_tolerant import _write_json
+
+            _write_json(args.json, results)
+    except ArmgenError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

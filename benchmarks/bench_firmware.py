@@ -1,0 +1,419 @@
+#!/usr/bin/env python3
+"""Firmware benchmarks (issue 7): measurements, not tests.
+
+    python benchmarks/bench_firmware.py [--out benchmarks/results/firmware.json] [--keep]
+
+For the joint controller of firmware_stub/ running spec 20's combined plan on modular8
+(12 500 Euler ticks, h = 0.02 s, from examples/modular8_circle_combined.toml):
+
+1. Cortex-M4F (arm-none-eabi-gcc, float, the build armgen verify --target uses: controller
+   -O3, generated kinematics -Os, sinf/cosf from arm/fw_fastmath.c): flash and RAM of the
+   controller and of each generated function it links (arm-none-eabi-size -A, nm -S), the
+   image, sizeof(ctrl); stack use: -fstack-usage per function, the worst call chain from
+   ctrl_tick (-fcallgraph-info=su), and the measured peak (the firmware paints its stack).
+2. Executed instructions per tick under qemu-system-arm -M mps2-an386 -icount shift=0
+   (SysTick on the processor clock, 40 instructions per count, calibrated in the run; the
+   method of benchmarks/README.md), mean / max / min over the 12 501 ticks, for that build
+   and for variants (newlib trig, -O2, -Os); a per-function split from an instruction trace
+   of a short plan with every operator active.
+3. The same 12 500-tick plan run natively by the host firmware (gcc -O2, double and float),
+   best wall time of 20 runs, against the Python planner (symbolic backend, timed in this
+   run) and the paper's 0.12 s.
+4. Replay errors of those runs against the plan (host double, host float, QEMU float).
+
+Bars (reported, not asserted): BARS. A missing tool skips its rows. About a minute on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import copy
+import dataclasses
+import json
+import os
+import platform
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+if str(REPO) not in sys.path:  # run from a checkout without `pip install -e .`
+    sys.path.insert(0, str(REPO))
+
+from armgen.planning.result import write_plan  # noqa: E402
+from armgen.planning.tasks import apply_overrides, load_task, run_task  # noqa: E402
+from armgen.verify import firmware as fw  # noqa: E402
+
+EXAMPLE = REPO / "examples" / "modular8_circle_combined.toml"
+PAPER_SECONDS = 0.12
+BARS = {"m4_instr_per_tick": 5000, "host_plan_ms": 20.0}
+HOST_REPEATS = 20
+# A short plan with every operator active (windows open and close, alpha_R and gamma_R ramp):
+# the instruction trace of its 251 ticks gives the per-function split.
+SPLIT_OVERRIDES = ["path.type=line", "path.end=[-450, 400, 900]", "timing.duration=5", "method.theta_s=75",
+                   "method.T_smo_L=0.5", "method.T_sum_L=1", "method.rho_L=0.01", "method.gamma_R_ramp=1",
+                   "method.T_smo_R=1"]
+
+
+class Skip(Exception):
+    pass
+
+
+def tool(name: str) -> str:
+    path = shutil.which(name)
+    if path is None:
+        raise Skip(f"skipped: {name} not installed (apt-get install -y {fw.APT_PACKAGES})")
+    return path
+
+
+def run(cmd, timeout=600) -> str:
+    proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=timeout)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{cmd[0]} failed ({proc.returncode}): {proc.stderr[-2000:]}")
+    return proc.stdout + proc.stderr
+
+
+class Report:
+    def __init__(self):
+        self.rows: list[tuple[str, str, str, str]] = []
+        self.data: dict = {}
+
+    def row(self, what: str, value, unit: str = "", note: str = "") -> None:
+        value = f"{value:.4g}" if isinstance(value, float) else str(value)
+        self.rows.append((what, value, unit, note))
+        print(f"  {what:<50} {value:>12} {unit:<12} {note}", flush=True)
+
+    def section(self, key: str, title: str, func) -> None:
+        print(f"\n{title}", flush=True)
+        try:
+            func()
+        except Skip as exc:
+            self.row(title.split(":")[0], str(exc))
+            self.data.setdefault(key, {})["skipped"] = str(exc)
+        except Exception as exc:  # a benchmark reports, it does not stop at the first failure
+            self.row(title.split(":")[0], "FAILED", "", str(exc).splitlines()[0][:140])
+            self.data.setdefault(key, {})["error"] = str(exc)
+
+
+def bar_note(value: float, bar: float) -> str:
+    return f"target <= {bar:g}: {'meets' if value <= bar else 'ABOVE'}"
+
+
+# ------------------------------------------------------------------------------------------
+# sizes and stack
+# ------------------------------------------------------------------------------------------
+
+def section_sizes(obj: Path) -> dict[str, int]:
+    out = {}
+    for line in run([tool("arm-none-eabi-size"), "-A", obj]).splitlines():
+        p = line.split()
+        if len(p) >= 2 and p[0].startswith(".") and p[1].isdigit() and int(p[1]) > 0:
+            out[p[0]] = int(p[1])
+    return out
+
+
+def flash_ram(obj: Path) -> dict[str, int]:
+    s = section_sizes(obj)
+    text = sum(v for k, v in s.items() if k.startswith(".text"))
+    rodata = sum(v for k, v in s.items() if k.startswith(".rodata"))
+    ram = sum(v for k, v in s.items() if k.startswith((".data", ".bss")))
+    return {"text": text, "rodata": rodata, "data_bss": ram, "flash": text + rodata + sum(
+        v for k, v in s.items() if k.startswith(".data"))}
+
+
+def linked_symbols(elf: Path) -> dict[str, int]:
+    out = {}
+    for line in run([tool("arm-none-eabi-nm"), "-S", elf]).splitlines():
+        p = line.split()
+        if len(p) == 4:
+            out[p[3]] = int(p[1], 16)
+    return out
+
+
+def image_size(elf: Path) -> dict[str, int]:
+    lines = run([tool("arm-none-eabi-size"), elf]).splitlines()
+    text, data, bss = (int(x) for x in lines[1].split()[:3])
+    return {"text": text, "data": data, "bss": bss}
+
+
+def stack_usage(obj_dir: Path) -> dict[str, int]:
+    out = {}
+    for su in obj_dir.glob("*.su"):
+        for line in su.read_text().splitlines():
+            where, nbytes, _kind = line.split("\t")
+            out[where.rsplit(":", 1)[-1]] = int(nbytes)
+    return out
+
+
+def worst_chain(obj_dir: Path, root: str = "ctrl_tick") -> tuple[int, list[str], list[str]]:
+    """Deepest stack from root over the -fcallgraph-info=su graphs; functions without a
+    frame size (libm) are listed as unknown and count 0."""
+    size: dict[str, int] = {}
+    edges: dict[str, set[str]] = collections.defaultdict(set)
+    for ci in obj_dir.glob("*.ci"):
+        text = ci.read_text()
+        for m in re.finditer(r'node: \{ title: "([^"]+)" label: "([^"\\]+)(?:\\n[^"]*?\\n(\d+) bytes)?', text):
+            name = m.group(1).rsplit(":", 1)[-1]
+            if m.group(3) is not None:
+                size[name] = int(m.group(3))
+        for m in re.finditer(r'edge: \{ sourcename: "([^"]+)" targetname: "([^"]+)"', text):
+            edges[m.group(1).rsplit(":", 1)[-1]].add(m.group(2).rsplit(":", 1)[-1])
+    wrapped = {"sinf": "__wrap_sinf", "cosf": "__wrap_cosf"}  # the M4 build links -Wl,--wrap
+    unknown: set[str] = set()
+
+    def depth(f: str, seen: tuple[str, ...]) -> tuple[int, list[str]]:
+        f = wrapped.get(f, f)
+        if f in seen:
+            return 0, []
+        if f not in size:
+            unknown.add(f)
+            return 0, [f]
+        best, path = 0, []
+        for g in edges.get(f, ()):
+            d, p = depth(g, seen + (f,))
+            if d > best:
+                best, path = d, p
+        return size[f] + best, [f, *path]
+
+    total, path = depth(root, ())
+    return total, path, sorted(unknown)
+
+
+# ------------------------------------------------------------------------------------------
+# QEMU trace split
+# ------------------------------------------------------------------------------------------
+
+def trace_split(elf: Path, work: Path) -> dict:
+    qemu = tool("qemu-system-arm")
+    log = work / "exec.log"
+    subprocess.run([qemu, *fw.QEMU_MACHINE, *fw.QEMU_ICOUNT, "-singlestep", "-d", "exec,nochain", "-D", str(log),
+                    "-kernel", str(elf)], capture_output=True, timeout=600, check=True)
+    syms = []
+    for line in run([tool("arm-none-eabi-nm"), "-S", elf]).splitlines():
+        p = line.split()
+        if len(p) == 4 and p[2] in "tTwW":
+            syms.append((int(p[0], 16) & ~1, int(p[1], 16), p[3]))
+    syms.sort()
+    starts = [s[0] for s in syms]
+    import bisect
+
+    def name_at(pc: int) -> str:
+        i = bisect.bisect_right(starts, pc) - 1
+        return syms[i][2] if i >= 0 and pc < syms[i][0] + syms[i][1] else "?"
+
+    entry = next(s[0] for s in syms if s[2] == "ctrl_tick")
+    by: collections.Counter = collections.Counter()
+    inside, ticks = False, 0
+    with open(log) as handle:
+        lines = handle.read().splitlines()
+    for i, line in enumerate(lines):
+        m = re.match(r"Trace \d+: \S+ \[[0-9a-f]+/([0-9a-f]+)/", line)
+        if not m or (i + 1 < len(lines) and lines[i + 1].startswith("cpu_io_recompile")):
+            continue
+        pc = int(m.group(1), 16)
+        if not inside:
+            if pc != entry:
+                continue
+            inside, ticks = True, ticks + 1
+        where = name_at(pc)
+        if where.startswith("timed_tick"):
+            inside = False
+            continue
+        by[where] += 1
+    log.unlink()
+    total = sum(by.values())
+    return {"ticks": ticks, "instr_per_tick": total / ticks,
+            "by_function_per_tick": {k: round(v / ticks, 1) for k, v in by.most_common()}}
+
+
+# ------------------------------------------------------------------------------------------
+# the run
+# ------------------------------------------------------------------------------------------
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", default=str(HERE / "results" / "firmware.json"))
+    ap.add_argument("--keep", action="store_true", help="keep the build directory")
+    args = ap.parse_args(argv)
+    os.environ["ARMGEN_NO_PROGRESS"] = "1"
+    started = time.perf_counter()
+    work = Path(tempfile.mkdtemp(prefix="armgen_fwbench_"))
+    rep = Report()
+    rep.data["meta"] = {
+        "python": platform.python_version(), "machine": platform.machine(),
+        "gcc": run(["gcc", "--version"]).splitlines()[0] if shutil.which("gcc") else None,
+        "arm-none-eabi-gcc": run(["arm-none-eabi-gcc", "--version"]).splitlines()[0]
+        if shutil.which("arm-none-eabi-gcc") else None,
+        "qemu-system-arm": run(["qemu-system-arm", "--version"]).splitlines()[0] if shutil.which("qemu-system-arm") else None,
+        "bars": BARS, "arm_variant": fw.ARM_VARIANT.name,
+    }
+    print(f"armgen firmware benchmark, build dir {work}")
+
+    state: dict = {}
+
+    def planning():
+        task, sha = load_task(EXAMPLE)
+        t0 = time.perf_counter()
+        result = run_task(copy.deepcopy(task), EXAMPLE.name, sha, "symbolic")
+        state["python_s"] = time.perf_counter() - t0
+        state["plan"] = result
+        state["task"] = fw.task_from_plan(result, EXAMPLE.name)
+        write_plan(result, work / "combined.csv")
+        rep.data["plan"] = {"python_symbolic_s": state["python_s"], "ticks": state["task"].n_ticks}
+        rep.row("Python planner, symbolic backend (12 500 steps)", state["python_s"], "s")
+
+    rep.section("plan", "0. The plan (examples/modular8_circle_combined.toml):", planning)
+    if "task" not in state:
+        return finish(rep, args, work, started)
+    plan, task = state["plan"], state["task"]
+    builder = fw.FirmwareBuilder("modular8", work / "fw")
+    m4 = rep.data.setdefault("cortex_m4f", {})
+
+    def sizes():
+        tool("arm-none-eabi-gcc")
+        variant = dataclasses.replace(fw.ARM_VARIANT, print_rows=False, extra=("-fcallgraph-info=su",))
+        elf = builder.executable(variant, task, "sizes")
+        state["elf"] = elf
+        obj_dir = builder.object_dir(variant)
+        objs = {p.stem: p for p in obj_dir.glob("*.o")}
+        ctrl = flash_ram(objs["controller"])
+        m4["controller"] = ctrl
+        rep.row("controller.o flash (text + rodata)", ctrl["flash"], "bytes",
+                f"text {ctrl['text']}, rodata {ctrl['rodata']}; RAM (data + bss) {ctrl['data_bss']}: no globals")
+        syms = linked_symbols(elf)
+        prefix = builder.prefix
+        gen = {f: syms.get(f"{prefix}_{f}", 0) for f in fw.FIRMWARE_FUNCTIONS}
+        m4["generated_text"] = gen
+        rep.row("generated functions linked (text)", sum(gen.values()), "bytes",
+                ", ".join(f"{k} {v}" for k, v in gen.items()))
+        other = {k: syms.get(k, 0) for k in ("fw_ptp_eval", "__wrap_sinf", "__wrap_cosf", "fw_task")}
+        m4["other"] = other
+        rep.row("PTP evaluator fw_ptp_eval (text)", other["fw_ptp_eval"], "bytes")
+        rep.row("fast sinf + cosf (text)", other["__wrap_sinf"] + other["__wrap_cosf"], "bytes")
+        rep.row("task configuration fw_task (rodata, flash)", other["fw_task"], "bytes",
+                f"incl. room for {fw.MAX_SEGMENTS} playback segments x 8 joints")
+        img = image_size(elf)
+        m4["image"] = img
+        rep.row("whole image: text / data / bss", f"{img['text']} / {img['data']} / {img['bss']}", "bytes",
+                "incl. runner, CSV printer, startup, newlib libm")
+        # a size-optimised build for comparison
+        small = fw.Variant("arm", "float", opt="-Os", print_rows=False)
+        small_elf = builder.executable(small, task, "sizes_os")
+        small_ctrl = flash_ram(builder.object_dir(small) / "controller.o")
+        m4["controller_Os"] = small_ctrl
+        m4["image_Os"] = image_size(small_elf)
+        rep.row("  the same with everything -Os: controller.o flash", small_ctrl["flash"], "bytes",
+                f"image text {m4['image_Os']['text']}")
+        su = stack_usage(obj_dir)
+        m4["stack_usage"] = {k: su[k] for k in sorted(su, key=lambda k: -su[k])}
+        keys = ["ctrl_tick", "tick_resolved_rate", "ctrl_init", "init_resolved_rate",
+                *(f"{prefix}_{f}" for f in fw.FIRMWARE_FUNCTIONS), "fw_ptp_eval", "__wrap_sinf"]
+        rep.row("stack per function (-fstack-usage)", "", "bytes", ", ".join(f"{k} {su.get(k, 0)}" for k in keys))
+        total, path, unknown = worst_chain(obj_dir)
+        m4["stack_worst_chain"] = {"bytes": total, "path": path, "unknown": unknown}
+        rep.row("stack, worst chain from ctrl_tick (static)", total, "bytes",
+                " > ".join(path) + (f"; + libm frames ({', '.join(unknown)})" if unknown else ""))
+
+    def qemu_counts():
+        tool("qemu-system-arm")
+        if "elf" not in state:
+            raise Skip("skipped: no Cortex-M4F build")
+        run_ = fw.run_qemu(state["elf"])
+        state["summary"] = run_.summary
+        ipt = fw.instructions_per_tick(run_)
+        m4["instructions_per_tick"] = ipt
+        m4["stack_peak_bytes"] = int(run_.summary["stack_peak_bytes"])
+        m4["sizeof_ctrl"] = int(run_.summary["sizeof_ctrl"])
+        rep.row("M4F executed instructions per tick, mean", ipt["mean"], "instr/tick",
+                bar_note(ipt["mean"], BARS["m4_instr_per_tick"]) + f" ({int(ipt['ticks'])} ticks, ±{ipt['resolution']:.0f})")
+        rep.row("  max / min over the ticks", f"{ipt['max']:.0f} / {ipt['min']:.0f}", "instr/tick",
+                bar_note(ipt["max"], BARS["m4_instr_per_tick"]))
+        rep.row("  at 168 MHz (1 instr/cycle lower bound)", ipt["mean"] / 168.0, "µs/tick",
+                f"{ipt['mean'] / 168e6 / 0.02 * 100:.2f} % of the 20 ms period")
+        rep.row("stack peak measured under QEMU (whole firmware)", m4["stack_peak_bytes"], "bytes")
+        rep.row("sizeof(ctrl) (the controller object, RAM)", m4["sizeof_ctrl"], "bytes",
+                f"sizeof(ctrl_config) {run_.summary['sizeof_config']} (const, flash)")
+        variants = {
+            "newlib sinf/cosf": dataclasses.replace(fw.ARM_VARIANT, print_rows=False, fast_trig=False),
+            "all -O2": fw.Variant("arm", "float", opt="-O2", print_rows=False),
+            "all -Os": fw.Variant("arm", "float", opt="-Os", print_rows=False),
+        }
+        m4["variants"] = {}
+        for label, v in variants.items():
+            r = fw.instructions_per_tick(fw.run_qemu(builder.executable(v, task, "v_" + re.sub(r"\W", "", label))))
+            m4["variants"][label] = r
+            rep.row(f"  variant: {label}", r["mean"], "instr/tick", f"max {r['max']:.0f}")
+        # the split
+        split_task = copy.deepcopy(load_task(EXAMPLE)[0])
+        apply_overrides(split_task, SPLIT_OVERRIDES)
+        split_elf = builder.executable(dataclasses.replace(fw.ARM_VARIANT, print_rows=False),
+                                       fw.task_from_dict(split_task, "split"), "split")
+        split = trace_split(split_elf, work)
+        m4["split"] = split
+        rep.row("split (trace of a 5-s plan, every operator on)", split["instr_per_tick"], "instr/tick",
+                ", ".join(f"{k} {v:g}" for k, v in list(split["by_function_per_tick"].items())[:9]))
+
+    rep.section("sizes", "1. Cortex-M4F sizes and stack (controller -O3, kinematics -Os, float):", sizes)
+    rep.section("qemu", "2. Cortex-M4F executed instructions per tick (QEMU -icount shift=0, SysTick):", qemu_counts)
+
+    host = rep.data.setdefault("host", {})
+
+    def host_time():
+        tool("gcc")
+        for precision in ("double", "float"):
+            exe = builder.executable(fw.Variant("host", precision), task, f"time_{precision}")
+            out = subprocess.run([str(exe), "--quiet", "--time", str(HOST_REPEATS)], capture_output=True, text=True,
+                                 check=True).stdout
+            s = fw.parse_output(out).summary
+            ms = float(s["wall_ns_best"]) / 1e6
+            host[precision] = {"ms": ms, "ns_per_tick": float(s["wall_ns_per_tick"]), "ticks": int(s["timed_ticks"])}
+            note = (f"{bar_note(ms, BARS['host_plan_ms'])}; Python planner {state['python_s'] / (ms / 1e3):.0f}x slower, "
+                    f"paper {PAPER_SECONDS / (ms / 1e3):.0f}x slower")
+            rep.row(f"host firmware -O2 {precision}, 12 500-tick plan", ms, "ms", note)
+            rep.row("  per tick", host[precision]["ns_per_tick"], "ns")
+
+    rep.section("host", "3. The whole plan natively on the host (gcc -O2, best of 20):", host_time)
+
+    replay = rep.data.setdefault("replay", {})
+
+    def replays():
+        runs = [("host double, ASan/UBSan", fw.Variant("host", "double", sanitize=True, opt="-O1"), "double"),
+                ("host float", fw.Variant("host", "float"), "float")]
+        if shutil.which("arm-none-eabi-gcc") and shutil.which("qemu-system-arm"):
+            runs.append(("Cortex-M4F float (QEMU)", fw.ARM_VARIANT, "float"))
+        for label, v, precision in runs:
+            exe = builder.executable(v, task, "replay_" + re.sub(r"\W", "", label))
+            r = fw.run_qemu(exe) if v.target == "arm" else fw.run_host(exe)
+            cmp = fw.compare_with_plan(plan, r, task, precision, label)
+            bq, bt = fw.bounds_for(precision, task.mode)
+            replay[label] = {"max_dq_rad": cmp.max_dq, "bound_rad": bq, "max_dtask_m": cmp.max_dtask, "bound_m": bt,
+                             "passed": cmp.passed, "end": f"{r.state}/{r.fault}"}
+            rep.row(f"{label}: max |Δq|", cmp.max_dq, "rad", f"bound {bq:g}; {'pass' if cmp.passed else 'FAIL'}")
+            rep.row(f"{label}: max |Δ task error|", cmp.max_dtask, "m", f"bound {bt:g}; end {r.state}/{r.fault}")
+
+    rep.section("replay", "4. Replay of the 12 500-step plan against the plan CSV:", replays)
+    return finish(rep, args, work, started)
+
+
+def finish(rep: Report, args, work: Path, started: float) -> int:
+    rep.data["meta"]["run_seconds"] = time.perf_counter() - started
+    rep.data["table"] = [{"what": w, "value": v, "unit": u, "note": n} for w, v, u, n in rep.rows]
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(rep.data, indent=2, default=str) + "\n")
+    print(f"\nwrote {out} (run {rep.data['meta']['run_seconds']:.1f} s)")
+    if args.keep:
+        print(f"build directory kept: {work}")
+    else:
+        shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,169 @@
+/*
+ * Cortex-M4F runner of the joint controller (MPS2 AN386 under qemu-system-arm, or the board
+ * with a debugger): runs the compiled-in task (`fw_task`, task_params.h) tick by tick and
+ * prints the commanded trajectory as CSV over semihosting (reals in C99 hex, see fw_csv.h),
+ * then "# key value" lines:
+ *
+ *   tick_systicks_sum / _max / _min   SysTick counts spent inside ctrl_tick, over `ticks`
+ *   stub_systicks_sum                 the same harness around an empty function, `ticks` calls
+ *   calib_insns / calib_ticks         a loop of known length: instructions per SysTick count
+ *   stack_peak_bytes                  deepest main-stack use (the stack is painted at start)
+ *   sizeof_ctrl / sizeof_config       bytes of the controller object and of its configuration
+ *
+ * Under `qemu-system-arm -icount shift=0` every instruction advances time by 1 ns and SysTick
+ * (processor clock, 25 MHz) is read exactly, so the counts are executed instructions / 40:
+ * see benchmarks/README.md. DWT CYCCNT is not modelled by QEMU 7.2.
+ *
+ * Ticks run back to back. A tick whose execution exceeds its period (dt at FW_CPU_HZ) is
+ * reported to the controller as an overrun on the next tick (CTRL_FAULT_OVERRUN).
+ * Build with FW_PRINT_ROWS=0 to print the summary only.
+ */
+#include <stdint.h>
+#include <string.h>
+
+#include "controller.h"
+#include "fw_csv.h"
+#include "semihost.h"
+
+#ifndef FW_PRINT_ROWS
+#define FW_PRINT_ROWS 1
+#endif
+#ifndef FW_EXTRA_TICKS
+#define FW_EXTRA_TICKS 2
+#endif
+#ifndef FW_CPU_HZ
+#define FW_CPU_HZ 25000000u /* MPS2 AN386 processor clock, the SysTick source */
+#endif
+
+#define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
+#define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
+#define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
+#define SYST_MASK 0xFFFFFFu
+#define STACK_PAINT 0xA5C3A5C3u
+
+extern const ctrl_config fw_task;
+extern uint32_t __stack_limit[];
+
+typedef ctrl_fault (*tick_fn)(ctrl *c, const ctrl_input *in, ctrl_output *out);
+static tick_fn volatile selected_tick; /* volatile: the timed call is a real call */
+static ctrl controller;
+static char line[FW_CSV_LINE_MAX];
+
+__attribute__((noinline)) static ctrl_fault stub_tick(ctrl *c, const ctrl_input *in, ctrl_output *out) {
+  (void)c;
+  (void)in;
+  (void)out;
+  return CTRL_FAULT_NONE;
+}
+
+__attribute__((noinline)) static uint32_t timed_tick(ctrl *c, const ctrl_input *in, ctrl_output *out) {
+  tick_fn fn = selected_tick;
+  uint32_t t0, t1;
+  t0 = SYST_CVR;
+  (void)fn(c, in, out);
+  t1 = SYST_CVR;
+  return (t0 - t1) & SYST_MASK;
+}
+
+__attribute__((noinline)) static uint32_t timed_calib(uint32_t iterations) {
+  uint32_t t0, t1;
+  t0 = SYST_CVR;
+  __asm__ volatile("1: subs %0, %0, #1\n\tbne 1b" : "+r"(iterations)::"cc");
+  t1 = SYST_CVR;
+  return (t0 - t1) & SYST_MASK;
+}
+
+/* Fill the unused main stack (below this frame) with a pattern. */
+__attribute__((noinline)) static void paint_stack(void) {
+  volatile uint32_t marker = 0u;
+  uint32_t *p = __stack_limit;
+  uint32_t *end = (uint32_t *)((uintptr_t)&marker & ~(uintptr_t)3u) - 64;
+  while (p < end) {
+    *p++ = STACK_PAINT;
+  }
+  (void)marker;
+}
+
+static uint32_t stack_peak_bytes(void) {
+  extern uint32_t __stack_top[];
+  const uint32_t *p = __stack_limit;
+  while (p < __stack_top && *p == STACK_PAINT) {
+    ++p;
+  }
+  return (uint32_t)((uintptr_t)__stack_top - (uintptr_t)p);
+}
+
+static void put_kv(const char *key, uint32_t value) {
+  sh_puts("# ");
+  sh_put_kv(key, value);
+}
+
+int main(void) {
+  ctrl_input in;
+  ctrl_output out;
+  ctrl_fault init;
+  uint32_t i, sum = 0u, max = 0u, min = 0xFFFFFFFFu, stub = 0u, ticks = 0u, period, limit;
+  int32_t after = -1;
+
+  paint_stack();
+  SYST_RVR = SYST_MASK;
+  SYST_CVR = 0u;
+  SYST_CSR = 5u; /* ENABLE | CLKSOURCE = processor clock, no interrupt */
+
+  init = ctrl_init(&controller, &fw_task);
+  (void)fw_csv_header(line, sizeof(line));
+  sh_puts(line);
+  period = (uint32_t)(fw_task.dt * (ctrl_real)FW_CPU_HZ);
+  limit = controller.n_ticks + FW_EXTRA_TICKS + 2u;
+  memset(&in, 0, sizeof(in));
+  in.command = CTRL_CMD_START;
+  selected_tick = ctrl_tick;
+  for (i = 0; i <= limit; ++i) {
+    uint32_t d = timed_tick(&controller, &in, &out);
+    in.command = CTRL_CMD_NONE;
+    in.missed_ticks = d > period ? d / period : 0u;
+    if (after < 0) {
+      sum += d;
+      max = d > max ? d : max;
+      min = d < min ? d : min;
+      ++ticks;
+    }
+#if FW_PRINT_ROWS
+    (void)fw_csv_row(line, sizeof(line), &out);
+    sh_puts(line);
+#endif
+    if (after < 0 && out.state != CTRL_STATE_RUNNING) {
+      after = (int32_t)i;
+    }
+    if (after >= 0 && (int32_t)i - after >= FW_EXTRA_TICKS) {
+      break;
+    }
+  }
+  selected_tick = stub_tick;
+  for (i = 0; i < ticks; ++i) {
+    stub += timed_tick(&controller, &in, &out);
+  }
+
+  sh_puts("# init ");
+  sh_puts(ctrl_fault_name(init));
+  sh_puts("\n# state ");
+  sh_puts(ctrl_state_name(out.state));
+  sh_puts("\n# fault ");
+  sh_puts(ctrl_fault_name(out.fault));
+  sh_puts("\n");
+  put_kv("ticks", ticks);
+  put_kv("n_ticks", controller.n_ticks);
+  put_kv("tick_systicks_sum", sum);
+  put_kv("tick_systicks_max", max);
+  put_kv("tick_systicks_min", min);
+  put_kv("stub_systicks_sum", stub);
+  put_kv("calib_insns", 2u * 100000u);
+  put_kv("calib_ticks", timed_calib(101000u) - timed_calib(1000u));
+  put_kv("period_systicks", period);
+  put_kv("stack_peak_bytes", stack_peak_bytes());
+  put_kv("sizeof_ctrl", (uint32_t)sizeof(ctrl));
+  put_kv("sizeof_config", (uint32_t)sizeof(ctrl_config));
+  put_kv("real_bytes", (uint32_t)sizeof(ctrl_real));
+  sh_puts("# end\n");
+  return 0;
+}

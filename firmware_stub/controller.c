@@ -1,0 +1,665 @@
+/*
+ * armgen joint controller, see controller.h and docs/firmware.md.
+ *
+ * The resolved-rate tick mirrors armgen/planning/cartesian.py operation by operation (same
+ * formulas, same order of floating-point operations where it matters), so that the double
+ * build reproduces a plan to rounding level; the float build is the same code in single
+ * precision.
+ */
+#include "controller.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <string.h>
+
+#include "fw_ptp.h"
+
+/* The segment evaluator must be built with the controller's precision and layout. */
+typedef char ctrl_check_ptp_real[(sizeof(fw_real) == sizeof(ctrl_real)) ? 1 : -1];
+typedef char ctrl_check_ptp_ncoef[(FW_PTP_NCOEF == CTRL_NCOEF) ? 1 : -1];
+
+/* Euler with compensated (Kahan) summation: q is stored in the working precision, so in
+ * float each step would otherwise round q to 24 bits and the rounding errors of 10^4 steps
+ * add up. The double build integrates exactly like the Python planner (plain q + h q_dot). */
+#ifndef CTRL_COMPENSATED_SUM
+#define CTRL_COMPENSATED_SUM CTRL_USE_FLOAT
+#endif
+
+#define N CTRL_NDOF
+#define TWO_PI CTRL_LIT(6.283185307179586)
+/* |n dt - T| below this fraction of T: the motion's duration is a whole number of ticks. */
+#define DURATION_RTOL CTRL_LIT(1e-4)
+/* The circle's three points are collinear below this (|a x b| / (|a| |b|)), as the planner. */
+#define COLLINEAR_TOL CTRL_LIT(1e-6)
+/* A playback plan must start where the arm is: |theta(t0) - q_start| below this, rad. */
+#define PLAYBACK_START_TOL CTRL_LIT(1e-5)
+
+enum { WIN_IDLE = 0, WIN_RAMP_UP = 1, WIN_HOLD = 2, WIN_RAMP_DOWN = 3 };
+
+/* ------------------------------------------------------------------ small helpers */
+
+static int finite_r(ctrl_real x) {
+  ctrl_real d = x - x; /* 0 for finite x, NaN for inf and NaN */
+  return d == d;
+}
+
+/* 1 when every x[i] is finite: x * 0 is 0 for finite x and NaN for NaN or inf, and a NaN
+ * survives the sum (one multiply-add per element, no branches). */
+static int all_finite(const ctrl_real *x, int n) {
+  ctrl_real acc = CTRL_LIT(0.0);
+  int i;
+  for (i = 0; i < n; ++i) {
+    acc = acc + x[i] * CTRL_LIT(0.0);
+  }
+  return acc == acc;
+}
+
+static ctrl_real min_r(ctrl_real a, ctrl_real b) { return a < b ? a : b; }
+static ctrl_real max_r(ctrl_real a, ctrl_real b) { return a > b ? a : b; }
+
+static ctrl_real dot3(const ctrl_real *a, const ctrl_real *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+static void cross3(const ctrl_real *a, const ctrl_real *b, ctrl_real *out) {
+  out[0] = a[1] * b[2] - a[2] * b[1];
+  out[1] = a[2] * b[0] - a[0] * b[2];
+  out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static ctrl_real norm3(const ctrl_real *a) { return CTRL_SQRT(dot3(a, a)); }
+
+/* out = A B for 3x3 column-major matrices */
+static void matmul3(const ctrl_real *A, const ctrl_real *B, ctrl_real *out) {
+  int r, col;
+  for (col = 0; col < 3; ++col) {
+    for (r = 0; r < 3; ++r) {
+      out[r + 3 * col] = A[r] * B[3 * col] + A[r + 3] * B[1 + 3 * col] + A[r + 6] * B[2 + 3 * col];
+    }
+  }
+}
+
+/* ------------------------------------------------------------------ names */
+
+const char *ctrl_state_name(ctrl_state s) {
+  switch (s) {
+    case CTRL_STATE_IDLE: return "IDLE";
+    case CTRL_STATE_RUNNING: return "RUNNING";
+    case CTRL_STATE_DONE: return "DONE";
+    case CTRL_STATE_FAULT: return "FAULT";
+  }
+  return "?";
+}
+
+const char *ctrl_fault_name(ctrl_fault f) {
+  switch (f) {
+    case CTRL_FAULT_NONE: return "NONE";
+    case CTRL_FAULT_BAD_CONFIG: return "BAD_CONFIG";
+    case CTRL_FAULT_NONFINITE_INPUT: return "NONFINITE_INPUT";
+    case CTRL_FAULT_NONFINITE_OUTPUT: return "NONFINITE_OUTPUT";
+    case CTRL_FAULT_JOINT_LIMIT: return "JOINT_LIMIT";
+    case CTRL_FAULT_SINGULAR: return "SINGULAR";
+    case CTRL_FAULT_OVERRUN: return "OVERRUN";
+    case CTRL_FAULT_TRACKING: return "TRACKING";
+    case CTRL_FAULT_PLAYBACK: return "PLAYBACK";
+    case CTRL_FAULT_BAD_ARGS: return "BAD_ARGS";
+  }
+  return "?";
+}
+
+/* ------------------------------------------------------------------ task: time law and path */
+
+/* s(tau) and ds/dtau of the rest-to-rest law, tau clamped to [0, 1] (paths.py TimeLaw). */
+static void time_law(const ctrl_rr_config *rr, ctrl_real tau, ctrl_real *s, ctrl_real *ds) {
+  tau = min_r(max_r(tau, CTRL_LIT(0.0)), CTRL_LIT(1.0));
+  if (rr->law == CTRL_LAW_CUBIC) {
+    ctrl_real tau2 = tau * tau;
+    *s = CTRL_LIT(3.0) * tau2 - CTRL_LIT(2.0) * (tau2 * tau);
+    *ds = CTRL_LIT(6.0) * tau - CTRL_LIT(6.0) * tau2;
+  } else if (rr->law == CTRL_LAW_CONSTANT) {
+    *s = tau;
+    *ds = CTRL_LIT(1.0);
+  } else {
+    ctrl_real b = rr->blend;
+    ctrl_real vmax = CTRL_LIT(1.0) / (CTRL_LIT(1.0) - b);
+    ctrl_real acc = vmax / b;
+    if (tau < b) {
+      *s = CTRL_LIT(0.5) * acc * (tau * tau);
+      *ds = acc * tau;
+    } else if (tau <= CTRL_LIT(1.0) - b) {
+      *s = CTRL_LIT(0.5) * acc * (b * b) + vmax * (tau - b);
+      *ds = vmax;
+    } else {
+      ctrl_real r = CTRL_LIT(1.0) - tau;
+      *s = CTRL_LIT(1.0) - CTRL_LIT(0.5) * acc * (r * r);
+      *ds = acc * r;
+    }
+  }
+}
+
+/* Desired position p, rotation R (column-major) and task velocity [v; w] at time t. */
+static void desired(const ctrl *c, ctrl_real t, ctrl_real *p, ctrl_real *R, ctrl_real *xdot) {
+  const ctrl_rr_config *rr = &c->cfg->rr;
+  ctrl_real T = rr->duration;
+  ctrl_real s, ds, sdot;
+  ctrl_real dp[3], dw[3];
+  int i;
+  time_law(rr, t / T, &s, &ds);
+  if (rr->path == CTRL_PATH_CIRCLE) {
+    ctrl_real phi = TWO_PI * s;
+    ctrl_real cs = CTRL_COS(phi), sn = CTRL_SIN(phi);
+    ctrl_real scale = TWO_PI * c->radius;
+    for (i = 0; i < 3; ++i) {
+      p[i] = c->centre[i] + c->radius * (cs * c->u[i] + sn * c->v[i]);
+      dp[i] = scale * (-sn * c->u[i] + cs * c->v[i]);
+      dw[i] = CTRL_LIT(0.0);
+    }
+    memcpy(R, c->R0, 9 * sizeof(ctrl_real));
+  } else {
+    for (i = 0; i < 3; ++i) {
+      p[i] = c->p0[i] + s * c->delta[i];
+      dp[i] = c->delta[i];
+      dw[i] = c->axis_world[i] * rr->rot_angle;
+    }
+    if (rr->rot_angle == CTRL_LIT(0.0)) {
+      memcpy(R, c->R0, 9 * sizeof(ctrl_real));
+    } else { /* R0 * Rodrigues(axis, s * angle) */
+      const ctrl_real *k = rr->rot_axis;
+      ctrl_real ang = s * rr->rot_angle;
+      ctrl_real sa = CTRL_SIN(ang), ca = CTRL_LIT(1.0) - CTRL_COS(ang);
+      ctrl_real K[9], K2[9], Rot[9];
+      K[0] = CTRL_LIT(0.0); K[3] = -k[2];         K[6] = k[1];
+      K[1] = k[2];         K[4] = CTRL_LIT(0.0);  K[7] = -k[0];
+      K[2] = -k[1];        K[5] = k[0];           K[8] = CTRL_LIT(0.0);
+      matmul3(K, K, K2);
+      for (i = 0; i < 9; ++i) {
+        Rot[i] = ((i % 4 == 0) ? CTRL_LIT(1.0) : CTRL_LIT(0.0)) + sa * K[i] + ca * K2[i];
+      }
+      matmul3(c->R0, Rot, R);
+    }
+  }
+  sdot = (t >= CTRL_LIT(0.0) && t <= T) ? ds / T : CTRL_LIT(0.0);
+  for (i = 0; i < 3; ++i) {
+    xdot[i] = dp[i] * sdot;
+    xdot[3 + i] = dw[i] * sdot;
+  }
+}
+
+/* e = 1/2 vee(R_d R^T - R R_d^T): the small-angle orientation error (cartesian.py). */
+static void orientation_error(const ctrl_real *R, const ctrl_real *Rd, ctrl_real *e) {
+  ctrl_real S[9]; /* S = Rd R^T, column-major */
+  int r, col;
+  for (col = 0; col < 3; ++col) {
+    for (r = 0; r < 3; ++r) {
+      S[r + 3 * col] = Rd[r] * R[col] + Rd[r + 3] * R[col + 3] + Rd[r + 6] * R[col + 6];
+    }
+  }
+  e[0] = CTRL_LIT(0.5) * (S[2 + 3 * 1] - S[1 + 3 * 2]);
+  e[1] = CTRL_LIT(0.5) * (S[0 + 3 * 2] - S[2 + 3 * 0]);
+  e[2] = CTRL_LIT(0.5) * (S[1 + 3 * 0] - S[0 + 3 * 1]);
+}
+
+/* ------------------------------------------------------------------ null-space operators */
+
+static int uses_windows(const ctrl_rr_config *rr) {
+  return rr->method == CTRL_METHOD_ZGHAL_IMPROVED || rr->method == CTRL_METHOD_COMBINED;
+}
+
+static ctrl_real ramp(ctrl_real x, int quadratic) {
+  x = min_r(max_r(x, CTRL_LIT(0.0)), CTRL_LIT(1.0));
+  return quadratic ? x * x : x;
+}
+
+/* The latched per-joint windows of spec 20 (armgen/planning/windows.py), advanced to t. */
+static void windows_update(ctrl *c, ctrl_real t, const ctrl_real *q) {
+  const ctrl_config *cfg = c->cfg;
+  const ctrl_rr_config *rr = &cfg->rr;
+  int quadratic = rr->method != CTRL_METHOD_COMBINED;
+  ctrl_real hold_min = rr->T_sum_L - rr->T_smo_L;
+  int i;
+  for (i = 0; i < N; ++i) {
+    int st = c->win_state[i];
+    int in_band = q[i] > cfg->q_max[i] - rr->theta_s || q[i] < cfg->q_min[i] + rr->theta_s;
+    if (st == WIN_RAMP_DOWN) { /* the value reached at t, from which a re-entry ramps up */
+      c->win_value[i] = max_r(CTRL_LIT(1.0) - ramp((t - c->win_t_event[i]) / rr->T_smo_L, quadratic), CTRL_LIT(0.0));
+    }
+    if ((st == WIN_IDLE || st == WIN_RAMP_DOWN) && in_band) {
+      c->win_state[i] = WIN_RAMP_UP;
+      c->win_t_event[i] = t;
+      c->win_v_event[i] = c->win_value[i];
+      if (c->win_openings[i] < 0xFFFFu) {
+        ++c->win_openings[i];
+      }
+      st = WIN_RAMP_UP;
+    }
+    if (st == WIN_RAMP_UP) {
+      ctrl_real v0 = c->win_v_event[i];
+      c->win_value[i] = v0 + (CTRL_LIT(1.0) - v0) * ramp((t - c->win_t_event[i]) / rr->T_smo_L, quadratic);
+      if (c->win_value[i] >= CTRL_LIT(1.0)) {
+        c->win_state[i] = WIN_HOLD;
+        c->win_t_event[i] = t;
+        c->win_value[i] = CTRL_LIT(1.0);
+      }
+    } else if (st == WIN_HOLD) {
+      if (t - c->win_t_event[i] >= hold_min && !in_band) {
+        c->win_state[i] = WIN_RAMP_DOWN;
+        c->win_t_event[i] = t;
+        c->win_v_event[i] = CTRL_LIT(1.0);
+      }
+    } else if (st == WIN_RAMP_DOWN) {
+      if (c->win_value[i] <= CTRL_LIT(0.0)) {
+        c->win_state[i] = WIN_IDLE;
+        c->win_value[i] = CTRL_LIT(0.0);
+      }
+    }
+  }
+}
+
+/* alpha of the configured method at (t, q) (cartesian.py CartesianPlanner.alpha). */
+static void null_space_alpha(const ctrl *c, ctrl_real t, const ctrl_real *q, ctrl_real *alpha) {
+  const ctrl_config *cfg = c->cfg;
+  const ctrl_rr_config *rr = &cfg->rr;
+  ctrl_real T = rr->duration;
+  ctrl_real a_r[N], a_l[N], grad[N], h;
+  ctrl_real gamma_r = min_r(max_r((t - T / CTRL_LIT(2.0)) / rr->gamma_R_ramp, CTRL_LIT(0.0)), CTRL_LIT(1.0));
+  int need_r = rr->method == CTRL_METHOD_REPETITIVE || rr->method == CTRL_METHOD_COMBINED;
+  int need_l = rr->method != CTRL_METHOD_PINV && rr->method != CTRL_METHOD_REPETITIVE;
+  int i;
+  if (need_r) {
+    ctrl_real t_sta = T / CTRL_LIT(2.0);
+    if (t > t_sta && t < T) { /* off before T/2; its limit 0 at T (removable singularity) */
+      ctrl_real x = (t - t_sta) / rr->T_smo_R;
+      ctrl_real gain = min_r(x * x, CTRL_LIT(1.0)) * rr->rho_R;
+      ctrl_real left = T - t;
+      ctrl_gen_repetitive(q, cfg->q_start, &h, grad); /* grad H_R = q - q_start */
+      for (i = 0; i < N; ++i) {
+        a_r[i] = gain * -grad[i] / left;
+      }
+    } else {
+      need_r = 0;
+    }
+  }
+  if (need_l) {
+    ctrl_gen_zghal(q, &h, grad); /* descent direction of the Zghal barrier */
+    for (i = 0; i < N; ++i) {
+      a_l[i] = -rr->rho_L * grad[i];
+    }
+  }
+  for (i = 0; i < N; ++i) {
+    ctrl_real r = need_r ? a_r[i] : CTRL_LIT(0.0);
+    switch (rr->method) {
+      case CTRL_METHOD_REPETITIVE:
+        alpha[i] = r;
+        break;
+      case CTRL_METHOD_ZGHAL:
+        alpha[i] = a_l[i];
+        break;
+      case CTRL_METHOD_ZGHAL_IMPROVED:
+        alpha[i] = c->win_value[i] * a_l[i];
+        break;
+      case CTRL_METHOD_COMBINED:
+        alpha[i] = gamma_r * r + c->win_value[i] * a_l[i];
+        break;
+      case CTRL_METHOD_PINV: /* minimum norm */
+      default:
+        alpha[i] = CTRL_LIT(0.0);
+        break;
+    }
+  }
+}
+
+/* ------------------------------------------------------------------ init */
+
+static int positive(ctrl_real x) { return finite_r(x) && x > CTRL_LIT(0.0); }
+static int nonneg(ctrl_real x) { return finite_r(x) && x >= CTRL_LIT(0.0); }
+
+static int method_valid(ctrl_method m) {
+  switch (m) { /* the enum may be stored in a byte (-fshort-enums on bare-metal ARM) */
+    case CTRL_METHOD_PINV:
+    case CTRL_METHOD_REPETITIVE:
+    case CTRL_METHOD_ZGHAL:
+    case CTRL_METHOD_ZGHAL_IMPROVED:
+    case CTRL_METHOD_COMBINED:
+      return 1;
+  }
+  return 0;
+}
+
+static int init_resolved_rate(ctrl *c) {
+  const ctrl_config *cfg = c->cfg;
+  const ctrl_rr_config *rr = &cfg->rr;
+  ctrl_real Tp[16], J[6 * N], ticks;
+  int i, r;
+  if (!positive(rr->duration) || cfg->dt > rr->duration) return 0;
+  ticks = rr->duration / cfg->dt + CTRL_LIT(0.5);
+  if (!(ticks >= CTRL_LIT(1.0) && ticks < CTRL_LIT(2.0e9))) return 0;
+  c->n_ticks = (uint32_t)ticks;
+  if (CTRL_FABS((ctrl_real)c->n_ticks * cfg->dt - rr->duration) > DURATION_RTOL * rr->duration) return 0;
+  if (rr->law != CTRL_LAW_CUBIC && rr->law != CTRL_LAW_CONSTANT && rr->law != CTRL_LAW_TRAPEZOIDAL) return 0;
+  if (rr->law == CTRL_LAW_TRAPEZOIDAL && !(positive(rr->blend) && rr->blend <= CTRL_LIT(0.5))) return 0;
+  if (!method_valid(rr->method)) return 0;
+  if (!nonneg(rr->rho_R) || !positive(rr->T_smo_R) || !nonneg(rr->rho_L) || !positive(rr->theta_s) ||
+      !positive(rr->T_smo_L) || !finite_r(rr->T_sum_L) || rr->T_sum_L < rr->T_smo_L || !positive(rr->gamma_R_ramp) ||
+      !nonneg(rr->clik_gain) || !nonneg(rr->damping)) {
+    return 0;
+  }
+  for (r = 0; r < CTRL_NTASK; ++r) {
+    if (rr->task_rows[r] < 0 || rr->task_rows[r] > 5 || (r > 0 && rr->task_rows[r] <= rr->task_rows[r - 1])) return 0;
+  }
+  if (!all_finite(rr->via, 3) || !all_finite(rr->end, 3) || !all_finite(rr->rot_axis, 3) || !finite_r(rr->rot_angle)) {
+    return 0;
+  }
+  if (rr->path != CTRL_PATH_CIRCLE && rr->path != CTRL_PATH_LINE) return 0;
+
+  ctrl_gen_fk_jacobian(cfg->q_start, Tp, J);
+  if (!all_finite(Tp, 16)) return 0;
+  for (i = 0; i < 3; ++i) {
+    c->p0[i] = Tp[12 + i];
+    for (r = 0; r < 3; ++r) {
+      c->R0[r + 3 * i] = Tp[r + 4 * i];
+    }
+  }
+  if (rr->path == CTRL_PATH_CIRCLE) { /* circumcircle of start, via, end (paths.py CirclePath) */
+    ctrl_real a[3], b[3], nrm[3], d[3], aa, bb, ab, denom, scale, len;
+    for (i = 0; i < 3; ++i) {
+      a[i] = rr->via[i] - c->p0[i];
+      b[i] = rr->end[i] - c->p0[i];
+    }
+    cross3(a, b, nrm);
+    scale = norm3(a) * norm3(b);
+    if (scale == CTRL_LIT(0.0) || norm3(nrm) < COLLINEAR_TOL * scale) return 0;
+    aa = dot3(a, a);
+    bb = dot3(b, b);
+    ab = dot3(a, b);
+    denom = CTRL_LIT(2.0) * (aa * bb - ab * ab);
+    for (i = 0; i < 3; ++i) {
+      c->centre[i] = c->p0[i] + (bb * (aa - ab) * a[i] + aa * (bb - ab) * b[i]) / denom;
+      d[i] = c->p0[i] - c->centre[i];
+    }
+    c->radius = norm3(d);
+    len = norm3(nrm);
+    for (i = 0; i < 3; ++i) {
+      c->u[i] = d[i] / c->radius;
+      nrm[i] = nrm[i] / len;
+    }
+    cross3(nrm, c->u, c->v);
+    if (!positive(c->radius) || !all_finite(c->centre, 3) || !all_finite(c->v, 3)) return 0;
+  } else {
+    for (i = 0; i < 3; ++i) {
+      c->delta[i] = rr->end[i] - c->p0[i];
+      c->axis_world[i] = c->R0[i] * rr->rot_axis[0] + c->R0[i + 3] * rr->rot_axis[1] + c->R0[i + 6] * rr->rot_axis[2];
+    }
+  }
+  return 1;
+}
+
+static int init_playback(ctrl *c) {
+  const ctrl_config *cfg = c->cfg;
+  const ctrl_pb_config *pb = &cfg->pb;
+  int i, k;
+  if (pb->nseg < 1 || pb->nseg > CTRL_MAX_SEGMENTS || pb->n_ticks < 0) return 0;
+  for (k = 0; k <= pb->nseg; ++k) {
+    if (!finite_r(pb->knots[k]) || (k > 0 && !(pb->knots[k] > pb->knots[k - 1]))) return 0;
+  }
+  for (i = 0; i < N; ++i) {
+    if (pb->active[i] != 0 && pb->active[i] != 1) return 0;
+    if (pb->active[i]) {
+      if (!all_finite(pb->coeffs[i], pb->nseg * CTRL_NCOEF)) return 0;
+      if (CTRL_FABS(pb->coeffs[i][0] - cfg->q_start[i]) > PLAYBACK_START_TOL) return 0;
+    }
+  }
+  c->n_ticks = (uint32_t)pb->n_ticks;
+  return 1;
+}
+
+ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
+  int i, ok;
+  if (c == NULL) {
+    return CTRL_FAULT_BAD_ARGS;
+  }
+  memset(c, 0, sizeof(*c));
+  c->cfg = config;
+  c->state = CTRL_STATE_FAULT;
+  c->fault = CTRL_FAULT_BAD_CONFIG;
+  if (config == NULL) {
+    return CTRL_FAULT_BAD_ARGS;
+  }
+  ok = positive(config->dt) && positive(config->qdot_max) && nonneg(config->residual_rel) &&
+       nonneg(config->residual_abs) && nonneg(config->pos_err_max);
+  for (i = 0; i < N; ++i) {
+    ctrl_real q = config->q_start[i], lo = config->q_min[i], hi = config->q_max[i];
+    int inside = finite_r(q) && finite_r(lo) && finite_r(hi) && lo < hi && q >= lo && q <= hi;
+    c->q_hold[i] = inside ? q : CTRL_LIT(0.0);
+    ok = ok && inside;
+  }
+  if (ok) {
+    if (config->mode == CTRL_MODE_RESOLVED_RATE) {
+      ok = init_resolved_rate(c);
+    } else if (config->mode == CTRL_MODE_PLAYBACK) {
+      ok = init_playback(c);
+    } else {
+      ok = 0;
+    }
+  }
+  if (!ok) {
+    return CTRL_FAULT_BAD_CONFIG;
+  }
+  for (i = 0; i < N; ++i) {
+    c->q[i] = config->q_start[i];
+    c->q_carry[i] = CTRL_LIT(0.0);
+  }
+  c->state = CTRL_STATE_IDLE;
+  c->fault = CTRL_FAULT_NONE;
+  return CTRL_FAULT_NONE;
+}
+
+/* ------------------------------------------------------------------ ticks */
+
+static ctrl_real tick_time(const ctrl *c) {
+  const ctrl_config *cfg = c->cfg;
+  if (cfg->mode == CTRL_MODE_PLAYBACK) {
+    const ctrl_pb_config *pb = &cfg->pb;
+    ctrl_real t_end = pb->knots[pb->nseg];
+    if (c->k >= c->n_ticks) {
+      return t_end; /* the plan's last sample is its last knot */
+    }
+    return min_r(pb->knots[0] + (ctrl_real)c->k * cfg->dt, t_end);
+  }
+  return (ctrl_real)c->k * cfg->dt;
+}
+
+static void emit_hold(const ctrl *c, ctrl_output *out) {
+  int i;
+  out->tick = c->k;
+  out->t = c->t_hold;
+  for (i = 0; i < N; ++i) {
+    out->q[i] = c->q_hold[i];
+    out->qd[i] = CTRL_LIT(0.0);
+    out->window[i] = c->win_value[i];
+  }
+  out->pos_err = c->pos_err;
+  out->ori_err = c->ori_err;
+  out->state = c->state;
+  out->fault = c->fault;
+}
+
+static void accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd, ctrl_output *out) {
+  int i;
+  c->t_hold = t;
+  out->tick = c->k;
+  out->t = t;
+  for (i = 0; i < N; ++i) {
+    c->q_hold[i] = q[i];
+    out->q[i] = q[i];
+    out->qd[i] = qd[i];
+    out->window[i] = c->win_value[i];
+  }
+  out->pos_err = c->pos_err;
+  out->ori_err = c->ori_err;
+  if (c->k >= c->n_ticks) {
+    c->state = CTRL_STATE_DONE;
+  }
+  out->state = c->state;
+  out->fault = c->fault;
+}
+
+static ctrl_fault check_command(const ctrl *c, const ctrl_real *q) {
+  const ctrl_real *lo = c->cfg->q_min, *hi = c->cfg->q_max;
+  int i, inside = 1;
+  for (i = 0; i < N; ++i) { /* false for NaN as well */
+    inside &= (q[i] >= lo[i]) & (q[i] <= hi[i]);
+  }
+  if (inside) return CTRL_FAULT_NONE;
+  return all_finite(q, N) ? CTRL_FAULT_JOINT_LIMIT : CTRL_FAULT_NONFINITE_OUTPUT;
+}
+
+static ctrl_fault tick_resolved_rate(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_output *out) {
+  const ctrl_config *cfg = c->cfg;
+  const ctrl_rr_config *rr = &cfg->rr;
+  ctrl_real *q = c->q;
+  ctrl_real Tp[16], J[6 * N], R[9], pd[3], Rd[9], xdot[6], e[6], cmd[CTRL_NTASK], alpha[N], qd[N], v[6];
+  ctrl_real cmd_max = CTRL_LIT(0.0), res_max = CTRL_LIT(0.0);
+  ctrl_fault f;
+  int i, r;
+
+  f = check_command(c, q);
+  if (f != CTRL_FAULT_NONE) return f;
+  if (uses_windows(rr)) {
+    windows_update(c, t, q);
+  }
+  ctrl_gen_fk_jacobian(q, Tp, J); /* finite for finite q; overflow would show in q_dot */
+  for (i = 0; i < 3; ++i) {
+    for (r = 0; r < 3; ++r) R[r + 3 * i] = Tp[r + 4 * i];
+  }
+  desired(c, t, pd, Rd, xdot);
+  if (in != NULL) {
+    for (r = 0; r < 6; ++r) xdot[r] = xdot[r] + in->xdot_offset[r];
+  }
+  for (i = 0; i < 3; ++i) e[i] = pd[i] - Tp[12 + i];
+  orientation_error(R, Rd, e + 3);
+  c->pos_err = norm3(e);
+  c->ori_err = norm3(e + 3);
+  if (rr->clik_gain > CTRL_LIT(0.0)) {
+    for (r = 0; r < 6; ++r) xdot[r] = xdot[r] + rr->clik_gain * e[r];
+  }
+  for (r = 0; r < CTRL_NTASK; ++r) {
+    cmd[r] = xdot[rr->task_rows[r]];
+    cmd_max = max_r(cmd_max, CTRL_FABS(cmd[r]));
+  }
+  null_space_alpha(c, t, q, alpha);
+  if (!all_finite(alpha, N) || !all_finite(cmd, CTRL_NTASK)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  if (ctrl_gen_step_gpm(q, cmd, alpha, rr->damping, qd) != CTRL_GEN_OK) return CTRL_FAULT_NONFINITE_OUTPUT;
+  /* A singular pose: with lambda = 0 the step's floored pivots give a huge velocity, or one
+   * that does not meet the task (damping > 0: the same once the damping is exceeded). */
+  for (i = 0; i < N; ++i) {
+    if (CTRL_FABS(qd[i]) > cfg->qdot_max) return CTRL_FAULT_SINGULAR;
+  }
+  {
+    ctrl_real v0 = CTRL_LIT(0.0), v1 = CTRL_LIT(0.0), v2 = CTRL_LIT(0.0);
+    ctrl_real v3 = CTRL_LIT(0.0), v4 = CTRL_LIT(0.0), v5 = CTRL_LIT(0.0);
+    for (i = 0; i < N; ++i) { /* v = J q_dot, column by column, in registers */
+      const ctrl_real *col = J + 6 * i;
+      ctrl_real w = qd[i];
+      v0 = v0 + col[0] * w;
+      v1 = v1 + col[1] * w;
+      v2 = v2 + col[2] * w;
+      v3 = v3 + col[3] * w;
+      v4 = v4 + col[4] * w;
+      v5 = v5 + col[5] * w;
+    }
+    v[0] = v0;
+    v[1] = v1;
+    v[2] = v2;
+    v[3] = v3;
+    v[4] = v4;
+    v[5] = v5;
+  }
+  for (r = 0; r < CTRL_NTASK; ++r) {
+    res_max = max_r(res_max, CTRL_FABS(v[rr->task_rows[r]] - cmd[r]));
+  }
+  if (res_max > cfg->residual_rel * cmd_max + cfg->residual_abs) return CTRL_FAULT_SINGULAR;
+  if (cfg->pos_err_max > CTRL_LIT(0.0) && c->pos_err > cfg->pos_err_max) return CTRL_FAULT_TRACKING;
+
+  accept(c, t, q, qd, out);
+  if (c->state == CTRL_STATE_RUNNING) { /* explicit Euler to the next tick's command */
+    for (i = 0; i < N; ++i) {
+#if CTRL_COMPENSATED_SUM
+      ctrl_real y = cfg->dt * qd[i] - c->q_carry[i];
+      ctrl_real s = q[i] + y;
+      c->q_carry[i] = (s - q[i]) - y;
+      q[i] = s;
+#else
+      q[i] = q[i] + cfg->dt * qd[i];
+#endif
+    }
+    ++c->k;
+  }
+  return CTRL_FAULT_NONE;
+}
+
+static ctrl_fault tick_playback(ctrl *c, ctrl_real t, ctrl_output *out) {
+  const ctrl_config *cfg = c->cfg;
+  const ctrl_pb_config *pb = &cfg->pb;
+  ctrl_real q[N], qd[N], th[3];
+  ctrl_fault f;
+  int i;
+  for (i = 0; i < N; ++i) {
+    if (pb->active[i]) {
+      if (fw_ptp_eval(pb->coeffs[i], pb->knots, pb->nseg, t, th) != FW_PTP_OK) return CTRL_FAULT_PLAYBACK;
+      q[i] = th[0];
+      qd[i] = th[1];
+    } else {
+      q[i] = cfg->q_start[i];
+      qd[i] = CTRL_LIT(0.0);
+    }
+  }
+  f = check_command(c, q);
+  if (f == CTRL_FAULT_NONE && !all_finite(qd, N)) f = CTRL_FAULT_NONFINITE_OUTPUT;
+  if (f != CTRL_FAULT_NONE) return f;
+  accept(c, t, q, qd, out);
+  if (c->state == CTRL_STATE_RUNNING) {
+    ++c->k;
+  }
+  return CTRL_FAULT_NONE;
+}
+
+static void latch(ctrl *c, ctrl_fault f, ctrl_real t) {
+  c->state = CTRL_STATE_FAULT;
+  c->fault = f;
+  c->t_hold = t;
+}
+
+ctrl_fault ctrl_tick(ctrl *c, const ctrl_input *in, ctrl_output *out) {
+  ctrl_command cmd = in != NULL ? in->command : CTRL_CMD_NONE;
+  if (c == NULL || out == NULL) {
+    return CTRL_FAULT_BAD_ARGS;
+  }
+  if (c->cfg == NULL && c->state != CTRL_STATE_FAULT) {
+    latch(c, CTRL_FAULT_BAD_CONFIG, CTRL_LIT(0.0));
+  }
+  if (c->state != CTRL_STATE_FAULT) {
+    ctrl_real t = c->state == CTRL_STATE_RUNNING ? tick_time(c) : c->t_hold;
+    if (in != NULL && !all_finite(in->xdot_offset, 6)) {
+      latch(c, CTRL_FAULT_NONFINITE_INPUT, t);
+    } else if (c->state == CTRL_STATE_RUNNING && in != NULL && in->missed_ticks > 0u) {
+      latch(c, CTRL_FAULT_OVERRUN, t);
+    } else if (c->state == CTRL_STATE_RUNNING && cmd == CTRL_CMD_STOP) {
+      c->state = CTRL_STATE_DONE;
+      c->t_hold = t;
+    } else {
+      if (c->state == CTRL_STATE_IDLE && cmd == CTRL_CMD_START) {
+        c->state = CTRL_STATE_RUNNING;
+        c->k = 0;
+        t = tick_time(c);
+      }
+      if (c->state == CTRL_STATE_RUNNING) {
+        ctrl_fault f = c->cfg->mode == CTRL_MODE_PLAYBACK ? tick_playback(c, t, out)
+                                                          : tick_resolved_rate(c, in, t, out);
+        if (f == CTRL_FAULT_NONE) {
+          return CTRL_FAULT_NONE;
+        }
+        latch(c, f, t);
+      }
+    }
+  }
+  emit_hold(c, out);
+  return c->fault;
+}

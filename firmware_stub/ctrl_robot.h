@@ -1,0 +1,50 @@
+/*
+ * Robot binding of the joint controller: maps the generated `<prefix>_*` API of
+ * `generated/<robot>/<robot>.h` onto the names the controller uses, so controller.c is
+ * written once for every robot.
+ *
+ * Select the robot at build time (the Makefile and armgen/verify/firmware.py do this):
+ *
+ *   -DCTRL_ROBOT=modular8 -DCTRL_ROBOT_UC=MODULAR8 -DCTRL_ROBOT_HEADER='"modular8.h"'
+ *   -DMODULAR8_USE_FLOAT=0|1   (the generated header's one precision switch)
+ *
+ * and put generated/<robot>/ on the include path. Without -D the binding is modular8.
+ * The controller needs these generated functions: fk_jacobian, zghal, repetitive, step_gpm.
+ */
+#ifndef ARMGEN_CTRL_ROBOT_H
+#define ARMGEN_CTRL_ROBOT_H
+
+#ifndef CTRL_ROBOT
+#define CTRL_ROBOT modular8
+#define CTRL_ROBOT_UC MODULAR8
+#endif
+#ifndef CTRL_ROBOT_HEADER
+#define CTRL_ROBOT_HEADER "modular8.h"
+#endif
+
+#define CTRL_CAT_(a, b) a##b
+#define CTRL_CAT(a, b) CTRL_CAT_(a, b)
+/* CTRL_FN(fk_jacobian) -> modular8_fk_jacobian; CTRL_M(NDOF) -> MODULAR8_NDOF */
+#define CTRL_FN(name) CTRL_CAT(CTRL_CAT(CTRL_ROBOT, _), name)
+#define CTRL_M(name) CTRL_CAT(CTRL_CAT(CTRL_ROBOT_UC, _), name)
+
+#include CTRL_ROBOT_HEADER
+
+typedef CTRL_FN(real) ctrl_real;
+
+#define CTRL_NDOF CTRL_M(NDOF)         /* joints */
+#define CTRL_NTASK CTRL_M(NTASK)       /* task rows the step functions take */
+#define CTRL_USE_FLOAT CTRL_M(USE_FLOAT)
+#define CTRL_LIT(x) CTRL_M(LIT)(x)     /* a literal of the controller's precision: CTRL_LIT(0.5) */
+#define CTRL_SIN CTRL_M(SIN)
+#define CTRL_COS CTRL_M(COS)
+#define CTRL_SQRT CTRL_M(SQRT)
+#define CTRL_FABS CTRL_M(FABS)
+#define CTRL_GEN_OK CTRL_M(OK)
+
+#define ctrl_gen_fk_jacobian CTRL_FN(fk_jacobian)
+#define ctrl_gen_zghal CTRL_FN(zghal)
+#define ctrl_gen_repetitive CTRL_FN(repetitive)
+#define ctrl_gen_step_gpm CTRL_FN(step_gpm)
+
+#endif /* ARMGEN_CTRL_ROBOT_H */
