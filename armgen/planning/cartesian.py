@@ -97,7 +97,9 @@ def _vector(table: dict, key: str, where: str, source: str, length: int, scale: 
     return np.array(value, dtype=float) * scale
 
 
-def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
+def parse_robot_and_start(task: dict, source: str) -> tuple[Robot, np.ndarray, str, float, float]:
+    """The task's robot, start configuration (SI, checked against the limits), the start's
+    label, and the file's length and angle scales."""
     robot_name = task.get("robot")
     if not isinstance(robot_name, str):
         raise TaskFileError(f"{source}: missing field 'robot' (a bundled name or a robot file path)")
@@ -110,12 +112,16 @@ def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
 
     start = task.get("start", "q0")
     if isinstance(start, str):
-        q_start = robot.configuration(start)
+        q_start, label = robot.configuration(start), start
     else:
         q_units = np.array([as_ if j.revolute else ls for j in robot.joints])
-        q_start = _vector(task, "start", "task", source, robot.n, 1.0) * q_units
+        q_start, label = _vector(task, "start", "task", source, robot.n, 1.0) * q_units, "explicit"
     robot.check_within_limits(q_start, f"{source}: field 'start'")
+    return robot, q_start, label, ls, as_
 
+
+def parse_path_and_timing(task: dict, source: str, ls: float, as_: float):
+    """(path type, via, end, end rotation or None, duration, time law) from [path] and [timing]."""
     path = _table(task, "path", source)
     path_type = path.get("type", "circle")
     if path_type not in PATH_TYPES:
@@ -134,6 +140,12 @@ def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
     timing = _table(task, "timing", source)
     duration = _number(timing, "duration", "timing", source, positive=True)
     law = TimeLaw(timing.get("law", "cubic"), _number(timing, "blend", "timing", source, 0.2))
+    return path_type, via, end, end_rotation, duration, law
+
+
+def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
+    robot, q_start, _, ls, as_ = parse_robot_and_start(task, source)
+    path_type, via, end, end_rotation, duration, law = parse_path_and_timing(task, source, ls, as_)
 
     m = _table(task, "method", source)
     name = m.get("name", "pinv")
@@ -286,7 +298,7 @@ class CartesianPlanner:
 
     # -- integration -----------------------------------------------------------------
     def run(self) -> PlanResult:
-        task, n = self.task, self.robot.n
+        task = self.task
         h = task.step
         steps = int(round(task.duration / h))
         if abs(steps * h - task.duration) > 1e-9 * task.duration:

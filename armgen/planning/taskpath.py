@@ -20,11 +20,10 @@ from typing import Any
 import numpy as np
 
 from ..errors import PlanningError, TaskFileError
-from ..robot import Robot, load_robot, matrix_rpy, rpy_matrix
-from .cartesian import ANGLE_SCALE, LENGTH_SCALE, _number, _table, _vector, orientation_error
+from ..robot import Robot, matrix_rpy
+from .cartesian import _number, _table, orientation_error, parse_path_and_timing, parse_robot_and_start
 from .paths import CirclePath, LinePath, TimeLaw
 
-PATH_TYPES = ("circle", "line")
 # Default closed-loop gain K_p (1/s) of ẋ + K_p e: spec 30 wants CLIK on by default. With
 # explicit Euler the error contracts by (1 − K_p h) per step, so K_p h = 0.2 at h = 0.02 s.
 DEFAULT_CLIK_GAIN = 10.0
@@ -72,46 +71,13 @@ def parse_path_task(task: dict, source: str, known_top: set[str]) -> PathTask:
     if unknown:
         raise TaskFileError(f"{source}: unknown field(s) {', '.join(sorted(unknown))}; allowed: "
                             f"{', '.join(sorted(known_top))}")
-    robot_name = task.get("robot")
-    if not isinstance(robot_name, str):
-        raise TaskFileError(f"{source}: missing field 'robot' (a bundled name or a robot file path)")
-    robot = load_robot(robot_name)
-    units = _table(task, "units", source)
-    lunit, aunit = units.get("length", "m"), units.get("angle", "rad")
-    if lunit not in LENGTH_SCALE or aunit not in ANGLE_SCALE:
-        raise TaskFileError(f"{source}: [units] length must be m|mm and angle rad|deg, got {lunit!r}, {aunit!r}")
-    ls, as_ = LENGTH_SCALE[lunit], ANGLE_SCALE[aunit]
-
-    start = task.get("start", "q0")
-    if isinstance(start, str):
-        q_start, label = robot.configuration(start), start
-    else:
-        q_units = np.array([as_ if j.revolute else ls for j in robot.joints])
-        q_start, label = _vector(task, "start", "task", source, robot.n, 1.0) * q_units, "explicit"
-    robot.check_within_limits(q_start, f"{source}: field 'start'")
-
+    robot, q_start, label, ls, as_ = parse_robot_and_start(task, source)
+    path_type, via, end, end_rotation, duration, law = parse_path_and_timing(task, source, ls, as_)
     path = _table(task, "path", source)
-    path_type = path.get("type", "circle")
-    if path_type not in PATH_TYPES:
-        raise TaskFileError(f"{source}: field 'path.type' = {path_type!r} is not one of {', '.join(PATH_TYPES)}")
-    via = _vector(path, "via", "path", source, 3, ls) if path_type == "circle" else None
-    end = _vector(path, "end", "path", source, 3, ls)
     relative = _bool(path, "relative", "path", source, False)
     turns = _number(path, "turns", "path", source, 1.0, positive=True)
     if path_type == "line" and turns != 1.0:
         raise TaskFileError(f"{source}: path.turns = {turns} is for circles only; remove it or set path.type = 'circle'")
-    orientation = path.get("orientation", "hold")
-    if orientation not in ("hold", "interpolate"):
-        raise TaskFileError(f"{source}: field 'path.orientation' = {orientation!r} must be 'hold' or 'interpolate'")
-    end_rotation = None
-    if orientation == "interpolate":
-        if path_type != "line":
-            raise TaskFileError(f"{source}: path.orientation = 'interpolate' needs path.type = 'line'")
-        end_rotation = rpy_matrix(*_vector(path, "end_rpy", "path", source, 3, as_))
-
-    timing = _table(task, "timing", source)
-    duration = _number(timing, "duration", "timing", source, positive=True)
-    law = TimeLaw(timing.get("law", "cubic"), _number(timing, "blend", "timing", source, 0.2))
 
     integ = _table(task, "integrator", source)
     method = integ.get("method", "euler")

@@ -13,7 +13,7 @@ from ..codegen.toolchain import SANITIZER_FLAGS, STRICT_FLAGS, host_cc, run_tool
 
 
 def render_driver(prefix: str, functions: dict[str, ca.Function]) -> str:
-    p, P = prefix, prefix.upper()
+    p = prefix
     calls = []
     for name, f in functions.items():
         decls, args = [], []
