@@ -32,6 +32,7 @@ import hashlib
 import math
 import sys
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -44,7 +45,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised only on old interpreters
     import tomli as tomllib
 
-BUNDLED_DIR = Path(__file__).resolve().parent.parent / "robots"
+BUNDLED_DIR = Path(str(resources.files("armgen.data") / "robots"))
 
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
 ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}

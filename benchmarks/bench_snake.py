@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from armgen.planning import snake as sn
+from armgen.planning.snake import planner as sn
 from armgen.planning.tasks import load_task
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"

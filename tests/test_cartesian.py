@@ -12,7 +12,7 @@ from armgen.cli.main import cli
 from armgen.errors import PlanningError, TaskFileError
 from armgen.planning.paths import CirclePath, LinePath, TimeLaw
 from armgen.planning.tasks import apply_overrides, load_task, run_task
-from armgen.planning.windows import JointWindows
+from armgen.planning.cartesian.windows import JointWindows
 from armgen.robot import rpy_matrix
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"

@@ -14,7 +14,7 @@ from armgen.errors import ArmgenError
 from armgen.robot import load_robot
 from armgen.symbolic.model import SymbolicModel
 from armgen.verify.compare import compare_model
-from armgen.verify.compiled import CompiledModel, build_library
+from armgen.codegen.compiled import CompiledModel, build_library
 from armgen.verify.harness import run_sanitized
 
 from conftest import KINEMATIC_ROBOTS, require_tool

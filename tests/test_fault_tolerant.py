@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 from armgen.cli.main import cli
 from armgen.errors import PlanningError, TaskFileError
-from armgen.planning.fault_tolerant import (FaultTolerantPlanner, format_sweep_table, format_verdict_table,
+from armgen.planning.fault_tolerant.planner import (FaultTolerantPlanner, format_sweep_table, format_verdict_table,
                                             parse_fault_tolerant_task, run_sweep)
 from armgen.planning.tasks import apply_overrides, load_task, run_task
 from armgen.robot import load_robot
@@ -353,7 +353,7 @@ def test_bad_input_is_a_clear_error(override, message):
 
 
 def test_sweep_command_line(tmp_path, capsys):
-    from armgen.planning.fault_tolerant import main
+    from armgen.planning.fault_tolerant.planner import main
 
     out = tmp_path / "sweep.json"
     code = main(["--sweep", str(EXAMPLES / "iiwa14_fault_circle_gpm.toml"), "--set", "start=q0", "--set", "sweep.K=[4]",

@@ -21,9 +21,9 @@ from hypothesis import strategies as st
 from armgen.codegen.ptp_c import generate_ptp_evaluator, render_ptp_evaluator
 from armgen.codegen.toolchain import SANITIZER_FLAGS, STRICT_FLAGS, compile_shared, host_cc, run_tool
 from armgen.errors import PlanningError, TaskFileError
-from armgen.planning import ptp
-from armgen.planning.ptp import SegmentShape, compare_methods, parse_ptp_task, plan_task, solve_segment_time
-from armgen.planning.ptp_plot import plot_ptp
+from armgen.planning.ptp import planner as ptp
+from armgen.planning.ptp.planner import SegmentShape, compare_methods, parse_ptp_task, plan_task, solve_segment_time
+from armgen.planning.ptp.plots import plot_ptp
 from armgen.planning.result import read_plan, write_plan
 from armgen.planning.tasks import load_task, run_task
 

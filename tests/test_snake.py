@@ -18,12 +18,12 @@ from hypothesis import strategies as st
 from armgen.codegen.generate import REPO_GENERATED_DIR, generate_robot
 from armgen.codegen.toolchain import STRICT_FLAGS
 from armgen.errors import PlanningError, TaskFileError
-from armgen.planning import snake as sn
+from armgen.planning.snake import planner as sn
 from armgen.planning.result import read_plan
-from armgen.planning.snake_dynamics import BarModel, DenoisedDynamics
-from armgen.planning.snake_exact import joint_rates, solve_exact
-from armgen.planning.snake_obstacles import Obstacle, segment_distance
-from armgen.planning.snake_spline import HermiteSpline
+from armgen.planning.snake.dynamics import BarModel, DenoisedDynamics
+from armgen.planning.snake.exact import joint_rates, solve_exact
+from armgen.planning.snake.obstacles import Obstacle, segment_distance
+from armgen.planning.snake.spline import HermiteSpline
 from armgen.planning.tasks import load_task, run_task
 from armgen.robot import load_robot
 from armgen.symbolic.model import ModelOptions, SymbolicModel

@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from armgen.cli.main import cli
 from armgen.errors import TaskFileError
 from armgen.planning.tasks import apply_overrides, load_task, run_task
-from armgen.planning.wgpm import WgpmPlanner, compare, format_survey, parse_wgpm_task, survey
+from armgen.planning.wgpm.planner import WgpmPlanner, compare, format_survey, parse_wgpm_task, survey
 from armgen.robot import load_robot
 from armgen.symbolic import criteria
 from armgen.symbolic.model import SymbolicModel
@@ -343,7 +343,7 @@ def test_bad_input_is_a_clear_error(override, message):
 
 
 def test_compare_command_line(tmp_path, capsys):
-    from armgen.planning.wgpm import main
+    from armgen.planning.wgpm.planner import main
 
     out = tmp_path / "compare.json"
     assert main([str(EXAMPLES / "modular8_wgpm_demo.toml"), "--set", "timing.duration=6", "--compare",

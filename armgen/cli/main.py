@@ -160,28 +160,11 @@ def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | 
 def plot_cmd(plan_csv: str, output: str | None) -> None:
     """Draw a plan: joint angles, velocities, criteria and task error."""
     from ..planning.result import read_plan
+    from ..planning.tasks import plot_plan
 
     result = read_plan(plan_csv)
     out = Path(output) if output else Path(plan_csv).with_suffix(".png")
-    planner = result.metadata.get("planner")
-    if planner == "ptp":
-        from ..planning.ptp_plot import plot_ptp
-
-        plot_ptp(result, out)
-    elif planner == "cartesian":
-        from ..planning.plots import plot_resolved_rate
-
-        plot_resolved_rate(result, out)
-    elif planner == "snake":
-        from ..planning.snake_plot import plot_snake
-
-        plot_snake(result, out)
-    elif planner in ("fault_tolerant", "wgpm"):
-        from ..planning.plots import plot_fault_tolerant, plot_wgpm
-
-        (plot_fault_tolerant if planner == "fault_tolerant" else plot_wgpm)(result, out)
-    else:
-        raise ArmgenError(f"{plan_csv}: no plot for planner {planner!r} (plan.json missing or unknown planner)")
+    plot_plan(result, out, plan_csv)
     click.echo(f"wrote {out}")
 
 

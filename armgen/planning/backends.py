@@ -17,7 +17,7 @@ from ..codegen.generate import CodegenConfig, generate, write
 from ..errors import TaskFileError
 from ..robot import Robot
 from ..symbolic.model import ModelOptions, SymbolicModel
-from ..verify.compiled import CompiledModel, build_library
+from ..codegen.compiled import CompiledModel, build_library
 
 BACKENDS = ("symbolic", "c")
 

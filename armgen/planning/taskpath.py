@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import PlanningError, TaskFileError
 from ..robot import Robot, matrix_rpy
-from .cartesian import _number, _table, orientation_error, parse_path_and_timing, parse_robot_and_start
+from .cartesian.planner import _number, _table, orientation_error, parse_path_and_timing, parse_robot_and_start
 from .paths import CirclePath, LinePath, TimeLaw
 
 # Default closed-loop gain K_p (1/s) of ẋ + K_p e: spec 30 wants CLIK on by default. With

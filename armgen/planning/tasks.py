@@ -21,7 +21,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-# planner name -> module implementing plan_task(task: dict, source: str, backend: str)
+# planner name -> its package: ``planner.plan_task(task: dict, source: str, backend: str)`` and
+# ``plots.<function>(result, out_path)``
 PLANNERS = {
     "ptp": "armgen.planning.ptp",
     "cartesian": "armgen.planning.cartesian",
@@ -29,6 +30,8 @@ PLANNERS = {
     "wgpm": "armgen.planning.wgpm",
     "snake": "armgen.planning.snake",
 }
+PLOT_FUNCTIONS = {"ptp": "plot_ptp", "cartesian": "plot_resolved_rate", "fault_tolerant": "plot_fault_tolerant",
+                  "wgpm": "plot_wgpm", "snake": "plot_snake"}
 
 
 def load_task(path: str | Path) -> tuple[dict[str, Any], str]:
@@ -90,7 +93,7 @@ def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: 
             f"{source}: field 'planner' = {planner!r} is not one of {', '.join(sorted(PLANNERS))}; "
             "set planner = \"<name>\" at the top of the task file"
         )
-    module = importlib.import_module(PLANNERS[planner])
+    module = importlib.import_module(PLANNERS[planner] + ".planner")
     started = time.perf_counter()
     result: PlanResult = module.plan_task(task, source, backend)
     elapsed = time.perf_counter() - started
@@ -106,3 +109,12 @@ def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: 
     meta.setdefault("summary", {})["run_time_s"] = elapsed
     result.metadata = meta
     return result
+
+
+def plot_plan(result: PlanResult, out_path: str | Path, source: str) -> None:
+    """Draw a plan with its planner's figure."""
+    planner = result.metadata.get("planner")
+    if planner not in PLANNERS:
+        raise TaskFileError(f"{source}: no plot for planner {planner!r} (plan.json missing or unknown planner)")
+    module = importlib.import_module(PLANNERS[planner] + ".plots")
+    getattr(module, PLOT_FUNCTIONS[planner])(result, out_path)

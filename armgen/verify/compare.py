@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 
 from ..robot import Robot
-from .compiled import CompiledModel
+from ..codegen.compiled import CompiledModel
 from .samples import function_inputs, joint_samples
 
 # double: the generated code is the SX algorithm op for op; only libm may differ (≤ 1 ulp

@@ -33,6 +33,7 @@ import re
 import subprocess
 import sys
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -46,7 +47,7 @@ from ..fileio import write_text_atomic
 from ..planning.result import PlanResult
 from ..robot import Robot, load_robot
 
-FIRMWARE_DIR = Path(__file__).resolve().parent.parent.parent / "firmware_stub"
+FIRMWARE_DIR = Path(str(resources.files("armgen.data") / "firmware_stub"))
 ARM_DIR = FIRMWARE_DIR / "arm"
 APT_PACKAGES = "gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm"
 APT_HINT = f"install them from the distribution: apt-get install -y {APT_PACKAGES}"
@@ -206,7 +207,7 @@ def _common_fields(robot: Robot, mode: str, dt: float, q_start: np.ndarray) -> l
 
 def cartesian_task(task: dict[str, Any], source: str) -> FirmwareTask:
     """Resolved-rate parameters from a ``planner = "cartesian"`` task dict."""
-    from ..planning.cartesian import CartesianPlanner, parse_cartesian_task
+    from ..planning.cartesian.planner import CartesianPlanner, parse_cartesian_task
 
     parsed = parse_cartesian_task(json.loads(json.dumps(task)), source)
     if parsed.integrator != "euler":

@@ -34,7 +34,7 @@ from ..robot import Robot, load_robot
 from ..symbolic.model import SymbolicModel
 from .compare import compare_model
 from . import firmware as fw
-from .compiled import CompiledModel, build_library
+from ..codegen.compiled import CompiledModel, build_library
 from .harness import run_sanitized
 
 # Replaying a plan through the double C backend performs the same operations as the symbolic

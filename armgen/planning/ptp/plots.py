@@ -17,9 +17,9 @@ from numpy.polynomial import polynomial as npp
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ..fileio import atomic_open
-from .ptp import PtpPlan, joint_metrics
-from .result import PlanResult, read_plan
+from ...fileio import atomic_open
+from .planner import PtpPlan, joint_metrics
+from ..result import PlanResult, read_plan
 
 ROWS = (("theta", "θ", ""), ("omega", "ω", "/s"), ("eps", "ε", "/s²"), ("jerk", "jerk", "/s³"))
 # Values below this (in display units) are rounding noise, shown as 0 in the panel titles.

@@ -2,7 +2,7 @@
 stiffness and model denoising.
 
 Coordinates: the track coordinates ``s_1 … s_{n+1}`` of the joint centres (joint 1 on the rail,
-the others on the spline, see :class:`~armgen.planning.snake_spline.Track`). Link ``i`` is a
+the others on the spline, see :class:`~armgen.planning.snake.spline.Track`). Link ``i`` is a
 uniform bar from ``x_i = P_i(s_i)`` to ``x_{i+1}``; its material points
 ``x(ζ) = (1 − ζ) x_i + ζ x_{i+1}`` move with ``ẋ = N_ζ G ṡ_e`` where ``G = [r_s(s_i), r_s(s_{i+1})]`` and
 ``ṡ_e = (ṡ_i, ṡ_{i+1})``. Per element, with ``a = r_s``, ``b = r_ss``, ``e`` the unit chord, ``l`` its
@@ -34,7 +34,7 @@ from typing import Callable
 import numpy as np
 from scipy.integrate import BDF, LSODA, RK23, RK45, DOP853, Radau
 
-from .snake_spline import Track
+from .spline import Track
 
 
 METHODS = {"RK45": RK45, "RK23": RK23, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA}

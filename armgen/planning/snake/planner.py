@@ -18,13 +18,13 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import PlanningError, RobotFileError, TaskFileError
-from ..robot import Robot, load_robot
-from .result import PlanResult
-from .snake_dynamics import EXPLICIT_METHODS, METHODS as INTEGRATORS, BarModel, DenoisedDynamics, DynamicsRun
-from .snake_exact import joint_rates, solve_exact
-from .snake_obstacles import FACES, Obstacle, clearances
-from .snake_spline import HermiteSpline, Track
+from ...errors import PlanningError, RobotFileError, TaskFileError
+from ...robot import Robot, load_robot
+from ..result import PlanResult
+from .dynamics import EXPLICIT_METHODS, METHODS as INTEGRATORS, BarModel, DenoisedDynamics, DynamicsRun
+from .exact import joint_rates, solve_exact
+from .obstacles import FACES, Obstacle, clearances
+from .spline import HermiteSpline, Track
 
 SOLVERS = ("exact", "denoised")
 DRIVEN = ("base", "tip")
@@ -662,11 +662,11 @@ def plan_snake(task: SnakeTask, backend: str = "symbolic") -> PlanResult:
 def _fk_cross_check(arm: SnakeArm, q: np.ndarray, tip_base: np.ndarray, backend: str) -> dict[str, Any]:
     """The robot's generated ``fk`` (CasADi interpreter or compiled C) against the numpy chain."""
     if backend == "symbolic":  # the CasADi interpreter, without importing the code generator
-        from ..symbolic.model import ModelOptions, SymbolicModel
+        from ...symbolic.model import ModelOptions, SymbolicModel
 
         fk = SymbolicModel(arm.robot, ModelOptions(("fk",))).function("fk")
     else:
-        from .backends import make_backend
+        from ..backends import make_backend
 
         fk = make_backend(arm.robot, backend, ("fk",)).functions["fk"]
     try:

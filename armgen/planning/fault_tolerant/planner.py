@@ -23,7 +23,7 @@ whether the path needs a longer (or shorter) arm than the elbow allows; that is 
 as infeasible (``check.reach = "error"``, default) or recorded and planned anyway
 (``"report"``).
 
-``python -m armgen.planning.fault_tolerant --sweep TASK.toml …`` runs the sweep over K, b
+``python -m armgen.planning.fault_tolerant.planner --sweep TASK.toml …`` runs the sweep over K, b
 and the locked joint and prints the verdict table (see :func:`main`).
 """
 
@@ -38,13 +38,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import ArmgenError, PlanningError, TaskFileError
-from ..progress import progress
-from ..robot import Robot
-from .backends import Backend, make_backend
-from .cartesian import _number, _table
-from .result import PlanResult
-from .taskpath import (PathTask, TaskPath, base_columns, base_row, limit_report, parse_path_task, path_metadata,
+from ...errors import ArmgenError, PlanningError, TaskFileError
+from ...progress import progress
+from ...robot import Robot
+from ..backends import Backend, make_backend
+from ..cartesian.planner import _number, _table
+from ..result import PlanResult
+from ..taskpath import (PathTask, TaskPath, base_columns, base_row, limit_report, parse_path_task, path_metadata,
                        smoothness, tracking)
 
 METHODS = ("gpm", "wln", "pinv")
@@ -710,10 +710,10 @@ def format_verdict_table(report: dict[str, Any]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m armgen.planning.fault_tolerant --sweep TASK.toml [TASK.toml …] [--fine]``."""
-    from .tasks import apply_overrides, check_finite_tree, load_task
+    """``python -m armgen.planning.fault_tolerant.planner --sweep TASK.toml [TASK.toml …] [--fine]``."""
+    from ..tasks import apply_overrides, check_finite_tree, load_task
 
-    parser = argparse.ArgumentParser(prog="python -m armgen.planning.fault_tolerant",
+    parser = argparse.ArgumentParser(prog="python -m armgen.planning.fault_tolerant.planner",
                                      description="Spec 30 sweep over K, b and the locked joint; prints the verdicts.")
     parser.add_argument("--sweep", nargs="+", required=True, metavar="TASK", help="fault_tolerant task files")
     parser.add_argument("--set", dest="overrides", action="append", default=[], help="key=value override")
@@ -756,8 +756,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _write_json(path: str, data: Any) -> None:
     import json
 
-    from ..fileio import write_text_atomic
-    from .result import _finite_json, _json_default
+    from ...fileio import write_text_atomic
+    from ..result import _finite_json, _json_default
 
     write_text_atomic(path, json.dumps(_finite_json(json.loads(json.dumps(data, default=_json_default))), indent=2)
                       + "\n")

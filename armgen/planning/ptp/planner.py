@@ -36,9 +36,9 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from numpy.polynomial import polynomial as npp
 
-from ..errors import PlanningError, RobotFileError, TaskFileError
-from ..robot import load_robot
-from .result import PlanResult
+from ...errors import PlanningError, RobotFileError, TaskFileError
+from ...robot import load_robot
+from ..result import PlanResult
 
 METHODS = ("cubic", "3-4", "3-5-3", "quintic")
 DEFAULT_METHOD = "3-4"

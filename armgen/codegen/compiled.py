@@ -11,7 +11,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from ..codegen.toolchain import compile_shared
+from .toolchain import compile_shared
 from ..errors import ArmgenError
 
 _CTYPE = {"double": ctypes.c_double, "float": ctypes.c_float}

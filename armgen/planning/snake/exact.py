@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import PlanningError
-from .snake_spline import Track
+from ...errors import PlanningError
+from .spline import Track
 
 # Bracketing march step, in link lengths. The first sign change of f is bracketed unless the
 # track leaves and re-enters the sphere within one step (an S within 13 mm of arc at 104 mm

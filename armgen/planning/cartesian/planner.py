@@ -15,12 +15,12 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import PlanningError, TaskFileError
-from ..progress import progress
-from ..robot import Robot, load_robot, matrix_rpy, rpy_matrix
-from .backends import make_backend
-from .paths import CirclePath, LinePath, TimeLaw
-from .result import PlanResult
+from ...errors import PlanningError, TaskFileError
+from ...progress import progress
+from ...robot import Robot, load_robot, matrix_rpy, rpy_matrix
+from ..backends import make_backend
+from ..paths import CirclePath, LinePath, TimeLaw
+from ..result import PlanResult
 from .windows import JointWindows
 
 METHODS = ("pinv", "repetitive", "zghal", "zghal_improved", "combined")

@@ -15,7 +15,7 @@ planner runs ``method.name = "pinv"`` (the damped pseudo-inverse, nothing else) 
 column removed through the generated ``step_fault`` mask — and released as soon as the
 unclamped solution moves it back inside).
 
-``python -m armgen.planning.wgpm --compare TASK.toml`` prints the spec's comparison table;
+``python -m armgen.planning.wgpm.planner --compare TASK.toml`` prints the spec's comparison table;
 ``--survey N`` runs N random tasks (see :func:`survey`).
 """
 
@@ -30,13 +30,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import ArmgenError, PlanningError, TaskFileError
-from ..progress import progress
-from ..symbolic.steps import WGPM_CRITERIA, WGPM_SENSE
-from .backends import Backend, make_backend
-from .cartesian import _number, _table
-from .result import PlanResult
-from .taskpath import (PathTask, TaskPath, base_columns, base_row, limit_report, parse_path_task, path_metadata,
+from ...errors import ArmgenError, PlanningError, TaskFileError
+from ...progress import progress
+from ...symbolic.steps import WGPM_CRITERIA, WGPM_SENSE
+from ..backends import Backend, make_backend
+from ..cartesian.planner import _number, _table
+from ..result import PlanResult
+from ..taskpath import (PathTask, TaskPath, base_columns, base_row, limit_report, parse_path_task, path_metadata,
                        smoothness, tracking)
 
 METHODS = ("wgpm", "pinv", "clamp")
@@ -396,10 +396,10 @@ def format_survey(stats: dict[str, Any]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m armgen.planning.wgpm --compare TASK.toml`` and/or ``--survey N``."""
-    from .tasks import apply_overrides, check_finite_tree, load_task
+    """``python -m armgen.planning.wgpm.planner --compare TASK.toml`` and/or ``--survey N``."""
+    from ..tasks import apply_overrides, check_finite_tree, load_task
 
-    parser = argparse.ArgumentParser(prog="python -m armgen.planning.wgpm",
+    parser = argparse.ArgumentParser(prog="python -m armgen.planning.wgpm.planner",
                                      description="Spec 35: pinv vs binary clamp vs weighted GPM; random-task survey.")
     parser.add_argument("task", help="a wgpm task file (the demo; the survey uses its timing and method)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], help="key=value override")
@@ -431,7 +431,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(format_survey(results["survey"]))
             print(f"\n({time.perf_counter() - started:.1f} s)\n")
         if args.json:
-            from .fault_tolerant import _write_json
+            from ..fault_tolerant.planner import _write_json
 
             _write_json(args.json, results)
     except ArmgenError as exc:

@@ -17,11 +17,11 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Rectangle
 
-from ..errors import ArmgenError
-from ..fileio import atomic_open
-from ..robot import load_robot
-from .result import PlanResult
-from .snake_spline import HermiteSpline
+from ...errors import ArmgenError
+from ...fileio import atomic_open
+from ...robot import load_robot
+from ..result import PlanResult
+from .spline import HermiteSpline
 
 INSTANTS = 6  # arm poses drawn, evenly spaced over the motion
 PLANAR_TOL = 1e-9  # m: a path whose z spread is below this is drawn in one (top) view
@@ -29,7 +29,7 @@ FLOOR = 1e-14  # mm, floor of the log-scale accuracy traces (exact solver: ~1e-1
 
 
 def _arm_centres(result: PlanResult, meta: dict) -> np.ndarray:
-    from .snake import snake_arm
+    from .planner import snake_arm
 
     robot_meta = meta.get("robot", {})
     try:
