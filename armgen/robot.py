@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import sys
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -38,12 +37,11 @@ from typing import Any
 
 import numpy as np
 
-from .errors import RobotFileError
+from pydantic import ValidationError
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised only on old interpreters
-    import tomli as tomllib
+from .errors import RobotFileError
+from .robot_schema import RobotFile
+from .schemas import MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded
 
 BUNDLED_DIR = Path(str(resources.files("armgen.data") / "robots"))
 
@@ -58,6 +56,11 @@ TASK_ROWS = ("vx", "vy", "vz", "wx", "wy", "wz")
 # them; 1e-12 of a quarter turn is far below any physical tolerance but above the rounding
 # of a degree-to-radian conversion.
 QUARTER_TURN_SNAP = 1e-12
+# Physical bounds of a robot file's values (SI, after unit conversion): a 1 km link or a
+# joint range of 160 turns is a typo, and keeping values this small keeps every product of
+# the generated kinematics far from overflow, also in single precision (FLT_MAX ~ 3e38).
+MAX_ABS_LENGTH_M = 1e3
+MAX_ABS_ANGLE_RAD = 1e3
 
 
 @dataclass(frozen=True)
@@ -243,6 +246,8 @@ def _transform(reader: _Reader, doc: dict, key: str, length_scale: float, angle_
     if unknown:
         raise reader.fail(where, f"unknown field(s) {', '.join(sorted(unknown))}; allowed: xyz, rpy")
     xyz = np.array(reader.vector(table, "xyz", where, 3, [0.0, 0.0, 0.0])) * length_scale
+    if np.max(np.abs(xyz)) > MAX_ABS_LENGTH_M:
+        raise reader.fail(where, f"field 'xyz' is beyond ±{MAX_ABS_LENGTH_M:g} m; check [units] length and the value")
     rpy = [snap_quarter_turn(v * angle_scale) for v in reader.vector(table, "rpy", where, 3, [0.0, 0.0, 0.0])]
     out = np.eye(4)
     out[:3, :3] = rpy_matrix(*rpy)
@@ -250,20 +255,34 @@ def _transform(reader: _Reader, doc: dict, key: str, length_scale: float, angle_
     return out
 
 
-_TOP_FIELDS = {"name", "description", "convention", "units", "joints", "base", "tool", "configurations", "task_rows"}
 _JOINT_FIELDS = {"name", "type", "a", "d", "alpha", "offset", "qlim", "theta"}
+
+
+def _robot_place(doc: dict[str, Any], loc: tuple) -> str:
+    """How robot-file errors name a place: 'file', '[units]', "joint 2 ('elbow')"."""
+    if not loc:
+        return "file"
+    if loc[0] == "joints" and len(loc) > 1 and isinstance(loc[1], int):
+        raw = doc["joints"][loc[1]]
+        name = raw.get("name") if isinstance(raw, dict) else None
+        label = f"joint {loc[1] + 1}" + (f" ('{name}')" if isinstance(name, str) and len(name) <= 48 else "")
+        return label + "".join(f".{p}" for p in loc[2:])
+    return "[" + ".".join(str(p) for p in loc) + "]"
+
+
+def validate_robot_document(doc: dict[str, Any], source: str) -> RobotFile:
+    """Check a parsed robot file against :class:`RobotFile` (keys, types, finite numbers, name rules)."""
+    try:
+        return RobotFile.model_validate(doc)
+    except ValidationError as exc:
+        raise RobotFileError(format_validation_error(exc, source, doc, where=lambda loc: _robot_place(doc, loc))) from None
 
 
 def parse_robot(text: str, source: str, sha256: str | None = None) -> Robot:
     """Parse robot TOML text. ``source`` names the file in error messages."""
     reader = _Reader(source)
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise RobotFileError(f"{source}: not valid TOML: {exc}") from None
-    unknown = set(doc) - _TOP_FIELDS
-    if unknown:
-        raise reader.fail("file", f"unknown field(s) {', '.join(sorted(unknown))}; allowed: {', '.join(sorted(_TOP_FIELDS))}")
+    doc = parse_toml_bounded(text, source, RobotFileError)
+    validate_robot_document(doc, source)
     name = reader.string(doc, "name", "file")
     description = reader.string(doc, "description", "file", default="-")
     convention = reader.string(doc, "convention", "file", CONVENTIONS)
@@ -300,6 +319,15 @@ def parse_robot(text: str, source: str, sha256: str | None = None) -> Robot:
         lo, hi = qlim[0] * q_scale, qlim[1] * q_scale
         if not lo < hi:
             raise reader.fail(where, f"qlim = {qlim} is empty or reversed; write [lower, upper] with lower < upper")
+        q_is_angle = jtype == "revolute"
+        for key in ("a", "d", "alpha", "offset", "theta", "qlim"):
+            is_angle = key in ("alpha", "theta") or (key in ("offset", "qlim") and q_is_angle)
+            scale, bound, unit = (as_, MAX_ABS_ANGLE_RAD, "rad") if is_angle else (ls, MAX_ABS_LENGTH_M, "m")
+            values = raw.get(key, 0.0)
+            for value in values if isinstance(values, list) else [values]:
+                if abs(value * scale) > bound:
+                    raise reader.fail(where, f"field '{key}' = {value} is beyond ±{bound:g} {unit}; check the units "
+                                             "([units] length/angle) and the value")
         joints.append(Joint(
             name=jname,
             type=jtype,
@@ -363,11 +391,15 @@ def resolve_robot_path(name_or_path: str | Path) -> Path:
 
 def load_robot(name_or_path: str | Path) -> Robot:
     path = resolve_robot_path(name_or_path)
-    data = path.read_bytes()
     try:
+        if path.stat().st_size > MAX_INPUT_FILE_BYTES:
+            raise RobotFileError(f"{path}: larger than the {MAX_INPUT_FILE_BYTES} bytes a robot file may have")
+        data = path.read_bytes()
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise RobotFileError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except OSError as exc:
+        raise RobotFileError(f"{path}: cannot read the robot file: {exc.strerror or exc}") from None
     source = path.name if path.parent == BUNDLED_DIR else str(path)
     return parse_robot(text, source, hashlib.sha256(data).hexdigest())
 

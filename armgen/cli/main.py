@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -16,6 +17,8 @@ from ..errors import ArmgenError
 
 
 def _handle_errors(func):
+    """Expected failures are ArmgenErrors with their exit code. Anything else is a bug in
+    armgen: a short message (no traceback) and exit 1; ARMGEN_DEBUG=1 re-raises it."""
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
         try:
@@ -23,6 +26,16 @@ def _handle_errors(func):
         except ArmgenError as exc:
             click.echo(f"error: {exc}", err=True)
             sys.exit(exc.exit_code)
+        except KeyboardInterrupt:
+            click.echo("interrupted: no output was written", err=True)
+            sys.exit(130)
+        except Exception as exc:  # the last resort, not the mechanism: every known failure is an ArmgenError
+            if os.environ.get("ARMGEN_DEBUG"):
+                raise
+            click.echo(f"internal error: {type(exc).__name__}: {str(exc)[:300]}\nThis is a bug in armgen; please "
+                       "report it with the command line and the input files (ARMGEN_DEBUG=1 shows the traceback).",
+                       err=True)
+            sys.exit(1)
     return wrapper
 
 
@@ -115,15 +128,22 @@ def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
 @click.option("--set", "overrides", multiple=True, help="override a task field: key=value (dotted keys, TOML values)")
 @click.option("--units", type=click.Choice(["rad", "deg"]), default="rad", show_default=True,
               help="angle unit of the CSV columns")
+@click.option("--max-steps", type=click.IntRange(min=1), default=None,
+              help="cap on integration steps, checked before planning (default: planning.tasks.MAX_INTEGRATION_STEPS)")
+@click.option("--max-samples", type=click.IntRange(min=1), default=None,
+              help="cap on CSV rows, checked before planning (default: planning.tasks.MAX_OUTPUT_SAMPLES)")
 @_handle_errors
-def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[str, ...], units: str) -> None:
-    """Plan a task file to CSV plus JSON metadata (written atomically)."""
+def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[str, ...], units: str,
+             max_steps: int | None, max_samples: int | None) -> None:
+    """Plan a task file to CSV plus JSON metadata (written together or not at all)."""
     from ..planning.result import write_plan
-    from ..planning.tasks import apply_overrides, load_task, run_task
+    from ..planning.tasks import ResourceCaps, apply_overrides, load_task, run_task
 
+    caps = ResourceCaps()
+    caps = ResourceCaps(max_steps or caps.max_steps, max_samples or caps.max_samples)
     task, sha = load_task(task_file)
     apply_overrides(task, list(overrides))
-    result = run_task(task, task_file, sha, backend)
+    result = run_task(task, task_file, sha, backend, caps)
     out = Path(output) if output else Path(Path(task_file).stem + ".csv")
     csv_path, json_path = write_plan(result, out, units)
     click.echo(f"wrote {csv_path} ({result.data.shape[0]} samples) and {json_path}")

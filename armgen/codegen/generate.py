@@ -27,7 +27,7 @@ import sympy
 
 from .. import __version__
 from ..errors import ArmgenError
-from ..fileio import write_text_atomic
+from ..fileio import write_file_set
 from ..robot import Robot, load_robot_any
 from ..symbolic.model import DESCRIPTIONS, STEP_FUNCTIONS, ModelOptions, SymbolicModel
 from .c_emitter import MATH_MACROS, EmittedFunction, describe_counts, emit_body
@@ -200,12 +200,7 @@ typedef enum {{
 
 def write(code: GeneratedCode, out_dir: str | Path) -> list[Path]:
     out_dir = Path(out_dir)
-    paths = []
-    for name, text in code.files.items():
-        path = out_dir / name
-        write_text_atomic(path, text)
-        paths.append(path)
-    return paths
+    return write_file_set({out_dir / name: text for name, text in code.files.items()})
 
 
 def generate_robot(robot: Robot | str | Path, out_dir: str | Path | None = None, precision: str = "double",

@@ -711,7 +711,7 @@ def format_verdict_table(report: dict[str, Any]) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m armgen.planning.fault_tolerant.planner --sweep TASK.toml [TASK.toml …] [--fine]``."""
-    from ..tasks import apply_overrides, check_finite_tree, load_task
+    from ..tasks import apply_overrides, load_task, validate_task
 
     parser = argparse.ArgumentParser(prog="python -m armgen.planning.fault_tolerant.planner",
                                      description="Spec 30 sweep over K, b and the locked joint; prints the verdicts.")
@@ -726,7 +726,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for path in args.sweep:
             raw, _ = load_task(path)
             apply_overrides(raw, list(args.overrides))
-            check_finite_tree(raw, "", path)
+            validate_task(raw, path)
             task = parse_fault_tolerant_task(raw, path)
             if task.check_mode == "error":  # report, don't stop, in the sweep
                 task = replace(task, check_mode="report")

@@ -397,7 +397,7 @@ def format_survey(stats: dict[str, Any]) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m armgen.planning.wgpm.planner --compare TASK.toml`` and/or ``--survey N``."""
-    from ..tasks import apply_overrides, check_finite_tree, load_task
+    from ..tasks import apply_overrides, load_task, validate_task
 
     parser = argparse.ArgumentParser(prog="python -m armgen.planning.wgpm.planner",
                                      description="Spec 35: pinv vs binary clamp vs weighted GPM; random-task survey.")
@@ -414,7 +414,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         raw, _ = load_task(args.task)
         apply_overrides(raw, list(args.overrides))
-        check_finite_tree(raw, "", args.task)
+        validate_task(raw, args.task)
         task = parse_wgpm_task(raw, args.task)
         if args.compare:
             started = time.perf_counter()
