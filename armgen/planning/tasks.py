@@ -22,7 +22,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 # planner name -> its package: ``planner.plan_task(task: dict, source: str, backend: str)`` and
-# ``plots.<function>(result, out_path)``
+# ``plots.<function>(result) -> Figure``
 PLANNERS = {
     "ptp": "armgen.planning.ptp",
     "cartesian": "armgen.planning.cartesian",
@@ -111,10 +111,11 @@ def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: 
     return result
 
 
-def plot_plan(result: PlanResult, out_path: str | Path, source: str) -> None:
-    """Draw a plan with its planner's figure."""
+def plot_plan(result: PlanResult, source: str):
+    """The plan's figure (a :class:`matplotlib.figure.Figure`) drawn by its planner's plots
+    module; write it with :func:`armgen.planning.plotting.save_figure`."""
     planner = result.metadata.get("planner")
     if planner not in PLANNERS:
         raise TaskFileError(f"{source}: no plot for planner {planner!r} (plan.json missing or unknown planner)")
     module = importlib.import_module(PLANNERS[planner] + ".plots")
-    getattr(module, PLOT_FUNCTIONS[planner])(result, out_path)
+    return getattr(module, PLOT_FUNCTIONS[planner])(result)
