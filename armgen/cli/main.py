@@ -170,5 +170,9 @@ def plot_cmd(plan_csv: str, output: str | None) -> None:
     click.echo(f"wrote {out}")
 
 
+from .animate import animate_cmd  # noqa: E402  (its own module; errors mapped like every command's)
+animate_cmd.callback = _handle_errors(animate_cmd.callback); cli.add_command(animate_cmd)  # noqa: E702
+
+
 if __name__ == "__main__":  # pragma: no cover
     cli()

@@ -26,7 +26,7 @@ PLANAR_TOL = 1e-9  # m: a path whose z spread is below this is drawn in one (top
 VIEW_MARGIN = 0.06  # of the largest extent: room around the arm and path in each snapshot
 
 
-def _arm_centres(result: PlanResult, meta: dict) -> np.ndarray:
+def arm_centres(result: PlanResult, meta: dict) -> np.ndarray:
     from .planner import snake_arm
 
     robot_meta = meta.get("robot", {})
@@ -43,7 +43,7 @@ def _arm_centres(result: PlanResult, meta: dict) -> np.ndarray:
     return arm.joint_centres(arm.q_vector(feed, alpha, beta))[0] + place
 
 
-def _draw_obstacles(ax, obstacles: list[dict], view: tuple[int, int]) -> None:
+def draw_obstacles(ax, obstacles: list[dict], view: tuple[int, int]) -> None:
     i, j = view
     # plates are drawn across the tank that holds them (else 4 opening radii each side)
     extent = {k: (ob["min_mm"][k], ob["max_mm"][k]) for ob in obstacles if ob["type"] == "tank" for k in range(3)}
@@ -79,7 +79,7 @@ def plot_snake(result: PlanResult) -> Figure:
     if "rail" not in meta or "path" not in meta:
         raise ArmgenError("plan.json lacks the snake planner's rail/path metadata; re-run `armgen plan`")
     t = result.column("t_s")
-    centres = _arm_centres(result, meta) * 1e3
+    centres = arm_centres(result, meta) * 1e3
     path = meta["path"]
     wp = np.asarray(path["waypoints_m"], dtype=float)
     spline = HermiteSpline(wp, path.get("start_tangent"), path.get("end_tangent"))
@@ -101,7 +101,7 @@ def plot_snake(result: PlanResult) -> Figure:
     for p, (k, (view, name)) in enumerate(panels):
         i, j = view
         ax = snapshots.add_subplot(grid[p // 2, p % 2])
-        _draw_obstacles(ax, meta.get("obstacles", []), view)
+        draw_obstacles(ax, meta.get("obstacles", []), view)
         ax.plot(dense[:, i], dense[:, j], color="k", lw=0.8, ls="--", label="path (spline)")
         ax.plot(centres[k, :, i], centres[k, :, j], "-o", color="tab:blue", ms=2.5, lw=2.5, label="arm")
         ax.plot(centres[k, 0, i], centres[k, 0, j], "s", ms=6, color="tab:green", label="base joint")
