@@ -175,17 +175,23 @@ def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | 
 
 @cli.command("plot")
 @click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="PNG to write (default: beside the CSV)")
+@click.option("-o", "--output", default=None,
+              help="figure to write: .png, .svg or .pdf (default: the CSV's name with .png, beside it)")
 @_handle_errors
 def plot_cmd(plan_csv: str, output: str | None) -> None:
-    """Draw a plan: joint angles, velocities, criteria and task error."""
+    """Draw a plan: joint angles with limits, velocities with bounds, criteria, task error, tool path."""
+    from ..planning.plotting import figure_format, save_figure
     from ..planning.result import read_plan
     from ..planning.tasks import plot_plan
 
-    result = read_plan(plan_csv)
-    out = Path(output) if output else Path(plan_csv).with_suffix(".png")
-    plot_plan(result, out, plan_csv)
+    out = Path(output) if output is not None else Path(plan_csv).with_suffix(".png")
+    figure_format(output if output is not None else out)  # a bad -o fails before any work
+    save_figure(plot_plan(read_plan(plan_csv), plan_csv), out)
     click.echo(f"wrote {out}")
+
+
+from .animate import animate_cmd  # noqa: E402  (its own module; errors mapped like every command's)
+animate_cmd.callback = _handle_errors(animate_cmd.callback); cli.add_command(animate_cmd)  # noqa: E702
 
 
 if __name__ == "__main__":  # pragma: no cover

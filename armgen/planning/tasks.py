@@ -20,7 +20,7 @@ from ..schemas import MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, closest_key, form
 from .result import PlanResult
 
 # planner name -> its package: ``planner.plan_task(task: dict, source: str, backend: str)`` and
-# ``plots.<function>(result, out_path)``
+# ``plots.<function>(result) -> Figure``
 PLANNERS = {
     "ptp": "armgen.planning.ptp",
     "cartesian": "armgen.planning.cartesian",
@@ -157,16 +157,18 @@ def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: 
     return result
 
 
-def plot_plan(result: PlanResult, out_path: str | Path, source: str) -> None:
-    """Draw a plan with its planner's figure. A plan.json that validates but lacks a block
-    the figure needs (hand-edited, from another version) is a PlanFileError, not a crash."""
+def plot_plan(result: PlanResult, source: str):
+    """The plan's figure (a :class:`matplotlib.figure.Figure`) drawn by its planner's plots
+    module; write it with :func:`armgen.planning.plotting.save_figure`."""
     planner = result.metadata.get("planner")
     if planner not in PLANNERS:
         raise PlanFileError(f"{source}: no plot for planner {planner!r} (plan.json missing or unknown planner); "
                             "keep the plan.json that armgen plan wrote beside the CSV")
     module = importlib.import_module(PLANNERS[planner] + ".plots")
     try:
-        getattr(module, PLOT_FUNCTIONS[planner])(result, out_path)
+        return getattr(module, PLOT_FUNCTIONS[planner])(result)
     except (KeyError, IndexError, TypeError, ValueError) as exc:
+        # A plan.json that validates but lacks a block the figure needs (hand-edited, from
+        # another version) is a PlanFileError, not a crash.
         raise PlanFileError(f"{source}: the plan and its plan.json do not fit the {planner} figure "
                             f"({type(exc).__name__}: {str(exc)[:120]}); regenerate them with armgen plan") from None
