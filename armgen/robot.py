@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -41,7 +42,7 @@ from pydantic import ValidationError
 
 from .errors import RobotFileError
 from .robot_schema import RobotFile
-from .schemas import MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded
+from .schemas import IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded
 
 BUNDLED_DIR = Path(str(resources.files("armgen.data") / "robots"))
 
@@ -265,7 +266,8 @@ def _robot_place(doc: dict[str, Any], loc: tuple) -> str:
     if loc[0] == "joints" and len(loc) > 1 and isinstance(loc[1], int):
         raw = doc["joints"][loc[1]]
         name = raw.get("name") if isinstance(raw, dict) else None
-        label = f"joint {loc[1] + 1}" + (f" ('{name}')" if isinstance(name, str) and len(name) <= 48 else "")
+        valid = isinstance(name, str) and re.fullmatch(IDENTIFIER_PATTERN, name)
+        label = f"joint {loc[1] + 1}" + (f" ('{name}')" if valid else "")
         return label + "".join(f".{p}" for p in loc[2:])
     return "[" + ".".join(str(p) for p in loc) + "]"
 

@@ -122,7 +122,7 @@ def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
 
 @cli.command("plan")
 @click.argument("task_file", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+@click.option("-o", "--output", type=click.Path(), default=None,
               help="CSV to write (default: <task name>.csv in the current directory); plan.json goes beside it")
 @click.option("--backend", type=click.Choice(["symbolic", "c"]), default="symbolic", show_default=True)
 @click.option("--set", "overrides", multiple=True, help="override a task field: key=value (dotted keys, TOML values)")
@@ -175,7 +175,7 @@ def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | 
 
 @cli.command("plot")
 @click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="PNG to write (default: beside the CSV)")
+@click.option("-o", "--output", type=click.Path(), default=None, help="PNG to write (default: beside the CSV)")
 @_handle_errors
 def plot_cmd(plan_csv: str, output: str | None) -> None:
     """Draw a plan: joint angles, velocities, criteria and task error."""
@@ -187,6 +187,10 @@ def plot_cmd(plan_csv: str, output: str | None) -> None:
     plot_plan(result, out, plan_csv)
     click.echo(f"wrote {out}")
 
+
+from .schema import schema_cmd  # noqa: E402  (registered below the group it joins)
+
+cli.add_command(schema_cmd)
 
 if __name__ == "__main__":  # pragma: no cover
     cli()
