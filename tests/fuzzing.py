@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import importlib
 import json
 import random
 import signal
@@ -23,7 +24,7 @@ from typing import Any, Callable, Iterator
 
 from armgen.errors import ArmgenError
 from armgen.planning.result import write_plan
-from armgen.planning.tasks import ResourceCaps, load_task, run_task, validate_task
+from armgen.planning.tasks import PLANNERS, ResourceCaps, load_task, run_task, validate_task
 from armgen.robot import BUNDLED_DIR, parse_robot
 
 EXAMPLES_DIR = BUNDLED_DIR.parent / "examples"
@@ -184,6 +185,18 @@ def mutate_task(rng: random.Random, bases: tuple[str, ...] | None = None) -> tup
     return name, task, invalid
 
 
+PARSERS = {"ptp": "parse_ptp_task", "cartesian": "parse_cartesian_task",
+           "fault_tolerant": "parse_fault_tolerant_task", "wgpm": "parse_wgpm_task", "snake": "parse_snake_task"}
+
+
+def parse_task(task: dict[str, Any]) -> Any:
+    """The schema, then the planner's own parser (robot, joint names, cross-field rules),
+    everything before planning."""
+    validate_task(task, "fuzz.toml")
+    module = importlib.import_module(PLANNERS[task["planner"]] + ".planner")
+    return getattr(module, PARSERS[task["planner"]])(task, "fuzz.toml")
+
+
 @dataclass
 class Outcome:
     kind: str  # "accepted", "clean", "traceback", "hang"
@@ -217,7 +230,7 @@ def task_case(task: dict[str, Any], full_plan: bool) -> Outcome:
     """Validate (schema) the task; with ``full_plan`` also plan it and write the plan into a
     fresh folder, which must stay empty when the case fails."""
     if not full_plan:
-        return _classify(lambda: validate_task(task, "fuzz.toml"), VALIDATE_LIMIT_S, (2,))
+        return _classify(lambda: parse_task(task), VALIDATE_LIMIT_S, (2,))
     with tempfile.TemporaryDirectory(prefix="armgen-fuzz-") as tmp:
         out = Path(tmp) / "plan.csv"
         outcome = _classify(lambda: write_plan(run_task(task, "fuzz.toml", caps=FUZZ_CAPS), out), PLAN_LIMIT_S,

@@ -156,6 +156,9 @@ def test_step_cap_fails_before_work_and_names_the_option(tmp_path):
     assert out.exit_code == 2 and "cap" in out.output and "--max-steps" in out.output
     out = run("plan", str(EXAMPLES / "modular8_circle_pinv.toml"), "-o", str(tmp_path / "p.csv"),
               "--set", "timing.duration=1e308", "--set", "integrator.step=1e-10")
+    assert out.exit_code == 2 and "'timing.duration' = 1e+308 is beyond" in out.output
+    out = run("plan", str(EXAMPLES / "modular8_circle_pinv.toml"), "-o", str(tmp_path / "p.csv"),
+              "--set", "timing.duration=1e6", "--set", "integrator.step=5e-324")
     assert out.exit_code == 2 and "--max-steps" in out.output
     task, _ = load_task(EXAMPLES / "ptp_single_joint.toml")
     with pytest.raises(TaskFileError, match="--max-samples"):
@@ -177,7 +180,8 @@ def test_non_finite_plan_is_infeasible_and_writes_nothing(tmp_path):
     ("t_s,q1_rad\n0,1\n1\n", r"line 3: 1 values for 2 columns"),
     ("", r"empty plan file"),
     ("a,b\n1,2\n", r"line 1: the header"),
-    ("t_s,q1_rad\n0,nan\n", r"line 2: non-finite"),
+    ("t_s,q1_rad\n0,1\n1,nan\n", r"line 3: column 'q1_rad' is nan"),
+    ("t_s,clearance_min_m\n0,-inf\n", r"line 2: column 'clearance_min_m' is -inf"),
     (b"\xff\xfe garbage", r"not UTF-8"),
 ])
 def test_garbage_plan_csv_is_a_clean_error_with_the_line(text, message, tmp_path):
@@ -187,6 +191,13 @@ def test_garbage_plan_csv_is_a_clean_error_with_the_line(text, message, tmp_path
     assert out.exit_code == 2, out.output
     assert __import__("re").search(message, out.output), out.output
     assert not (tmp_path / "x.png").exists()
+
+
+def test_infinite_clearance_is_a_value_not_a_failure(tmp_path):
+    """A snake task without obstacles has clearance +inf: written, read back and plotted."""
+    path = tmp_path / "plan.csv"
+    path.write_text("t_s,feed_m,clearance_min_m\n0,0,inf\n1,0.1,inf\n")
+    assert np.isinf(read_plan(path).column("clearance_min_m")).all()
 
 
 def test_garbage_plan_json_is_a_clean_error(tmp_path):

@@ -13,7 +13,7 @@ import click
 import numpy as np
 
 from .. import __version__
-from ..errors import ArmgenError
+from ..errors import ArmgenError, OptionError
 
 
 def _handle_errors(func):
@@ -97,8 +97,8 @@ def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functi
 
     try:
         code, paths = generate_robot(robot, out_dir, precision, prefix, functions or None)
-    except ValueError as exc:
-        raise ArmgenError(str(exc)) from None
+    except ValueError as exc:  # an invalid --prefix or --function
+        raise OptionError(str(exc)) from None
     for path in paths:
         click.echo(f"wrote {path}")
     flops = ", ".join(f"{e.name} {e.flops}" for e in code.emitted)
