@@ -272,6 +272,14 @@ def test_plan_to_directory_read_only_folder_or_full_disk_is_exit_4(tmp_path, mon
         ro.chmod(0o500)
         out = run("plan", task, "-o", str(ro / "p.csv"))
         assert out.exit_code == 4 and list(ro.iterdir()) == []
+    def read_only(*args, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system")
+
+    with monkeypatch.context() as patch:  # as root a chmod'ed folder is still writable: simulate
+        patch.setattr(fileio.tempfile, "mkdtemp", read_only)
+        out = run("plan", task, "-o", str(tmp_path / "ro.csv"))
+    assert out.exit_code == 4 and "Read-only file system" in out.output
+    assert not (tmp_path / "ro.csv").exists()
     monkeypatch.setattr(fileio.os, "write", lambda fd, data: (_ for _ in ()).throw(OSError(errno.ENOSPC, "No space")))
     out = run("plan", task, "-o", str(tmp_path / "full.csv"))
     assert out.exit_code == 4 and "No space" in out.output
