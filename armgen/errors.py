@@ -48,3 +48,9 @@ class PlanFileError(ArmgenError):
     """A plan CSV or its plan.json is malformed."""
 
     exit_code = 2
+
+
+class OptionError(ArmgenError):
+    """A command-line option has an invalid value (e.g. a C prefix that is a keyword)."""
+
+    exit_code = 2

@@ -4,8 +4,8 @@
 source and manifest) so that they appear together or not at all: every file is staged in a
 hidden temporary folder inside the target folder, flushed to disk, and only then renamed into
 place. On any exception (a planner error, disk full, SIGINT) the staging folder is removed and
-the previous files stay untouched. Concurrent runs writing the same set serialise on a lock
-file (``fcntl.flock``), so two runs never leave a mix of their files. New files get the
+the previous files stay untouched. Concurrent runs writing the same set serialise on a lock of
+the output folder (``fcntl.flock``), so two runs never leave a mix of their files. New files get the
 permissions the umask gives (0644 under umask 022), also when they replace older files.
 
 Every OS failure (the target is a directory, a read-only folder, a full disk) becomes an
@@ -25,9 +25,6 @@ from typing import Iterator, Mapping
 
 from .errors import OutputError
 
-LOCK_SUFFIX = ".armgen-lock"
-
-
 def _umask_mode() -> int:
     """0666 less the process umask (read without changing it for other threads)."""
     mask = os.umask(0)
@@ -42,10 +39,10 @@ def _check_targets(targets: list[Path]) -> None:
 
 
 @contextlib.contextmanager
-def _folder_lock(folder: Path, stem: str) -> Iterator[None]:
-    """An exclusive lock on ``<folder>/.<stem>.armgen-lock`` for the duration of one set write."""
-    lock_path = folder / f".{stem}{LOCK_SUFFIX}"
-    fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+def _folder_lock(folder: Path) -> Iterator[None]:
+    """An exclusive lock on the output folder itself (flock on its descriptor), held while one
+    set is written: it leaves no lock file behind in the output."""
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)
         yield
@@ -73,7 +70,7 @@ def write_file_set(files: Mapping[str | os.PathLike, str | bytes]) -> list[Path]
     mode = _umask_mode()
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        with _folder_lock(folder, targets[0].stem):
+        with _folder_lock(folder):
             staging = Path(tempfile.mkdtemp(prefix=".armgen-staging-", dir=folder))
             try:
                 staged = []

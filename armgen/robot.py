@@ -4,7 +4,7 @@ A robot file holds a serial chain in standard or modified (Craig) DH. Every leng
 converted to metres and every angle to radians on load; the returned :class:`Robot` is
 SI-only. Errors name the file, the joint and the field, and say how to fix them.
 
-Format (see ``docs/robot-files.md`` and the bundled files in ``robots/``)::
+Format (validation rules: ``docs/input-files.md``; examples: the bundled files in ``robots/``)::
 
     name = "planar3"
     convention = "standard"            # or "modified"
@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -41,7 +42,7 @@ from pydantic import ValidationError
 
 from .errors import RobotFileError
 from .robot_schema import RobotFile
-from .schemas import MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded
+from .schemas import IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded
 
 BUNDLED_DIR = Path(str(resources.files("armgen.data") / "robots"))
 
@@ -265,7 +266,8 @@ def _robot_place(doc: dict[str, Any], loc: tuple) -> str:
     if loc[0] == "joints" and len(loc) > 1 and isinstance(loc[1], int):
         raw = doc["joints"][loc[1]]
         name = raw.get("name") if isinstance(raw, dict) else None
-        label = f"joint {loc[1] + 1}" + (f" ('{name}')" if isinstance(name, str) and len(name) <= 48 else "")
+        valid = isinstance(name, str) and re.fullmatch(IDENTIFIER_PATTERN, name)
+        label = f"joint {loc[1] + 1}" + (f" ('{name}')" if valid else "")
         return label + "".join(f".{p}" for p in loc[2:])
     return "[" + ".".join(str(p) for p in loc) + "]"
 
@@ -377,13 +379,17 @@ def bundled_robots() -> list[str]:
 def resolve_robot_path(name_or_path: str | Path) -> Path:
     """A bundled robot name or a path to a robot file."""
     candidate = Path(name_or_path)
-    if candidate.suffix == ".toml" or candidate.exists():
-        if not candidate.is_file():
-            raise RobotFileError(f"{candidate}: robot file not found")
-        return candidate
-    bundled = BUNDLED_DIR / f"{name_or_path}.toml"
-    if bundled.is_file():
-        return bundled
+    try:
+        if candidate.suffix == ".toml" or candidate.exists():
+            if not candidate.is_file():
+                raise RobotFileError(f"{candidate}: robot file not found")
+            return candidate
+        bundled = BUNDLED_DIR / f"{name_or_path}.toml"
+        if re.fullmatch(IDENTIFIER_PATTERN, str(name_or_path)) and bundled.is_file():
+            return bundled
+    except (OSError, ValueError) as exc:  # a name too long for the file system, a NUL byte, no permission
+        raise RobotFileError(f"{str(candidate)[:80]}: not a readable robot file ({exc.strerror or exc}); give a "
+                             f"bundled name ({', '.join(bundled_robots())}) or a path") from None
     raise RobotFileError(
         f"unknown robot '{name_or_path}': not a file and not bundled (bundled: {', '.join(bundled_robots())})"
     )

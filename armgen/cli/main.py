@@ -13,7 +13,7 @@ import click
 import numpy as np
 
 from .. import __version__
-from ..errors import ArmgenError
+from ..errors import ArmgenError, OptionError
 
 
 def _handle_errors(func):
@@ -97,8 +97,8 @@ def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functi
 
     try:
         code, paths = generate_robot(robot, out_dir, precision, prefix, functions or None)
-    except ValueError as exc:
-        raise ArmgenError(str(exc)) from None
+    except ValueError as exc:  # an invalid --prefix or --function
+        raise OptionError(str(exc)) from None
     for path in paths:
         click.echo(f"wrote {path}")
     flops = ", ".join(f"{e.name} {e.flops}" for e in code.emitted)
@@ -122,7 +122,7 @@ def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
 
 @cli.command("plan")
 @click.argument("task_file", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+@click.option("-o", "--output", type=click.Path(), default=None,
               help="CSV to write (default: <task name>.csv in the current directory); plan.json goes beside it")
 @click.option("--backend", type=click.Choice(["symbolic", "c"]), default="symbolic", show_default=True)
 @click.option("--set", "overrides", multiple=True, help="override a task field: key=value (dotted keys, TOML values)")
@@ -193,6 +193,9 @@ def plot_cmd(plan_csv: str, output: str | None) -> None:
 from .animate import animate_cmd  # noqa: E402  (its own module; errors mapped like every command's)
 animate_cmd.callback = _handle_errors(animate_cmd.callback); cli.add_command(animate_cmd)  # noqa: E702
 
+from .schema import schema_cmd  # noqa: E402  (registered below the group it joins)
+
+cli.add_command(schema_cmd)
 
 if __name__ == "__main__":  # pragma: no cover
     cli()

@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..errors import TaskFileError
 
@@ -92,17 +93,14 @@ class CirclePath:
 
 
 def _axis_angle(rot: np.ndarray) -> tuple[np.ndarray, float]:
-    cos_angle = max(-1.0, min(1.0, (np.trace(rot) - 1) / 2))
-    angle = math.acos(cos_angle)
-    if angle < 1e-12:
+    """Unit axis and angle in [0, π] of a rotation matrix, via SciPy's quaternion route
+    (accurate at every angle; ``acos`` of the trace loses half the digits near 0 and turns a
+    9e-16 rounding of the trace into a 3e-8 rad rotation). The exact identity gives angle 0."""
+    rotvec = Rotation.from_matrix(rot).as_rotvec()
+    angle = float(np.linalg.norm(rotvec))
+    if angle == 0.0:
         return np.array([0.0, 0.0, 1.0]), 0.0
-    axis = np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
-    norm = np.linalg.norm(axis)
-    if norm < 1e-9:  # angle ≈ π: axis from the symmetric part
-        sym = (rot + np.eye(3)) / 2
-        axis = sym[:, int(np.argmax(np.diag(sym)))]
-        norm = np.linalg.norm(axis)
-    return axis / norm, angle
+    return rotvec / angle, angle
 
 
 def _rodrigues(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -116,7 +114,9 @@ class LinePath:
     def __init__(self, start: np.ndarray, end: np.ndarray, r_start: np.ndarray, r_end: np.ndarray):
         self.start, self.delta = start, end - start
         self.r_start = r_start
-        axis_local, self.angle = _axis_angle(r_start.T @ r_end)
+        # holding the orientation is no rotation at all, not the rounding left in R0ᵀ R0
+        axis_local, self.angle = ((np.array([0.0, 0.0, 1.0]), 0.0) if np.array_equal(r_start, r_end)
+                                  else _axis_angle(r_start.T @ r_end))
         self.axis_local = axis_local
         self.axis_world = r_start @ axis_local
 

@@ -38,6 +38,21 @@ class PlanResult:
         return self.data[:, self.columns.index(name)]
 
 
+# Columns whose +inf is a value, not a failure: the clearance to obstacles of a task that has
+# none. NaN and -inf are never valid in any column.
+UNBOUNDED_COLUMN_PREFIXES = ("clearance_",)
+
+
+def first_invalid_sample(columns: list[str], data: np.ndarray) -> tuple[int, int] | None:
+    """(row, column) of the first non-finite sample (other than +inf where it is a value), or None."""
+    bad = ~np.isfinite(data)
+    for k, name in enumerate(columns):
+        if name.startswith(UNBOUNDED_COLUMN_PREFIXES):
+            bad[:, k] = np.isnan(data[:, k]) | (data[:, k] == -np.inf)
+    hits = np.argwhere(bad)
+    return (int(hits[0][0]), int(hits[0][1])) if hits.size else None
+
+
 def _split_unit(column: str) -> tuple[str, str]:
     """('dq1', 'rad_s') for 'dq1_rad_s'; unit is everything from the first unit token."""
     parts = column.split("_")
@@ -149,12 +164,14 @@ def read_plan(csv_path: str | Path) -> PlanResult:
         except ValueError:
             bad = next(v for v in row if not _is_float(v))
             raise PlanFileError(f"{csv_path}: line {number}: {bad[:40]!r} is not a number") from None
-        if not all(math.isfinite(v) for v in values):
-            raise PlanFileError(f"{csv_path}: line {number}: non-finite value; a plan holds finite numbers only")
         rows.append(values)
     if not rows:
         raise PlanFileError(f"{csv_path}: no samples after the header line")
     data = np.array(rows, dtype=float)
+    invalid = first_invalid_sample(columns, data)
+    if invalid is not None:
+        raise PlanFileError(f"{csv_path}: line {invalid[0] + 2}: column '{columns[invalid[1]]}' is "
+                            f"{data[invalid]}; a plan holds finite numbers only")
     # back to SI: columns in degrees become radians
     out_cols = []
     for k, col in enumerate(columns):

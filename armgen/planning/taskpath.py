@@ -87,6 +87,9 @@ def parse_path_task(task: dict, source: str, known_top: set[str]) -> PathTask:
     step = _number(integ, "step", "integrator", source, 0.02, positive=True)
     if step > duration:
         raise TaskFileError(f"{source}: integrator.step = {step} is longer than timing.duration = {duration}")
+    if not math.isfinite(duration / step):
+        raise TaskFileError(f"{source}: integrator.step = {step:g} s is too small for timing.duration = {duration:g} s; "
+                            "give a step of at least a microsecond")
     steps = int(round(duration / step))
     if abs(steps * step - duration) > 1e-9 * duration:
         raise TaskFileError(f"{source}: timing.duration = {duration} s is not a multiple of integrator.step = {step} s")

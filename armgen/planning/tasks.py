@@ -17,7 +17,7 @@ from pydantic import ValidationError
 from .. import __version__
 from ..errors import PlanFileError, PlanningError, TaskFileError
 from ..schemas import MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, closest_key, format_validation_error, parse_toml_bounded
-from .result import PlanResult
+from .result import PlanResult, first_invalid_sample
 
 # planner name -> its package: ``planner.plan_task(task: dict, source: str, backend: str)`` and
 # ``plots.<function>(result) -> Figure``
@@ -94,6 +94,24 @@ def apply_overrides(task: dict[str, Any], overrides: list[str]) -> dict[str, Any
     return task
 
 
+# No quantity in a task file exceeds this magnitude in any unit armgen accepts (the largest,
+# a link's axial stiffness EA, is ~1e9 N); bounding every number keeps products and squares
+# of task values (~1e24) far from floating-point overflow.
+MAX_ABS_TASK_NUMBER = 1e12
+
+
+def _check_magnitudes(value: Any, where: str, source: str) -> None:
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and abs(value) > MAX_ABS_TASK_NUMBER:
+        raise TaskFileError(f"{source}: field '{where}' = {value:g} is beyond ±{MAX_ABS_TASK_NUMBER:g}; no "
+                            "physical quantity of a task is that large: check the value and its unit")
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _check_magnitudes(item, f"{where}.{key}" if where else str(key), source)
+    elif isinstance(value, list):
+        for k, item in enumerate(value):
+            _check_magnitudes(item, f"{where}[{k}]", source)
+
+
 def validate_task(task: dict[str, Any], source: str) -> Any:
     """The task checked against its planner's schema (keys, types, ranges); returns the model."""
     planner = task.get("planner") if isinstance(task, dict) else None
@@ -105,9 +123,11 @@ def validate_task(task: dict[str, Any], source: str) -> Any:
             + "; set planner = \"<name>\" at the top of the task file")
     schema = importlib.import_module(PLANNERS[planner] + ".schema")
     try:
-        return getattr(schema, SCHEMAS[planner]).model_validate(task)
+        model = getattr(schema, SCHEMAS[planner]).model_validate(task)
     except ValidationError as exc:
         raise TaskFileError(format_validation_error(exc, source, task)) from None
+    _check_magnitudes(task, "", source)
+    return model
 
 
 def check_caps(planner: str, model: Any, caps: ResourceCaps, source: str) -> None:
@@ -138,8 +158,9 @@ def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: 
         raise PlanningError(f"{source}: the plan overflowed ({exc}); the task's numbers are too large for a "
                             "physical motion (check durations, steps and gains)") from None
     elapsed = time.perf_counter() - started
-    if result.data.size and not np.all(np.isfinite(result.data)):
-        row, col = np.argwhere(~np.isfinite(result.data))[0]
+    invalid = first_invalid_sample(result.columns, result.data)
+    if invalid is not None:
+        row, col = invalid
         raise PlanningError(f"{source}: the plan is not feasible: column '{result.columns[col]}' is "
                             f"{result.data[row, col]} at sample {row}; nothing was written (check the timing "
                             "and the numbers of the task)")
