@@ -168,5 +168,9 @@ def plot_cmd(plan_csv: str, output: str | None) -> None:
     click.echo(f"wrote {out}")
 
 
+from .sweep import sweep_cmd  # noqa: E402 -- registered after the group exists
+
+cli.add_command(sweep_cmd)
+
 if __name__ == "__main__":  # pragma: no cover
     cli()

@@ -54,22 +54,28 @@ def _parse_value(text: str) -> Any:
         return text  # a bare word is a string
 
 
+def set_field(task: dict[str, Any], key: str, value: Any, where: str) -> None:
+    """Set the task field ``key`` (dotted keys reach into tables) to ``value``; ``where`` names
+    the option in errors."""
+    parts = [p.strip() for p in key.split(".")]
+    if not all(parts):
+        raise TaskFileError(f"{where}: empty key component in {key!r}")
+    node = task
+    for part in parts[:-1]:
+        nxt = node.setdefault(part, {})
+        if not isinstance(nxt, dict):
+            raise TaskFileError(f"{where}: '{part}' is not a table in the task file")
+        node = nxt
+    node[parts[-1]] = value
+
+
 def apply_overrides(task: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
     """Apply ``key=value`` overrides; dotted keys reach into tables; values are TOML."""
     for item in overrides:
         if "=" not in item:
             raise TaskFileError(f"--set {item!r}: expected key=value (e.g. --set integrator.h=0.01)")
         key, raw = item.split("=", 1)
-        parts = [p.strip() for p in key.split(".")]
-        if not all(parts):
-            raise TaskFileError(f"--set {item!r}: empty key component")
-        node = task
-        for part in parts[:-1]:
-            nxt = node.setdefault(part, {})
-            if not isinstance(nxt, dict):
-                raise TaskFileError(f"--set {item!r}: '{part}' is not a table in the task file")
-            node = nxt
-        node[parts[-1]] = _parse_value(raw.strip())
+        set_field(task, key, _parse_value(raw.strip()), f"--set {item!r}")
     return task
 
 

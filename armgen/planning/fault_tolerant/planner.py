@@ -36,6 +36,7 @@ import time
 from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
 
+import casadi as ca
 import numpy as np
 
 from ...errors import ArmgenError, PlanningError, TaskFileError
@@ -44,8 +45,8 @@ from ...robot import Robot
 from ..backends import Backend, make_backend
 from ..cartesian.planner import _number, _table
 from ..result import PlanResult
-from ..taskpath import (PathTask, TaskPath, base_columns, base_row, limit_report, parse_path_task, path_metadata,
-                       smoothness, tracking)
+from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, limit_report, parse_path_task, path_metadata,
+                       smoothness, sym_base_row, sym_tracking)
 
 METHODS = ("gpm", "wln", "pinv")
 INDEX_VARIANTS = ("omega", "relative", "sigma_min")
@@ -319,42 +320,22 @@ def srs_reach_check(robot: Robot, backend: Backend, q_start: np.ndarray, path: T
 # -- the planner ---------------------------------------------------------------------------
 
 @dataclass
-class StepInfo:
-    pose: np.ndarray
-    jac: np.ndarray
-    pos_err: np.ndarray
-    ori_err: np.ndarray
-    cmd: np.ndarray
-    H: float
-    w: float
-    per_joint: np.ndarray
-    W: np.ndarray
-    active: np.ndarray
-    damping: float
-    sigma_min: float
-
-
-@dataclass
 class Segment:
-    rows: list[list[float]] = field(default_factory=list)
-    qd: list[np.ndarray] = field(default_factory=list)
-    active: list[np.ndarray] = field(default_factory=list)
-    W: list[np.ndarray] = field(default_factory=list)
-    masks: list[np.ndarray] = field(default_factory=list)
-    damped: int = 0
+    """The rows planned so far (each a full output row, time first)."""
+
+    rows: list[np.ndarray] = field(default_factory=list)
 
 
 class FaultTolerantPlanner:
     """Integrates one task; ``run`` plans it, ``run_locks`` shares the pre-fault segment among
     several locked joints (the sweep)."""
 
-    FUNCTIONS = ("fk_jacobian", "jacobian", "ft_index", "wln_weights", "step_fault")
 
     def __init__(self, task: FaultTolerantTask, backend_kind: str = "symbolic", backend: Backend | None = None):
         self.task = task
         self.robot = task.robot
         self.rows = list(self.robot.task_rows)
-        self.backend = backend or make_backend(self.robot, backend_kind, self.FUNCTIONS)
+        self.backend = backend or make_backend(self.robot, backend_kind)
         pose0, _ = self.backend.call("fk_jacobian", task.path.q_start)
         self.path = TaskPath(task.path, pose0)
         self.reach = srs_reach_check(self.robot, self.backend, task.path.q_start, self.path)
@@ -403,61 +384,82 @@ class FaultTolerantPlanner:
                 if jh.shape[1] - 1 >= len(self.rows) else 0.0
         return out
 
-    def evaluate(self, t: float, q: np.ndarray, qd_prev: np.ndarray, mask: np.ndarray,
-                 method: FaultMethod) -> tuple[np.ndarray, StepInfo]:
-        p = self.task.path
-        pose, jac = self.backend.call("fk_jacobian", q)
-        p_d, r_d, xdot = self.path(t)
-        pos_err, ori_err = tracking(pose, p_d, r_d)
-        cmd = xdot + (p.clik_gain * np.concatenate([pos_err, ori_err]) if p.clik else 0.0)
-        h, grad, per, w = self.index(q, mask, method)
-        n = self.robot.n
-        weights, active, alpha = np.ones(n), np.zeros(n), np.zeros(n)
-        if method.name == "gpm":
-            alpha = method.K * grad
-        elif method.name == "wln":
-            if method.weight_rule == "smooth":
-                # the direction test on the unweighted (minimum-norm) motion of this step:
-                # continuous in t and independent of W, so the weights cannot feed back on it
-                probe, _, _ = self.backend.call("step_fault", q, cmd[self.rows], mask, np.ones(n), np.zeros(n),
-                                                p.damping_epsilon, p.damping_max)
-                v_band, reference = method.v_band, probe.ravel()
-            else:
-                v_band, reference = 0.0, qd_prev
-            weights, active = (x.ravel() for x in self.backend.call(
-                "wln_weights", grad, per, reference, mask, method.b, method.omega_floor, v_band))
-        qd, lam, sigma = self.backend.call("step_fault", q, cmd[self.rows], mask, weights, alpha,
-                                           p.damping_epsilon, p.damping_max)
-        info = StepInfo(pose, jac, pos_err, ori_err, cmd, h, w, per, weights, active,
-                        float(lam.ravel()[0]), float(sigma.ravel()[0]))
-        return qd.ravel(), info
+    def _kernel(self, method: FaultMethod):
+        """One fused call per step: index, weights or null-space term, masked step, q(t + h)."""
+        rows = self.rows
+        numeric_index = method.index == "sigma_min"  # NumPy SVD and differences: an input
 
-    def segment(self, q: np.ndarray, qd_prev: np.ndarray, k0: int, k1: int, mask: np.ndarray, method: FaultMethod,
-                seg: Segment, bar, last: bool) -> tuple[np.ndarray, np.ndarray]:
+        def build(model, x, y):
+            n = model.n
+            fk_jacobian, ft_index, wln_weights, step_fault = (
+                model.function(f) for f in ("fk_jacobian", "ft_index", "wln_weights", "step_fault"))
+            q, qd_prev, mask, a = (x.add(k, n) for k in ("q", "qd_prev", "mask", "a"))
+            K, b, omega_floor, v_band, delta, gain, eps, lam_max, h = (
+                x.add(k, 1) for k in ("K", "b", "omega_floor", "v_band", "delta", "clik_gain", "epsilon", "lambda_max",
+                                      "h"))
+            if numeric_index:
+                h_in, grad_in, per_in = x.add("H", 1), x.add("grad_H", n), x.add("per_joint", n)
+            timed = x.add("timed", TIMED_WIDTH)
+            pose, jac = fk_jacobian(q)
+            pos_err, ori_err, cmd = sym_tracking(pose, timed, gain)
+            omega, h_m, grad, w, grad_w = ft_index(q, mask, a, delta)
+            if method.index == "omega":
+                index, grad_index, per = h_m, grad, omega
+            elif method.index == "relative":
+                index, grad_index, per = h_m / w, grad / w - h_m * grad_w / (w * w), omega / w
+            else:
+                index, grad_index, per = h_in, grad_in, per_in
+            ones, zeros = ca.DM.ones(n), ca.DM.zeros(n)
+            weights, active, alpha = ones, zeros, zeros
+            if method.name == "gpm":
+                alpha = K * grad_index
+            elif method.name == "wln":
+                if method.weight_rule == "smooth":
+                    # the direction test on the unweighted (minimum-norm) motion of this step:
+                    # continuous in t and independent of W, so the weights cannot feed back on it
+                    probe = step_fault(q, cmd[rows], mask, ones, zeros, eps, lam_max)[0]
+                    weights, active = wln_weights(grad_index, per, probe, mask, b, omega_floor, v_band)
+                else:
+                    weights, active = wln_weights(grad_index, per, qd_prev, mask, b, omega_floor, 0.0)
+            qd, lam, sigma = step_fault(q, cmd[rows], mask, weights, alpha, eps, lam_max)
+            y.add("row", ca.vertcat(sym_base_row(q, qd, pose, jac, pos_err, ori_err, cmd, rows, lam, sigma), index, w,
+                                    per, 1 - mask, weights, active))
+            y.add("q_next", q + h * qd)
+
+        key = ("fault", method.name, method.index, method.weight_rule if method.name == "wln" else "",
+               self.robot.task_rows)
+        return self.backend.kernel(key, build)
+
+    def segment(self, kernel, timed: np.ndarray, q: np.ndarray, qd_prev: np.ndarray, k0: int, k1: int,
+                mask: np.ndarray, method: FaultMethod, seg: Segment, bar, last: bool) -> tuple[np.ndarray, np.ndarray]:
         """Steps k0 … k1−1 (and the final sample k1 when ``last``); returns (q, q̇) after k1−1."""
-        h = self.task.path.step
+        p, n = self.task.path, self.robot.n
+        h = p.step
+        x, slot = kernel.x, kernel.inputs
+        x[slot["mask"]] = mask
+        x[slot["q"]] = q
+        x[slot["qd_prev"]] = qd_prev
+        row_out, q_next, qd_out = kernel.outputs["row"], kernel.outputs["q_next"], slice(n, 2 * n)
         stop = k1 + 1 if last else k1
         for k in range(k0, stop):
-            t = k * h
-            qd, info = self.evaluate(t, q, qd_prev, mask, method)
-            seg.damped += info.damping > 0
-            residual = float(np.linalg.norm((info.jac @ qd - info.cmd)[self.rows]))
-            seg.rows.append(base_row(t, q, qd, info.pose, info.pos_err, info.ori_err, residual, info.damping,
-                                     info.sigma_min)
-                            + [info.H, info.w, *info.per_joint, *(1.0 - mask), *info.W, *info.active])
-            seg.qd.append(qd)
-            seg.active.append(info.active)
-            seg.W.append(info.W)
-            seg.masks.append(mask)
+            x[slot["timed"]] = timed[k]
+            if method.index == "sigma_min":
+                index, grad, per, _ = self.index(x[slot["q"]], mask, method)
+                x[slot["H"]], x[slot["grad_H"]], x[slot["per_joint"]] = index, grad, per
+            kernel()
+            row = np.empty(1 + kernel.y[row_out].size)
+            row[0] = k * h
+            row[1:] = kernel.y[row_out]
+            seg.rows.append(row)
             if k == k1:
                 break
-            q = q + h * qd
-            qd_prev = qd
-            if not np.all(np.isfinite(q)):
-                raise PlanningError(f"joint angles became non-finite at t = {t + h:.3f} s; lower integrator.step or "
-                                    "the method gains (method.K / method.b)")
+            x[slot["q"]] = kernel.y[q_next]
+            x[slot["qd_prev"]] = row[1:][qd_out]
+            if not np.all(np.isfinite(x[slot["q"]])):
+                raise PlanningError(f"joint angles became non-finite at t = {(k + 1) * h:.3f} s; lower integrator.step "
+                                    "or the method gains (method.K / method.b)")
             bar.update(1)
-        return q, qd_prev
+        return x[slot["q"]].copy(), x[slot["qd_prev"]].copy()
 
     def lock_step(self) -> int:
         """First step index at which the fault applies (steps + 1 without a fault)."""
@@ -473,19 +475,26 @@ class FaultTolerantPlanner:
         lock_sets = [self.task.fault.joints] if lock_sets is None else list(lock_sets)
         k_f = self.lock_step() if any(lock_sets) else p.steps + 1
         healthy = np.ones(self.robot.n)
+        kernel = self._kernel(method)
+        for key, value in (("a", method.a or (1.0,) * self.robot.n), ("K", method.K), ("b", method.b),
+                           ("omega_floor", method.omega_floor), ("v_band", method.v_band), ("delta", method.delta),
+                           ("clik_gain", p.clik_gain if p.clik else 0.0), ("epsilon", p.damping_epsilon),
+                           ("lambda_max", p.damping_max), ("h", p.step)):
+            kernel.set(key, value)
+        timed = self.path.timed_inputs(np.arange(p.steps + 1) * p.step)
         results = []
         started = time.perf_counter()
         total = min(k_f, p.steps) + len(lock_sets) * max(p.steps - k_f, 0)
         with progress(total, f"planning {method.label}") as bar:
             pre = Segment()
-            q, qd_prev = self.segment(p.q_start.copy(), np.zeros(self.robot.n), 0, min(k_f, p.steps), healthy, method,
-                                      pre, bar, last=k_f > p.steps)
+            q, qd_prev = self.segment(kernel, timed, p.q_start.copy(), np.zeros(self.robot.n), 0, min(k_f, p.steps),
+                                      healthy, method, pre, bar, last=k_f > p.steps)
             for joints in lock_sets:
-                seg = Segment(list(pre.rows), list(pre.qd), list(pre.active), list(pre.W), list(pre.masks), pre.damped)
+                seg = Segment(list(pre.rows))
                 if k_f <= p.steps:
                     fault = FaultSpec(joints, self.task.fault.time)
-                    self.segment(q.copy(), qd_prev.copy(), k_f, p.steps, fault.mask(self.robot.n, True), method,
-                                 seg, bar, last=True)
+                    self.segment(kernel, timed, q.copy(), qd_prev.copy(), k_f, p.steps,
+                                 fault.mask(self.robot.n, True), method, seg, bar, last=True)
                 results.append(self._result(seg, method, joints, k_f, time.perf_counter() - started))
         return results
 
@@ -515,7 +524,7 @@ class FaultTolerantPlanner:
         col = {c: data[:, k] for k, c in enumerate(cols)}
         t = col["t_s"]
         q = data[:, 1:1 + n]
-        qd = np.array(seg.qd)
+        qd = data[:, 1 + n:1 + 2 * n]
         after = t >= (k_f * h - 1e-12) if k_f < len(t) else np.zeros(len(t), dtype=bool)
         window = after if after.any() else np.ones(len(t), dtype=bool)
         violations, margin = limit_report(self.robot, t, q)
@@ -526,10 +535,10 @@ class FaultTolerantPlanner:
         completed = pos <= c.pos_tol and ori <= c.ori_tol and speed <= c.max_joint_speed and not violations
         skip = (k_f - 1,) if 0 < k_f < len(t) else ()
         smooth = smoothness(qd, h, skip)
-        active = np.array(seg.active)
-        masks = np.array(seg.masks)
+        active = data[:, cols.index("active1_1"):cols.index("active1_1") + n]
+        masks = 1.0 - data[:, cols.index("lock1_1"):cols.index("lock1_1") + n]
         both = (masks[1:] > 0) & (masks[:-1] > 0)
-        weights = np.array(seg.W)
+        weights = data[:, cols.index("W1_1"):cols.index("W1_1") + n]
         jumps = np.abs(np.diff(weights, axis=0)) * both
         # a switch: the activation crosses ½ and the weight moves by more than SWITCH_MIN_DW
         # (joints whose ∂H/∂q_i is rounding noise, e.g. the base joint, toggle without effect)
@@ -566,7 +575,7 @@ class FaultTolerantPlanner:
             "max_weight_step": float(np.max(jumps)) if jumps.size else 0.0,
             "limit_violations": violations,
             "min_limit_margin_deg": math.degrees(margin),
-            "damped_steps": int(seg.damped),
+            "damped_steps": int(np.count_nonzero(col["damping_1"] > 0)),
         }
 
     def _metadata(self, data: np.ndarray, seg: Segment, method: FaultMethod, joints: tuple[int, ...], k_f: int,
@@ -600,7 +609,7 @@ class FaultTolerantPlanner:
                 "weight_switches": verdict["weight_switches"],
                 "limit_violations": verdict["limit_violations"],
                 "max_abs_q_deg": np.degrees(np.max(np.abs(data[:, 1:1 + self.robot.n]), axis=0)).tolist(),
-                "damped_steps": int(seg.damped),
+                "damped_steps": verdict["damped_steps"],
                 "plan_seconds": elapsed,
             },
         })
