@@ -23,23 +23,21 @@ whether the path needs a longer (or shorter) arm than the elbow allows; that is 
 as infeasible (``check.reach = "error"``, default) or recorded and planned anyway
 (``"report"``).
 
-``python -m armgen.planning.fault_tolerant.planner --sweep TASK.toml …`` runs the sweep over K, b
-and the locked joint and prints the verdict table (see :func:`main`).
+Sweeps over K, b, the weight rule and the locked joint are ``armgen sweep`` runs (one row per
+plan with the summary below; see docs/fault_tolerance.md).
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import casadi as ca
 import numpy as np
 
-from ...errors import ArmgenError, PlanningError, TaskFileError
+from ...errors import PlanningError, TaskFileError
 from ...progress import progress
 from ...robot import Robot
 from ..backends import Backend, make_backend
@@ -62,10 +60,6 @@ DEFAULT_SWEEP_K = (0.0, 0.5, 1.0, 2.0, 4.0)
 DEFAULT_SWEEP_B = (0.0, 0.5, 1.0, 2.0, 4.0)
 # A WLN weight "switch" must move the weight by more than this (W ≥ 1, so 1 %).
 SWITCH_MIN_DW = 0.01
-# Sweep choice (see choose()): manipulability left after the lock within 5 % of the best and
-# peak |q̈| within 10 % of the smoothest count as equal.
-SWEEP_W_TOLERANCE = 0.05
-SWEEP_DDQ_TOLERANCE = 0.10
 # Tolerance of the spherical-shoulder/wrist test: axes meet within 1e-9 m.
 SRS_AXIS_TOL = 1e-9
 
@@ -607,6 +601,8 @@ class FaultTolerantPlanner:
                 "H_M_before_lock": verdict["H_M_before_lock"],
                 "peak_ddq_deg_s2": verdict["peak_ddq_deg_s2"],
                 "weight_switches": verdict["weight_switches"],
+                "max_weight_step": verdict["max_weight_step"],
+                "w_min_after_lock_mm3": verdict["w_min_after_lock"] * 1e9,
                 "limit_violations": verdict["limit_violations"],
                 "max_abs_q_deg": np.degrees(np.max(np.abs(data[:, 1:1 + self.robot.n]), axis=0)).tolist(),
                 "damped_steps": verdict["damped_steps"],
@@ -621,156 +617,3 @@ class FaultTolerantPlanner:
 def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
     parsed = parse_fault_tolerant_task(task, source)
     return FaultTolerantPlanner(parsed, backend).run()
-
-
-# -- the sweep -----------------------------------------------------------------------------
-
-def sweep_methods(task: FaultTolerantTask) -> list[FaultMethod]:
-    base = task.method
-    out = [replace(base, name="gpm", K=k) for k in task.sweep.K]
-    for rule in task.sweep.rules:
-        out += [replace(base, name="wln", b=b, weight_rule=rule) for b in task.sweep.b]
-    return out
-
-
-def choose(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """The sweep's pick for one method family, by the outcomes in order: the most locks
-    completed; a mean manipulability left after the lock within SWEEP_W_TOLERANCE of the best;
-    a peak |q̈| (completed locks) within SWEEP_DDQ_TOLERANCE of the smoothest; then the
-    highest H_M just before the lock (the quantity the method exists to raise)."""
-    best = max(r["completed"] for r in rows)
-    rows = [r for r in rows if r["completed"] == best]
-    top = max(r["mean_w_after_mm3"] for r in rows)
-    rows = [r for r in rows if r["mean_w_after_mm3"] >= (1 - SWEEP_W_TOLERANCE) * top]
-    smooth = min(r["peak_ddq_deg_s2"] for r in rows)
-    rows = [r for r in rows if r["peak_ddq_deg_s2"] <= (1 + SWEEP_DDQ_TOLERANCE) * smooth]
-    return max(rows, key=lambda r: r["H_M_before_lock"])
-
-
-def run_sweep(task: FaultTolerantTask, backend_kind: str = "symbolic", step: float | None = None,
-              methods: Sequence[FaultMethod] | None = None) -> dict[str, Any]:
-    """Every method of the sweep (or ``methods``) × every locked joint of ``sweep.joints``;
-    per method family (gpm, wln-plain, wln-smooth) the chosen parameter."""
-    if step is not None:
-        task = replace(task, path=replace(task.path, step=step))
-    planner = FaultTolerantPlanner(task, backend_kind)
-    locks = [(j,) for j in task.sweep.joints]
-    families: dict[str, list[dict[str, Any]]] = {}
-    per_lock: dict[str, list[dict[str, Any]]] = {}
-    for method in methods or sweep_methods(task):
-        results = planner.run_locks(method, locks)
-        verdicts = [r.metadata["verdict"] for r in results]
-        family = "gpm" if method.name == "gpm" else f"wln-{method.weight_rule}"
-        row = {"family": family, "method": method.label, "K": method.K, "b": method.b,
-               "completed": sum(v["completed"] for v in verdicts), "locks": len(verdicts),
-               "H_M_before_lock": verdicts[0]["H_M_before_lock"],
-               "mean_w_after_mm3": float(np.mean([v["w_min_after_lock"] for v in verdicts])) * 1e9,
-               "peak_ddq_deg_s2": max([v["peak_ddq_deg_s2"] for v in verdicts if v["completed"]] or [math.inf]),
-               "weight_switches": max(v["weight_switches"] for v in verdicts),
-               "max_weight_step": max(v["max_weight_step"] for v in verdicts)}
-        families.setdefault(family, []).append(row)
-        per_lock[method.label] = verdicts
-    chosen = {fam: choose(rows) for fam, rows in families.items()}
-    infeasible = planner.reach is not None and not planner.reach.feasible
-    return {"robot": task.robot.name, "start": task.path.start_label, "step_s": task.path.step,
-            "families": families, "chosen": chosen, "per_lock": per_lock,
-            "reach_check": planner.reach.to_dict() if planner.reach is not None else None,
-            "infeasible": planner.infeasible_message() if infeasible else None,
-            "chosen_methods": [m for m in (methods or sweep_methods(task))
-                               if m.label in {c["method"] for c in chosen.values()}]}
-
-
-def format_sweep_table(report: dict[str, Any]) -> str:
-    lines = [f"## {report['robot']} from '{report['start']}', h = {report['step_s']} s: parameter sweep "
-             "(locks completed; H_M just before the lock; mean over the locks of the smallest "
-             "manipulability w left after the lock, mm^3 = 1e-9 m^3; peak abs(ddq) over the completed locks; "
-             "most WLN weight switches and largest weight step of one lock run)", "",
-             "| method | completed | H_M(t_f-) | mean min w after lock mm^3 | peak abs(ddq) deg/s^2 | switches | "
-             "max weight step |",
-             "|---|---|---|---|---|---|---|"]
-    for fam, rows in report["families"].items():
-        for r in rows:
-            mark = " **(chosen)**" if r is report["chosen"][fam] else ""
-            lines.append(f"| {r['method']}{mark} | {r['completed']}/{r['locks']} | {r['H_M_before_lock']:.4f} | "
-                         f"{r['mean_w_after_mm3']:.3g} | "
-                         f"{'n/a' if math.isinf(r['peak_ddq_deg_s2']) else format(r['peak_ddq_deg_s2'], '.0f')} | "
-                         f"{r['weight_switches']} | "
-                         f"{r['max_weight_step']:.2f} |")
-    return "\n".join(lines)
-
-
-def format_verdict_table(report: dict[str, Any]) -> str:
-    lines = [f"## {report['robot']} from '{report['start']}', h = {report['step_s']} s: verdict per locked joint "
-             "(chosen parameters)", "",
-             "| method | locked | completed | pos err mm | ori err deg | peak abs(dq) deg/s | H_M: start / t_f- / "
-             "min after / end | min w after mm^3 | peak abs(ddq) deg/s^2 | TV(dq) deg/s | switches |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for fam, chosen in report["chosen"].items():
-        for v in report["per_lock"][chosen["method"]]:
-            hm_after = v["H_M_min_after_lock"]
-            lines.append(
-                f"| {v['method']} | {','.join(v['locked'])} | {'yes' if v['completed'] else 'NO: ' + v['why_not']} | "
-                f"{v['max_pos_err_after_lock_mm']:.3f} | {v['max_ori_err_after_lock_deg']:.3f} | "
-                f"{v['peak_joint_speed_after_lock_deg_s']:.1f} | {v['H_M_start']:.4f} / {v['H_M_before_lock']:.4f} / "
-                f"{hm_after if hm_after is None else format(hm_after, '.4f')} / {v['H_M_end']:.4f} | "
-                f"{v['w_min_after_lock'] * 1e9:.3g} | {v['peak_ddq_deg_s2']:.0f} | "
-                f"{v['total_variation_dq_deg_s']:.0f} | {v['weight_switches']} |")
-    return "\n".join(lines)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m armgen.planning.fault_tolerant.planner --sweep TASK.toml [TASK.toml …] [--fine]``."""
-    from ..tasks import apply_overrides, check_finite_tree, load_task
-
-    parser = argparse.ArgumentParser(prog="python -m armgen.planning.fault_tolerant.planner",
-                                     description="Spec 30 sweep over K, b and the locked joint; prints the verdicts.")
-    parser.add_argument("--sweep", nargs="+", required=True, metavar="TASK", help="fault_tolerant task files")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], help="key=value override")
-    parser.add_argument("--fine", action="store_true", help="also rerun the chosen parameters at sweep.fine_step")
-    parser.add_argument("--backend", choices=("symbolic", "c"), default="symbolic")
-    parser.add_argument("--json", default=None, metavar="FILE", help="also write every report (per-lock verdicts) as JSON")
-    args = parser.parse_args(argv)
-    reports: dict[str, Any] = {}
-    try:
-        for path in args.sweep:
-            raw, _ = load_task(path)
-            apply_overrides(raw, list(args.overrides))
-            check_finite_tree(raw, "", path)
-            task = parse_fault_tolerant_task(raw, path)
-            if task.check_mode == "error":  # report, don't stop, in the sweep
-                task = replace(task, check_mode="report")
-            started = time.perf_counter()
-            report = run_sweep(task, args.backend)
-            reports[path] = {k: v for k, v in report.items() if k != "chosen_methods"}
-            if report["infeasible"]:
-                print(f"## {path}: INFEASIBLE start — {report['infeasible']}\n")
-            print(format_sweep_table(report))
-            print()
-            print(format_verdict_table(report))
-            print(f"\n({path}: {time.perf_counter() - started:.1f} s)\n")
-            if args.fine:
-                started = time.perf_counter()
-                fine = run_sweep(task, args.backend, step=task.sweep.fine_step, methods=report["chosen_methods"])
-                reports[path]["fine"] = {k: v for k, v in fine.items() if k != "chosen_methods"}
-                print(format_verdict_table(fine))
-                print(f"\n({path}, fine step: {time.perf_counter() - started:.1f} s)\n")
-        if args.json:
-            _write_json(args.json, reports)
-    except ArmgenError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    return 0
-
-
-def _write_json(path: str, data: Any) -> None:
-    import json
-
-    from ...fileio import write_text_atomic
-    from ..result import _finite_json, _json_default
-
-    write_text_atomic(path, json.dumps(_finite_json(json.loads(json.dumps(data, default=_json_default))), indent=2)
-                      + "\n")
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -15,8 +15,8 @@ planner runs ``method.name = "pinv"`` (the damped pseudo-inverse, nothing else) 
 column removed through the generated ``step_fault`` mask — and released as soon as the
 unclamped solution moves it back inside).
 
-``python -m armgen.planning.wgpm.planner --compare TASK.toml`` prints the spec's comparison table;
-``--survey N`` runs N random tasks (see :func:`survey`).
+``python -m armgen.planning.wgpm.planner TASK.toml --compare`` prints the spec's comparison table;
+the survey over random tasks is an ``armgen sweep`` run (docs/wgpm.md).
 """
 
 from __future__ import annotations
@@ -339,93 +339,17 @@ def format_compare(summaries: dict[str, dict[str, Any]], title: str) -> str:
     return "\n".join(lines)
 
 
-def random_task(base: WgpmTask, rng: np.random.Generator, planner: WgpmPlanner) -> WgpmTask:
-    """A random start inside the free band and a random circle beside it (radius 50–250 mm,
-    random plane) or a random line (100–400 mm); the base task's timing and method."""
-    robot = base.path.robot
-    span = robot.qmax - robot.qmin
-    for _ in range(100):
-        q0 = rng.uniform(robot.qmin + base.method.band * span, robot.qmax - base.method.band * span)
-        _, jac = planner.backend.call("fk_jacobian", q0)
-        if np.linalg.svd(jac[planner.rows], compute_uv=False)[-1] > 0.05:
-            break
-    u, v = np.linalg.qr(rng.normal(size=(3, 2)))[0].T
-    if rng.random() < 0.5:
-        r = rng.uniform(0.05, 0.25)
-        path = replace(base.path, q_start=q0, start_label="random", path_type="circle", relative=True, turns=1.0,
-                       via=r * (u + v), end=2 * r * u, end_rotation=None)
-    else:
-        path = replace(base.path, q_start=q0, start_label="random", path_type="line", relative=True, turns=1.0,
-                       via=None, end=rng.uniform(0.1, 0.4) * u, end_rotation=None)
-    return replace(base, path=path)
-
-
-def survey(base: WgpmTask, count: int, seed: int = 1, backend_kind: str = "symbolic",
-           methods: Sequence[str] = ("pinv", "clamp", "wgpm")) -> dict[str, Any]:
-    """Random tasks, each planned by every method: how often each respects the limits and
-    tracks. Unreachable random tasks (the path leaves the reach sphere) are redrawn."""
-    planner = WgpmPlanner(base, backend_kind)
-    rng = np.random.default_rng(seed)
-    outcomes: list[dict[str, Any]] = []
-    while len(outcomes) < count:
-        task = random_task(base, rng, planner)
-        try:
-            sub = WgpmPlanner(task, backend=planner.backend)
-        except PlanningError:
-            continue
-        row = {}
-        for name in methods:
-            s = sub.run(replace(task.method, name=name)).metadata["summary"]
-            row[name] = {k: s[k] for k in ("within_limits", "tracks", "max_pos_error_mm", "min_limit_margin_deg",
-                                           "peak_ddq_deg_s2", "damped_steps")}
-        outcomes.append(row)
-    stats: dict[str, Any] = {"tasks": count, "seed": seed, "duration_s": base.path.duration, "step_s": base.path.step}
-    hard = [o for o in outcomes if not o["pinv"]["within_limits"]] if "pinv" in methods else outcomes
-    for name in methods:
-        def frac(rows, pred):
-            return (sum(pred(r[name]) for r in rows), len(rows))
-        stats[name] = {
-            "within_limits": frac(outcomes, lambda s: s["within_limits"]),
-            "tracks": frac(outcomes, lambda s: s["tracks"]),
-            "both": frac(outcomes, lambda s: s["within_limits"] and s["tracks"]),
-            "both_where_pinv_violates": frac(hard, lambda s: s["within_limits"] and s["tracks"]),
-            "median_peak_ddq_deg_s2": float(np.median([o[name]["peak_ddq_deg_s2"] for o in outcomes])),
-        }
-    stats["outcomes"] = outcomes
-    return stats
-
-
-def format_survey(stats: dict[str, Any]) -> str:
-    methods = [m for m in METHODS[::-1] if m in stats] if "pinv" in stats else [m for m in METHODS if m in stats]
-    hard = stats[methods[0]]["both_where_pinv_violates"][1]
-    lines = [f"## survey: {stats['tasks']} random tasks (seed {stats['seed']}, T = {stats['duration_s']:g} s, "
-             f"h = {stats['step_s']:g} s); pinv leaves the limits in {hard} of them", "",
-             "| method | within limits | tracks | both | both, where pinv leaves the limits | median peak abs(ddq) "
-             "deg/s^2 |", "|---|---|---|---|---|---|"]
-    for name in ("pinv", "clamp", "wgpm"):
-        if name not in stats:
-            continue
-        s = stats[name]
-        cell = lambda v: f"{v[0]}/{v[1]}"  # noqa: E731
-        lines.append(f"| {name} | {cell(s['within_limits'])} | {cell(s['tracks'])} | {cell(s['both'])} | "
-                     f"{cell(s['both_where_pinv_violates'])} | {s['median_peak_ddq_deg_s2']:.0f} |")
-    return "\n".join(lines)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m armgen.planning.wgpm.planner --compare TASK.toml`` and/or ``--survey N``."""
+    """``python -m armgen.planning.wgpm.planner TASK.toml --compare``."""
     from ..tasks import apply_overrides, check_finite_tree, load_task
 
     parser = argparse.ArgumentParser(prog="python -m armgen.planning.wgpm.planner",
-                                     description="Spec 35: pinv vs binary clamp vs weighted GPM; random-task survey.")
-    parser.add_argument("task", help="a wgpm task file (the demo; the survey uses its timing and method)")
+                                     description="Spec 35: pinv vs binary clamp vs weighted GPM on one task.")
+    parser.add_argument("task", help="a wgpm task file")
     parser.add_argument("--set", dest="overrides", action="append", default=[], help="key=value override")
     parser.add_argument("--compare", action="store_true", help="plan the task by pinv, clamp and wgpm; print the table")
-    parser.add_argument("--survey", type=int, default=0, metavar="N", help="also run N random tasks")
-    parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--survey-duration", type=float, default=None, help="duration of the random tasks (s)")
     parser.add_argument("--backend", choices=("symbolic", "c"), default="symbolic")
-    parser.add_argument("--json", default=None, metavar="FILE", help="also write the results (every task) as JSON")
+    parser.add_argument("--json", default=None, metavar="FILE", help="also write the comparison as JSON")
     args = parser.parse_args(argv)
     results: dict[str, Any] = {}
     try:
@@ -439,22 +363,22 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(format_compare(results["compare"], f"{args.task}: {task.path.robot.name}, "
                                  f"T = {task.path.duration:g} s, h = {task.path.step:g} s"))
             print(f"\n({time.perf_counter() - started:.1f} s)\n")
-        if args.survey:
-            base = task
-            if args.survey_duration:
-                base = replace(task, path=replace(task.path, duration=args.survey_duration))
-            started = time.perf_counter()
-            results["survey"] = survey(base, args.survey, args.seed, args.backend)
-            print(format_survey(results["survey"]))
-            print(f"\n({time.perf_counter() - started:.1f} s)\n")
         if args.json:
-            from ..fault_tolerant.planner import _write_json
-
             _write_json(args.json, results)
     except ArmgenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return exc.exit_code
     return 0
+
+
+def _write_json(path: str, data: Any) -> None:
+    import json
+
+    from ...fileio import write_text_atomic
+    from ..result import _finite_json, _json_default
+
+    write_text_atomic(path, json.dumps(_finite_json(json.loads(json.dumps(data, default=_json_default))), indent=2)
+                      + "\n")
 
 
 if __name__ == "__main__":  # pragma: no cover
