@@ -43,6 +43,9 @@ FD_INDEX_VALUE_TOL = 1e-7
 ANGLE_TOLS = {"m8_fault_sigma": FD_INDEX_ANGLE_TOL}
 VALUE_TOLS = {"m8_fault_sigma": FD_INDEX_VALUE_TOL}
 
+# Summary entries added since the reference (the sweep table reads them; copies of the verdict's).
+ADDED_SUMMARY_KEYS = {"max_weight_step", "w_min_after_lock_mm3"}
+
 CASE = {name: (example, overrides) for name, example, overrides in CASES}
 
 
@@ -78,7 +81,7 @@ def check_against_reference(name, result):
                                        err_msg=f"{name}: {column}")
     scalars = summary_scalars(result.metadata["summary"])
     keys = list(REFERENCE[f"{name}/summary_keys"])
-    assert sorted(scalars) == sorted(keys)
+    assert set(keys) <= set(scalars) and set(scalars) - set(keys) <= ADDED_SUMMARY_KEYS
     for key, value in zip(keys, REFERENCE[f"{name}/summary_values"]):
         assert scalars[key] == pytest.approx(value, rel=value_tol, abs=value_tol), f"{name}: summary {key}"
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from ...errors import PlanningError, TaskFileError
 from ...progress import progress
-from ...robot import Robot, load_robot, matrix_rpy, rpy_matrix
+from ...robot import Robot, load_robot, rpy_matrix
 from ...symbolic.steps import jacobi_min_eigenvalue
 from ..backends import make_backend
 from ..paths import CirclePath, LinePath, TimeLaw
@@ -191,7 +191,8 @@ def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
 
 
 def sym_orientation_error(r_actual: ca.SX, r_desired: ca.SX) -> ca.SX:
-    """:func:`orientation_error` in CasADi (the same expression, for the fused step)."""
+    """½ Σ r_i × r_d,i over the columns (the usual small-angle orientation error, base frame),
+    computed as ½ vee(R_d Rᵀ − R R_dᵀ)."""
     s = ca.mtimes(r_desired, r_actual.T)
     return 0.5 * ca.vertcat(s[2, 1] - s[1, 2], s[0, 2] - s[2, 0], s[1, 0] - s[0, 1])
 
@@ -212,13 +213,6 @@ def positive_definite(a: ca.SX) -> ca.SX:
         for i in range(j + 1, m):
             lower[i][j] = (a[i, j] - sum((lower[i][k] * lower[j][k] * pivots[k] for k in range(j)), ca.SX(0))) / pivots[j]
     return ca.logic_all(ca.vertcat(*[p > 0 for p in pivots]))
-
-
-def orientation_error(r_actual: np.ndarray, r_desired: np.ndarray) -> np.ndarray:
-    """½ Σ r_i × r_d,i over the columns (the usual small-angle orientation error, base frame),
-    computed as ½ vee(R_d Rᵀ − R R_dᵀ)."""
-    s = r_desired @ r_actual.T
-    return 0.5 * np.array([s[2, 1] - s[1, 2], s[0, 2] - s[2, 0], s[1, 0] - s[0, 1]])
 
 
 class CartesianPlanner:

@@ -245,21 +245,25 @@ def parse_fault_tolerant_task(task: dict, source: str) -> FaultTolerantTask:
 
 # -- the spherical-shoulder/wrist reach test -------------------------------------------------
 
-def _axes(jac: np.ndarray, pose: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(point, unit direction) of each revolute joint axis from the geometric Jacobian: with
-    v = z × (p − o), the point p + z × v lies on the axis."""
-    p = pose[:3, 3]
-    return [(p + np.cross(jac[3:, i], jac[:3, i]), jac[3:, i] / np.linalg.norm(jac[3:, i])) for i in range(jac.shape[1])]
+def _axes(jac: np.ndarray, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points (..., k, 3) and unit directions (..., k, 3) of the revolute joint axes from the
+    geometric Jacobian (..., 6, k): with v = z × (p − o), the point p + z × v lies on the axis."""
+    z = np.swapaxes(jac[..., 3:, :], -1, -2)
+    points = pose[..., None, :3, 3] + np.cross(z, np.swapaxes(jac[..., :3, :], -1, -2))
+    return points, z / np.linalg.norm(z, axis=-1, keepdims=True)
 
 
-def _common_point(lines: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, float]:
-    """Least-squares meeting point of lines and the largest distance of it from a line."""
-    a = sum(np.eye(3) - np.outer(d, d) for _, d in lines)
-    b = sum((np.eye(3) - np.outer(d, d)) @ x for x, d in lines)
-    if np.linalg.cond(a) > 1e12:
-        return np.zeros(3), math.inf  # parallel axes: no single point
-    point = np.linalg.solve(a, b)
-    return point, max(float(np.linalg.norm((np.eye(3) - np.outer(d, d)) @ (point - x))) for x, d in lines)
+def _common_point(points: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares meeting point (..., 3) of lines (..., k, 3) and the largest distance of it
+    from a line (inf where the lines are parallel: no single point)."""
+    proj = np.eye(3) - dirs[..., :, None] * dirs[..., None, :]
+    a = proj.sum(axis=-3)
+    b = (proj @ points[..., None])[..., 0].sum(axis=-2)
+    parallel = np.linalg.cond(a) > 1e12
+    point = np.linalg.solve(np.where(parallel[..., None, None], np.eye(3), a), b[..., None])[..., 0]
+    point = np.where(parallel[..., None], 0.0, point)
+    err = np.linalg.norm((proj @ (point[..., None, :] - points)[..., None])[..., 0], axis=-1).max(axis=-1)
+    return point, np.where(parallel, np.inf, err)
 
 
 @dataclass
@@ -289,22 +293,23 @@ def srs_reach_check(robot: Robot, backend: Backend, q_start: np.ndarray, path: T
     if robot.n != 7 or not all(j.revolute for j in robot.joints):
         return None
     pose, jac = backend.call("fk_jacobian", q_start)
-    axes = _axes(jac, pose)
-    shoulder, err_s = _common_point(axes[:3])
-    wrist, err_w = _common_point(axes[4:])
+    points, dirs = _axes(jac, pose)
+    shoulder, err_s = _common_point(points[:3], dirs[:3])
+    wrist, err_w = _common_point(points[4:], dirs[4:])
     if err_s > SRS_AXIS_TOL or err_w > SRS_AXIS_TOL:
         return None
     wrist_in_tool = pose[:3, :3].T @ (wrist - pose[:3, 3])
     lo, hi = robot.joints[3].qlim
-    distances = []
-    for q4 in np.linspace(lo, hi, 721):
-        q = q_start.copy()
-        q[3] = q4
-        pq, jq = backend.call("fk_jacobian", q)
-        s_q, _ = _common_point(_axes(jq, pq)[:3])
-        distances.append(float(np.linalg.norm(pq[:3, 3] + pq[:3, :3] @ wrist_in_tool - s_q)))
+    qs = np.tile(q_start, (721, 1))
+    qs[:, 3] = np.linspace(lo, hi, 721)
+    poses, jacs = (np.array(m).reshape(m.shape[0], len(qs), -1).transpose(1, 0, 2)
+                   for m in backend.model.function("fk_jacobian").map(len(qs))(qs.T))
+    s_q, _ = _common_point(*(part[:, :3] for part in _axes(jacs, poses)))
+    distances = np.linalg.norm(poses[:, :3, 3] + poses[:, :3, :3] @ wrist_in_tool - s_q, axis=1).tolist()
     d_min, d_max = min(distances), max(distances)
-    needed = [(t, float(np.linalg.norm(p + r @ wrist_in_tool - shoulder))) for t, p, r in path.sample(800)]
+    times = np.arange(801) * path.task.duration / 800
+    p_d, r_d, _ = path(times)
+    needed = list(zip(times.tolist(), np.linalg.norm(p_d + r_d @ wrist_in_tool - shoulder, axis=1).tolist()))
     values = [d for _, d in needed]
     bad = [(t, d) for t, d in needed if d > d_max + 1e-6 or d < d_min - 1e-6]
     return ReachCheck(robot.joints[3].name, (d_min, d_max), (min(values), max(values)),
