@@ -143,6 +143,9 @@ class NativeKernel:
     """``func`` (one dense input vector, one dense output vector) compiled to a shared library
     (cached on disk by source hash) and called by ctypes on two fixed NumPy buffers."""
 
+    # -O1 keeps the compile of these long straight-line functions (tens of thousands of
+    # statements for the wgpm clamp kernel) short; the first run pays it, later runs load the
+    # cached library.
     def __init__(self, func: ca.Function, opt: str = "-O1"):
         symbol = "armgen_kernel"
         source = kernel_source(func, symbol)

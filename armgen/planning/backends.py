@@ -101,7 +101,7 @@ class Backend:
         if cache_key not in _KERNELS:
             inputs, outputs = Packing(), Packing()
             build(self.model, inputs, outputs)
-            name = "_".join(str(k) for k in key if isinstance(k, str))
+            name = "_".join(k for k in key if isinstance(k, str) and k)
             func = ca.Function(name, [inputs.vector()], [outputs.vector()], ["x"], ["y"])
             _KERNELS[cache_key] = Kernel(func, inputs, outputs, self.name)
         return _KERNELS[cache_key]
