@@ -197,5 +197,9 @@ from .schema import schema_cmd  # noqa: E402  (registered below the group it joi
 
 cli.add_command(schema_cmd)
 
+from .sweep import sweep_cmd  # noqa: E402 -- registered after the group exists
+
+cli.add_command(sweep_cmd)
+
 if __name__ == "__main__":  # pragma: no cover
     cli()

@@ -111,8 +111,8 @@ def write_plan(result: PlanResult, csv_path: str | Path, units: str = "rad") -> 
     table = io.StringIO()
     writer = csv.writer(table, lineterminator="\n")
     writer.writerow(columns)
-    for row in data:
-        writer.writerow([repr(float(v)) for v in row])
+    for row in data.tolist():  # Python floats: repr is the shortest round-trip text
+        writer.writerow(map(repr, row))
     meta = dict(result.metadata)
     meta["csv"] = {"file": csv_path.name, "columns": columns, "samples": int(data.shape[0]), "angle_units": units}
     json_path = metadata_path(csv_path)

@@ -72,6 +72,23 @@ def _parse_value(text: str, item: str) -> Any:
     return doc["v"]
 
 
+def set_field(task: dict[str, Any], key: str, value: Any, where: str) -> None:
+    """Set the task field ``key`` (dotted keys reach into tables) to ``value``; ``where`` names
+    the option in errors."""
+    parts = [p.strip() for p in key.split(".")]
+    if not all(parts):
+        raise TaskFileError(f"{where}: empty key component in {key!r}")
+    if len(parts) > MAX_NESTING_DEPTH:
+        raise TaskFileError(f"{where}: key nested deeper than {MAX_NESTING_DEPTH} levels")
+    node = task
+    for part in parts[:-1]:
+        nxt = node.setdefault(part, {})
+        if not isinstance(nxt, dict):
+            raise TaskFileError(f"{where}: '{part}' is not a table in the task file")
+        node = nxt
+    node[parts[-1]] = value
+
+
 def apply_overrides(task: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
     """Apply ``key=value`` overrides; dotted keys reach into tables; values are TOML. The
     result is validated by the planner's schema like the file itself (in :func:`run_task`)."""
@@ -79,18 +96,7 @@ def apply_overrides(task: dict[str, Any], overrides: list[str]) -> dict[str, Any
         if "=" not in item:
             raise TaskFileError(f"--set {item!r}: expected key=value (e.g. --set integrator.h=0.01)")
         key, raw = item.split("=", 1)
-        parts = [p.strip() for p in key.split(".")]
-        if not all(parts):
-            raise TaskFileError(f"--set {item!r}: empty key component")
-        if len(parts) > MAX_NESTING_DEPTH:
-            raise TaskFileError(f"--set {item!r}: key nested deeper than {MAX_NESTING_DEPTH} levels")
-        node = task
-        for part in parts[:-1]:
-            nxt = node.setdefault(part, {})
-            if not isinstance(nxt, dict):
-                raise TaskFileError(f"--set {item!r}: '{part}' is not a table in the task file")
-            node = nxt
-        node[parts[-1]] = _parse_value(raw.strip(), item)
+        set_field(task, key, _parse_value(raw.strip(), item), f"--set {item!r}")
     return task
 
 
