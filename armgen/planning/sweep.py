@@ -32,7 +32,7 @@ import numpy as np
 from ..errors import ArmgenError, TaskFileError, ToolchainError
 from ..fileio import atomic_open
 from ..progress import progress
-from .tasks import _parse_value, run_task, set_field
+from .tasks import parse_value, run_task, set_field
 
 FORMATS = (".csv", ".parquet")
 FIXED_COLUMNS = ("run", "status", "exit_code", "message", "overrides")
@@ -86,7 +86,7 @@ def parse_range(item: str) -> Range:
     key, text = _split(item, "--range", "KEY=LO:HI, e.g. --range 'method.K=0:4'", parse=False)
     if text.count(":") != 1:
         raise TaskFileError(f"{where}: expected KEY=LO:HI, e.g. --range 'method.K=0:4'")
-    low, high = (_parse_value(part.strip()) for part in text.split(":"))
+    low, high = (parse_value(part.strip(), where) for part in text.split(":"))
 
     def numbers(v):
         flat = v if isinstance(v, list) else [v]
@@ -104,7 +104,7 @@ def _split(item: str, option: str, usage: str, parse: bool = True) -> tuple[str,
     if "=" not in item or not item.split("=", 1)[0].strip():
         raise TaskFileError(f"{option} {item!r}: expected {usage}")
     key, text = item.split("=", 1)
-    return key.strip(), _parse_value(text.strip()) if parse else text.strip()
+    return key.strip(), parse_value(text.strip(), f"{option} {item!r}") if parse else text.strip()
 
 
 def _cell(value: Any) -> Any:

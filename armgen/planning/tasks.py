@@ -62,9 +62,10 @@ def load_task(path: str | Path) -> tuple[dict[str, Any], str]:
     return parse_toml_bounded(data, str(path), TaskFileError), hashlib.sha256(data).hexdigest()
 
 
-def _parse_value(text: str, item: str) -> Any:
+def parse_value(text: str, where: str) -> Any:
+    """A TOML value as given on the command line (``where`` names the option in errors)."""
     try:
-        doc = parse_toml_bounded(f"v = {text}", f"--set {item!r}", TaskFileError)
+        doc = parse_toml_bounded(f"v = {text}", where, TaskFileError)
     except TaskFileError as exc:
         if "not valid TOML" not in str(exc):
             raise
@@ -96,7 +97,7 @@ def apply_overrides(task: dict[str, Any], overrides: list[str]) -> dict[str, Any
         if "=" not in item:
             raise TaskFileError(f"--set {item!r}: expected key=value (e.g. --set integrator.h=0.01)")
         key, raw = item.split("=", 1)
-        set_field(task, key, _parse_value(raw.strip(), item), f"--set {item!r}")
+        set_field(task, key, parse_value(raw.strip(), f"--set {item!r}"), f"--set {item!r}")
     return task
 
 
