@@ -263,7 +263,8 @@ def test_plan_to_directory_read_only_folder_or_full_disk_is_exit_4(tmp_path, mon
     assert out.exit_code == 4 and "is a directory" in out.output
     (tmp_path / "p.csv").write_text("t_s,q1_rad\n0,1\n1,2\n")
     (tmp_path / "p.json").write_text('{"planner": "ptp"}')
-    out = run("plot", str(tmp_path / "p.csv"), "-o", str(tmp_path / "d.csv"))
+    (tmp_path / "d.png").mkdir()
+    out = run("plot", str(tmp_path / "p.csv"), "-o", str(tmp_path / "d.png"))
     assert out.exit_code == 4 and "is a directory" in out.output
     assert not (tmp_path / "d.json").exists()
     if os.geteuid() != 0:  # root writes into read-only folders anyway

@@ -10,7 +10,8 @@ import pytest
 from click.testing import CliRunner
 
 from armgen.cli.main import cli
-from armgen.planning.plotting import (JOINT_COLOURS, FigureOutputError, dh_frames, executed_tool_path, plan_robot,
+from armgen.planning.plotting import (JOINT_COLOURS, FigureOutputError, FigureWriteError, dh_frames,
+                                      executed_tool_path, plan_robot,
                                       save_figure)
 from armgen.planning.result import write_plan
 from armgen.planning.tasks import load_task, plot_plan, run_task
@@ -104,7 +105,7 @@ def test_bad_output_is_a_clear_error_and_writes_nothing(plans, tmp_path, monkeyp
 
 def test_save_figure_rejects_a_directory(plans, tmp_path):
     fig = plot_plan(plans["ptp_single_joint"][0], "ptp")
-    with pytest.raises(FigureOutputError):
+    with pytest.raises(FigureWriteError, match="is a directory"):
         save_figure(fig, tmp_path)
 
 
