@@ -92,11 +92,14 @@ def joint_count(result: PlanResult) -> int:
 
 
 def plan_robot(result: PlanResult) -> Robot:
-    """The robot named in ``plan.json``: its file when that path exists, else the bundled robot of that name."""
+    """The robot named in ``plan.json``: its file when that path exists and still has the
+    recorded sha256, else the bundled robot of that name."""
     robot_meta = result.metadata.get("robot") or {}
-    file, name = robot_meta.get("file"), robot_meta.get("name")
+    file, name, sha = robot_meta.get("file"), robot_meta.get("name"), robot_meta.get("sha256")
     if file and Path(file).is_file():
-        return load_robot(file)
+        robot = load_robot(file)
+        if not sha or robot.sha256 == sha:
+            return robot
     if not name:
         raise ArmgenError("plan.json names no robot (field 'robot.name'); re-run `armgen plan` to rewrite it")
     return load_robot(name)

@@ -17,12 +17,13 @@ from matplotlib.patches import Circle, Rectangle
 
 from ...errors import ArmgenError
 from ...robot import load_robot
-from ..plotting import joint_style, limit_lines, log_trace, new_figure
+from ..plotting import joint_style, limit_lines, new_figure
 from ..result import PlanResult
 from .spline import HermiteSpline
 
 INSTANTS = 6  # arm poses drawn, evenly spaced over the motion
 PLANAR_TOL = 1e-9  # m: a path whose z spread is below this is drawn in one (top) view
+FLOOR = 1e-14  # mm, floor of the log-scale accuracy traces (exact solver: ~1e-13 mm; below is rounding)
 VIEW_MARGIN = 0.06  # of the largest extent: room around the arm and path in each snapshot
 
 
@@ -132,8 +133,8 @@ def plot_snake(result: PlanResult) -> Figure:
                   title="universal-joint angles (α solid, β dotted; limits dashed in each joint's colour)")
     ax_angles.legend(fontsize=6, ncol=6, loc="lower left")
     ax_angles.grid(alpha=0.3)
-    log_trace(ax_acc, t, result.column("tip_dev_m") * 1e3, label="tip deviation from the path [mm]")
-    log_trace(ax_acc, t, result.column("chord_err_max_m") * 1e3, label="worst chord error [mm]")
+    ax_acc.semilogy(t, np.maximum(result.column("tip_dev_m") * 1e3, FLOOR), label="tip deviation from the path [mm]")
+    ax_acc.semilogy(t, np.maximum(result.column("chord_err_max_m") * 1e3, FLOOR), label="worst chord error [mm]")
     clear = result.column("clearance_min_m")
     if np.all(np.isfinite(clear)):
         ax2 = ax_acc.twinx()
