@@ -87,7 +87,7 @@ def short_plan(short_task):
 
 def assert_never_nan(run: fw.FirmwareRun, n: int = 8) -> None:
     assert np.all(np.isfinite(run.data)), "the firmware wrote a non-finite value"
-    assert run.data.shape[1] == 2 + 3 * n + 4
+    assert run.data.shape[1] == 2 + 3 * n + 5  # tick, t, q, qd, windows; errors; locked, state, fault
 
 
 # --------------------------------------------------------------------------- replay on the host
