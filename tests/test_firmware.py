@@ -490,6 +490,16 @@ def test_lock_from_the_tick_input_at_a_time_the_plan_did_not_know(builders, robo
     assert jump <= math.radians(told.metadata["verdict"]["lock_jump_deg_s"]) * (1 + 1e-9) + 1e-12
 
 
+def test_verify_replay_stage_runs_a_fault_tolerant_plan(ft_plans, tmp_path):
+    """`armgen verify iiwa14 --plan <iiwa14_fault_circle_wln plan>`'s replay stage (it used to
+    fail: "the controller runs cartesian and ptp plans")."""
+    path = tmp_path / "wln.csv"
+    write_plan(example_plan("iiwa14_fault_circle_wln", ft_plans), path)
+    stage = stage_replay(VerifyConfig(load_robot("iiwa14"), path), tmp_path)
+    assert stage.passed, stage.render()
+    assert {"host firmware, double, ASan/UBSan", "host firmware, float"} <= {r[0] for r in stage.rows}
+
+
 def lock_run(builder, task, args, name):
     run = fw.run_host(builder.executable(HOST_SAN, task, name), args)
     assert_never_nan(run, task.robot.n)
