@@ -505,7 +505,7 @@ def modes_table(rep: Report, work: Path, builder) -> None:
         static, path, _unknown = worst_chain(obj_dir, avoid=others)
         m.update({"flash_bytes": ctrl["flash"] + gen, "controller_flash": ctrl["flash"], "generated_flash": gen,
                   "stack_static_bytes": static, "stack_chain": path, "max_over_mean": m["max"] / m["mean"],
-                  "us_per_tick_168MHz": m["max"] / 168.0  # the worst tick, 1 instruction per cycle, "vs_resolved_rate": m["mean"] / ref["mean"]})
+                  "us_per_tick_168MHz": m["max"] / 168.0, "vs_resolved_rate": m["mean"] / ref["mean"]})
         bar = BARS["ft_instr_per_tick_max"] if mode == "FAULT_TOLERANT" else (
             BARS["wgpm_instr_per_tick_max"] if mode == "WEIGHTED_GPM" else None)
         note = f"; bar max <= {bar}: {'meets' if m['max'] <= bar else 'ABOVE'}" if bar else ""
