@@ -424,6 +424,34 @@ def weighted_gpm_task(task: dict[str, Any], source: str) -> FirmwareTask:
                         path.output_every)
 
 
+def schedule_lock(task: FirmwareTask, spec: str, source: str = "--lock") -> FirmwareTask:
+    """The task with the runners' drive model reporting a lock the plan did not know:
+    ``spec`` = ``JOINTS@TIME``, joints by number (1-based) or name, ``+``-separated, time in s
+    (the first tick at or after it)."""
+    joints_text, sep, time_text = spec.partition("@")
+    names = [j.name for j in task.robot.joints]
+    try:
+        t_lock = float(time_text)
+    except ValueError:
+        t_lock = math.nan
+    if not sep or not math.isfinite(t_lock) or t_lock < 0:
+        raise FirmwareError(f"{source} {spec!r}: give JOINTS@TIME, e.g. 5@1.38 (joint 5 locks at t = 1.38 s)")
+    mask = 0
+    for item in joints_text.split("+"):
+        item = item.strip()
+        if item in names:
+            mask |= 1 << names.index(item)
+        elif item.isdigit() and 1 <= int(item) <= task.robot.n:
+            mask |= 1 << (int(item) - 1)
+        else:
+            raise FirmwareError(f"{source} {spec!r}: {item!r} is not a joint of robot '{task.robot.name}': give a "
+                                f"number 1..{task.robot.n} or a name ({', '.join(names)})")
+    tick = int(math.ceil(t_lock / task.dt - 1e-9))
+    header = re.sub(r"const uint32_t fw_lock_mask = \d+u;", f"const uint32_t fw_lock_mask = {mask}u;", task.header)
+    header = re.sub(r"const int32_t fw_lock_tick = -?\d+;", f"const int32_t fw_lock_tick = {tick};", header)
+    return dataclasses.replace(task, header=header, lock_tick=tick, lock_mask=mask)
+
+
 TASK_BUILDERS = {"cartesian": cartesian_task, "fault_tolerant": fault_tolerant_task, "wgpm": weighted_gpm_task}
 
 
@@ -877,6 +905,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     h.add_argument("--robot", default=None, help="the firmware's robot (checked against the task's)")
     h.add_argument("--set", dest="overrides", action="append", default=[], help="override a task field (TOML value)")
     h.add_argument("--gen-dir", default=None, help="the robot's generated code (default generated/<robot>/)")
+    h.add_argument("--lock", default=None, metavar="JOINTS@TIME",
+                   help="the drives report these joints locked from TIME s on (e.g. 5@1.38), unknown to the plan")
     args = ap.parse_args(argv)
     try:
         robot = load_robot(args.robot) if args.robot else None
@@ -887,6 +917,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             doc, _ = load_task(src)
             apply_overrides(doc, list(args.overrides))
             task = task_from_dict(doc, str(src), robot)
+        if args.lock:
+            task = schedule_lock(task, args.lock)
         if robot is not None and task.robot.sha256 != robot.sha256:
             raise FirmwareError(f"{src}: the task is for robot '{task.robot.name}', the firmware is built for "
                                 f"'{robot.name}' (make ROBOT={task.robot.name})")

@@ -98,6 +98,7 @@ const char *ctrl_state_name(ctrl_state s) {
     case CTRL_STATE_DONE: return "DONE";
     case CTRL_STATE_FAULT: return "FAULT";
     case CTRL_STATE_DEGRADED: return "DEGRADED";
+    default: break;
   }
   return "?";
 }
@@ -117,6 +118,7 @@ const char *ctrl_fault_name(ctrl_fault f) {
     case CTRL_FAULT_LOCK_REPORT: return "LOCK_REPORT";
     case CTRL_FAULT_REDUNDANCY: return "REDUNDANCY";
     case CTRL_FAULT_SPEED: return "SPEED";
+    default: break;
   }
   return "?";
 }
@@ -211,9 +213,9 @@ static void orientation_error(const ctrl_real *R, const ctrl_real *Rd, ctrl_real
       S[r + 3 * col] = Rd[r] * R[col] + Rd[r + 3] * R[col + 3] + Rd[r + 6] * R[col + 6];
     }
   }
-  e[0] = CTRL_LIT(0.5) * (S[2 + 3 * 1] - S[1 + 3 * 2]);
-  e[1] = CTRL_LIT(0.5) * (S[0 + 3 * 2] - S[2 + 3 * 0]);
-  e[2] = CTRL_LIT(0.5) * (S[1 + 3 * 0] - S[0 + 3 * 1]);
+  e[0] = CTRL_LIT(0.5) * (S[5] - S[7]); /* S(2,1) - S(1,2), column-major */
+  e[1] = CTRL_LIT(0.5) * (S[6] - S[2]); /* S(0,2) - S(2,0) */
+  e[2] = CTRL_LIT(0.5) * (S[1] - S[3]); /* S(1,0) - S(0,1) */
 }
 
 /* ------------------------------------------------------------------ null-space operators */
@@ -268,6 +270,8 @@ static void windows_update(ctrl *c, ctrl_real t, const ctrl_real *q) {
         c->win_state[i] = WIN_IDLE;
         c->win_value[i] = CTRL_LIT(0.0);
       }
+    } else {
+      /* WIN_IDLE outside the band: nothing to advance */
     }
   }
 }
@@ -338,6 +342,8 @@ static int method_valid(ctrl_method m) {
     case CTRL_METHOD_ZGHAL_IMPROVED:
     case CTRL_METHOD_COMBINED:
       return 1;
+    default:
+      break;
   }
   return 0;
 }
@@ -489,7 +495,7 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
   if (c == NULL) {
     return CTRL_FAULT_BAD_ARGS;
   }
-  memset(c, 0, sizeof(*c));
+  (void)memset(c, 0, sizeof(*c));
   c->state = CTRL_STATE_FAULT;
   c->fault = CTRL_FAULT_BAD_CONFIG;
   if (config == NULL) {
@@ -624,18 +630,26 @@ static void task_command(ctrl *c, const ctrl_input *in, ctrl_real t, const ctrl_
   int i, r;
   ctrl_gen_fk_jacobian(q, Tp, J); /* finite for finite q; overflow would show in q_dot */
   for (i = 0; i < 3; ++i) {
-    for (r = 0; r < 3; ++r) R[r + 3 * i] = Tp[r + 4 * i];
+    for (r = 0; r < 3; ++r) {
+      R[r + 3 * i] = Tp[r + 4 * i];
+    }
   }
   desired(c, t, pd, Rd, xdot);
   if (in != NULL) {
-    for (r = 0; r < 6; ++r) xdot[r] = xdot[r] + in->xdot_offset[r];
+    for (r = 0; r < 6; ++r) {
+      xdot[r] = xdot[r] + in->xdot_offset[r];
+    }
   }
-  for (i = 0; i < 3; ++i) e[i] = pd[i] - Tp[12 + i];
+  for (i = 0; i < 3; ++i) {
+    e[i] = pd[i] - Tp[12 + i];
+  }
   orientation_error(R, Rd, e + 3);
   c->pos_err = norm3(e);
   c->ori_err = norm3(e + 3);
   if (rr->clik_gain > CTRL_LIT(0.0)) {
-    for (r = 0; r < 6; ++r) xdot[r] = xdot[r] + rr->clik_gain * e[r];
+    for (r = 0; r < 6; ++r) {
+      xdot[r] = xdot[r] + rr->clik_gain * e[r];
+    }
   }
   *cmd_max = CTRL_LIT(0.0);
   for (r = 0; r < CTRL_NTASK; ++r) {
@@ -869,7 +883,7 @@ static ctrl_fault update_locks(ctrl *c, uint32_t reported) {
   if (count > allowed) return CTRL_FAULT_REDUNDANCY;
   c->locked = reported;
   for (i = 0; i < N; ++i) {
-    c->mask[i] = ((reported >> i) & 1u) ? CTRL_LIT(0.0) : CTRL_LIT(1.0);
+    c->mask[i] = (((reported >> i) & 1u) != 0u) ? CTRL_LIT(0.0) : CTRL_LIT(1.0);
   }
   if (reported != 0u && c->state == CTRL_STATE_RUNNING) {
     c->state = CTRL_STATE_DEGRADED;

@@ -29,6 +29,7 @@
 
 #include "controller.h"
 #include "fw_csv.h"
+#include "fw_task.h"
 #include "semihost.h"
 
 #ifndef FW_PRINT_ROWS
@@ -47,9 +48,6 @@
 #define SYST_MASK 0xFFFFFFu
 #define STACK_PAINT 0xA5C3A5C3u
 
-extern const ctrl_config fw_task;
-extern const uint32_t fw_lock_mask;
-extern const int32_t fw_lock_tick;
 extern uint32_t __stack_limit[];
 
 typedef ctrl_fault (*tick_fn)(ctrl *c, const ctrl_input *in, ctrl_output *out);

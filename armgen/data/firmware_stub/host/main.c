@@ -34,10 +34,8 @@
 
 #include "controller.h"
 #include "fw_csv.h"
+#include "fw_task.h"
 
-extern const ctrl_config fw_task;
-extern const uint32_t fw_lock_mask;
-extern const int32_t fw_lock_tick;
 
 typedef struct {
   long nan_tick, overrun_tick, stop_tick, extra, repeats, lock_tick, lock_mask, period_ns;
