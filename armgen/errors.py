@@ -20,6 +20,12 @@ class TaskFileError(ArmgenError):
     exit_code = 2
 
 
+class OptionError(ArmgenError):
+    """A command-line option or its combination with the inputs is invalid."""
+
+    exit_code = 2
+
+
 class PlanningError(ArmgenError):
     """A plan cannot be completed (unreachable target, start outside limits, infeasible timing)."""
 
@@ -36,3 +42,15 @@ class VerificationError(ArmgenError):
     """A verification stage failed."""
 
     exit_code = 5
+
+
+class OutputError(ArmgenError):
+    """An output cannot be written (the name is a directory, a read-only folder, a full disk)."""
+
+    exit_code = 4
+
+
+class PlanFileError(ArmgenError):
+    """A plan CSV or its plan.json is malformed."""
+
+    exit_code = 2

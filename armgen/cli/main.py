@@ -72,7 +72,7 @@ def show_cmd(robot: str) -> None:
 @cli.command("gen")
 @click.argument("robot")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="output directory (default: generated/<robot>/)")
+              help="output directory (default: ./generated/<robot>/ under the current directory)")
 @click.option("--precision", type=click.Choice(["double", "float"]), default="double", show_default=True,
               help="the header's default real type (one switch; -D<PREFIX>_USE_FLOAT overrides)")
 @click.option("--prefix", default="", help="C identifier prefix (default: the robot name)")
@@ -94,16 +94,16 @@ def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functi
 
 @cli.command("gen-ptp")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="output directory (default: generated/ptp/)")
+              help="output directory (default: ./generated/ptp/ under the current directory)")
 @click.option("--precision", type=click.Choice(["double", "float"]), default="double", show_default=True)
 @click.option("--prefix", default="armgen", show_default=True, help="C identifier prefix")
 @_handle_errors
 def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
     """Write the C evaluator of PTP segment polynomials (the firmware's playback)."""
-    from ..codegen.generate import REPO_GENERATED_DIR
+    from ..codegen.generate import GENERATED_DIR
     from ..codegen.ptp_c import generate_ptp_evaluator
 
-    for path in generate_ptp_evaluator(Path(out_dir) if out_dir else REPO_GENERATED_DIR / "ptp", prefix, precision):
+    for path in generate_ptp_evaluator(Path(out_dir) if out_dir else GENERATED_DIR / "ptp", prefix, precision):
         click.echo(f"wrote {path}")
 
 
@@ -141,14 +141,21 @@ def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[
 @click.option("--precision", type=click.Choice(["double", "float"]), default=None, help="only this precision (default: both)")
 @click.option("--target", type=click.Choice(["cortex-m4"]), default=None, help="also run on an emulated target")
 @click.option("--report", type=click.Path(dir_okay=False), default=None, help="write the JSON report here")
+@click.option("--generated", "generated", type=click.Path(), default=None,
+              help="the folder `armgen gen` wrote (default: ./generated/<robot>/)")
+@click.option("--run", "run_csv", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="what a firmware run printed (e.g. the demo of `armgen firmware`), compared with --plan")
 @_handle_errors
 def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | None, target: str | None,
-               report: str | None) -> None:
-    """Check that the generated C does what the symbolic reference does (spec 60)."""
+               report: str | None, generated: str | None, run_csv: str | None) -> None:
+    """Check that generated C (fresh for ROBOT's file) does what the symbolic reference does.
+
+    Exit codes: 0 all stages passed, 2 bad input (no manifest, code generated from another
+    robot file, a malformed plan), 4 a missing tool, 5 a stage failed (stale code included)."""
     from ..errors import VerificationError
     from ..verify.pipeline import verify
 
-    if not verify(robot, plan_csv, samples, precision, target, report, click.echo):
+    if not verify(robot, plan_csv, samples, precision, target, report, click.echo, generated, run_csv):
         raise VerificationError("verification failed: see the FAIL stages above")
     click.echo("all stages passed")
 
@@ -167,6 +174,12 @@ def plot_cmd(plan_csv: str, output: str | None) -> None:
     plot_plan(result, out, plan_csv)
     click.echo(f"wrote {out}")
 
+
+from .examples import examples_cmd  # noqa: E402
+from .firmware import firmware_cmd  # noqa: E402
+
+cli.add_command(examples_cmd)
+cli.add_command(firmware_cmd)
 
 if __name__ == "__main__":  # pragma: no cover
     cli()

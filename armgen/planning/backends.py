@@ -41,9 +41,11 @@ def make_backend(robot: Robot, kind: str, functions: tuple[str, ...]) -> Backend
     references = model.functions()
     if kind == "symbolic":
         return Backend("symbolic", references)
-    work = Path(tempfile.mkdtemp(prefix="armgen-backend-"))
-    code = generate(CodegenConfig(robot, "double", "", functions))
-    write(code, work)
-    library = build_library(work, code.prefix, "double", work)
-    compiled = CompiledModel(library, code.prefix, references, "double")
+    # The loaded library stays mapped after its folder is removed.
+    with tempfile.TemporaryDirectory(prefix="armgen-backend-") as tmp:
+        work = Path(tmp)
+        code = generate(CodegenConfig(robot, "double", "", functions))
+        write(code, work)
+        library = build_library(work, code.prefix, "double", work)
+        compiled = CompiledModel(library, code.prefix, references, "double")
     return Backend("c", dict(compiled.callbacks))
