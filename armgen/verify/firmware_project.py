@@ -149,7 +149,7 @@ def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, robot_ref: str) -> 
         (stage / folder).mkdir(exist_ok=True)
         for name in names:
             (stage / folder / Path(name).name).write_bytes((stub / name).read_bytes())
-    planned, result, description = plan_demo(robot, robot_ref)
+    planned, result, description = plan_demo(robot, robot_ref, "demo/demo.toml")
     # The project names its own copy of the robot file, so it plans and verifies in place.
     task = dict(planned, robot=PROJECT_ROBOT_FILE)
     toml_text = task_toml(task, f"Demo task of robot '{robot.name}': {description}.")
@@ -157,7 +157,7 @@ def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, robot_ref: str) -> 
     (stage / "demo" / "demo.toml").write_text(toml_text, encoding="utf-8")
     result.metadata["task"] = task
     result.metadata["task_sha256"] = hashlib.sha256(toml_text.encode()).hexdigest()
-    result.metadata["source"] = "demo/demo.toml"
+    result.metadata["task_file"] = "demo/demo.toml"
     write_plan(result, stage / "demo" / "plan.csv")
     fw.write_task_files(fw.task_from_dict(planned, "demo/demo.toml", robot), stage / "task", stage / "generated")
     values = {"ROBOT": robot.name, "NDOF": str(robot.n), "PREFIX": code.prefix, "PREFIX_UC": code.prefix.upper(),
