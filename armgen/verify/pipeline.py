@@ -324,24 +324,18 @@ def stage_replay(config: VerifyConfig, work: Path | None = None,
 
 
 def _default_target_plan(config: VerifyConfig, work: Path) -> Path:
-    """Without --plan: a short line (5 cm along x in 1 s, minimum norm) from the robot's
-    first named configuration (q0 when it has one), planned with the symbolic backend."""
+    """Without --plan: the demo task of ``armgen firmware`` (a short line from the robot's q0,
+    its first named configuration, or mid-range), planned with the symbolic backend."""
     from ..planning.result import write_plan
+    from .firmware_project import plan_demo
 
-    robot = config.robot
-    names = sorted(robot.configurations)
-    start = "q0" if "q0" in robot.configurations else (names[0] if names else None)
-    q = robot.configuration(start) if start else 0.5 * (robot.qmin + robot.qmax)
-    pose = SymbolicModel(robot).function("fk")(q)
-    p = np.array(pose)[:3, 3] + np.array([0.05, 0.0, 0.0])
-    try:  # a bundled robot by name, else its file
-        ref = robot.name if load_robot(robot.name).sha256 == robot.sha256 else robot.source
-    except ArmgenError:
-        ref = robot.source
-    task = {"planner": "cartesian", "robot": ref, "start": start if start else q.tolist(),
-            "path": {"type": "line", "end": p.tolist()}, "timing": {"duration": 1.0},
-            "integrator": {"method": "euler", "step": 0.005}, "method": {"name": "pinv"}}
-    result = run_task(task, "target smoke task")
+    ref = config.robot_ref
+    if not ref:  # a bundled robot by name, else its file
+        try:
+            ref = config.robot.name if load_robot(config.robot.name).sha256 == config.robot.sha256 else config.robot.source
+        except ArmgenError:
+            ref = config.robot.source
+    _, result, _ = plan_demo(config.robot, ref, "target smoke task")
     path = work / "target_plan.csv"
     write_plan(result, path)
     return path
