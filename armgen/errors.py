@@ -20,12 +20,6 @@ class TaskFileError(ArmgenError):
     exit_code = 2
 
 
-class OptionError(ArmgenError):
-    """A command-line option or its combination with the inputs is invalid."""
-
-    exit_code = 2
-
-
 class PlanningError(ArmgenError):
     """A plan cannot be completed (unreachable target, start outside limits, infeasible timing)."""
 
@@ -52,5 +46,11 @@ class OutputError(ArmgenError):
 
 class PlanFileError(ArmgenError):
     """A plan CSV or its plan.json is malformed."""
+
+    exit_code = 2
+
+
+class OptionError(ArmgenError):
+    """A command-line option has an invalid value (e.g. a C prefix that is a keyword)."""
 
     exit_code = 2
