@@ -16,7 +16,11 @@ Stages (each a function returning a :class:`Stage` with a table of rows):
    same task on the host — double with ASan/UBSan, and float — and compare it the same way;
 5. target   — (``--target cortex-m4``) the firmware cross-compiled for the Cortex-M4F (float),
    run under ``qemu-system-arm -M mps2-an386``, compared with the plan (and with the host
-   float run); fails naming the apt packages when the toolchain or QEMU is missing.
+   float run); fails naming the apt packages when the toolchain or QEMU is missing. Without
+   ``--plan`` it plans the demo task of ``armgen firmware`` (:mod:`.firmware_project`);
+6. run      — (``--run CSV``, with ``--plan``) what a firmware run printed (the host demo of an
+   ``armgen firmware`` project, or its Cortex-M4F image under QEMU) compared with the plan in the
+   bounds of the run's precision (``# real_bytes`` of its summary).
 
 A stage that compared nothing is never a PASS: it is a FAIL, or SKIPPED when the user did not
 ask for it (replay without ``--plan``); skipped stages do not fail the run. Temporary build
