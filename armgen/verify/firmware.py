@@ -378,7 +378,7 @@ class FirmwareBuilder:
         self.work = Path(work)
         self.work.mkdir(parents=True, exist_ok=True)
         self.prefix = robot_prefix(self.robot)
-        self.gen_dir = Path(gen_dir) if gen_dir is not None else self._generated_dir()
+        self.gen_dir = Path(gen_dir).resolve() if gen_dir is not None else self._generated_dir()
         self.robot_source = self._robot_source()
         self.ptp_dir = self.work / "ptp"
         if not (self.ptp_dir / f"{PTP_PREFIX}_ptp.c").is_file():
@@ -388,7 +388,7 @@ class FirmwareBuilder:
 
     def _generated_dir(self) -> Path:
         """The checked-in generated/<robot>/ when it belongs to this robot file, else fresh code."""
-        checked_in = GENERATED_DIR / self.robot.name
+        checked_in = (GENERATED_DIR / self.robot.name).resolve()  # the compilers run in their own folders
         header = checked_in / f"{self.prefix}.h"
         if header.is_file() and f'ROBOT_SHA256 "{self.robot.sha256}"' in header.read_text(encoding="utf-8"):
             return checked_in
