@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from .handling import handle_errors
+
 
 @click.command("animate")
 @click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
@@ -14,6 +16,7 @@ import click
 @click.option("--fps", type=float, default=20.0, show_default=True, help="frames per second")
 @click.option("--duration", type=float, default=None,
               help="video length in seconds (default: the plan's duration, at most 10 s)")
+@handle_errors
 def animate_cmd(plan_csv: str, output: str | None, fps: float, duration: float | None) -> None:
     """Draw the arm moving through a plan: links between the joint frames (forward kinematics),
     the tool frame, the planned path, snake obstacles, and a time stamp."""

@@ -3,40 +3,15 @@ maps an :class:`ArmgenError` to its exit code and a one-paragraph message on std
 
 from __future__ import annotations
 
-import functools
 import math
-import os
-import sys
 from pathlib import Path
 
 import click
 import numpy as np
 
 from .. import __version__
-from ..errors import ArmgenError, OptionError
-
-
-def _handle_errors(func):
-    """Expected failures are ArmgenErrors with their exit code. Anything else is a bug in
-    armgen: a short message (no traceback) and exit 1; ARMGEN_DEBUG=1 re-raises it."""
-    @functools.wraps(func)
-    def wrapper(*args, **kwargs):
-        try:
-            return func(*args, **kwargs)
-        except ArmgenError as exc:
-            click.echo(f"error: {exc}", err=True)
-            sys.exit(exc.exit_code)
-        except KeyboardInterrupt:
-            click.echo("interrupted: no output was written", err=True)
-            sys.exit(130)
-        except Exception as exc:  # the last resort, not the mechanism: every known failure is an ArmgenError
-            if os.environ.get("ARMGEN_DEBUG"):
-                raise
-            click.echo(f"internal error: {type(exc).__name__}: {str(exc)[:300]}\nThis is a bug in armgen; please "
-                       "report it with the command line and the input files (ARMGEN_DEBUG=1 shows the traceback).",
-                       err=True)
-            sys.exit(1)
-    return wrapper
+from ..errors import OptionError
+from .handling import handle_errors
 
 
 @click.group()
@@ -46,7 +21,7 @@ def cli() -> None:
 
 
 @cli.command("robots")
-@_handle_errors
+@handle_errors
 def robots_cmd() -> None:
     """List the bundled robots."""
     from ..robot import bundled_robots, load_robot
@@ -58,7 +33,7 @@ def robots_cmd() -> None:
 
 @cli.command("show")
 @click.argument("robot")
-@_handle_errors
+@handle_errors
 def show_cmd(robot: str) -> None:
     """Print a robot's DH table, limits and named configurations (mm, deg)."""
     from ..robot import load_robot
@@ -85,12 +60,12 @@ def show_cmd(robot: str) -> None:
 @cli.command("gen")
 @click.argument("robot")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="output directory (default: generated/<robot>/)")
+              help="output directory (default: ./generated/<robot>/ under the current directory)")
 @click.option("--precision", type=click.Choice(["double", "float"]), default="double", show_default=True,
               help="the header's default real type (one switch; -D<PREFIX>_USE_FLOAT overrides)")
 @click.option("--prefix", default="", help="C identifier prefix (default: the robot name)")
 @click.option("--function", "functions", multiple=True, help="generate only these functions (repeatable)")
-@_handle_errors
+@handle_errors
 def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functions: tuple[str, ...]) -> None:
     """Derive the robot's functions symbolically and write C (header, source, manifest)."""
     from ..codegen.generate import generate_robot
@@ -107,16 +82,16 @@ def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functi
 
 @cli.command("gen-ptp")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="output directory (default: generated/ptp/)")
+              help="output directory (default: ./generated/ptp/ under the current directory)")
 @click.option("--precision", type=click.Choice(["double", "float"]), default="double", show_default=True)
 @click.option("--prefix", default="armgen", show_default=True, help="C identifier prefix")
-@_handle_errors
+@handle_errors
 def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
     """Write the C evaluator of PTP segment polynomials (the firmware's playback)."""
-    from ..codegen.generate import REPO_GENERATED_DIR
+    from ..codegen.generate import GENERATED_DIR
     from ..codegen.ptp_c import generate_ptp_evaluator
 
-    for path in generate_ptp_evaluator(Path(out_dir) if out_dir else REPO_GENERATED_DIR / "ptp", prefix, precision):
+    for path in generate_ptp_evaluator(Path(out_dir) if out_dir else GENERATED_DIR / "ptp", prefix, precision):
         click.echo(f"wrote {path}")
 
 
@@ -132,7 +107,7 @@ def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
               help="cap on integration steps, checked before planning (default: planning.tasks.MAX_INTEGRATION_STEPS)")
 @click.option("--max-samples", type=click.IntRange(min=1), default=None,
               help="cap on CSV rows, checked before planning (default: planning.tasks.MAX_OUTPUT_SAMPLES)")
-@_handle_errors
+@handle_errors
 def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[str, ...], units: str,
              max_steps: int | None, max_samples: int | None) -> None:
     """Plan a task file to CSV plus JSON metadata (written together or not at all)."""
@@ -161,14 +136,21 @@ def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[
 @click.option("--precision", type=click.Choice(["double", "float"]), default=None, help="only this precision (default: both)")
 @click.option("--target", type=click.Choice(["cortex-m4"]), default=None, help="also run on an emulated target")
 @click.option("--report", type=click.Path(dir_okay=False), default=None, help="write the JSON report here")
-@_handle_errors
+@click.option("--generated", "generated", type=click.Path(), default=None,
+              help="the folder `armgen gen` wrote (default: ./generated/<robot>/)")
+@click.option("--run", "run_csv", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="what a firmware run printed (e.g. the demo of `armgen firmware`), compared with --plan")
+@handle_errors
 def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | None, target: str | None,
-               report: str | None) -> None:
-    """Check that the generated C does what the symbolic reference does (spec 60)."""
+               report: str | None, generated: str | None, run_csv: str | None) -> None:
+    """Check that generated C (fresh for ROBOT's file) does what the symbolic reference does.
+
+    Exit codes: 0 all stages passed, 2 bad input (no manifest, code generated from another
+    robot file, a malformed plan), 4 a missing tool, 5 a stage failed (stale code included)."""
     from ..errors import VerificationError
     from ..verify.pipeline import verify
 
-    if not verify(robot, plan_csv, samples, precision, target, report, click.echo):
+    if not verify(robot, plan_csv, samples, precision, target, report, click.echo, generated, run_csv):
         raise VerificationError("verification failed: see the FAIL stages above")
     click.echo("all stages passed")
 
@@ -177,7 +159,7 @@ def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | 
 @click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
 @click.option("-o", "--output", default=None,
               help="figure to write: .png, .svg or .pdf (default: the CSV's name with .png, beside it)")
-@_handle_errors
+@handle_errors
 def plot_cmd(plan_csv: str, output: str | None) -> None:
     """Draw a plan: joint angles with limits, velocities with bounds, criteria, task error, tool path."""
     from ..planning.plotting import figure_format, save_figure
@@ -190,16 +172,15 @@ def plot_cmd(plan_csv: str, output: str | None) -> None:
     click.echo(f"wrote {out}")
 
 
-from .animate import animate_cmd  # noqa: E402  (its own module; errors mapped like every command's)
-animate_cmd.callback = _handle_errors(animate_cmd.callback); cli.add_command(animate_cmd)  # noqa: E702
+# Commands with a module of their own; each applies handle_errors itself.
+from .animate import animate_cmd  # noqa: E402
+from .examples import examples_cmd  # noqa: E402
+from .firmware import firmware_cmd  # noqa: E402
+from .schema import schema_cmd  # noqa: E402
+from .sweep import sweep_cmd  # noqa: E402
 
-from .schema import schema_cmd  # noqa: E402  (registered below the group it joins)
-
-cli.add_command(schema_cmd)
-
-from .sweep import sweep_cmd  # noqa: E402 -- registered after the group exists
-
-cli.add_command(sweep_cmd)
+for command in (animate_cmd, examples_cmd, firmware_cmd, schema_cmd, sweep_cmd):
+    cli.add_command(command)
 
 if __name__ == "__main__":  # pragma: no cover
     cli()

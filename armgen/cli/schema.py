@@ -10,6 +10,8 @@ from typing import Annotated, Union
 import click
 from pydantic import Field, TypeAdapter
 
+from .handling import handle_errors
+
 
 def schema_of(kind: str, planner: str | None = None) -> dict:
     """JSON Schema of the robot file, one planner's task file, or any task file."""
@@ -31,6 +33,7 @@ def schema_of(kind: str, planner: str | None = None) -> dict:
 @click.argument("kind", type=click.Choice(["robot", "task"]))
 @click.option("--planner", type=click.Choice(["ptp", "cartesian", "fault_tolerant", "wgpm", "snake"]), default=None,
               help="only this planner's task file (default: any task file, chosen by its 'planner' field)")
+@handle_errors
 def schema_cmd(kind: str, planner: str | None) -> None:
     """Print the JSON Schema of robot or task files."""
     if planner is not None and kind != "task":

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import click
 
+from .handling import handle_errors
+
 
 @click.command("sweep")
 @click.argument("task_file", type=click.Path(dir_okay=False))
@@ -27,14 +29,9 @@ import click
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="run on this Dask distributed scheduler (e.g. tcp://host:8786) instead of local workers")
 @click.option("--resume", is_flag=True, help="skip the runs already in the output table")
-def sweep_cmd(**options) -> None:
+@handle_errors
+def sweep_cmd(task_file, grids, draws, ranges, seed, overrides, output, backend, workers, scheduler, resume) -> None:
     """Plan TASK_FILE once per combination of the --grid values (and per --random draw)."""
-    from .main import _handle_errors  # here: main imports this module to register the command
-
-    _handle_errors(_sweep)(**options)
-
-
-def _sweep(task_file, grids, draws, ranges, seed, overrides, output, backend, workers, scheduler, resume) -> None:
     from ..errors import TaskFileError
     from ..planning.sweep import SweepSpec, parse_grid, parse_range, sweep
     from ..planning.tasks import apply_overrides, load_task

@@ -26,7 +26,7 @@ import casadi as ca
 import sympy
 
 from .. import __version__
-from ..errors import ArmgenError
+from ..errors import OptionError
 from ..fileio import write_file_set
 from ..robot import Robot, load_robot_any
 from ..symbolic.model import DESCRIPTIONS, STEP_FUNCTIONS, ModelOptions, SymbolicModel
@@ -34,7 +34,9 @@ from .c_emitter import MATH_MACROS, EmittedFunction, describe_counts, emit_body
 from .stamp import c_preamble
 
 PRECISIONS = ("double", "float")
-REPO_GENERATED_DIR = Path(__file__).resolve().parent.parent.parent / "generated"
+# Outputs go where the user is: ./generated/<name>/ under the current directory (at the
+# repository root that is the checked-in generated/).
+GENERATED_DIR = Path("generated")
 
 
 @dataclass(frozen=True)
@@ -57,10 +59,10 @@ class GeneratedCode:
 def make_consistent(config: CodegenConfig) -> CodegenConfig:
     """Fill defaults and validate the options; errors name the option and the fix."""
     if config.precision not in PRECISIONS:
-        raise ArmgenError(f"--precision {config.precision!r}: choose one of {', '.join(PRECISIONS)}")
+        raise OptionError(f"--precision {config.precision!r}: choose one of {', '.join(PRECISIONS)}")
     prefix = config.prefix or re.sub(r"[^0-9a-zA-Z_]", "_", config.robot.name).lower()
     if not re.fullmatch(r"[a-z_][a-z0-9_]*", prefix):
-        raise ArmgenError(f"--prefix {prefix!r}: use a C identifier in lower case (letters, digits, _; not starting with a digit)")
+        raise OptionError(f"--prefix {prefix!r}: use a C identifier in lower case (letters, digits, _; not starting with a digit)")
     return CodegenConfig(config.robot, config.precision, prefix, config.functions)
 
 
@@ -205,8 +207,8 @@ def write(code: GeneratedCode, out_dir: str | Path) -> list[Path]:
 
 def generate_robot(robot: Robot | str | Path, out_dir: str | Path | None = None, precision: str = "double",
                    prefix: str = "", functions: tuple[str, ...] | None = None) -> tuple[GeneratedCode, list[Path]]:
-    """Library entry of ``armgen gen``: default output is ``generated/<robot>/``."""
+    """Library entry of ``armgen gen``: default output is ``./generated/<robot>/``."""
     robot = load_robot_any(robot)
     code = generate(CodegenConfig(robot, precision, prefix, functions))
-    target = Path(out_dir) if out_dir is not None else REPO_GENERATED_DIR / robot.name
+    target = Path(out_dir) if out_dir is not None else GENERATED_DIR / robot.name
     return code, write(code, target)

@@ -117,9 +117,11 @@ def make_backend(robot: Robot, kind: str, functions: tuple[str, ...] = ()) -> Ba
     from ..codegen.generate import CodegenConfig, generate, write  # SymPy-heavy: only for whole-model C
 
     references = model.functions()
-    work = Path(tempfile.mkdtemp(prefix="armgen-backend-"))
-    code = generate(CodegenConfig(robot, "double", "", functions))
-    write(code, work)
-    library = build_library(work, code.prefix, "double", work)
-    compiled = CompiledModel(library, code.prefix, references, "double")
+    # The loaded library stays mapped after its folder is removed.
+    with tempfile.TemporaryDirectory(prefix="armgen-backend-") as tmp:
+        work = Path(tmp)
+        code = generate(CodegenConfig(robot, "double", "", functions))
+        write(code, work)
+        library = build_library(work, code.prefix, "double", work)
+        compiled = CompiledModel(library, code.prefix, references, "double")
     return Backend("c", model, dict(compiled.callbacks))

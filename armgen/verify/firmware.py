@@ -39,7 +39,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..codegen.generate import REPO_GENERATED_DIR, CodegenConfig, generate, write
+from ..codegen.generate import GENERATED_DIR, CodegenConfig, generate, write
 from ..codegen.ptp_c import generate_ptp_evaluator
 from ..codegen.toolchain import ARM_CPU_FLAGS, SANITIZER_FLAGS, STRICT_FLAGS, find_tool, host_cc, run_tool
 from ..errors import ArmgenError
@@ -529,7 +529,7 @@ class FirmwareBuilder:
         self.work = Path(work)
         self.work.mkdir(parents=True, exist_ok=True)
         self.prefix = robot_prefix(self.robot)
-        self.gen_dir = Path(gen_dir) if gen_dir is not None else self._generated_dir()
+        self.gen_dir = Path(gen_dir).resolve() if gen_dir is not None else self._generated_dir()
         source = (self.gen_dir / f"{self.prefix}.c").read_text(encoding="utf-8")
         self.modes = available_modes(source, self.prefix)
         self.robot_source = self._robot_source(source)
@@ -541,7 +541,7 @@ class FirmwareBuilder:
 
     def _generated_dir(self) -> Path:
         """The checked-in generated/<robot>/ when it belongs to this robot file, else fresh code."""
-        checked_in = REPO_GENERATED_DIR / self.robot.name
+        checked_in = (GENERATED_DIR / self.robot.name).resolve()  # the compilers run in their own folders
         header = checked_in / f"{self.prefix}.h"
         if header.is_file() and f'ROBOT_SHA256 "{self.robot.sha256}"' in header.read_text(encoding="utf-8"):
             return checked_in
@@ -887,7 +887,7 @@ def write_task_files(task: FirmwareTask, out_dir: str | Path, gen_dir: str | Pat
     out_dir.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out_dir / "task_params.h", task.header)
     prefix = robot_prefix(task.robot)
-    full = Path(gen_dir) if gen_dir is not None else REPO_GENERATED_DIR / task.robot.name
+    full = Path(gen_dir) if gen_dir is not None else GENERATED_DIR / task.robot.name
     text = (full / f"{prefix}.c").read_text(encoding="utf-8")
     write_text_atomic(out_dir / "robot_fw.c", extract_functions(text, prefix, firmware_functions(text, prefix)) or text)
     return [out_dir / "task_params.h", out_dir / "robot_fw.c", *generate_ptp_evaluator(out_dir, PTP_PREFIX, "double")]
