@@ -20,7 +20,7 @@ REFERENCE = np.load(HERE / "data" / "planner_reference.npz")
 import sys  # noqa: E402
 
 sys.path.insert(0, str(HERE / "data"))
-from make_planner_reference import CASES, UNSTABLE, summary_scalars  # noqa: E402
+from make_planner_reference import CASES, summary_scalars  # noqa: E402
 
 # The bar: joint angles identical to the replaced planners within 1e-12 rad.
 ANGLE_TOL = 1e-12

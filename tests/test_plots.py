@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from armgen.cli.main import cli
-from armgen.planning.plotting import (JOINT_COLOURS, FigureOutputError, FigureWriteError, dh_frames,
+from armgen.planning.plotting import (JOINT_COLOURS, FigureWriteError, dh_frames,
                                       executed_tool_path, plan_robot,
                                       save_figure)
 from armgen.planning.result import write_plan
