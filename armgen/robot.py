@@ -175,6 +175,11 @@ class Robot:
     def qmax(self) -> np.ndarray:
         return np.array([j.qlim[1] for j in self.joints])
 
+    @property
+    def qmid(self) -> np.ndarray:
+        """The middle of the joint ranges (also a named configuration of URDF robots)."""
+        return 0.5 * (self.qmin + self.qmax)
+
     def __getattr__(self, name: str) -> np.ndarray:
         # Only reached when normal lookup fails: named configurations as attributes.
         if name.startswith("_") or name == "configurations":

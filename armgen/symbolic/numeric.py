@@ -70,6 +70,12 @@ class BatchFunction:
         """
         f = self.function
         outputs = [np.empty((f.nnz_out(k), batch)) for k in range(f.n_out())]
+        with np.errstate(all="ignore"):  # IEEE results (inf, nan) as CasADi and the C give, silently
+            self._replay(inputs, outputs, batch)
+        return outputs
+
+    def _replay(self, inputs: list[np.ndarray], outputs: list[np.ndarray], batch: int) -> None:
+        f = self.function
         for start in range(0, batch, BATCH_CHUNK):
             chunk = slice(start, min(start + BATCH_CHUNK, batch))
             work: list[Any] = [0.0] * f.sz_w()
@@ -84,7 +90,6 @@ class BatchFunction:
                     work[res[0]] = _BINARY[op](work[args[0]], work[args[1]])
                 else:
                     work[res[0]] = _UNARY[op](work[args[0]])
-        return outputs
 
 
 def _shaped(value: np.ndarray, batch_shape: tuple[int, ...], rows: int, cols: int) -> np.ndarray:
