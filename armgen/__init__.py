@@ -23,7 +23,6 @@ _EXPORTS = {
     "Plan": "armgen.api",
     "generate": "armgen.api",
     "Generated": "armgen.api",
-    "verify": "armgen.api",
     "VerifyReport": "armgen.api",
     "ArmgenError": "armgen.errors",
     "RobotFileError": "armgen.errors",
@@ -33,7 +32,7 @@ _EXPORTS = {
     "VerificationError": "armgen.errors",
 }
 
-__all__ = ["__version__", *_EXPORTS]
+__all__ = ["__version__", "verify", *_EXPORTS]
 
 if TYPE_CHECKING:
     from .api import Generated, Plan, VerifyReport, generate, plan, verify
@@ -43,6 +42,10 @@ if TYPE_CHECKING:
 
 
 def __getattr__(name: str) -> Any:
+    if name == "verify":  # the subpackage armgen.verify is callable: armgen.verify(...) = api.verify
+        import importlib
+
+        return importlib.import_module("armgen.verify")
     if name in _EXPORTS:
         import importlib
 

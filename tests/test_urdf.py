@@ -368,3 +368,35 @@ def test_fuzzed_urdf_loads_or_fails_cleanly(tmp_path_factory, data):
     except RobotFileError:
         return
     assert robot.n >= 1 and np.all(np.isfinite(robot.fk(robot.qmid)))
+
+
+@pytest.mark.slow
+def test_verify_with_firmware_replay_on_a_urdf_robot(tmp_path, monkeypatch):
+    """gen → plan → verify (fresh, compile, callbacks, C-backend replay, host firmware) for a
+    robot file that references a URDF; generated/ is redirected to a temporary directory."""
+    import armgen
+    import armgen.verify.firmware
+    import armgen.verify.pipeline
+
+    require_tool("gcc")
+    generated = tmp_path / "generated"
+    monkeypatch.setattr(armgen.verify.pipeline, "REPO_GENERATED_DIR", generated)
+    monkeypatch.setattr(armgen.verify.firmware, "REPO_GENERATED_DIR", generated)
+    path = _write_robot_file(tmp_path, """
+name = "oblique_arm"
+urdf = "arm.urdf"
+tip_link = "tcp"
+[configurations]
+q0 = [0.3, 0.5, -0.4, 0.1, 0.8, 0.2]
+""")
+    robot = armgen.load_robot(path)
+    armgen.generate(robot, out=generated / robot.name)
+    end = robot.fk(robot.q0)[:3, 3] + np.array([0.03, -0.02, 0.01])
+    plan = armgen.plan({"planner": "cartesian", "robot": str(path), "start": "q0",
+                        "path": {"type": "line", "end": end.tolist()}, "timing": {"duration": 1.0},
+                        "integrator": {"method": "euler", "step": 0.005}, "method": {"name": "pinv"}})
+    csv_path, _ = plan.save(tmp_path / "line.csv")
+    report = armgen.verify(path, plan=csv_path, samples=200, precision="double")
+    assert report.passed, str(report)
+    assert [s.name for s in report.stages] == ["fresh", "compile", "callbacks", "replay"]
+    assert any("host firmware" in str(row[0]) for row in report.stages[-1].rows)
