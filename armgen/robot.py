@@ -192,6 +192,13 @@ class Robot:
     def __dir__(self) -> list[str]:
         return sorted(set(super().__dir__()) | set(self.configurations))
 
+    def __getstate__(self) -> dict[str, Any]:
+        # The evaluator cache holds CasADi SX functions, which do not pickle; it is rebuilt on use.
+        return {**self.__dict__, "_cache": {}}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+
     def configuration(self, name: str) -> np.ndarray:
         """A copy of the named configuration; a clear error names the known ones."""
         if name not in self.configurations:

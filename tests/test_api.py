@@ -182,3 +182,14 @@ def test_verify_returns_a_report(tmp_path):
     assert [s.name for s in report.stages][:3] == ["fresh", "compile", "callbacks"]
     assert "== fresh: PASS" in str(report)
     assert report.to_dict()["passed"] and json.loads((tmp_path / "r.json").read_text())["passed"]
+
+
+def test_robot_pickles_and_copies_after_use():
+    import copy
+    import pickle
+
+    robot = armgen.load_robot("planar3")
+    q = _samples(robot, (3,))
+    expected = robot.fk(q)  # fills the evaluator cache, which holds unpicklable SX functions
+    for clone in (pickle.loads(pickle.dumps(robot)), copy.deepcopy(robot)):
+        np.testing.assert_array_equal(clone.fk(q), expected)

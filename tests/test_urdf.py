@@ -5,6 +5,7 @@ for bad files (listed cases and a seeded hypothesis fuzz)."""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -400,3 +401,27 @@ q0 = [0.3, 0.5, -0.4, 0.1, 0.8, 0.2]
     assert report.passed, str(report)
     assert [s.name for s in report.stages] == ["fresh", "compile", "callbacks", "replay"]
     assert any("host firmware" in str(row[0]) for row in report.stages[-1].rows)
+
+
+def test_show_and_robots_cli_text_and_json(tmp_path):
+    from click.testing import CliRunner
+
+    from armgen.cli.main import cli
+
+    path = tmp_path / "oblique.urdf"
+    path.write_text(OBLIQUE_URDF)
+    runner = CliRunner()
+    text = runner.invoke(cli, ["show", str(path)])
+    assert text.exit_code == 0, text.output
+    assert "URDF chain" in text.output and "axis=[0.0, -1.0, 0.0]" in text.output
+    assert "tool: xyz = [0.0, 0.0, 120.0] mm, rpy = [0.0, 0.0, -45.0] deg" in text.output
+    data = json.loads(runner.invoke(cli, ["show", str(path), "--json"]).output)
+    assert data["urdf"]["tip_link"] == "tcp" and len(data["joints"]) == 6
+    assert data["joints"][1]["axis"] == pytest.approx(np.array([0.3, 0.5, 0.8]) / np.linalg.norm([0.3, 0.5, 0.8]))
+    assert data["tool"]["rpy"] == pytest.approx([0.0, 0.0, -math.pi / 4])
+    dh = json.loads(runner.invoke(cli, ["show", "panda", "--json"]).output)
+    assert dh["convention"] == "modified" and dh["joints"][6]["a"] == pytest.approx(0.088)
+    listing = json.loads(runner.invoke(cli, ["robots", "--json"]).output)
+    assert {"panda", "planar3"} <= {r["name"] for r in listing}
+    bad = runner.invoke(cli, ["show", str(tmp_path / "missing.urdf")])
+    assert bad.exit_code == 2 and "not found" in bad.output

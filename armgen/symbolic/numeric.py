@@ -102,6 +102,14 @@ def _shaped(value: np.ndarray, batch_shape: tuple[int, ...], rows: int, cols: in
     return matrix.reshape(batch_shape + (rows, cols))
 
 
+def _squeezed(matrix: np.ndarray) -> np.ndarray:
+    """A single sample's output: (rows, cols), (rows,) for a column, () for a scalar."""
+    rows, cols = matrix.shape
+    if cols == 1:
+        return matrix.reshape(()) if rows == 1 else matrix.reshape(rows)
+    return matrix
+
+
 class NumericModel:
     """NumPy access to a robot's symbolic functions with leading batch axes (cached per robot)."""
 
@@ -122,23 +130,20 @@ class NumericModel:
         n = self.robot.n
         if q.ndim == 0 or q.shape[-1] != n:
             raise ValueError(f"q must have shape ({n},) or (..., {n}) for robot '{self.robot.name}', got {q.shape}")
+        names_in = f.name_in()
+        if set(parameters) != set(names_in[1:]):
+            raise TypeError(f"{name}: inputs {names_in[1:]} expected, got {sorted(parameters)}")
+        if q.ndim == 1:
+            raw = f.call([q] + [np.asarray(parameters[k], dtype=float) for k in names_in[1:]])
+            return {f.name_out(k): _squeezed(raw[k].full()) for k in range(f.n_out())}
         batch_shape = q.shape[:-1]
         size = int(np.prod(batch_shape, dtype=int))
-        names_in = f.name_in()
-        missing = [k for k in names_in[1:] if k not in parameters]
-        unknown = [k for k in parameters if k not in names_in[1:]]
-        if missing or unknown:
-            raise TypeError(f"{name}: inputs {names_in[1:]} expected, got {sorted(parameters)}")
         inputs = [q.reshape(size, n).T]
         for k, input_name in enumerate(names_in[1:], start=1):
             own = (f.nnz_in(k),) if f.nnz_in(k) > 1 else ()
             value = np.broadcast_to(np.asarray(parameters[input_name], dtype=float), batch_shape + own)
             inputs.append(value.reshape(size, f.nnz_in(k)).T)
-        if batch_shape == ():
-            raw = f.call([ca.DM(x[:, 0]) for x in inputs])
-            values = [np.array(ca.densify(v)).reshape(-1, 1, order="F") for v in raw]
-        else:
-            if name not in self._batch:
-                self._batch[name] = BatchFunction(f)
-            values = self._batch[name]([np.ascontiguousarray(x) for x in inputs], size)
+        if name not in self._batch:
+            self._batch[name] = BatchFunction(f)
+        values = self._batch[name]([np.ascontiguousarray(x) for x in inputs], size)
         return {f.name_out(k): _shaped(values[k], batch_shape, *f.size_out(k)) for k in range(f.n_out())}
