@@ -110,7 +110,7 @@ def parse_path_task(task: dict, source: str, known_top: set[str]) -> PathTask:
 
 def reach_radius(robot: Robot) -> float:
     """Radius of a sphere about the base that contains every reachable tool position."""
-    reach = sum(math.hypot(j.a, j.d) + (j.qlim[1] if not j.revolute else 0.0) for j in robot.joints)
+    reach = sum(j.link_length + (j.qlim[1] if not j.revolute else 0.0) for j in robot.joints)
     return reach + float(np.linalg.norm(robot.tool[:3, 3]))
 
 

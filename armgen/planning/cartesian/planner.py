@@ -242,7 +242,7 @@ class CartesianPlanner:
 
     def _check_reach(self) -> None:
         """Reject a path that leaves the sphere the arm can reach (sum of link lengths)."""
-        reach = sum(math.hypot(j.a, j.d) + (j.qlim[1] if not j.revolute else 0.0) for j in self.robot.joints)
+        reach = sum(j.link_length + (j.qlim[1] if not j.revolute else 0.0) for j in self.robot.joints)
         reach += float(np.linalg.norm(self.robot.tool[:3, 3]))
         base = self.robot.base[:3, 3]
         points = self.path.sample_points()
