@@ -34,11 +34,11 @@ _EXPORTS = {
 
 __all__ = ["__version__", "verify", *_EXPORTS]
 
-if TYPE_CHECKING:
-    from .api import Generated, Plan, VerifyReport, generate, plan, verify
-    from .errors import (ArmgenError, PlanningError, RobotFileError, TaskFileError, ToolchainError,
+if TYPE_CHECKING:  # for type checkers only; __getattr__ imports these on first use
+    from .api import Generated, Plan, VerifyReport, generate, plan, verify  # noqa: F401
+    from .errors import (ArmgenError, PlanningError, RobotFileError, TaskFileError, ToolchainError,  # noqa: F401
                          VerificationError)
-    from .robot import Joint, Robot, load_robot
+    from .robot import Joint, Robot, load_robot  # noqa: F401
 
 
 def __getattr__(name: str) -> Any:
