@@ -14,7 +14,6 @@ what the command line does, minus the printing::
 from __future__ import annotations
 
 import copy
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
@@ -98,25 +97,9 @@ class Plan:
         matplotlib.figure.Figure
             A figure the caller may show, save or close.
         """
-        import matplotlib.image as mpimg
-        from matplotlib.figure import Figure
-
         from .planning.tasks import plot_plan
 
-        with tempfile.TemporaryDirectory(prefix="armgen-plot-") as tmp:
-            png = Path(tmp) / "plan.png"
-            drawn = plot_plan(self.result, png, self.metadata.get("task_file", "plan"))
-            if isinstance(drawn, Figure):
-                return drawn
-            # The planner's plot function only writes a file: show that image in a Figure.
-            image = mpimg.imread(png)
-        height, width = image.shape[:2]
-        dpi = 100
-        figure = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
-        axes = figure.add_axes((0, 0, 1, 1))
-        axes.imshow(image)
-        axes.set_axis_off()
-        return figure
+        return plot_plan(self.result, str(self.metadata.get("task_file", "plan")))
 
 
 def _set_override(task: dict[str, Any], key: str, value: Any) -> None:

@@ -719,7 +719,7 @@ def test_misra_findings_are_all_documented_deviations(short_plan, tmp_path):
     proc = subprocess.run([cppcheck, "--addon=misra", "--std=c99", "-q", "--template={file}:{line}:{id}",
                            "-DCTRL_ROBOT=modular8", "-DCTRL_ROBOT_UC=MODULAR8", '-DCTRL_ROBOT_HEADER="modular8.h"',
                            "-DMODULAR8_USE_FLOAT=1", "-DFW_USE_FLOAT=1", f"-I{stub}", f"-I{stub / 'arm'}",
-                           f"-I{fw.REPO_GENERATED_DIR / 'modular8'}", f"-I{tmp_path}", *map(str, sources)],
+                           f"-I{REPO / 'generated' / 'modular8'}", f"-I{tmp_path}", *map(str, sources)],
                           capture_output=True, text=True, timeout=900)
     findings = {(Path(f).name, int(line), rule) for f, line, rule in
                 re.findall(r"^(.+?):(\d+):misra-c2012-([\d.]+)$", proc.stdout + proc.stderr, re.M)}

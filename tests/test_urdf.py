@@ -374,15 +374,12 @@ def test_fuzzed_urdf_loads_or_fails_cleanly(tmp_path_factory, data):
 @pytest.mark.slow
 def test_verify_with_firmware_replay_on_a_urdf_robot(tmp_path, monkeypatch):
     """gen → plan → verify (fresh, compile, callbacks, C-backend replay, host firmware) for a
-    robot file that references a URDF; generated/ is redirected to a temporary directory."""
+    robot file that references a URDF, in a folder of the user's (./generated/<name>/ by default)."""
     import armgen
-    import armgen.verify.firmware
-    import armgen.verify.pipeline
 
     require_tool("gcc")
+    monkeypatch.chdir(tmp_path)
     generated = tmp_path / "generated"
-    monkeypatch.setattr(armgen.verify.pipeline, "REPO_GENERATED_DIR", generated)
-    monkeypatch.setattr(armgen.verify.firmware, "REPO_GENERATED_DIR", generated)
     path = _write_robot_file(tmp_path, """
 name = "oblique_arm"
 urdf = "arm.urdf"

@@ -44,7 +44,7 @@ MARKER = ".armgen-firmware"  # marks a folder this command wrote (it may replace
 
 # The stub's files the project needs, by their place in the project.
 STUB_FILES = {
-    "controller": ("controller.c", "controller.h", "ctrl_robot.h", "fw_csv.c", "fw_csv.h", "fw_task.c"),
+    "controller": ("controller.c", "controller.h", "ctrl_robot.h", "fw_csv.c", "fw_csv.h", "fw_task.c", "fw_task.h"),
     "host": ("host/main.c",),
     "arm": ("arm/fw_main.c", "arm/startup.c", "arm/semihost.c", "arm/semihost.h", "arm/fw_fastmath.c",
             "arm/mps2_an386.ld"),

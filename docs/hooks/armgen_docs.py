@@ -182,14 +182,22 @@ def _ptp_bounds() -> str:
 MARKERS = {"fault-smoothness": _fault_smoothness, "ptp-bounds": _ptp_bounds}
 
 
+def generated_files() -> dict[str, object]:
+    """Site path -> the function that renders it: every file the build adds to the site (the
+    link checker of the tests reads the paths without building)."""
+    files: dict[str, object] = {"cli.md": _cli_reference, "task-files.md": _task_reference}
+    for name, _, _ in FIGURES:
+        files[f"figures/{name}.png"] = lambda name=name: _figure_png(name)
+    files["figures/arm.gif"] = lambda: _animation_gif(*ANIMATION)
+    return files
+
+
 def on_pre_build(config, **kwargs) -> None:
     started = time.perf_counter()
     _generated.clear()
-    _generated["cli.md"] = _cli_reference().encode()
-    _generated["task-files.md"] = _task_reference().encode()
-    for name, _, _ in FIGURES:
-        _generated[f"figures/{name}.png"] = _figure_png(name)
-    _generated["figures/arm.gif"] = _animation_gif(*ANIMATION)
+    for uri, render in generated_files().items():
+        content = render()
+        _generated[uri] = content.encode() if isinstance(content, str) else content
     log.info("armgen docs hook: generated %d files in %.1f s", len(_generated), time.perf_counter() - started)
 
 
