@@ -8,13 +8,14 @@ import json
 from typing import Annotated, Union
 
 import click
-from pydantic import Field, TypeAdapter
 
 from .handling import handle_errors
 
 
 def schema_of(kind: str, planner: str | None = None) -> dict:
     """JSON Schema of the robot file, one planner's task file, or any task file."""
+    from pydantic import Field, TypeAdapter
+
     from ..planning.tasks import PLANNERS, SCHEMAS
     from ..robot_schema import RobotFile
 

@@ -147,8 +147,7 @@ class NativeKernel:
     # statements for the wgpm clamp kernel) short; the first run pays it, later runs load the
     # cached library.
     def __init__(self, func: ca.Function, opt: str = "-O1"):
-        symbol = "armgen_kernel"
-        source = kernel_source(func, symbol)
+        source = kernel_source(func, "armgen_kernel")
         key = hashlib.sha256((source + opt).encode()).hexdigest()[:24]
         cache = kernel_cache_dir()
         library = cache / f"{func.name()}-{key}.so"
@@ -159,12 +158,23 @@ class NativeKernel:
                 c_file.write_text(source, encoding="utf-8")
                 built = compile_shared([c_file], Path(work) / library.name, opt=opt)
                 os.replace(built, library)  # atomic: concurrent builders leave one complete file
+        self._load(library, func.nnz_in(), func.nnz_out())
+
+    @classmethod
+    def load(cls, library: str | Path, n_in: int, n_out: int) -> NativeKernel:
+        """A kernel compiled before (the ``library`` of an earlier instance), without its function."""
+        kernel = cls.__new__(cls)
+        kernel._load(Path(library), n_in, n_out)
+        return kernel
+
+    def _load(self, library: Path, n_in: int, n_out: int) -> None:
+        self.library = library
         self._lib = ctypes.CDLL(str(library))
-        self._fn = getattr(self._lib, symbol)
+        self._fn = self._lib.armgen_kernel
         self._fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
         self._fn.restype = None
-        self.x = np.zeros(func.nnz_in())
-        self.y = np.zeros(func.nnz_out())
+        self.x = np.zeros(n_in)
+        self.y = np.zeros(n_out)
         self._args = (self.x.ctypes.data, self.y.ctypes.data)
 
     def __call__(self) -> None:

@@ -17,6 +17,11 @@ Two kinds of call:
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import json
+import os
+import pickle
 import tempfile
 from pathlib import Path
 from typing import Callable
@@ -24,7 +29,7 @@ from typing import Callable
 import casadi as ca
 import numpy as np
 
-from ..codegen.compiled import CompiledModel, NativeKernel, build_library
+from ..codegen.compiled import CompiledModel, NativeKernel, build_library, kernel_cache_dir
 from ..errors import TaskFileError
 from ..robot import Robot
 from ..symbolic.model import ModelOptions, SymbolicModel
@@ -55,16 +60,23 @@ class Packing:
 class Kernel:
     """A fused step: write inputs into ``x`` (by name through ``set``), call, read ``y``."""
 
-    def __init__(self, func: ca.Function, inputs: Packing, outputs: Packing, kind: str):
-        self.inputs, self.outputs = inputs.slices, outputs.slices
-        if kind == "c":
-            native = NativeKernel(func)
-            self.x, self.y, self._eval = native.x, native.y, native
-        else:
-            self.x, self.y = np.zeros(func.nnz_in()), np.zeros(func.nnz_out())
-            self._buffer, self._eval = func.buffer()
-            self._buffer.set_arg(0, memoryview(self.x))
-            self._buffer.set_res(0, memoryview(self.y))
+    def __init__(self, inputs: dict[str, slice], outputs: dict[str, slice], x: np.ndarray, y: np.ndarray,
+                 evaluate: Callable[[], None], keep: object = None):
+        self.inputs, self.outputs = inputs, outputs
+        self.x, self.y, self._eval = x, y, evaluate
+        self._keep = keep  # what ``evaluate`` needs alive (the CasADi buffer, the loaded library)
+
+    @classmethod
+    def symbolic(cls, func: ca.Function, inputs: dict[str, slice], outputs: dict[str, slice]) -> Kernel:
+        x, y = np.zeros(func.nnz_in()), np.zeros(func.nnz_out())
+        buffer, evaluate = func.buffer()
+        buffer.set_arg(0, memoryview(x))
+        buffer.set_res(0, memoryview(y))
+        return cls(inputs, outputs, x, y, evaluate, (func, buffer))
+
+    @classmethod
+    def native(cls, native: NativeKernel, inputs: dict[str, slice], outputs: dict[str, slice]) -> Kernel:
+        return cls(inputs, outputs, native.x, native.y, native, native)
 
     def set(self, name: str, value) -> None:
         self.x[self.inputs[name]] = value
@@ -96,15 +108,90 @@ class Backend:
 
     def kernel(self, key: tuple, build: Callable[[SymbolicModel, Packing, Packing], None]) -> Kernel:
         """The fused kernel ``key``; ``build(model, inputs, outputs)`` declares its inputs
-        (``inputs.add(name, size)``) and outputs (``outputs.add(name, expression)``)."""
+        (``inputs.add(name, size)``) and outputs (``outputs.add(name, expression)``).
+
+        ``key`` must name everything ``build`` depends on besides the robot. A kernel is composed
+        once per process, and once per machine: it is kept on disk (see :func:`stored_kernel`)."""
         cache_key = (self.model.robot.sha256, self.name, key)
         if cache_key not in _KERNELS:
-            inputs, outputs = Packing(), Packing()
-            build(self.model, inputs, outputs)
-            name = "_".join(k for k in key if isinstance(k, str) and k)
-            func = ca.Function(name, [inputs.vector()], [outputs.vector()], ["x"], ["y"])
-            _KERNELS[cache_key] = Kernel(func, inputs, outputs, self.name)
+            _KERNELS[cache_key] = stored_kernel(self.model, self.name, key, build)
         return _KERNELS[cache_key]
+
+
+# -- kernels kept on disk ----------------------------------------------------------------------
+# Composing a kernel (deriving the model functions, inlining them, emitting its C to find the
+# compiled library) takes ~0.5 s; loading it back takes ~15 ms. That difference is what every
+# new process pays per kernel: each worker of a sweep, each `armgen plan`. A stored kernel is
+# found by a digest of everything it is made from: the robot (its pickled description), the
+# backend, the kernel key, and the code and libraries that compose it (armgen's sources,
+# CasADi's and NumPy's versions), so an edited planner or model composes afresh.
+KERNEL_STORE_FORMAT = 1
+
+
+@functools.lru_cache(maxsize=1)
+def _code_fingerprint() -> str:
+    digest = hashlib.sha256(f"{KERNEL_STORE_FORMAT} {ca.__version__} {np.__version__}".encode())
+    package = Path(__file__).resolve().parents[1]
+    for path in sorted(package.rglob("*.py")):
+        digest.update(str(path.relative_to(package)).encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
+def _kernel_digest(robot: Robot, backend: str, key: tuple) -> str:
+    robot_digest = hashlib.sha256(pickle.dumps(robot, protocol=4)).hexdigest()
+    return hashlib.sha256(repr((_code_fingerprint(), robot_digest, backend, key)).encode()).hexdigest()[:32]
+
+
+def stored_kernel(model: SymbolicModel, backend: str, key: tuple,
+                  build: Callable[[SymbolicModel, Packing, Packing], None]) -> Kernel:
+    """The kernel from the on-disk store (``kernel_cache_dir()``), composed and stored when missing.
+
+    An entry is ``<name>-<digest>.json`` (the packing, the sizes, the compiled library's file)
+    beside ``<name>-<digest>.casadi`` (the serialised function); the JSON is written last, so a
+    reader sees a whole entry or none. An unreadable entry is composed again."""
+    name = "_".join(k for k in key if isinstance(k, str) and k)
+    store = kernel_cache_dir()
+    stem = store / f"{name}-{_kernel_digest(model.robot, backend, key)}"
+    stored = _load_entry(stem, backend)
+    if isinstance(stored, Kernel):
+        return stored
+    if stored is None:
+        packed_in, packed_out = Packing(), Packing()
+        build(model, packed_in, packed_out)
+        func = ca.Function(name, [packed_in.vector()], [packed_out.vector()], ["x"], ["y"])
+        inputs, outputs = packed_in.slices, packed_out.slices
+    else:  # the function is stored, its compiled library is gone
+        func, inputs, outputs = stored
+    native = NativeKernel(func) if backend == "c" else None
+    library = native.library.name if native is not None and native.library.parent == store else None
+    entry = {"inputs": {k: [v.start, v.stop] for k, v in inputs.items()},
+             "outputs": {k: [v.start, v.stop] for k, v in outputs.items()},
+             "n_in": func.nnz_in(), "n_out": func.nnz_out(), "library": library}
+    try:
+        store.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix="armgen-store-", dir=store) as work:
+            func.save(str(Path(work) / "f.casadi"))
+            Path(work, "f.json").write_text(json.dumps(entry), encoding="utf-8")
+            os.replace(Path(work) / "f.casadi", stem.with_suffix(".casadi"))
+            os.replace(Path(work) / "f.json", stem.with_suffix(".json"))  # last: the entry is whole
+    except OSError:
+        pass  # an unwritable store only costs the next process the composition
+    return Kernel.native(native, inputs, outputs) if native is not None else Kernel.symbolic(func, inputs, outputs)
+
+
+def _load_entry(stem: Path, backend: str) -> Kernel | tuple[ca.Function, dict, dict] | None:
+    """The stored kernel; or its function and packing when its library is missing; or None."""
+    try:
+        entry = json.loads(stem.with_suffix(".json").read_text(encoding="utf-8"))
+        inputs = {k: slice(*v) for k, v in entry["inputs"].items()}
+        outputs = {k: slice(*v) for k, v in entry["outputs"].items()}
+        library = stem.parent / entry["library"] if entry["library"] else None
+        if backend == "c" and library is not None and library.is_file():
+            return Kernel.native(NativeKernel.load(library, entry["n_in"], entry["n_out"]), inputs, outputs)
+        func = ca.Function.load(str(stem.with_suffix(".casadi")))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, RuntimeError):
+        return None  # not stored yet, or a partial or foreign entry
+    return Kernel.symbolic(func, inputs, outputs) if backend == "symbolic" else (func, inputs, outputs)
 
 
 def make_backend(robot: Robot, kind: str, functions: tuple[str, ...] = ()) -> Backend:

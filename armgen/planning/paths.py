@@ -12,7 +12,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..errors import TaskFileError
 
@@ -96,6 +95,8 @@ def _axis_angle(rot: np.ndarray) -> tuple[np.ndarray, float]:
     """Unit axis and angle in [0, π] of a rotation matrix, via SciPy's quaternion route
     (accurate at every angle; ``acos`` of the trace loses half the digits near 0 and turns a
     9e-16 rounding of the trace into a 3e-8 rad rotation). The exact identity gives angle 0."""
+    from scipy.spatial.transform import Rotation  # ~0.4 s to import: only lines that turn the tool pay it
+
     rotvec = Rotation.from_matrix(rot).as_rotvec()
     angle = float(np.linalg.norm(rotvec))
     if angle == 0.0:

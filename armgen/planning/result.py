@@ -109,10 +109,9 @@ def write_plan(result: PlanResult, csv_path: str | Path, units: str = "rad") -> 
     csv_path = Path(csv_path)
     columns, data = convert_angle_units(result.columns, result.data, units)
     table = io.StringIO()
-    writer = csv.writer(table, lineterminator="\n")
-    writer.writerow(columns)
-    for row in data.tolist():  # Python floats: repr is the shortest round-trip text
-        writer.writerow(map(repr, row))
+    csv.writer(table, lineterminator="\n").writerow(columns)
+    # Python floats: repr is the shortest round-trip text, and no number needs CSV quoting
+    table.writelines(",".join(map(repr, row)) + "\n" for row in data.tolist())
     meta = dict(result.metadata)
     meta["csv"] = {"file": csv_path.name, "columns": columns, "samples": int(data.shape[0]), "angle_units": units}
     json_path = metadata_path(csv_path)
