@@ -152,3 +152,16 @@ def test_unreachable_scheduler_is_a_tool_error(tmp_path):
                                       "method.K=[1]", "--scheduler", "tcp://127.0.0.1:9", "-o", str(tmp_path / "x.csv")])
     assert result.exit_code == 4 and "Dask scheduler" in result.output, result.output
     assert not (tmp_path / "x.csv").exists()
+
+
+@pytest.mark.parametrize("runs, workers", [(1, 2), (5, 2), (32, 2), (200, 2), (201, 3), (7, 64)])
+def test_batches_partition_the_runs_in_order(runs, workers):
+    """Every run goes to exactly one batch, in order, and no worker is left with nothing to do
+    while there are at least as many runs as batches."""
+    from armgen.planning.sweep import BATCHES_PER_WORKER, _batches
+
+    todo = [(i, {"k": i}) for i in range(runs)]
+    batches = _batches(todo, workers)
+    assert [item for batch in batches for item in batch] == todo
+    assert all(batches) and len(batches) <= max(runs, 1)
+    assert len(batches) >= min(runs, workers * BATCHES_PER_WORKER) // 2

@@ -150,13 +150,20 @@ def check_caps(planner: str, model: Any, caps: ResourceCaps, source: str) -> Non
                             "lift the cap with --max-samples N")
 
 
+def planner_module(task: dict[str, Any]):
+    """The module of the task's planner (None for an unknown planner: validation reports it)."""
+    planner = task.get("planner") if isinstance(task, dict) else None
+    known = isinstance(planner, str) and planner in PLANNERS
+    return importlib.import_module(PLANNERS[planner] + ".planner") if known else None
+
+
 def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: str = "symbolic",
              caps: ResourceCaps = ResourceCaps()) -> PlanResult:
     """Validate ``task`` (schema, caps), plan it, and reject a plan with a non-finite sample."""
     model = validate_task(task, source)
     planner = task["planner"]
     check_caps(planner, model, caps, source)
-    module = importlib.import_module(PLANNERS[planner] + ".planner")
+    module = planner_module(task)
     started = time.perf_counter()
     try:
         with np.errstate(all="ignore"):  # a non-finite result is reported below, as an infeasible plan
