@@ -35,34 +35,38 @@ class JointWindows:
     def __post_init__(self):
         if self.shape not in SHAPES:
             raise ValueError(f"window shape {self.shape!r} is not one of {SHAPES}")
-        self.state = np.full(self.n, IDLE)
-        self.value = np.zeros(self.n)
-        self.t_event = np.zeros(self.n)  # start of the current phase
-        self.v_event = np.zeros(self.n)  # value at the start of the current phase
+        # Python lists, not arrays: this runs once per integration step, and scalar access to
+        # a list is several times cheaper than to a NumPy array (the same double arithmetic).
+        self.state = [IDLE] * self.n
+        self.value = [0.0] * self.n
+        self.t_event = [0.0] * self.n  # start of the current phase
+        self.v_event = [0.0] * self.n  # value at the start of the current phase
         self.openings = np.zeros(self.n, dtype=int)
 
     def update(self, t: float, in_band: np.ndarray) -> np.ndarray:
         """Advance every joint's window to time ``t``; returns the weights."""
-        if not self.state.any() and not in_band.any():
-            return self.value.copy()  # every window idle and no joint in its band: nothing to do
-        hold_min = self.t_sum - self.t_smo
+        band = in_band.tolist()
+        state, value, t_event, v_event = self.state, self.value, self.t_event, self.v_event
+        if not any(state) and not any(band):
+            return np.array(value)  # every window idle and no joint in its band: nothing to do
+        hold_min, t_smo, shape = self.t_sum - self.t_smo, self.t_smo, self.shape
         for i in range(self.n):
-            st = self.state[i]
+            st = state[i]
             if st == RAMP_DOWN:  # the value reached at t, from which a re-entry ramps up
-                self.value[i] = max(1.0 - ramp((t - self.t_event[i]) / self.t_smo, self.shape), 0.0)
-            if st in (IDLE, RAMP_DOWN) and in_band[i]:
-                self.state[i], self.t_event[i], self.v_event[i] = RAMP_UP, t, self.value[i]
+                value[i] = max(1.0 - ramp((t - t_event[i]) / t_smo, shape), 0.0)
+            if (st == IDLE or st == RAMP_DOWN) and band[i]:
+                state[i], t_event[i], v_event[i] = RAMP_UP, t, value[i]
                 self.openings[i] += 1
                 st = RAMP_UP
             if st == RAMP_UP:
-                v0 = self.v_event[i]
-                self.value[i] = v0 + (1 - v0) * ramp((t - self.t_event[i]) / self.t_smo, self.shape)
-                if self.value[i] >= 1.0:
-                    self.state[i], self.t_event[i], self.value[i] = HOLD, t, 1.0
+                v0 = v_event[i]
+                value[i] = v0 + (1 - v0) * ramp((t - t_event[i]) / t_smo, shape)
+                if value[i] >= 1.0:
+                    state[i], t_event[i], value[i] = HOLD, t, 1.0
             elif st == HOLD:
-                if t - self.t_event[i] >= hold_min and not in_band[i]:
-                    self.state[i], self.t_event[i], self.v_event[i] = RAMP_DOWN, t, 1.0
+                if t - t_event[i] >= hold_min and not band[i]:
+                    state[i], t_event[i], v_event[i] = RAMP_DOWN, t, 1.0
             elif st == RAMP_DOWN:
-                if self.value[i] <= 0.0:
-                    self.state[i], self.value[i] = IDLE, 0.0
-        return self.value.copy()
+                if value[i] <= 0.0:
+                    state[i], value[i] = IDLE, 0.0
+        return np.array(value)
