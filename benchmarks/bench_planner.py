@@ -1,20 +1,25 @@
 #!/usr/bin/env python3
 """Planner benchmarks (issue 15): measurements, not tests.
 
-    python benchmarks/bench_planner.py [--repeat 3] [--survey 100] [--skip-survey]
+    python benchmarks/bench_planner.py [--repeat 3] [--survey 100] [--skip-survey] [--skip-examples]
 
 1. `armgen plan examples/modular8_circle_combined.toml` (12 500 Euler steps): the planner's
-   run time (``run_time_s`` of the summary, warm kernel cache) and the whole CLI call (a new
-   process: imports, kernel build, planning, CSV + JSON), for each backend; per-step time
-   against the native host firmware (gcc -O2, double) running the same plan, built and
-   timed in this run.
+   run time (``run_time_s`` of the summary, warm kernel store) and the whole CLI call (a new
+   process: imports, kernel load, planning, CSV + JSON; wall and CPU seconds, best of
+   --repeat), for each backend; the import share (``python -c "import …"`` of the modules
+   the call loads); per-step time against the native host firmware (gcc -O2, double)
+   running the same plan, built and timed in this run.
 2. The fault-tolerant and weighted-GPM examples: planner run time per backend, against the
    figures of the interpreted planners at commit 85a2322 (PREVIOUS, measured on this
    2-core machine with the same command before the rewrite).
-3. The weighted-GPM survey (SURVEY_ARGS, 100 random tasks): serial, `--workers 2` and a
-   2-worker Dask LocalCluster (processes); speedups against serial and whether the three
-   tables are identical.
+3. The weighted-GPM survey (SURVEY_ARGS, 100 random tasks): serial, `--workers 2` and a fresh
+   2-worker Dask LocalCluster (processes, 1 thread each); speedups against serial, whether
+   the three tables are identical, the CPU seconds each spent (parent and workers: the work
+   parallel running adds), and the CEILING: the speedup of a CPU-bound pure-Python loop on two
+   processes, measured just before, i.e. what this machine, with whatever else it runs, gives
+   two processes at that moment.
 
+Beside each figure: the one measured the session before the present work (BEFORE).
 Bars (reported, not asserted): BARS.
 """
 
@@ -22,7 +27,9 @@ from __future__ import annotations
 
 import argparse
 import copy
+import math
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -45,6 +52,10 @@ BARS = {"combined_plan_s": 0.25, "combined_cli_s": 0.8, "example_speedup": 10.0,
 PREVIOUS = {"modular8_circle_combined": 4.10, "iiwa14_fault_circle_gpm": 0.93, "iiwa14_fault_circle_wln": 1.28,
             "modular8_fault_circle_gpm": 0.71, "modular8_fault_circle_wln": 0.63, "modular8_wgpm_demo": 1.58}
 PREVIOUS_C = {"modular8_circle_combined": 11.37, "iiwa14_fault_circle_wln": 4.52, "modular8_wgpm_demo": 8.10}
+# The figures of the session before: planner run time warm (c, symbolic), the CLI call, and
+# the survey (s) on this machine, one run each with other jobs running.
+BEFORE = {"combined_plan_c_s": 0.50, "combined_plan_symbolic_s": 1.01, "combined_cli_s": 2.7,
+          "survey_serial_s": 24.6, "survey_workers_s": 22.9, "survey_dask_s": 54.0}
 # The survey of docs/wgpm.md: a random start in the free band and a random circle through it.
 SURVEY_SET = ["timing.duration=20", "path.relative=true"]
 SURVEY_GRID = "method.name=['pinv', 'wgpm']"
@@ -60,12 +71,20 @@ def plan_time(example: str, backend: str, repeat: int, overrides=()) -> float:
                for _ in range(repeat))
 
 
-def cli_time(backend: str, out: Path) -> float:
+def _child_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def cli_time(command: list[str], repeat: int) -> tuple[float, float]:
+    """Best wall time of ``python <command>`` in a new process, and that run's CPU seconds."""
     env = dict(os.environ, PYTHONPATH=str(REPO), ARMGEN_NO_PROGRESS="1")
-    started = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "armgen.cli.main", "plan", str(COMBINED), "-o", str(out), "--backend",
-                    backend], check=True, capture_output=True, env=env)
-    return time.perf_counter() - started
+    best = (math.inf, math.inf)
+    for _ in range(repeat):
+        cpu, started = _child_cpu(), time.perf_counter()
+        subprocess.run([sys.executable, *command], check=True, capture_output=True, env=env)
+        best = min(best, (time.perf_counter() - started, _child_cpu() - cpu))
+    return best
 
 
 def firmware_ns_per_tick(work: Path) -> float | None:
@@ -83,33 +102,72 @@ def firmware_ns_per_tick(work: Path) -> float | None:
     return float(fw.parse_output(out).summary["wall_ns_per_tick"])
 
 
+def _spin(_: int) -> int:
+    total = 0
+    for k in range(3_000_000):
+        total += k * k
+    return total
+
+
+def two_process_ceiling() -> float:
+    """Speedup of 4 equal CPU-bound pure-Python chunks on 2 processes over 1: what the machine
+    gives two processes right now (2.0 on two idle cores)."""
+    import multiprocessing
+
+    started = time.perf_counter()
+    for k in range(4):
+        _spin(k)
+    serial = time.perf_counter() - started
+    with multiprocessing.get_context("fork").Pool(2) as pool:
+        pool.map(_spin, range(2))  # the pool's processes are up before the clock starts
+        started = time.perf_counter()
+        pool.map(_spin, range(4), chunksize=1)
+        parallel = time.perf_counter() - started
+    return serial / parallel
+
+
 def survey(count: int, work: Path) -> None:
     import pandas as pd
+    from distributed import Client, LocalCluster
 
     task, sha = load_task(EXAMPLES / "modular8_wgpm_demo.toml")
     apply_overrides(task, SURVEY_SET)
     spec = SweepSpec([parse_grid(SURVEY_GRID)], [parse_range(r) for r in SURVEY_RANGES], count, seed=1)
-    # warm the on-disk kernel cache so no column pays for compilation
+    # warm the on-disk kernel store so no column pays for composing or compiling
     sweep(task, "demo", sha, SweepSpec(spec.grid, spec.ranges, 1, seed=1), work / "warm.csv", "c", workers=1)
-    times, tables = {}, {}
-    for label, kwargs in (("serial", {"workers": 1}), ("--workers 2", {"workers": 2}), ("dask 2 workers", None)):
+    ceiling = two_process_ceiling()
+    times, cpu, tables = {}, {}, {}
+    for label in ("serial", "--workers 2", "dask 2 workers"):
         out = work / f"survey_{len(times)}.csv"
-        if kwargs is None:
-            from distributed import LocalCluster
-
-            with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        own, children = time.process_time(), _child_cpu()
+        if label == "dask 2 workers":
+            # a fresh cluster: its workers import armgen and load the kernels inside the timing
+            with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+                    Client(cluster) as client:
+                before = client.run(time.process_time)
                 started = time.perf_counter()
                 sweep(task, "demo", sha, spec, out, "c", scheduler=cluster.scheduler_address)
+                times[label] = time.perf_counter() - started
+                after = client.run(time.process_time)
+            workers = sum(after[w] - before[w] for w in after)
         else:
             started = time.perf_counter()
-            sweep(task, "demo", sha, spec, out, "c", **kwargs)
-        times[label] = time.perf_counter() - started
+            sweep(task, "demo", sha, spec, out, "c", workers=1 if label == "serial" else 2)
+            times[label] = time.perf_counter() - started
+            workers = _child_cpu() - children
+        cpu[label] = (time.process_time() - own, workers)
         tables[label] = out.read_text()
     frame = pd.read_csv(work / "survey_0.csv")
     print(f"  {count} tasks x 2 methods = {len(frame)} runs ({(frame['status'] == 'ok').sum()} ok), c backend")
+    print(f"  ceiling: two CPU-bound processes get {ceiling:.2f}x one on this machine right now")
+    before = dict(zip(times, ("survey_serial_s", "survey_workers_s", "survey_dask_s")))
     for label, seconds in times.items():
-        print(f"  {label:16s} {seconds:7.2f} s   speedup {times['serial'] / seconds:4.2f}x   "
-              f"table identical to serial: {tables[label] == tables['serial']}")
+        speedup = times["serial"] / seconds
+        was = BEFORE[before[label]]
+        print(f"  {label:15s} {seconds:6.2f} s (before {was:5.1f} s)  speedup {speedup:4.2f}x (before "
+              f"{BEFORE['survey_serial_s'] / was:4.2f}x; {speedup / ceiling:4.0%} of the ceiling)  CPU s: parent "
+              f"{cpu[label][0]:5.2f}, workers {cpu[label][1]:5.2f}  table identical to serial: "
+              f"{tables[label] == tables['serial']}")
     print(f"  (bar: speedup >= {BARS['survey_speedup']} with 2 workers)")
 
 
@@ -118,29 +176,40 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--survey", type=int, default=100)
     parser.add_argument("--skip-survey", action="store_true")
+    parser.add_argument("--skip-examples", action="store_true")
     args = parser.parse_args()
     os.environ["ARMGEN_NO_PROGRESS"] = "1"
     work = Path(tempfile.mkdtemp(prefix="armgen-bench-planner-"))
 
     print("1. armgen plan examples/modular8_circle_combined.toml (12 500 steps)")
     fw_ns = firmware_ns_per_tick(work)
+    print(f"  host firmware (gcc -O2, double): {fw_ns / 1e3:.2f} us/tick" if fw_ns else "  host firmware: n/a")
+    imports = ["-c", "import armgen.cli.main, armgen.planning.tasks, armgen.planning.result, "
+               "armgen.planning.cartesian.planner"]
+    import_wall, import_cpu = cli_time(imports, args.repeat)
+    print(f"  imports of the CLI call: {import_wall:.3f} s wall, {import_cpu:.3f} s CPU")
     for backend in ("symbolic", "c"):
         seconds = plan_time("modular8_circle_combined", backend, args.repeat)
-        cli = min(cli_time(backend, work / "combined.csv") for _ in range(args.repeat))
-        per_step = seconds / 12500 * 1e9
-        vs_fw = f", {per_step / fw_ns:.0f}x the host firmware's {fw_ns:.0f} ns/tick" if fw_ns else ""
-        print(f"  {backend:8s} planner {seconds:6.3f} s (bar {BARS['combined_plan_s']} s; was "
-              f"{PREVIOUS['modular8_circle_combined'] if backend == 'symbolic' else PREVIOUS_C['modular8_circle_combined']} s)"
-              f"   CLI {cli:5.2f} s (bar {BARS['combined_cli_s']} s)   {per_step / 1e3:.1f} us/step{vs_fw}")
+        cli_wall, cli_cpu = cli_time(["-m", "armgen.cli.main", "plan", str(COMBINED), "-o", str(work / "combined.csv"),
+                                      "--backend", backend], args.repeat)
+        per_step = seconds / 12500 * 1e6
+        vs_fw = f" = {per_step / (fw_ns / 1e3):.1f}x the firmware's tick" if fw_ns else ""
+        print(f"  {backend:8s} planner {seconds:6.3f} s (bar {BARS['combined_plan_s']} s; before "
+              f"{BEFORE[f'combined_plan_{backend}_s']} s; at 85a2322 "
+              f"{(PREVIOUS if backend == 'symbolic' else PREVIOUS_C)['modular8_circle_combined']} s), "
+              f"{per_step:.1f} us/step{vs_fw}")
+        print(f"  {backend:8s} CLI call {cli_wall:5.2f} s wall, {cli_cpu:5.2f} s CPU (bar {BARS['combined_cli_s']} s; "
+              f"before {BEFORE['combined_cli_s']} s)")
 
-    print("2. examples: planner run time, best of --repeat (was: interpreted planners at 85a2322)")
-    for example in PREVIOUS:
-        for backend in ("symbolic", "c"):
-            seconds = plan_time(example, backend, args.repeat)
-            before = PREVIOUS if backend == "symbolic" else PREVIOUS_C
-            was = f"was {before[example]:5.2f} s, {before[example] / seconds:5.1f}x faster" if example in before else ""
-            print(f"  {example:28s} {backend:8s} {seconds:6.3f} s   {was}")
-    print(f"  (bar: >= {BARS['example_speedup']}x faster than before)")
+    if not args.skip_examples:
+        print("2. examples: planner run time, best of --repeat (was: interpreted planners at 85a2322)")
+        for example in PREVIOUS:
+            for backend in ("symbolic", "c"):
+                seconds = plan_time(example, backend, args.repeat)
+                before = PREVIOUS if backend == "symbolic" else PREVIOUS_C
+                was = f"was {before[example]:5.2f} s, {before[example] / seconds:5.1f}x faster" if example in before else ""
+                print(f"  {example:28s} {backend:8s} {seconds:6.3f} s   {was}")
+        print(f"  (bar: >= {BARS['example_speedup']}x faster than before)")
 
     if not args.skip_survey:
         print(f"3. weighted-GPM survey: {args.survey} random tasks")
