@@ -82,3 +82,18 @@ def test_digest_names_robot_backend_key_and_code(monkeypatch):
     assert backends._kernel_digest(load_robot("modular8"), "c", ("wgpm", "wgpm")) == base
     monkeypatch.setattr(backends, "_code_fingerprint", lambda: "edited planner")
     assert backends._kernel_digest(robot, "c", ("wgpm", "wgpm")) != base
+
+
+def test_prune_drops_least_recently_used_files_past_the_cap(tmp_path):
+    store = tmp_path / "kernels"
+    store.mkdir()
+    import os
+
+    for age, name in enumerate(["newest", "newer", "older", "oldest"]):
+        path = store / name
+        path.write_bytes(b"x" * 100)
+        os.utime(path, (1e9 - age * 100, 1e9 - age * 100))
+    backends._prune(store, 400)  # at the cap: nothing to do
+    assert len(list(store.iterdir())) == 4
+    backends._prune(store, 300)  # over it: down to 3/4 of the cap (225 bytes), oldest first
+    assert sorted(p.name for p in store.iterdir()) == ["newer", "newest"]
