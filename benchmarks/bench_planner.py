@@ -76,15 +76,40 @@ def _child_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def cli_time(command: list[str], repeat: int) -> tuple[float, float]:
-    """Best wall time of ``python <command>`` in a new process, and that run's CPU seconds."""
+def cli_time(command: list[str], repeat: int, terminal: bool = False) -> tuple[float, float]:
+    """Best wall time of ``python <command>`` in a new process, and that run's CPU seconds;
+    ``terminal``: stderr is a pseudo-terminal, so the progress bar draws as for a user."""
     env = dict(os.environ, PYTHONPATH=str(REPO), ARMGEN_NO_PROGRESS="1")
+    if terminal:
+        del env["ARMGEN_NO_PROGRESS"]
     best = (math.inf, math.inf)
     for _ in range(repeat):
         cpu, started = _child_cpu(), time.perf_counter()
-        subprocess.run([sys.executable, *command], check=True, capture_output=True, env=env)
+        if terminal:
+            import pty
+            import threading
+
+            main, child = pty.openpty()
+            drain = threading.Thread(target=_drain, args=(main,), daemon=True)
+            drain.start()
+            subprocess.run([sys.executable, *command], check=True, stdout=subprocess.DEVNULL, stderr=child, env=env)
+            os.close(child)
+            drain.join()
+        else:
+            subprocess.run([sys.executable, *command], check=True, capture_output=True, env=env)
         best = min(best, (time.perf_counter() - started, _child_cpu() - cpu))
     return best
+
+
+def _drain(fd: int) -> None:
+    """Read a pseudo-terminal until its other end closes (a full terminal would block the writer)."""
+    try:
+        while os.read(fd, 65536):
+            pass
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 def firmware_ns_per_tick(work: Path) -> float | None:
@@ -200,6 +225,9 @@ def main() -> None:
               f"{per_step:.1f} us/step{vs_fw}")
         print(f"  {backend:8s} CLI call {cli_wall:5.2f} s wall, {cli_cpu:5.2f} s CPU (bar {BARS['combined_cli_s']} s; "
               f"before {BEFORE['combined_cli_s']} s)")
+    tty_wall, tty_cpu = cli_time(["-m", "armgen.cli.main", "plan", str(COMBINED), "-o", str(work / "combined.csv"),
+                                  "--backend", "c"], args.repeat, terminal=True)
+    print(f"  c        CLI call on a terminal (progress bar drawn): {tty_wall:5.2f} s wall, {tty_cpu:5.2f} s CPU")
 
     if not args.skip_examples:
         print("2. examples: planner run time, best of --repeat (was: interpreted planners at 85a2322)")
