@@ -12,8 +12,9 @@
 2. The fault-tolerant and weighted-GPM examples: planner run time per backend, against the
    figures of the interpreted planners at commit 85a2322 (PREVIOUS, measured on this
    2-core machine with the same command before the rewrite).
-3. The weighted-GPM survey (SURVEY_ARGS, 100 random tasks): serial, `--workers 2` and a fresh
-   2-worker Dask LocalCluster (processes, 1 thread each); speedups against serial, whether
+3. The weighted-GPM survey (SURVEY_ARGS, 100 random tasks): serial, `--workers 2` and a
+   2-worker Dask LocalCluster (processes, 1 thread each; timed fresh, then warm like the serial
+   run's process); speedups against serial, whether
    the three tables are identical, the CPU seconds each spent (parent and workers: the work
    parallel running adds), and the CEILING: the speedup of a CPU-bound pure-Python loop on two
    processes, measured just before, i.e. what this machine, with whatever else it runs, gives
@@ -162,36 +163,40 @@ def survey(count: int, work: Path) -> None:
     sweep(task, "demo", sha, SweepSpec(spec.grid, spec.ranges, 1, seed=1), work / "warm.csv", "c", workers=1)
     ceiling = two_process_ceiling()
     times, cpu, tables = {}, {}, {}
-    for label in ("serial", "--workers 2", "dask 2 workers"):
+
+    def timed(label, run, workers_cpu):
         out = work / f"survey_{len(times)}.csv"
-        own, children = time.process_time(), _child_cpu()
-        if label == "dask 2 workers":
-            # a fresh cluster: its workers import armgen and load the kernels inside the timing
-            with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-                    Client(cluster) as client:
-                before = client.run(time.process_time)
-                started = time.perf_counter()
-                sweep(task, "demo", sha, spec, out, "c", scheduler=cluster.scheduler_address)
-                times[label] = time.perf_counter() - started
-                after = client.run(time.process_time)
-            workers = sum(after[w] - before[w] for w in after)
-        else:
-            started = time.perf_counter()
-            sweep(task, "demo", sha, spec, out, "c", workers=1 if label == "serial" else 2)
-            times[label] = time.perf_counter() - started
-            workers = _child_cpu() - children
-        cpu[label] = (time.process_time() - own, workers)
+        own, started = time.process_time(), time.perf_counter()
+        run(out)
+        times[label] = time.perf_counter() - started
+        cpu[label] = (time.process_time() - own, workers_cpu())
         tables[label] = out.read_text()
+
+    def local(workers):
+        children = _child_cpu()
+        timed("serial" if workers == 1 else f"--workers {workers}",
+              lambda out: sweep(task, "demo", sha, spec, out, "c", workers=workers), lambda: _child_cpu() - children)
+
+    local(1)
+    local(2)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        # first on the fresh cluster (its workers import armgen and load the kernels inside the
+        # timing), then again on the same, now warm, workers, as the serial run's process is
+        for label in ("dask, fresh workers", "dask 2 workers"):
+            before = client.run(time.process_time)
+            timed(label, lambda out: sweep(task, "demo", sha, spec, out, "c", scheduler=cluster.scheduler_address),
+                  lambda: sum(t - before[w] for w, t in client.run(time.process_time).items()))
     frame = pd.read_csv(work / "survey_0.csv")
     print(f"  {count} tasks x 2 methods = {len(frame)} runs ({(frame['status'] == 'ok').sum()} ok), c backend")
     print(f"  ceiling: two CPU-bound processes get {ceiling:.2f}x one on this machine right now")
-    before = dict(zip(times, ("survey_serial_s", "survey_workers_s", "survey_dask_s")))
+    before = {"serial": "survey_serial_s", "--workers 2": "survey_workers_s", "dask 2 workers": "survey_dask_s"}
     for label, seconds in times.items():
         speedup = times["serial"] / seconds
-        was = BEFORE[before[label]]
-        print(f"  {label:15s} {seconds:6.2f} s (before {was:5.1f} s)  speedup {speedup:4.2f}x (before "
-              f"{BEFORE['survey_serial_s'] / was:4.2f}x; {speedup / ceiling:4.0%} of the ceiling)  CPU s: parent "
-              f"{cpu[label][0]:5.2f}, workers {cpu[label][1]:5.2f}  table identical to serial: "
+        was = BEFORE.get(before.get(label, ""))
+        was = f"before {was:5.1f} s, {BEFORE['survey_serial_s'] / was:4.2f}x" if was else "before   n/a"
+        print(f"  {label:19s} {seconds:6.2f} s  speedup {speedup:4.2f}x = {speedup / ceiling:4.0%} of the ceiling ({was})"
+              f"  CPU s: parent {cpu[label][0]:5.2f}, workers {cpu[label][1]:5.2f}  table identical to serial: "
               f"{tables[label] == tables['serial']}")
     print(f"  (bar: speedup >= {BARS['survey_speedup']} with 2 workers)")
 
