@@ -11,7 +11,9 @@ how fast it ran. A failing run is a row, not the end of the sweep.
 
 Runs execute in this process (``workers = 1``), in local worker processes
 (:class:`concurrent.futures.ProcessPoolExecutor`), or on a Dask distributed cluster
-(``scheduler`` = its address). The rows are sorted by run index whichever way they ran.
+(``scheduler`` = its address); workers get the runs in batches (:data:`BATCHES_PER_WORKER`),
+and an interrupted sweep keeps the rows of the batches that finished. The rows are sorted by
+run index whichever way they ran.
 """
 
 from __future__ import annotations
