@@ -101,6 +101,28 @@ class Plan:
 
         return plot_plan(self.result, str(self.metadata.get("task_file", "plan")))
 
+    def animate(self, path: str | Path, fps: float | None = None, duration: float | None = None) -> Path:
+        """Render the arm moving through the plan, as ``armgen animate`` does.
+
+        Parameters
+        ----------
+        path
+            ``.gif`` (Pillow) or ``.mp4`` (needs ffmpeg), written atomically.
+        fps
+            Frames per second (default: ``armgen animate``'s).
+        duration
+            Seconds of video (default: the plan's duration, at most 10 s); the samples are
+            subsampled to ``fps × duration`` frames.
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+        """
+        from .planning.animation import DEFAULT_FPS, animate_plan
+
+        return animate_plan(self.result, path, DEFAULT_FPS if fps is None else fps, duration)
+
 
 def plan(task: str | Path | dict[str, Any], backend: str = "symbolic", *, max_steps: int | None = None,
          max_samples: int | None = None, **overrides: Any) -> Plan:
