@@ -17,10 +17,12 @@ def schema_of(kind: str, planner: str | None = None) -> dict:
     from pydantic import Field, TypeAdapter
 
     from ..planning.tasks import PLANNERS, SCHEMAS
-    from ..robot_schema import RobotFile
+    from ..robot_schema import RobotFile, UrdfRobotFile
 
     if kind == "robot":
-        return RobotFile.model_json_schema()
+        schema = TypeAdapter(Union[RobotFile, UrdfRobotFile]).json_schema()
+        schema["title"] = "armgen robot file (DH table, or a URDF reference)"
+        return schema
     models = {name: getattr(importlib.import_module(PLANNERS[name] + ".schema"), SCHEMAS[name]) for name in PLANNERS}
     if planner is not None:
         return models[planner].model_json_schema()
