@@ -8,17 +8,21 @@
 - Manipulability ``w = sqrt(det(J Jᵀ) + δ²)``.
 - Continuous weights ``w_c`` (spec 35).
 
-Determinants are computed division-free by the Cauchy–Binet formula,
-``det(A Aᵀ) = Σ_S det(A_S)²`` over the m-column subsets S of the m×n matrix A, with all the
-minors built once by expansion along rows (a table over column subsets). Every ``ω_i``
-reuses the same minors (the subsets that avoid column i), so the index costs little more
-than ``w`` itself and has no division that could blow up at a singular pose.
+Determinants come from one LDLᵀ factorisation of the m×m Gram matrix ``G = A Aᵀ``
+(cost O(m² n + m³), so the criteria grow linearly with the number of joints):
+``det G = Π d_k``, and each ``ω_i`` by the rank-one downdate
+``det(G − a_i a_iᵀ) = det G · (1 − a_iᵀ G⁻¹ a_i)`` with ``a_iᵀ G⁻¹ a_i = Σ_k y_k² / d_k``,
+``L y = a_i``. Every pivot is floored at ``GRAM_PIVOT_FLOOR_REL · tr(G) + GRAM_PIVOT_FLOOR_ABS``:
+that is the exact LDLᵀ of ``G + E`` for a small diagonal ``E ≥ 0`` (modified Cholesky), so
+``G + E ⪰ a_i a_iᵀ`` keeps ``0 ≤ Σ y_k²/d_k ≤ 1``, every ``|L_ij| ≤ sqrt(G_ii / d_j)`` and
+``|y_k| ≤ sqrt(d_k)`` are bounded, and nothing divides by a vanishing number at an exact
+singular pose (the determinants there are the floored, ≥ 0, tiny values; ``1 − s`` is
+clipped at 0 against rounding). Gradients are CasADi reverse-mode AD of this construction.
+Accuracy: away from singular poses the relative error of ``det(G − a_i a_iᵀ)`` is about
+``ε (1 + ‖a_i‖² / σ_min(A₋ᵢ)²)`` (the downdate's cancellation), see tests/test_criteria_scaling.py.
 """
 
 from __future__ import annotations
-
-from itertools import combinations
-from math import comb
 
 import casadi as ca
 
@@ -26,44 +30,51 @@ import casadi as ca
 # caller passes Ω = 0 (a band of 1e-6 of the range is a step function for practical purposes).
 MIN_BAND_FRACTION = 1e-6
 
-# Cauchy-Binet enumerates C(n, m) column subsets; past this count the criterion functions
-# are not derived (e.g. the 25-DOF snake with a 6-row task has 177 100 subsets).
-MAX_MINOR_SUBSETS = 2000
+# Pivot floor of the Gram LDLᵀ, relative to tr(G): 1e-15 is at double rounding level (pivots
+# of a singular G come out as ±1e-16·tr(G) noise anyway), so it never alters a regular
+# determinant, and it bounds 1/d_k ≤ 1e15 / tr(G) so that reverse-mode gradients stay finite.
+GRAM_PIVOT_FLOOR_REL = 1e-15
+# Absolute part of that floor, for G = 0 (every column masked): 1e-18 is below the square of
+# any meaningful Jacobian entry in SI units (1e-9 m or rad), as steps.PIVOT_FLOOR.
+GRAM_PIVOT_FLOOR_ABS = 1e-18
 
 
-def minors_supported(n: int, m: int) -> bool:
-    return m > n or comb(n, m) <= MAX_MINOR_SUBSETS
-
-
-def all_maximal_minors(a: ca.SX) -> dict[tuple[int, ...], ca.SX]:
-    """All m×m minors of the m×n matrix ``a``, keyed by their (sorted) column subset."""
-    m, n = a.shape
-    table: dict[tuple[int, ...], ca.SX] = {(): ca.SX(1)}
-    for row in range(m):
-        nxt: dict[tuple[int, ...], ca.SX] = {}
-        for subset in combinations(range(n), row + 1):
-            # Laplace expansion along row `row` (the last of the first row+1 rows).
-            terms = []
-            for pos, col in enumerate(subset):
-                sign = 1 if (pos + row) % 2 == 0 else -1
-                rest = subset[:pos] + subset[pos + 1:]
-                terms.append(sign * a[row, col] * table[rest])
-            nxt[subset] = ca.sum1(ca.vertcat(*terms)) if terms else ca.SX(0)
-        table = nxt
-    return table
+def gram_ldl(g: ca.SX) -> tuple[list[list[ca.SX]], list[ca.SX], list[ca.SX]]:
+    """LDLᵀ of the symmetric positive semidefinite ``g`` with floored pivots:
+    (unit lower L as nested lists, pivots d, reciprocals 1/d)."""
+    m = g.shape[0]
+    trace = ca.sum1(ca.diag(g))
+    floor = GRAM_PIVOT_FLOOR_REL * trace + GRAM_PIVOT_FLOOR_ABS
+    lower = [[None] * m for _ in range(m)]
+    diag, inv = [None] * m, [None] * m
+    for j in range(m):
+        dj = g[j, j] - sum((lower[j][k] * lower[j][k] * diag[k] for k in range(j)), ca.SX(0))
+        diag[j] = ca.fmax(dj, floor)
+        inv[j] = 1 / diag[j]
+        for i in range(j + 1, m):
+            lower[i][j] = (g[i, j] - sum((lower[i][k] * lower[j][k] * diag[k] for k in range(j)), ca.SX(0))) * inv[j]
+    return lower, diag, inv
 
 
 def gram_determinants(a: ca.SX) -> tuple[ca.SX, list[ca.SX]]:
-    """(det(A Aᵀ), [det(A₋ᵢ A₋ᵢᵀ) for each column i]) by Cauchy–Binet."""
+    """(det(A Aᵀ), [det(A₋ᵢ A₋ᵢᵀ) for each column i]) from one floored LDLᵀ of A Aᵀ."""
     m, n = a.shape
     if m > n:
         return ca.SX(0), [ca.SX(0)] * n
-    minors = all_maximal_minors(a)
-    squares = {s: v * v for s, v in minors.items()}
-    full = ca.sum1(ca.vertcat(*squares.values()))
+    lower, diag, inv = gram_ldl(ca.mtimes(a, a.T))
+    full = diag[0]
+    for k in range(1, m):
+        full = full * diag[k]
     if m > n - 1:
         return full, [ca.SX(0)] * n
-    reduced = [ca.sum1(ca.vertcat(*[v for s, v in squares.items() if i not in s])) for i in range(n)]
+    reduced = []
+    for i in range(n):
+        y: list[ca.SX] = []
+        leverage = ca.SX(0)
+        for r in range(m):
+            y.append(a[r, i] - sum((lower[r][k] * y[k] for k in range(r)), ca.SX(0)))
+            leverage = leverage + y[r] * y[r] * inv[r]
+        reduced.append(full * ca.fmax(1 - leverage, 0))
     return full, reduced
 
 
