@@ -36,3 +36,21 @@ class VerificationError(ArmgenError):
     """A verification stage failed."""
 
     exit_code = 5
+
+
+class OutputError(ArmgenError):
+    """An output cannot be written (the name is a directory, a read-only folder, a full disk)."""
+
+    exit_code = 4
+
+
+class PlanFileError(ArmgenError):
+    """A plan CSV or its plan.json is malformed."""
+
+    exit_code = 2
+
+
+class OptionError(ArmgenError):
+    """A command-line option has an invalid value (e.g. a C prefix that is a keyword)."""
+
+    exit_code = 2

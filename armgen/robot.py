@@ -4,7 +4,7 @@ A robot file holds a serial chain in standard or modified (Craig) DH. Every leng
 converted to metres and every angle to radians on load; the returned :class:`Robot` is
 SI-only. Errors name the file, the joint and the field, and say how to fix them.
 
-Format (see ``docs/robot-files.md`` and the bundled files in ``robots/``)::
+Format (validation rules: ``docs/input-files.md``; examples: the bundled files in ``robots/``)::
 
     name = "planar3"
     convention = "standard"            # or "modified"
@@ -30,20 +30,20 @@ from __future__ import annotations
 
 import hashlib
 import math
-import sys
+import re
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from pydantic import ValidationError
 
 from .errors import RobotFileError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised only on old interpreters
-    import tomli as tomllib
+from .robot_schema import RobotFile
+from .schemas import IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded
 
 BUNDLED_DIR = Path(str(resources.files("armgen.data") / "robots"))
 
@@ -58,12 +58,23 @@ TASK_ROWS = ("vx", "vy", "vz", "wx", "wy", "wz")
 # them; 1e-12 of a quarter turn is far below any physical tolerance but above the rounding
 # of a degree-to-radian conversion.
 QUARTER_TURN_SNAP = 1e-12
+# Physical bounds of a robot file's values (SI, after unit conversion): a 1 km link or a
+# joint range of 160 turns is a typo, and keeping values this small keeps every product of
+# the generated kinematics far from overflow, also in single precision (FLT_MAX ~ 3e38).
+MAX_ABS_LENGTH_M = 1e3
+MAX_ABS_ANGLE_RAD = 1e3
 
 
 @dataclass(frozen=True)
 class Joint:
-    """One DH joint, SI units. For the modified convention ``a`` and ``alpha`` are
-    ``a_{i-1}`` and ``alpha_{i-1}`` of the row, exactly as written in the file."""
+    """One joint, SI units.
+
+    A DH joint (``origin`` None) uses ``a``, ``d``, ``alpha``, ``offset`` and ``theta``; for
+    the modified convention ``a`` and ``alpha`` are ``a_{i-1}`` and ``alpha_{i-1}`` of the
+    row, exactly as written in the file. A general (URDF) joint has ``origin``, the fixed
+    4×4 transform from the previous joint's frame (or the base) to this joint's frame, and
+    ``axis``, the unit joint axis in that frame; its DH fields are 0.
+    """
 
     name: str
     type: str
@@ -73,14 +84,48 @@ class Joint:
     offset: float
     qlim: tuple[float, float]
     theta: float = 0.0  # fixed joint angle of a prismatic joint (revolute joints: q + offset)
+    origin: np.ndarray | None = field(default=None, compare=False)
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
 
     @property
     def revolute(self) -> bool:
         return self.type == "revolute"
 
+    @property
+    def link_length(self) -> float:
+        """Distance between this joint's frame and the previous one (m), for reach bounds."""
+        if self.origin is not None:
+            return float(np.linalg.norm(self.origin[:3, 3]))
+        return math.hypot(self.a, self.d)
+
 
 @dataclass(frozen=True)
 class Robot:
+    """A serial robot, SI units: joints, base and tool transforms, named configurations.
+
+    Load one with :func:`armgen.load_robot` (bundled name, robot TOML or URDF) or
+    :meth:`Robot.from_urdf`. The NumPy methods (:meth:`fk`, :meth:`jacobian`, …) take ``q``
+    of shape ``(n,)`` or ``(..., n)`` and evaluate a batch in one vectorised pass; named
+    configurations are attributes (``robot.q0``).
+
+    Attributes
+    ----------
+    name, description
+        Identifier (also the default C prefix) and one line of text.
+    convention
+        ``"standard"`` or ``"modified"`` DH, or ``"urdf"`` (joints with origin and axis).
+    joints
+        The moving joints, base to tip.
+    base, tool
+        4×4 homogeneous transforms before the first joint and after the last.
+    configurations
+        Named joint vectors (rad / m).
+    task_rows
+        Rows of ``[vx, vy, vz, wx, wy, wz]`` the planners track.
+    source, sha256
+        The file it was read from and the SHA-256 of its bytes (and of the URDF it references).
+    """
+
     name: str
     convention: str
     joints: tuple[Joint, ...]
@@ -92,6 +137,34 @@ class Robot:
     sha256: str  # of the file's bytes
     description: str = ""
     units: dict[str, str] = field(default_factory=dict)
+    urdf: dict[str, str] = field(default_factory=dict)  # file, base_link, tip_link of a URDF robot
+    _cache: dict[str, Any] = field(default_factory=dict, init=False, compare=False, repr=False)
+
+    @classmethod
+    def from_urdf(cls, path: str | Path, base_link: str | None = None, tip_link: str | None = None) -> Robot:
+        """Read the serial chain from ``base_link`` to ``tip_link`` of a URDF file.
+
+        Parameters
+        ----------
+        path
+            The URDF file.
+        base_link, tip_link
+            The chain's ends; None infers them when the file holds a single chain.
+
+        Returns
+        -------
+        Robot
+            Convention ``"urdf"``, tool = the tip link frame, configurations ``qz`` (zeros,
+            when inside the limits) and ``qmid`` (middle of the limits).
+
+        Raises
+        ------
+        RobotFileError
+            The file is missing, malformed or has no usable chain (see :mod:`armgen.urdf`).
+        """
+        path = Path(path)
+        data = _read_bounded(path)
+        return _urdf_robot(path, data, base_link, tip_link, hashlib.sha256(data).hexdigest())
 
     @property
     def n(self) -> int:
@@ -105,7 +178,32 @@ class Robot:
     def qmax(self) -> np.ndarray:
         return np.array([j.qlim[1] for j in self.joints])
 
+    @property
+    def qmid(self) -> np.ndarray:
+        """The middle of the joint ranges (also a named configuration of URDF robots)."""
+        return 0.5 * (self.qmin + self.qmax)
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        # Only reached when normal lookup fails: named configurations as attributes.
+        if name.startswith("_") or name == "configurations":
+            raise AttributeError(name)
+        if name in self.configurations:
+            return self.configurations[name].copy()
+        raise AttributeError(f"robot '{self.name}' has no attribute or configuration '{name}' "
+                             f"(configurations: {', '.join(sorted(self.configurations)) or 'none'})")
+
+    def __dir__(self) -> list[str]:
+        return sorted(set(super().__dir__()) | set(self.configurations))
+
+    def __getstate__(self) -> dict[str, Any]:
+        # The evaluator cache holds CasADi SX functions, which do not pickle; it is rebuilt on use.
+        return {**self.__dict__, "_cache": {}}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+
     def configuration(self, name: str) -> np.ndarray:
+        """A copy of the named configuration; a clear error names the known ones."""
         if name not in self.configurations:
             known = ", ".join(sorted(self.configurations)) or "none"
             raise RobotFileError(
@@ -129,6 +227,128 @@ class Robot:
                     f"[{_fmt_joint(joint, lo)}, {_fmt_joint(joint, hi)}]; choose a start inside the limits"
                 )
 
+    # -- NumPy evaluation (vectorised over leading batch axes) -------------------------
+    def _numeric(self):
+        # The numeric methods are a facade over the symbolic layer, imported on first use so
+        # that loading a robot needs no CasADi; the evaluator is cached per robot.
+        if "numeric" not in self._cache:
+            from .symbolic.numeric import NumericModel
+
+            self._cache["numeric"] = NumericModel(self)
+        return self._cache["numeric"]
+
+    def fk(self, q: ArrayLike) -> np.ndarray:
+        """Tool pose in the base frame.
+
+        Parameters
+        ----------
+        q
+            Joint values (rad / m), shape ``(n,)`` or ``(..., n)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            Homogeneous transforms, shape ``(4, 4)`` or ``(..., 4, 4)``.
+        """
+        return self._numeric().evaluate("fk", q)["T"]
+
+    def jacobian(self, q: ArrayLike) -> np.ndarray:
+        """Geometric Jacobian: rows ``[v; ω]`` of the tool origin in the base frame.
+
+        Parameters
+        ----------
+        q
+            Joint values, shape ``(n,)`` or ``(..., n)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape ``(6, n)`` or ``(..., 6, n)`` (all six rows, whatever ``task_rows`` says).
+        """
+        return self._numeric().evaluate("jacobian", q)["J"]
+
+    def fk_jacobian(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`fk` and :meth:`jacobian` in one pass (shared trigonometry)."""
+        out = self._numeric().evaluate("fk_jacobian", q)
+        return out["T"], out["J"]
+
+    def manipulability(self, q: ArrayLike, delta: float = 0.0) -> np.ndarray:
+        """Manipulability ``w = sqrt(det(J Jᵀ) + δ²)`` on the task rows.
+
+        Parameters
+        ----------
+        q
+            Joint values, shape ``(n,)`` or ``(..., n)``.
+        delta
+            Regularisation ``δ`` (0: Yoshikawa's measure).
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape ``()`` or ``(...)``.
+        """
+        return self._numeric().evaluate("manipulability", q, delta=delta)["w"]
+
+    def manipulability_gradient(self, q: ArrayLike, delta: float = 0.0) -> np.ndarray:
+        """Gradient of :meth:`manipulability` with respect to ``q``, shape ``(n,)`` or ``(..., n)``.
+        Use ``delta > 0`` near singular poses, where ``w`` is not differentiable."""
+        return self._numeric().evaluate("manipulability", q, delta=delta)["grad_w"]
+
+    def joint_limit_criterion(self, q: ArrayLike) -> np.ndarray:
+        """Zghal's joint-limit criterion ``H_L = Σ (q_max − q_min)² / ((q_max − q)(q − q_min))``,
+        shape ``()`` or ``(...)``; ``2n`` at mid-range, growing without bound at a limit."""
+        return self._numeric().evaluate("zghal", q)["H_L"]
+
+    def joint_limit_gradient(self, q: ArrayLike) -> np.ndarray:
+        """Gradient of :meth:`joint_limit_criterion`, shape ``(n,)`` or ``(..., n)``."""
+        return self._numeric().evaluate("zghal", q)["grad_H_L"]
+
+    def repetitive_criterion(self, q: ArrayLike, q_init: ArrayLike) -> np.ndarray:
+        """Repetitive criterion ``H_R = ½‖q − q_init‖²``, shape ``()`` or ``(...)``."""
+        return self._numeric().evaluate("repetitive", q, q_init=q_init)["H_R"]
+
+    def repetitive_gradient(self, q: ArrayLike, q_init: ArrayLike) -> np.ndarray:
+        """Gradient of :meth:`repetitive_criterion` (``q − q_init``), shape ``(n,)`` or ``(..., n)``."""
+        return self._numeric().evaluate("repetitive", q, q_init=q_init)["grad_H_R"]
+
+    def joint_manipulability(self, q: ArrayLike, weights: ArrayLike | None = None,
+                             delta: float = 0.0) -> dict[str, np.ndarray]:
+        """Joint manipulability (spec 30): the manipulability left when joint i locks.
+
+        Parameters
+        ----------
+        q
+            Joint values, shape ``(n,)`` or ``(..., n)``.
+        weights
+            The ``a_i`` of ``H_M = Σ a_i ω_i`` (default all 1).
+        delta
+            Regularisation ``δ`` of ``ω_i = sqrt(det(J₋ᵢ J₋ᵢᵀ) + δ²)``.
+
+        Returns
+        -------
+        dict
+            ``omega`` ``(..., n)``, ``H_M`` ``(...)`` and ``grad_H_M`` ``(..., n)``.
+        """
+        a = np.ones(self.n) if weights is None else weights
+        return self._numeric().evaluate("joint_manipulability", q, a=a, delta=delta)
+
+    def within_limits(self, q: ArrayLike) -> np.ndarray:
+        """True where every joint value is finite and inside ``[qmin, qmax]``.
+
+        Parameters
+        ----------
+        q
+            Joint values, shape ``(n,)`` or ``(..., n)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            Booleans of shape ``()`` or ``(...)``.
+        """
+        q = np.asarray(q, dtype=float)
+        if q.ndim == 0 or q.shape[-1] != self.n:
+            raise ValueError(f"q must have shape (n,) or (..., n) with n = {self.n}, got {q.shape}")
+        return np.all((q >= self.qmin) & (q <= self.qmax), axis=-1)
 
 def _fmt_joint(joint: Joint, value: float) -> str:
     return f"{math.degrees(value):.4g} deg" if joint.revolute else f"{value * 1e3:.4g} mm"
@@ -243,6 +463,8 @@ def _transform(reader: _Reader, doc: dict, key: str, length_scale: float, angle_
     if unknown:
         raise reader.fail(where, f"unknown field(s) {', '.join(sorted(unknown))}; allowed: xyz, rpy")
     xyz = np.array(reader.vector(table, "xyz", where, 3, [0.0, 0.0, 0.0])) * length_scale
+    if np.max(np.abs(xyz)) > MAX_ABS_LENGTH_M:
+        raise reader.fail(where, f"field 'xyz' is beyond ±{MAX_ABS_LENGTH_M:g} m; check [units] length and the value")
     rpy = [snap_quarter_turn(v * angle_scale) for v in reader.vector(table, "rpy", where, 3, [0.0, 0.0, 0.0])]
     out = np.eye(4)
     out[:3, :3] = rpy_matrix(*rpy)
@@ -250,20 +472,47 @@ def _transform(reader: _Reader, doc: dict, key: str, length_scale: float, angle_
     return out
 
 
-_TOP_FIELDS = {"name", "description", "convention", "units", "joints", "base", "tool", "configurations", "task_rows"}
 _JOINT_FIELDS = {"name", "type", "a", "d", "alpha", "offset", "qlim", "theta"}
 
 
-def parse_robot(text: str, source: str, sha256: str | None = None) -> Robot:
-    """Parse robot TOML text. ``source`` names the file in error messages."""
-    reader = _Reader(source)
+def _robot_place(doc: dict[str, Any], loc: tuple) -> str:
+    """How robot-file errors name a place: 'file', '[units]', "joint 2 ('elbow')"."""
+    if not loc:
+        return "file"
+    if loc[0] == "joints" and len(loc) > 1 and isinstance(loc[1], int):
+        raw = doc["joints"][loc[1]]
+        name = raw.get("name") if isinstance(raw, dict) else None
+        valid = isinstance(name, str) and re.fullmatch(IDENTIFIER_PATTERN, name)
+        label = f"joint {loc[1] + 1}" + (f" ('{name}')" if valid else "")
+        return label + "".join(f".{p}" for p in loc[2:])
+    return "[" + ".".join(str(p) for p in loc) + "]"
+
+
+def validate_robot_document(doc: dict[str, Any], source: str) -> RobotFile:
+    """Check a parsed robot file against :class:`RobotFile` (keys, types, finite numbers, name rules)."""
     try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise RobotFileError(f"{source}: not valid TOML: {exc}") from None
-    unknown = set(doc) - _TOP_FIELDS
-    if unknown:
-        raise reader.fail("file", f"unknown field(s) {', '.join(sorted(unknown))}; allowed: {', '.join(sorted(_TOP_FIELDS))}")
+        return RobotFile.model_validate(doc)
+    except ValidationError as exc:
+        raise RobotFileError(format_validation_error(exc, source, doc, where=lambda loc: _robot_place(doc, loc))) from None
+
+
+def _task_rows(reader: _Reader, doc: dict) -> tuple[int, ...]:
+    task_rows_raw = doc.get("task_rows", list(TASK_ROWS))
+    if not isinstance(task_rows_raw, list) or not task_rows_raw or any(r not in TASK_ROWS for r in task_rows_raw) \
+            or len(set(task_rows_raw)) != len(task_rows_raw):
+        raise reader.fail("file", f"task_rows = {task_rows_raw!r} must be a non-empty list of distinct names from {', '.join(TASK_ROWS)}")
+    return tuple(sorted(TASK_ROWS.index(r) for r in task_rows_raw))
+
+
+def parse_robot(text: str, source: str, sha256: str | None = None, directory: Path | None = None) -> Robot:
+    """Parse robot TOML text. ``source`` names the file in error messages; ``directory``
+    resolves a relative ``urdf`` reference (default: the current directory)."""
+    reader = _Reader(source)
+    doc = parse_toml_bounded(text, source, RobotFileError)
+    sha256 = sha256 or hashlib.sha256(text.encode()).hexdigest()
+    if "urdf" in doc:
+        return _parse_urdf_robot_file(reader, doc, sha256, directory or Path("."))
+    validate_robot_document(doc, source)
     name = reader.string(doc, "name", "file")
     description = reader.string(doc, "description", "file", default="-")
     convention = reader.string(doc, "convention", "file", CONVENTIONS)
@@ -300,6 +549,15 @@ def parse_robot(text: str, source: str, sha256: str | None = None) -> Robot:
         lo, hi = qlim[0] * q_scale, qlim[1] * q_scale
         if not lo < hi:
             raise reader.fail(where, f"qlim = {qlim} is empty or reversed; write [lower, upper] with lower < upper")
+        q_is_angle = jtype == "revolute"
+        for key in ("a", "d", "alpha", "offset", "theta", "qlim"):
+            is_angle = key in ("alpha", "theta") or (key in ("offset", "qlim") and q_is_angle)
+            scale, bound, unit = (as_, MAX_ABS_ANGLE_RAD, "rad") if is_angle else (ls, MAX_ABS_LENGTH_M, "m")
+            values = raw.get(key, 0.0)
+            for value in values if isinstance(values, list) else [values]:
+                if abs(value * scale) > bound:
+                    raise reader.fail(where, f"field '{key}' = {value} is beyond ±{bound:g} {unit}; check the units "
+                                             "([units] length/angle) and the value")
         joints.append(Joint(
             name=jname,
             type=jtype,
@@ -318,11 +576,7 @@ def parse_robot(text: str, source: str, sha256: str | None = None) -> Robot:
         vec = np.array(reader.vector({cname: values}, cname, "[configurations]", len(joints))) * q_scales
         configurations[cname] = vec
 
-    task_rows_raw = doc.get("task_rows", list(TASK_ROWS))
-    if not isinstance(task_rows_raw, list) or not task_rows_raw or any(r not in TASK_ROWS for r in task_rows_raw) \
-            or len(set(task_rows_raw)) != len(task_rows_raw):
-        raise reader.fail("file", f"task_rows = {task_rows_raw!r} must be a non-empty list of distinct names from {', '.join(TASK_ROWS)}")
-    task_rows = tuple(sorted(TASK_ROWS.index(r) for r in task_rows_raw))
+    task_rows = _task_rows(reader, doc)
 
     robot = Robot(
         name=name,
@@ -333,7 +587,7 @@ def parse_robot(text: str, source: str, sha256: str | None = None) -> Robot:
         configurations=configurations,
         task_rows=task_rows,
         source=source,
-        sha256=sha256 or hashlib.sha256(text.encode()).hexdigest(),
+        sha256=sha256,
         description=description,
         units={"length": length_unit, "angle": angle_unit},
     )
@@ -349,27 +603,138 @@ def bundled_robots() -> list[str]:
 def resolve_robot_path(name_or_path: str | Path) -> Path:
     """A bundled robot name or a path to a robot file."""
     candidate = Path(name_or_path)
-    if candidate.suffix == ".toml" or candidate.exists():
-        if not candidate.is_file():
-            raise RobotFileError(f"{candidate}: robot file not found")
-        return candidate
-    bundled = BUNDLED_DIR / f"{name_or_path}.toml"
-    if bundled.is_file():
-        return bundled
+    try:
+        if candidate.suffix == ".toml" or candidate.exists():
+            if not candidate.is_file():
+                raise RobotFileError(f"{candidate}: robot file not found")
+            return candidate
+        bundled = BUNDLED_DIR / f"{name_or_path}.toml"
+        if re.fullmatch(IDENTIFIER_PATTERN, str(name_or_path)) and bundled.is_file():
+            return bundled
+    except (OSError, ValueError) as exc:  # a name too long for the file system, a NUL byte, no permission
+        raise RobotFileError(f"{str(candidate)[:80]}: not a readable robot file ({exc.strerror or exc}); give a "
+                             f"bundled name ({', '.join(bundled_robots())}) or a path") from None
     raise RobotFileError(
         f"unknown robot '{name_or_path}': not a file and not bundled (bundled: {', '.join(bundled_robots())})"
     )
 
 
 def load_robot(name_or_path: str | Path) -> Robot:
+    """A robot by bundled name, robot TOML path or URDF path (``.urdf``: see :meth:`Robot.from_urdf`)."""
+    if Path(name_or_path).suffix.lower() == ".urdf":
+        return Robot.from_urdf(name_or_path)
     path = resolve_robot_path(name_or_path)
-    data = path.read_bytes()
+    data = _read_bounded(path)
+    source = path.name if path.parent == BUNDLED_DIR else str(path)
+    return parse_robot(_decode(path, data), source, hashlib.sha256(data).hexdigest(), path.parent)
+
+
+def _read_bounded(path: Path) -> bytes:
+    """The bytes of a robot or URDF file, refusing a missing, unreadable or oversized one."""
     try:
-        text = data.decode("utf-8")
+        if path.stat().st_size > MAX_INPUT_FILE_BYTES:
+            raise RobotFileError(f"{path}: larger than the {MAX_INPUT_FILE_BYTES} bytes a robot file may have")
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise RobotFileError(f"{path}: robot file not found") from None
+    except OSError as exc:
+        raise RobotFileError(f"{path}: cannot read the robot file: {exc.strerror or exc}") from None
+
+
+def _decode(path: Path, data: bytes) -> str:
+    try:
+        return data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise RobotFileError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    source = path.name if path.parent == BUNDLED_DIR else str(path)
-    return parse_robot(text, source, hashlib.sha256(data).hexdigest())
+
+
+# -- URDF robots ------------------------------------------------------------------------
+
+# A robot name becomes the default C prefix and output directory: letters, digits, _ and -.
+_ROBOT_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
+_URDF_TOP_FIELDS = {"name", "description", "urdf", "base_link", "tip_link", "units", "base", "tool",
+                    "configurations", "task_rows", "limits"}
+
+
+def _urdf_robot(path: Path, data: bytes, base_link: str | None, tip_link: str | None, sha256: str,
+                reader: _Reader | None = None, doc: dict | None = None) -> Robot:
+    """A Robot from URDF bytes; ``doc`` is the referencing robot file's table (None: URDF alone)."""
+    from .urdf import parse_urdf
+
+    chain = parse_urdf(_decode(path, data), str(path), base_link, tip_link)
+    doc = doc or {}
+    reader = reader or _Reader(str(path))
+    name = reader.string(doc, "name", "file", default=chain.robot_name)
+    if not _ROBOT_NAME.fullmatch(name):
+        raise reader.fail("file", f"robot name {name!r} must be a letter then letters, digits, _ or - "
+                                  "(at most 64); set name = \"…\" in a robot file that references the URDF")
+    units = reader.table(doc, "units", "file")
+    unknown_units = set(units) - {"length", "angle"}
+    if unknown_units:
+        raise reader.fail("[units]", f"unknown field(s) {', '.join(sorted(unknown_units))}; allowed: length, angle")
+    length_unit = reader.string(units, "length", "[units]", tuple(LENGTH_UNITS), default="m")
+    angle_unit = reader.string(units, "angle", "[units]", tuple(ANGLE_UNITS), default="rad")
+    ls, as_ = LENGTH_UNITS[length_unit], ANGLE_UNITS[angle_unit]
+    q_scales = np.array([ls if j.type == "prismatic" else as_ for j in chain.joints])
+
+    limits = reader.table(doc, "limits", "file")
+    names = [j.name for j in chain.joints]
+    unknown_limits = set(limits) - set(names)
+    if unknown_limits:
+        raise reader.fail("[limits]", f"no joint named {', '.join(sorted(unknown_limits))} on the chain "
+                                      f"(joints: {', '.join(names)})")
+    joints = []
+    for j, scale in zip(chain.joints, q_scales):
+        qlim = j.qlim
+        if j.name in limits:
+            lo, hi = (v * scale for v in reader.vector(limits, j.name, "[limits]", 2))
+            if not lo < hi:
+                raise reader.fail("[limits]", f"{j.name} = {limits[j.name]} is empty or reversed; write [lower, upper]")
+            qlim = (lo, hi)
+        joints.append(Joint(name=j.name, type="prismatic" if j.type == "prismatic" else "revolute",
+                            a=0.0, d=0.0, alpha=0.0, offset=0.0, qlim=qlim, origin=j.origin, axis=j.axis))
+
+    qmin, qmax = np.array([j.qlim[0] for j in joints]), np.array([j.qlim[1] for j in joints])
+    configurations: dict[str, np.ndarray] = {"qmid": 0.5 * (qmin + qmax)}
+    if np.all((qmin <= 0.0) & (qmax >= 0.0)):
+        configurations["qz"] = np.zeros(len(joints))
+    for cname, values in reader.table(doc, "configurations", "file").items():
+        configurations[cname] = np.array(reader.vector({cname: values}, cname, "[configurations]", len(joints))) * q_scales
+
+    robot = Robot(
+        name=name,
+        convention="urdf",
+        joints=tuple(joints),
+        base=_transform(reader, doc, "base", ls, as_),
+        tool=chain.tip @ _transform(reader, doc, "tool", ls, as_),
+        configurations=configurations,
+        task_rows=_task_rows(reader, doc),
+        source=reader.source,
+        sha256=sha256,
+        description=reader.string(doc, "description", "file", default=f"URDF {path.name}: {chain.base_link} -> {chain.tip_link}"),
+        units={"length": length_unit, "angle": angle_unit},
+        urdf={"file": str(path), "base_link": chain.base_link, "tip_link": chain.tip_link},
+    )
+    for cname, vec in configurations.items():
+        robot.check_within_limits(vec, f"{reader.source}: [configurations] {cname}")
+    return robot
+
+
+def _parse_urdf_robot_file(reader: _Reader, doc: dict, sha256: str, directory: Path) -> Robot:
+    """A robot file that references a URDF: ``urdf``, ``base_link``, ``tip_link`` plus the
+    usual name, units, base, tool, configurations, task_rows and a ``[limits]`` table."""
+    unknown = set(doc) - _URDF_TOP_FIELDS
+    if unknown:
+        raise reader.fail("file", f"unknown field(s) {', '.join(sorted(unknown))} for a robot that references a URDF; "
+                                  f"allowed: {', '.join(sorted(_URDF_TOP_FIELDS))}")
+    urdf_path = directory / reader.string(doc, "urdf", "file")
+    if not urdf_path.is_file():
+        raise reader.fail("urdf", f"URDF file {urdf_path} not found (the path is relative to the robot file)")
+    data = _read_bounded(urdf_path)
+    base_link = reader.string(doc, "base_link", "file") if "base_link" in doc else None
+    tip_link = reader.string(doc, "tip_link", "file") if "tip_link" in doc else None
+    combined = hashlib.sha256((sha256 + hashlib.sha256(data).hexdigest()).encode()).hexdigest()
+    return _urdf_robot(urdf_path, data, base_link, tip_link, combined, reader, doc)
 
 
 def load_robot_any(robot: Robot | str | Path) -> Robot:

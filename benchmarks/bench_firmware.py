@@ -20,6 +20,11 @@ For the joint controller of firmware_stub/ running spec 20's combined plan on mo
    best wall time of 20 runs, against the Python planner (symbolic backend, timed in this
    run) and the paper's 0.12 s.
 4. Replay errors of those runs against the plan (host double, host float, QEMU float).
+5. Every controller mode (issue 13): per mode, on modular8, float, the Cortex-M4F build —
+   executed instructions per tick (mean, max, max/mean), µs per tick at 168 MHz, flash
+   (controller.o + the generated functions the mode calls), RAM (sizeof(ctrl)), stack
+   (-fstack-usage worst static chain of the mode's tick, and the peak measured under QEMU);
+   ratios against RESOLVED_RATE measured in the same run. ``--modes-only`` runs just this.
 
 Bars (reported, not asserted): BARS. A missing tool skips its rows. About a minute on 2 cores.
 """
@@ -52,7 +57,53 @@ from armgen.verify import firmware as fw  # noqa: E402
 
 EXAMPLE = REPO / "examples" / "modular8_circle_combined.toml"
 PAPER_SECONDS = 0.12
-BARS = {"m4_instr_per_tick": 5000, "host_plan_ms": 20.0}
+BARS = {"m4_instr_per_tick": 5000, "host_plan_ms": 20.0, "ft_instr_per_tick_max": 12000,
+        "wgpm_instr_per_tick_max": 14000, "max_over_mean": 1.1}
+# Section 5: one plan per controller mode (modular8). Generated functions per mode.
+MODE_PLANS = {
+    "RESOLVED_RATE": ("modular8_circle_combined", ["path.type=line", "path.end=[-450, 400, 900]",
+                                                   "timing.duration=5", "method.theta_s=75", "method.T_smo_L=0.5",
+                                                   "method.T_sum_L=1", "method.rho_L=0.01"]),
+    "PLAYBACK": ("PTP_MODULAR8", []),
+    "FAULT_TOLERANT gpm": ("modular8_fault_circle_gpm", []),
+    "FAULT_TOLERANT wln smooth": ("modular8_fault_circle_wln", []),
+    "FAULT_TOLERANT wln plain": ("modular8_fault_circle_wln", ["method.weight_rule=plain"]),
+    "WEIGHTED_GPM": ("modular8_wgpm_demo", []),
+}
+# Eight joints, two segments, 3-4-5 polynomials, 1 ms samples (tests/test_firmware.py's PTP task).
+PTP_MODULAR8 = """
+planner = "ptp"
+robot = "modular8"
+method = "3-4"
+step = 0.001
+[units]
+angle = "deg"
+[waypoints]
+t = [0, 1.5, 3]
+[waypoints.theta]
+j1 = [-57, -40, -30]
+j2 = [-45, -50, -60]
+j3 = [71, 80, 90]
+j4 = [-45, -30, -20]
+j5 = [32, 40, 50]
+j6 = [80, 60, 40]
+j7 = [34, 30, 20]
+j8 = [-28, -10, 0]
+[waypoints.omega]
+j1 = [0, 8, 0]
+j2 = [0, -8, 0]
+j3 = [0, 8, 0]
+j4 = [0, 8, 0]
+j5 = [0, 8, 0]
+j6 = [0, -8, 0]
+j7 = [0, -8, 0]
+j8 = [0, 8, 0]
+"""
+MODE_FUNCTIONS = {"RESOLVED_RATE": ("fk_jacobian", "zghal", "repetitive", "step_gpm"), "PLAYBACK": (),
+                  "FAULT_TOLERANT": ("fk_jacobian", "ft_index", "wln_weights", "step_fault"),
+                  "WEIGHTED_GPM": ("fk_jacobian", "step_wgpm")}
+MODE_TICK = {"RESOLVED_RATE": "tick_resolved_rate", "PLAYBACK": "tick_playback",
+             "FAULT_TOLERANT": "tick_fault_tolerant", "WEIGHTED_GPM": "tick_weighted_gpm"}
 HOST_REPEATS = 20
 # A short plan with every operator active (windows open and close, alpha_R and gamma_R ramp):
 # the instruction trace of its 251 ticks gives the per-function split.
@@ -151,7 +202,7 @@ def stack_usage(obj_dir: Path) -> dict[str, int]:
     return out
 
 
-def worst_chain(obj_dir: Path, root: str = "ctrl_tick") -> tuple[int, list[str], list[str]]:
+def worst_chain(obj_dir: Path, root: str = "ctrl_tick", avoid: tuple[str, ...] = ()) -> tuple[int, list[str], list[str]]:
     """Deepest stack from root over the -fcallgraph-info=su graphs; functions without a
     frame size (libm) are listed as unknown and count 0."""
     size: dict[str, int] = {}
@@ -176,6 +227,8 @@ def worst_chain(obj_dir: Path, root: str = "ctrl_tick") -> tuple[int, list[str],
             return 0, [f]
         best, path = 0, []
         for g in edges.get(f, ()):
+            if g in avoid:  # another mode's tick: not on this mode's chain
+                continue
             d, p = depth(g, seen + (f,))
             if d > best:
                 best, path = d, p
@@ -240,6 +293,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default=str(HERE / "results" / "firmware.json"))
     ap.add_argument("--keep", action="store_true", help="keep the build directory")
+    ap.add_argument("--modes-only", action="store_true", help="only section 5 (every controller mode)")
     args = ap.parse_args(argv)
     os.environ["ARMGEN_NO_PROGRESS"] = "1"
     started = time.perf_counter()
@@ -256,6 +310,10 @@ def main(argv=None) -> int:
     print(f"armgen firmware benchmark, build dir {work}")
 
     state: dict = {}
+    if args.modes_only:
+        rep.section("modes", "5. Every controller mode, modular8, Cortex-M4F float (QEMU -icount):",
+                    lambda: modes_table(rep, work, fw.FirmwareBuilder("modular8", work / "fw")))
+        return finish(rep, args, work, started)
 
     def planning():
         task, sha = load_task(EXAMPLE)
@@ -398,7 +456,64 @@ def main(argv=None) -> int:
             rep.row(f"{label}: max |Δ task error|", cmp.max_dtask, "m", f"bound {bt:g}; end {r.state}/{r.fault}")
 
     rep.section("replay", "4. Replay of the 12 500-step plan against the plan CSV:", replays)
+    rep.section("modes", "5. Every controller mode, modular8, Cortex-M4F float (QEMU -icount):",
+                lambda: modes_table(rep, work, builder))
     return finish(rep, args, work, started)
+
+
+def mode_task(label: str, work: Path):
+    name, overrides = MODE_PLANS[label]
+    if name == "PTP_MODULAR8":
+        path = work / "ptp_modular8.toml"
+        path.write_text(PTP_MODULAR8)
+    else:
+        path = REPO / "examples" / f"{name}.toml"
+    task, sha = load_task(path)
+    apply_overrides(task, list(overrides))
+    if task["planner"] == "ptp":
+        return fw.task_from_plan(run_task(task, name, sha), name)
+    return fw.task_from_dict(task, name)
+
+
+def modes_table(rep: Report, work: Path, builder) -> None:
+    """Section 5: every controller mode on the same Cortex-M4F build."""
+    tool("arm-none-eabi-gcc")
+    tool("qemu-system-arm")
+    modes = rep.data.setdefault("modes", {})
+    variant = dataclasses.replace(fw.ARM_VARIANT, print_rows=False, extra=("-fcallgraph-info=su",))
+    elf = None
+    for label in MODE_PLANS:
+        task = mode_task(label, work)
+        elf = builder.executable(variant, task, "mode_" + re.sub(r"\W", "", label))
+        r = fw.run_qemu(elf)
+        ipt = fw.instructions_per_tick(r)
+        mode = label.split()[0]
+        modes[label] = {"mean": ipt["mean"], "max": ipt["max"], "ticks": ipt["ticks"], "end": f"{r.state}/{r.fault}",
+                        "stack_peak_bytes": int(r.summary["stack_peak_bytes"]), "sizeof_ctrl": int(r.summary["sizeof_ctrl"]),
+                        "mode": mode}
+    obj_dir = builder.object_dir(variant)
+    syms = linked_symbols(elf)
+    ctrl = flash_ram(obj_dir / "controller.o")
+    ptp = syms.get("fw_ptp_eval", 0)
+    ref = modes["RESOLVED_RATE"]
+    print(f"  {'mode':<28} {'instr/tick mean':>15} {'max':>8} {'max/mean':>8} {'µs@168MHz':>10} {'vs RR':>6} "
+          f"{'flash B':>8} {'RAM B':>6} {'stack B static/peak':>20}")
+    for label, m in modes.items():
+        mode = m["mode"]
+        gen = sum(syms.get(f"{builder.prefix}_{f}", 0) for f in MODE_FUNCTIONS[mode]) + (ptp if mode == "PLAYBACK" else 0)
+        others = tuple(t for k, t in MODE_TICK.items() if k != mode)
+        static, path, _unknown = worst_chain(obj_dir, avoid=others)
+        m.update({"flash_bytes": ctrl["flash"] + gen, "controller_flash": ctrl["flash"], "generated_flash": gen,
+                  "stack_static_bytes": static, "stack_chain": path, "max_over_mean": m["max"] / m["mean"],
+                  "us_per_tick_168MHz": m["max"] / 168.0, "vs_resolved_rate": m["mean"] / ref["mean"]})
+        bar = BARS["ft_instr_per_tick_max"] if mode == "FAULT_TOLERANT" else (
+            BARS["wgpm_instr_per_tick_max"] if mode == "WEIGHTED_GPM" else None)
+        note = f"; bar max <= {bar}: {'meets' if m['max'] <= bar else 'ABOVE'}" if bar else ""
+        print(f"  {label:<28} {m['mean']:>15.0f} {m['max']:>8.0f} {m['max_over_mean']:>8.3f} "
+              f"{m['us_per_tick_168MHz']:>10.1f} {m['vs_resolved_rate']:>6.2f} {m['flash_bytes']:>8} "
+              f"{m['sizeof_ctrl']:>6} {static:>10}/{m['stack_peak_bytes']:<9} {m['end']}{note}", flush=True)
+        rep.rows.append((f"mode {label}: instr/tick mean / max", f"{m['mean']:.0f} / {m['max']:.0f}", "instr/tick",
+                         f"max/mean {m['max_over_mean']:.3f}; {m['us_per_tick_168MHz']:.1f} µs at 168 MHz{note}"))
 
 
 def finish(rep: Report, args, work: Path, started: float) -> int:

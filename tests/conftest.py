@@ -2,7 +2,7 @@ import shutil
 
 import pytest
 
-from armgen.robot import bundled_robots, load_robot
+from armgen.robot import load_robot
 
 KINEMATIC_ROBOTS = ["planar3", "iiwa14", "panda", "modular8"]
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from armgen.codegen.generate import REPO_GENERATED_DIR, CodegenConfig, generate, generate_robot
+from armgen.codegen.generate import CodegenConfig, generate, generate_robot
 from armgen.codegen.toolchain import ARM_CPU_FLAGS, STRICT_FLAGS
 from armgen.errors import ArmgenError
 from armgen.robot import load_robot
@@ -18,6 +18,8 @@ from armgen.codegen.compiled import CompiledModel, build_library
 from armgen.verify.harness import run_sanitized
 
 from conftest import KINEMATIC_ROBOTS, require_tool
+
+REPO_GENERATED_DIR = Path(__file__).resolve().parent.parent / "generated"  # the checked-in code
 
 SAMPLES = 10_000
 FORBIDDEN_SYMBOLS = {"malloc", "calloc", "realloc", "free", "printf", "fprintf", "puts"}

@@ -13,8 +13,7 @@ from click.testing import CliRunner
 
 from armgen.cli.main import cli
 from armgen.errors import PlanningError, TaskFileError
-from armgen.planning.fault_tolerant.planner import (FaultTolerantPlanner, format_sweep_table, format_verdict_table,
-                                            parse_fault_tolerant_task, run_sweep)
+from armgen.planning.fault_tolerant.planner import FaultTolerantPlanner, parse_fault_tolerant_task
 from armgen.planning.tasks import apply_overrides, load_task, run_task
 from armgen.robot import load_robot
 from armgen.symbolic.model import SymbolicModel
@@ -301,15 +300,21 @@ def test_smooth_weights_do_not_chatter_where_plain_ones_do():
     assert all(c for _, _, c in peaks.values())
 
 
-def test_sweep_prints_the_verdict_table():
-    task = parsed("modular8_fault_circle_gpm", "sweep.K=[0, 2]", "sweep.b=[0.25]", "sweep.rules=['smooth']",
-                  "sweep.joints=[1, 4]")
-    report = run_sweep(task)
-    assert set(report["families"]) == {"gpm", "wln-smooth"}
-    assert len(report["per_lock"]["gpm K=2"]) == 2
-    table = format_verdict_table(report)
-    assert "| gpm K=" in table and "| j4 | yes |" in table
-    assert "**(chosen)**" in format_sweep_table(report)
+def test_sweep_over_gain_and_locked_joint(tmp_path):
+    """`armgen sweep` over K × the locked joint: one row per plan; locking the modular arm's j4
+    completes the task (spec 30's verdict), and a row's summary is that plan's."""
+    import pandas as pd
+
+    out = tmp_path / "sweep.csv"
+    result = CliRunner().invoke(cli, ["sweep", str(EXAMPLES / "modular8_fault_circle_gpm.toml"), "--grid", "method.K=[0, 2]",
+                                      "--grid", "fault.joints=[[1], [4]]", "--workers", "1", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    table = pd.read_csv(out)
+    assert list(zip(table["method.K"], table["fault.joints"])) == [(0, "[1]"), (0, "[4]"), (2, "[1]"), (2, "[4]")]
+    assert list(table["task_completed"]) == [False, True, False, True]
+    single = plan("modular8_fault_circle_gpm", "method.K=2", "fault.joints=[4]").metadata["summary"]
+    for key in ("H_M_before_lock", "peak_ddq_deg_s2", "w_min_after_lock_mm3", "max_pos_error_after_lock_mm"):
+        assert table.iloc[3][key] == pytest.approx(single[key], rel=1e-15), key
 
 
 def test_c_backend_gives_the_same_plan():
@@ -352,17 +357,17 @@ def test_bad_input_is_a_clear_error(override, message):
         plan("iiwa14_fault_circle_gpm", override)
 
 
-def test_sweep_command_line(tmp_path, capsys):
-    from armgen.planning.fault_tolerant.planner import main
+def test_sweep_reports_an_infeasible_start_per_row(tmp_path):
+    """From the paper's start the reach check fails: with check.reach = "error" every run is an
+    exit-3 row; with "report" the runs plan and the rows carry the infeasibility; a bad field is
+    an exit-2 row."""
+    import pandas as pd
 
-    out = tmp_path / "sweep.json"
-    code = main(["--sweep", str(EXAMPLES / "iiwa14_fault_circle_gpm.toml"), "--set", "start=q0", "--set", "sweep.K=[4]",
-                 "--set", "sweep.b=[0.5]", "--set", "sweep.rules=['smooth']", "--set", "sweep.joints=[5]",
-                 "--json", str(out)])
-    text = capsys.readouterr().out
-    assert code == 0 and "INFEASIBLE start" in text and "| gpm K=4 | a5 |" in text
-    import json
-
-    report = json.loads(out.read_text())[str(EXAMPLES / "iiwa14_fault_circle_gpm.toml")]
-    assert report["reach_check"]["feasible"] is False and len(report["per_lock"]["gpm K=4"]) == 1
-    assert main(["--sweep", str(EXAMPLES / "iiwa14_fault_circle_gpm.toml"), "--set", "fault.time=9"]) == 2
+    out = tmp_path / "sweep.csv"
+    args = ["sweep", str(EXAMPLES / "iiwa14_fault_circle_gpm.toml"), "--set", "start=q0", "--workers", "1", "-o", str(out)]
+    result = CliRunner().invoke(cli, [*args, "--grid", "check.reach=['error', 'report']", "--grid", "fault.time=[2, 9]"])
+    assert result.exit_code == 0, result.output
+    table = pd.read_csv(out, keep_default_na=False)
+    assert list(table["exit_code"]) == [3, 2, 0, 2]
+    assert "infeasible" in table.iloc[0]["message"] and "fault.time" in table.iloc[1]["message"]
+    assert "infeasible" in table.iloc[2]["infeasible_start"] and table.iloc[2]["status"] == "ok"

@@ -3,9 +3,11 @@ explicit and never leave a NaN command, the Cortex-M4F build runs under QEMU, PT
 matches the Python evaluation, and the verify stages replay/target use all of it."""
 
 import copy
+import dataclasses
 import json
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -87,7 +89,7 @@ def short_plan(short_task):
 
 def assert_never_nan(run: fw.FirmwareRun, n: int = 8) -> None:
     assert np.all(np.isfinite(run.data)), "the firmware wrote a non-finite value"
-    assert run.data.shape[1] == 2 + 3 * n + 4
+    assert run.data.shape[1] == 2 + 3 * n + 5  # tick, t, q, qd, windows; errors; locked, state, fault
 
 
 # --------------------------------------------------------------------------- replay on the host
@@ -377,3 +379,357 @@ def test_target_stage_fails_naming_the_packages_without_the_toolchain(tmp_path, 
     assert not stage.passed
     assert "gcc-arm-none-eabi" in stage.message and "qemu-system-arm" in stage.message
     assert "libnewlib-arm-none-eabi" in stage.render()
+
+
+# --------------------------------------------------------------------------- spec 30 / 35 on board
+
+FT_EXAMPLES = ["iiwa14_fault_circle_gpm", "iiwa14_fault_circle_wln", "modular8_fault_circle_gpm",
+               "modular8_fault_circle_wln", "modular8_wgpm_demo"]
+RUNTIME_LOCK = {"iiwa14": ("iiwa14_fault_circle_runtime_lock", 5, 1.38),
+                "modular8": ("modular8_fault_circle_runtime_lock", 3, 1.38)}
+
+
+def c_plan(task: dict, source: str):
+    """A plan through the generated C (the backend `armgen verify` replays against)."""
+    os.environ["ARMGEN_NO_PROGRESS"] = "1"
+    return run_task(copy.deepcopy(task), source, backend="c")
+
+
+@pytest.fixture(scope="module")
+def builders(tmp_path_factory, builder):
+    return {"modular8": builder, "iiwa14": fw.FirmwareBuilder("iiwa14", tmp_path_factory.mktemp("firmware_iiwa14"))}
+
+
+@pytest.fixture(scope="module")
+def ft_plans():
+    return {}
+
+
+def example_plan(name: str, cache: dict):
+    if name not in cache:
+        cache[name] = c_plan(example(name), name)
+    return cache[name]
+
+
+@pytest.mark.parametrize("name", FT_EXAMPLES)
+def test_spec30_and_spec35_examples_replay_on_the_host_firmware(builders, ft_plans, name):
+    """Double with ASan/UBSan: max |Δq| ≤ 1e-9 rad over the whole plan (or up to the guard
+    the plan crosses: the elbow-locked iiwa GPM plan leaves the path by 46 mm)."""
+    result = example_plan(name, ft_plans)
+    task = fw.task_from_plan(result, name)
+    assert task.mode == ("weighted_gpm" if "wgpm" in name else "fault_tolerant")
+    run = fw.run_host(builders[task.robot.name].executable(HOST_SAN, task, f"{name}_san"))
+    cmp = fw.compare_with_plan(result, run, task, "double", name)
+    assert cmp.passed, cmp.rows
+    assert cmp.max_dq <= fw.FW_DOUBLE_BOUND_RAD
+    assert_never_nan(run, task.robot.n)
+    if task.lock_tick >= 0:  # the plan's lock, reported by the drive model at its tick
+        by_tick = run.by_tick()
+        k = task.lock_tick
+        if k in by_tick:
+            assert fw.STATE_NAMES[int(by_tick[k][-2])] in ("DEGRADED", "DONE", "FAULT")
+            assert int(by_tick[k][-3]) == task.lock_mask
+    if name == "iiwa14_fault_circle_gpm":
+        assert run.fault == "TRACKING"  # the example's own verdict: elbow locked, task not completed
+
+
+@pytest.mark.arm
+@pytest.mark.parametrize("name", FT_EXAMPLES)
+def test_spec30_and_spec35_examples_replay_under_qemu(builders, ft_plans, name):
+    require_tool("arm-none-eabi-gcc")
+    require_tool("qemu-system-arm")
+    result = example_plan(name, ft_plans)
+    task = fw.task_from_plan(result, name)
+    run = fw.run_qemu(builders[task.robot.name].executable(fw.ARM_VARIANT, task, f"{name}_m4"))
+    cmp = fw.compare_with_plan(result, run, task, "float", name)
+    assert cmp.passed, cmp.rows
+    assert cmp.max_dq <= fw.FW_FLOAT_BOUND_RAD
+    ipt = fw.instructions_per_tick(run)
+    assert ipt["max"] <= 1.1 * ipt["mean"]  # fixed cost per tick (no data-dependent loops)
+
+
+@pytest.mark.parametrize("robot_name", sorted(RUNTIME_LOCK))
+def test_lock_from_the_tick_input_at_a_time_the_plan_did_not_know(builders, robot_name):
+    """The plan has no fault; the drive reports joint J locked at t = 1.38 s. The controller
+    freezes J exactly, runs DEGRADED, keeps the tool within the planner's completion bounds,
+    and does what the planner does when it knows the lock in advance (independent run)."""
+    name, joint, t_lock = RUNTIME_LOCK[robot_name]
+    task_doc = example(name)
+    healthy = c_plan(task_doc, name)
+    assert healthy.metadata["fault"]["first_locked_step"] is None
+    task = fw.schedule_lock(fw.task_from_plan(healthy, name), f"{joint}@{t_lock}")
+    k, j, n = task.lock_tick, joint - 1, task.robot.n
+    assert k == round(t_lock / task.dt) and task.lock_mask == 1 << j
+    run = fw.run_host(builders[robot_name].executable(HOST_SAN, task, f"{name}_runtime_lock"))
+    assert (run.state, run.fault) == ("DONE", "NONE")
+    assert_never_nan(run, n)
+    rows = np.array([run.by_tick()[i] for i in range(task.n_ticks + 1)])
+    state = rows[:, -2].astype(int)
+    assert np.all(state[:k] == fw.STATE_NAMES.index("RUNNING"))
+    assert np.all(state[k:-1] == fw.STATE_NAMES.index("DEGRADED")) and state[-1] == fw.STATE_NAMES.index("DONE")
+    assert np.all(rows[k:, -3] == 1 << j) and np.all(rows[:k, -3] == 0)
+    q, qd = rows[:, 2:2 + n], rows[:, 2 + n:2 + 2 * n]
+    assert np.all(qd[k:, j] == 0.0) and np.all(q[k:, j] == q[k, j])  # exactly frozen
+    # the planner's tracking bound (completion tolerances of the task)
+    comp = healthy.metadata["completion"]
+    assert np.max(run.column("pos_err_m")) <= comp["pos_tol_mm"] * 1e-3
+    assert np.max(run.column("ori_err_rad")) <= math.radians(comp["ori_tol_deg"])
+    # an independent reference: the planner told about this lock in advance
+    told = c_plan(apply_overrides(copy.deepcopy(task_doc), [f"fault.joints=[{joint}]", f"fault.time={t_lock}"]), name)
+    q_told = np.column_stack([told.column(f"q{i + 1}_rad") for i in range(n)])
+    assert np.max(np.abs(q - q_told)) <= fw.FW_DOUBLE_BOUND_RAD
+    # velocities continuous except at the lock: per tick no larger a change than the planner's
+    # own smooth motion (its peak |q̈| excludes the lock transition), the locked joint aside
+    ddq_peak = math.radians(told.metadata["verdict"]["peak_ddq_deg_s2"])
+    steps = np.abs(np.diff(qd, axis=0))
+    others = np.delete(np.arange(n), j)
+    away = np.delete(np.arange(len(steps)), k - 1)
+    assert np.max(steps[np.ix_(away, others)]) <= ddq_peak * task.dt * (1 + 1e-9)
+    # at the lock tick the healthy joints take over J's share of the task (bounded jump)
+    jump = float(np.max(steps[k - 1, others]))
+    assert jump <= math.radians(told.metadata["verdict"]["lock_jump_deg_s"]) * (1 + 1e-9) + 1e-12
+
+
+def test_verify_replay_stage_runs_a_fault_tolerant_plan(ft_plans, tmp_path):
+    """`armgen verify iiwa14 --plan <iiwa14_fault_circle_wln plan>`'s replay stage (it used to
+    fail: "the controller runs cartesian and ptp plans")."""
+    path = tmp_path / "wln.csv"
+    write_plan(example_plan("iiwa14_fault_circle_wln", ft_plans), path)
+    stage = stage_replay(VerifyConfig(load_robot("iiwa14"), path), tmp_path)
+    assert stage.passed, stage.render()
+    assert {"host firmware, double, ASan/UBSan", "host firmware, float"} <= {r[0] for r in stage.rows}
+
+
+def lock_run(builder, task, args, name):
+    run = fw.run_host(builder.executable(HOST_SAN, task, name), args)
+    assert_never_nan(run, task.robot.n)
+    return run
+
+
+def assert_held_inside_limits(run, robot, since_tick):
+    rows = run.data[run.data[:, 0] >= since_tick]
+    n = robot.n
+    assert np.all(rows[:, 2:2 + n] <= robot.qmax) and np.all(rows[:, 2:2 + n] >= robot.qmin)
+    held = run.data[np.flatnonzero(run.column("state") == fw.FAULT_STATE)]
+    assert len(held) and np.all(held[:, 2 + n:2 + 2 * n] == 0.0)
+    assert np.all(held[:, 2:2 + n] == held[0, 2:2 + n])
+
+
+@pytest.mark.parametrize("case, args, fault, tick", [
+    ("joint that does not exist", ["--lock-tick", "30", "--lock-mask", str(1 << 8)], "LOCK_REPORT", 30),
+    ("flags change every tick", ["--lock-tick", "30", "--lock-mask", "8", "--lock-toggle"], "LOCK_REPORT", 31),
+    ("more locks than the redundancy", ["--lock-tick", "30", "--lock-mask", str(0b111)], "REDUNDANCY", 30),
+    ("NaN task input", ["--nan-input", "40"], "NONFINITE_INPUT", 40),
+    ("overrun on the START tick", ["--overrun", "0"], "OVERRUN", 0),
+])
+def test_fault_tolerant_bad_input_is_a_defined_fault(builders, case, args, fault, tick):
+    name = "modular8_fault_circle_runtime_lock"
+    task = fw.task_from_dict(example(name), name)
+    run = lock_run(builders["modular8"], task, args, "runtime_lock_inject")
+    assert (run.state, run.fault) == ("FAULT", fault), case
+    first = int(run.data[np.argmax(run.column("state") == fw.FAULT_STATE), 0])
+    assert first == tick, case
+    assert_held_inside_limits(run, load_robot("modular8"), 0)
+
+
+def test_two_locks_exceed_the_iiwa_redundancy_and_weighted_gpm_takes_no_lock(builders):
+    iiwa = fw.task_from_dict(example(RUNTIME_LOCK["iiwa14"][0]), "iiwa")
+    run = lock_run(builders["iiwa14"], iiwa, ["--lock-tick", "20", "--lock-mask", str(0b10010)], "iiwa_two")
+    assert run.fault == "REDUNDANCY"
+    assert_held_inside_limits(run, load_robot("iiwa14"), 0)
+    one = lock_run(builders["iiwa14"], iiwa, ["--lock-tick", "20", "--lock-mask", str(0b10000)], "iiwa_two")
+    assert (one.state, one.fault) == ("DONE", "NONE")  # one lock is within its redundancy
+    wg = fw.task_from_dict(example("modular8_wgpm_demo", ["timing.duration=5", "method.ramp_time=1"]), "wg")
+    run = lock_run(builders["modular8"], wg, ["--lock-tick", "20", "--lock-mask", "1"], "wgpm_lock")
+    assert run.fault == "REDUNDANCY"
+
+
+def test_planners_the_controller_does_not_run_are_refused():
+    robot = load_robot("modular8")
+    for overrides, what in ((["method.name=pinv"], "comparison baseline"), (["method.name=clamp"], "baseline")):
+        with pytest.raises(fw.FirmwareError, match=what):
+            fw.task_from_dict(example("modular8_wgpm_demo", overrides), "wg")
+    with pytest.raises(fw.FirmwareError, match="sigma_min"):
+        fw.task_from_dict(example("modular8_fault_circle_wln", ["method.index=sigma_min"]), "ft")
+    with pytest.raises(fw.FirmwareError, match="not planner 'snake'"):
+        fw.task_from_plan(type("P", (), {"metadata": {"planner": "snake"}})(), "snake.csv", robot)
+
+
+# --------------------------------------------------------------------------- hardening (issue 11)
+
+def with_field(task: fw.FirmwareTask, name: str, value: str) -> fw.FirmwareTask:
+    """The task with one top-level field of fw_task rewritten (a careless configuration)."""
+    header, count = re.subn(rf"\.{name} = [^,]+,", f".{name} = {value},", task.header, count=1)
+    assert count == 1
+    return dataclasses.replace(task, header=header)
+
+
+@pytest.fixture(scope="module")
+def ptp_task(tmp_path_factory):
+    path = tmp_path_factory.mktemp("ptp") / "ptp.toml"
+    path.write_text(PTP_MODULAR8)
+    task, _ = load_task(path)
+    result = plan(task, "ptp")
+    return result, fw.task_from_plan(result, "ptp")
+
+
+def test_playback_period_that_does_not_fit_the_knots_is_refused(builder, ptp_task):
+    """dt 1.5 ms instead of the plan's 1 ms: the old controller jumped joints by 33-40° in one
+    tick and ended DONE; now ctrl_init refuses it and holds the start (inside the limits)."""
+    result, task = ptp_task
+    for dt in ("CTRL_LIT(0.0015)", "CTRL_LIT(0.0005)"):
+        run = fw.run_host(builder.executable(HOST_SAN, with_field(task, "dt", dt), "ptp_bad_dt"))
+        assert (run.summary["init"], run.fault) == ("BAD_CONFIG", "BAD_CONFIG")
+        assert_never_nan(run)
+        q_start = [result.column(f"theta_j{i}_rad")[0] for i in range(1, 9)]
+        assert np.max(np.abs(run.data[:, 2:10] - q_start)) <= 1e-15
+
+
+def test_playback_enforces_qdot_max(builder, ptp_task):
+    result, task = ptp_task
+    omega = np.column_stack([result.column(f"omega_j{i}_rad_s") for i in range(1, 9)])
+    limit = 0.5 * float(np.max(np.abs(omega)))
+    run = fw.run_host(builder.executable(HOST_SAN, with_field(task, "qdot_max", f"CTRL_LIT({limit!r})"), "ptp_slow"))
+    assert (run.state, run.fault) == ("FAULT", "SPEED")
+    first, before, after = held_rows(run)
+    assert first == int(np.argmax(np.max(np.abs(omega), axis=1) > limit))  # the first too fast sample
+    assert np.all(after[:, 2:10] == before[2:10]) and np.all(after[:, 10:18] == 0.0)
+
+
+def test_host_overrun_check_measures_real_time(builder, short_plan):
+    """--period-ns: the host scheduler compares each tick's wall time with the period; a tick
+    takes microseconds, so a 100 ns period overruns on the START tick, reported on tick 1."""
+    exe = builder.executable(HOST_SAN, fw.task_from_plan(short_plan, "short"), "short_san_inject")
+    run = fw.run_host(exe, ["--period-ns", "100"])
+    assert (run.state, run.fault) == ("FAULT", "OVERRUN")
+    assert int(run.data[np.argmax(run.column("state") == fw.FAULT_STATE), 0]) == 1
+    relaxed = fw.run_host(exe, ["--period-ns", str(10 ** 9)])  # 1 s per tick: never late
+    assert (relaxed.state, relaxed.fault) == ("DONE", "NONE")
+
+
+@pytest.mark.arm
+def test_qemu_overrun_check_counts_cycles(builder, short_plan):
+    """A 100 µs period at 25 MHz is 2 500 cycles; a resolved-rate tick executes > 4 000
+    instructions (≥ 1 cycle each): OVERRUN after the START tick. With a 20 ms period: none."""
+    require_tool("qemu-system-arm")
+    task = fw.task_from_plan(short_plan, "short")
+    tight = dataclasses.replace(fw.ARM_VARIANT, print_rows=True, extra=("-DFW_PERIOD_NS=100000",))
+    run = fw.run_qemu(builder.executable(tight, task, "overrun_m4"))
+    assert (run.state, run.fault) == ("FAULT", "OVERRUN")
+    assert int(run.data[np.argmax(run.column("state") == fw.FAULT_STATE), 0]) == 1
+    assert fw.instructions_per_tick(run)["max"] > 4000
+
+
+CONFIG_MUTATION_MAIN = r"""
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "controller.h"
+#include "fw_csv.h"
+extern const ctrl_config fw_task;
+static ctrl_config cfg; /* in RAM: the application scribbles over it after ctrl_init */
+static ctrl a, b;
+int main(void) {
+  static char buf[FW_CSV_LINE_MAX];
+  ctrl_input in;
+  ctrl_output oa, ob;
+  long i;
+  int r;
+  memcpy(&cfg, &fw_task, sizeof(cfg));
+  if (ctrl_init(&a, &cfg) != CTRL_FAULT_NONE || ctrl_init(&b, &fw_task) != CTRL_FAULT_NONE) return 3;
+  for (r = 0; r < CTRL_NTASK; ++r) cfg.rr.task_rows[r] = 1000000 * (r + 1);
+  cfg.dt = (ctrl_real)NAN;
+  cfg.rr.duration = (ctrl_real)NAN;
+  cfg.mode = (ctrl_mode)77;
+  cfg.q_max[0] = (ctrl_real)-1e30;
+  memset(&in, 0, sizeof(in));
+  in.command = CTRL_CMD_START;
+  (void)fw_csv_header(buf, sizeof(buf));
+  fputs(buf, stdout);
+  for (i = 0; i < 300; ++i) {
+    (void)ctrl_tick(&a, &in, &oa);
+    (void)ctrl_tick(&b, &in, &ob);
+    in.command = CTRL_CMD_NONE;
+    if (memcmp(oa.q, ob.q, sizeof(oa.q)) != 0 || oa.state != ob.state || oa.fault != ob.fault) return 4;
+    (void)fw_csv_row(buf, sizeof(buf), &oa);
+    fputs(buf, stdout);
+  }
+  printf("# state %s\n# fault %s\n", ctrl_state_name(oa.state), ctrl_fault_name(oa.fault));
+  return 0;
+}
+"""
+
+
+def test_configuration_changed_after_init_is_never_used(builder, short_plan, tmp_path):
+    """The controller runs its validated copy: NaN time stamps and task_rows pointing far
+    outside the arrays written after ctrl_init change nothing (ASan would catch a read)."""
+    task = fw.task_from_plan(short_plan, "short")
+    fw.run_host(builder.executable(HOST_SAN, task, "mutation"))  # compiles the objects and fw_task.o
+    objs = [o for o in builder.objects(HOST_SAN) if o.stem != "main"]
+    src = tmp_path / "mutation_main.c"
+    src.write_text(CONFIG_MUTATION_MAIN)
+    exe = tmp_path / "mutation"
+    task_obj = builder.work / f"{HOST_SAN.name}_mutation" / "fw_task.o"
+    subprocess.run([toolchain.host_cc(), *builder.cflags(HOST_SAN), str(src), *map(str, objs), str(task_obj), "-lm",
+                    "-o", str(exe)], check=True, capture_output=True)
+    run = fw.run_host(exe)
+    assert (run.state, run.fault) == ("DONE", "NONE")  # the whole motion, identical to the untouched one
+    assert np.all(np.isfinite(run.data))
+
+
+def test_bad_configuration_holds_a_command_inside_the_limits(builder, short_plan):
+    """A NaN start for joint 1 whose range is [0.2, 1.0] rad: refused, and the held command is
+    mid-range (0.6 rad; the old controller held 0, outside that range), never NaN."""
+    task = fw.task_from_plan(short_plan, "short")
+    header = re.sub(r"\.q_start = \{CTRL_LIT\([^)]*\)", ".q_start = {CTRL_LIT(NAN)", task.header, count=1)
+    header = re.sub(r"\.q_min = \{CTRL_LIT\([^)]*\)", ".q_min = {CTRL_LIT(0.2)", header, count=1)
+    header = re.sub(r"\.q_max = \{CTRL_LIT\([^)]*\)", ".q_max = {CTRL_LIT(1.0)", header, count=1)
+    bad = dataclasses.replace(task, header="#include <math.h>\n" + header)
+    run = fw.run_host(builder.executable(HOST_SAN, bad, "bad_start"))
+    assert (run.summary["init"], run.fault) == ("BAD_CONFIG", "BAD_CONFIG")
+    assert_never_nan(run)
+    assert np.all(run.data[:, 2] == 0.2 + 0.5 * (1.0 - 0.2))  # lo + (hi - lo) / 2, as the controller
+    q0 = load_robot("modular8").configuration("q0")
+    assert np.array_equal(run.data[0, 3:10], q0[1:])  # the valid joints hold their start
+
+
+# --------------------------------------------------------------------------- MISRA (issue 11)
+
+def misra_deviations() -> list[tuple[set[str], set[str]]]:
+    """(rules, files) per row of docs/firmware.md's deviation table (the one documented list)."""
+    text = (REPO / "docs" / "firmware.md").read_text(encoding="utf-8")
+    section = text.split("## MISRA C:2012 deviations (firmware stub)", 1)[1]
+    rows = []
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 3 and re.fullmatch(r"[\d.]+(, [\d.]+)*", cells[0]):
+            rows.append(({r.strip() for r in cells[0].split(",")}, {f.strip() for f in cells[1].split(",")}))
+    return rows
+
+
+def test_misra_findings_are_all_documented_deviations(short_plan, tmp_path):
+    cppcheck = require_tool("cppcheck")
+    rows = misra_deviations()
+    assert rows, "the deviation table is missing from docs/firmware.md"
+    task = fw.task_from_plan(short_plan, "short")
+    fw.write_task_files(task, tmp_path)  # task_params.h, fw_ptp.{h,c}, robot_fw.c
+    stub = fw.FIRMWARE_DIR
+    sources = [stub / "controller.c", stub / "fw_csv.c", stub / "fw_task.c", stub / "host" / "main.c",
+               *sorted((stub / "arm").glob("*.c"))]
+    proc = subprocess.run([cppcheck, "--addon=misra", "--std=c99", "-q", "--template={file}:{line}:{id}",
+                           "-DCTRL_ROBOT=modular8", "-DCTRL_ROBOT_UC=MODULAR8", '-DCTRL_ROBOT_HEADER="modular8.h"',
+                           "-DMODULAR8_USE_FLOAT=1", "-DFW_USE_FLOAT=1", f"-I{stub}", f"-I{stub / 'arm'}",
+                           f"-I{REPO / 'generated' / 'modular8'}", f"-I{tmp_path}", *map(str, sources)],
+                          capture_output=True, text=True, timeout=900)
+    findings = {(Path(f).name, int(line), rule) for f, line, rule in
+                re.findall(r"^(.+?):(\d+):misra-c2012-([\d.]+)$", proc.stdout + proc.stderr, re.M)}
+    assert findings, "cppcheck's MISRA addon reported nothing: is the addon installed?"
+
+    def covered(name: str, rule: str) -> bool:
+        return any(rule in rules and name in files for rules, files in rows)
+
+    undocumented = sorted(f"{name}:{line} rule {rule}" for name, line, rule in findings if not covered(name, rule))
+    assert not undocumented, "MISRA findings outside docs/firmware.md's deviation list:\n" + "\n".join(undocumented)
+    stale = [sorted(rules) for rules, files in rows
+             if not any(rule in rules and name in files for name, _, rule in findings)]
+    assert not stale, f"deviation rows that no finding needs any more: {stale}"

@@ -23,6 +23,7 @@ from armgen.codegen.toolchain import SANITIZER_FLAGS, STRICT_FLAGS, compile_shar
 from armgen.errors import PlanningError, TaskFileError
 from armgen.planning.ptp import planner as ptp
 from armgen.planning.ptp.planner import SegmentShape, compare_methods, parse_ptp_task, plan_task, solve_segment_time
+from armgen.planning.plotting import save_figure
 from armgen.planning.ptp.plots import plot_ptp
 from armgen.planning.result import read_plan, write_plan
 from armgen.planning.tasks import load_task, run_task
@@ -569,14 +570,14 @@ def test_plot_comparison_and_multi_joint(tmp_path):
 
     result = run_task(example("ptp_single_joint.toml"), "ex", "sha")
     csv_path, _ = write_plan(result, tmp_path / "plan.csv", units="deg")
-    png = plot_ptp(csv_path, tmp_path / "plan.png")
+    png = save_figure(plot_ptp(csv_path), tmp_path / "plan.png")
     image = mpimg.imread(png)
     assert image.shape[1] > 1.3 * image.shape[0]  # three method columns side by side
     assert image[..., :3].std() > 0.05
     multi = plan_task({"planner": "ptp", "robot": "planar3",
                        "waypoints": {"t": [0, 1, 2], "theta": {"j1": [0, 1, 0], "j2": [0, -1, 0], "j3": [0, 0.5, 1]},
                                      "omega": {"j1": [0, 0, 0], "j2": [0, 0, 0], "j3": [0, 1, 0]}}}, "multi")
-    png2 = plot_ptp(multi, tmp_path / "multi.png")
+    png2 = save_figure(plot_ptp(multi), tmp_path / "multi.png")
     image2 = mpimg.imread(png2)
     assert image2.shape[0] > image2.shape[1]  # one column
     assert image2[..., :3].std() > 0.05

@@ -15,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from armgen.codegen.generate import REPO_GENERATED_DIR, generate_robot
+from armgen.codegen.generate import generate_robot
 from armgen.codegen.toolchain import STRICT_FLAGS
 from armgen.errors import PlanningError, TaskFileError
 from armgen.planning.snake import planner as sn
@@ -29,6 +29,8 @@ from armgen.robot import load_robot
 from armgen.symbolic.model import ModelOptions, SymbolicModel
 
 from conftest import require_tool
+
+REPO_GENERATED_DIR = Path(__file__).resolve().parent.parent / "generated"  # the checked-in code
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 PLANAR, TANK = EXAMPLES / "snake_planar.toml", EXAMPLES / "snake_tank.toml"

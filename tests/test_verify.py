@@ -1,46 +1,173 @@
-"""armgen verify: passes on the bundled code, and each stage fails where it should."""
+"""armgen verify: passes on fresh code anywhere, each stage fails where it should, stale code is
+never compiled, bad input gets the documented exit code, and no temporary folder is left."""
 
 import json
 import shutil
+import tempfile
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
+from armgen import fileio
 from armgen.cli.main import cli
-from armgen.codegen import generate as generate_module
 from armgen.robot import load_robot
 from armgen.verify import pipeline
-from armgen.verify.pipeline import VerifyConfig, stage_fresh, stage_replay
+from armgen.verify.pipeline import Stage, VerifyConfig, stage_callbacks, stage_fresh, stage_replay
 
 from test_cartesian import EXAMPLES
 
+REPO = Path(__file__).resolve().parent.parent
+REPO_GENERATED_DIR = REPO / "generated"  # the checked-in code
+HARDENED_IO = hasattr(fileio, "write_file_set")  # the plan reader with line numbers comes with it
 
-def test_verify_passes_with_a_replayed_plan(tmp_path):
+
+@pytest.fixture
+def planar3_copy(tmp_path):
+    """A copy of the checked-in generated/planar3/ outside the repository."""
+    copy = tmp_path / "gen" / "planar3"
+    shutil.copytree(REPO_GENERATED_DIR / "planar3", copy)
+    return copy
+
+
+@pytest.fixture
+def private_tmp(tmp_path, monkeypatch):
+    """Every temporary folder of the run goes here, so the test can see what is left."""
+    folder = tmp_path / "tmp"
+    folder.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(folder))
+    return folder
+
+
+def _tree(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_verify_passes_with_a_replayed_plan_and_cleans_up(tmp_path, monkeypatch, private_tmp):
     plan = tmp_path / "plan.csv"
     out = CliRunner().invoke(cli, ["plan", str(EXAMPLES / "modular8_circle_combined.toml"), "-o", str(plan),
                                    "--set", "path.type=line", "--set", "path.end=[-450, 400, 900]",
                                    "--set", "timing.duration=5"])
     assert out.exit_code == 0, out.output
     report = tmp_path / "verify.json"
+    monkeypatch.chdir(REPO)  # the default folder is ./generated/<robot>/: the checked-in code here
     out = CliRunner().invoke(cli, ["verify", "modular8", "--plan", str(plan), "--samples", "300",
                                    "--report", str(report)])
     assert out.exit_code == 0, out.output
     data = json.loads(report.read_text())
     assert data["passed"] and [s["name"] for s in data["stages"]] == ["fresh", "compile", "callbacks", "replay"]
+    assert all(s["verdict"] == "PASS" and s["rows"] for s in data["stages"])
     replay = next(s for s in data["stages"] if s["name"] == "replay")
-    assert replay["rows"], "the replay stage compared something"
+    assert any(r[0].startswith("host firmware") for r in replay["rows"]), "the firmware replay ran"
+    assert list(private_tmp.iterdir()) == [], "verify left temporary folders behind"
 
 
-def test_fresh_stage_names_stale_files(tmp_path, monkeypatch):
-    copy = tmp_path / "generated"
-    shutil.copytree(generate_module.REPO_GENERATED_DIR / "planar3", copy / "planar3")
-    source = copy / "planar3" / "planar3.c"
+def test_fresh_stage_names_stale_files(planar3_copy, tmp_path):
+    source = planar3_copy / "planar3.c"
     source.write_text(source.read_text().replace("w0", "w_0", 1))
-    monkeypatch.setattr(pipeline, "REPO_GENERATED_DIR", copy)
-    stage = stage_fresh(VerifyConfig(load_robot("planar3")), tmp_path)
+    stage = stage_fresh(VerifyConfig(load_robot("planar3"), generated=planar3_copy, robot_ref="planar3"), tmp_path)
     assert not stage.passed
     assert ["planar3.c", "stale", False] in stage.rows
-    assert "armgen gen planar3" in stage.message
+    assert ["planar3.h", "identical", True] in stage.rows
+    assert f"armgen gen planar3 --out {planar3_copy}" in stage.message
+
+
+def test_stale_code_is_reported_and_never_compiled(planar3_copy, monkeypatch, private_tmp):
+    source = planar3_copy / "planar3.c"
+    source.write_text(source.read_text() + "\n#error stale code was compiled\n")
+    compiled = []
+    monkeypatch.setattr(pipeline, "build_library", lambda *a, **k: compiled.append(a))
+    monkeypatch.setattr(pipeline, "run_sanitized", lambda *a, **k: compiled.append(a))
+    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--samples", "20"])
+    assert out.exit_code == 5, out.output
+    assert compiled == []
+    assert "== fresh: FAIL" in out.output
+    for name in ("compile", "callbacks", "replay"):
+        assert f"== {name}: FAIL — not run" in out.output
+    assert "PASS" not in out.output
+    assert list(private_tmp.iterdir()) == []
+
+
+def test_verify_of_code_generated_into_a_user_folder(tmp_path, monkeypatch):
+    """gen writes ./generated/<name>/ where the user is; verify finds it there by default."""
+    robot = tmp_path / "arm.toml"
+    robot.write_text((REPO / "robots" / "planar3.toml").read_text().replace('name = "planar3"', 'name = "myarm"'))
+    monkeypatch.chdir(tmp_path)
+    out = CliRunner().invoke(cli, ["gen", "arm.toml"])
+    assert out.exit_code == 0, out.output
+    assert sorted(p.name for p in (tmp_path / "generated" / "myarm").iterdir()) == ["manifest.json", "myarm.c", "myarm.h"]
+    out = CliRunner().invoke(cli, ["verify", "arm.toml", "--samples", "50", "--precision", "double"])
+    assert out.exit_code == 0, out.output
+    assert "== replay: SKIPPED — no --plan given" in out.output
+
+
+def test_no_manifest_is_bad_input_and_writes_nothing(tmp_path, planar3_copy):
+    (planar3_copy / "manifest.json").unlink()
+    before = _tree(tmp_path)
+    report = tmp_path / "report.json"
+    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--report", str(report)])
+    assert out.exit_code == 2, out.output
+    assert str(planar3_copy) in out.output and "no manifest.json" in out.output
+    assert f"armgen gen planar3 --out {planar3_copy}" in out.output
+    assert "Traceback" not in out.output and _tree(tmp_path) == before
+
+
+def test_manifest_of_another_robot_file_is_bad_input(tmp_path, planar3_copy):
+    robot = tmp_path / "planar3_changed.toml"
+    robot.write_text((REPO / "robots" / "planar3.toml").read_text() + "\n# an edit changes the sha256\n")
+    before = _tree(tmp_path)
+    out = CliRunner().invoke(cli, ["verify", str(robot), "--generated", str(planar3_copy)])
+    assert out.exit_code == 2, out.output
+    assert str(planar3_copy / "manifest.json") in out.output and "stale" in out.output
+    assert f"armgen gen {robot} --out {planar3_copy}" in out.output
+    assert _tree(tmp_path) == before
+
+
+def test_missing_compiler_is_exit_4(planar3_copy, monkeypatch):
+    monkeypatch.setenv("PATH", str(planar3_copy))  # no gcc on it
+    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--samples", "20"])
+    assert out.exit_code == 4, out.output
+    assert "'gcc' not found" in out.output
+
+
+@pytest.mark.parametrize("garbage", ["t_s,q1_rad\n0.0,0.1\n0.1,banana\n", "\x00\xff\xfe", ""])
+def test_garbage_plan_is_exit_2(tmp_path, planar3_copy, garbage):
+    plan = tmp_path / "plan.csv"
+    plan.write_bytes(garbage.encode("latin-1"))
+    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--plan", str(plan),
+                                   "--samples", "20", "--precision", "double"])
+    assert out.exit_code == 2, out.output
+    assert str(plan) in out.output and "Traceback" not in out.output
+
+
+@pytest.mark.skipif(not HARDENED_IO, reason="the plan reader that names the line comes with the hardened fileio")
+def test_garbage_plan_names_the_line(tmp_path, planar3_copy):
+    plan = tmp_path / "plan.csv"
+    plan.write_text("t_s,q1_rad\n0.0,0.1\n0.1,banana\n")
+    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--plan", str(plan)])
+    assert out.exit_code == 2 and "line 3" in out.output, out.output
+
+
+def test_run_needs_a_plan(tmp_path, planar3_copy):
+    run = tmp_path / "run.csv"
+    run.write_text("tick,t_s\n")
+    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--run", str(run)])
+    assert out.exit_code == 2 and "--run needs --plan" in out.output, out.output
+
+
+def test_a_stage_that_checked_nothing_is_not_a_pass():
+    assert Stage("x", True, ["a"], []).verdict == "FAIL"
+    assert not Stage("x", True, ["a"], []).passed
+    assert Stage("x", False, ["a"], [], "why", skipped=True).verdict == "SKIPPED"
+    nothing_built = stage_callbacks(VerifyConfig(load_robot("planar3")), {}, {}, "planar3")
+    assert not nothing_built.passed and "nothing compared" in nothing_built.message
+    assert not pipeline.passed([Stage("x", True, ["a"], [], skipped=True)]), "a run of only skipped stages"
+
+
+def test_bad_prefix_is_exit_2_and_writes_nothing(tmp_path):
+    out = CliRunner().invoke(cli, ["gen", "planar3", "--prefix", "9lives", "--out", str(tmp_path / "out")])
+    assert out.exit_code == 2 and "--prefix" in out.output, out.output
+    assert not (tmp_path / "out").exists()
 
 
 def test_replay_detects_a_tampered_plan(tmp_path):
@@ -56,12 +183,3 @@ def test_replay_detects_a_tampered_plan(tmp_path):
     plan.write_text("\n".join(lines) + "\n")
     stage = stage_replay(VerifyConfig(load_robot("modular8"), plan))
     assert not stage.passed
-
-
-def test_verify_exit_code_on_failure(tmp_path, monkeypatch):
-    copy = tmp_path / "generated"
-    shutil.copytree(generate_module.REPO_GENERATED_DIR / "planar3", copy / "planar3")
-    (copy / "planar3" / "manifest.json").write_text("{}")
-    monkeypatch.setattr(pipeline, "REPO_GENERATED_DIR", copy)
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--samples", "50", "--precision", "double"])
-    assert out.exit_code == 5 and "FAIL" in out.output

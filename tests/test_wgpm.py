@@ -18,12 +18,18 @@ from hypothesis import strategies as st
 from armgen.cli.main import cli
 from armgen.errors import TaskFileError
 from armgen.planning.tasks import apply_overrides, load_task, run_task
-from armgen.planning.wgpm.planner import WgpmPlanner, compare, format_survey, parse_wgpm_task, survey
+from armgen.planning.wgpm.planner import WgpmPlanner, compare, parse_wgpm_task
 from armgen.robot import load_robot
 from armgen.symbolic import criteria
 from armgen.symbolic.model import SymbolicModel
 from armgen.symbolic.steps import JACOBI_SWEEPS, WGPM_SENSE, jacobi_min_eigenvalue
 
+# The survey of docs/wgpm.md: a random start in the free band (|q| ≤ 98°: Ω = 0.15 of ±140°) and
+# a random circle through it (via and end relative to the start, within ±250 mm).
+SURVEY_SET = ["--set", "path.relative=true", "--set", "path.turns=1"]
+SURVEY_RANGES = ["--range", "start=" + str([-98] * 8) + ":" + str([98] * 8),
+                 "--range", "path.via=[-250, -250, -250]:[250, 250, 250]",
+                 "--range", "path.end=[-250, -250, -250]:[250, 250, 250]"]
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 # Spec 35: with ρ = 0 and J_wb of full row rank the projector identities hold to rounding,
 # "1e-12 in double". Rounding of N_wb = I − W_b J_wb^# J is ~eps ‖J‖² ‖J_wb^#‖ ≤ eps · 4 / ε, so
@@ -292,12 +298,33 @@ def test_wgpm_velocities_are_continuous():
     assert jumps["clamp", 0.01] > 0.8 * jumps["clamp", 0.02] > 1.0  # deg/s in one step, whatever h
 
 
-def test_survey_reports_every_method():
-    stats = survey(parsed("modular8_wgpm_demo", "timing.duration=10"), count=3, seed=3)
-    for name in ("pinv", "clamp", "wgpm"):
-        both, total = stats[name]["both"]
-        assert total == 3 and 0 <= both <= 3
-    assert "| wgpm |" in format_survey(stats)
+def test_survey_is_a_sweep(tmp_path):
+    """The survey as `armgen sweep`: every method on the same seeded random tasks, one row each;
+    the draws lie in their ranges and a row is the plan of its drawn task."""
+    import json
+
+    import pandas as pd
+
+    out = tmp_path / "survey.csv"
+    result = CliRunner().invoke(cli, ["sweep", str(EXAMPLES / "modular8_wgpm_demo.toml"), *SURVEY_SET,
+                                      "--set", "timing.duration=6", "--grid", "method.name=['pinv', 'wgpm']",
+                                      "--random", "2", "--seed", "3", *SURVEY_RANGES, "--workers", "1", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    table = pd.read_csv(out, keep_default_na=False)
+    assert list(table["method.name"]) == ["pinv", "pinv", "wgpm", "wgpm"]
+    assert list(table["start"][:2]) == list(table["start"][2:])  # the same tasks for every method
+    starts = np.array([json.loads(s) for s in table["start"]])
+    assert np.all(np.abs(starts) <= 98)
+    ok = table[table["status"] == "ok"]
+    assert len(ok) >= 2 and set(ok["within_limits"]) <= {True, False}
+    row = ok.iloc[-1]
+    task, sha = load_task(EXAMPLES / "modular8_wgpm_demo.toml")
+    apply_overrides(task, [*SURVEY_SET[1::2], "timing.duration=6"])
+    for key, value in json.loads(row["overrides"]).items():
+        apply_overrides(task, [f"{key}={json.dumps(value)}"])
+    single = run_task(task, "demo", sha).metadata["summary"]
+    assert row["max_pos_error_mm"] == pytest.approx(single["max_pos_error_mm"], rel=1e-15)
+    assert row["peak_ddq_deg_s2"] == pytest.approx(single["peak_ddq_deg_s2"], rel=1e-15)
 
 
 def test_c_backend_gives_the_same_plan():

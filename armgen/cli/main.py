@@ -3,27 +3,16 @@ maps an :class:`ArmgenError` to its exit code and a one-paragraph message on std
 
 from __future__ import annotations
 
-import functools
+import json
 import math
-import sys
 from pathlib import Path
 
 import click
 import numpy as np
 
 from .. import __version__
-from ..errors import ArmgenError
-
-
-def _handle_errors(func):
-    @functools.wraps(func)
-    def wrapper(*args, **kwargs):
-        try:
-            return func(*args, **kwargs)
-        except ArmgenError as exc:
-            click.echo(f"error: {exc}", err=True)
-            sys.exit(exc.exit_code)
-    return wrapper
+from ..errors import OptionError
+from .handling import handle_errors
 
 
 @click.group()
@@ -33,37 +22,77 @@ def cli() -> None:
 
 
 @cli.command("robots")
-@_handle_errors
-def robots_cmd() -> None:
+@click.option("--json", "as_json", is_flag=True, help="print a JSON list instead of a table")
+@handle_errors
+def robots_cmd(as_json: bool) -> None:
     """List the bundled robots."""
-    from ..robot import bundled_robots, load_robot
+    from ..robot import bundled_robots, describe, load_robot
 
-    for name in bundled_robots():
-        robot = load_robot(name)
-        click.echo(f"{name:12s} {robot.n:3d} DOF  {robot.convention:8s}  {robot.description}")
+    robots = [load_robot(name) for name in bundled_robots()]
+    if as_json:
+        click.echo(json.dumps([describe(r) | {"description": r.description} for r in robots], indent=2))
+        return
+    for robot in robots:
+        click.echo(f"{robot.name:12s} {robot.n:3d} DOF  {robot.convention:8s}  {robot.description}")
+
+
+def _show_data(r) -> dict:
+    """Everything `show` prints, SI units (rad, m), for --json."""
+    from ..robot import describe, matrix_rpy
+
+    joints = []
+    for j in r.joints:
+        entry = {"name": j.name, "type": j.type, "qlim": list(j.qlim)}
+        if j.origin is not None:
+            entry |= {"xyz": j.origin[:3, 3].tolist(), "rpy": matrix_rpy(j.origin[:3, :3]).tolist(), "axis": list(j.axis)}
+        else:
+            entry |= {"a": j.a, "d": j.d, "alpha": j.alpha, "offset": j.offset, "theta": j.theta}
+        joints.append(entry)
+    return describe(r) | {
+        "description": r.description, "urdf": r.urdf, "joints": joints,
+        "task_rows": list(r.task_rows),
+        "base": {"xyz": r.base[:3, 3].tolist(), "rpy": matrix_rpy(r.base[:3, :3]).tolist()},
+        "tool": {"xyz": r.tool[:3, 3].tolist(), "rpy": matrix_rpy(r.tool[:3, :3]).tolist()},
+        "configurations": {name: q.tolist() for name, q in r.configurations.items()},
+    }
 
 
 @cli.command("show")
 @click.argument("robot")
-@_handle_errors
-def show_cmd(robot: str) -> None:
-    """Print a robot's DH table, limits and named configurations (mm, deg)."""
-    from ..robot import load_robot
+@click.option("--json", "as_json", is_flag=True, help="print JSON (SI units: m, rad) instead of text")
+@handle_errors
+def show_cmd(robot: str, as_json: bool) -> None:
+    """Print a robot's joints (DH table or URDF origin/axis), limits, base/tool and configurations (mm, deg)."""
+    from ..robot import load_robot, matrix_rpy
 
     r = load_robot(robot)
+    if as_json:
+        click.echo(json.dumps(_show_data(r), indent=2))
+        return
     click.echo(f"{r.name}: {r.description}")
-    click.echo(f"file {r.source} (sha256 {r.sha256[:16]}…), {r.convention} DH, {r.n} joints")
-    prefix = "a_{i-1}, alpha_{i-1}" if r.convention == "modified" else "a_i, alpha_i"
-    click.echo(f"columns: joint, type, offset/theta, d [mm], a [mm], alpha [deg] ({prefix}), qlim")
+    kind = "URDF chain" if r.convention == "urdf" else f"{r.convention} DH"
+    click.echo(f"file {r.source} (sha256 {r.sha256[:16]}…), {kind}, {r.n} joints")
+    if r.convention == "urdf":
+        click.echo(f"links {r.urdf['base_link']} -> {r.urdf['tip_link']}; columns: joint, type, origin xyz [mm], "
+                   "origin rpy [deg], axis, qlim")
+    else:
+        prefix = "a_{i-1}, alpha_{i-1}" if r.convention == "modified" else "a_i, alpha_i"
+        click.echo(f"columns: joint, type, offset/theta, d [mm], a [mm], alpha [deg] ({prefix}), qlim")
     for j in r.joints:
-        fixed = f"theta={math.degrees(j.theta):8.3f}" if not j.revolute else f"offset={math.degrees(j.offset):7.3f}"
         lim = (f"[{math.degrees(j.qlim[0]):8.3f}, {math.degrees(j.qlim[1]):8.3f}] deg" if j.revolute
                else f"[{j.qlim[0] * 1e3:8.3f}, {j.qlim[1] * 1e3:8.3f}] mm")
+        if j.origin is not None:
+            xyz = np.round(j.origin[:3, 3] * 1e3, 4).tolist()
+            rpy = (np.round(np.degrees(matrix_rpy(j.origin[:3, :3])), 4) + 0.0).tolist()  # + 0.0: no -0.0
+            click.echo(f"  {j.name:8s} {j.type:9s} xyz={xyz}  rpy={rpy}  axis={[round(float(v), 6) + 0.0 for v in j.axis]}  qlim={lim}")
+            continue
+        fixed = f"theta={math.degrees(j.theta):8.3f}" if not j.revolute else f"offset={math.degrees(j.offset):7.3f}"
         click.echo(f"  {j.name:8s} {j.type:9s} {fixed}  d={j.d * 1e3:9.3f}  a={j.a * 1e3:9.3f}  "
                    f"alpha={math.degrees(j.alpha):8.3f}  qlim={lim}")
     for name, T in (("base", r.base), ("tool", r.tool)):
         if not np.allclose(T, np.eye(4)):
-            click.echo(f"{name}: xyz = {np.round(T[:3, 3] * 1e3, 4).tolist()} mm")
+            click.echo(f"{name}: xyz = {np.round(T[:3, 3] * 1e3, 4).tolist()} mm, "
+                       f"rpy = {(np.round(np.degrees(matrix_rpy(T[:3, :3])), 4) + 0.0).tolist()} deg")
     units = np.array([180 / math.pi if j.revolute else 1e3 for j in r.joints])
     for name, q in r.configurations.items():
         click.echo(f"configuration {name}: {np.round(q * units, 4).tolist()} (deg / mm)")
@@ -72,20 +101,20 @@ def show_cmd(robot: str) -> None:
 @cli.command("gen")
 @click.argument("robot")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="output directory (default: generated/<robot>/)")
+              help="output directory (default: ./generated/<robot>/ under the current directory)")
 @click.option("--precision", type=click.Choice(["double", "float"]), default="double", show_default=True,
               help="the header's default real type (one switch; -D<PREFIX>_USE_FLOAT overrides)")
 @click.option("--prefix", default="", help="C identifier prefix (default: the robot name)")
 @click.option("--function", "functions", multiple=True, help="generate only these functions (repeatable)")
-@_handle_errors
+@handle_errors
 def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functions: tuple[str, ...]) -> None:
     """Derive the robot's functions symbolically and write C (header, source, manifest)."""
     from ..codegen.generate import generate_robot
 
     try:
         code, paths = generate_robot(robot, out_dir, precision, prefix, functions or None)
-    except ValueError as exc:
-        raise ArmgenError(str(exc)) from None
+    except ValueError as exc:  # an invalid --prefix or --function
+        raise OptionError(str(exc)) from None
     for path in paths:
         click.echo(f"wrote {path}")
     flops = ", ".join(f"{e.name} {e.flops}" for e in code.emitted)
@@ -94,36 +123,43 @@ def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functi
 
 @cli.command("gen-ptp")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="output directory (default: generated/ptp/)")
+              help="output directory (default: ./generated/ptp/ under the current directory)")
 @click.option("--precision", type=click.Choice(["double", "float"]), default="double", show_default=True)
 @click.option("--prefix", default="armgen", show_default=True, help="C identifier prefix")
-@_handle_errors
+@handle_errors
 def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
     """Write the C evaluator of PTP segment polynomials (the firmware's playback)."""
-    from ..codegen.generate import REPO_GENERATED_DIR
+    from ..codegen.generate import GENERATED_DIR
     from ..codegen.ptp_c import generate_ptp_evaluator
 
-    for path in generate_ptp_evaluator(Path(out_dir) if out_dir else REPO_GENERATED_DIR / "ptp", prefix, precision):
+    for path in generate_ptp_evaluator(Path(out_dir) if out_dir else GENERATED_DIR / "ptp", prefix, precision):
         click.echo(f"wrote {path}")
 
 
 @cli.command("plan")
 @click.argument("task_file", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+@click.option("-o", "--output", type=click.Path(), default=None,
               help="CSV to write (default: <task name>.csv in the current directory); plan.json goes beside it")
 @click.option("--backend", type=click.Choice(["symbolic", "c"]), default="symbolic", show_default=True)
 @click.option("--set", "overrides", multiple=True, help="override a task field: key=value (dotted keys, TOML values)")
 @click.option("--units", type=click.Choice(["rad", "deg"]), default="rad", show_default=True,
               help="angle unit of the CSV columns")
-@_handle_errors
-def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[str, ...], units: str) -> None:
-    """Plan a task file to CSV plus JSON metadata (written atomically)."""
+@click.option("--max-steps", type=click.IntRange(min=1), default=None,
+              help="cap on integration steps, checked before planning (default: planning.tasks.MAX_INTEGRATION_STEPS)")
+@click.option("--max-samples", type=click.IntRange(min=1), default=None,
+              help="cap on CSV rows, checked before planning (default: planning.tasks.MAX_OUTPUT_SAMPLES)")
+@handle_errors
+def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[str, ...], units: str,
+             max_steps: int | None, max_samples: int | None) -> None:
+    """Plan a task file to CSV plus JSON metadata (written together or not at all)."""
     from ..planning.result import write_plan
-    from ..planning.tasks import apply_overrides, load_task, run_task
+    from ..planning.tasks import ResourceCaps, apply_overrides, load_task, run_task
 
+    caps = ResourceCaps()
+    caps = ResourceCaps(max_steps or caps.max_steps, max_samples or caps.max_samples)
     task, sha = load_task(task_file)
     apply_overrides(task, list(overrides))
-    result = run_task(task, task_file, sha, backend)
+    result = run_task(task, task_file, sha, backend, caps)
     out = Path(output) if output else Path(Path(task_file).stem + ".csv")
     csv_path, json_path = write_plan(result, out, units)
     click.echo(f"wrote {csv_path} ({result.data.shape[0]} samples) and {json_path}")
@@ -141,32 +177,51 @@ def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[
 @click.option("--precision", type=click.Choice(["double", "float"]), default=None, help="only this precision (default: both)")
 @click.option("--target", type=click.Choice(["cortex-m4"]), default=None, help="also run on an emulated target")
 @click.option("--report", type=click.Path(dir_okay=False), default=None, help="write the JSON report here")
-@_handle_errors
+@click.option("--generated", "generated", type=click.Path(), default=None,
+              help="the folder `armgen gen` wrote (default: ./generated/<robot>/)")
+@click.option("--run", "run_csv", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="what a firmware run printed (e.g. the demo of `armgen firmware`), compared with --plan")
+@handle_errors
 def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | None, target: str | None,
-               report: str | None) -> None:
-    """Check that the generated C does what the symbolic reference does (spec 60)."""
+               report: str | None, generated: str | None, run_csv: str | None) -> None:
+    """Check that generated C (fresh for ROBOT's file) does what the symbolic reference does.
+
+    Exit codes: 0 all stages passed, 2 bad input (no manifest, code generated from another
+    robot file, a malformed plan), 4 a missing tool, 5 a stage failed (stale code included)."""
     from ..errors import VerificationError
     from ..verify.pipeline import verify
 
-    if not verify(robot, plan_csv, samples, precision, target, report, click.echo):
+    if not verify(robot, plan_csv, samples, precision, target, report, click.echo, generated, run_csv):
         raise VerificationError("verification failed: see the FAIL stages above")
     click.echo("all stages passed")
 
 
 @cli.command("plot")
 @click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="PNG to write (default: beside the CSV)")
-@_handle_errors
+@click.option("-o", "--output", default=None,
+              help="figure to write: .png, .svg or .pdf (default: the CSV's name with .png, beside it)")
+@handle_errors
 def plot_cmd(plan_csv: str, output: str | None) -> None:
-    """Draw a plan: joint angles, velocities, criteria and task error."""
+    """Draw a plan: joint angles with limits, velocities with bounds, criteria, task error, tool path."""
+    from ..planning.plotting import figure_format, save_figure
     from ..planning.result import read_plan
     from ..planning.tasks import plot_plan
 
-    result = read_plan(plan_csv)
-    out = Path(output) if output else Path(plan_csv).with_suffix(".png")
-    plot_plan(result, out, plan_csv)
+    out = Path(output) if output is not None else Path(plan_csv).with_suffix(".png")
+    figure_format(output if output is not None else out)  # a bad -o fails before any work
+    save_figure(plot_plan(read_plan(plan_csv), plan_csv), out)
     click.echo(f"wrote {out}")
 
+
+# Commands with a module of their own; each applies handle_errors itself.
+from .animate import animate_cmd  # noqa: E402
+from .examples import examples_cmd  # noqa: E402
+from .firmware import firmware_cmd  # noqa: E402
+from .schema import schema_cmd  # noqa: E402
+from .sweep import sweep_cmd  # noqa: E402
+
+for command in (animate_cmd, examples_cmd, firmware_cmd, schema_cmd, sweep_cmd):
+    cli.add_command(command)
 
 if __name__ == "__main__":  # pragma: no cover
     cli()

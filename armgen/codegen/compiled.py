@@ -1,10 +1,14 @@
 """Load generated C back into Python: build a shared library with the strict flags, bind
 each function with ctypes, and wrap it as a ``casadi.Callback`` so it is a CasADi
-``Function`` with the same name, inputs and outputs as the symbolic one."""
+``Function`` with the same name, inputs and outputs as the symbolic one (the verifier's
+view); and :class:`NativeKernel`, one fused SX function compiled and called by ctypes
+straight on NumPy buffers (the planners' per-step call)."""
 
 from __future__ import annotations
 
 import ctypes
+import hashlib
+import os
 import tempfile
 from pathlib import Path
 
@@ -108,3 +112,60 @@ class CompiledModel:
 
     def function(self, name: str) -> ca.Function:
         return self.callbacks[name]
+
+
+# -- one fused SX function as native code, called on NumPy buffers ---------------------------
+
+def kernel_cache_dir() -> Path:
+    """Where compiled kernels are kept between runs (keyed by the hash of their C source, so a
+    changed model or emitter compiles afresh); ARMGEN_CACHE_DIR overrides."""
+    base = os.environ.get("ARMGEN_CACHE_DIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "armgen")
+    return Path(base) / "kernels"
+
+
+def kernel_source(func: ca.Function, symbol: str) -> str:
+    """C99 of a one-input, one-output dense SX function: ``void <symbol>(const double *x, double *y)``."""
+    from .c_emitter import MATH_MACROS, emit_body
+    from .stamp import c_preamble
+
+    em = emit_body(func, ["x"], [False], ["y"], [False], "K")
+    macros = "\n".join(f"#define K_{m} {m.lower()}" for m in MATH_MACROS)
+    digest = hashlib.sha256(em.body.encode()).hexdigest()
+    return (c_preamble(f"kernel {func.name()}", digest, f"armgen planner kernel {func.name()} "
+                       f"({func.nnz_in()} inputs, {func.nnz_out()} outputs, {em.flops} flops)", "the planner")
+            + "\n#include <math.h>\n\ntypedef double k_real;\n#define K_LIT(x) x\n" + macros
+            + f"\n\nvoid {symbol}(const k_real *x, k_real *y);\nvoid {symbol}(const k_real *x, k_real *y) {{\n"
+            + em.body + "\n}\n")
+
+
+class NativeKernel:
+    """``func`` (one dense input vector, one dense output vector) compiled to a shared library
+    (cached on disk by source hash) and called by ctypes on two fixed NumPy buffers."""
+
+    # -O1 keeps the compile of these long straight-line functions (tens of thousands of
+    # statements for the wgpm clamp kernel) short; the first run pays it, later runs load the
+    # cached library.
+    def __init__(self, func: ca.Function, opt: str = "-O1"):
+        symbol = "armgen_kernel"
+        source = kernel_source(func, symbol)
+        key = hashlib.sha256((source + opt).encode()).hexdigest()[:24]
+        cache = kernel_cache_dir()
+        library = cache / f"{func.name()}-{key}.so"
+        if not library.is_file():
+            cache.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryDirectory(prefix="armgen-kernel-", dir=cache) as work:
+                c_file = Path(work) / f"{func.name()}.c"
+                c_file.write_text(source, encoding="utf-8")
+                built = compile_shared([c_file], Path(work) / library.name, opt=opt)
+                os.replace(built, library)  # atomic: concurrent builders leave one complete file
+        self._lib = ctypes.CDLL(str(library))
+        self._fn = getattr(self._lib, symbol)
+        self._fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
+        self._fn.restype = None
+        self.x = np.zeros(func.nnz_in())
+        self.y = np.zeros(func.nnz_out())
+        self._args = (self.x.ctypes.data, self.y.ctypes.data)
+
+    def __call__(self) -> None:
+        self._fn(*self._args)

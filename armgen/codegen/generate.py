@@ -26,8 +26,8 @@ import casadi as ca
 import sympy
 
 from .. import __version__
-from ..errors import ArmgenError
-from ..fileio import write_text_atomic
+from ..errors import OptionError
+from ..fileio import write_file_set
 from ..robot import Robot, load_robot_any
 from ..symbolic.model import DESCRIPTIONS, STEP_FUNCTIONS, ModelOptions, SymbolicModel
 from .c_emitter import MATH_MACROS, EmittedFunction, describe_counts, emit_body
@@ -48,7 +48,9 @@ STANDARD_NAMES = frozenset(
     "sin cos tan asin acos atan atan2 sinh cosh tanh exp log log10 pow sqrt hypot fabs floor ceil fmod fmin fmax "
     "copysign round trunc nan isnan isfinite isinf signbit abs div exit free malloc calloc realloc printf main "
     "errno_t size_t ptrdiff_t null".split())
-REPO_GENERATED_DIR = Path(__file__).resolve().parent.parent.parent / "generated"
+# Outputs go where the user is: ./generated/<name>/ under the current directory (at the
+# repository root that is the checked-in generated/).
+GENERATED_DIR = Path("generated")
 
 
 @dataclass(frozen=True)
@@ -71,16 +73,16 @@ class GeneratedCode:
 def make_consistent(config: CodegenConfig) -> CodegenConfig:
     """Fill defaults and validate the options; errors name the option and the fix."""
     if config.precision not in PRECISIONS:
-        raise ArmgenError(f"--precision {config.precision!r}: choose one of {', '.join(PRECISIONS)}")
+        raise OptionError(f"--precision {config.precision!r}: choose one of {', '.join(PRECISIONS)}")
     prefix = config.prefix or re.sub(r"[^0-9a-zA-Z_]", "_", config.robot.name).lower()
     if not re.fullmatch(r"[a-z_][a-z0-9_]{0,30}", prefix):
-        raise ArmgenError(f"--prefix {prefix!r}: use a C identifier in lower case of at most 31 characters "
+        raise OptionError(f"--prefix {prefix!r}: use a C identifier in lower case of at most 31 characters "
                           "(letters, digits, _; not starting with a digit)")
     if prefix in C_KEYWORDS or prefix in STANDARD_NAMES:
-        raise ArmgenError(f"--prefix {prefix!r} is a C keyword or a standard-library name: choose another "
+        raise OptionError(f"--prefix {prefix!r} is a C keyword or a standard-library name: choose another "
                           f"(e.g. --prefix {prefix}_arm)")
     if prefix.startswith("_"):
-        raise ArmgenError(f"--prefix {prefix!r}: identifiers starting with '_' are reserved in C (the generated "
+        raise OptionError(f"--prefix {prefix!r}: identifiers starting with '_' are reserved in C (the generated "
                           f"macros would be _<NAME>); start with a letter (e.g. --prefix arm{prefix})")
     return CodegenConfig(config.robot, config.precision, prefix, config.functions)
 
@@ -316,18 +318,13 @@ typedef enum {{
 
 def write(code: GeneratedCode, out_dir: str | Path) -> list[Path]:
     out_dir = Path(out_dir)
-    paths = []
-    for name, text in code.files.items():
-        path = out_dir / name
-        write_text_atomic(path, text)
-        paths.append(path)
-    return paths
+    return write_file_set({out_dir / name: text for name, text in code.files.items()})
 
 
 def generate_robot(robot: Robot | str | Path, out_dir: str | Path | None = None, precision: str = "double",
                    prefix: str = "", functions: tuple[str, ...] | None = None) -> tuple[GeneratedCode, list[Path]]:
-    """Library entry of ``armgen gen``: default output is ``generated/<robot>/``."""
+    """Library entry of ``armgen gen``: default output is ``./generated/<robot>/``."""
     robot = load_robot_any(robot)
     code = generate(CodegenConfig(robot, precision, prefix, functions))
-    target = Path(out_dir) if out_dir is not None else REPO_GENERATED_DIR / robot.name
+    target = Path(out_dir) if out_dir is not None else GENERATED_DIR / robot.name
     return code, write(code, target)

@@ -2,7 +2,8 @@
 
 A path maps the path parameter ``s ∈ [0, 1]`` to a position, its derivative ``dp/ds``, a
 rotation and the angular velocity per unit ``ds``. A time law maps ``τ = t/T`` to
-``s(τ)`` and ``ds/dτ``.
+``s(τ)`` and ``ds/dτ``. Both take a number or an array (a planner evaluates the whole plan's
+times at once); an array of shape S gives results of shape S, S+(3,) or S+(3, 3).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..errors import TaskFileError
 
@@ -31,22 +33,20 @@ class TimeLaw:
         if self.kind == "trapezoidal" and not 0 < self.blend <= 0.5:
             raise TaskFileError(f"timing.blend = {self.blend} must be in (0, 0.5]")
 
-    def __call__(self, tau: float) -> tuple[float, float]:
+    def __call__(self, tau):
         """(s, ds/dτ) at τ, clamped to [0, 1]."""
-        tau = min(max(tau, 0.0), 1.0)
+        tau = np.clip(tau, 0.0, 1.0)
         if self.kind == "cubic":
             return 3 * tau ** 2 - 2 * tau ** 3, 6 * tau - 6 * tau ** 2
         if self.kind == "constant":
-            return tau, 1.0
+            return tau, np.ones_like(tau)
         b = self.blend
         vmax = 1.0 / (1.0 - b)  # area under the trapezoid is 1
         acc = vmax / b
-        if tau < b:
-            return 0.5 * acc * tau ** 2, acc * tau
-        if tau <= 1 - b:
-            return 0.5 * acc * b ** 2 + vmax * (tau - b), vmax
         r = 1.0 - tau
-        return 1.0 - 0.5 * acc * r ** 2, acc * r
+        s = np.where(tau < b, 0.5 * acc * tau ** 2,
+                     np.where(tau <= 1 - b, 0.5 * acc * b ** 2 + vmax * (tau - b), 1.0 - 0.5 * acc * r ** 2))
+        return s, np.where(tau < b, acc * tau, np.where(tau <= 1 - b, vmax, acc * r))
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -80,34 +80,33 @@ class CirclePath:
         d = point - self.centre
         return math.atan2(d @ self.v, d @ self.u) % (2 * math.pi)
 
-    def __call__(self, s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        phi = 2 * math.pi * s
-        c, sn = math.cos(phi), math.sin(phi)
-        p = self.centre + self.radius * (c * self.u + sn * self.v)
-        dp = 2 * math.pi * self.radius * (-sn * self.u + c * self.v)
-        return p, dp, self.rotation, np.zeros(3)
+    def __call__(self, s) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        phi = 2 * math.pi * np.asarray(s)
+        c, sn = np.cos(phi), np.sin(phi)
+        outer = np.multiply.outer
+        p = self.centre + self.radius * (outer(c, self.u) + outer(sn, self.v))
+        dp = 2 * math.pi * self.radius * (outer(-sn, self.u) + outer(c, self.v))
+        return p, dp, np.broadcast_to(self.rotation, phi.shape + (3, 3)), np.zeros(phi.shape + (3,))
 
     def sample_points(self, count: int = 360) -> np.ndarray:
         return np.array([self(k / count)[0] for k in range(count)])
 
 
 def _axis_angle(rot: np.ndarray) -> tuple[np.ndarray, float]:
-    cos_angle = max(-1.0, min(1.0, (np.trace(rot) - 1) / 2))
-    angle = math.acos(cos_angle)
-    if angle < 1e-12:
+    """Unit axis and angle in [0, π] of a rotation matrix, via SciPy's quaternion route
+    (accurate at every angle; ``acos`` of the trace loses half the digits near 0 and turns a
+    9e-16 rounding of the trace into a 3e-8 rad rotation). The exact identity gives angle 0."""
+    rotvec = Rotation.from_matrix(rot).as_rotvec()
+    angle = float(np.linalg.norm(rotvec))
+    if angle == 0.0:
         return np.array([0.0, 0.0, 1.0]), 0.0
-    axis = np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
-    norm = np.linalg.norm(axis)
-    if norm < 1e-9:  # angle ≈ π: axis from the symmetric part
-        sym = (rot + np.eye(3)) / 2
-        axis = sym[:, int(np.argmax(np.diag(sym)))]
-        norm = np.linalg.norm(axis)
-    return axis / norm, angle
+    return rotvec / angle, angle
 
 
-def _rodrigues(axis: np.ndarray, angle: float) -> np.ndarray:
+def _rodrigues(axis: np.ndarray, angle) -> np.ndarray:
     k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
+    angle = np.asarray(angle)[..., None, None]
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
 
 
 class LinePath:
@@ -116,14 +115,18 @@ class LinePath:
     def __init__(self, start: np.ndarray, end: np.ndarray, r_start: np.ndarray, r_end: np.ndarray):
         self.start, self.delta = start, end - start
         self.r_start = r_start
-        axis_local, self.angle = _axis_angle(r_start.T @ r_end)
+        # holding the orientation is no rotation at all, not the rounding left in R0ᵀ R0
+        axis_local, self.angle = ((np.array([0.0, 0.0, 1.0]), 0.0) if np.array_equal(r_start, r_end)
+                                  else _axis_angle(r_start.T @ r_end))
         self.axis_local = axis_local
         self.axis_world = r_start @ axis_local
 
-    def __call__(self, s: float):
-        p = self.start + s * self.delta
+    def __call__(self, s):
+        s = np.asarray(s)
+        p = self.start + np.multiply.outer(s, self.delta)
         rot = self.r_start @ _rodrigues(self.axis_local, s * self.angle)
-        return p, self.delta, rot, self.axis_world * self.angle
+        shape = s.shape + (3,)
+        return p, np.broadcast_to(self.delta, shape), rot, np.broadcast_to(self.axis_world * self.angle, shape)
 
     def sample_points(self, count: int = 100) -> np.ndarray:
         return np.array([self(k / count)[0] for k in range(count + 1)])

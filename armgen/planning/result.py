@@ -8,6 +8,7 @@ column whose unit starts with ``rad`` to degrees and renames it (``q1_deg``, ``d
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 from dataclasses import dataclass, field
@@ -16,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from ..fileio import atomic_open
+from ..errors import OutputError, PlanFileError
+from ..fileio import write_file_set
 
 ANGLE_UNITS = ("rad", "deg")
 
@@ -34,6 +36,21 @@ class PlanResult:
 
     def column(self, name: str) -> np.ndarray:
         return self.data[:, self.columns.index(name)]
+
+
+# Columns whose +inf is a value, not a failure: the clearance to obstacles of a task that has
+# none. NaN and -inf are never valid in any column.
+UNBOUNDED_COLUMN_PREFIXES = ("clearance_",)
+
+
+def first_invalid_sample(columns: list[str], data: np.ndarray) -> tuple[int, int] | None:
+    """(row, column) of the first non-finite sample (other than +inf where it is a value), or None."""
+    bad = ~np.isfinite(data)
+    for k, name in enumerate(columns):
+        if name.startswith(UNBOUNDED_COLUMN_PREFIXES):
+            bad[:, k] = np.isnan(data[:, k]) | (data[:, k] == -np.inf)
+    hits = np.argwhere(bad)
+    return (int(hits[0][0]), int(hits[0][1])) if hits.size else None
 
 
 def _split_unit(column: str) -> tuple[str, str]:
@@ -88,34 +105,73 @@ def metadata_path(csv_path: str | Path) -> Path:
 
 
 def write_plan(result: PlanResult, csv_path: str | Path, units: str = "rad") -> tuple[Path, Path]:
-    """Write ``plan.csv`` and ``plan.json`` beside it, each atomically."""
+    """Write ``plan.csv`` and ``plan.json`` beside it, together or not at all."""
     csv_path = Path(csv_path)
     columns, data = convert_angle_units(result.columns, result.data, units)
-    with atomic_open(csv_path, "w", newline="") as handle:
-        writer = csv.writer(handle, lineterminator="\n")
-        writer.writerow(columns)
-        for row in data:
-            writer.writerow([repr(float(v)) for v in row])
+    table = io.StringIO()
+    writer = csv.writer(table, lineterminator="\n")
+    writer.writerow(columns)
+    for row in data.tolist():  # Python floats: repr is the shortest round-trip text
+        writer.writerow(map(repr, row))
     meta = dict(result.metadata)
     meta["csv"] = {"file": csv_path.name, "columns": columns, "samples": int(data.shape[0]), "angle_units": units}
     json_path = metadata_path(csv_path)
-    with atomic_open(json_path, "w") as handle:
-        json.dump(_finite_json(json.loads(json.dumps(meta, default=_json_default))), handle, indent=2, sort_keys=False)
-        handle.write("\n")
+    if json_path == csv_path:
+        raise OutputError(f"{csv_path}: the plan CSV needs a name ending in .csv (its plan.json goes beside it)")
+    meta_text = json.dumps(_finite_json(json.loads(json.dumps(meta, default=_json_default))), indent=2) + "\n"
+    write_file_set({csv_path: table.getvalue(), json_path: meta_text})
     return csv_path, json_path
 
 
+# A plan file larger than this is not something armgen wrote for a controller; reading it
+# would only exhaust memory (a 10 kHz plan of 100 columns over an hour is ~0.5 GB).
+MAX_PLAN_FILE_BYTES = 1 << 30
+
+
 def read_plan(csv_path: str | Path) -> PlanResult:
-    """Read a plan CSV (and its JSON sidecar when present); angles come back in radians."""
+    """Read a plan CSV (and its JSON sidecar when present); angles come back in radians.
+    Any malformed content is a :class:`PlanFileError` naming the file and the line."""
     csv_path = Path(csv_path)
-    with open(csv_path, newline="", encoding="utf-8") as handle:
-        reader = csv.reader(handle)
+    try:
+        size = csv_path.stat().st_size
+        if size > MAX_PLAN_FILE_BYTES:
+            raise PlanFileError(f"{csv_path}: {size} bytes is larger than the {MAX_PLAN_FILE_BYTES} bytes a plan may have")
+        text = csv_path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise PlanFileError(f"{csv_path}: not UTF-8 text ({exc.reason} at byte {exc.start}); give a plan CSV "
+                            "written by armgen plan") from None
+    except OSError as exc:
+        raise PlanFileError(f"{csv_path}: cannot read the plan: {exc.strerror or exc}") from None
+    try:
+        lines = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as exc:
+        raise PlanFileError(f"{csv_path}: not a CSV file ({exc}); give a plan CSV written by armgen plan") from None
+    if not lines or not lines[0]:
+        raise PlanFileError(f"{csv_path}: empty plan file; give a plan CSV written by armgen plan")
+    columns = [c.strip() for c in lines[0]]
+    if "t_s" not in columns or len(set(columns)) != len(columns):
+        raise PlanFileError(f"{csv_path}: line 1: the header {columns[:6]!r}... must name distinct columns including "
+                            "'t_s'; give a plan CSV written by armgen plan")
+    rows = []
+    for number, row in enumerate(lines[1:], start=2):
+        if not row:
+            continue
+        if len(row) != len(columns):
+            raise PlanFileError(f"{csv_path}: line {number}: {len(row)} values for {len(columns)} columns; "
+                                "every row needs one value per header column")
         try:
-            columns = next(reader)
-        except StopIteration:
-            raise ValueError(f"{csv_path}: empty plan file") from None
-        rows = [[float(v) for v in row] for row in reader if row]
-    data = np.array(rows, dtype=float).reshape(len(rows), len(columns))
+            values = [float(v) for v in row]
+        except ValueError:
+            bad = next(v for v in row if not _is_float(v))
+            raise PlanFileError(f"{csv_path}: line {number}: {bad[:40]!r} is not a number") from None
+        rows.append(values)
+    if not rows:
+        raise PlanFileError(f"{csv_path}: no samples after the header line")
+    data = np.array(rows, dtype=float)
+    invalid = first_invalid_sample(columns, data)
+    if invalid is not None:
+        raise PlanFileError(f"{csv_path}: line {invalid[0] + 2}: column '{columns[invalid[1]]}' is "
+                            f"{data[invalid]}; a plan holds finite numbers only")
     # back to SI: columns in degrees become radians
     out_cols = []
     for k, col in enumerate(columns):
@@ -126,5 +182,34 @@ def read_plan(csv_path: str | Path) -> PlanResult:
         else:
             out_cols.append(col)
     meta_file = metadata_path(csv_path)
-    meta = json.loads(meta_file.read_text(encoding="utf-8")) if meta_file.is_file() else {}
+    meta = read_plan_metadata(meta_file, columns, len(rows)) if meta_file.is_file() and meta_file != csv_path else {}
     return PlanResult(out_cols, data, meta)
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def read_plan_metadata(path: Path, columns: list[str], samples: int) -> dict[str, Any]:
+    """plan.json, checked against :class:`PlanMetadata` and against its CSV."""
+    from pydantic import ValidationError
+
+    from ..schemas import format_validation_error
+    from .plan_schema import PlanMetadata
+
+    try:
+        raw = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise PlanFileError(f"{path}: not valid JSON ({exc}); regenerate it with armgen plan") from None
+    try:
+        meta = PlanMetadata.model_validate(raw)
+    except ValidationError as exc:
+        raise PlanFileError(format_validation_error(exc, str(path), raw, "regenerate it with armgen plan")) from None
+    if meta.csv is not None and (meta.csv.columns != columns or meta.csv.samples != samples):
+        raise PlanFileError(f"{path}: field 'csv' describes {meta.csv.samples} samples of {len(meta.csv.columns)} "
+                            f"columns but the CSV has {samples} of {len(columns)}; the two files do not belong together")
+    return raw

@@ -17,11 +17,13 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import casadi as ca
 import numpy as np
 
 from ..errors import PlanningError, TaskFileError
-from ..robot import Robot, matrix_rpy
-from .cartesian.planner import _number, _table, orientation_error, parse_path_and_timing, parse_robot_and_start
+from ..robot import Robot
+from .cartesian.planner import (_number, _table, parse_path_and_timing, parse_robot_and_start, sym_orientation_error,
+                                sym_rpy)
 from .paths import CirclePath, LinePath, TimeLaw
 
 # Default closed-loop gain K_p (1/s) of ẋ + K_p e: spec 30 wants CLIK on by default. With
@@ -87,6 +89,9 @@ def parse_path_task(task: dict, source: str, known_top: set[str]) -> PathTask:
     step = _number(integ, "step", "integrator", source, 0.02, positive=True)
     if step > duration:
         raise TaskFileError(f"{source}: integrator.step = {step} is longer than timing.duration = {duration}")
+    if not math.isfinite(duration / step):
+        raise TaskFileError(f"{source}: integrator.step = {step:g} s is too small for timing.duration = {duration:g} s; "
+                            "give a step of at least a microsecond")
     steps = int(round(duration / step))
     if abs(steps * step - duration) > 1e-9 * duration:
         raise TaskFileError(f"{source}: timing.duration = {duration} s is not a multiple of integrator.step = {step} s")
@@ -105,7 +110,7 @@ def parse_path_task(task: dict, source: str, known_top: set[str]) -> PathTask:
 
 def reach_radius(robot: Robot) -> float:
     """Radius of a sphere about the base that contains every reachable tool position."""
-    reach = sum(math.hypot(j.a, j.d) + (j.qlim[1] if not j.revolute else 0.0) for j in robot.joints)
+    reach = sum(j.link_length + (j.qlim[1] if not j.revolute else 0.0) for j in robot.joints)
     return reach + float(np.linalg.norm(robot.tool[:3, 3]))
 
 
@@ -130,35 +135,45 @@ class TaskPath:
                 f"the path is unreachable: point {np.round(points[k] * 1e3, 1).tolist()} mm is {dist[k] * 1e3:.0f} mm "
                 f"from the base, beyond the arm's reach of {reach * 1e3:.0f} mm; move path.via/path.end closer")
 
-    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(position, rotation, twist [v; ω]) at time t."""
+    def __call__(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(position, rotation, twist [v; ω]) at time t (a number or an array of times)."""
         T = self.task.duration
+        t = np.asarray(t, dtype=float)
         s, ds = self.task.law(t / T)
         turns = self.task.turns
         p, dp, rot, dw = self.path(turns * s)
-        sdot = turns * ds / T if 0.0 <= t <= T else 0.0
-        return p, rot, np.concatenate([dp * sdot, dw * sdot])
+        sdot = np.where((0.0 <= t) & (t <= T), turns * ds / T, 0.0)[..., None]
+        return p, rot, np.concatenate([dp * sdot, dw * sdot], axis=-1)
 
-    def sample(self, count: int = 400) -> list[tuple[float, np.ndarray, np.ndarray]]:
-        """(t, position, rotation) at ``count + 1`` times over the plan."""
-        T = self.task.duration
-        return [(k * T / count, *self(k * T / count)[:2]) for k in range(count + 1)]
+    def timed_inputs(self, t: np.ndarray) -> np.ndarray:
+        """Per time: desired position, rotation (column-major) and twist, one row each (a
+        fused step's t-dependent inputs)."""
+        p_d, r_d, xdot = self(t)
+        return np.hstack([p_d, np.swapaxes(r_d, -1, -2).reshape(-1, 9), xdot])
 
 
-def tracking(pose: np.ndarray, p_d: np.ndarray, r_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    return p_d - pose[:3, 3], orientation_error(pose[:3, :3], r_d)
+TIMED_WIDTH = 18  # columns of TaskPath.timed_inputs: position 3, rotation 9, twist 6
+
+
+def sym_tracking(pose: ca.SX, timed: ca.SX, clik_gain: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """Position and orientation errors and the commanded twist ẋ + K_p e in CasADi, from one row of
+    :meth:`TaskPath.timed_inputs`."""
+    pos_err = timed[:3] - pose[:3, 3]
+    ori_err = sym_orientation_error(pose[:3, :3], ca.reshape(timed[3:12], 3, 3))
+    return pos_err, ori_err, timed[12:18] + clik_gain * ca.vertcat(pos_err, ori_err)
+
+
+def sym_base_row(q, qd, pose, jac, pos_err, ori_err, cmd, rows, damping, sigma_min) -> ca.SX:
+    """The row of :func:`base_columns` without the time, in CasADi (‖J q̇ − ẋ_cmd‖ on the task
+    rows is the residual)."""
+    return ca.vertcat(q, qd, pose[:3, 3], sym_rpy(pose[:3, :3]), ca.norm_2(pos_err), ca.norm_2(ori_err),
+                      ca.norm_2((ca.mtimes(jac, qd) - cmd)[rows]), damping, sigma_min)
 
 
 def base_columns(n: int) -> list[str]:
     return (["t_s"] + [f"q{i + 1}_rad" for i in range(n)] + [f"dq{i + 1}_rad_s" for i in range(n)]
             + ["x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad", "pos_err_m", "ori_err_rad",
                "task_residual_1", "damping_1", "sigma_min_1"])
-
-
-def base_row(t: float, q: np.ndarray, qd: np.ndarray, pose: np.ndarray, pos_err: np.ndarray, ori_err: np.ndarray,
-             residual: float, damping: float, sigma_min: float) -> list[float]:
-    return [t, *q, *qd, *pose[:3, 3], *matrix_rpy(pose[:3, :3]), float(np.linalg.norm(pos_err)),
-            float(np.linalg.norm(ori_err)), residual, damping, sigma_min]
 
 
 def smoothness(qd: np.ndarray, h: float, skip: tuple[int, ...] = ()) -> dict[str, float]:

@@ -6,23 +6,21 @@ from __future__ import annotations
 
 import hashlib
 import importlib
-import math
-import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .. import __version__
-from ..errors import TaskFileError
-from .result import PlanResult
+import numpy as np
+from pydantic import ValidationError
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from .. import __version__
+from ..errors import PlanFileError, PlanningError, TaskFileError
+from ..schemas import MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, closest_key, format_validation_error, parse_toml_bounded
+from .result import PlanResult, first_invalid_sample
 
 # planner name -> its package: ``planner.plan_task(task: dict, source: str, backend: str)`` and
-# ``plots.<function>(result, out_path)``
+# ``plots.<function>(result) -> Figure``
 PLANNERS = {
     "ptp": "armgen.planning.ptp",
     "cartesian": "armgen.planning.cartesian",
@@ -30,73 +28,149 @@ PLANNERS = {
     "wgpm": "armgen.planning.wgpm",
     "snake": "armgen.planning.snake",
 }
+SCHEMAS = {"ptp": "PtpTaskFile", "cartesian": "CartesianTaskFile", "fault_tolerant": "FaultTolerantTaskFile",
+           "wgpm": "WgpmTaskFile", "snake": "SnakeTaskFile"}
 PLOT_FUNCTIONS = {"ptp": "plot_ptp", "cartesian": "plot_resolved_rate", "fault_tolerant": "plot_fault_tolerant",
                   "wgpm": "plot_wgpm", "snake": "plot_snake"}
 
 
+# Resource caps, checked from the validated task before any planning starts. Each can be
+# raised for one run with the CLI option named in the error (``armgen plan --max-steps N``).
+# At the resolved-rate planners' ~0.3 ms per step, 2e6 steps is about ten minutes.
+MAX_INTEGRATION_STEPS = 2_000_000
+# 1e6 rows of ~25 columns is ~0.4 GB of CSV, beyond any controller's memory.
+MAX_OUTPUT_SAMPLES = 1_000_000
+
+
+@dataclass(frozen=True)
+class ResourceCaps:
+    max_steps: int = MAX_INTEGRATION_STEPS
+    max_samples: int = MAX_OUTPUT_SAMPLES
+
+
 def load_task(path: str | Path) -> tuple[dict[str, Any], str]:
-    """Read a task file; returns the parsed dict and the file's sha256."""
+    """Read a task file (size and nesting bounded); returns the parsed dict and the file's sha256."""
     path = Path(path)
     if not path.is_file():
         raise TaskFileError(f"{path}: task file not found")
-    data = path.read_bytes()
     try:
-        task = tomllib.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise TaskFileError(f"{path}: not valid TOML: {exc}") from None
-    return task, hashlib.sha256(data).hexdigest()
+        if path.stat().st_size > MAX_INPUT_FILE_BYTES:
+            raise TaskFileError(f"{path}: larger than the {MAX_INPUT_FILE_BYTES} bytes a task file may have")
+        data = path.read_bytes()
+    except OSError as exc:
+        raise TaskFileError(f"{path}: cannot read the task file: {exc.strerror or exc}") from None
+    return parse_toml_bounded(data, str(path), TaskFileError), hashlib.sha256(data).hexdigest()
 
 
-def _parse_value(text: str) -> Any:
+def parse_value(text: str, where: str) -> Any:
+    """A TOML value as given on the command line (``where`` names the option in errors)."""
     try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
+        doc = parse_toml_bounded(f"v = {text}", where, TaskFileError)
+    except TaskFileError as exc:
+        if "not valid TOML" not in str(exc):
+            raise
         return text  # a bare word is a string
+    return doc["v"]
+
+
+def set_field(task: dict[str, Any], key: str, value: Any, where: str) -> None:
+    """Set the task field ``key`` (dotted keys reach into tables) to ``value``; ``where`` names
+    the option in errors."""
+    parts = [p.strip() for p in key.split(".")]
+    if not all(parts):
+        raise TaskFileError(f"{where}: empty key component in {key!r}")
+    if len(parts) > MAX_NESTING_DEPTH:
+        raise TaskFileError(f"{where}: key nested deeper than {MAX_NESTING_DEPTH} levels")
+    node = task
+    for part in parts[:-1]:
+        nxt = node.setdefault(part, {})
+        if not isinstance(nxt, dict):
+            raise TaskFileError(f"{where}: '{part}' is not a table in the task file")
+        node = nxt
+    node[parts[-1]] = value
 
 
 def apply_overrides(task: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
-    """Apply ``key=value`` overrides; dotted keys reach into tables; values are TOML."""
+    """Apply ``key=value`` overrides; dotted keys reach into tables; values are TOML. The
+    result is validated by the planner's schema like the file itself (in :func:`run_task`)."""
     for item in overrides:
         if "=" not in item:
             raise TaskFileError(f"--set {item!r}: expected key=value (e.g. --set integrator.h=0.01)")
         key, raw = item.split("=", 1)
-        parts = [p.strip() for p in key.split(".")]
-        if not all(parts):
-            raise TaskFileError(f"--set {item!r}: empty key component")
-        node = task
-        for part in parts[:-1]:
-            nxt = node.setdefault(part, {})
-            if not isinstance(nxt, dict):
-                raise TaskFileError(f"--set {item!r}: '{part}' is not a table in the task file")
-            node = nxt
-        node[parts[-1]] = _parse_value(raw.strip())
+        set_field(task, key, parse_value(raw.strip(), f"--set {item!r}"), f"--set {item!r}")
     return task
 
 
-def check_finite_tree(value: Any, where: str, source: str) -> None:
-    """Reject NaN/inf anywhere in a task (TOML allows 'nan' and 'inf' literals)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        raise TaskFileError(f"{source}: field '{where}' is {value}; give a finite number")
+# No quantity in a task file exceeds this magnitude in any unit armgen accepts (the largest,
+# a link's axial stiffness EA, is ~1e9 N); bounding every number keeps products and squares
+# of task values (~1e24) far from floating-point overflow.
+MAX_ABS_TASK_NUMBER = 1e12
+
+
+def _check_magnitudes(value: Any, where: str, source: str) -> None:
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and abs(value) > MAX_ABS_TASK_NUMBER:
+        raise TaskFileError(f"{source}: field '{where}' = {value:g} is beyond ±{MAX_ABS_TASK_NUMBER:g}; no "
+                            "physical quantity of a task is that large: check the value and its unit")
     if isinstance(value, dict):
-        for k, v in value.items():
-            check_finite_tree(v, f"{where}.{k}" if where else k, source)
+        for key, item in value.items():
+            _check_magnitudes(item, f"{where}.{key}" if where else str(key), source)
     elif isinstance(value, list):
-        for k, v in enumerate(value):
-            check_finite_tree(v, f"{where}[{k}]", source)
+        for k, item in enumerate(value):
+            _check_magnitudes(item, f"{where}[{k}]", source)
 
 
-def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: str = "symbolic") -> PlanResult:
-    check_finite_tree(task, "", source)
-    planner = task.get("planner")
-    if planner not in PLANNERS:
+def validate_task(task: dict[str, Any], source: str) -> Any:
+    """The task checked against its planner's schema (keys, types, ranges); returns the model."""
+    planner = task.get("planner") if isinstance(task, dict) else None
+    if not isinstance(planner, str) or planner not in PLANNERS:
+        near = closest_key(planner, list(PLANNERS)) if isinstance(planner, str) else None
         raise TaskFileError(
-            f"{source}: field 'planner' = {planner!r} is not one of {', '.join(sorted(PLANNERS))}; "
-            "set planner = \"<name>\" at the top of the task file"
-        )
+            f"{source}: field 'planner' = {planner!r} is not one of {', '.join(sorted(PLANNERS))}"
+            + (f" (did you mean `{near}`?)" if near else "")
+            + "; set planner = \"<name>\" at the top of the task file")
+    schema = importlib.import_module(PLANNERS[planner] + ".schema")
+    try:
+        model = getattr(schema, SCHEMAS[planner]).model_validate(task)
+    except ValidationError as exc:
+        raise TaskFileError(format_validation_error(exc, source, task)) from None
+    _check_magnitudes(task, "", source)
+    return model
+
+
+def check_caps(planner: str, model: Any, caps: ResourceCaps, source: str) -> None:
+    """Refuse, before planning, a task whose steps or samples exceed the caps."""
+    steps, samples = importlib.import_module(PLANNERS[planner] + ".schema").workload(model)
+    if steps > caps.max_steps:
+        raise TaskFileError(f"{source}: the task needs {steps:.3g} integration steps, more than the cap of "
+                            f"{caps.max_steps}; raise integrator.step (or shorten the duration), or lift the cap "
+                            "with --max-steps N")
+    if samples > caps.max_samples:
+        raise TaskFileError(f"{source}: the plan would have {samples:.3g} samples, more than the cap of "
+                            f"{caps.max_samples}; write fewer (integrator.output_every, step, output_step) or "
+                            "lift the cap with --max-samples N")
+
+
+def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: str = "symbolic",
+             caps: ResourceCaps = ResourceCaps()) -> PlanResult:
+    """Validate ``task`` (schema, caps), plan it, and reject a plan with a non-finite sample."""
+    model = validate_task(task, source)
+    planner = task["planner"]
+    check_caps(planner, model, caps, source)
     module = importlib.import_module(PLANNERS[planner] + ".planner")
     started = time.perf_counter()
-    result: PlanResult = module.plan_task(task, source, backend)
+    try:
+        with np.errstate(all="ignore"):  # a non-finite result is reported below, as an infeasible plan
+            result: PlanResult = module.plan_task(task, source, backend)
+    except OverflowError as exc:
+        raise PlanningError(f"{source}: the plan overflowed ({exc}); the task's numbers are too large for a "
+                            "physical motion (check durations, steps and gains)") from None
     elapsed = time.perf_counter() - started
+    invalid = first_invalid_sample(result.columns, result.data)
+    if invalid is not None:
+        row, col = invalid
+        raise PlanningError(f"{source}: the plan is not feasible: column '{result.columns[col]}' is "
+                            f"{result.data[row, col]} at sample {row}; nothing was written (check the timing "
+                            "and the numbers of the task)")
     meta = {
         "armgen_version": __version__,
         "task_file": source,
@@ -111,10 +185,18 @@ def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: 
     return result
 
 
-def plot_plan(result: PlanResult, out_path: str | Path, source: str) -> None:
-    """Draw a plan with its planner's figure."""
+def plot_plan(result: PlanResult, source: str):
+    """The plan's figure (a :class:`matplotlib.figure.Figure`) drawn by its planner's plots
+    module; write it with :func:`armgen.planning.plotting.save_figure`."""
     planner = result.metadata.get("planner")
     if planner not in PLANNERS:
-        raise TaskFileError(f"{source}: no plot for planner {planner!r} (plan.json missing or unknown planner)")
+        raise PlanFileError(f"{source}: no plot for planner {planner!r} (plan.json missing or unknown planner); "
+                            "keep the plan.json that armgen plan wrote beside the CSV")
     module = importlib.import_module(PLANNERS[planner] + ".plots")
-    getattr(module, PLOT_FUNCTIONS[planner])(result, out_path)
+    try:
+        return getattr(module, PLOT_FUNCTIONS[planner])(result)
+    except (KeyError, IndexError, TypeError, ValueError) as exc:
+        # A plan.json that validates but lacks a block the figure needs (hand-edited, from
+        # another version) is a PlanFileError, not a crash.
+        raise PlanFileError(f"{source}: the plan and its plan.json do not fit the {planner} figure "
+                            f"({type(exc).__name__}: {str(exc)[:120]}); regenerate them with armgen plan") from None

@@ -1,12 +1,16 @@
-"""Forward kinematics and the geometric Jacobian of a DH chain in CasADi SX.
+"""Forward kinematics and the geometric Jacobian of a serial chain in CasADi SX.
 
 Each joint transform is split as ``pre · Rz(θ) Tz(d) · post`` with constant ``pre``/``post``:
 standard DH has ``pre = I``, ``post = Tx(a) Rx(α)``; modified (Craig) DH has
-``pre = Rx(α_{i-1}) Tx(a_{i-1})``, ``post = I``. The joint axis is the z axis of the frame
-``T_{i-1} · pre``, which gives the Jacobian columns directly (``z × (p_tool − o)`` for a
-revolute joint, ``z`` for a prismatic one) instead of differentiating the FK: far fewer
-operations than an AD Jacobian. Constant angles that are multiples of 90° enter as exact
-0/±1 (see :func:`armgen.robot.exact_cos_sin`), so SX drops the products with them.
+``pre = Rx(α_{i-1}) Tx(a_{i-1})``, ``post = I``. A general (URDF) joint with fixed transform
+``origin`` and unit ``axis`` is the same form with ``pre = origin · A`` and ``post = Aᵀ``,
+where ``A`` is a constant rotation taking z onto the axis; ``post`` is folded into the next
+joint's ``pre`` (or the tool), so each joint costs one constant product. The joint axis is
+the z axis of the frame ``T_{i-1} · pre``, which gives the Jacobian columns directly
+(``z × (p_tool − o)`` for a revolute joint, ``z`` for a prismatic one) instead of
+differentiating the FK: far fewer operations than an AD Jacobian. Constant angles that are
+multiples of 90° enter as exact 0/±1 (see :func:`armgen.robot.exact_cos_sin`), and so do the
+alignments of coordinate axes, so SX drops the products with them.
 """
 
 from __future__ import annotations
@@ -25,6 +29,32 @@ def _rot_x_trans_x(alpha: float, a: float) -> np.ndarray:
     """Rx(alpha) Tx(a) == Tx(a) Rx(alpha) (they commute)."""
     ca_, sa = exact_cos_sin(alpha)
     return np.array([[1.0, 0.0, 0.0, a], [0.0, ca_, -sa, 0.0], [0.0, sa, ca_, 0.0], [0.0, 0.0, 0.0, 1.0]])
+
+
+# Rotations taking z onto each signed coordinate axis, exact (entries 0/±1).
+_COORDINATE_ALIGNMENTS = {
+    (0.0, 0.0, 1.0): np.eye(3),
+    (0.0, 0.0, -1.0): np.diag([1.0, -1.0, -1.0]),
+    (1.0, 0.0, 0.0): np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]),
+    (-1.0, 0.0, 0.0): np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),
+    (0.0, 1.0, 0.0): np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]),
+    (0.0, -1.0, 0.0): np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
+}
+
+
+def axis_alignment(axis: tuple[float, float, float]) -> np.ndarray:
+    """A 4×4 rotation whose z column is the unit ``axis`` (exact for coordinate axes)."""
+    out = np.eye(4)
+    key = tuple(float(v) for v in axis)
+    if key in _COORDINATE_ALIGNMENTS:
+        out[:3, :3] = _COORDINATE_ALIGNMENTS[key]
+        return out
+    z = np.array(key)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = helper - helper.dot(z) * z
+    x /= np.linalg.norm(x)
+    out[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    return out
 
 
 def _joint_motion(joint: Joint, q_i: ca.SX) -> ca.SX:
@@ -57,19 +87,25 @@ def chain(robot: Robot, q: ca.SX) -> tuple[list[ca.SX], list[ca.SX], ca.SX]:
     """Return (axis frames, joint frames, tool transform).
 
     ``axis_frames[i]`` is the frame whose z axis is joint i's axis (through its origin);
-    ``joint_frames[i]`` is the DH frame after joint i; the last item is base·…·tool.
+    ``joint_frames[i]`` is the frame after joint i (for a general joint: the axis-aligned
+    frame, i.e. the URDF child frame times ``A``); the last item is base·…·tool.
     """
     current = _const(robot.base)
     axis_frames, joint_frames = [], []
+    post = np.eye(4)  # the previous general joint's A^T, folded into the next constant
     for i, joint in enumerate(robot.joints):
-        if robot.convention == "modified":
+        if joint.origin is not None:
+            alignment = axis_alignment(joint.axis)
+            current = _mul(current, _const(post @ joint.origin @ alignment))
+            post = alignment.T
+        elif robot.convention == "modified":
             current = _mul(current, _const(_rot_x_trans_x(joint.alpha, joint.a)))
         axis_frames.append(current)
         current = _mul(current, _joint_motion(joint, q[i]))
-        if robot.convention == "standard":
+        if joint.origin is None and robot.convention == "standard":
             current = _mul(current, _const(_rot_x_trans_x(joint.alpha, joint.a)))
         joint_frames.append(current)
-    tool = _mul(current, _const(robot.tool))
+    tool = _mul(current, _const(post @ robot.tool))
     return axis_frames, joint_frames, tool
 
 

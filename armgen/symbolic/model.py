@@ -93,11 +93,15 @@ class SymbolicModel:
 
     # -- the functions ---------------------------------------------------------------
     def function(self, name: str) -> ca.Function:
+        if name not in self._functions:  # built on first use: a planner needs a few of them
+            if name not in self.available():
+                raise KeyError(name)
+            self._functions[name] = self._build(name)
         return self._functions[name]
 
     @cached_property
     def _functions(self) -> dict[str, ca.Function]:
-        return {name: self._build(name) for name in self.available()}
+        return {}
 
     def functions(self) -> dict[str, ca.Function]:
         return {name: self.function(name) for name in self.selected()}

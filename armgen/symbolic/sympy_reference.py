@@ -2,7 +2,8 @@
 
 It shares nothing with :mod:`armgen.symbolic.kinematics` but the robot data: the DH
 transforms are the textbook 4×4 products with ``θ = q + offset`` inside the trig
-functions, the linear Jacobian rows are the derivatives of the tool position, and the
+functions, a general (URDF) joint is ``origin · Rot(axis, q)`` with Rodrigues' formula
+(or ``origin · Trans(q · axis)``) instead of an axis alignment, the linear Jacobian rows are the derivatives of the tool position, and the
 angular rows come from ``Ṙ Rᵀ`` (the skew-symmetric angular-velocity matrix) instead of
 the ``z × (p − o)`` construction. Criteria gradients are the closed forms of the specs.
 """
@@ -31,10 +32,25 @@ def _tx(a):
     return sp.Matrix([[1, 0, 0, a], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
 
 
+def _general_motion(axis, q_i, revolute: bool) -> sp.Matrix:
+    """Rot(axis, q) = I + sin q K + (1 − cos q) K² (Rodrigues), or a translation q · axis."""
+    u = sp.Matrix(axis)
+    out = sp.eye(4)
+    if revolute:
+        K = sp.Matrix([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+        out[:3, :3] = sp.eye(3) + sp.sin(q_i) * K + (1 - sp.cos(q_i)) * K * K
+    else:
+        out[:3, 3] = q_i * u
+    return out
+
+
 def sympy_fk(robot: Robot, q: list[sp.Symbol]) -> sp.Matrix:
-    """Tool transform base·A_1⋯A_n·tool with the DH products written out literally."""
+    """Tool transform base·A_1⋯A_n·tool with the joint products written out literally."""
     T = sp.Matrix(robot.base.tolist())
     for i, j in enumerate(robot.joints):
+        if j.origin is not None:
+            T = T * sp.Matrix(j.origin.tolist()) * _general_motion(j.axis, q[i], j.revolute)
+            continue
         theta = q[i] + j.offset if j.revolute else sp.Float(j.theta)
         d = j.d if j.revolute else j.d + j.offset + q[i]
         if robot.convention == "standard":

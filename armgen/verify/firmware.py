@@ -39,7 +39,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..codegen.generate import REPO_GENERATED_DIR, CodegenConfig, generate, write
+from ..codegen.generate import GENERATED_DIR, CodegenConfig, generate, write
 from ..codegen.ptp_c import generate_ptp_evaluator
 from ..codegen.toolchain import ARM_CPU_FLAGS, SANITIZER_FLAGS, STRICT_FLAGS, find_tool, host_cc, run_tool
 from ..errors import ArmgenError
@@ -95,8 +95,11 @@ FW_FLOAT_PLAYBACK_BOUND_RAD = 1e-5
 FW_FLOAT_PLAYBACK_BOUND_RAD_S = 1e-5
 
 FAULT_NAMES = ("NONE", "BAD_CONFIG", "NONFINITE_INPUT", "NONFINITE_OUTPUT", "JOINT_LIMIT", "SINGULAR", "OVERRUN",
-               "TRACKING", "PLAYBACK", "BAD_ARGS")
-STATE_NAMES = ("IDLE", "RUNNING", "DONE", "FAULT")
+               "TRACKING", "PLAYBACK", "BAD_ARGS", "LOCK_REPORT", "REDUNDANCY", "SPEED")
+STATE_NAMES = ("IDLE", "RUNNING", "DONE", "FAULT", "DEGRADED")
+FAULT_STATE = STATE_NAMES.index("FAULT")
+# Controller modes that integrate a Cartesian task on board (compared by q and task error).
+RESOLVED_MODES = ("resolved_rate", "fault_tolerant", "weighted_gpm")
 METHOD_IDS = {"pinv": "CTRL_METHOD_PINV", "repetitive": "CTRL_METHOD_REPETITIVE", "zghal": "CTRL_METHOD_ZGHAL",
               "zghal_improved": "CTRL_METHOD_ZGHAL_IMPROVED", "combined": "CTRL_METHOD_COMBINED"}
 LAW_IDS = {"cubic": "CTRL_LAW_CUBIC", "trapezoidal": "CTRL_LAW_TRAPEZOIDAL", "constant": "CTRL_LAW_CONSTANT"}
@@ -112,8 +115,21 @@ def robot_prefix(robot: Robot) -> str:
     return re.sub(r"[^0-9a-zA-Z_]", "_", robot.name).lower()
 
 
-# The generated functions the controller calls.
+# The generated functions the controller calls: always, and per optional mode (a robot whose
+# generated code lacks them gets a firmware without that mode: -DCTRL_HAS_<MODE>=0).
 FIRMWARE_FUNCTIONS = ("fk_jacobian", "zghal", "repetitive", "step_gpm")
+OPTIONAL_FUNCTIONS = {"FAULT_TOLERANT": ("ft_index", "wln_weights", "step_fault"), "WEIGHTED_GPM": ("step_wgpm",)}
+
+
+def available_modes(source: str, prefix: str) -> tuple[str, ...]:
+    """The optional controller modes whose generated functions the robot's source defines."""
+    return tuple(mode for mode, names in OPTIONAL_FUNCTIONS.items()
+                 if all(re.search(rf"^(?:void|{prefix}_status) {prefix}_{n}\(", source, re.M) for n in names))
+
+
+def firmware_functions(source: str, prefix: str) -> tuple[str, ...]:
+    """Every generated function the firmware of this robot calls."""
+    return FIRMWARE_FUNCTIONS + tuple(n for mode in available_modes(source, prefix) for n in OPTIONAL_FUNCTIONS[mode])
 
 
 def extract_functions(source: str, prefix: str, names: Sequence[str] = FIRMWARE_FUNCTIONS) -> str | None:
@@ -146,7 +162,7 @@ class FirmwareTask:
     """What the controller runs: the text of ``task_params.h`` plus what the comparison needs."""
 
     robot: Robot
-    mode: str  # "resolved_rate" | "playback"
+    mode: str  # "resolved_rate" | "playback" | "fault_tolerant" | "weighted_gpm"
     header: str
     dt: float
     n_ticks: int  # index of the last tick
@@ -154,6 +170,8 @@ class FirmwareTask:
     output_every: int = 1
     joints: dict[int, str] = field(default_factory=dict)  # playback: robot joint -> plan joint name
     nseg: int = 0
+    lock_tick: int = -1  # the runners report the joints of lock_mask locked from this tick (-1: never)
+    lock_mask: int = 0
 
     @property
     def max_segments(self) -> int:
@@ -171,7 +189,7 @@ def _vec(values) -> str:
     return "{" + ", ".join(_lit(v) for v in np.asarray(values, dtype=float).ravel()) + "}"
 
 
-def _header(robot: Robot, source: str, body: list[str], comment: str) -> str:
+def _header(robot: Robot, source: str, body: list[str], comment: str, lock_tick: int = -1, lock_mask: int = 0) -> str:
     n = robot.n
     lines = [
         "/*",
@@ -186,6 +204,11 @@ def _header(robot: Robot, source: str, body: list[str], comment: str) -> str:
         "const ctrl_config fw_task = {",
         *[f"    {line}" for line in body],
         "};",
+        "",
+        "/* The runners' drive model: from tick fw_lock_tick (-1: never) ctrl_input.locked reports the",
+        " * joints of fw_lock_mask (bit i: joint i) locked. */",
+        f"const uint32_t fw_lock_mask = {int(lock_mask)}u;",
+        f"const int32_t fw_lock_tick = {int(lock_tick)};",
         "",
     ]
     return "\n".join(lines)
@@ -234,6 +257,8 @@ def cartesian_task(task: dict[str, Any], source: str) -> FirmwareTask:
         f".rho_L = {_lit(mp.rho_L)}, .theta_s = {_lit(mp.theta_s)},",
         f".T_smo_L = {_lit(mp.T_smo_L)}, .T_sum_L = {_lit(mp.T_sum_L)},",
         f".gamma_R_ramp = {_lit(mp.gamma_R_ramp)},",
+        ".relative = 0,",
+        f".turns = {_lit(1.0)},",
         f".clik_gain = {_lit(parsed.clik_gain)},",
         # λ = 0: the planner damps only below σ_min = ε, which no bundled plan reaches; plans
         # that used damping are refused by compare_with_plan (summary.damped_steps > 0).
@@ -306,29 +331,155 @@ def playback_task(plan: PlanResult, source: str, robot: Robot | None = None) -> 
     return FirmwareTask(robot, "playback", header, dt, len(t) - 1, source, 1, joints, nseg)
 
 
+def _path_fields(path, source: str) -> list[str]:
+    """The ``rr`` fields of a spec 30/35 path task (taskpath.PathTask): path, timing, CLIK."""
+    axis, angle = np.array([0.0, 0.0, 1.0]), 0.0
+    if path.path_type == "line" and path.end_rotation is not None:  # the planner's own axis/angle
+        from ..planning.backends import make_backend
+        from ..planning.taskpath import TaskPath
+
+        pose0, _ = make_backend(path.robot, "symbolic", ("fk_jacobian",)).call("fk_jacobian", path.q_start)
+        line = TaskPath(path, np.asarray(pose0)).path
+        axis, angle = line.axis_local, float(line.angle)
+    return [
+        f".path = {'CTRL_PATH_CIRCLE' if path.path_type == 'circle' else 'CTRL_PATH_LINE'},",
+        f".via = {_vec(path.via if path.via is not None else np.zeros(3))},",
+        f".end = {_vec(path.end)},",
+        f".rot_axis = {_vec(axis)},",
+        f".rot_angle = {_lit(angle)},",
+        f".duration = {_lit(path.duration)},",
+        f".law = {LAW_IDS[path.law.kind]},",
+        f".blend = {_lit(path.law.blend)},",
+        f".relative = {1 if path.relative else 0},",
+        f".turns = {_lit(path.turns)},",
+        f".clik_gain = {_lit(path.clik_gain if path.clik else 0.0)},",
+        ".task_rows = {" + ", ".join(str(r) for r in path.robot.task_rows) + "},",
+    ]
+
+
+FT_METHOD_IDS = {"pinv": "CTRL_FT_PINV", "gpm": "CTRL_FT_GPM", "wln": "CTRL_FT_WLN"}
+FT_INDEX_IDS = {"omega": "CTRL_FT_INDEX_OMEGA", "relative": "CTRL_FT_INDEX_RELATIVE"}
+
+
+def fault_tolerant_task(task: dict[str, Any], source: str) -> FirmwareTask:
+    """FAULT_TOLERANT parameters from a ``planner = "fault_tolerant"`` task dict; the plan's
+    fault (fault.joints from fault.time) becomes the runners' lock schedule."""
+    from ..planning.fault_tolerant.planner import parse_fault_tolerant_task
+
+    parsed = parse_fault_tolerant_task(json.loads(json.dumps(task)), source)
+    path, m, robot = parsed.path, parsed.method, parsed.robot
+    if m.index not in FT_INDEX_IDS:
+        raise FirmwareError(f"{source}: method.index = {m.index!r}: the controller computes the omega and relative "
+                            "indices on board (generated ft_index); sigma_min is a NumPy SVD with a numeric gradient "
+                            "in the planner only. Re-plan with method.index = \"omega\" or \"relative\"")
+    ft = [
+        f".method = {FT_METHOD_IDS[m.name]},",
+        f".index = {FT_INDEX_IDS[m.index]},",
+        f".K = {_lit(m.K)}, .b = {_lit(m.b)},",
+        f".rule = {'CTRL_WLN_SMOOTH' if m.weight_rule == 'smooth' else 'CTRL_WLN_PLAIN'},",
+        f".v_band = {_lit(m.v_band)}, .omega_floor = {_lit(m.omega_floor)}, .delta = {_lit(m.delta)},",
+        f".a = {_vec(m.a or (1.0,) * robot.n)},",
+        f".epsilon = {_lit(path.damping_epsilon)}, .lambda_max = {_lit(path.damping_max)},",
+    ]
+    steps = path.steps
+    lock_tick, lock_mask = -1, 0
+    if parsed.fault.joints:  # FaultTolerantPlanner.lock_step
+        k_f = int(math.ceil(parsed.fault.time / path.step - 1e-9))
+        if k_f <= steps:
+            lock_tick, lock_mask = k_f, sum(1 << j for j in parsed.fault.joints)
+    body = _common_fields(robot, "CTRL_MODE_FAULT_TOLERANT", path.step, path.q_start)
+    body += [".rr = {", *[f"    {line}" for line in _path_fields(path, source)], "},"]
+    body += [".ft = {", *[f"    {line}" for line in ft], "},"]
+    locked = ", ".join(robot.joints[j].name for j in parsed.fault.joints) or "none"
+    comment = (f"Fault tolerant: {path.path_type} x {path.turns:g}, {m.label}, index {m.index}, Euler h = "
+               f"{path.step:g} s ({steps} steps); lock of {locked} reported from tick {lock_tick}.")
+    return FirmwareTask(robot, "fault_tolerant", _header(robot, source, body, comment, lock_tick, lock_mask),
+                        path.step, steps, source, path.output_every, lock_tick=lock_tick, lock_mask=lock_mask)
+
+
+def weighted_gpm_task(task: dict[str, Any], source: str) -> FirmwareTask:
+    """WEIGHTED_GPM parameters from a ``planner = "wgpm"`` task dict (method.name = "wgpm")."""
+    from ..planning.wgpm.planner import parse_wgpm_task
+
+    parsed = parse_wgpm_task(json.loads(json.dumps(task)), source)
+    path, m, robot = parsed.path, parsed.method, parsed.path.robot
+    if m.name != "wgpm":
+        raise FirmwareError(f"{source}: method.name = {m.name!r} is the planner's comparison baseline; the controller "
+                            "runs method.name = \"wgpm\" (step_wgpm)")
+    h_lo, h_hi, k_hi, k_lo, u_th, u_band = m.vectors()
+    wg = [
+        f".band = {_lit(m.band)}, .t_rmax = {_lit(m.t_rmax)}, .delta = {_lit(m.delta)},",
+        f".epsilon = {_lit(path.damping_epsilon)}, .rho_max = {_lit(path.damping_max)},",
+        f".ramp_time = {_lit(m.ramp_time)}, .ramp_out = {1 if m.ramp_out else 0},",
+        f".H_lo = {_vec(h_lo)}, .H_hi = {_vec(h_hi)},",
+        f".k_hi = {_vec(k_hi)}, .k_lo = {_vec(k_lo)},",
+        f".u_th = {_vec(u_th)}, .u_band = {_vec(u_band)},",
+    ]
+    body = _common_fields(robot, "CTRL_MODE_WEIGHTED_GPM", path.step, path.q_start)
+    body += [".rr = {", *[f"    {line}" for line in _path_fields(path, source)], "},"]
+    body += [".wg = {", *[f"    {line}" for line in wg], "},"]
+    comment = (f"Weighted GPM: {path.path_type} x {path.turns:g}, band {m.band:g}, ramp {m.ramp_time:g} s, Euler h = "
+               f"{path.step:g} s ({path.steps} steps).")
+    return FirmwareTask(robot, "weighted_gpm", _header(robot, source, body, comment), path.step, path.steps, source,
+                        path.output_every)
+
+
+def schedule_lock(task: FirmwareTask, spec: str, source: str = "--lock") -> FirmwareTask:
+    """The task with the runners' drive model reporting a lock the plan did not know:
+    ``spec`` = ``JOINTS@TIME``, joints by number (1-based) or name, ``+``-separated, time in s
+    (the first tick at or after it)."""
+    joints_text, sep, time_text = spec.partition("@")
+    names = [j.name for j in task.robot.joints]
+    try:
+        t_lock = float(time_text)
+    except ValueError:
+        t_lock = math.nan
+    if not sep or not math.isfinite(t_lock) or t_lock < 0:
+        raise FirmwareError(f"{source} {spec!r}: give JOINTS@TIME, e.g. 5@1.38 (joint 5 locks at t = 1.38 s)")
+    mask = 0
+    for item in joints_text.split("+"):
+        item = item.strip()
+        if item in names:
+            mask |= 1 << names.index(item)
+        elif item.isdigit() and 1 <= int(item) <= task.robot.n:
+            mask |= 1 << (int(item) - 1)
+        else:
+            raise FirmwareError(f"{source} {spec!r}: {item!r} is not a joint of robot '{task.robot.name}': give a "
+                                f"number 1..{task.robot.n} or a name ({', '.join(names)})")
+    tick = int(math.ceil(t_lock / task.dt - 1e-9))
+    header = re.sub(r"const uint32_t fw_lock_mask = \d+u;", f"const uint32_t fw_lock_mask = {mask}u;", task.header)
+    header = re.sub(r"const int32_t fw_lock_tick = -?\d+;", f"const int32_t fw_lock_tick = {tick};", header)
+    return dataclasses.replace(task, header=header, lock_tick=tick, lock_mask=mask)
+
+
+TASK_BUILDERS = {"cartesian": cartesian_task, "fault_tolerant": fault_tolerant_task, "wgpm": weighted_gpm_task}
+
+
 def task_from_plan(plan: PlanResult, source: str, robot: Robot | None = None) -> FirmwareTask:
     """The controller task that reproduces a plan (read with :func:`read_plan`)."""
     planner = plan.metadata.get("planner")
-    if planner == "cartesian":
+    if planner in TASK_BUILDERS:
         task = plan.metadata.get("task")
         if not task:
             raise FirmwareError(f"{source}: no task in its plan.json (write plans with `armgen plan`)")
-        return cartesian_task(task, source)
+        return TASK_BUILDERS[planner](task, source)
     if planner == "ptp":
         return playback_task(plan, source, robot)
-    raise FirmwareError(f"{source}: the controller runs cartesian and ptp plans, not planner {planner!r}")
+    raise FirmwareError(f"{source}: the controller runs cartesian, ptp, fault_tolerant and wgpm plans, not planner "
+                        f"{planner!r}")
 
 
 def task_from_dict(task: dict[str, Any], source: str, robot: Robot | None = None) -> FirmwareTask:
     """From a task file's dict: cartesian directly; ptp through the (fast) PTP planner."""
     planner = task.get("planner")
-    if planner == "cartesian":
-        return cartesian_task(task, source)
+    if planner in TASK_BUILDERS:
+        return TASK_BUILDERS[planner](task, source)
     if planner == "ptp":
         from ..planning.tasks import run_task
 
         return playback_task(run_task(task, source), source, robot)
-    raise FirmwareError(f"{source}: the controller runs cartesian and ptp tasks, not planner {planner!r}")
+    raise FirmwareError(f"{source}: the controller runs cartesian, ptp, fault_tolerant and wgpm tasks, not planner "
+                        f"{planner!r}")
 
 
 # ------------------------------------------------------------------------------------------
@@ -378,8 +529,10 @@ class FirmwareBuilder:
         self.work = Path(work)
         self.work.mkdir(parents=True, exist_ok=True)
         self.prefix = robot_prefix(self.robot)
-        self.gen_dir = Path(gen_dir) if gen_dir is not None else self._generated_dir()
-        self.robot_source = self._robot_source()
+        self.gen_dir = Path(gen_dir).resolve() if gen_dir is not None else self._generated_dir()
+        source = (self.gen_dir / f"{self.prefix}.c").read_text(encoding="utf-8")
+        self.modes = available_modes(source, self.prefix)
+        self.robot_source = self._robot_source(source)
         self.ptp_dir = self.work / "ptp"
         if not (self.ptp_dir / f"{PTP_PREFIX}_ptp.c").is_file():
             generate_ptp_evaluator(self.ptp_dir, PTP_PREFIX, "double")
@@ -388,7 +541,7 @@ class FirmwareBuilder:
 
     def _generated_dir(self) -> Path:
         """The checked-in generated/<robot>/ when it belongs to this robot file, else fresh code."""
-        checked_in = REPO_GENERATED_DIR / self.robot.name
+        checked_in = (GENERATED_DIR / self.robot.name).resolve()  # the compilers run in their own folders
         header = checked_in / f"{self.prefix}.h"
         if header.is_file() and f'ROBOT_SHA256 "{self.robot.sha256}"' in header.read_text(encoding="utf-8"):
             return checked_in
@@ -396,9 +549,9 @@ class FirmwareBuilder:
         write(generate(CodegenConfig(self.robot)), fresh)
         return fresh
 
-    def _robot_source(self) -> Path:
+    def _robot_source(self, source: str) -> Path:
         full = self.gen_dir / f"{self.prefix}.c"
-        reduced = extract_functions(full.read_text(encoding="utf-8"), self.prefix)
+        reduced = extract_functions(source, self.prefix, firmware_functions(source, self.prefix))
         if reduced is None:
             return full
         path = self.work / "robot" / f"{self.prefix}_fw.c"
@@ -411,6 +564,7 @@ class FirmwareBuilder:
         d = [f"-DCTRL_ROBOT={self.prefix}", f"-DCTRL_ROBOT_UC={P}", f'-DCTRL_ROBOT_HEADER="{self.prefix}.h"',
              f"-D{P}_USE_FLOAT={flag}", f"-D{PTP_PREFIX.upper()}_USE_FLOAT={flag}",
              f"-DCTRL_MAX_SEGMENTS={v.max_segments}"]
+        d += [f"-DCTRL_HAS_{mode}={1 if mode in self.modes else 0}" for mode in OPTIONAL_FUNCTIONS]
         if v.target == "arm":
             d += ["-DFW_CSV_HEX=1", f"-DFW_PRINT_ROWS={1 if v.print_rows else 0}"]
         return d
@@ -622,25 +776,29 @@ def refusal(plan: PlanResult) -> str | None:
     return None
 
 
-def _expected_fault_ticks(plan: PlanResult, task: FirmwareTask, plan_ticks: np.ndarray) -> tuple[int, int] | None:
-    """Where a limit-enforcing controller must stop: at the plan's first sample outside the
-    joint limits (the planner itself does not enforce them) — or, when the plan keeps only
-    every k-th sample, anywhere after the last sample inside and up to that one."""
+def _expected_fault_ticks(plan: PlanResult, task: FirmwareTask,
+                          plan_ticks: np.ndarray) -> tuple[int, int, str] | None:
+    """Where a guarded controller must stop, and with which fault: at the plan's first sample
+    outside the joint limits (JOINT_LIMIT; the planners do not enforce them) or, in the
+    resolved-rate modes, farther than the tracking guard from the path (TRACKING: e.g. a lock
+    that leaves the arm unable to follow) — or, when the plan keeps only every k-th sample,
+    anywhere after the last good sample and up to that one."""
     robot = task.robot
-    if task.mode == "resolved_rate":
+    if task.mode in RESOLVED_MODES:
         idx = list(range(robot.n))
         q = np.column_stack([plan.column(f"q{i + 1}_rad") for i in idx])
     else:
         idx = sorted(task.joints)
         q = np.column_stack([plan.column(f"theta_{task.joints[i]}_rad") for i in idx])
-    bad = (q > robot.qmax[idx]) | (q < robot.qmin[idx])
-    rows = np.flatnonzero(bad.any(axis=1))
+    bad_q = ((q > robot.qmax[idx]) | (q < robot.qmin[idx])).any(axis=1)
+    bad_e = plan.column("pos_err_m") > DEFAULT_POS_ERR_MAX if task.mode in RESOLVED_MODES else np.zeros_like(bad_q)
+    rows = np.flatnonzero(bad_q | bad_e)
     if not rows.size:
         return None
     r = int(rows[0])
     hi = int(plan_ticks[r])
     lo = int(plan_ticks[r - 1]) + 1 if r > 0 else hi
-    return lo, hi
+    return lo, hi, "JOINT_LIMIT" if bad_q[r] else "TRACKING"
 
 
 def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, precision: str, label: str,
@@ -657,13 +815,13 @@ def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, pr
     bound_q, bound_2 = bounds_for(precision, task.mode)
     slack = tick_slack if tick_slack is not None else (0 if precision == "double" else 1)
     t_plan = plan.column("t_s")
-    if task.mode == "resolved_rate":
+    if task.mode in RESOLVED_MODES:
         plan_ticks = np.rint(t_plan / task.dt).astype(int)
     else:
         plan_ticks = np.arange(len(t_plan))
     fw = run.by_tick()
     expected = _expected_fault_ticks(plan, task, plan_ticks)
-    fault_ticks = [k for k, row in fw.items() if int(row[-2]) == 3]
+    fault_ticks = [k for k, row in fw.items() if int(row[-2]) == FAULT_STATE]
     fault_tick = min(fault_ticks) if fault_ticks else None
     stop = fault_tick if fault_tick is not None else task.n_ticks + 1
     use = [(r, k) for r, k in enumerate(plan_ticks) if k < stop]
@@ -675,7 +833,7 @@ def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, pr
                             "all", False]], False)
     fw_rows = np.array([fw[k] for _, k in use]) if use else np.zeros((0, len(run.columns)))
     plan_rows = [r for r, _ in use]
-    if task.mode == "resolved_rate":
+    if task.mode in RESOLVED_MODES:
         q_plan = np.column_stack([plan.column(f"q{i + 1}_rad")[plan_rows] for i in range(n)])
         dq = float(np.max(np.abs(fw_rows[:, 2:2 + n] - q_plan))) if use else 0.0
         e_plan = plan.column("pos_err_m")[plan_rows]
@@ -701,16 +859,17 @@ def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, pr
                      ok and int(last[0]) == task.n_ticks])
         passed &= ok and int(last[0]) == task.n_ticks
     else:
-        lo, hi = expected
-        ok = run.fault == "JOINT_LIMIT" and fault_tick is not None and lo - slack <= fault_tick <= hi + slack
+        lo, hi, expected_fault = expected
+        ok = run.fault == expected_fault and fault_tick is not None and lo - slack <= fault_tick <= hi + slack
         if ok and fault_tick in fw and fault_tick - 1 in fw:
             held = fw[fault_tick][2:2 + n]
             prev = fw[fault_tick - 1][2:2 + n]
             ok = bool(np.array_equal(held, prev) and np.all(held <= robot.qmax) and np.all(held >= robot.qmin))
         where = f"tick {fault_tick}" if fault_tick is not None else "none"
         span = f"tick {hi}" if lo == hi else f"ticks {lo}..{hi}"
-        rows.append([label, "end (plan leaves the limits)", f"{run.state}/{run.fault} at {where}",
-                     f"JOINT_LIMIT at {span} (t = {hi * task.dt:.4g} s)", ok])
+        why = "limits" if expected_fault == "JOINT_LIMIT" else "tracking guard"
+        rows.append([label, f"end (plan leaves the {why})", f"{run.state}/{run.fault} at {where}",
+                     f"{expected_fault} at {span} (t = {hi * task.dt:.4g} s)", ok])
         passed &= ok
     rows.append([label, "commands finite", "yes" if held_ok else "NO", "yes", held_ok])
     passed &= held_ok
@@ -728,9 +887,9 @@ def write_task_files(task: FirmwareTask, out_dir: str | Path, gen_dir: str | Pat
     out_dir.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out_dir / "task_params.h", task.header)
     prefix = robot_prefix(task.robot)
-    full = Path(gen_dir) if gen_dir is not None else REPO_GENERATED_DIR / task.robot.name
+    full = Path(gen_dir) if gen_dir is not None else GENERATED_DIR / task.robot.name
     text = (full / f"{prefix}.c").read_text(encoding="utf-8")
-    write_text_atomic(out_dir / "robot_fw.c", extract_functions(text, prefix) or text)
+    write_text_atomic(out_dir / "robot_fw.c", extract_functions(text, prefix, firmware_functions(text, prefix)) or text)
     return [out_dir / "task_params.h", out_dir / "robot_fw.c", *generate_ptp_evaluator(out_dir, PTP_PREFIX, "double")]
 
 
@@ -746,6 +905,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     h.add_argument("--robot", default=None, help="the firmware's robot (checked against the task's)")
     h.add_argument("--set", dest="overrides", action="append", default=[], help="override a task field (TOML value)")
     h.add_argument("--gen-dir", default=None, help="the robot's generated code (default generated/<robot>/)")
+    h.add_argument("--lock", default=None, metavar="JOINTS@TIME",
+                   help="the drives report these joints locked from TIME s on (e.g. 5@1.38), unknown to the plan")
     args = ap.parse_args(argv)
     try:
         robot = load_robot(args.robot) if args.robot else None
@@ -756,6 +917,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             doc, _ = load_task(src)
             apply_overrides(doc, list(args.overrides))
             task = task_from_dict(doc, str(src), robot)
+        if args.lock:
+            task = schedule_lock(task, args.lock)
         if robot is not None and task.robot.sha256 != robot.sha256:
             raise FirmwareError(f"{src}: the task is for robot '{task.robot.name}', the firmware is built for "
                                 f"'{robot.name}' (make ROBOT={task.robot.name})")

@@ -84,12 +84,13 @@ int main(void) {{
 def run_sanitized(gen_dir: str | Path, prefix: str, functions: dict[str, ca.Function], precision: str) -> str:
     """Build the driver with ASan/UBSan and the strict flags, run it, return its output."""
     gen_dir = Path(gen_dir)
-    work = Path(tempfile.mkdtemp(prefix="armgen-san-"))
-    driver = work / "driver.c"
-    driver.write_text(render_driver(prefix, functions), encoding="utf-8")
-    exe = work / "driver"
-    flag = 1 if precision == "float" else 0
-    run_tool([host_cc(), *STRICT_FLAGS, "-O1", "-g", *SANITIZER_FLAGS, f"-D{prefix.upper()}_USE_FLOAT={flag}",
-              f"-I{gen_dir}", str(driver), str(gen_dir / f"{prefix}.c"), "-o", str(exe), "-lm"],
-             f"building the sanitizer driver for {prefix} ({precision})")
-    return run_tool([str(exe)], f"running the sanitizer driver for {prefix} ({precision})").stdout
+    with tempfile.TemporaryDirectory(prefix="armgen-san-") as tmp:
+        work = Path(tmp)
+        driver = work / "driver.c"
+        driver.write_text(render_driver(prefix, functions), encoding="utf-8")
+        exe = work / "driver"
+        flag = 1 if precision == "float" else 0
+        run_tool([host_cc(), *STRICT_FLAGS, "-O1", "-g", *SANITIZER_FLAGS, f"-D{prefix.upper()}_USE_FLOAT={flag}",
+                  f"-I{gen_dir}", str(driver), str(gen_dir / f"{prefix}.c"), "-o", str(exe), "-lm"],
+                 f"building the sanitizer driver for {prefix} ({precision})")
+        return run_tool([str(exe)], f"running the sanitizer driver for {prefix} ({precision})").stdout

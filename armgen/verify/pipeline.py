@@ -1,7 +1,13 @@
 """``armgen verify``: the plan-and-verify pipeline of spec 60.
 
+The code verified is a folder written by ``armgen gen`` (default ``./generated/<robot>/``,
+``--generated DIR`` elsewhere). Before anything is compiled, its ``manifest.json`` must name
+the given robot file (sha256); a folder without a manifest, or generated from another robot
+file, is an input error (exit 2) that names the folder and the ``armgen gen`` command to fix it.
+
 Stages (each a function returning a :class:`Stage` with a table of rows):
-1. fresh    — regenerate into a temp dir; the checked-in ``generated/<robot>/`` must match;
+1. fresh    — regenerate (with the manifest's options) into a temp dir; every file must match.
+   Stale code is reported and never compiled or run: the later stages are shown as not run;
 2. compile  — strict gcc flags, float and double, plus an ASan/UBSan driver run;
 3. callbacks — each compiled function as a ``casadi.Callback`` against the interpreter at N
    seeded samples (near-singular and near-limit included), per-precision bounds;
@@ -10,28 +16,39 @@ Stages (each a function returning a :class:`Stage` with a table of rows):
    same task on the host — double with ASan/UBSan, and float — and compare it the same way;
 5. target   — (``--target cortex-m4``) the firmware cross-compiled for the Cortex-M4F (float),
    run under ``qemu-system-arm -M mps2-an386``, compared with the plan (and with the host
-   float run); fails naming the apt packages when the toolchain or QEMU is missing.
+   float run); fails naming the apt packages when the toolchain or QEMU is missing. Without
+   ``--plan`` it plans the demo task of ``armgen firmware`` (:mod:`.firmware_project`);
+6. run      — (``--run CSV``, with ``--plan``) what a firmware run printed (the host demo of an
+   ``armgen firmware`` project, or its Cortex-M4F image under QEMU) compared with the plan in the
+   bounds of the run's precision (``# real_bytes`` of its summary).
+
+A stage that compared nothing is never a PASS: it is a FAIL, or SKIPPED when the user did not
+ask for it (replay without ``--plan``); skipped stages do not fail the run. Temporary build
+folders are removed however the run ends.
 
 Bounds of the firmware comparisons and why: :mod:`armgen.verify.firmware`.
 """
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import json
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from ..codegen.generate import REPO_GENERATED_DIR, CodegenConfig, generate, write
-from ..errors import ArmgenError
+from ..codegen.generate import GENERATED_DIR, CodegenConfig, generate
+from ..codegen.toolchain import host_cc
+from ..errors import ArmgenError, OptionError, PlanFileError
 from ..fileio import write_text_atomic
-from ..planning.result import read_plan
+from ..planning.result import PlanResult, read_plan
 from ..planning.tasks import run_task
 from ..robot import Robot, load_robot
-from ..symbolic.model import SymbolicModel
+from ..symbolic.model import ModelOptions, SymbolicModel
 from .compare import compare_model
 from . import firmware as fw
 from ..codegen.compiled import CompiledModel, build_library
@@ -46,16 +63,31 @@ REPLAY_TASK_ERROR_BOUND_M = 1e-9
 
 @dataclass
 class Stage:
+    """One stage's verdict and table. A stage with no rows checked nothing: unless it was
+    skipped on purpose (``skipped``), that is a failure, whatever ``passed`` says."""
+
     name: str
     passed: bool
     columns: list[str]
     rows: list[list[Any]] = field(default_factory=list)
     message: str = ""
+    skipped: bool = False
+
+    def __post_init__(self) -> None:
+        if self.skipped:
+            self.passed = True
+        elif not self.rows:
+            self.passed = False
+            self.message = self.message or "nothing was checked"
+
+    @property
+    def verdict(self) -> str:
+        return "SKIPPED" if self.skipped else ("PASS" if self.passed else "FAIL")
 
     def render(self) -> str:
         widths = [max(len(str(c)), *(len(_fmt(r[k])) for r in self.rows)) if self.rows else len(str(c))
                   for k, c in enumerate(self.columns)]
-        lines = [f"== {self.name}: {'PASS' if self.passed else 'FAIL'}" + (f" — {self.message}" if self.message else "")]
+        lines = [f"== {self.name}: {self.verdict}" + (f" — {self.message}" if self.message else "")]
         lines.append("  " + "  ".join(str(c).ljust(w) for c, w in zip(self.columns, widths)))
         for r in self.rows:
             lines.append("  " + "  ".join(_fmt(v).ljust(w) for v, w in zip(r, widths)))
@@ -70,6 +102,12 @@ def _fmt(value: Any) -> str:
     return str(value)
 
 
+class GeneratedDirError(ArmgenError):
+    """The folder given as generated code is not ``armgen gen`` output for this robot file."""
+
+    exit_code = 2
+
+
 @dataclass
 class VerifyConfig:
     robot: Robot
@@ -78,26 +116,74 @@ class VerifyConfig:
     precisions: tuple[str, ...] = ("double", "float")
     target: str | None = None
     seed: int = 20261122
+    generated: Path | None = None  # default ./generated/<robot>/
+    run: Path | None = None  # a firmware run's printed CSV (host demo or QEMU) to compare with the plan
+    robot_ref: str = ""  # how the user named the robot (for the fix in messages)
+
+    @property
+    def gen_dir(self) -> Path:
+        return self.generated if self.generated is not None else GENERATED_DIR / self.robot.name
+
+    @property
+    def regenerate_command(self) -> str:
+        return f"armgen gen {self.robot_ref or self.robot.source} --out {self.gen_dir}"
 
 
-def stage_fresh(config: VerifyConfig, work: Path) -> Stage:
-    code = generate(CodegenConfig(config.robot))
-    fresh_dir = work / "fresh"
-    write(code, fresh_dir)
-    checked_in = REPO_GENERATED_DIR / config.robot.name
+@dataclass(frozen=True)
+class GeneratedCode:
+    """What ``manifest.json`` says the folder holds."""
+
+    prefix: str
+    precision: str
+    functions: tuple[str, ...]
+    robot_file: str  # the robot file's name as recorded (provenance; the sha256 is what counts)
+
+
+def read_manifest(config: VerifyConfig) -> GeneratedCode:
+    """The folder's manifest, checked against the robot file; GeneratedDirError otherwise."""
+    folder = config.gen_dir
+    manifest_path = folder / "manifest.json"
+    fix = f"generate it with `{config.regenerate_command}`, or point --generated at a folder written by `armgen gen`"
+    if not manifest_path.is_file():
+        what = "does not exist" if not folder.exists() else "has no manifest.json (not written by `armgen gen`)"
+        raise GeneratedDirError(f"{folder}: {what}; {fix}")
+    try:
+        manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
+        robot, options = manifest["robot"], manifest["options"]
+        sha, prefix, precision = str(robot["sha256"]), str(options["prefix"]), str(options["precision"])
+        functions = tuple(str(f) for f in options["functions"])
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as exc:
+        raise GeneratedDirError(f"{manifest_path}: not a readable armgen manifest ({type(exc).__name__}: {exc}); "
+                                f"regenerate with `{config.regenerate_command}`") from None
+    if sha != config.robot.sha256:
+        raise GeneratedDirError(
+            f"{manifest_path}: generated from a robot file with sha256 {sha[:16]}… ({robot.get('file', '?')}), but "
+            f"{config.robot.source} has sha256 {config.robot.sha256[:16]}…; the code is stale for this robot file — "
+            f"regenerate with `{config.regenerate_command}` (or give the robot file it was generated from)")
+    return GeneratedCode(prefix, precision, functions, str(robot.get("file", config.robot.source)))
+
+
+def stage_fresh(config: VerifyConfig, work: Path, found: GeneratedCode | None = None) -> Stage:
+    """Regenerate with the manifest's options; every file in the folder must be identical."""
+    found = found or read_manifest(config)
+    # Same bytes (sha256 checked), so only the recorded file name may differ: keep the recorded one.
+    robot = dataclasses.replace(config.robot, source=found.robot_file)
+    code = generate(CodegenConfig(robot, found.precision, found.prefix, found.functions))
     rows = []
     for name, text in sorted(code.files.items()):
-        path = checked_in / name
+        path = config.gen_dir / name
         same = path.is_file() and path.read_text(encoding="utf-8") == text
         rows.append([name, "missing" if not path.is_file() else ("identical" if same else "stale"), same])
     passed = all(r[2] for r in rows)
-    msg = "" if passed else f"update with `armgen gen {config.robot.name}` and commit generated/{config.robot.name}/"
+    msg = "" if passed else f"stale code is never compiled or run; regenerate with `{config.regenerate_command}`"
     return Stage("fresh", passed, ["file", "state", "ok"], rows, msg)
 
 
-def stage_compile(config: VerifyConfig, work: Path, functions) -> tuple[Stage, dict[str, Path]]:
-    gen_dir = REPO_GENERATED_DIR / config.robot.name
-    prefix = config.robot.name
+def stage_compile(config: VerifyConfig, work: Path, functions,
+                  found: GeneratedCode | None = None) -> tuple[Stage, dict[str, Path]]:
+    gen_dir = config.gen_dir
+    prefix = (found or read_manifest(config)).prefix
+    host_cc()  # a missing compiler is a missing tool (exit 4), not a verification failure
     rows, libraries = [], {}
     passed = True
     for precision in config.precisions:
@@ -114,14 +200,15 @@ def stage_compile(config: VerifyConfig, work: Path, functions) -> tuple[Stage, d
     return Stage("compile", passed, ["precision", "build", "ok", "detail"], rows), libraries
 
 
-def stage_callbacks(config: VerifyConfig, libraries: dict[str, Path], functions) -> Stage:
+def stage_callbacks(config: VerifyConfig, libraries: dict[str, Path], functions, prefix: str = "") -> Stage:
     rows, passed = [], True
     for precision, library in libraries.items():
-        compiled = CompiledModel(library, config.robot.name, functions, precision)
+        compiled = CompiledModel(library, prefix or fw.robot_prefix(config.robot), functions, precision)
         for r in compare_model(compiled, functions, config.robot, config.samples, config.seed):
             rows.append([r.name, precision, r.samples, r.max_error, r.bound, r.passed])
             passed &= r.passed
-    return Stage("callbacks", passed, ["function", "precision", "samples", "max error", "bound", "ok"], rows)
+    return Stage("callbacks", passed, ["function", "precision", "samples", "max error", "bound", "ok"], rows,
+                 "" if rows else "nothing compared: no library was built")
 
 
 def _angle_columns(plan) -> list[str]:
@@ -129,12 +216,39 @@ def _angle_columns(plan) -> list[str]:
     return [c for c in plan.columns if (c.startswith("q") or c.startswith("theta_")) and c.endswith("_rad")]
 
 
-def _firmware_builder(config: VerifyConfig, work: Path | None,
-                      builder: fw.FirmwareBuilder | None) -> fw.FirmwareBuilder:
+@contextlib.contextmanager
+def _work_dir(work: Path | None, prefix: str) -> Iterator[Path]:
+    """``work`` when given, else a temporary folder removed when the block ends."""
+    if work is not None:
+        yield work
+        return
+    with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
+        yield Path(tmp)
+
+
+def _firmware_gen_dir(config: VerifyConfig) -> Path | None:
+    """The user's generated folder when the controller's binding (prefix = robot name) fits it;
+    otherwise the builder generates its own copy."""
+    manifest = config.gen_dir / "manifest.json"
+    if manifest.is_file() and (config.gen_dir / f"{fw.robot_prefix(config.robot)}.h").is_file():
+        return config.gen_dir.resolve()  # the compilers run in their own folders
+    return None
+
+
+def _firmware_builder(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder | None) -> fw.FirmwareBuilder:
     if builder is not None:
         return builder
-    base = work if work is not None else Path(tempfile.mkdtemp(prefix="armgen-firmware-"))
-    return fw.FirmwareBuilder(config.robot, base / "firmware")
+    return fw.FirmwareBuilder(config.robot, work / "firmware", _firmware_gen_dir(config))
+
+
+def load_plan(path: Path) -> PlanResult:
+    """The plan, or a PlanFileError (exit 2) naming the file: never a traceback."""
+    try:
+        return read_plan(path)
+    except PlanFileError:
+        raise
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise PlanFileError(f"{path}: not a plan written by `armgen plan` ({exc}); give its CSV and plan.json") from None
 
 
 def _firmware_task(config: VerifyConfig, plan, label: str) -> tuple[fw.FirmwareTask | None, list[Any]]:
@@ -159,7 +273,12 @@ def firmware_replay_rows(config: VerifyConfig, plan, work: Path | None = None,
     task, refused = _firmware_task(config, plan, "host firmware")
     if task is None:
         return [refused], False
-    builder = _firmware_builder(config, work, builder)
+    with _work_dir(work, "armgen-firmware-") as base:
+        return _host_firmware_rows(config, plan, task, _firmware_builder(config, base, builder))
+
+
+def _host_firmware_rows(config: VerifyConfig, plan, task: fw.FirmwareTask,
+                        builder: fw.FirmwareBuilder) -> tuple[list[list[Any]], bool]:
     rows, passed = [], True
     for precision in config.precisions:
         sanitize = precision == "double"
@@ -180,8 +299,8 @@ def firmware_replay_rows(config: VerifyConfig, plan, work: Path | None = None,
 def stage_replay(config: VerifyConfig, work: Path | None = None,
                  builder: fw.FirmwareBuilder | None = None) -> Stage:
     if config.plan is None:
-        return Stage("replay", True, ["source"], [], "skipped: no --plan given")
-    plan = read_plan(config.plan)
+        return Stage("replay", True, ["source"], [], "no --plan given", skipped=True)
+    plan = load_plan(config.plan)
     task = plan.metadata.get("task")
     if not task:
         raise ArmgenError(f"{config.plan}: no task in its plan.json; replay needs the JSON sidecar written by `armgen plan`")
@@ -209,24 +328,18 @@ def stage_replay(config: VerifyConfig, work: Path | None = None,
 
 
 def _default_target_plan(config: VerifyConfig, work: Path) -> Path:
-    """Without --plan: a short line (5 cm along x in 1 s, minimum norm) from the robot's
-    first named configuration (q0 when it has one), planned with the symbolic backend."""
+    """Without --plan: the demo task of ``armgen firmware`` (a short line from the robot's q0,
+    its first named configuration, or mid-range), planned with the symbolic backend."""
     from ..planning.result import write_plan
+    from .firmware_project import plan_demo
 
-    robot = config.robot
-    names = sorted(robot.configurations)
-    start = "q0" if "q0" in robot.configurations else (names[0] if names else None)
-    q = robot.configuration(start) if start else 0.5 * (robot.qmin + robot.qmax)
-    pose = SymbolicModel(robot).function("fk")(q)
-    p = np.array(pose)[:3, 3] + np.array([0.05, 0.0, 0.0])
-    try:  # a bundled robot by name, else its file
-        ref = robot.name if load_robot(robot.name).sha256 == robot.sha256 else robot.source
-    except ArmgenError:
-        ref = robot.source
-    task = {"planner": "cartesian", "robot": ref, "start": start if start else q.tolist(),
-            "path": {"type": "line", "end": p.tolist()}, "timing": {"duration": 1.0},
-            "integrator": {"method": "euler", "step": 0.005}, "method": {"name": "pinv"}}
-    result = run_task(task, "target smoke task")
+    ref = config.robot_ref
+    if not ref:  # a bundled robot by name, else its file
+        try:
+            ref = config.robot.name if load_robot(config.robot.name).sha256 == config.robot.sha256 else config.robot.source
+        except ArmgenError:
+            ref = config.robot.source
+    _, result, _ = plan_demo(config.robot, ref, "target smoke task")
     path = work / "target_plan.csv"
     write_plan(result, path)
     return path
@@ -249,8 +362,8 @@ def stage_target(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder |
     except ArmgenError as exc:
         return Stage("target", False, columns, [[label, "smoke-test plan", str(exc).splitlines()[0], "planned", False]],
                      "no --plan given and the default smoke-test line could not be planned; pass --plan")
-    plan = read_plan(plan_path)
-    target_config = VerifyConfig(config.robot, Path(plan_path), config.samples, config.precisions, config.target)
+    plan = load_plan(Path(plan_path))
+    target_config = dataclasses.replace(config, plan=Path(plan_path))
     task, refused = _firmware_task(target_config, plan, label)
     if task is None:
         return Stage("target", False, columns, [refused], "the controller cannot run this plan")
@@ -284,36 +397,86 @@ def stage_target(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder |
     return Stage("target", passed, columns, rows, message)
 
 
+def stage_run(config: VerifyConfig) -> Stage:
+    """A firmware run the user made (``--run``: what the host demo or the Cortex-M4F image
+    printed) compared with the plan, with the bounds of its precision."""
+    columns = ["run", "quantity", "value", "bound", "ok"]
+    if config.plan is None or config.run is None:
+        raise OptionError("--run needs --plan: the plan the firmware ran (e.g. demo/plan.csv of `armgen firmware`)")
+    plan = load_plan(config.plan)
+    try:
+        run = fw.parse_output(config.run.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, ArmgenError) as exc:
+        raise PlanFileError(f"{config.run}: not the output of an armgen firmware run ({str(exc).splitlines()[0]}); "
+                            "give what the demo program or the QEMU run printed") from None
+    # The runners print sizeof(ctrl_real); the Cortex-M4F image is float.
+    precision = "double" if run.summary.get("real_bytes") == "8" else "float"
+    label = f"{config.run.name} ({precision})"
+    task, refused = _firmware_task(config, plan, label)
+    if task is None:
+        return Stage("run", False, columns, [refused], "the controller cannot run this plan")
+    cmp = fw.compare_with_plan(plan, run, task, precision, label)
+    return Stage("run", cmp.passed, columns, cmp.rows, "" if cmp.passed else f"{config.run} differs from the plan")
+
+
+STAGES = ("fresh", "compile", "callbacks", "replay")
+
+
+def _not_run(name: str, reason: str) -> Stage:
+    return Stage(name, False, ["reason"], [[reason]], "not run: " + reason)
+
+
 def run_pipeline(config: VerifyConfig, report_path: Path | None = None,
                  echo: Callable[[str], None] = print) -> list[Stage]:
-    functions = SymbolicModel(config.robot).functions()
+    found = read_manifest(config)
+    functions = SymbolicModel(config.robot, ModelOptions(found.functions)).functions()
     stages: list[Stage] = []
+
+    def add(stage: Stage) -> Stage:
+        stages.append(stage)
+        echo(stage.render())
+        return stage
+
     with tempfile.TemporaryDirectory(prefix="armgen-verify-") as tmp:
         work = Path(tmp)
-        stages.append(stage_fresh(config, work))
-        echo(stages[-1].render())
-        compile_stage, libraries = stage_compile(config, work, functions)
-        stages.append(compile_stage)
-        echo(compile_stage.render())
-        stages.append(stage_callbacks(config, libraries, functions))
-        echo(stages[-1].render())
-        builder = fw.FirmwareBuilder(config.robot, work / "firmware") if (config.plan or config.target) else None
-        stages.append(stage_replay(config, work, builder))
-        echo(stages[-1].render())
-        if config.target is not None:
-            stages.append(stage_target(config, work, builder))
-            echo(stages[-1].render())
+        if not add(stage_fresh(config, work, found)).passed:
+            stale = f"the code in {config.gen_dir} is stale; stale code is never compiled or run"
+            for name in STAGES[1:] + (("target",) if config.target else ()) + (("run",) if config.run else ()):
+                add(_not_run(name, stale))
+        else:
+            compile_stage, libraries = stage_compile(config, work, functions, found)
+            add(compile_stage)
+            add(stage_callbacks(config, libraries, functions, found.prefix))
+            builder = (fw.FirmwareBuilder(config.robot, work / "firmware", _firmware_gen_dir(config))
+                       if (config.plan or config.target) else None)
+            add(stage_replay(config, work, builder))
+            if config.target is not None:
+                add(stage_target(config, work, builder))
+            if config.run is not None:
+                add(stage_run(config))
     if report_path is not None:
-        report = {"robot": config.robot.name, "passed": all(s.passed for s in stages),
-                  "stages": [{"name": s.name, "passed": s.passed, "message": s.message, "columns": s.columns,
-                              "rows": s.rows} for s in stages]}
+        report = {"robot": config.robot.name, "generated": str(config.gen_dir), "passed": passed(stages),
+                  "stages": [{"name": s.name, "verdict": s.verdict, "passed": s.passed, "skipped": s.skipped,
+                              "message": s.message, "columns": s.columns, "rows": s.rows} for s in stages]}
         write_text_atomic(report_path, json.dumps(report, indent=2, default=float) + "\n")
     return stages
 
 
+def passed(stages: list[Stage]) -> bool:
+    """The run passes when no stage failed and at least one compared something."""
+    return all(s.passed for s in stages) and any(not s.skipped for s in stages)
+
+
 def verify(robot: str, plan: str | None = None, samples: int = 10_000, precision: str | None = None,
-           target: str | None = None, report: str | None = None, echo: Callable[[str], None] = print) -> bool:
+           target: str | None = None, report: str | None = None, echo: Callable[[str], None] = print,
+           generated: str | None = None, run: str | None = None) -> bool:
     precisions = (precision,) if precision else ("double", "float")
-    config = VerifyConfig(load_robot(robot), Path(plan) if plan else None, samples, precisions, target)
+    config = VerifyConfig(load_robot(robot), Path(plan) if plan else None, samples, precisions, target,
+                          generated=Path(generated) if generated else None, robot_ref=str(robot),
+                          run=Path(run) if run else None)
+    if run is not None and plan is None:
+        raise OptionError("--run needs --plan: the plan the firmware ran (e.g. demo/plan.csv of `armgen firmware`)")
+    if report is not None and Path(report).is_dir():
+        raise OptionError(f"--report {report}: is a folder; give a file name, e.g. {Path(report) / 'verify.json'}")
     stages = run_pipeline(config, Path(report) if report else None, echo)
-    return all(s.passed for s in stages)
+    return passed(stages)

@@ -33,6 +33,18 @@ typedef char ctrl_check_ptp_ncoef[(FW_PTP_NCOEF == CTRL_NCOEF) ? 1 : -1];
 #define COLLINEAR_TOL CTRL_LIT(1e-6)
 /* A playback plan must start where the arm is: |theta(t0) - q_start| below this, rad. */
 #define PLAYBACK_START_TOL CTRL_LIT(1e-5)
+/* Playback: one tick may move a joint by qdot_max * dt times (1 + this): the chord of a
+ * polynomial whose speed stays below qdot_max is shorter, this covers the rounding. */
+#define PLAYBACK_STEP_RTOL CTRL_LIT(1e-3)
+
+/* The spec 30 / 35 modes need generated functions a robot may lack (e.g. without redundancy):
+ * the build sets these to 0 then, and ctrl_init rejects the mode. */
+#ifndef CTRL_HAS_FAULT_TOLERANT
+#define CTRL_HAS_FAULT_TOLERANT 1
+#endif
+#ifndef CTRL_HAS_WEIGHTED_GPM
+#define CTRL_HAS_WEIGHTED_GPM 1
+#endif
 
 enum { WIN_IDLE = 0, WIN_RAMP_UP = 1, WIN_HOLD = 2, WIN_RAMP_DOWN = 3 };
 
@@ -85,6 +97,8 @@ const char *ctrl_state_name(ctrl_state s) {
     case CTRL_STATE_RUNNING: return "RUNNING";
     case CTRL_STATE_DONE: return "DONE";
     case CTRL_STATE_FAULT: return "FAULT";
+    case CTRL_STATE_DEGRADED: return "DEGRADED";
+    default: break;
   }
   return "?";
 }
@@ -101,6 +115,10 @@ const char *ctrl_fault_name(ctrl_fault f) {
     case CTRL_FAULT_TRACKING: return "TRACKING";
     case CTRL_FAULT_PLAYBACK: return "PLAYBACK";
     case CTRL_FAULT_BAD_ARGS: return "BAD_ARGS";
+    case CTRL_FAULT_LOCK_REPORT: return "LOCK_REPORT";
+    case CTRL_FAULT_REDUNDANCY: return "REDUNDANCY";
+    case CTRL_FAULT_SPEED: return "SPEED";
+    default: break;
   }
   return "?";
 }
@@ -137,12 +155,15 @@ static void time_law(const ctrl_rr_config *rr, ctrl_real tau, ctrl_real *s, ctrl
 
 /* Desired position p, rotation R (column-major) and task velocity [v; w] at time t. */
 static void desired(const ctrl *c, ctrl_real t, ctrl_real *p, ctrl_real *R, ctrl_real *xdot) {
-  const ctrl_rr_config *rr = &c->cfg->rr;
+  const ctrl_rr_config *rr = &c->cfg.rr;
   ctrl_real T = rr->duration;
   ctrl_real s, ds, sdot;
   ctrl_real dp[3], dw[3];
+  /* (the cartesian planner has turns = 1: 1 * s is s exactly, so its replay is unchanged) */
   int i;
   time_law(rr, t / T, &s, &ds);
+  s = rr->turns * s; /* taskpath.py: path(turns * s), s_dot = turns * ds / T */
+  ds = rr->turns * ds;
   if (rr->path == CTRL_PATH_CIRCLE) {
     ctrl_real phi = TWO_PI * s;
     ctrl_real cs = CTRL_COS(phi), sn = CTRL_SIN(phi);
@@ -192,9 +213,9 @@ static void orientation_error(const ctrl_real *R, const ctrl_real *Rd, ctrl_real
       S[r + 3 * col] = Rd[r] * R[col] + Rd[r + 3] * R[col + 3] + Rd[r + 6] * R[col + 6];
     }
   }
-  e[0] = CTRL_LIT(0.5) * (S[2 + 3 * 1] - S[1 + 3 * 2]);
-  e[1] = CTRL_LIT(0.5) * (S[0 + 3 * 2] - S[2 + 3 * 0]);
-  e[2] = CTRL_LIT(0.5) * (S[1 + 3 * 0] - S[0 + 3 * 1]);
+  e[0] = CTRL_LIT(0.5) * (S[5] - S[7]); /* S(2,1) - S(1,2), column-major */
+  e[1] = CTRL_LIT(0.5) * (S[6] - S[2]); /* S(0,2) - S(2,0) */
+  e[2] = CTRL_LIT(0.5) * (S[1] - S[3]); /* S(1,0) - S(0,1) */
 }
 
 /* ------------------------------------------------------------------ null-space operators */
@@ -210,7 +231,7 @@ static ctrl_real ramp(ctrl_real x, int quadratic) {
 
 /* The latched per-joint windows of spec 20 (armgen/planning/windows.py), advanced to t. */
 static void windows_update(ctrl *c, ctrl_real t, const ctrl_real *q) {
-  const ctrl_config *cfg = c->cfg;
+  const ctrl_config *cfg = &c->cfg;
   const ctrl_rr_config *rr = &cfg->rr;
   int quadratic = rr->method != CTRL_METHOD_COMBINED;
   ctrl_real hold_min = rr->T_sum_L - rr->T_smo_L;
@@ -249,13 +270,15 @@ static void windows_update(ctrl *c, ctrl_real t, const ctrl_real *q) {
         c->win_state[i] = WIN_IDLE;
         c->win_value[i] = CTRL_LIT(0.0);
       }
+    } else {
+      /* WIN_IDLE outside the band: nothing to advance */
     }
   }
 }
 
 /* alpha of the configured method at (t, q) (cartesian.py CartesianPlanner.alpha). */
 static void null_space_alpha(const ctrl *c, ctrl_real t, const ctrl_real *q, ctrl_real *alpha) {
-  const ctrl_config *cfg = c->cfg;
+  const ctrl_config *cfg = &c->cfg;
   const ctrl_rr_config *rr = &cfg->rr;
   ctrl_real T = rr->duration;
   ctrl_real a_r[N], a_l[N], grad[N], h;
@@ -319,14 +342,18 @@ static int method_valid(ctrl_method m) {
     case CTRL_METHOD_ZGHAL_IMPROVED:
     case CTRL_METHOD_COMBINED:
       return 1;
+    default:
+      break;
   }
   return 0;
 }
 
-static int init_resolved_rate(ctrl *c) {
-  const ctrl_config *cfg = c->cfg;
+/* The path and time law shared by the resolved-rate modes: duration a whole number of ticks,
+ * path built from FK(q_start) (paths.py CirclePath / LinePath, taskpath.py's relative points). */
+static int init_path(ctrl *c) {
+  const ctrl_config *cfg = &c->cfg;
   const ctrl_rr_config *rr = &cfg->rr;
-  ctrl_real Tp[16], J[6 * N], ticks;
+  ctrl_real Tp[16], J[6 * N], ticks, via[3], end[3];
   int i, r;
   if (!positive(rr->duration) || cfg->dt > rr->duration) return 0;
   ticks = rr->duration / cfg->dt + CTRL_LIT(0.5);
@@ -335,12 +362,7 @@ static int init_resolved_rate(ctrl *c) {
   if (CTRL_FABS((ctrl_real)c->n_ticks * cfg->dt - rr->duration) > DURATION_RTOL * rr->duration) return 0;
   if (rr->law != CTRL_LAW_CUBIC && rr->law != CTRL_LAW_CONSTANT && rr->law != CTRL_LAW_TRAPEZOIDAL) return 0;
   if (rr->law == CTRL_LAW_TRAPEZOIDAL && !(positive(rr->blend) && rr->blend <= CTRL_LIT(0.5))) return 0;
-  if (!method_valid(rr->method)) return 0;
-  if (!nonneg(rr->rho_R) || !positive(rr->T_smo_R) || !nonneg(rr->rho_L) || !positive(rr->theta_s) ||
-      !positive(rr->T_smo_L) || !finite_r(rr->T_sum_L) || rr->T_sum_L < rr->T_smo_L || !positive(rr->gamma_R_ramp) ||
-      !nonneg(rr->clik_gain) || !nonneg(rr->damping)) {
-    return 0;
-  }
+  if (!nonneg(rr->clik_gain) || !positive(rr->turns) || (rr->relative != 0 && rr->relative != 1)) return 0;
   for (r = 0; r < CTRL_NTASK; ++r) {
     if (rr->task_rows[r] < 0 || rr->task_rows[r] > 5 || (r > 0 && rr->task_rows[r] <= rr->task_rows[r - 1])) return 0;
   }
@@ -348,6 +370,7 @@ static int init_resolved_rate(ctrl *c) {
     return 0;
   }
   if (rr->path != CTRL_PATH_CIRCLE && rr->path != CTRL_PATH_LINE) return 0;
+  if (rr->path == CTRL_PATH_LINE && rr->turns != CTRL_LIT(1.0)) return 0;
 
   ctrl_gen_fk_jacobian(cfg->q_start, Tp, J);
   if (!all_finite(Tp, 16)) return 0;
@@ -356,12 +379,14 @@ static int init_resolved_rate(ctrl *c) {
     for (r = 0; r < 3; ++r) {
       c->R0[r + 3 * i] = Tp[r + 4 * i];
     }
+    via[i] = rr->relative ? rr->via[i] + c->p0[i] : rr->via[i];
+    end[i] = rr->relative ? rr->end[i] + c->p0[i] : rr->end[i];
   }
   if (rr->path == CTRL_PATH_CIRCLE) { /* circumcircle of start, via, end (paths.py CirclePath) */
     ctrl_real a[3], b[3], nrm[3], d[3], aa, bb, ab, denom, scale, len;
     for (i = 0; i < 3; ++i) {
-      a[i] = rr->via[i] - c->p0[i];
-      b[i] = rr->end[i] - c->p0[i];
+      a[i] = via[i] - c->p0[i];
+      b[i] = end[i] - c->p0[i];
     }
     cross3(a, b, nrm);
     scale = norm3(a) * norm3(b);
@@ -384,20 +409,75 @@ static int init_resolved_rate(ctrl *c) {
     if (!positive(c->radius) || !all_finite(c->centre, 3) || !all_finite(c->v, 3)) return 0;
   } else {
     for (i = 0; i < 3; ++i) {
-      c->delta[i] = rr->end[i] - c->p0[i];
+      c->delta[i] = end[i] - c->p0[i];
       c->axis_world[i] = c->R0[i] * rr->rot_axis[0] + c->R0[i + 3] * rr->rot_axis[1] + c->R0[i + 6] * rr->rot_axis[2];
     }
   }
   return 1;
 }
 
+static int init_resolved_rate(ctrl *c) {
+  const ctrl_rr_config *rr = &c->cfg.rr;
+  if (!method_valid(rr->method)) return 0;
+  if (!nonneg(rr->rho_R) || !positive(rr->T_smo_R) || !nonneg(rr->rho_L) || !positive(rr->theta_s) ||
+      !positive(rr->T_smo_L) || !finite_r(rr->T_sum_L) || rr->T_sum_L < rr->T_smo_L || !positive(rr->gamma_R_ramp) ||
+      !nonneg(rr->damping)) {
+    return 0;
+  }
+  return init_path(c);
+}
+
+#if CTRL_HAS_FAULT_TOLERANT
+static int init_fault_tolerant(ctrl *c) {
+  const ctrl_ft_config *ft = &c->cfg.ft;
+  int method_ok = ft->method == CTRL_FT_PINV || ft->method == CTRL_FT_GPM || ft->method == CTRL_FT_WLN;
+  int index_ok = ft->index == CTRL_FT_INDEX_OMEGA || ft->index == CTRL_FT_INDEX_RELATIVE;
+  int rule_ok = ft->rule == CTRL_WLN_PLAIN || ft->rule == CTRL_WLN_SMOOTH;
+  if (!method_ok || !index_ok || !rule_ok || !nonneg(ft->K) || !nonneg(ft->b) || !positive(ft->v_band) ||
+      !positive(ft->omega_floor) || !positive(ft->delta) || !positive(ft->epsilon) || !nonneg(ft->lambda_max) ||
+      !all_finite(ft->a, N)) {
+    return 0;
+  }
+  return init_path(c);
+}
+#endif
+
+#if CTRL_HAS_WEIGHTED_GPM
+static int init_weighted_gpm(ctrl *c) {
+  const ctrl_wg_config *wg = &c->cfg.wg;
+  int k;
+  if (!(positive(wg->band) && wg->band < CTRL_LIT(0.5)) || !nonneg(wg->t_rmax) || !positive(wg->delta) ||
+      !positive(wg->epsilon) || !nonneg(wg->rho_max) || !nonneg(wg->ramp_time) ||
+      (wg->ramp_out != 0 && wg->ramp_out != 1)) {
+    return 0;
+  }
+  for (k = 0; k < CTRL_WGPM_NCRIT; ++k) {
+    if (!nonneg(wg->k_hi[k]) || !nonneg(wg->k_lo[k]) || wg->k_lo[k] > wg->k_hi[k] || !finite_r(wg->H_lo[k]) ||
+        !finite_r(wg->H_hi[k]) || !(wg->H_hi[k] > wg->H_lo[k]) || !(wg->u_th[k] >= CTRL_LIT(0.0)) ||
+        !(wg->u_th[k] <= CTRL_LIT(1.0)) || !positive(wg->u_band[k])) {
+      return 0;
+    }
+  }
+  if (!init_path(c)) return 0;
+  return !(wg->ramp_out && CTRL_LIT(2.0) * wg->ramp_time > c->cfg.rr.duration);
+}
+#endif
+
 static int init_playback(ctrl *c) {
-  const ctrl_config *cfg = c->cfg;
+  const ctrl_config *cfg = &c->cfg;
   const ctrl_pb_config *pb = &cfg->pb;
+  ctrl_real span;
   int i, k;
-  if (pb->nseg < 1 || pb->nseg > CTRL_MAX_SEGMENTS || pb->n_ticks < 0) return 0;
+  if (pb->nseg < 1 || pb->nseg > CTRL_MAX_SEGMENTS || pb->n_ticks < 1) return 0;
   for (k = 0; k <= pb->nseg; ++k) {
     if (!finite_r(pb->knots[k]) || (k > 0 && !(pb->knots[k] > pb->knots[k - 1]))) return 0;
+  }
+  /* The period must fit the knots: n_ticks periods span the plan (the last tick is clamped
+   * to the last knot, so it may be shorter by up to one period). */
+  span = pb->knots[pb->nseg] - pb->knots[0];
+  if (!((ctrl_real)pb->n_ticks * cfg->dt >= span * (CTRL_LIT(1.0) - DURATION_RTOL) &&
+        (ctrl_real)(pb->n_ticks - 1) * cfg->dt < span)) {
+    return 0;
   }
   for (i = 0; i < N; ++i) {
     if (pb->active[i] != 0 && pb->active[i] != 1) return 0;
@@ -415,28 +495,36 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
   if (c == NULL) {
     return CTRL_FAULT_BAD_ARGS;
   }
-  memset(c, 0, sizeof(*c));
-  c->cfg = config;
+  (void)memset(c, 0, sizeof(*c));
   c->state = CTRL_STATE_FAULT;
   c->fault = CTRL_FAULT_BAD_CONFIG;
   if (config == NULL) {
     return CTRL_FAULT_BAD_ARGS;
   }
+  c->cfg = *config; /* validated once, here; the ticks use only this copy */
+  config = &c->cfg;
   ok = positive(config->dt) && positive(config->qdot_max) && nonneg(config->residual_rel) &&
        nonneg(config->residual_abs) && nonneg(config->pos_err_max);
   for (i = 0; i < N; ++i) {
     ctrl_real q = config->q_start[i], lo = config->q_min[i], hi = config->q_max[i];
-    int inside = finite_r(q) && finite_r(lo) && finite_r(hi) && lo < hi && q >= lo && q <= hi;
-    c->q_hold[i] = inside ? q : CTRL_LIT(0.0);
+    int limits = finite_r(lo) && finite_r(hi) && lo < hi;
+    int inside = limits && finite_r(q) && q >= lo && q <= hi;
+    /* held after a bad configuration: q_start when valid, else mid-range (else 0: no limits) */
+    c->q_hold[i] = inside ? q : (limits ? lo + CTRL_LIT(0.5) * (hi - lo) : CTRL_LIT(0.0));
+    c->mask[i] = CTRL_LIT(1.0);
     ok = ok && inside;
   }
   if (ok) {
-    if (config->mode == CTRL_MODE_RESOLVED_RATE) {
-      ok = init_resolved_rate(c);
-    } else if (config->mode == CTRL_MODE_PLAYBACK) {
-      ok = init_playback(c);
-    } else {
-      ok = 0;
+    switch (config->mode) {
+      case CTRL_MODE_RESOLVED_RATE: ok = init_resolved_rate(c); break;
+      case CTRL_MODE_PLAYBACK: ok = init_playback(c); break;
+#if CTRL_HAS_FAULT_TOLERANT
+      case CTRL_MODE_FAULT_TOLERANT: ok = init_fault_tolerant(c); break;
+#endif
+#if CTRL_HAS_WEIGHTED_GPM
+      case CTRL_MODE_WEIGHTED_GPM: ok = init_weighted_gpm(c); break;
+#endif
+      default: ok = 0; break;
     }
   }
   if (!ok) {
@@ -453,8 +541,10 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
 
 /* ------------------------------------------------------------------ ticks */
 
+static int moving(const ctrl *c) { return c->state == CTRL_STATE_RUNNING || c->state == CTRL_STATE_DEGRADED; }
+
 static ctrl_real tick_time(const ctrl *c) {
-  const ctrl_config *cfg = c->cfg;
+  const ctrl_config *cfg = &c->cfg;
   if (cfg->mode == CTRL_MODE_PLAYBACK) {
     const ctrl_pb_config *pb = &cfg->pb;
     ctrl_real t_end = pb->knots[pb->nseg];
@@ -477,6 +567,7 @@ static void emit_hold(const ctrl *c, ctrl_output *out) {
   }
   out->pos_err = c->pos_err;
   out->ori_err = c->ori_err;
+  out->locked = c->locked;
   out->state = c->state;
   out->fault = c->fault;
 }
@@ -488,6 +579,7 @@ static void accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd
   out->t = t;
   for (i = 0; i < N; ++i) {
     c->q_hold[i] = q[i];
+    c->qd_prev[i] = qd[i];
     out->q[i] = q[i];
     out->qd[i] = qd[i];
     out->window[i] = c->win_value[i];
@@ -497,12 +589,13 @@ static void accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd
   if (c->k >= c->n_ticks) {
     c->state = CTRL_STATE_DONE;
   }
+  out->locked = c->locked;
   out->state = c->state;
   out->fault = c->fault;
 }
 
 static ctrl_fault check_command(const ctrl *c, const ctrl_real *q) {
-  const ctrl_real *lo = c->cfg->q_min, *hi = c->cfg->q_max;
+  const ctrl_real *lo = c->cfg.q_min, *hi = c->cfg.q_max;
   int i, inside = 1;
   for (i = 0; i < N; ++i) { /* false for NaN as well */
     inside &= (q[i] >= lo[i]) & (q[i] <= hi[i]);
@@ -511,48 +604,75 @@ static ctrl_fault check_command(const ctrl *c, const ctrl_real *q) {
   return all_finite(q, N) ? CTRL_FAULT_JOINT_LIMIT : CTRL_FAULT_NONFINITE_OUTPUT;
 }
 
-static ctrl_fault tick_resolved_rate(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_output *out) {
-  const ctrl_config *cfg = c->cfg;
-  const ctrl_rr_config *rr = &cfg->rr;
+/* Explicit Euler to the next tick's command (locked joints have q_dot = 0: frozen exactly). */
+static void integrate(ctrl *c, const ctrl_real *qd) {
   ctrl_real *q = c->q;
-  ctrl_real Tp[16], J[6 * N], R[9], pd[3], Rd[9], xdot[6], e[6], cmd[CTRL_NTASK], alpha[N], qd[N], v[6];
-  ctrl_real cmd_max = CTRL_LIT(0.0), res_max = CTRL_LIT(0.0);
-  ctrl_fault f;
-  int i, r;
-
-  f = check_command(c, q);
-  if (f != CTRL_FAULT_NONE) return f;
-  if (uses_windows(rr)) {
-    windows_update(c, t, q);
+  int i;
+  for (i = 0; i < N; ++i) {
+#if CTRL_COMPENSATED_SUM
+    ctrl_real y = c->cfg.dt * qd[i] - c->q_carry[i];
+    ctrl_real s = q[i] + y;
+    c->q_carry[i] = (s - q[i]) - y;
+    q[i] = s;
+#else
+    q[i] = q[i] + c->cfg.dt * qd[i];
+#endif
   }
+  ++c->k;
+}
+
+/* Pose, tracking error and the commanded task velocity xdot + offset + K_p e at (t, q):
+ * cartesian.py / taskpath.py. Returns J (for the residual check) in J. */
+static void task_command(ctrl *c, const ctrl_input *in, ctrl_real t, const ctrl_real *q, ctrl_real *J,
+                         ctrl_real *cmd, ctrl_real *cmd_max) {
+  const ctrl_rr_config *rr = &c->cfg.rr;
+  ctrl_real Tp[16], R[9], pd[3], Rd[9], xdot[6], e[6];
+  int i, r;
   ctrl_gen_fk_jacobian(q, Tp, J); /* finite for finite q; overflow would show in q_dot */
   for (i = 0; i < 3; ++i) {
-    for (r = 0; r < 3; ++r) R[r + 3 * i] = Tp[r + 4 * i];
+    for (r = 0; r < 3; ++r) {
+      R[r + 3 * i] = Tp[r + 4 * i];
+    }
   }
   desired(c, t, pd, Rd, xdot);
   if (in != NULL) {
-    for (r = 0; r < 6; ++r) xdot[r] = xdot[r] + in->xdot_offset[r];
+    for (r = 0; r < 6; ++r) {
+      xdot[r] = xdot[r] + in->xdot_offset[r];
+    }
   }
-  for (i = 0; i < 3; ++i) e[i] = pd[i] - Tp[12 + i];
+  for (i = 0; i < 3; ++i) {
+    e[i] = pd[i] - Tp[12 + i];
+  }
   orientation_error(R, Rd, e + 3);
   c->pos_err = norm3(e);
   c->ori_err = norm3(e + 3);
   if (rr->clik_gain > CTRL_LIT(0.0)) {
-    for (r = 0; r < 6; ++r) xdot[r] = xdot[r] + rr->clik_gain * e[r];
+    for (r = 0; r < 6; ++r) {
+      xdot[r] = xdot[r] + rr->clik_gain * e[r];
+    }
   }
+  *cmd_max = CTRL_LIT(0.0);
   for (r = 0; r < CTRL_NTASK; ++r) {
     cmd[r] = xdot[rr->task_rows[r]];
-    cmd_max = max_r(cmd_max, CTRL_FABS(cmd[r]));
+    *cmd_max = max_r(*cmd_max, CTRL_FABS(cmd[r]));
   }
-  null_space_alpha(c, t, q, alpha);
-  if (!all_finite(alpha, N) || !all_finite(cmd, CTRL_NTASK)) return CTRL_FAULT_NONFINITE_OUTPUT;
-  if (ctrl_gen_step_gpm(q, cmd, alpha, rr->damping, qd) != CTRL_GEN_OK) return CTRL_FAULT_NONFINITE_OUTPUT;
+}
+
+/* The guards every resolved-rate step passes before its command is accepted: speed
+ * (qdot_max), task residual |J q_dot - cmd| (only for undamped steps: damping trades the
+ * residual for a bounded speed by design) and tracking. */
+static ctrl_fault check_step(const ctrl *c, const ctrl_real *J, const ctrl_real *cmd, ctrl_real cmd_max,
+                             const ctrl_real *qd, int damped) {
+  const ctrl_config *cfg = &c->cfg;
+  ctrl_real v[6], res_max = CTRL_LIT(0.0);
+  int i, r;
+  if (!all_finite(qd, N)) return CTRL_FAULT_NONFINITE_OUTPUT;
   /* A singular pose: with lambda = 0 the step's floored pivots give a huge velocity, or one
    * that does not meet the task (damping > 0: the same once the damping is exceeded). */
   for (i = 0; i < N; ++i) {
     if (CTRL_FABS(qd[i]) > cfg->qdot_max) return CTRL_FAULT_SINGULAR;
   }
-  {
+  if (!damped) {
     ctrl_real v0 = CTRL_LIT(0.0), v1 = CTRL_LIT(0.0), v2 = CTRL_LIT(0.0);
     ctrl_real v3 = CTRL_LIT(0.0), v4 = CTRL_LIT(0.0), v5 = CTRL_LIT(0.0);
     for (i = 0; i < N; ++i) { /* v = J q_dot, column by column, in registers */
@@ -571,33 +691,151 @@ static ctrl_fault tick_resolved_rate(ctrl *c, const ctrl_input *in, ctrl_real t,
     v[3] = v3;
     v[4] = v4;
     v[5] = v5;
-  }
-  for (r = 0; r < CTRL_NTASK; ++r) {
-    res_max = max_r(res_max, CTRL_FABS(v[rr->task_rows[r]] - cmd[r]));
-  }
-  if (res_max > cfg->residual_rel * cmd_max + cfg->residual_abs) return CTRL_FAULT_SINGULAR;
-  if (cfg->pos_err_max > CTRL_LIT(0.0) && c->pos_err > cfg->pos_err_max) return CTRL_FAULT_TRACKING;
-
-  accept(c, t, q, qd, out);
-  if (c->state == CTRL_STATE_RUNNING) { /* explicit Euler to the next tick's command */
-    for (i = 0; i < N; ++i) {
-#if CTRL_COMPENSATED_SUM
-      ctrl_real y = cfg->dt * qd[i] - c->q_carry[i];
-      ctrl_real s = q[i] + y;
-      c->q_carry[i] = (s - q[i]) - y;
-      q[i] = s;
-#else
-      q[i] = q[i] + cfg->dt * qd[i];
-#endif
+    for (r = 0; r < CTRL_NTASK; ++r) {
+      res_max = max_r(res_max, CTRL_FABS(v[cfg->rr.task_rows[r]] - cmd[r]));
     }
-    ++c->k;
+    if (res_max > cfg->residual_rel * cmd_max + cfg->residual_abs) return CTRL_FAULT_SINGULAR;
+  }
+  if (cfg->pos_err_max > CTRL_LIT(0.0) && c->pos_err > cfg->pos_err_max) return CTRL_FAULT_TRACKING;
+  return CTRL_FAULT_NONE;
+}
+
+static ctrl_fault tick_resolved_rate(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_output *out) {
+  const ctrl_rr_config *rr = &c->cfg.rr;
+  ctrl_real *q = c->q;
+  ctrl_real J[6 * N], cmd[CTRL_NTASK], alpha[N], qd[N], cmd_max;
+  ctrl_fault f;
+
+  f = check_command(c, q);
+  if (f != CTRL_FAULT_NONE) return f;
+  if (uses_windows(rr)) {
+    windows_update(c, t, q);
+  }
+  task_command(c, in, t, q, J, cmd, &cmd_max);
+  null_space_alpha(c, t, q, alpha);
+  if (!all_finite(alpha, N) || !all_finite(cmd, CTRL_NTASK)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  if (ctrl_gen_step_gpm(q, cmd, alpha, rr->damping, qd) != CTRL_GEN_OK) return CTRL_FAULT_NONFINITE_OUTPUT;
+  f = check_step(c, J, cmd, cmd_max, qd, 0);
+  if (f != CTRL_FAULT_NONE) return f;
+  accept(c, t, q, qd, out);
+  if (moving(c)) {
+    integrate(c, qd);
   }
   return CTRL_FAULT_NONE;
 }
 
+#if CTRL_HAS_FAULT_TOLERANT
+/* Spec 30 (fault_tolerant/planner.py FaultTolerantPlanner.evaluate), one tick: index on the
+ * healthy columns, GPM / WLN / minimum norm through step_fault with the lock mask. Fixed
+ * cost per method: ft_index, at most two step_fault calls, wln_weights. */
+static ctrl_fault tick_fault_tolerant(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_output *out) {
+  const ctrl_ft_config *ft = &c->cfg.ft;
+  ctrl_real *q = c->q;
+  ctrl_real J[6 * N], cmd[CTRL_NTASK], cmd_max, omega[N], grad[N], grad_w[N], h_m, w;
+  ctrl_real W[N], alpha[N], active[N], qd[N], lam = CTRL_LIT(0.0), sigma = CTRL_LIT(0.0);
+  ctrl_fault f;
+  int i;
+
+  f = check_command(c, q);
+  if (f != CTRL_FAULT_NONE) return f;
+  task_command(c, in, t, q, J, cmd, &cmd_max);
+  if (!all_finite(cmd, CTRL_NTASK)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  ctrl_gen_ft_index(q, c->mask, ft->a, ft->delta, omega, &h_m, grad, &w, grad_w);
+  if (ft->index == CTRL_FT_INDEX_RELATIVE) { /* H_M / w by the quotient rule */
+    for (i = 0; i < N; ++i) {
+      grad[i] = grad[i] / w - h_m * grad_w[i] / (w * w);
+      omega[i] = omega[i] / w;
+    }
+  }
+  for (i = 0; i < N; ++i) {
+    W[i] = CTRL_LIT(1.0);
+    alpha[i] = ft->method == CTRL_FT_GPM ? ft->K * grad[i] : CTRL_LIT(0.0);
+  }
+  if (!all_finite(omega, N) || !all_finite(grad, N)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  if (ft->method == CTRL_FT_WLN) {
+    const ctrl_real *reference = c->qd_prev; /* plain rule: the previous tick's velocity */
+    ctrl_real v_band = CTRL_LIT(0.0);
+    if (ft->rule == CTRL_WLN_SMOOTH) { /* the unweighted minimum-norm motion of this tick */
+      ctrl_real ones[N], zeros[N];
+      for (i = 0; i < N; ++i) {
+        ones[i] = CTRL_LIT(1.0);
+        zeros[i] = CTRL_LIT(0.0);
+      }
+      if (ctrl_gen_step_fault(q, cmd, c->mask, ones, zeros, ft->epsilon, ft->lambda_max, qd, &lam, &sigma) !=
+          CTRL_GEN_OK) {
+        return CTRL_FAULT_NONFINITE_OUTPUT;
+      }
+      reference = qd;
+      v_band = ft->v_band;
+    }
+    ctrl_gen_wln_weights(grad, omega, reference, c->mask, ft->b, ft->omega_floor, v_band, W, active);
+    if (!all_finite(W, N)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  }
+  if (ctrl_gen_step_fault(q, cmd, c->mask, W, alpha, ft->epsilon, ft->lambda_max, qd, &lam, &sigma) != CTRL_GEN_OK) {
+    return CTRL_FAULT_NONFINITE_OUTPUT;
+  }
+  for (i = 0; i < N; ++i) {
+    qd[i] = qd[i] * c->mask[i]; /* a locked joint's velocity is exactly 0 (step_fault gives 0 already) */
+  }
+  f = check_step(c, J, cmd, cmd_max, qd, lam > CTRL_LIT(0.0));
+  if (f != CTRL_FAULT_NONE) return f;
+  accept(c, t, q, qd, out);
+  if (moving(c)) {
+    integrate(c, qd);
+  }
+  return CTRL_FAULT_NONE;
+}
+
+#endif
+
+#if CTRL_HAS_WEIGHTED_GPM
+/* smoothstep of wgpm/planner.py: x clamped to [0, 1], x^2 (3 - 2x). */
+static ctrl_real smoothstep(ctrl_real x) {
+  x = min_r(max_r(x, CTRL_LIT(0.0)), CTRL_LIT(1.0));
+  return x * x * (CTRL_LIT(3.0) - CTRL_LIT(2.0) * x);
+}
+
+/* Spec 35 (wgpm/planner.py WgpmPlanner.evaluate), one tick: step_wgpm with the ramp. */
+static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_output *out) {
+  const ctrl_wg_config *wg = &c->cfg.wg;
+  ctrl_real *q = c->q;
+  ctrl_real J[6 * N], cmd[CTRL_NTASK], cmd_max, qd[N], w_c[N], rho, sigma, gains[CTRL_WGPM_NCRIT];
+  ctrl_real h[CTRL_WGPM_NCRIT], ramp_value = CTRL_LIT(1.0);
+  ctrl_fault f;
+  int i;
+
+  f = check_command(c, q);
+  if (f != CTRL_FAULT_NONE) return f;
+  task_command(c, in, t, q, J, cmd, &cmd_max);
+  if (!all_finite(cmd, CTRL_NTASK)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  if (wg->ramp_time > CTRL_LIT(0.0)) {
+    ctrl_real up = smoothstep(t / wg->ramp_time);
+    ctrl_real down = wg->ramp_out ? smoothstep((c->cfg.rr.duration - t) / wg->ramp_time) : CTRL_LIT(1.0);
+    ramp_value = up * down;
+  }
+  if (ctrl_gen_step_wgpm(q, cmd, wg->band, wg->t_rmax, wg->epsilon, wg->rho_max, wg->delta, ramp_value, wg->H_lo,
+                         wg->H_hi, wg->k_hi, wg->k_lo, wg->u_th, wg->u_band, qd, w_c, &rho, &sigma, gains,
+                         h) != CTRL_GEN_OK) {
+    return CTRL_FAULT_NONFINITE_OUTPUT;
+  }
+  for (i = 0; i < N; ++i) {
+    c->win_value[i] = w_c[i]; /* reported in out.window: the joint-limit weights W_c */
+  }
+  f = check_step(c, J, cmd, cmd_max, qd, rho > CTRL_LIT(0.0));
+  if (f != CTRL_FAULT_NONE) return f;
+  accept(c, t, q, qd, out);
+  if (moving(c)) {
+    integrate(c, qd);
+  }
+  return CTRL_FAULT_NONE;
+}
+#endif
+
 static ctrl_fault tick_playback(ctrl *c, ctrl_real t, ctrl_output *out) {
-  const ctrl_config *cfg = c->cfg;
+  const ctrl_config *cfg = &c->cfg;
   const ctrl_pb_config *pb = &cfg->pb;
+  /* one tick may move a joint by at most qdot_max * dt (a little more for rounding) */
+  ctrl_real step_max = cfg->qdot_max * cfg->dt * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
   ctrl_real q[N], qd[N], th[3];
   ctrl_fault f;
   int i;
@@ -614,8 +852,11 @@ static ctrl_fault tick_playback(ctrl *c, ctrl_real t, ctrl_output *out) {
   f = check_command(c, q);
   if (f == CTRL_FAULT_NONE && !all_finite(qd, N)) f = CTRL_FAULT_NONFINITE_OUTPUT;
   if (f != CTRL_FAULT_NONE) return f;
+  for (i = 0; i < N; ++i) {
+    if (CTRL_FABS(qd[i]) > cfg->qdot_max || CTRL_FABS(q[i] - c->q_hold[i]) > step_max) return CTRL_FAULT_SPEED;
+  }
   accept(c, t, q, qd, out);
-  if (c->state == CTRL_STATE_RUNNING) {
+  if (moving(c)) {
     ++c->k;
   }
   return CTRL_FAULT_NONE;
@@ -627,32 +868,69 @@ static void latch(ctrl *c, ctrl_fault f, ctrl_real t) {
   c->t_hold = t;
 }
 
+/* The lock flags of this tick: a new lock is taken over (FAULT_TOLERANT: masked from this
+ * tick; state DEGRADED), a flag on a joint the arm does not have or a withdrawn lock is a
+ * LOCK_REPORT fault, more locks than the mode absorbs a REDUNDANCY fault. */
+static ctrl_fault update_locks(ctrl *c, uint32_t reported) {
+  uint32_t all = (N >= 32) ? 0xFFFFFFFFu : ((1u << N) - 1u);
+  uint32_t count = 0u, bits;
+  uint32_t allowed = c->cfg.mode == CTRL_MODE_FAULT_TOLERANT ? (uint32_t)(N - CTRL_NTASK) : 0u;
+  int i;
+  if ((reported & ~all) != 0u || (c->locked & ~reported) != 0u) return CTRL_FAULT_LOCK_REPORT;
+  for (bits = reported; bits != 0u; bits &= bits - 1u) {
+    ++count;
+  }
+  if (count > allowed) return CTRL_FAULT_REDUNDANCY;
+  c->locked = reported;
+  for (i = 0; i < N; ++i) {
+    c->mask[i] = (((reported >> i) & 1u) != 0u) ? CTRL_LIT(0.0) : CTRL_LIT(1.0);
+  }
+  if (reported != 0u && c->state == CTRL_STATE_RUNNING) {
+    c->state = CTRL_STATE_DEGRADED;
+  }
+  return CTRL_FAULT_NONE;
+}
+
+static ctrl_fault tick_mode(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_output *out) {
+  switch (c->cfg.mode) {
+    case CTRL_MODE_PLAYBACK: return tick_playback(c, t, out);
+#if CTRL_HAS_FAULT_TOLERANT
+    case CTRL_MODE_FAULT_TOLERANT: return tick_fault_tolerant(c, in, t, out);
+#endif
+#if CTRL_HAS_WEIGHTED_GPM
+    case CTRL_MODE_WEIGHTED_GPM: return tick_weighted_gpm(c, in, t, out);
+#endif
+    case CTRL_MODE_RESOLVED_RATE:
+    default: return tick_resolved_rate(c, in, t, out);
+  }
+}
+
 ctrl_fault ctrl_tick(ctrl *c, const ctrl_input *in, ctrl_output *out) {
   ctrl_command cmd = in != NULL ? in->command : CTRL_CMD_NONE;
   if (c == NULL || out == NULL) {
     return CTRL_FAULT_BAD_ARGS;
   }
-  if (c->cfg == NULL && c->state != CTRL_STATE_FAULT) {
-    latch(c, CTRL_FAULT_BAD_CONFIG, CTRL_LIT(0.0));
-  }
   if (c->state != CTRL_STATE_FAULT) {
-    ctrl_real t = c->state == CTRL_STATE_RUNNING ? tick_time(c) : c->t_hold;
+    ctrl_real t = moving(c) ? tick_time(c) : c->t_hold;
+    int starting = c->state == CTRL_STATE_IDLE && cmd == CTRL_CMD_START;
+    ctrl_fault lock = in != NULL ? update_locks(c, in->locked) : CTRL_FAULT_NONE;
     if (in != NULL && !all_finite(in->xdot_offset, 6)) {
       latch(c, CTRL_FAULT_NONFINITE_INPUT, t);
-    } else if (c->state == CTRL_STATE_RUNNING && in != NULL && in->missed_ticks > 0u) {
+    } else if (lock != CTRL_FAULT_NONE) {
+      latch(c, lock, t);
+    } else if ((moving(c) || starting) && in != NULL && in->missed_ticks > 0u) {
       latch(c, CTRL_FAULT_OVERRUN, t);
-    } else if (c->state == CTRL_STATE_RUNNING && cmd == CTRL_CMD_STOP) {
+    } else if (moving(c) && cmd == CTRL_CMD_STOP) {
       c->state = CTRL_STATE_DONE;
       c->t_hold = t;
     } else {
-      if (c->state == CTRL_STATE_IDLE && cmd == CTRL_CMD_START) {
-        c->state = CTRL_STATE_RUNNING;
+      if (starting) {
+        c->state = c->locked != 0u ? CTRL_STATE_DEGRADED : CTRL_STATE_RUNNING;
         c->k = 0;
         t = tick_time(c);
       }
-      if (c->state == CTRL_STATE_RUNNING) {
-        ctrl_fault f = c->cfg->mode == CTRL_MODE_PLAYBACK ? tick_playback(c, t, out)
-                                                          : tick_resolved_rate(c, in, t, out);
+      if (moving(c)) {
+        ctrl_fault f = tick_mode(c, in, t, out);
         if (f == CTRL_FAULT_NONE) {
           return CTRL_FAULT_NONE;
         }

@@ -10,7 +10,9 @@
  *
  *   IDLE --START--> RUNNING --last tick--> DONE
  *                      |  \---STOP--------> DONE
- *                      \---any fault-----> FAULT   (latched until ctrl_init)
+ *                      |  \---any fault-----> FAULT   (latched until ctrl_init)
+ *                      \---a joint reported locked (FAULT_TOLERANT)--> DEGRADED
+ *   DEGRADED behaves as RUNNING (same transitions) with the locked joints frozen.
  *   (a fault detected in IDLE or DONE, e.g. a non-finite input, also goes to FAULT)
  *
  * Modes:
@@ -21,7 +23,17 @@
  *       combined), explicit Euler, optional closed loop (CLIK). This reproduces
  *       armgen/planning/cartesian.py tick by tick.
  *   CTRL_MODE_PLAYBACK  joint-space polynomial segments (spec 40): per joint the knot times
- *       and six coefficients per segment, evaluated by the generated fw_ptp_eval.
+ *       and six coefficients per segment, evaluated by the generated fw_ptp_eval; every
+ *       command is checked against qdot_max (speed and the step from the previous command).
+ *   CTRL_MODE_FAULT_TOLERANT  spec 30: the same on-board path (circle with turns, or line),
+ *       closed loop, per tick the joint-manipulability index H_M and its gradient on the
+ *       healthy columns (generated ft_index), then GPM (alpha = K grad H_M), WLN (generated
+ *       wln_weights, plain or smooth rule) or minimum norm, solved by the generated
+ *       step_fault with the lock mask. A joint reported locked in ctrl_input.locked freezes
+ *       from that tick (velocity exactly 0); reproduces planning/fault_tolerant/planner.py.
+ *   CTRL_MODE_WEIGHTED_GPM  spec 35: per tick the generated step_wgpm with the task's band,
+ *       repulsion, damping, criteria gains and the ramp in/out of the secondary terms;
+ *       reproduces planning/wgpm/planner.py. It cannot mask a locked joint (a lock faults).
  *
  * Every output is finite and inside the joint limits: on a fault the controller holds the
  * last command it emitted (velocity 0) and reports the cause; it never writes NaN.
@@ -49,7 +61,8 @@ typedef enum {
   CTRL_STATE_IDLE = 0,    /* initialised, holding the start configuration, waiting for START */
   CTRL_STATE_RUNNING = 1, /* following the task, one tick per period */
   CTRL_STATE_DONE = 2,    /* the motion ended (or STOP): holding the last command */
-  CTRL_STATE_FAULT = 3    /* a fault latched: holding the last safe command, see ctrl_fault */
+  CTRL_STATE_FAULT = 3,   /* a fault latched: holding the last safe command, see ctrl_fault */
+  CTRL_STATE_DEGRADED = 4 /* running with locked joints (FAULT_TOLERANT): still following the task */
 } ctrl_state;
 
 typedef enum {
@@ -68,7 +81,14 @@ typedef enum {
   CTRL_FAULT_OVERRUN = 6,          /* the scheduler reported a missed period (tick overrun) */
   CTRL_FAULT_TRACKING = 7,         /* the tool left the path by more than pos_err_max */
   CTRL_FAULT_PLAYBACK = 8,         /* the segment evaluator rejected the time or the knots */
-  CTRL_FAULT_BAD_ARGS = 9          /* a NULL pointer was passed (returned, not latched) */
+  CTRL_FAULT_BAD_ARGS = 9,         /* a NULL pointer was passed (returned, not latched) */
+  CTRL_FAULT_LOCK_REPORT = 10,     /* ctrl_input.locked names a joint the arm does not have, or
+                                      withdraws a lock (a locked joint cannot come back) */
+  CTRL_FAULT_REDUNDANCY = 11,      /* more joints locked than the mode can absorb (NDOF - NTASK
+                                      in FAULT_TOLERANT; none in the other modes) */
+  CTRL_FAULT_SPEED = 12            /* playback: a commanded speed, or the step from the previous
+                                      command, above qdot_max (e.g. a period that does not fit
+                                      the plan's knots) */
 } ctrl_fault;
 
 typedef enum {
@@ -77,7 +97,16 @@ typedef enum {
   CTRL_CMD_STOP = 2   /* RUNNING -> DONE, holding the current command */
 } ctrl_command;
 
-typedef enum { CTRL_MODE_RESOLVED_RATE = 0, CTRL_MODE_PLAYBACK = 1 } ctrl_mode;
+typedef enum {
+  CTRL_MODE_RESOLVED_RATE = 0,
+  CTRL_MODE_PLAYBACK = 1,
+  CTRL_MODE_FAULT_TOLERANT = 2,
+  CTRL_MODE_WEIGHTED_GPM = 3
+} ctrl_mode;
+typedef enum { CTRL_FT_PINV = 0, CTRL_FT_GPM = 1, CTRL_FT_WLN = 2 } ctrl_ft_method;
+typedef enum { CTRL_FT_INDEX_OMEGA = 0, CTRL_FT_INDEX_RELATIVE = 1 } ctrl_ft_index;
+typedef enum { CTRL_WLN_PLAIN = 0, CTRL_WLN_SMOOTH = 1 } ctrl_wln_rule;
+#define CTRL_WGPM_NCRIT 4 /* criteria of step_wgpm: manipulability, joint manipulability, Zghal, condition */
 typedef enum { CTRL_PATH_LINE = 0, CTRL_PATH_CIRCLE = 1 } ctrl_path_type;
 typedef enum { CTRL_LAW_CUBIC = 0, CTRL_LAW_TRAPEZOIDAL = 1, CTRL_LAW_CONSTANT = 2 } ctrl_time_law;
 typedef enum {
@@ -103,10 +132,38 @@ typedef struct {
   ctrl_real rho_L, theta_s;          /* Zghal gain, window band from a limit (rad) */
   ctrl_real T_smo_L, T_sum_L;        /* window ramp and minimum open time, s */
   ctrl_real gamma_R_ramp;            /* combined: gamma_R ramp from T/2, s */
+  int relative;          /* 1: via and end are offsets from the start position (FAULT_TOLERANT,
+                            WEIGHTED_GPM; 0 in RESOLVED_RATE) */
+  ctrl_real turns;       /* circle: turns over the duration (1 in RESOLVED_RATE) */
   ctrl_real clik_gain;   /* 1/s; > 0 closes the loop on position and orientation error */
   ctrl_real damping;     /* lambda for step_gpm; 0 = exact pseudo-inverse (see docs) */
   int task_rows[CTRL_NTASK]; /* which rows of [v; w] the step uses, ascending */
 } ctrl_rr_config;
+
+/* Fault tolerant (spec 30). */
+typedef struct {
+  ctrl_ft_method method;
+  ctrl_ft_index index;       /* H_M, or H_M / w (relative) */
+  ctrl_real K;               /* GPM gain */
+  ctrl_real b;               /* WLN weight gain */
+  ctrl_wln_rule rule;
+  ctrl_real v_band;          /* smooth rule's activation band, rad/s */
+  ctrl_real omega_floor;     /* WLN: omega_i floored here */
+  ctrl_real delta;           /* smoothing of omega_i = sqrt(det + delta^2) */
+  ctrl_real a[CTRL_NDOF];    /* weights of H_M = sum a_i omega_i */
+  ctrl_real epsilon;         /* step_fault: sigma_min below which damping starts */
+  ctrl_real lambda_max;      /* step_fault: the largest damping */
+} ctrl_ft_config;
+
+/* Weighted GPM (spec 35); the criteria in step_wgpm's order. */
+typedef struct {
+  ctrl_real band, t_rmax, delta;
+  ctrl_real epsilon, rho_max;
+  ctrl_real ramp_time;       /* s; 0: secondary terms on from the start */
+  int ramp_out;              /* 1: they ramp out again before the end */
+  ctrl_real H_lo[CTRL_WGPM_NCRIT], H_hi[CTRL_WGPM_NCRIT], k_hi[CTRL_WGPM_NCRIT];
+  ctrl_real k_lo[CTRL_WGPM_NCRIT], u_th[CTRL_WGPM_NCRIT], u_band[CTRL_WGPM_NCRIT];
+} ctrl_wg_config;
 
 /* Playback: per robot joint, the segment coefficients on shared knots. */
 typedef struct {
@@ -127,8 +184,10 @@ typedef struct {
   ctrl_real residual_rel;       /* singular-pose guard: |J q_dot - x_dot|_inf may reach */
   ctrl_real residual_abs;       /*   residual_rel * |x_dot|_inf + residual_abs */
   ctrl_real pos_err_max;        /* tracking guard, m; 0 disables */
-  ctrl_rr_config rr;            /* CTRL_MODE_RESOLVED_RATE */
+  ctrl_rr_config rr;            /* the path: RESOLVED_RATE, FAULT_TOLERANT, WEIGHTED_GPM */
   ctrl_pb_config pb;            /* CTRL_MODE_PLAYBACK */
+  ctrl_ft_config ft;            /* CTRL_MODE_FAULT_TOLERANT */
+  ctrl_wg_config wg;            /* CTRL_MODE_WEIGHTED_GPM */
 } ctrl_config;
 
 /* What the platform hands the controller every tick. */
@@ -137,6 +196,8 @@ typedef struct {
   ctrl_real xdot_offset[6]; /* task-velocity input [v; w] (m/s, rad/s) added to the path's,
                                e.g. an operator jog or a sensor correction; zeros if unused */
   uint32_t missed_ticks;    /* periods the scheduler missed since the previous tick */
+  uint32_t locked;          /* bit i: joint i is locked (as its drive reports it); a lock is
+                               permanent: clearing a reported bit is a LOCK_REPORT fault */
 } ctrl_input;
 
 /* What the controller hands back every tick: always finite, always inside the limits. */
@@ -148,13 +209,15 @@ typedef struct {
   ctrl_real pos_err;          /* |p_d - p|, m (resolved-rate) */
   ctrl_real ori_err;          /* |orientation error|, rad (resolved-rate) */
   ctrl_real window[CTRL_NDOF];/* joint-limit windows gamma_L (windowed methods) */
+  uint32_t locked;            /* bit i: joint i frozen as locked */
   ctrl_state state;
   ctrl_fault fault;
 } ctrl_output;
 
 /* The controller object: fixed-size arrays only. Treat as opaque. */
 typedef struct {
-  const ctrl_config *cfg;     /* must outlive the controller (e.g. const, in flash) */
+  ctrl_config cfg;            /* the validated copy ctrl_init made: later changes to the
+                                 caller's configuration are never seen */
   ctrl_state state;
   ctrl_fault fault;
   uint32_t k;                 /* tick index within the motion */
@@ -174,9 +237,13 @@ typedef struct {
   uint8_t win_state[CTRL_NDOF];
   uint16_t win_openings[CTRL_NDOF];
   ctrl_real win_value[CTRL_NDOF], win_t_event[CTRL_NDOF], win_v_event[CTRL_NDOF];
+  /* fault tolerance */
+  uint32_t locked;              /* bit i: joint i locked */
+  ctrl_real mask[CTRL_NDOF];    /* 1 healthy, 0 locked: step_fault's column mask */
+  ctrl_real qd_prev[CTRL_NDOF]; /* previous tick's command velocity (WLN plain rule) */
 } ctrl;
 
-/* Validate the configuration and set up the task. Returns CTRL_FAULT_NONE (state IDLE,
+/* Validate the configuration, copy it into the controller and set up the task. Returns CTRL_FAULT_NONE (state IDLE,
  * holding q_start) or CTRL_FAULT_BAD_CONFIG (state FAULT; the held command is q_start where
  * it is finite and inside the limits, else 0: do not enable the drives). */
 ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config);

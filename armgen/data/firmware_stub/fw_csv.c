@@ -139,7 +139,7 @@ size_t fw_csv_header(char *buf, size_t size) {
   put_names(&l, "dq", "_rad_s");
   put(&l, ",pos_err_m,ori_err_rad");
   put_names(&l, "window", "_1");
-  put(&l, ",state,fault\n");
+  put(&l, ",locked,state,fault\n");
   return l.len;
 }
 
@@ -168,6 +168,8 @@ size_t fw_csv_row(char *buf, size_t size, const ctrl_output *out) {
     put(&l, ",");
     put_real(&l, out->window[i]);
   }
+  put(&l, ",");
+  put_uint(&l, (unsigned long)out->locked);
   put(&l, ",");
   put_uint(&l, (unsigned long)out->state);
   put(&l, ",");

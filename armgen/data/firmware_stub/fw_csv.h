@@ -1,7 +1,7 @@
 /*
  * CSV lines of the controller's output, shared by the host and the Cortex-M runners:
  *
- *   tick,t_s,q1_rad,...,dq1_rad_s,...,pos_err_m,ori_err_rad,window1_1,...,state,fault
+ *   tick,t_s,q1_rad,...,dq1_rad_s,...,pos_err_m,ori_err_rad,window1_1,...,locked,state,fault
  *
  * Reals are printed with %.17g (double) / %.9g (float) on the host, which round-trips, and
  * as C99 hexadecimal floating point ("0x1.8p+1", exact, no printf needed) when FW_CSV_HEX is
@@ -19,7 +19,7 @@
 #endif
 
 /* Longest line: a real takes at most 25 characters plus the comma. */
-#define FW_CSV_LINE_MAX (26 * (3 * CTRL_NDOF + 6) + 32)
+#define FW_CSV_LINE_MAX (26 * (3 * CTRL_NDOF + 7) + 32)
 
 /* Write the header / one row, '\n'-terminated and NUL-terminated, into buf; return the
  * length (truncated to size - 1 if buf is too small). */

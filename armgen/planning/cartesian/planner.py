@@ -13,11 +13,13 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import casadi as ca
 import numpy as np
 
 from ...errors import PlanningError, TaskFileError
 from ...progress import progress
-from ...robot import Robot, load_robot, matrix_rpy, rpy_matrix
+from ...robot import Robot, load_robot, rpy_matrix
+from ...symbolic.steps import jacobi_min_eigenvalue
 from ..backends import make_backend
 from ..paths import CirclePath, LinePath, TimeLaw
 from ..result import PlanResult
@@ -188,11 +190,29 @@ def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
     )
 
 
-def orientation_error(r_actual: np.ndarray, r_desired: np.ndarray) -> np.ndarray:
+def sym_orientation_error(r_actual: ca.SX, r_desired: ca.SX) -> ca.SX:
     """½ Σ r_i × r_d,i over the columns (the usual small-angle orientation error, base frame),
     computed as ½ vee(R_d Rᵀ − R R_dᵀ)."""
-    s = r_desired @ r_actual.T
-    return 0.5 * np.array([s[2, 1] - s[1, 2], s[0, 2] - s[2, 0], s[1, 0] - s[0, 1]])
+    s = ca.mtimes(r_desired, r_actual.T)
+    return 0.5 * ca.vertcat(s[2, 1] - s[1, 2], s[0, 2] - s[2, 0], s[1, 0] - s[0, 1])
+
+
+def sym_rpy(rot: ca.SX) -> ca.SX:
+    """:func:`armgen.robot.matrix_rpy` in CasADi: [roll, pitch, yaw] of Rz(yaw) Ry(pitch) Rx(roll)."""
+    return ca.vertcat(ca.atan2(rot[2, 1], rot[2, 2]), ca.atan2(-rot[2, 0], ca.hypot(rot[0, 0], rot[1, 0])),
+                      ca.atan2(rot[1, 0], rot[0, 0]))
+
+
+def positive_definite(a: ca.SX) -> ca.SX:
+    """1 when the symmetric matrix ``a`` is positive definite (every LDLᵀ pivot > 0), else 0."""
+    m = a.shape[0]
+    lower = [[None] * m for _ in range(m)]
+    pivots = []
+    for j in range(m):
+        pivots.append(a[j, j] - sum((lower[j][k] ** 2 * pivots[k] for k in range(j)), ca.SX(0)))
+        for i in range(j + 1, m):
+            lower[i][j] = (a[i, j] - sum((lower[i][k] * lower[j][k] * pivots[k] for k in range(j)), ca.SX(0))) / pivots[j]
+    return ca.logic_all(ca.vertcat(*[p > 0 for p in pivots]))
 
 
 class CartesianPlanner:
@@ -203,7 +223,7 @@ class CartesianPlanner:
     def __init__(self, task: CartesianTask, backend_kind: str = "symbolic"):
         self.task = task
         self.robot = task.robot
-        self.backend = make_backend(self.robot, backend_kind, self.FUNCTIONS)
+        self.backend = make_backend(self.robot, backend_kind)
         self.rows = list(self.robot.task_rows)
         T0, _ = self.backend.call("fk_jacobian", task.q_start)
         self.p0, self.r0 = T0[:3, 3].copy(), T0[:3, :3].copy()
@@ -217,10 +237,12 @@ class CartesianPlanner:
         shape = "linear" if mp.name == "combined" else "quadratic"
         self.windows = JointWindows(self.robot.n, mp.T_smo_L, mp.T_sum_L, shape)
         self.damped_steps = 0
+        self._band_lo = self.robot.qmin + mp.theta_s
+        self._band_hi = self.robot.qmax - mp.theta_s
 
     def _check_reach(self) -> None:
         """Reject a path that leaves the sphere the arm can reach (sum of link lengths)."""
-        reach = sum(math.hypot(j.a, j.d) + (j.qlim[1] if not j.revolute else 0.0) for j in self.robot.joints)
+        reach = sum(j.link_length + (j.qlim[1] if not j.revolute else 0.0) for j in self.robot.joints)
         reach += float(np.linalg.norm(self.robot.tool[:3, 3]))
         base = self.robot.base[:3, 3]
         points = self.path.sample_points()
@@ -234,111 +256,155 @@ class CartesianPlanner:
                 f"move {where} closer")
 
     # -- the pieces of the law -------------------------------------------------------
-    def desired(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(position, rotation, task velocity [v; ω]) at time t."""
+    def desired(self, t):
+        """(position, rotation, task velocity [v; ω]) at time t (a number or an array of times)."""
         T = self.task.duration
+        t = np.asarray(t, dtype=float)
         s, ds = self.task.law(t / T)
         p, dp, rot, dw = self.path(s)
-        sdot = ds / T if 0.0 <= t <= T else 0.0
-        return p, rot, np.concatenate([dp * sdot, dw * sdot])
+        sdot = np.where((0.0 <= t) & (t <= T), ds / T, 0.0)[..., None]
+        return p, rot, np.concatenate([dp * sdot, dw * sdot], axis=-1)
 
-    def damping(self, jac: np.ndarray) -> float:
-        """Variable damping: λ² = (1 − (σ_min/ε)²) λ_max² below ε, 0 above (exact inverse)."""
-        sigma = np.linalg.svd(jac[self.rows], compute_uv=False)[-1]
-        eps = self.task.damping_epsilon
-        if sigma >= eps:
-            return 0.0
-        return math.sqrt(1 - (sigma / eps) ** 2) * self.task.damping_max
-
-    def alpha(self, t: float, q: np.ndarray, windows: np.ndarray) -> tuple[np.ndarray, dict[str, float]]:
+    def alpha_coefficients(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(γ_R, a, b) of the repetitive term γ_R · a (q_init − q) / b at the times t (a = 0 while it is off)."""
         mp, T = self.task.method, self.task.duration
-        zero = np.zeros(self.robot.n)
-        h_l, grad_l = self.backend.call("zghal", q)  # logged for every method
-        info = {"H_L": float(h_l.ravel()[0]), "H_R": 0.5 * float(np.sum((q - self.task.q_start) ** 2))}
-        if mp.name == "pinv":
-            return zero, info
-
-        def alpha_r() -> np.ndarray:
-            t_sta = T / 2
-            if t <= t_sta or t >= T:
-                return zero  # off before T/2; its limit 0 at T (removable singularity for ρ_R > 1)
-            lam = min(((t - t_sta) / mp.T_smo_R) ** 2, 1.0)
-            return lam * mp.rho_R * (self.task.q_start - q) / (T - t)
-
-        def alpha_l() -> np.ndarray:
-            return -mp.rho_L * grad_l.ravel()
-
-        if mp.name == "repetitive":
-            return alpha_r(), info
-        if mp.name == "zghal":
-            return alpha_l(), info
-        if mp.name == "zghal_improved":
-            return windows * alpha_l(), info
-        gamma_r = min(max((t - T / 2) / mp.gamma_R_ramp, 0.0), 1.0)
-        info["gamma_R"] = gamma_r
-        return gamma_r * alpha_r() + windows * alpha_l(), info
-
-    def qdot(self, t: float, q: np.ndarray, windows: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
-        T_pose, jac = self.backend.call("fk_jacobian", q)
-        p_d, r_d, xdot = self.desired(t)
-        pos_err = p_d - T_pose[:3, 3]
-        ori_err = orientation_error(T_pose[:3, :3], r_d)
-        cmd = xdot.copy()
-        if self.task.clik_gain > 0:
-            cmd += self.task.clik_gain * np.concatenate([pos_err, ori_err])
-        alpha, info = self.alpha(t, q, windows)
-        lam = self.damping(jac)
-        (qd,) = self.backend.call("step_gpm", q, cmd[self.rows], alpha, lam)
-        info.update(pose=T_pose, jac=jac, pos_err=pos_err, ori_err=ori_err, xdot=xdot, damping=lam)
-        return qd.ravel(), info
+        zero, one = np.zeros_like(t), np.ones_like(t)
+        if mp.name in ("pinv", "zghal", "zghal_improved"):
+            return zero, zero, one
+        t_sta = T / 2
+        on = (t > t_sta) & (t < T)  # off before T/2; its limit 0 at T (removable singularity for ρ_R > 1)
+        a = np.where(on, np.minimum(((t - t_sta) / mp.T_smo_R) ** 2, 1.0) * mp.rho_R, 0.0)
+        b = np.where(on, T - t, 1.0)
+        gamma_r = np.clip((t - T / 2) / mp.gamma_R_ramp, 0.0, 1.0) if mp.name == "combined" else one
+        return gamma_r, a, b
 
     def in_band(self, q: np.ndarray) -> np.ndarray:
-        th = self.task.method.theta_s
-        return (q > self.robot.qmax - th) | (q < self.robot.qmin + th)
+        return (q > self._band_hi) | (q < self._band_lo)
 
     # -- integration -----------------------------------------------------------------
+    STAGE_INPUTS = (("p_d", 3), ("r_d", 9), ("xdot", 6), ("gamma_R", 1), ("a_R", 1), ("b_R", 1))
+
+    def _kernel(self, damped: bool):
+        """One fused call per step: the law at t (and, for RK4, at t + h/2 and t + h) and q(t + h).
+
+        The damping needs σ_min(J) only below ε. The undamped kernel (``damped`` False) tests
+        λ_min(J Jᵀ) > ε² by the pivots of J Jᵀ − ε² I (positive definite: all LDLᵀ pivots > 0),
+        uses λ = 0 and flags the step otherwise; the damped kernel estimates σ_min by Jacobi
+        sweeps and applies λ = λ_max √(1 − (σ_min/ε)²) below ε."""
+        stages = 3 if self.task.integrator == "rk4" else 1
+        rows = self.rows
+
+        def build(model, x, y):
+            n = model.n
+            fk_jacobian, zghal, step_gpm = (model.function(f) for f in self.FUNCTIONS)
+            q, q_init, windows = x.add("q", n), x.add("q_init", n), x.add("windows", n)
+            h, rho_l, gain, eps, lam_max = (x.add(k, 1) for k in ("h", "rho_L", "clik_gain", "epsilon", "lambda_max"))
+            at = [[x.add(f"{k}{s}", size) for k, size in self.STAGE_INPUTS] for s in range(stages)]
+            flags = []
+
+            def law(qs, p_d, r_d, xdot, gamma_r, a_r, b_r):
+                pose, jac = fk_jacobian(qs)
+                pos_err = p_d - pose[:3, 3]
+                ori_err = sym_orientation_error(pose[:3, :3], ca.reshape(r_d, 3, 3))
+                cmd = xdot + gain * ca.vertcat(pos_err, ori_err)
+                h_l, grad_l = zghal(qs)
+                alpha = gamma_r * (a_r * (q_init - qs) / b_r) + windows * (-rho_l * grad_l)
+                gram = ca.mtimes(jac[rows, :], jac[rows, :].T)
+                if damped:
+                    sigma = ca.sqrt(ca.fmax(jacobi_min_eigenvalue(gram), 0))
+                    lam = ca.if_else(sigma >= eps, 0, ca.sqrt(1 - (sigma / eps) ** 2) * lam_max)
+                else:
+                    flags.append(1 - positive_definite(gram - eps * eps * ca.SX.eye(len(rows))))
+                    lam = ca.SX(0)
+                qd = step_gpm(qs, cmd[rows], alpha, lam)
+                return qd, pose, jac, pos_err, ori_err, cmd, lam, h_l
+
+            qd, pose, jac, pos_err, ori_err, cmd, lam, h_l = law(q, *at[0])
+            if stages == 1:
+                q_next = q + h * qd
+            else:
+                k2 = law(q + h / 2 * qd, *at[1])[0]
+                k3 = law(q + h / 2 * k2, *at[1])[0]
+                k4 = law(q + h * k3, *at[2])[0]
+                q_next = q + h / 6 * (qd + 2 * k2 + 2 * k3 + k4)
+            # the row from q on; J q̇ − ẋ_cmd measures how exactly the step met the command
+            y.add("row", ca.vertcat(q, qd, pose[:3, 3], sym_rpy(pose[:3, :3]), ca.norm_2(pos_err), ca.norm_2(ori_err),
+                                    ca.norm_2((ca.mtimes(jac, qd) - cmd)[rows]), lam, h_l,
+                                    0.5 * ca.sumsqr(q - q_init)))
+            y.add("q_next", q_next)
+            y.add("needs_damping", sum(flags, ca.SX(0)) if flags else ca.SX(0))
+
+        key = ("cartesian", self.task.integrator, "damped" if damped else "undamped", self.robot.task_rows)
+        return self.backend.kernel(key, build)
+
     def run(self) -> PlanResult:
         task = self.task
-        h = task.step
+        n, h = self.robot.n, task.step
         steps = int(round(task.duration / h))
         if abs(steps * h - task.duration) > 1e-9 * task.duration:
             raise TaskFileError(f"timing.duration = {task.duration} s is not a multiple of integrator.step = {h} s")
-        q = task.q_start.copy()
-        rows: list[np.ndarray] = []
-        windows = self.windows.update(0.0, self.in_band(q))
-        uses_windows = task.method.name in ("zghal_improved", "combined")
-        with progress(steps, f"planning {task.method.name}") as bar:
+        kernel, damped_kernel = self._kernel(False), None  # the damped one is built when first needed
+        for key, value in (("q_init", task.q_start), ("h", h), ("rho_L", task.method.rho_L),
+                           ("clik_gain", task.clik_gain), ("epsilon", task.damping_epsilon),
+                           ("lambda_max", task.damping_max)):
+            kernel.set(key, value)
+        # everything that depends on t alone, for every step and stage, in the kernel's input order
+        t = np.arange(steps + 1) * h
+        blocks = []
+        for dt in ((0.0, h / 2, h) if task.integrator == "rk4" else (0.0,)):
+            p_d, r_d, xdot = self.desired(t + dt)
+            blocks += [p_d, np.swapaxes(r_d, -1, -2).reshape(-1, 9), xdot,
+                       *(c[:, None] for c in self.alpha_coefficients(t + dt))]
+        timed = np.hstack(blocks)
+        timed_slot = slice(kernel.inputs["p_d0"].start, kernel.inputs["p_d0"].start + timed.shape[1])
+        x, q_slot, w_slot = kernel.x, kernel.inputs["q"], kernel.inputs["windows"]
+        columns = self._columns()
+        data = np.empty((steps + 1, len(columns)))
+        row_end = columns.index("window1_1")
+        mp = task.method
+        uses_windows = mp.name in ("zghal_improved", "combined")
+        # the Zghal term's weight: off, always on, or the latched windows
+        weight = {"pinv": np.zeros(n), "repetitive": np.zeros(n), "zghal": np.ones(n)}.get(mp.name)
+        windows = self.windows.update(0.0, self.in_band(task.q_start))
+        x[q_slot] = task.q_start
+        x[w_slot] = windows if weight is None else weight
+        q = x[q_slot]  # a view: the current joint angles
+        with progress(steps, f"planning {mp.name}") as bar:
             for k in range(steps + 1):
-                t = k * h
                 if uses_windows:
-                    windows = self.windows.update(t, self.in_band(q))
-                qd, info = self.qdot(t, q, windows)
-                self.damped_steps += info["damping"] > 0
-                if k % task.output_every == 0 or k == steps:
-                    rows.append(self._row(t, q, qd, info, windows))
-                if k == steps:
-                    break
-                if task.integrator == "euler":
-                    q = q + h * qd
-                else:
-                    k1 = qd
-                    k2, _ = self.qdot(t + h / 2, q + h / 2 * k1, windows)
-                    k3, _ = self.qdot(t + h / 2, q + h / 2 * k2, windows)
-                    k4, _ = self.qdot(t + h, q + h * k3, windows)
-                    q = q + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-                if not np.all(np.isfinite(q)):
-                    raise PlanningError(f"joint angles became non-finite at t = {t + h:.3f} s; lower integrator.step "
-                                        "or the method gains")
-                bar.update(1)
-        data = np.array(rows)
-        result = PlanResult(self._columns(), data, {})
+                    windows = self.windows.update(k * h, self.in_band(q))
+                    x[w_slot] = windows
+                    data[k, row_end:] = windows
+                x[timed_slot] = timed[k]
+                kernel()
+                out = kernel
+                if kernel.y[-1]:
+                    damped_kernel = damped_kernel or self._kernel(True)
+                    damped_kernel.x[:] = x
+                    damped_kernel()
+                    out = damped_kernel
+                data[k, 1:row_end] = out.y[out.outputs["row"]]
+                if k < steps:
+                    x[q_slot] = out.y[out.outputs["q_next"]]
+                    bar.update(1)
+        data[:, 0] = t
+        if not uses_windows:
+            data[:, row_end:] = windows
+        q_all = data[:, 1:1 + n]
+        if not np.all(np.isfinite(q_all)):
+            k = int(np.argmin(np.all(np.isfinite(q_all), axis=1)))
+            raise PlanningError(f"joint angles became non-finite at t = {t[k]:.3f} s; lower integrator.step "
+                                "or the method gains")
+        self.damped_steps = int(np.count_nonzero(data[:, columns.index("damping_1")] > 0))
+        keep = [k for k in range(steps + 1) if k % task.output_every == 0 or k == steps]
+        result = PlanResult(columns, data[keep], {})
         result.metadata = self._metadata(result)
         max_err = float(np.max(result.column("pos_err_m")))
         if max_err > MAX_PATH_ERROR:
             k = int(np.argmax(result.column("pos_err_m") > MAX_PATH_ERROR))
             raise PlanningError(
                 f"the tool left the path by {max_err * 1e3:.1f} mm (> {MAX_PATH_ERROR * 1e3:.0f} mm), first at "
-                f"t = {data[k, 0]:.2f} s: the path is not reachable from this start (check path.via/path.end, the "
+                f"t = {result.data[k, 0]:.2f} s: the path is not reachable from this start (check path.via/path.end, the "
                 "start configuration, or a singularity on the way)")
         return result
 
@@ -349,17 +415,6 @@ class CartesianPlanner:
                  "task_residual_1", "damping_1", "H_L_1", "H_R_rad2"]
         cols += [f"window{i + 1}_1" for i in range(n)]
         return cols
-
-    def _row(self, t, q, qd, info, windows) -> np.ndarray:
-        pose = info["pose"]
-        jac = info["jac"]
-        # J q̇ − ẋ_cmd: how exactly the step met the commanded twist (0 when undamped)
-        cmd = info["xdot"] + (self.task.clik_gain * np.concatenate([info["pos_err"], info["ori_err"]])
-                              if self.task.clik_gain > 0 else 0.0)
-        residual = float(np.linalg.norm((jac @ qd - cmd)[self.rows]))
-        return np.concatenate([[t], q, qd, pose[:3, 3], matrix_rpy(pose[:3, :3]),
-                               [np.linalg.norm(info["pos_err"]), np.linalg.norm(info["ori_err"]), residual,
-                                info["damping"], info["H_L"], info["H_R"]], windows])
 
     def _metadata(self, result: PlanResult) -> dict[str, Any]:
         n, task = self.robot.n, self.task

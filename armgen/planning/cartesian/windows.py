@@ -43,6 +43,8 @@ class JointWindows:
 
     def update(self, t: float, in_band: np.ndarray) -> np.ndarray:
         """Advance every joint's window to time ``t``; returns the weights."""
+        if not self.state.any() and not in_band.any():
+            return self.value.copy()  # every window idle and no joint in its band: nothing to do
         hold_min = self.t_sum - self.t_smo
         for i in range(self.n):
             st = self.state[i]

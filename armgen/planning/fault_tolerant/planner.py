@@ -23,29 +23,28 @@ whether the path needs a longer (or shorter) arm than the elbow allows; that is 
 as infeasible (``check.reach = "error"``, default) or recorded and planned anyway
 (``"report"``).
 
-``python -m armgen.planning.fault_tolerant.planner --sweep TASK.toml …`` runs the sweep over K, b
-and the locked joint and prints the verdict table (see :func:`main`).
+Sweeps over K, b, the weight rule and the locked joint are ``armgen sweep`` runs (one row per
+plan with the summary below; see docs/fault_tolerance.md).
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, Sequence
 
+import casadi as ca
 import numpy as np
 
-from ...errors import ArmgenError, PlanningError, TaskFileError
+from ...errors import PlanningError, TaskFileError
 from ...progress import progress
 from ...robot import Robot
 from ..backends import Backend, make_backend
 from ..cartesian.planner import _number, _table
 from ..result import PlanResult
-from ..taskpath import (PathTask, TaskPath, base_columns, base_row, limit_report, parse_path_task, path_metadata,
-                       smoothness, tracking)
+from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, limit_report, parse_path_task, path_metadata,
+                       smoothness, sym_base_row, sym_tracking)
 
 METHODS = ("gpm", "wln", "pinv")
 INDEX_VARIANTS = ("omega", "relative", "sigma_min")
@@ -61,10 +60,6 @@ DEFAULT_SWEEP_K = (0.0, 0.5, 1.0, 2.0, 4.0)
 DEFAULT_SWEEP_B = (0.0, 0.5, 1.0, 2.0, 4.0)
 # A WLN weight "switch" must move the weight by more than this (W ≥ 1, so 1 %).
 SWITCH_MIN_DW = 0.01
-# Sweep choice (see choose()): manipulability left after the lock within 5 % of the best and
-# peak |q̈| within 10 % of the smoothest count as equal.
-SWEEP_W_TOLERANCE = 0.05
-SWEEP_DDQ_TOLERANCE = 0.10
 # Tolerance of the spherical-shoulder/wrist test: axes meet within 1e-9 m.
 SRS_AXIS_TOL = 1e-9
 
@@ -250,21 +245,25 @@ def parse_fault_tolerant_task(task: dict, source: str) -> FaultTolerantTask:
 
 # -- the spherical-shoulder/wrist reach test -------------------------------------------------
 
-def _axes(jac: np.ndarray, pose: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(point, unit direction) of each revolute joint axis from the geometric Jacobian: with
-    v = z × (p − o), the point p + z × v lies on the axis."""
-    p = pose[:3, 3]
-    return [(p + np.cross(jac[3:, i], jac[:3, i]), jac[3:, i] / np.linalg.norm(jac[3:, i])) for i in range(jac.shape[1])]
+def _axes(jac: np.ndarray, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points (..., k, 3) and unit directions (..., k, 3) of the revolute joint axes from the
+    geometric Jacobian (..., 6, k): with v = z × (p − o), the point p + z × v lies on the axis."""
+    z = np.swapaxes(jac[..., 3:, :], -1, -2)
+    points = pose[..., None, :3, 3] + np.cross(z, np.swapaxes(jac[..., :3, :], -1, -2))
+    return points, z / np.linalg.norm(z, axis=-1, keepdims=True)
 
 
-def _common_point(lines: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, float]:
-    """Least-squares meeting point of lines and the largest distance of it from a line."""
-    a = sum(np.eye(3) - np.outer(d, d) for _, d in lines)
-    b = sum((np.eye(3) - np.outer(d, d)) @ x for x, d in lines)
-    if np.linalg.cond(a) > 1e12:
-        return np.zeros(3), math.inf  # parallel axes: no single point
-    point = np.linalg.solve(a, b)
-    return point, max(float(np.linalg.norm((np.eye(3) - np.outer(d, d)) @ (point - x))) for x, d in lines)
+def _common_point(points: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares meeting point (..., 3) of lines (..., k, 3) and the largest distance of it
+    from a line (inf where the lines are parallel: no single point)."""
+    proj = np.eye(3) - dirs[..., :, None] * dirs[..., None, :]
+    a = proj.sum(axis=-3)
+    b = (proj @ points[..., None])[..., 0].sum(axis=-2)
+    parallel = np.linalg.cond(a) > 1e12
+    point = np.linalg.solve(np.where(parallel[..., None, None], np.eye(3), a), b[..., None])[..., 0]
+    point = np.where(parallel[..., None], 0.0, point)
+    err = np.linalg.norm((proj @ (point[..., None, :] - points)[..., None])[..., 0], axis=-1).max(axis=-1)
+    return point, np.where(parallel, np.inf, err)
 
 
 @dataclass
@@ -294,22 +293,23 @@ def srs_reach_check(robot: Robot, backend: Backend, q_start: np.ndarray, path: T
     if robot.n != 7 or not all(j.revolute for j in robot.joints):
         return None
     pose, jac = backend.call("fk_jacobian", q_start)
-    axes = _axes(jac, pose)
-    shoulder, err_s = _common_point(axes[:3])
-    wrist, err_w = _common_point(axes[4:])
+    points, dirs = _axes(jac, pose)
+    shoulder, err_s = _common_point(points[:3], dirs[:3])
+    wrist, err_w = _common_point(points[4:], dirs[4:])
     if err_s > SRS_AXIS_TOL or err_w > SRS_AXIS_TOL:
         return None
     wrist_in_tool = pose[:3, :3].T @ (wrist - pose[:3, 3])
     lo, hi = robot.joints[3].qlim
-    distances = []
-    for q4 in np.linspace(lo, hi, 721):
-        q = q_start.copy()
-        q[3] = q4
-        pq, jq = backend.call("fk_jacobian", q)
-        s_q, _ = _common_point(_axes(jq, pq)[:3])
-        distances.append(float(np.linalg.norm(pq[:3, 3] + pq[:3, :3] @ wrist_in_tool - s_q)))
+    qs = np.tile(q_start, (721, 1))
+    qs[:, 3] = np.linspace(lo, hi, 721)
+    poses, jacs = (np.array(m).reshape(m.shape[0], len(qs), -1).transpose(1, 0, 2)
+                   for m in backend.model.function("fk_jacobian").map(len(qs))(qs.T))
+    s_q, _ = _common_point(*(part[:, :3] for part in _axes(jacs, poses)))
+    distances = np.linalg.norm(poses[:, :3, 3] + poses[:, :3, :3] @ wrist_in_tool - s_q, axis=1).tolist()
     d_min, d_max = min(distances), max(distances)
-    needed = [(t, float(np.linalg.norm(p + r @ wrist_in_tool - shoulder))) for t, p, r in path.sample(800)]
+    times = np.arange(801) * path.task.duration / 800
+    p_d, r_d, _ = path(times)
+    needed = list(zip(times.tolist(), np.linalg.norm(p_d + r_d @ wrist_in_tool - shoulder, axis=1).tolist()))
     values = [d for _, d in needed]
     bad = [(t, d) for t, d in needed if d > d_max + 1e-6 or d < d_min - 1e-6]
     return ReachCheck(robot.joints[3].name, (d_min, d_max), (min(values), max(values)),
@@ -319,42 +319,22 @@ def srs_reach_check(robot: Robot, backend: Backend, q_start: np.ndarray, path: T
 # -- the planner ---------------------------------------------------------------------------
 
 @dataclass
-class StepInfo:
-    pose: np.ndarray
-    jac: np.ndarray
-    pos_err: np.ndarray
-    ori_err: np.ndarray
-    cmd: np.ndarray
-    H: float
-    w: float
-    per_joint: np.ndarray
-    W: np.ndarray
-    active: np.ndarray
-    damping: float
-    sigma_min: float
-
-
-@dataclass
 class Segment:
-    rows: list[list[float]] = field(default_factory=list)
-    qd: list[np.ndarray] = field(default_factory=list)
-    active: list[np.ndarray] = field(default_factory=list)
-    W: list[np.ndarray] = field(default_factory=list)
-    masks: list[np.ndarray] = field(default_factory=list)
-    damped: int = 0
+    """The rows planned so far (each a full output row, time first)."""
+
+    rows: list[np.ndarray] = field(default_factory=list)
 
 
 class FaultTolerantPlanner:
     """Integrates one task; ``run`` plans it, ``run_locks`` shares the pre-fault segment among
     several locked joints (the sweep)."""
 
-    FUNCTIONS = ("fk_jacobian", "jacobian", "ft_index", "wln_weights", "step_fault")
 
     def __init__(self, task: FaultTolerantTask, backend_kind: str = "symbolic", backend: Backend | None = None):
         self.task = task
         self.robot = task.robot
         self.rows = list(self.robot.task_rows)
-        self.backend = backend or make_backend(self.robot, backend_kind, self.FUNCTIONS)
+        self.backend = backend or make_backend(self.robot, backend_kind)
         pose0, _ = self.backend.call("fk_jacobian", task.path.q_start)
         self.path = TaskPath(task.path, pose0)
         self.reach = srs_reach_check(self.robot, self.backend, task.path.q_start, self.path)
@@ -403,61 +383,82 @@ class FaultTolerantPlanner:
                 if jh.shape[1] - 1 >= len(self.rows) else 0.0
         return out
 
-    def evaluate(self, t: float, q: np.ndarray, qd_prev: np.ndarray, mask: np.ndarray,
-                 method: FaultMethod) -> tuple[np.ndarray, StepInfo]:
-        p = self.task.path
-        pose, jac = self.backend.call("fk_jacobian", q)
-        p_d, r_d, xdot = self.path(t)
-        pos_err, ori_err = tracking(pose, p_d, r_d)
-        cmd = xdot + (p.clik_gain * np.concatenate([pos_err, ori_err]) if p.clik else 0.0)
-        h, grad, per, w = self.index(q, mask, method)
-        n = self.robot.n
-        weights, active, alpha = np.ones(n), np.zeros(n), np.zeros(n)
-        if method.name == "gpm":
-            alpha = method.K * grad
-        elif method.name == "wln":
-            if method.weight_rule == "smooth":
-                # the direction test on the unweighted (minimum-norm) motion of this step:
-                # continuous in t and independent of W, so the weights cannot feed back on it
-                probe, _, _ = self.backend.call("step_fault", q, cmd[self.rows], mask, np.ones(n), np.zeros(n),
-                                                p.damping_epsilon, p.damping_max)
-                v_band, reference = method.v_band, probe.ravel()
-            else:
-                v_band, reference = 0.0, qd_prev
-            weights, active = (x.ravel() for x in self.backend.call(
-                "wln_weights", grad, per, reference, mask, method.b, method.omega_floor, v_band))
-        qd, lam, sigma = self.backend.call("step_fault", q, cmd[self.rows], mask, weights, alpha,
-                                           p.damping_epsilon, p.damping_max)
-        info = StepInfo(pose, jac, pos_err, ori_err, cmd, h, w, per, weights, active,
-                        float(lam.ravel()[0]), float(sigma.ravel()[0]))
-        return qd.ravel(), info
+    def _kernel(self, method: FaultMethod):
+        """One fused call per step: index, weights or null-space term, masked step, q(t + h)."""
+        rows = self.rows
+        numeric_index = method.index == "sigma_min"  # NumPy SVD and differences: an input
 
-    def segment(self, q: np.ndarray, qd_prev: np.ndarray, k0: int, k1: int, mask: np.ndarray, method: FaultMethod,
-                seg: Segment, bar, last: bool) -> tuple[np.ndarray, np.ndarray]:
+        def build(model, x, y):
+            n = model.n
+            fk_jacobian, ft_index, wln_weights, step_fault = (
+                model.function(f) for f in ("fk_jacobian", "ft_index", "wln_weights", "step_fault"))
+            q, qd_prev, mask, a = (x.add(k, n) for k in ("q", "qd_prev", "mask", "a"))
+            K, b, omega_floor, v_band, delta, gain, eps, lam_max, h = (
+                x.add(k, 1) for k in ("K", "b", "omega_floor", "v_band", "delta", "clik_gain", "epsilon", "lambda_max",
+                                      "h"))
+            if numeric_index:
+                h_in, grad_in, per_in = x.add("H", 1), x.add("grad_H", n), x.add("per_joint", n)
+            timed = x.add("timed", TIMED_WIDTH)
+            pose, jac = fk_jacobian(q)
+            pos_err, ori_err, cmd = sym_tracking(pose, timed, gain)
+            omega, h_m, grad, w, grad_w = ft_index(q, mask, a, delta)
+            if method.index == "omega":
+                index, grad_index, per = h_m, grad, omega
+            elif method.index == "relative":
+                index, grad_index, per = h_m / w, grad / w - h_m * grad_w / (w * w), omega / w
+            else:
+                index, grad_index, per = h_in, grad_in, per_in
+            ones, zeros = ca.DM.ones(n), ca.DM.zeros(n)
+            weights, active, alpha = ones, zeros, zeros
+            if method.name == "gpm":
+                alpha = K * grad_index
+            elif method.name == "wln":
+                if method.weight_rule == "smooth":
+                    # the direction test on the unweighted (minimum-norm) motion of this step:
+                    # continuous in t and independent of W, so the weights cannot feed back on it
+                    probe = step_fault(q, cmd[rows], mask, ones, zeros, eps, lam_max)[0]
+                    weights, active = wln_weights(grad_index, per, probe, mask, b, omega_floor, v_band)
+                else:
+                    weights, active = wln_weights(grad_index, per, qd_prev, mask, b, omega_floor, 0.0)
+            qd, lam, sigma = step_fault(q, cmd[rows], mask, weights, alpha, eps, lam_max)
+            y.add("row", ca.vertcat(sym_base_row(q, qd, pose, jac, pos_err, ori_err, cmd, rows, lam, sigma), index, w,
+                                    per, 1 - mask, weights, active))
+            y.add("q_next", q + h * qd)
+
+        key = ("fault", method.name, method.index, method.weight_rule if method.name == "wln" else "",
+               self.robot.task_rows)
+        return self.backend.kernel(key, build)
+
+    def segment(self, kernel, timed: np.ndarray, q: np.ndarray, qd_prev: np.ndarray, k0: int, k1: int,
+                mask: np.ndarray, method: FaultMethod, seg: Segment, bar, last: bool) -> tuple[np.ndarray, np.ndarray]:
         """Steps k0 … k1−1 (and the final sample k1 when ``last``); returns (q, q̇) after k1−1."""
-        h = self.task.path.step
+        p, n = self.task.path, self.robot.n
+        h = p.step
+        x, slot = kernel.x, kernel.inputs
+        x[slot["mask"]] = mask
+        x[slot["q"]] = q
+        x[slot["qd_prev"]] = qd_prev
+        row_out, q_next, qd_out = kernel.outputs["row"], kernel.outputs["q_next"], slice(n, 2 * n)
         stop = k1 + 1 if last else k1
         for k in range(k0, stop):
-            t = k * h
-            qd, info = self.evaluate(t, q, qd_prev, mask, method)
-            seg.damped += info.damping > 0
-            residual = float(np.linalg.norm((info.jac @ qd - info.cmd)[self.rows]))
-            seg.rows.append(base_row(t, q, qd, info.pose, info.pos_err, info.ori_err, residual, info.damping,
-                                     info.sigma_min)
-                            + [info.H, info.w, *info.per_joint, *(1.0 - mask), *info.W, *info.active])
-            seg.qd.append(qd)
-            seg.active.append(info.active)
-            seg.W.append(info.W)
-            seg.masks.append(mask)
+            x[slot["timed"]] = timed[k]
+            if method.index == "sigma_min":
+                index, grad, per, _ = self.index(x[slot["q"]], mask, method)
+                x[slot["H"]], x[slot["grad_H"]], x[slot["per_joint"]] = index, grad, per
+            kernel()
+            row = np.empty(1 + kernel.y[row_out].size)
+            row[0] = k * h
+            row[1:] = kernel.y[row_out]
+            seg.rows.append(row)
             if k == k1:
                 break
-            q = q + h * qd
-            qd_prev = qd
-            if not np.all(np.isfinite(q)):
-                raise PlanningError(f"joint angles became non-finite at t = {t + h:.3f} s; lower integrator.step or "
-                                    "the method gains (method.K / method.b)")
+            x[slot["q"]] = kernel.y[q_next]
+            x[slot["qd_prev"]] = row[1:][qd_out]
+            if not np.all(np.isfinite(x[slot["q"]])):
+                raise PlanningError(f"joint angles became non-finite at t = {(k + 1) * h:.3f} s; lower integrator.step "
+                                    "or the method gains (method.K / method.b)")
             bar.update(1)
-        return q, qd_prev
+        return x[slot["q"]].copy(), x[slot["qd_prev"]].copy()
 
     def lock_step(self) -> int:
         """First step index at which the fault applies (steps + 1 without a fault)."""
@@ -473,19 +474,26 @@ class FaultTolerantPlanner:
         lock_sets = [self.task.fault.joints] if lock_sets is None else list(lock_sets)
         k_f = self.lock_step() if any(lock_sets) else p.steps + 1
         healthy = np.ones(self.robot.n)
+        kernel = self._kernel(method)
+        for key, value in (("a", method.a or (1.0,) * self.robot.n), ("K", method.K), ("b", method.b),
+                           ("omega_floor", method.omega_floor), ("v_band", method.v_band), ("delta", method.delta),
+                           ("clik_gain", p.clik_gain if p.clik else 0.0), ("epsilon", p.damping_epsilon),
+                           ("lambda_max", p.damping_max), ("h", p.step)):
+            kernel.set(key, value)
+        timed = self.path.timed_inputs(np.arange(p.steps + 1) * p.step)
         results = []
         started = time.perf_counter()
         total = min(k_f, p.steps) + len(lock_sets) * max(p.steps - k_f, 0)
         with progress(total, f"planning {method.label}") as bar:
             pre = Segment()
-            q, qd_prev = self.segment(p.q_start.copy(), np.zeros(self.robot.n), 0, min(k_f, p.steps), healthy, method,
-                                      pre, bar, last=k_f > p.steps)
+            q, qd_prev = self.segment(kernel, timed, p.q_start.copy(), np.zeros(self.robot.n), 0, min(k_f, p.steps),
+                                      healthy, method, pre, bar, last=k_f > p.steps)
             for joints in lock_sets:
-                seg = Segment(list(pre.rows), list(pre.qd), list(pre.active), list(pre.W), list(pre.masks), pre.damped)
+                seg = Segment(list(pre.rows))
                 if k_f <= p.steps:
                     fault = FaultSpec(joints, self.task.fault.time)
-                    self.segment(q.copy(), qd_prev.copy(), k_f, p.steps, fault.mask(self.robot.n, True), method,
-                                 seg, bar, last=True)
+                    self.segment(kernel, timed, q.copy(), qd_prev.copy(), k_f, p.steps,
+                                 fault.mask(self.robot.n, True), method, seg, bar, last=True)
                 results.append(self._result(seg, method, joints, k_f, time.perf_counter() - started))
         return results
 
@@ -515,7 +523,7 @@ class FaultTolerantPlanner:
         col = {c: data[:, k] for k, c in enumerate(cols)}
         t = col["t_s"]
         q = data[:, 1:1 + n]
-        qd = np.array(seg.qd)
+        qd = data[:, 1 + n:1 + 2 * n]
         after = t >= (k_f * h - 1e-12) if k_f < len(t) else np.zeros(len(t), dtype=bool)
         window = after if after.any() else np.ones(len(t), dtype=bool)
         violations, margin = limit_report(self.robot, t, q)
@@ -526,10 +534,10 @@ class FaultTolerantPlanner:
         completed = pos <= c.pos_tol and ori <= c.ori_tol and speed <= c.max_joint_speed and not violations
         skip = (k_f - 1,) if 0 < k_f < len(t) else ()
         smooth = smoothness(qd, h, skip)
-        active = np.array(seg.active)
-        masks = np.array(seg.masks)
+        active = data[:, cols.index("active1_1"):cols.index("active1_1") + n]
+        masks = 1.0 - data[:, cols.index("lock1_1"):cols.index("lock1_1") + n]
         both = (masks[1:] > 0) & (masks[:-1] > 0)
-        weights = np.array(seg.W)
+        weights = data[:, cols.index("W1_1"):cols.index("W1_1") + n]
         jumps = np.abs(np.diff(weights, axis=0)) * both
         # a switch: the activation crosses ½ and the weight moves by more than SWITCH_MIN_DW
         # (joints whose ∂H/∂q_i is rounding noise, e.g. the base joint, toggle without effect)
@@ -566,7 +574,7 @@ class FaultTolerantPlanner:
             "max_weight_step": float(np.max(jumps)) if jumps.size else 0.0,
             "limit_violations": violations,
             "min_limit_margin_deg": math.degrees(margin),
-            "damped_steps": int(seg.damped),
+            "damped_steps": int(np.count_nonzero(col["damping_1"] > 0)),
         }
 
     def _metadata(self, data: np.ndarray, seg: Segment, method: FaultMethod, joints: tuple[int, ...], k_f: int,
@@ -598,9 +606,11 @@ class FaultTolerantPlanner:
                 "H_M_before_lock": verdict["H_M_before_lock"],
                 "peak_ddq_deg_s2": verdict["peak_ddq_deg_s2"],
                 "weight_switches": verdict["weight_switches"],
+                "max_weight_step": verdict["max_weight_step"],
+                "w_min_after_lock_mm3": verdict["w_min_after_lock"] * 1e9,
                 "limit_violations": verdict["limit_violations"],
                 "max_abs_q_deg": np.degrees(np.max(np.abs(data[:, 1:1 + self.robot.n]), axis=0)).tolist(),
-                "damped_steps": int(seg.damped),
+                "damped_steps": verdict["damped_steps"],
                 "plan_seconds": elapsed,
             },
         })
@@ -612,156 +622,3 @@ class FaultTolerantPlanner:
 def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
     parsed = parse_fault_tolerant_task(task, source)
     return FaultTolerantPlanner(parsed, backend).run()
-
-
-# -- the sweep -----------------------------------------------------------------------------
-
-def sweep_methods(task: FaultTolerantTask) -> list[FaultMethod]:
-    base = task.method
-    out = [replace(base, name="gpm", K=k) for k in task.sweep.K]
-    for rule in task.sweep.rules:
-        out += [replace(base, name="wln", b=b, weight_rule=rule) for b in task.sweep.b]
-    return out
-
-
-def choose(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """The sweep's pick for one method family, by the outcomes in order: the most locks
-    completed; a mean manipulability left after the lock within SWEEP_W_TOLERANCE of the best;
-    a peak |q̈| (completed locks) within SWEEP_DDQ_TOLERANCE of the smoothest; then the
-    highest H_M just before the lock (the quantity the method exists to raise)."""
-    best = max(r["completed"] for r in rows)
-    rows = [r for r in rows if r["completed"] == best]
-    top = max(r["mean_w_after_mm3"] for r in rows)
-    rows = [r for r in rows if r["mean_w_after_mm3"] >= (1 - SWEEP_W_TOLERANCE) * top]
-    smooth = min(r["peak_ddq_deg_s2"] for r in rows)
-    rows = [r for r in rows if r["peak_ddq_deg_s2"] <= (1 + SWEEP_DDQ_TOLERANCE) * smooth]
-    return max(rows, key=lambda r: r["H_M_before_lock"])
-
-
-def run_sweep(task: FaultTolerantTask, backend_kind: str = "symbolic", step: float | None = None,
-              methods: Sequence[FaultMethod] | None = None) -> dict[str, Any]:
-    """Every method of the sweep (or ``methods``) × every locked joint of ``sweep.joints``;
-    per method family (gpm, wln-plain, wln-smooth) the chosen parameter."""
-    if step is not None:
-        task = replace(task, path=replace(task.path, step=step))
-    planner = FaultTolerantPlanner(task, backend_kind)
-    locks = [(j,) for j in task.sweep.joints]
-    families: dict[str, list[dict[str, Any]]] = {}
-    per_lock: dict[str, list[dict[str, Any]]] = {}
-    for method in methods or sweep_methods(task):
-        results = planner.run_locks(method, locks)
-        verdicts = [r.metadata["verdict"] for r in results]
-        family = "gpm" if method.name == "gpm" else f"wln-{method.weight_rule}"
-        row = {"family": family, "method": method.label, "K": method.K, "b": method.b,
-               "completed": sum(v["completed"] for v in verdicts), "locks": len(verdicts),
-               "H_M_before_lock": verdicts[0]["H_M_before_lock"],
-               "mean_w_after_mm3": float(np.mean([v["w_min_after_lock"] for v in verdicts])) * 1e9,
-               "peak_ddq_deg_s2": max([v["peak_ddq_deg_s2"] for v in verdicts if v["completed"]] or [math.inf]),
-               "weight_switches": max(v["weight_switches"] for v in verdicts),
-               "max_weight_step": max(v["max_weight_step"] for v in verdicts)}
-        families.setdefault(family, []).append(row)
-        per_lock[method.label] = verdicts
-    chosen = {fam: choose(rows) for fam, rows in families.items()}
-    infeasible = planner.reach is not None and not planner.reach.feasible
-    return {"robot": task.robot.name, "start": task.path.start_label, "step_s": task.path.step,
-            "families": families, "chosen": chosen, "per_lock": per_lock,
-            "reach_check": planner.reach.to_dict() if planner.reach is not None else None,
-            "infeasible": planner.infeasible_message() if infeasible else None,
-            "chosen_methods": [m for m in (methods or sweep_methods(task))
-                               if m.label in {c["method"] for c in chosen.values()}]}
-
-
-def format_sweep_table(report: dict[str, Any]) -> str:
-    lines = [f"## {report['robot']} from '{report['start']}', h = {report['step_s']} s: parameter sweep "
-             "(locks completed; H_M just before the lock; mean over the locks of the smallest "
-             "manipulability w left after the lock, mm^3 = 1e-9 m^3; peak abs(ddq) over the completed locks; "
-             "most WLN weight switches and largest weight step of one lock run)", "",
-             "| method | completed | H_M(t_f-) | mean min w after lock mm^3 | peak abs(ddq) deg/s^2 | switches | "
-             "max weight step |",
-             "|---|---|---|---|---|---|---|"]
-    for fam, rows in report["families"].items():
-        for r in rows:
-            mark = " **(chosen)**" if r is report["chosen"][fam] else ""
-            lines.append(f"| {r['method']}{mark} | {r['completed']}/{r['locks']} | {r['H_M_before_lock']:.4f} | "
-                         f"{r['mean_w_after_mm3']:.3g} | "
-                         f"{'n/a' if math.isinf(r['peak_ddq_deg_s2']) else format(r['peak_ddq_deg_s2'], '.0f')} | "
-                         f"{r['weight_switches']} | "
-                         f"{r['max_weight_step']:.2f} |")
-    return "\n".join(lines)
-
-
-def format_verdict_table(report: dict[str, Any]) -> str:
-    lines = [f"## {report['robot']} from '{report['start']}', h = {report['step_s']} s: verdict per locked joint "
-             "(chosen parameters)", "",
-             "| method | locked | completed | pos err mm | ori err deg | peak abs(dq) deg/s | H_M: start / t_f- / "
-             "min after / end | min w after mm^3 | peak abs(ddq) deg/s^2 | TV(dq) deg/s | switches |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for fam, chosen in report["chosen"].items():
-        for v in report["per_lock"][chosen["method"]]:
-            hm_after = v["H_M_min_after_lock"]
-            lines.append(
-                f"| {v['method']} | {','.join(v['locked'])} | {'yes' if v['completed'] else 'NO: ' + v['why_not']} | "
-                f"{v['max_pos_err_after_lock_mm']:.3f} | {v['max_ori_err_after_lock_deg']:.3f} | "
-                f"{v['peak_joint_speed_after_lock_deg_s']:.1f} | {v['H_M_start']:.4f} / {v['H_M_before_lock']:.4f} / "
-                f"{hm_after if hm_after is None else format(hm_after, '.4f')} / {v['H_M_end']:.4f} | "
-                f"{v['w_min_after_lock'] * 1e9:.3g} | {v['peak_ddq_deg_s2']:.0f} | "
-                f"{v['total_variation_dq_deg_s']:.0f} | {v['weight_switches']} |")
-    return "\n".join(lines)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m armgen.planning.fault_tolerant.planner --sweep TASK.toml [TASK.toml …] [--fine]``."""
-    from ..tasks import apply_overrides, check_finite_tree, load_task
-
-    parser = argparse.ArgumentParser(prog="python -m armgen.planning.fault_tolerant.planner",
-                                     description="Spec 30 sweep over K, b and the locked joint; prints the verdicts.")
-    parser.add_argument("--sweep", nargs="+", required=True, metavar="TASK", help="fault_tolerant task files")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], help="key=value override")
-    parser.add_argument("--fine", action="store_true", help="also rerun the chosen parameters at sweep.fine_step")
-    parser.add_argument("--backend", choices=("symbolic", "c"), default="symbolic")
-    parser.add_argument("--json", default=None, metavar="FILE", help="also write every report (per-lock verdicts) as JSON")
-    args = parser.parse_args(argv)
-    reports: dict[str, Any] = {}
-    try:
-        for path in args.sweep:
-            raw, _ = load_task(path)
-            apply_overrides(raw, list(args.overrides))
-            check_finite_tree(raw, "", path)
-            task = parse_fault_tolerant_task(raw, path)
-            if task.check_mode == "error":  # report, don't stop, in the sweep
-                task = replace(task, check_mode="report")
-            started = time.perf_counter()
-            report = run_sweep(task, args.backend)
-            reports[path] = {k: v for k, v in report.items() if k != "chosen_methods"}
-            if report["infeasible"]:
-                print(f"## {path}: INFEASIBLE start — {report['infeasible']}\n")
-            print(format_sweep_table(report))
-            print()
-            print(format_verdict_table(report))
-            print(f"\n({path}: {time.perf_counter() - started:.1f} s)\n")
-            if args.fine:
-                started = time.perf_counter()
-                fine = run_sweep(task, args.backend, step=task.sweep.fine_step, methods=report["chosen_methods"])
-                reports[path]["fine"] = {k: v for k, v in fine.items() if k != "chosen_methods"}
-                print(format_verdict_table(fine))
-                print(f"\n({path}, fine step: {time.perf_counter() - started:.1f} s)\n")
-        if args.json:
-            _write_json(args.json, reports)
-    except ArmgenError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    return 0
-
-
-def _write_json(path: str, data: Any) -> None:
-    import json
-
-    from ...fileio import write_text_atomic
-    from ..result import _finite_json, _json_default
-
-    write_text_atomic(path, json.dumps(_finite_json(json.loads(json.dumps(data, default=_json_default))), indent=2)
-                      + "\n")
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -4,7 +4,9 @@ With a method comparison in the metadata (task field ``compare``) the methods ar
 side by side, one column each on shared axes, as in the paper's comparison figure; the
 curves are re-evaluated from the stored segment coefficients. Without it the CSV columns
 are drawn. Knots are dotted vertical lines, waypoints are dots. Angles are shown in the
-task's angle unit.
+task's angle unit. The task's bounds (``timing.omega_max``, ``timing.eps_max``, per joint and
+segment) are drawn as dashed steps in the joint's colour on the ω and ε rows; where a curve
+exceeds its bound the peak is marked with a red ×, and the column title says so.
 """
 
 from __future__ import annotations
@@ -13,13 +15,13 @@ import math
 from pathlib import Path
 
 import numpy as np
-from numpy.polynomial import polynomial as npp
-from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from numpy.polynomial import polynomial as npp
 
-from ...fileio import atomic_open
-from .planner import PtpPlan, joint_metrics
+from ..plotting import joint_style, new_figure
 from ..result import PlanResult, read_plan
+from .planner import BOUND_RTOL, PtpPlan, joint_metrics
 
 ROWS = (("theta", "θ", ""), ("omega", "ω", "/s"), ("eps", "ε", "/s²"), ("jerk", "jerk", "/s³"))
 # Values below this (in display units) are rounding noise, shown as 0 in the panel titles.
@@ -52,8 +54,38 @@ def _tidy(value: float) -> str:
     return "0" if abs(value) < NOISE_FLOOR else f"{value:.3g}"
 
 
-def plot_ptp(source: str | Path | PlanResult, out_png: str | Path) -> Path:
-    """Render a PTP plan (a ``plan.csv`` path or a :class:`PlanResult`) to a PNG; returns its path."""
+def _bounds(meta: dict) -> dict[int, np.ndarray]:
+    """Row index (1 = ω, 2 = ε) → bound array (joints, segments) in rad/s or rad/s², when the task gave one."""
+    params = meta.get("parameters", {})
+    out = {}
+    for row, key in ((1, "omega_max_rad_s"), (2, "eps_max_rad_s2")):
+        if params.get(key) is not None:
+            out[row] = np.asarray(params[key], dtype=float)
+    return out
+
+
+def _draw_bounds(ax: Axes, t: np.ndarray, values: np.ndarray, knots: np.ndarray, bound: np.ndarray, scale: float,
+                 names: tuple[str, ...]) -> list[str]:
+    """Dashed ± bound steps per joint and segment; red × at each exceeding peak. Returns the violations."""
+    violations = []
+    for j in range(bound.shape[0]):
+        style = joint_style(j)
+        steps = np.repeat(bound[j], 2) * scale
+        edges = np.repeat(knots, 2)[1:-1]
+        for sign in (-1, 1):
+            ax.plot(edges, sign * steps, color=style["color"], ls="--", lw=0.9,
+                    label=f"bound {names[j]}" if sign > 0 else None)
+        for k in range(bound.shape[1]):
+            inside = (t >= knots[k]) & (t <= knots[k + 1])
+            peak = int(np.argmax(np.abs(values[:, j]) * inside))
+            if abs(values[peak, j]) > bound[j, k] * (1 + BOUND_RTOL):
+                ax.plot(t[peak], values[peak, j] * scale, "x", color="red", ms=8, mew=2)
+                violations.append(f"seg {k + 1}{'' if len(names) == 1 else ' ' + names[j]}")
+    return violations
+
+
+def plot_ptp(source: str | Path | PlanResult) -> Figure:
+    """The figure of a PTP plan (a ``plan.csv`` path or a :class:`PlanResult`)."""
     result = read_plan(source) if not isinstance(source, PlanResult) else source
     meta = result.metadata
     unit = meta.get("units", {}).get("task_angle_unit", "rad")
@@ -66,10 +98,9 @@ def plot_ptp(source: str | Path | PlanResult, out_png: str | Path) -> Path:
     else:
         panels = []
     ncol = max(1, len(panels))
-    fig = Figure(figsize=(4.4 * ncol + 0.6, 9.0), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = new_figure(4.4 * ncol + 0.6, 9.0)
+    bounds = _bounds(meta)
     axes = fig.subplots(len(ROWS), ncol, sharex=True, sharey="row", squeeze=False)
-    colors = [f"C{i}" for i in range(10)]
     if panels:
         for col, (method, plan) in enumerate(panels):
             t, values = _curves(plan)
@@ -78,22 +109,28 @@ def plot_ptp(source: str | Path | PlanResult, out_png: str | Path) -> Path:
                      ("ε jump", "max_acceleration_jump_rad_s2", "/s²"))
             title = method + "\n" + " · ".join(
                 f"{label} {_tidy(max(p[key] for p in peaks) * scale)} {unit}{per}" for label, key, per in stats)
-            axes[0, col].set_title(title, fontsize=9)
             knot_vals = [plan.evaluate(plan.knots, order) for order in (0, 1)]
             for j, name in enumerate(plan.joint_names):
                 for row in range(len(ROWS)):
                     ax = axes[row, col]
-                    ax.plot(t, values[row][:, j] * scale, color=colors[j % 10], lw=1.3, label=name)
+                    ax.plot(t, values[row][:, j] * scale, lw=1.3, label=name, **joint_style(j))
                     if row < 2:
-                        ax.plot(plan.knots, knot_vals[row][:, j] * scale, "o", color=colors[j % 10], ms=3.5)
+                        ax.plot(plan.knots, knot_vals[row][:, j] * scale, "o", color=joint_style(j)["color"], ms=3.5)
+            violations = []
+            for row, bound in bounds.items():
+                found = _draw_bounds(axes[row, col], t, values[row], plan.knots, bound, scale, plan.joint_names)
+                violations += [f"{ROWS[row][1]} {v}" for v in found]
+            if bounds:
+                title += "\n" + ("bounds exceeded (×): " + ", ".join(violations) if violations else "within the bounds")
+            axes[0, col].set_title(title, fontsize=9, color="red" if violations else "black")
     else:
         t = result.column("t_s")
         names = [c[len("theta_"):-len("_rad")] for c in result.columns if c.startswith("theta_")]
         for j, name in enumerate(names):
             for row, (key, _, _) in enumerate(ROWS):
                 unit_sfx = {"theta": "rad", "omega": "rad_s", "eps": "rad_s2", "jerk": "rad_s3"}[key]
-                axes[row, 0].plot(t, result.column(f"{key}_{name}_{unit_sfx}") * scale, color=colors[j % 10],
-                                  lw=1.3, label=name)
+                axes[row, 0].plot(t, result.column(f"{key}_{name}_{unit_sfx}") * scale, lw=1.3, label=name,
+                                  **joint_style(j))
     knots = meta.get("knot_times_s", [])
     for row, (_, symbol, per) in enumerate(ROWS):
         axes[row, 0].set_ylabel(f"{symbol} [{unit}{per}]")
@@ -107,7 +144,6 @@ def plot_ptp(source: str | Path | PlanResult, out_png: str | Path) -> Path:
         axes[-1, col].set_xlabel("t [s]")
     if len(meta.get("joints", [])) > 1:
         axes[0, 0].legend(fontsize=8, loc="best")
-    out_png = Path(out_png)
-    with atomic_open(out_png, "wb") as handle:
-        fig.savefig(handle, format="png", dpi=110)
-    return out_png
+    for row in bounds:
+        axes[row, 0].legend(fontsize=7, loc="lower left")
+    return fig

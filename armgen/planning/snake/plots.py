@@ -1,6 +1,7 @@
 """``armgen plot`` for snake plans (spec 50): the arm drawn along its path at several instants
-(like the paper's figures: top view, plus a side view when the path leaves the plane), the
-universal-joint angles over time with their limits, and the accuracy traces (tip deviation,
+in separate small panels (like the paper's figures: top view, plus a side view when the path
+leaves the plane; each view zoomed to the arm and path), the universal-joint angles over time
+with each joint's limits, and the accuracy traces (tip deviation,
 worst chord error, smallest clearance).
 
 The arm is redrawn from the CSV's feed and joint angles by the robot's forward kinematics (the
@@ -10,25 +11,23 @@ the solver intended; the path is the spline through the waypoints stored in ``pl
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Rectangle
 
 from ...errors import ArmgenError
-from ...fileio import atomic_open
 from ...robot import load_robot
+from ..plotting import joint_style, limit_lines, new_figure
 from ..result import PlanResult
 from .spline import HermiteSpline
 
 INSTANTS = 6  # arm poses drawn, evenly spaced over the motion
 PLANAR_TOL = 1e-9  # m: a path whose z spread is below this is drawn in one (top) view
-FLOOR = 1e-14  # mm, floor of the log-scale accuracy traces (exact solver: ~1e-13 mm)
+FLOOR = 1e-14  # mm, floor of the log-scale accuracy traces (exact solver: ~1e-13 mm; below is rounding)
+VIEW_MARGIN = 0.06  # of the largest extent: room around the arm and path in each snapshot
 
 
-def _arm_centres(result: PlanResult, meta: dict) -> np.ndarray:
+def arm_centres(result: PlanResult, meta: dict) -> np.ndarray:
     from .planner import snake_arm
 
     robot_meta = meta.get("robot", {})
@@ -45,7 +44,7 @@ def _arm_centres(result: PlanResult, meta: dict) -> np.ndarray:
     return arm.joint_centres(arm.q_vector(feed, alpha, beta))[0] + place
 
 
-def _draw_obstacles(ax, obstacles: list[dict], view: tuple[int, int]) -> None:
+def draw_obstacles(ax, obstacles: list[dict], view: tuple[int, int]) -> None:
     i, j = view
     # plates are drawn across the tank that holds them (else 4 opening radii each side)
     extent = {k: (ob["min_mm"][k], ob["max_mm"][k]) for ob in obstacles if ob["type"] == "tank" for k in range(3)}
@@ -69,68 +68,83 @@ def _draw_obstacles(ax, obstacles: list[dict], view: tuple[int, int]) -> None:
             ax.add_patch(Rectangle((lo[i], lo[j]), hi[i] - lo[i], hi[j] - lo[j], fill=False, ec="0.3", lw=1.2))
 
 
-def plot_snake(result: PlanResult, out_path: str | Path) -> None:
+def _view_limits(points: np.ndarray, i: int, j: int) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Axis limits around the arm and path in view (i, j), with a margin, so the motion fills the panel."""
+    lo, hi = points[:, [i, j]].min(axis=0), points[:, [i, j]].max(axis=0)
+    pad = VIEW_MARGIN * max(float(np.max(hi - lo)), 1.0)
+    return (lo[0] - pad, hi[0] + pad), (lo[1] - pad, hi[1] + pad)
+
+
+def plot_snake(result: PlanResult) -> Figure:
     meta = result.metadata
     if "rail" not in meta or "path" not in meta:
         raise ArmgenError("plan.json lacks the snake planner's rail/path metadata; re-run `armgen plan`")
     t = result.column("t_s")
-    centres = _arm_centres(result, meta) * 1e3
+    centres = arm_centres(result, meta) * 1e3
     path = meta["path"]
     wp = np.asarray(path["waypoints_m"], dtype=float)
     spline = HermiteSpline(wp, path.get("start_tangent"), path.get("end_tangent"))
     dense = spline.position(np.linspace(0, spline.length, 4000)) * 1e3
     planar = np.ptp(wp[:, 2]) < PLANAR_TOL
-    views = [((0, 1), "top view (x–y)")] if planar else [((0, 1), "top view (x–y)"), ((0, 2), "side view (x–z)")]
+    views = [((0, 1), "top (x–y)")] if planar else [((0, 1), "top (x–y)"), ((0, 2), "side (x–z)")]
     n = sum(1 for c in result.columns if c.startswith("a") and c.endswith("_rad"))
-    fig = Figure(figsize=(14, 10), constrained_layout=True)
-    FigureCanvasAgg(fig)
-    grid = fig.add_gridspec(2, 2, height_ratios=[1.15, 1])
     instants = np.unique(np.linspace(0, t.size - 1, INSTANTS).round().astype(int))
-    for v, (view, title) in enumerate(views):
-        ax = fig.add_subplot(grid[0, :] if planar else grid[0, v])
+    # two panel columns: (top, side) per instant, or the instants of a planar path row by row
+    panels = [(k, view) for k in instants for view in views]
+    rows = -(-len(panels) // 2)
+    everything = np.vstack([centres.reshape(-1, 3), dense])
+    limits = {view: _view_limits(everything, *view) for view, _ in views}
+    (x0, x1), (y0, y1) = limits[views[0][0]]
+    panel_h = min(max(7.5 * (y1 - y0) / (x1 - x0), 1.1), 4.0) + 0.6  # the data's aspect at 7.5 in wide
+    fig = new_figure(16, rows * panel_h + 5.2)
+    snapshots, traces = fig.subfigures(2, 1, height_ratios=[rows * panel_h + 0.5, 4.7])
+    grid = snapshots.add_gridspec(rows, 2)
+    for p, (k, (view, name)) in enumerate(panels):
         i, j = view
+        ax = snapshots.add_subplot(grid[p // 2, p % 2])
+        draw_obstacles(ax, meta.get("obstacles", []), view)
         ax.plot(dense[:, i], dense[:, j], color="k", lw=0.8, ls="--", label="path (spline)")
-        ax.plot(wp[:, i] * 1e3, wp[:, j] * 1e3, ".", color="k", ms=3, label="waypoints")
-        for rank, k in enumerate(instants):  # later poses thinner, so the earlier ones stay visible
-            width = 4.5 - 3.5 * rank / max(len(instants) - 1, 1)
-            line, = ax.plot(centres[k, :, i], centres[k, :, j], "-o", ms=2.5, lw=width, alpha=0.85,
-                            label=f"t = {t[k]:.1f} s")
-            ax.plot(centres[k, 0, i], centres[k, 0, j], "s", ms=6, color=line.get_color())
-            ax.plot(centres[k, -1, i], centres[k, -1, j], "*", ms=10, color=line.get_color())
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.autoscale_view()
-        _draw_obstacles(ax, meta.get("obstacles", []), view)
-        ax.set(xlabel=f"{'xyz'[i]} [mm]", ylabel=f"{'xyz'[j]} [mm]", title=f"arm along the path — {title} (■ base joint, ★ tip)")
+        ax.plot(centres[k, :, i], centres[k, :, j], "-o", color="tab:blue", ms=2.5, lw=2.5, label="arm")
+        ax.plot(centres[k, 0, i], centres[k, 0, j], "s", ms=6, color="tab:green", label="base joint")
+        ax.plot(centres[k, -1, i], centres[k, -1, j], "*", ms=11, color="tab:red", label="tip")
+        xlim, ylim = limits[view]
+        ax.set(xlim=xlim, ylim=ylim, aspect="equal")
+        ax.set_title(f"t = {t[k]:.1f} s, {name}", fontsize=9)
+        ax.tick_params(labelsize=7)
+        ax.set_xlabel(f"{'xyz'[i]} [mm]", fontsize=8)
+        ax.set_ylabel(f"{'xyz'[j]} [mm]", fontsize=8)
         ax.grid(alpha=0.3)
-        if v == 0:
-            ax.legend(fontsize=7, ncol=2, loc="best")
-    ax = fig.add_subplot(grid[1, 0])
-    for i in range(n):
-        ax.plot(t, np.degrees(result.column(f"a{i + 1}_rad")), lw=1.0, label=f"α{i + 1}")
-    for i in range(n):
-        ax.plot(t, np.degrees(result.column(f"b{i + 1}_rad")), lw=1.0, ls=":", label=f"β{i + 1}")
+        if p == 0:
+            ax.legend(fontsize=6, loc="upper left", ncol=4)
+    snapshots.suptitle("the arm at evenly spaced instants (obstacles grey, plates edge-on with their openings)",
+                       fontsize=10)
+    ax_angles, ax_acc = traces.subplots(1, 2)
+    names = [f"α{i + 1}" for i in range(n)] + [f"β{i + 1}" for i in range(n)]
+    for i in range(n):  # robot joint 2i+1 is α_{i+1}, 2i+2 is β_{i+1}: one colour per joint
+        ax_angles.plot(t, np.degrees(result.column(f"a{i + 1}_rad")), lw=1.0, ls="-",
+                       color=joint_style(2 * i)["color"], label=names[i])
+        ax_angles.plot(t, np.degrees(result.column(f"b{i + 1}_rad")), lw=1.0, ls=":",
+                       color=joint_style(2 * i + 1)["color"], label=names[n + i])
     qlim = meta.get("robot", {}).get("qlim_rad", [])
-    if len(qlim) > 1:
-        lo, hi = np.degrees(min(q[0] for q in qlim[1:])), np.degrees(max(q[1] for q in qlim[1:]))
-        ax.axhline(lo, color="k", ls="--", lw=0.8)
-        ax.axhline(hi, color="k", ls="--", lw=0.8)
-    ax.set(xlabel="t [s]", ylabel="joint angle [deg]", title="universal-joint angles (α solid, β dotted; limits dashed)")
-    ax.legend(fontsize=6, ncol=6)
-    ax.grid(alpha=0.3)
-    ax = fig.add_subplot(grid[1, 1])
-    ax.semilogy(t, np.maximum(result.column("tip_dev_m") * 1e3, FLOOR), label="tip deviation from the path [mm]")
-    ax.semilogy(t, np.maximum(result.column("chord_err_max_m") * 1e3, FLOOR), label="worst chord error [mm]")
+    if len(qlim) == 2 * n + 1:
+        order = [name for pair in zip(names[:n], names[n:]) for name in pair]
+        limit_lines(ax_angles, [tuple(np.degrees(lim)) for lim in qlim[1:]], order, t[-1])
+    ax_angles.set(xlabel="t [s]", ylabel="joint angle [deg]",
+                  title="universal-joint angles (α solid, β dotted; limits dashed in each joint's colour)")
+    ax_angles.legend(fontsize=6, ncol=6, loc="lower left")
+    ax_angles.grid(alpha=0.3)
+    ax_acc.semilogy(t, np.maximum(result.column("tip_dev_m") * 1e3, FLOOR), label="tip deviation from the path [mm]")
+    ax_acc.semilogy(t, np.maximum(result.column("chord_err_max_m") * 1e3, FLOOR), label="worst chord error [mm]")
     clear = result.column("clearance_min_m")
     if np.all(np.isfinite(clear)):
-        ax2 = ax.twinx()
+        ax2 = ax_acc.twinx()
         ax2.plot(t, clear * 1e3, color="tab:green", lw=1.0)
         ax2.set_ylabel("smallest clearance [mm] (green)")
-    ax.set(xlabel="t [s]", title="accuracy (forward kinematics on the recovered angles)")
-    ax.legend(fontsize=8, loc="upper left")
-    ax.grid(alpha=0.3)
+    ax_acc.set(xlabel="t [s]", title="accuracy (forward kinematics on the recovered angles)")
+    ax_acc.legend(fontsize=8, loc="upper left")
+    ax_acc.grid(alpha=0.3)
     summary = meta.get("summary", {})
     fig.suptitle(f"{meta.get('robot', {}).get('name', '')} — {summary.get('solver', '')} solver, {summary.get('driven', '')} "
                  f"driven — max tip deviation {summary.get('max_tip_deviation_mm', float('nan')):.3g} mm — max |angle| "
                  f"{summary.get('max_abs_joint_angle_deg', float('nan')):.1f}°")
-    with atomic_open(out_path, "wb") as handle:
-        fig.savefig(handle, format="png", dpi=100)
+    return fig

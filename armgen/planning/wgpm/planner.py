@@ -15,8 +15,8 @@ planner runs ``method.name = "pinv"`` (the damped pseudo-inverse, nothing else) 
 column removed through the generated ``step_fault`` mask — and released as soon as the
 unclamped solution moves it back inside).
 
-``python -m armgen.planning.wgpm.planner --compare TASK.toml`` prints the spec's comparison table;
-``--survey N`` runs N random tasks (see :func:`survey`).
+``python -m armgen.planning.wgpm.planner TASK.toml --compare`` prints the spec's comparison table;
+the survey over random tasks is an ``armgen sweep`` run (docs/wgpm.md).
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ import time
 from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
 
+import casadi as ca
 import numpy as np
 
 from ...errors import ArmgenError, PlanningError, TaskFileError
@@ -36,8 +37,8 @@ from ...symbolic.steps import WGPM_CRITERIA, WGPM_SENSE
 from ..backends import Backend, make_backend
 from ..cartesian.planner import _number, _table
 from ..result import PlanResult
-from ..taskpath import (PathTask, TaskPath, base_columns, base_row, limit_report, parse_path_task, path_metadata,
-                       smoothness, tracking)
+from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, limit_report, parse_path_task, path_metadata,
+                       smoothness, sym_base_row, sym_tracking)
 
 METHODS = ("wgpm", "pinv", "clamp")
 TOP_FIELDS = {"planner", "robot", "start", "units", "path", "timing", "integrator", "damping", "method", "tracking",
@@ -168,8 +169,8 @@ def parse_wgpm_task(task: dict, source: str) -> WgpmTask:
     )
 
 
-def smoothstep(x: float) -> float:
-    x = min(max(x, 0.0), 1.0)
+def smoothstep(x):
+    x = np.clip(x, 0.0, 1.0)
     return x * x * (3 - 2 * x)
 
 
@@ -180,44 +181,51 @@ class WgpmPlanner:
         self.task = task
         self.robot = task.path.robot
         self.rows = list(self.robot.task_rows)
-        self.backend = backend or make_backend(self.robot, backend_kind, self.FUNCTIONS)
+        self.backend = backend or make_backend(self.robot, backend_kind)
         pose0, _ = self.backend.call("fk_jacobian", task.path.q_start)
         self.path = TaskPath(task.path, pose0)
 
-    def ramp(self, t: float, method: WgpmMethod) -> float:
+    def ramp(self, t: np.ndarray, method: WgpmMethod) -> np.ndarray:
         if method.ramp_time <= 0:
-            return 1.0
+            return np.ones_like(t)
         up = smoothstep(t / method.ramp_time)
         down = smoothstep((self.task.path.duration - t) / method.ramp_time) if method.ramp_out else 1.0
         return up * down
 
-    def evaluate(self, t: float, q: np.ndarray, method: WgpmMethod) -> tuple[np.ndarray, dict[str, Any]]:
-        p = self.task.path
-        pose, jac = self.backend.call("fk_jacobian", q)
-        p_d, r_d, xdot = self.path(t)
-        pos_err, ori_err = tracking(pose, p_d, r_d)
-        cmd = xdot + (p.clik_gain * np.concatenate([pos_err, ori_err]) if p.clik else 0.0)
-        ramp = self.ramp(t, method) if method.name == "wgpm" else 0.0
-        qd, w_c, rho, sigma, gains, h = (x.ravel() for x in self.backend.call(
-            "step_wgpm", q, cmd[self.rows], method.band, method.t_rmax, p.damping_epsilon, p.damping_max,
-            method.delta, ramp, *method.vectors()))
-        n = self.robot.n
-        if method.name != "wgpm":  # step_wgpm still reports the criteria; the step is step_fault's
-            mask = np.ones(n)
-            for _ in range(n if method.name == "clamp" else 1):
-                qd, lam, sig = (x.ravel() for x in self.backend.call(
-                    "step_fault", q, cmd[self.rows], mask, np.ones(n), np.zeros(n), p.damping_epsilon, p.damping_max))
-                if method.name != "clamp":
-                    break
-                nxt = q + p.step * qd
-                out = (mask > 0) & ((nxt > self.robot.qmax) | (nxt < self.robot.qmin))
-                if not out.any():
-                    break
-                mask[out] = 0.0
-            w_c, rho, sigma, gains = 1.0 - mask, lam, sig, np.zeros_like(gains)
-        info = {"pose": pose, "jac": jac, "pos_err": pos_err, "ori_err": ori_err, "cmd": cmd, "ramp": ramp,
-                "w_c": w_c, "rho": float(rho[0]), "sigma_min": float(sigma[0]), "gains": gains, "H": h}
-        return qd, info
+    def _kernel(self, method: WgpmMethod):
+        """One fused call per step. ``pinv`` and ``clamp`` still evaluate ``step_wgpm`` for the
+        criteria (ramp 0); their step is ``step_fault``'s. The clamp's loop (freeze the joints
+        this step would push out, solve again, at most n times) is unrolled: once nothing is
+        frozen any more, the further rounds repeat the same solve."""
+        rows, robot = self.rows, self.robot
+
+        def build(model, x, y):
+            n = model.n
+            fk_jacobian, step_wgpm, step_fault = (model.function(f) for f in self.FUNCTIONS)
+            q = x.add("q", n)
+            scalars = [x.add(k, 1) for k in ("band", "t_rmax", "epsilon", "lambda_max", "delta")]
+            gain, h = x.add("clik_gain", 1), x.add("h", 1)
+            vectors = [x.add(k, len(WGPM_CRITERIA)) for k in ("H_lo", "H_hi", "k_hi", "k_lo", "u_th", "u_band")]
+            timed, ramp = x.add("timed", TIMED_WIDTH), x.add("ramp", 1)
+            eps, lam_max = scalars[2], scalars[3]
+            pose, jac = fk_jacobian(q)
+            pos_err, ori_err, cmd = sym_tracking(pose, timed, gain)
+            qd, w_c, rho, sigma, gains, crit = step_wgpm(q, cmd[rows], *scalars, ramp, *vectors)
+            if method.name != "wgpm":
+                ones, zeros = ca.DM.ones(n), ca.DM.zeros(n)
+                mask = ca.SX(ones)
+                for _ in range(n if method.name == "clamp" else 1):
+                    qd, rho, sigma = step_fault(q, cmd[rows], mask, ones, zeros, eps, lam_max)
+                    if method.name == "clamp":
+                        nxt = q + h * qd
+                        out = ca.logic_and(mask > 0, ca.logic_or(nxt > robot.qmax, nxt < robot.qmin))
+                        mask = ca.if_else(out, 0, mask)
+                w_c, gains = 1 - mask, ca.DM.zeros(len(WGPM_CRITERIA))
+            y.add("row", ca.vertcat(sym_base_row(q, qd, pose, jac, pos_err, ori_err, cmd, rows, rho, sigma), ramp, crit,
+                                    gains, w_c))
+            y.add("q_next", q + h * qd)
+
+        return self.backend.kernel(("wgpm", method.name, self.robot.task_rows), build)
 
     def columns(self) -> list[str]:
         n = self.robot.n
@@ -226,33 +234,42 @@ class WgpmPlanner:
 
     def run(self, method: WgpmMethod | None = None) -> PlanResult:
         method = method or self.task.method
-        p = self.task.path
+        p, n = self.task.path, self.robot.n
         h = p.step
-        q = p.q_start.copy()
-        rows, qds = [], []
-        damped = 0
+        kernel = self._kernel(method)
+        for key, value in (("band", method.band), ("t_rmax", method.t_rmax), ("epsilon", p.damping_epsilon),
+                           ("lambda_max", p.damping_max), ("delta", method.delta),
+                           ("clik_gain", p.clik_gain if p.clik else 0.0), ("h", h),
+                           *zip(("H_lo", "H_hi", "k_hi", "k_lo", "u_th", "u_band"), method.vectors())):
+            kernel.set(key, value)
+        t = np.arange(p.steps + 1) * h
+        ramp = self.ramp(t, method) if method.name == "wgpm" else np.zeros_like(t)
+        timed = np.hstack([self.path.timed_inputs(t), ramp[:, None]])
+        x, q_slot = kernel.x, kernel.inputs["q"]
+        timed_slot = slice(kernel.inputs["timed"].start, kernel.inputs["ramp"].stop)
+        row_out, q_next = kernel.outputs["row"], kernel.outputs["q_next"]
+        data = np.empty((p.steps + 1, len(self.columns())))
+        data[:, 0] = t
+        x[q_slot] = p.q_start
         started = time.perf_counter()
         with progress(p.steps, f"planning {method.name}") as bar:
             for k in range(p.steps + 1):
-                t = k * h
-                qd, info = self.evaluate(t, q, method)
-                damped += info["rho"] > 0
-                residual = float(np.linalg.norm((info["jac"] @ qd - info["cmd"])[self.rows]))
-                rows.append(base_row(t, q, qd, info["pose"], info["pos_err"], info["ori_err"], residual, info["rho"],
-                                     info["sigma_min"])
-                            + [info["ramp"], *info["H"], *info["gains"], *info["w_c"]])
-                qds.append(qd)
+                x[timed_slot] = timed[k]
+                kernel()
+                data[k, 1:] = kernel.y[row_out]
                 if k == p.steps:
                     break
-                q = q + h * qd
-                if not np.all(np.isfinite(q)):
-                    raise PlanningError(f"joint angles became non-finite at t = {t + h:.3f} s; lower integrator.step "
-                                        "or the criterion gains")
+                x[q_slot] = kernel.y[q_next]
                 bar.update(1)
-        data = np.array(rows)
-        keep = [k for k in range(len(rows)) if k % p.output_every == 0 or k == len(rows) - 1]
+        q_all = data[:, 1:1 + n]
+        if not np.all(np.isfinite(q_all)):
+            k = int(np.argmin(np.all(np.isfinite(q_all), axis=1)))
+            raise PlanningError(f"joint angles became non-finite at t = {t[k]:.3f} s; lower integrator.step "
+                                "or the criterion gains")
+        damped = int(np.count_nonzero(data[:, self.columns().index("damping_1")] > 0))
+        keep = [k for k in range(p.steps + 1) if k % p.output_every == 0 or k == p.steps]
         result = PlanResult(self.columns(), data[keep], {})
-        result.metadata = self._metadata(data, np.array(qds), method, damped, time.perf_counter() - started)
+        result.metadata = self._metadata(data, data[:, 1 + n:1 + 2 * n], method, damped, time.perf_counter() - started)
         return result
 
     def _metadata(self, data: np.ndarray, qd: np.ndarray, method: WgpmMethod, damped: int,
@@ -322,99 +339,23 @@ def format_compare(summaries: dict[str, dict[str, Any]], title: str) -> str:
     return "\n".join(lines)
 
 
-def random_task(base: WgpmTask, rng: np.random.Generator, planner: WgpmPlanner) -> WgpmTask:
-    """A random start inside the free band and a random circle beside it (radius 50–250 mm,
-    random plane) or a random line (100–400 mm); the base task's timing and method."""
-    robot = base.path.robot
-    span = robot.qmax - robot.qmin
-    for _ in range(100):
-        q0 = rng.uniform(robot.qmin + base.method.band * span, robot.qmax - base.method.band * span)
-        _, jac = planner.backend.call("fk_jacobian", q0)
-        if np.linalg.svd(jac[planner.rows], compute_uv=False)[-1] > 0.05:
-            break
-    u, v = np.linalg.qr(rng.normal(size=(3, 2)))[0].T
-    if rng.random() < 0.5:
-        r = rng.uniform(0.05, 0.25)
-        path = replace(base.path, q_start=q0, start_label="random", path_type="circle", relative=True, turns=1.0,
-                       via=r * (u + v), end=2 * r * u, end_rotation=None)
-    else:
-        path = replace(base.path, q_start=q0, start_label="random", path_type="line", relative=True, turns=1.0,
-                       via=None, end=rng.uniform(0.1, 0.4) * u, end_rotation=None)
-    return replace(base, path=path)
-
-
-def survey(base: WgpmTask, count: int, seed: int = 1, backend_kind: str = "symbolic",
-           methods: Sequence[str] = ("pinv", "clamp", "wgpm")) -> dict[str, Any]:
-    """Random tasks, each planned by every method: how often each respects the limits and
-    tracks. Unreachable random tasks (the path leaves the reach sphere) are redrawn."""
-    planner = WgpmPlanner(base, backend_kind)
-    rng = np.random.default_rng(seed)
-    outcomes: list[dict[str, Any]] = []
-    while len(outcomes) < count:
-        task = random_task(base, rng, planner)
-        try:
-            sub = WgpmPlanner(task, backend=planner.backend)
-        except PlanningError:
-            continue
-        row = {}
-        for name in methods:
-            s = sub.run(replace(task.method, name=name)).metadata["summary"]
-            row[name] = {k: s[k] for k in ("within_limits", "tracks", "max_pos_error_mm", "min_limit_margin_deg",
-                                           "peak_ddq_deg_s2", "damped_steps")}
-        outcomes.append(row)
-    stats: dict[str, Any] = {"tasks": count, "seed": seed, "duration_s": base.path.duration, "step_s": base.path.step}
-    hard = [o for o in outcomes if not o["pinv"]["within_limits"]] if "pinv" in methods else outcomes
-    for name in methods:
-        def frac(rows, pred):
-            return (sum(pred(r[name]) for r in rows), len(rows))
-        stats[name] = {
-            "within_limits": frac(outcomes, lambda s: s["within_limits"]),
-            "tracks": frac(outcomes, lambda s: s["tracks"]),
-            "both": frac(outcomes, lambda s: s["within_limits"] and s["tracks"]),
-            "both_where_pinv_violates": frac(hard, lambda s: s["within_limits"] and s["tracks"]),
-            "median_peak_ddq_deg_s2": float(np.median([o[name]["peak_ddq_deg_s2"] for o in outcomes])),
-        }
-    stats["outcomes"] = outcomes
-    return stats
-
-
-def format_survey(stats: dict[str, Any]) -> str:
-    methods = [m for m in METHODS[::-1] if m in stats] if "pinv" in stats else [m for m in METHODS if m in stats]
-    hard = stats[methods[0]]["both_where_pinv_violates"][1]
-    lines = [f"## survey: {stats['tasks']} random tasks (seed {stats['seed']}, T = {stats['duration_s']:g} s, "
-             f"h = {stats['step_s']:g} s); pinv leaves the limits in {hard} of them", "",
-             "| method | within limits | tracks | both | both, where pinv leaves the limits | median peak abs(ddq) "
-             "deg/s^2 |", "|---|---|---|---|---|---|"]
-    for name in ("pinv", "clamp", "wgpm"):
-        if name not in stats:
-            continue
-        s = stats[name]
-        cell = lambda v: f"{v[0]}/{v[1]}"  # noqa: E731
-        lines.append(f"| {name} | {cell(s['within_limits'])} | {cell(s['tracks'])} | {cell(s['both'])} | "
-                     f"{cell(s['both_where_pinv_violates'])} | {s['median_peak_ddq_deg_s2']:.0f} |")
-    return "\n".join(lines)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m armgen.planning.wgpm.planner --compare TASK.toml`` and/or ``--survey N``."""
-    from ..tasks import apply_overrides, check_finite_tree, load_task
+    """``python -m armgen.planning.wgpm.planner TASK.toml --compare``."""
+    from ..tasks import apply_overrides, load_task, validate_task
 
     parser = argparse.ArgumentParser(prog="python -m armgen.planning.wgpm.planner",
-                                     description="Spec 35: pinv vs binary clamp vs weighted GPM; random-task survey.")
-    parser.add_argument("task", help="a wgpm task file (the demo; the survey uses its timing and method)")
+                                     description="Spec 35: pinv vs binary clamp vs weighted GPM on one task.")
+    parser.add_argument("task", help="a wgpm task file")
     parser.add_argument("--set", dest="overrides", action="append", default=[], help="key=value override")
     parser.add_argument("--compare", action="store_true", help="plan the task by pinv, clamp and wgpm; print the table")
-    parser.add_argument("--survey", type=int, default=0, metavar="N", help="also run N random tasks")
-    parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--survey-duration", type=float, default=None, help="duration of the random tasks (s)")
     parser.add_argument("--backend", choices=("symbolic", "c"), default="symbolic")
-    parser.add_argument("--json", default=None, metavar="FILE", help="also write the results (every task) as JSON")
+    parser.add_argument("--json", default=None, metavar="FILE", help="also write the comparison as JSON")
     args = parser.parse_args(argv)
     results: dict[str, Any] = {}
     try:
         raw, _ = load_task(args.task)
         apply_overrides(raw, list(args.overrides))
-        check_finite_tree(raw, "", args.task)
+        validate_task(raw, args.task)
         task = parse_wgpm_task(raw, args.task)
         if args.compare:
             started = time.perf_counter()
@@ -422,22 +363,22 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(format_compare(results["compare"], f"{args.task}: {task.path.robot.name}, "
                                  f"T = {task.path.duration:g} s, h = {task.path.step:g} s"))
             print(f"\n({time.perf_counter() - started:.1f} s)\n")
-        if args.survey:
-            base = task
-            if args.survey_duration:
-                base = replace(task, path=replace(task.path, duration=args.survey_duration))
-            started = time.perf_counter()
-            results["survey"] = survey(base, args.survey, args.seed, args.backend)
-            print(format_survey(results["survey"]))
-            print(f"\n({time.perf_counter() - started:.1f} s)\n")
         if args.json:
-            from ..fault_tolerant.planner import _write_json
-
             _write_json(args.json, results)
     except ArmgenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return exc.exit_code
     return 0
+
+
+def _write_json(path: str, data: Any) -> None:
+    import json
+
+    from ...fileio import write_text_atomic
+    from ..result import _finite_json, _json_default
+
+    write_text_atomic(path, json.dumps(_finite_json(json.loads(json.dumps(data, default=_json_default))), indent=2)
+                      + "\n")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -14,8 +14,14 @@
  * (processor clock, 25 MHz) is read exactly, so the counts are executed instructions / 40:
  * see benchmarks/README.md. DWT CYCCNT is not modelled by QEMU 7.2.
  *
- * Ticks run back to back. A tick whose execution exceeds its period (dt at FW_CPU_HZ) is
- * reported to the controller as an overrun on the next tick (CTRL_FAULT_OVERRUN).
+ * Ticks run back to back. A tick whose execution exceeds its period (dt, or FW_PERIOD_NS
+ * when defined, at FW_CPU_HZ) is reported to the controller as missed periods on the next
+ * tick (CTRL_FAULT_OVERRUN; the START tick included). The tick's cost in processor cycles is
+ * estimated from SysTick: on hardware SysTick counts cycles; under QEMU -icount a SysTick
+ * count stands for several instructions (calibrated at start, calib_insns / calib_ticks),
+ * each at least one cycle on the M4, so cycles >= SysTick counts * that ratio.
+ * The task's lock schedule (fw_lock_tick, fw_lock_mask: the plan's fault, or one the plan did
+ * not know) is reported through ctrl_input.locked, as a drive would.
  * Build with FW_PRINT_ROWS=0 to print the summary only.
  */
 #include <stdint.h>
@@ -23,6 +29,7 @@
 
 #include "controller.h"
 #include "fw_csv.h"
+#include "fw_task.h"
 #include "semihost.h"
 
 #ifndef FW_PRINT_ROWS
@@ -41,7 +48,6 @@
 #define SYST_MASK 0xFFFFFFu
 #define STACK_PAINT 0xA5C3A5C3u
 
-extern const ctrl_config fw_task;
 extern uint32_t __stack_limit[];
 
 typedef ctrl_fault (*tick_fn)(ctrl *c, const ctrl_input *in, ctrl_output *out);
@@ -103,6 +109,7 @@ int main(void) {
   ctrl_output out;
   ctrl_fault init;
   uint32_t i, sum = 0u, max = 0u, min = 0xFFFFFFFFu, stub = 0u, ticks = 0u, period, limit;
+  uint32_t calib_ticks, calib_insns = 2u * 100000u;
   int32_t after = -1;
 
   paint_stack();
@@ -110,18 +117,33 @@ int main(void) {
   SYST_CVR = 0u;
   SYST_CSR = 5u; /* ENABLE | CLKSOURCE = processor clock, no interrupt */
 
+  calib_ticks = timed_calib(101000u) - timed_calib(1000u);
+  if (calib_ticks == 0u) {
+    calib_ticks = 1u;
+  }
   init = ctrl_init(&controller, &fw_task);
   (void)fw_csv_header(line, sizeof(line));
   sh_puts(line);
+#ifdef FW_PERIOD_NS
+  period = (uint32_t)(((uint64_t)FW_PERIOD_NS * FW_CPU_HZ) / 1000000000u);
+#else
   period = (uint32_t)(fw_task.dt * (ctrl_real)FW_CPU_HZ);
+#endif
+  if (period == 0u) {
+    period = 1u;
+  }
   limit = controller.n_ticks + FW_EXTRA_TICKS + 2u;
   memset(&in, 0, sizeof(in));
   in.command = CTRL_CMD_START;
   selected_tick = ctrl_tick;
   for (i = 0; i <= limit; ++i) {
-    uint32_t d = timed_tick(&controller, &in, &out);
+    uint32_t d, cycles;
+    in.locked = (fw_lock_tick >= 0 && (int32_t)i >= fw_lock_tick) ? fw_lock_mask : 0u;
+    d = timed_tick(&controller, &in, &out);
+    /* cycles spent: SysTick counts, scaled when a count stands for several instructions */
+    cycles = calib_insns > calib_ticks ? (uint32_t)(((uint64_t)d * calib_insns) / calib_ticks) : d;
     in.command = CTRL_CMD_NONE;
-    in.missed_ticks = d > period ? d / period : 0u;
+    in.missed_ticks = cycles > period ? cycles / period : 0u;
     if (after < 0) {
       sum += d;
       max = d > max ? d : max;
@@ -132,7 +154,7 @@ int main(void) {
     (void)fw_csv_row(line, sizeof(line), &out);
     sh_puts(line);
 #endif
-    if (after < 0 && out.state != CTRL_STATE_RUNNING) {
+    if (after < 0 && out.state != CTRL_STATE_RUNNING && out.state != CTRL_STATE_DEGRADED) {
       after = (int32_t)i;
     }
     if (after >= 0 && (int32_t)i - after >= FW_EXTRA_TICKS) {
@@ -157,9 +179,9 @@ int main(void) {
   put_kv("tick_systicks_max", max);
   put_kv("tick_systicks_min", min);
   put_kv("stub_systicks_sum", stub);
-  put_kv("calib_insns", 2u * 100000u);
-  put_kv("calib_ticks", timed_calib(101000u) - timed_calib(1000u));
-  put_kv("period_systicks", period);
+  put_kv("calib_insns", calib_insns);
+  put_kv("calib_ticks", calib_ticks);
+  put_kv("period_cycles", period);
   put_kv("stack_peak_bytes", stack_peak_bytes());
   put_kv("sizeof_ctrl", (uint32_t)sizeof(ctrl));
   put_kv("sizeof_config", (uint32_t)sizeof(ctrl_config));

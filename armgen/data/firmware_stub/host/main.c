@@ -3,11 +3,18 @@
  * armgen into task_params.h) tick by tick and prints the commanded trajectory as CSV on
  * stdout (see fw_csv.h), then "# key value" summary lines.
  *
- *   fw_host [--nan-input K] [--overrun K] [--stop K] [--extra N] [--quiet] [--time R]
+ *   fw_host [--nan-input K] [--overrun K] [--stop K] [--lock-tick K] [--lock-mask M]
+ *           [--lock-toggle] [--period-ns P] [--extra N] [--quiet] [--time R]
  *
  *   --nan-input K   tick K receives a NaN task-velocity input       (fault injection)
  *   --overrun K     the scheduler reports a missed period at tick K  (fault injection)
  *   --stop K        STOP command at tick K
+ *   --lock-tick K   from tick K the drives report the joints of --lock-mask locked (default:
+ *                   the task's fw_lock_tick / fw_lock_mask, i.e. the plan's fault)
+ *   --lock-mask M   bit i: joint i (decimal)
+ *   --lock-toggle   the reported flags alternate between M and 0 every tick from K on
+ *   --period-ns P   real-time check: a tick whose wall time (CLOCK_MONOTONIC) exceeds P ns
+ *                   is reported to the controller as a missed period on the next tick
  *   --extra N       ticks to run after DONE/FAULT, showing the hold (default 2)
  *   --quiet         no CSV rows (summary only)
  *   --time R        also run the whole motion R times without output and report the best
@@ -19,6 +26,7 @@
 #define _POSIX_C_SOURCE 199309L
 
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,12 +34,12 @@
 
 #include "controller.h"
 #include "fw_csv.h"
+#include "fw_task.h"
 
-extern const ctrl_config fw_task;
 
 typedef struct {
-  long nan_tick, overrun_tick, stop_tick, extra, repeats;
-  int quiet;
+  long nan_tick, overrun_tick, stop_tick, extra, repeats, lock_tick, lock_mask, period_ns;
+  int quiet, lock_toggle;
 } options;
 
 static int parse_long(const char *s, long *out) {
@@ -47,13 +55,21 @@ static int parse_long(const char *s, long *out) {
 static int parse_args(int argc, char **argv, options *o) {
   int i;
   o->nan_tick = o->overrun_tick = o->stop_tick = -1;
+  o->lock_tick = (long)fw_lock_tick;
+  o->lock_mask = (long)fw_lock_mask;
+  o->period_ns = 0;
   o->extra = 2;
   o->repeats = 0;
   o->quiet = 0;
+  o->lock_toggle = 0;
   for (i = 1; i < argc; ++i) {
     long *target = NULL;
     if (strcmp(argv[i], "--quiet") == 0) {
       o->quiet = 1;
+      continue;
+    }
+    if (strcmp(argv[i], "--lock-toggle") == 0) {
+      o->lock_toggle = 1;
       continue;
     }
     if (strcmp(argv[i], "--nan-input") == 0) target = &o->nan_tick;
@@ -61,8 +77,12 @@ static int parse_args(int argc, char **argv, options *o) {
     else if (strcmp(argv[i], "--stop") == 0) target = &o->stop_tick;
     else if (strcmp(argv[i], "--extra") == 0) target = &o->extra;
     else if (strcmp(argv[i], "--time") == 0) target = &o->repeats;
+    else if (strcmp(argv[i], "--lock-tick") == 0) target = &o->lock_tick;
+    else if (strcmp(argv[i], "--lock-mask") == 0) target = &o->lock_mask;
+    else if (strcmp(argv[i], "--period-ns") == 0) target = &o->period_ns;
     if (target == NULL || i + 1 >= argc || !parse_long(argv[i + 1], target)) {
-      fprintf(stderr, "usage: %s [--nan-input K] [--overrun K] [--stop K] [--extra N] [--quiet] [--time R]\n", argv[0]);
+      fprintf(stderr, "usage: %s [--nan-input K] [--overrun K] [--stop K] [--lock-tick K] [--lock-mask M] "
+              "[--lock-toggle] [--period-ns P] [--extra N] [--quiet] [--time R]\n", argv[0]);
       return 0;
     }
     ++i;
@@ -78,6 +98,9 @@ static void make_input(const options *o, long i, ctrl_input *in) {
   }
   if (i == o->overrun_tick) {
     in->missed_ticks = 1u;
+  }
+  if (o->lock_tick >= 0 && i >= o->lock_tick && !(o->lock_toggle && (i - o->lock_tick) % 2 == 1)) {
+    in->locked = (uint32_t)o->lock_mask;
   }
 }
 
@@ -99,7 +122,7 @@ static long run_silent(ctrl *c, volatile double *sink) {
     (void)ctrl_tick(c, &in, &out);
     in.command = CTRL_CMD_NONE;
     ++i;
-  } while (out.state == CTRL_STATE_RUNNING);
+  } while (out.state == CTRL_STATE_RUNNING || out.state == CTRL_STATE_DEGRADED);
   *sink += (double)out.q[0];
   return i;
 }
@@ -112,6 +135,7 @@ int main(int argc, char **argv) {
   ctrl_output out;
   ctrl_fault init;
   long i, after = -1, limit;
+  uint32_t missed = 0u;
   if (!parse_args(argc, argv, &o)) {
     return 2;
   }
@@ -120,13 +144,20 @@ int main(int argc, char **argv) {
   fputs(buf, stdout);
   limit = (long)c.n_ticks + o.extra + 2;
   for (i = 0; i <= limit; ++i) {
+    double t0;
     make_input(&o, i, &in);
+    in.missed_ticks += missed;
+    t0 = now_ns();
     (void)ctrl_tick(&c, &in, &out);
+    if (o.period_ns > 0) { /* the scheduler's view: this tick's wall time against the period */
+      double spent = now_ns() - t0;
+      missed = spent > (double)o.period_ns ? (uint32_t)(spent / (double)o.period_ns) : 0u;
+    }
     if (!o.quiet) {
       (void)fw_csv_row(buf, sizeof(buf), &out);
       fputs(buf, stdout);
     }
-    if (after < 0 && out.state != CTRL_STATE_RUNNING) {
+    if (after < 0 && out.state != CTRL_STATE_RUNNING && out.state != CTRL_STATE_DEGRADED) {
       after = i;
     }
     if (after >= 0 && i - after >= o.extra) {

@@ -1,0 +1,273 @@
+"""The Python API: load a robot, plan a task, generate C, verify it.
+
+Everything here is re-exported from the :mod:`armgen` namespace (``armgen.plan`` …) and is
+what the command line does, minus the printing::
+
+    import armgen
+
+    robot = armgen.load_robot("panda")            # bundled name, robot TOML or URDF
+    T = robot.fk(robot.qr)                        # (4, 4)
+    plan = armgen.plan("examples/modular8_circle_pinv.toml", **{"timing.duration": 4.0})
+    plan.to_pandas().plot(x="t_s", y="q1_rad")
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable
+
+from .errors import TaskFileError
+from .robot import Robot, load_robot, load_robot_any
+
+if TYPE_CHECKING:  # heavy imports only for type checkers
+    import pandas
+    from matplotlib.figure import Figure
+
+    from .planning.result import PlanResult
+
+__all__ = ["Robot", "load_robot", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport"]
+
+
+# -- planning -------------------------------------------------------------------------------
+
+@dataclass
+class Plan:
+    """A planned trajectory: one row per sample, SI units (angles in rad).
+
+    Attributes
+    ----------
+    result
+        The planner's :class:`~armgen.planning.result.PlanResult` (columns, data, metadata).
+    """
+
+    result: PlanResult
+
+    @property
+    def columns(self) -> list[str]:
+        """Column names with their units (``t_s``, ``q1_rad``, ``x_m`` …)."""
+        return list(self.result.columns)
+
+    @property
+    def data(self):
+        """The samples as a NumPy array of shape ``(samples, len(columns))``."""
+        return self.result.data
+
+    @property
+    def metadata(self) -> dict[str, Any]:
+        """Everything ``plan.json`` holds: task, robot, planner settings, summary."""
+        return self.result.metadata
+
+    @property
+    def summary(self) -> dict[str, Any]:
+        """The planner's figures of merit (task error, limits, run time …)."""
+        return dict(self.result.metadata.get("summary", {}))
+
+    def to_pandas(self) -> pandas.DataFrame:
+        """The samples as a :class:`pandas.DataFrame` with the plan's column names."""
+        import pandas as pd
+
+        return pd.DataFrame(self.result.data, columns=self.result.columns)
+
+    def save(self, csv_path: str | Path, units: str = "rad") -> tuple[Path, Path]:
+        """Write the CSV and ``plan.json`` beside it (each atomically), as ``armgen plan`` does.
+
+        Parameters
+        ----------
+        csv_path
+            The CSV to write; the JSON metadata gets the same name with ``.json``.
+        units
+            Angle unit of the CSV columns, ``"rad"`` or ``"deg"``.
+
+        Returns
+        -------
+        tuple of pathlib.Path
+            The CSV and JSON paths.
+        """
+        from .planning.result import write_plan
+
+        return write_plan(self.result, csv_path, units)
+
+    def plot(self) -> Figure:
+        """The planner's figure (joint angles, velocities, criteria, task error).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            A figure the caller may show, save or close.
+        """
+        from .planning.tasks import plot_plan
+
+        return plot_plan(self.result, str(self.metadata.get("task_file", "plan")))
+
+
+def _set_override(task: dict[str, Any], key: str, value: Any) -> None:
+    parts = [p.strip() for p in key.replace("__", ".").split(".")]
+    if not all(parts):
+        raise TaskFileError(f"override {key!r}: empty key component")
+    node = task
+    for part in parts[:-1]:
+        node = node.setdefault(part, {})
+        if not isinstance(node, dict):
+            raise TaskFileError(f"override {key!r}: '{part}' is not a table in the task")
+    node[parts[-1]] = value
+
+
+def plan(task: str | Path | dict[str, Any], backend: str = "symbolic", **overrides: Any) -> Plan:
+    """Plan a task, as ``armgen plan`` does (without writing files).
+
+    Parameters
+    ----------
+    task
+        A task file path, or the task as a dict (the parsed TOML).
+    backend
+        ``"symbolic"`` (CasADi) or ``"c"`` (the generated C through ctypes).
+    **overrides
+        Task fields to replace, with dotted keys for tables: ``**{"timing.duration": 4.0}``,
+        or ``timing__duration=4.0`` (``__`` stands for the dot). Values are Python values.
+
+    Returns
+    -------
+    Plan
+
+    Raises
+    ------
+    TaskFileError
+        The task is malformed (exit code 2 on the command line).
+    PlanningError
+        The task is infeasible (exit code 3).
+    """
+    from .planning.tasks import load_task, run_task
+
+    if isinstance(task, dict):
+        parsed, sha, source = copy.deepcopy(task), "", "<task dict>"
+    else:
+        parsed, sha = load_task(task)
+        source = str(task)
+    for key, value in overrides.items():
+        _set_override(parsed, key, value)
+    return Plan(run_task(parsed, source, sha, backend))
+
+
+# -- code generation ----------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Generated:
+    """The outcome of :func:`generate`.
+
+    Attributes
+    ----------
+    prefix
+        The C identifier prefix (``<prefix>_fk`` …).
+    paths
+        The files written (header, source, manifest).
+    flops
+        Operation count of each generated function.
+    seconds
+        Time taken by the symbolic derivation and code generation.
+    """
+
+    prefix: str
+    paths: tuple[Path, ...]
+    flops: dict[str, int] = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+def generate(robot: Robot | str | Path, out: str | Path | None = None, precision: str = "double",
+             prefix: str = "", functions: tuple[str, ...] | None = None) -> Generated:
+    """Derive the robot's functions symbolically and write allocation-free C99.
+
+    Parameters
+    ----------
+    robot
+        A :class:`Robot`, a bundled name, a robot TOML or a URDF path.
+    out
+        Output directory (default: the repository's ``generated/<robot>/``, as ``armgen gen``).
+    precision
+        The header's default real type, ``"double"`` or ``"float"``.
+    prefix
+        C identifier prefix (default: the robot name).
+    functions
+        Only these functions (default: all the robot supports).
+
+    Returns
+    -------
+    Generated
+    """
+    from .codegen.generate import generate_robot
+
+    try:
+        code, paths = generate_robot(load_robot_any(robot), out, precision, prefix, functions)
+    except ValueError as exc:  # an unknown function name
+        from .errors import ArmgenError
+
+        raise ArmgenError(str(exc)) from None
+    return Generated(code.prefix, tuple(paths), {e.name: e.flops for e in code.emitted}, code.generation_seconds)
+
+
+# -- verification --------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class VerifyReport:
+    """The outcome of :func:`verify`: one stage per check (fresh, compile, callbacks, replay, target).
+
+    ``bool(report)`` is ``report.passed``; ``str(report)`` is the table ``armgen verify`` prints.
+    """
+
+    robot: str
+    stages: tuple[Any, ...]
+
+    @property
+    def passed(self) -> bool:
+        """True when every stage passed."""
+        return all(s.passed for s in self.stages)
+
+    def __bool__(self) -> bool:
+        return self.passed
+
+    def __str__(self) -> str:
+        return "\n".join(s.render() for s in self.stages)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data, as written to ``--report``."""
+        return {"robot": self.robot, "passed": self.passed,
+                "stages": [{"name": s.name, "passed": s.passed, "message": s.message, "columns": s.columns,
+                            "rows": s.rows} for s in self.stages]}
+
+
+def verify(robot: Robot | str | Path, plan: str | Path | None = None, samples: int = 10_000,
+           precision: str | None = None, target: str | None = None, report: str | Path | None = None,
+           echo: Callable[[str], None] | None = None) -> VerifyReport:
+    """Check that the checked-in generated C does what the symbolic model does (spec 60).
+
+    Parameters
+    ----------
+    robot
+        A :class:`Robot`, bundled name, robot TOML or URDF path; its C must be in
+        ``generated/<robot>/`` (``armgen.generate(robot)``).
+    plan
+        A plan CSV (with its ``plan.json``) to replay through the C backend and firmware.
+    samples
+        Seeded samples per function in the callbacks stage.
+    precision
+        ``"double"`` or ``"float"`` only (default: both).
+    target
+        ``"cortex-m4"`` to also run on the emulated target (needs QEMU).
+    report
+        Also write the JSON report here.
+    echo
+        Called with each stage's table as it finishes (default: silent).
+
+    Returns
+    -------
+    VerifyReport
+        Check ``report.passed``; the command line exits with code 5 when it is false.
+    """
+    from .verify.pipeline import VerifyConfig, run_pipeline
+
+    precisions = (precision,) if precision else ("double", "float")
+    loaded = load_robot_any(robot)
+    config = VerifyConfig(loaded, Path(plan) if plan else None, samples, precisions, target)
+    stages = run_pipeline(config, Path(report) if report else None, echo or (lambda _line: None))
+    return VerifyReport(loaded.name, tuple(stages))

@@ -1,0 +1,28 @@
+"""``armgen animate``: the arm moving through a plan, as a GIF or an MP4."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from .handling import handle_errors
+
+
+@click.command("animate")
+@click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
+@click.option("-o", "--output", default=None,
+              help="video to write: .gif (Pillow) or .mp4 (needs ffmpeg); default: the CSV's name with .gif")
+@click.option("--fps", type=float, default=20.0, show_default=True, help="frames per second")
+@click.option("--duration", type=float, default=None,
+              help="video length in seconds (default: the plan's duration, at most 10 s)")
+@handle_errors
+def animate_cmd(plan_csv: str, output: str | None, fps: float, duration: float | None) -> None:
+    """Draw the arm moving through a plan: links between the joint frames (forward kinematics),
+    the tool frame, the planned path, snake obstacles, and a time stamp."""
+    from ..planning.animation import animate_plan
+    from ..planning.result import read_plan
+
+    out = Path(output) if output is not None else Path(plan_csv).with_suffix(".gif")
+    animate_plan(read_plan(plan_csv), output if output is not None else out, fps, duration)
+    click.echo(f"wrote {out}")

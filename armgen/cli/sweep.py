@@ -1,0 +1,52 @@
+"""``armgen sweep``: plan a task file over a grid of field values and/or random draws; one
+table row per run (see :mod:`armgen.planning.sweep`)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import click
+
+from .handling import handle_errors
+
+
+@click.command("sweep")
+@click.argument("task_file", type=click.Path(dir_okay=False))
+@click.option("--grid", "grids", multiple=True, metavar="KEY=ARRAY",
+              help="a task field and a TOML array of its values; every combination of the grids runs")
+@click.option("--random", "draws", type=click.IntRange(min=0), default=0, show_default=True,
+              help="draws over the --range fields (per grid combination)")
+@click.option("--range", "ranges", multiple=True, metavar="KEY=LO:HI",
+              help="a task field drawn uniformly in [LO, HI] (numbers, or TOML arrays for a vector field)")
+@click.option("--seed", type=int, default=0, show_default=True, help="seed of the random draws")
+@click.option("--set", "overrides", multiple=True, help="override a task field for every run: key=value")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+              help="the table: .csv or .parquet (default: <task name>_sweep.csv)")
+@click.option("--backend", type=click.Choice(["symbolic", "c"]), default="symbolic", show_default=True)
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="local worker processes (default: the number of CPUs)")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="run on this Dask distributed scheduler (e.g. tcp://host:8786) instead of local workers")
+@click.option("--resume", is_flag=True, help="skip the runs already in the output table")
+@handle_errors
+def sweep_cmd(task_file, grids, draws, ranges, seed, overrides, output, backend, workers, scheduler, resume) -> None:
+    """Plan TASK_FILE once per combination of the --grid values (and per --random draw)."""
+    from ..errors import TaskFileError
+    from ..planning.sweep import SweepSpec, parse_grid, parse_range, sweep
+    from ..planning.tasks import apply_overrides, load_task
+
+    task, sha = load_task(task_file)
+    apply_overrides(task, list(overrides))
+    spec = SweepSpec([parse_grid(g) for g in grids], [parse_range(r) for r in ranges], draws, seed)
+    if spec.ranges and not draws:
+        raise TaskFileError("--range needs --random N (the number of draws)")
+    if draws and not spec.ranges:
+        raise TaskFileError("--random needs at least one --range KEY=LO:HI to draw")
+    if not spec.grid and not spec.ranges:
+        raise TaskFileError("nothing to sweep: give --grid KEY=ARRAY and/or --random N with --range KEY=LO:HI")
+    out = Path(output) if output else Path(Path(task_file).stem + "_sweep.csv")
+    rows = sweep(task, task_file, sha, spec, out, backend, workers or os.cpu_count() or 1, scheduler, resume,
+                 click.echo)
+    failed = sum(r["status"] != "ok" for r in rows)
+    click.echo(f"wrote {out}: {len(rows)} runs, {len(rows) - failed} ok, {failed} failed")

@@ -1,0 +1,190 @@
+"""The arm moving through a plan, as a GIF (Pillow, no other install) or an MP4 (ffmpeg).
+
+Each frame draws the arm from its forward kinematics (the NumPy DH chain of the robot named in
+``plan.json``): links as straight segments between consecutive joint-frame origins, the tool
+frame's axes (x red, y green, z blue), the planned tool path dashed and the executed one so
+far, and a time stamp. Snake plans are drawn in top (and side, when the path leaves the plane)
+view with their obstacles and plate openings. Frames are plan samples picked evenly in time so
+that the video lasts ``duration`` seconds at ``fps`` frames per second.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from matplotlib.animation import FFMpegWriter, PillowWriter
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+from ..errors import ArmgenError, TaskFileError, ToolchainError
+from ..fileio import atomic_open
+from ..progress import progress
+from ..robot import load_robot
+from .plotting import FigureOutputError, FigureWriteError, dh_frames, new_figure, plan_robot, planned_tool_path
+from .result import PlanResult
+
+VIDEO_FORMATS = (".gif", ".mp4")
+DEFAULT_FPS = 20.0
+MAX_DEFAULT_DURATION = 10.0  # s: without --duration a long plan is sped up to this, a short one plays in real time
+MAX_FRAMES = 3000  # a larger request is a typo, not a video (150 s at 20 fps)
+DPI = 80  # 6.4 × 4.8 in → 512 × 384 px: small GIFs that still show the arm
+TOOL_AXIS_FRACTION = 0.08  # tool-frame axes drawn this long, as a fraction of the scene size
+SCENE_MARGIN = 0.05  # of the scene size, around the arm's sweep
+
+
+def frame_samples(t: np.ndarray, fps: float, duration: float | None) -> tuple[np.ndarray, float]:
+    """Indices of the plan samples shown (one per frame, evenly spaced in plan time) and the video duration."""
+    if not np.isfinite(fps) or fps <= 0:
+        raise TaskFileError(f"--fps {fps}: give a positive number of frames per second (e.g. 20)")
+    span = float(t[-1] - t[0])
+    if duration is None:
+        duration = min(span, MAX_DEFAULT_DURATION) if span > 0 else 1.0
+    if not np.isfinite(duration) or duration <= 0:
+        raise TaskFileError(f"--duration {duration}: give a positive video length in seconds (e.g. 5)")
+    count = max(2, int(round(fps * duration)))
+    if count > MAX_FRAMES:
+        raise TaskFileError(f"--fps {fps:g} × --duration {duration:g} s = {count} frames, more than {MAX_FRAMES}; "
+                            "lower --fps or --duration")
+    wanted = np.linspace(t[0], t[-1], count)
+    return np.clip(np.searchsorted(t, wanted), 0, t.size - 1), duration
+
+
+def _writer(out: Path, fps: float):
+    if out.suffix.lower() == ".gif":
+        return PillowWriter(fps=fps)
+    if shutil.which("ffmpeg") is None:
+        raise ToolchainError(f"{out}: MP4 needs ffmpeg, which is not installed (apt-get install -y ffmpeg); "
+                             "or write a .gif, which needs nothing else")
+    return FFMpegWriter(fps=fps, codec="libx264", extra_args=["-pix_fmt", "yuv420p"])
+
+
+def _check_output(out_path: str | Path) -> Path:
+    text = str(out_path)
+    out = Path(out_path)
+    if text in ("", "-") or text.endswith(("/", "\\")) or out.is_dir():
+        raise FigureOutputError(f"output {text!r} is not a file name; give e.g. -o plan.gif or -o plan.mp4")
+    if out.suffix.lower() not in VIDEO_FORMATS:
+        raise FigureOutputError(f"output {text!r}: unknown video format {out.suffix or '(no extension)'!r}; "
+                                f"use one of {', '.join(VIDEO_FORMATS)}")
+    return out
+
+
+def _serial_joint_angles(result: PlanResult) -> tuple[object, np.ndarray]:
+    """(robot, q per sample) of a resolved-rate or PTP plan."""
+    meta = result.metadata
+    if meta.get("planner") == "ptp":
+        name = (meta.get("parameters") or {}).get("robot")
+        if not name:
+            raise TaskFileError("this PTP plan names no robot, so there is no arm to draw; add robot = \"<name>\" "
+                                "to the task file (its joints named as the robot's) and re-run `armgen plan`")
+        robot = load_robot(name)
+        q = np.zeros((result.data.shape[0], robot.n))
+        for i, joint in enumerate(robot.joints):
+            if f"theta_{joint.name}_rad" in result.columns:
+                q[:, i] = result.column(f"theta_{joint.name}_rad")
+        return robot, q
+    robot = plan_robot(result)
+    return robot, np.column_stack([result.column(f"q{i + 1}_rad") for i in range(robot.n)])
+
+
+def _serial_scene(fig, result: PlanResult, frames: np.ndarray):
+    robot, q = _serial_joint_angles(result)
+    poses = dh_frames(robot, q[frames])
+    origins = poses[:, :, :3, 3] * 1e3
+    planned = planned_tool_path(result, robot) if result.metadata.get("planner") != "ptp" else None
+    ax = fig.add_subplot(projection="3d")
+    lo, hi = origins.reshape(-1, 3).min(axis=0), origins.reshape(-1, 3).max(axis=0)
+    size = float(np.max(hi - lo)) or 1.0
+    centre = (lo + hi) / 2
+    for k, axis in enumerate("xyz"):
+        getattr(ax, f"set_{axis}lim")(centre[k] - size / 2 - SCENE_MARGIN * size, centre[k] + size / 2 + SCENE_MARGIN * size)
+    ax.set_box_aspect((1, 1, 1))
+    ax.set(xlabel="x [mm]", ylabel="y [mm]", zlabel="z [mm]")
+    ax.tick_params(labelsize=6)
+    if planned is not None:
+        ax.plot(*(planned * 1e3).T, "k--", lw=0.8, label="planned tool path")
+    trace, = ax.plot([], [], [], color="tab:red", lw=1.2, label="executed")
+    links, = ax.plot([], [], [], "-o", color="tab:blue", lw=3, ms=4, label="links (joint frames)")
+    axes = [ax.plot([], [], [], color=c, lw=2)[0] for c in ("r", "g", "b")]
+    ax.legend(fontsize=7, loc="upper left")
+    length = TOOL_AXIS_FRACTION * size
+
+    def draw(f: int) -> None:
+        links.set_data_3d(*origins[f].T)
+        trace.set_data_3d(*origins[: f + 1, -1].T)
+        tool = poses[f, -1]
+        for k, line in enumerate(axes):
+            tip = tool[:3, 3] * 1e3 + length * tool[:3, k]
+            line.set_data_3d(*np.column_stack([tool[:3, 3] * 1e3, tip]))
+    return draw
+
+
+def _snake_scene(fig, result: PlanResult, frames: np.ndarray):
+    from .snake.plots import PLANAR_TOL, arm_centres, draw_obstacles
+
+    meta = result.metadata
+    centres = arm_centres(result, meta)[frames] * 1e3
+    wp = np.asarray(meta["path"]["waypoints_m"], dtype=float) * 1e3
+    views = [(0, 1)] if np.ptp(wp[:, 2]) < PLANAR_TOL else [(0, 1), (0, 2)]
+    lines = []
+    for v, (i, j) in enumerate(views):
+        ax = fig.add_subplot(len(views), 1, v + 1)
+        everything = np.vstack([centres.reshape(-1, 3), wp])
+        lo, hi = everything.min(axis=0), everything.max(axis=0)
+        pad = SCENE_MARGIN * float(np.max(hi - lo))
+        draw_obstacles(ax, meta.get("obstacles", []), (i, j))
+        ax.plot(wp[:, i], wp[:, j], "k--", lw=0.8, label="path")
+        ax.set(xlim=(lo[i] - pad, hi[i] + pad), ylim=(lo[j] - pad, hi[j] + pad), aspect="equal",
+               xlabel=f"{'xyz'[i]} [mm]", ylabel=f"{'xyz'[j]} [mm]", title=("top view", "side view")[v])
+        ax.tick_params(labelsize=6)
+        arm, = ax.plot([], [], "-o", color="tab:blue", lw=2.5, ms=2.5)
+        tip, = ax.plot([], [], "*", color="tab:red", ms=10)
+        lines.append((arm, tip, i, j))
+
+    def draw(f: int) -> None:
+        for arm, tip, i, j in lines:
+            arm.set_data(centres[f, :, i], centres[f, :, j])
+            tip.set_data([centres[f, -1, i]], [centres[f, -1, j]])
+    return draw
+
+
+def animate_plan(result: PlanResult, out_path: str | Path, fps: float = DEFAULT_FPS,
+                 duration: float | None = None) -> Path:
+    """Render the arm moving through ``result`` to ``out_path`` (.gif or .mp4), atomically.
+
+    ``fps`` frames per second, ``duration`` seconds of video (default: the plan's duration, at
+    most 10 s); the plan's samples are subsampled (or repeated) to ``fps × duration`` frames.
+    Returns the path written.
+    """
+    out = _check_output(out_path)
+    t = result.column("t_s")
+    frames, duration = frame_samples(t, fps, duration)
+    writer = _writer(out, fps)
+    fig = new_figure(6.4, 4.8)
+    FigureCanvasAgg(fig)
+    planner = result.metadata.get("planner")
+    if planner == "snake":
+        draw = _snake_scene(fig, result, frames)
+    elif planner in ("cartesian", "fault_tolerant", "wgpm", "ptp"):
+        draw = _serial_scene(fig, result, frames)
+    else:
+        raise ArmgenError(f"no animation for planner {planner!r} (plan.json missing or unknown planner)")
+    name = result.metadata.get("robot", {}).get("name") or (result.metadata.get("parameters") or {}).get("robot", "")
+    stamp = fig.suptitle("")
+    with tempfile.TemporaryDirectory(prefix="armgen-animate-") as scratch:
+        scratch_file = Path(scratch) / f"video{out.suffix.lower()}"
+        with progress(len(frames), f"animating {len(frames)} frames") as bar:
+            with writer.saving(fig, str(scratch_file), DPI):
+                for f, k in enumerate(frames):
+                    draw(f)
+                    stamp.set_text(f"{name} — {planner} — t = {t[k]:7.2f} s of {t[-1]:.2f} s")
+                    writer.grab_frame()
+                    bar.update(1)
+        try:
+            with atomic_open(out, "wb") as handle:
+                handle.write(scratch_file.read_bytes())
+        except OSError as exc:
+            raise FigureWriteError(f"cannot write {out}: {exc.strerror or exc}; choose a writable path") from None
+    return out

@@ -1,0 +1,85 @@
+"""Schema of ``planner = "cartesian"`` task files (spec 20), and the tables every
+resolved-rate task shares (robot, start, units, path, timing, integrator, damping), which the
+``fault_tolerant`` and ``wgpm`` schemas extend. Values are in the file's units; the planner's
+parser converts them to SI. Ranges the parser explains in more detail (e.g. why a gain must
+not be negative) are left to it."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Optional, Union
+
+from pydantic import Field, StringConstraints
+
+from ...schemas import StrictModel
+
+# A path or bundled name; longer text is not a file name.
+RobotReference = Annotated[str, StringConstraints(min_length=1, max_length=4096)]
+Description = Annotated[str, StringConstraints(max_length=2000)]
+Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Positive = Annotated[float, Field(gt=0)]
+NonNegative = Annotated[float, Field(ge=0)]
+Start = Union[Annotated[str, StringConstraints(min_length=1, max_length=64)],
+              Annotated[list[float], Field(min_length=1, max_length=64)]]
+
+
+class Units(StrictModel):
+    length: Literal["m", "mm"] = "m"
+    angle: Literal["rad", "deg"] = "rad"
+
+
+class Path(StrictModel):
+    type: Literal["circle", "line"] = "circle"
+    via: Optional[Vector3] = Field(None, description="circle: the second point (start → via → end → start)")
+    end: Vector3
+    orientation: Literal["hold", "interpolate"] = "hold"
+    end_rpy: Optional[Vector3] = Field(None, description="line with orientation = 'interpolate': final roll, pitch, yaw")
+
+
+class Timing(StrictModel):
+    duration: Positive = Field(description="s")
+    law: Literal["cubic", "trapezoidal", "constant"] = "cubic"
+    blend: float = Field(0.2, description="trapezoidal: fraction of the duration spent accelerating, (0, 0.5]")
+
+
+class Integrator(StrictModel):
+    method: Literal["euler", "rk4"] = "euler"
+    step: Positive = Field(0.02, description="s")
+    clik_gain: NonNegative = Field(0.0, description="closed-loop gain K_p, 1/s (0 = open loop)")
+    output_every: Annotated[int, Field(ge=1)] = Field(1, description="write every k-th step to the CSV")
+
+
+class Damping(StrictModel):
+    epsilon: Positive = 0.01
+    lambda_max: NonNegative = 0.05
+
+
+class Method(StrictModel):
+    name: Literal["pinv", "repetitive", "zghal", "zghal_improved", "combined"] = "pinv"
+    rho_R: NonNegative = 2.8
+    T_smo_R: Positive = 10.0
+    rho_L: NonNegative = 0.025
+    theta_s: Positive = Field(20.0, description="angle unit of the file")
+    T_smo_L: Positive = 40.0
+    T_sum_L: Positive = 80.0
+    gamma_R_ramp: Positive = 20.0
+
+
+class CartesianTaskFile(StrictModel):
+    """A Cartesian path task (spec 20)."""
+
+    planner: Literal["cartesian"]
+    description: Optional[Description] = None
+    robot: RobotReference
+    start: Start = "q0"
+    units: Units = Field(default_factory=Units)
+    path: Path
+    timing: Timing
+    integrator: Integrator = Field(default_factory=Integrator)
+    damping: Damping = Field(default_factory=Damping)
+    method: Method = Field(default_factory=Method)
+
+
+def workload(task: CartesianTaskFile) -> tuple[float, float]:
+    """(integration steps, CSV samples) the task asks for, estimated before planning."""
+    steps = task.timing.duration / task.integrator.step
+    return steps, steps / task.integrator.output_every + 1

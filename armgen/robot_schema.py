@@ -1,0 +1,61 @@
+"""The robot file's schema (pydantic): keys, types, finiteness, sizes and name rules, in the
+file's own units. :func:`armgen.robot.parse_robot` validates a file with it before converting
+to SI; ``armgen schema robot`` prints it as JSON Schema for editors."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Optional
+
+from pydantic import Field, StringConstraints
+
+from .schemas import IDENTIFIER_PATTERN, StrictModel
+
+# Degrees of freedom a robot file may declare: the bundled snake has 25; the generated C
+# stores n×n matrices on the stack of a microcontroller, so 64 is far beyond any use.
+MAX_DOF = 64
+# Named configurations per robot file.
+MAX_CONFIGURATIONS = 256
+# Free text (description) is only displayed and stored in manifests.
+MAX_DESCRIPTION_CHARS = 500
+
+Identifier = Annotated[str, StringConstraints(pattern=IDENTIFIER_PATTERN)]
+Number = float
+Vector3 = Annotated[list[Number], Field(min_length=3, max_length=3)]
+TaskRow = Literal["vx", "vy", "vz", "wx", "wy", "wz"]
+
+
+class Units(StrictModel):
+    length: Literal["m", "mm"] = Field("m", description="unit of a, d, xyz and prismatic values")
+    angle: Literal["rad", "deg"] = Field("rad", description="unit of alpha, offset, theta, rpy and revolute values")
+
+
+class JointEntry(StrictModel):
+    name: Optional[Identifier] = Field(None, description="joint name (default j<i>)")
+    type: Literal["revolute", "prismatic"]
+    a: Number
+    d: Number
+    alpha: Number
+    offset: Number = 0.0
+    qlim: Annotated[list[Number], Field(min_length=2, max_length=2, description="[lower, upper]")]
+    theta: Number = Field(0.0, description="fixed joint angle of a prismatic joint")
+
+
+class Transform(StrictModel):
+    xyz: Vector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    rpy: Vector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="R = Rz(yaw) Ry(pitch) Rx(roll)")
+
+
+class RobotFile(StrictModel):
+    """A serial chain in standard or modified (Craig) DH."""
+
+    name: Identifier
+    description: Annotated[str, StringConstraints(max_length=MAX_DESCRIPTION_CHARS)] = "-"
+    convention: Literal["standard", "modified"]
+    units: Units = Field(default_factory=Units)
+    joints: Annotated[list[JointEntry], Field(min_length=1, max_length=MAX_DOF)]
+    base: Transform = Field(default_factory=Transform)
+    tool: Transform = Field(default_factory=Transform)
+    configurations: Annotated[dict[Identifier, list[Number]], Field(max_length=MAX_CONFIGURATIONS)] = Field(
+        default_factory=dict)
+    task_rows: Annotated[list[TaskRow], Field(min_length=1, max_length=6)] = Field(
+        default_factory=lambda: ["vx", "vy", "vz", "wx", "wy", "wz"])

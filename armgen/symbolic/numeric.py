@@ -1,0 +1,149 @@
+"""NumPy evaluation of the symbolic model, one sample or a whole batch at a time.
+
+A batch is evaluated by replaying the CasADi SX function's instruction list once with NumPy
+arrays in place of scalars: every instruction becomes one vectorised NumPy operation over the
+batch. The expression graph is the one the C code is generated from, so the numbers are the
+same operations in the same order; the cost per sample falls with the batch size (no Python
+loop per sample and no compiler needed). A single sample is passed to CasADi directly, which
+is faster than the replay when there is nothing to vectorise.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..robot import Robot
+from .model import SymbolicModel
+
+
+def _flag(test: Callable[[Any, Any], Any]) -> Callable[[Any, Any], Any]:
+    return lambda x, y: test(x, y).astype(float)
+
+
+_UNARY: dict[int, Callable[[Any], Any]] = {
+    ca.OP_NEG: np.negative, ca.OP_SQRT: np.sqrt, ca.OP_SQ: np.square, ca.OP_TWICE: lambda x: x + x,
+    ca.OP_SIN: np.sin, ca.OP_COS: np.cos, ca.OP_TAN: np.tan, ca.OP_ASIN: np.arcsin, ca.OP_ACOS: np.arccos,
+    ca.OP_ATAN: np.arctan, ca.OP_SINH: np.sinh, ca.OP_COSH: np.cosh, ca.OP_TANH: np.tanh, ca.OP_EXP: np.exp,
+    ca.OP_LOG: np.log, ca.OP_FABS: np.abs, ca.OP_SIGN: np.sign, ca.OP_FLOOR: np.floor, ca.OP_CEIL: np.ceil,
+    ca.OP_INV: np.reciprocal, ca.OP_NOT: lambda x: np.equal(x, 0).astype(float), ca.OP_ASSIGN: lambda x: x,
+}
+_BINARY: dict[int, Callable[[Any, Any], Any]] = {
+    ca.OP_ADD: np.add, ca.OP_SUB: np.subtract, ca.OP_MUL: np.multiply, ca.OP_DIV: np.divide,
+    ca.OP_POW: np.power, ca.OP_CONSTPOW: np.power, ca.OP_FMIN: np.fmin, ca.OP_FMAX: np.fmax,
+    ca.OP_ATAN2: np.arctan2, ca.OP_COPYSIGN: np.copysign, ca.OP_FMOD: np.fmod, ca.OP_HYPOT: np.hypot,
+    ca.OP_LT: _flag(np.less), ca.OP_LE: _flag(np.less_equal), ca.OP_EQ: _flag(np.equal),
+    ca.OP_NE: _flag(np.not_equal),
+    ca.OP_AND: _flag(lambda x, y: np.logical_and(x != 0, y != 0)),
+    ca.OP_OR: _flag(lambda x, y: np.logical_or(x != 0, y != 0)),
+    ca.OP_IF_ELSE_ZERO: lambda c, x: np.where(np.not_equal(c, 0), x, 0.0),
+}
+
+
+# Samples replayed together: 4096 doubles (32 KiB) per temporary keep the working set in the
+# cache and each allocation below malloc's mmap threshold (several times faster than one pass
+# over a 100 000-sample batch), while the Python cost per instruction is spread over 4096.
+BATCH_CHUNK = 4096
+
+
+class BatchFunction:
+    """A CasADi SX function evaluated over a batch by replaying its instructions in NumPy."""
+
+    def __init__(self, function: ca.Function):
+        self.function = function
+        self._program: list[tuple[int, tuple[int, ...], tuple[int, ...], float]] = []
+        for k in range(function.n_instructions()):
+            op = function.instruction_id(k)
+            if op not in _UNARY and op not in _BINARY and op not in (ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST):
+                raise NotImplementedError(f"{function.name()}: CasADi operation {op} has no NumPy equivalent")
+            constant = function.instruction_constant(k) if op == ca.OP_CONST else 0.0
+            self._program.append((op, tuple(function.instruction_input(k)), tuple(function.instruction_output(k)),
+                                  constant))
+
+    def __call__(self, inputs: list[np.ndarray], batch: int) -> list[np.ndarray]:
+        """``inputs[k]`` has shape (nnz_k, batch), entries column-major; returns the outputs likewise.
+
+        Entry-major layout: every input and output entry is a contiguous row over the batch.
+        """
+        f = self.function
+        outputs = [np.empty((f.nnz_out(k), batch)) for k in range(f.n_out())]
+        with np.errstate(all="ignore"):  # IEEE results (inf, nan) as CasADi and the C give, silently
+            self._replay(inputs, outputs, batch)
+        return outputs
+
+    def _replay(self, inputs: list[np.ndarray], outputs: list[np.ndarray], batch: int) -> None:
+        f = self.function
+        for start in range(0, batch, BATCH_CHUNK):
+            chunk = slice(start, min(start + BATCH_CHUNK, batch))
+            work: list[Any] = [0.0] * f.sz_w()
+            for op, args, res, constant in self._program:
+                if op == ca.OP_INPUT:
+                    work[res[0]] = inputs[args[0]][args[1], chunk]
+                elif op == ca.OP_OUTPUT:
+                    outputs[res[0]][res[1], chunk] = work[args[0]]
+                elif op == ca.OP_CONST:
+                    work[res[0]] = constant
+                elif op in _BINARY:
+                    work[res[0]] = _BINARY[op](work[args[0]], work[args[1]])
+                else:
+                    work[res[0]] = _UNARY[op](work[args[0]])
+
+
+def _shaped(value: np.ndarray, batch_shape: tuple[int, ...], rows: int, cols: int) -> np.ndarray:
+    """(rows*cols, batch) column-major → batch_shape + (rows, cols), (rows,) for a column, () for a scalar."""
+    matrix = value.reshape(cols, rows, -1).transpose(2, 1, 0)
+    if rows == 1 and cols == 1:
+        return matrix.reshape(batch_shape)
+    if cols == 1:
+        return matrix.reshape(batch_shape + (rows,))
+    return matrix.reshape(batch_shape + (rows, cols))
+
+
+def _squeezed(matrix: np.ndarray) -> np.ndarray:
+    """A single sample's output: (rows, cols), (rows,) for a column, () for a scalar."""
+    rows, cols = matrix.shape
+    if cols == 1:
+        return matrix.reshape(()) if rows == 1 else matrix.reshape(rows)
+    return matrix
+
+
+class NumericModel:
+    """NumPy access to a robot's symbolic functions with leading batch axes (cached per robot)."""
+
+    def __init__(self, robot: Robot):
+        self.robot = robot
+        self.model = SymbolicModel(robot)
+        self._batch: dict[str, BatchFunction] = {}
+
+    def evaluate(self, name: str, q: ArrayLike, **parameters: ArrayLike) -> dict[str, np.ndarray]:
+        """Evaluate function ``name`` at ``q`` of shape ``(n,)`` or ``(..., n)``.
+
+        The other inputs are given by name; each is broadcast against the batch (a vector
+        input may also carry the batch axes). Returns the outputs by name, with the batch
+        axes in front of each output's own shape.
+        """
+        f = self.model.function(name)
+        q = np.asarray(q, dtype=float)
+        n = self.robot.n
+        if q.ndim == 0 or q.shape[-1] != n:
+            raise ValueError(f"q must have shape ({n},) or (..., {n}) for robot '{self.robot.name}', got {q.shape}")
+        names_in = f.name_in()
+        if set(parameters) != set(names_in[1:]):
+            raise TypeError(f"{name}: inputs {names_in[1:]} expected, got {sorted(parameters)}")
+        if q.ndim == 1:
+            raw = f.call([q] + [np.asarray(parameters[k], dtype=float) for k in names_in[1:]])
+            return {f.name_out(k): _squeezed(raw[k].full()) for k in range(f.n_out())}
+        batch_shape = q.shape[:-1]
+        size = int(np.prod(batch_shape, dtype=int))
+        inputs = [q.reshape(size, n).T]
+        for k, input_name in enumerate(names_in[1:], start=1):
+            own = (f.nnz_in(k),) if f.nnz_in(k) > 1 else ()
+            value = np.broadcast_to(np.asarray(parameters[input_name], dtype=float), batch_shape + own)
+            inputs.append(value.reshape(size, f.nnz_in(k)).T)
+        if name not in self._batch:
+            self._batch[name] = BatchFunction(f)
+        values = self._batch[name]([np.ascontiguousarray(x) for x in inputs], size)
+        return {f.name_out(k): _shaped(values[k], batch_shape, *f.size_out(k)) for k in range(f.n_out())}

@@ -1,0 +1,273 @@
+"""URDF import: the serial chain from a base link to a tip link as armgen joints.
+
+Only what the kinematics needs is read: ``<link name>``, and per ``<joint>`` its ``name``,
+``type``, ``<parent link>``, ``<child link>``, ``<origin xyz rpy>``, ``<axis xyz>`` and
+``<limit lower upper>``. Inertial, visual and collision data are ignored.
+
+Rules (see ``docs/urdf.md``):
+
+- ``revolute``, ``continuous`` and ``prismatic`` joints on the chain become armgen joints;
+  ``fixed`` joints are folded into the next joint's origin (or into the tool transform when
+  they follow the last moving joint).
+- ``floating`` and ``planar`` joints and ``<mimic>`` on the chain are rejected; joints off
+  the chain (e.g. gripper fingers) are only checked for well-formedness.
+- A revolute or prismatic joint needs ``<limit lower upper>`` with lower < upper; a
+  continuous joint gets ``[-CONTINUOUS_LIMIT, CONTINUOUS_LIMIT]`` unless a robot file
+  bounds it under ``[limits]``.
+- The base link defaults to the tree's root, the tip link to the end of the chain when the
+  tree does not branch below the base; otherwise the error names the branching link.
+- DOCTYPE and entity declarations are refused before parsing (no entity expansion).
+
+Every failure is one :class:`~armgen.errors.RobotFileError` naming the file and element.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import RobotFileError
+from .robot import rpy_matrix, snap_quarter_turn
+
+# Default range of a continuous joint (rad): one full turn about zero. Criteria and planners
+# need finite limits; bound the joint in a robot file's [limits] table to change it.
+CONTINUOUS_LIMIT = math.pi
+
+MOVING_TYPES = ("revolute", "continuous", "prismatic")
+UNSUPPORTED_TYPES = ("floating", "planar")
+URDF_JOINT_TYPES = MOVING_TYPES + ("fixed",) + UNSUPPORTED_TYPES
+
+_DECLARATION = re.compile(r"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class UrdfJoint:
+    """One moving joint of the chain, SI units.
+
+    ``origin`` is the fixed transform from the previous moving joint's frame (or the base
+    link) to this joint's frame, including any fixed joints in between; ``axis`` is the unit
+    joint axis in this joint's frame.
+    """
+
+    name: str
+    type: str  # "revolute", "continuous" or "prismatic"
+    origin: np.ndarray  # 4x4
+    axis: tuple[float, float, float]
+    qlim: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class UrdfChain:
+    """The chain from ``base_link`` to ``tip_link``; ``tip`` is the fixed transform from
+    the last moving joint's frame to the tip link."""
+
+    robot_name: str
+    base_link: str
+    tip_link: str
+    joints: tuple[UrdfJoint, ...]
+    tip: np.ndarray  # 4x4
+
+
+@dataclass(frozen=True)
+class _RawJoint:
+    name: str
+    type: str
+    parent: str
+    child: str
+    element: ET.Element
+
+
+class _Parser:
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, where: str, message: str) -> RobotFileError:
+        return RobotFileError(f"{self.source}: {where}: {message}")
+
+    def name(self, element: ET.Element, where: str) -> str:
+        value = element.get("name")
+        if not value or not value.strip():
+            raise self.fail(where, f"<{element.tag}> has no 'name' attribute; add name=\"…\"")
+        return value
+
+    def numbers(self, element: ET.Element | None, attribute: str, where: str, count: int,
+                default: tuple[float, ...] | None) -> tuple[float, ...]:
+        text = None if element is None else element.get(attribute)
+        if text is None:
+            if default is None:
+                tag = "element" if element is None else f"<{element.tag}>"
+                raise self.fail(where, f"{tag} needs attribute '{attribute}'")
+            return default
+        parts = text.split()
+        try:
+            values = tuple(float(p) for p in parts)
+        except ValueError:
+            raise self.fail(where, f"<{element.tag} {attribute}=\"{text}\"> must be {count} numbers") from None
+        if len(values) != count:
+            raise self.fail(where, f"<{element.tag} {attribute}=\"{text}\"> must be {count} numbers, got {len(values)}")
+        if not all(math.isfinite(v) for v in values):
+            raise self.fail(where, f"<{element.tag} {attribute}=\"{text}\"> must be finite numbers")
+        return values
+
+    def link_of(self, joint: ET.Element, tag: str, where: str) -> str:
+        found = joint.findall(tag)
+        if len(found) != 1:
+            raise self.fail(where, f"needs exactly one <{tag} link=\"…\"/>, found {len(found)}")
+        link = found[0].get("link")
+        if not link:
+            raise self.fail(where, f"<{tag}> has no 'link' attribute")
+        return link
+
+
+def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: str | None = None) -> UrdfChain:
+    """Parse URDF text and extract the serial chain from ``base_link`` to ``tip_link``.
+
+    Parameters
+    ----------
+    text
+        The URDF document.
+    source
+        The file name used in error messages.
+    base_link, tip_link
+        The chain's ends; None infers them (the tree's root; the end of an unbranched chain).
+
+    Raises
+    ------
+    RobotFileError
+        On malformed XML, a DOCTYPE or entity declaration, a missing or unknown element or
+        attribute, a non-finite number, a loop, an unsupported joint on the chain or an
+        ambiguous tip.
+    """
+    p = _Parser(source)
+    if _DECLARATION.search(text):
+        raise p.fail("file", "DOCTYPE/ENTITY declarations are not accepted in URDF; remove them")
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise p.fail("file", f"not well-formed XML ({exc})") from None
+    if root.tag != "robot":
+        raise p.fail("file", f"root element is <{root.tag}>, expected <robot>")
+    robot_name = p.name(root, "<robot>")
+
+    links: set[str] = set()
+    for element in root.findall("link"):
+        name = p.name(element, "<link>")
+        if name in links:
+            raise p.fail(f"link '{name}'", "defined twice; link names must be unique")
+        links.add(name)
+    if not links:
+        raise p.fail("<robot>", "no <link> elements")
+
+    joints: dict[str, _RawJoint] = {}
+    parent_joint: dict[str, _RawJoint] = {}  # child link -> the joint that moves it
+    children: dict[str, list[_RawJoint]] = {}
+    for element in root.findall("joint"):
+        name = p.name(element, "<joint>")
+        where = f"joint '{name}'"
+        if name in joints:
+            raise p.fail(where, "defined twice; joint names must be unique")
+        jtype = element.get("type")
+        if jtype not in URDF_JOINT_TYPES:
+            raise p.fail(where, f"type {jtype!r} is not a URDF joint type ({', '.join(URDF_JOINT_TYPES)})")
+        parent, child = p.link_of(element, "parent", where), p.link_of(element, "child", where)
+        for role, link in (("parent", parent), ("child", child)):
+            if link not in links:
+                raise p.fail(where, f"{role} link '{link}' is not defined; add <link name=\"{link}\"/> or fix the name")
+        if parent == child:
+            raise p.fail(where, f"parent and child are both '{parent}' (a loop)")
+        if child in parent_joint:
+            raise p.fail(where, f"link '{child}' already has parent joint '{parent_joint[child].name}'; "
+                                "a URDF must be a tree (no loops, one parent per link)")
+        raw = _RawJoint(name, jtype, parent, child, element)
+        joints[name] = raw
+        parent_joint[child] = raw
+        children.setdefault(parent, []).append(raw)
+
+    roots = sorted(links - set(parent_joint))
+    if not roots:
+        raise p.fail("<robot>", "every link has a parent joint: the joints form a loop")
+    if base_link is None:
+        if len(roots) > 1:
+            raise p.fail("<robot>", f"several root links ({', '.join(roots)}); choose one with base_link")
+        base_link = roots[0]
+    elif base_link not in links:
+        raise p.fail("base_link", f"link '{base_link}' is not defined in the file")
+
+    if tip_link is None:
+        tip_link = base_link
+        visited = {base_link}
+        while children.get(tip_link):
+            below = children[tip_link]
+            if len(below) > 1:
+                names = ", ".join(j.name for j in below)
+                raise p.fail(f"link '{tip_link}'", f"branches into joints {names}; choose the chain's end with tip_link")
+            tip_link = below[0].child
+            if tip_link in visited:
+                raise p.fail(f"link '{tip_link}'", "the joints form a loop")
+            visited.add(tip_link)
+    elif tip_link not in links:
+        raise p.fail("tip_link", f"link '{tip_link}' is not defined in the file")
+
+    path: list[_RawJoint] = []
+    link = tip_link
+    while link != base_link:
+        if link not in parent_joint:
+            raise p.fail("tip_link", f"link '{tip_link}' is not below base link '{base_link}'")
+        path.append(parent_joint[link])
+        link = parent_joint[link].parent
+        if len(path) > len(joints):  # unreachable for a tree; guards against a cycle above the tip
+            raise p.fail(f"link '{link}'", "the joints form a loop")
+    path.reverse()
+
+    chain: list[UrdfJoint] = []
+    pending = np.eye(4)
+    for raw in path:
+        where = f"joint '{raw.name}'"
+        if raw.type in UNSUPPORTED_TYPES:
+            raise p.fail(where, f"type '{raw.type}' is not supported on the chain (only revolute, continuous, "
+                                "prismatic and fixed); choose base_link/tip_link to exclude it")
+        if raw.element.find("mimic") is not None:
+            raise p.fail(where, "<mimic> joints are not supported on the chain; choose base_link/tip_link to exclude it")
+        pending = pending @ _origin(p, raw.element, where)
+        if raw.type == "fixed":
+            continue
+        axis = np.array(p.numbers(raw.element.find("axis"), "xyz", f"{where} <axis>", 3, (1.0, 0.0, 0.0)))
+        norm = float(np.linalg.norm(axis))
+        if norm == 0.0:
+            raise p.fail(f"{where} <axis>", "xyz is the zero vector; give the joint's axis direction")
+        chain.append(UrdfJoint(raw.name, raw.type, pending, tuple(float(v) for v in axis / norm),
+                               _limits(p, raw, where)))
+        pending = np.eye(4)
+    if not chain:
+        raise p.fail("tip_link", f"no revolute, continuous or prismatic joint between '{base_link}' and '{tip_link}'")
+    return UrdfChain(robot_name, base_link, tip_link, tuple(chain), pending)
+
+
+def _origin(p: _Parser, element: ET.Element, where: str) -> np.ndarray:
+    origins = element.findall("origin")
+    if len(origins) > 1:
+        raise p.fail(where, f"has {len(origins)} <origin> elements; give one")
+    origin = origins[0] if origins else None
+    xyz = p.numbers(origin, "xyz", f"{where} <origin>", 3, (0.0, 0.0, 0.0))
+    rpy = p.numbers(origin, "rpy", f"{where} <origin>", 3, (0.0, 0.0, 0.0))
+    out = np.eye(4)
+    out[:3, :3] = rpy_matrix(*[snap_quarter_turn(v) for v in rpy])
+    out[:3, 3] = xyz
+    return out
+
+
+def _limits(p: _Parser, raw: _RawJoint, where: str) -> tuple[float, float]:
+    if raw.type == "continuous":
+        return (-CONTINUOUS_LIMIT, CONTINUOUS_LIMIT)
+    limit = raw.element.find("limit")
+    if limit is None:
+        raise p.fail(where, f"a {raw.type} joint needs <limit lower=\"…\" upper=\"…\"/>")
+    (lower,) = p.numbers(limit, "lower", f"{where} <limit>", 1, None)
+    (upper,) = p.numbers(limit, "upper", f"{where} <limit>", 1, None)
+    if not lower < upper:
+        raise p.fail(f"{where} <limit>", f"lower = {lower} is not below upper = {upper}")
+    return (lower, upper)

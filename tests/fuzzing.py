@@ -1,0 +1,239 @@
+"""Mutation fuzzing of robot and task files, shared by ``tests/test_fuzz.py`` (hypothesis,
+derandomized) and ``benchmarks/fuzz.py`` (10 000+ seeded cases and a summary table).
+
+A case is a bundled robot file or example task mutated a few times. Each mutation says
+whether it certainly makes the file invalid (an unknown key, a wrong type, a non-finite
+number, a path as a name, nesting beyond the cap); a case with such a mutation that is
+accepted is "accepted nonsense". Every case ends in one of: accepted, a clean ArmgenError
+(exit 2 for bad input, 3 for an infeasible plan), a traceback (any other exception), or a
+hang (over its time limit).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import importlib
+import json
+import random
+import signal
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+from armgen.errors import ArmgenError
+from armgen.planning.result import write_plan
+from armgen.planning.tasks import PLANNERS, ResourceCaps, load_task, run_task, validate_task
+from armgen.robot import BUNDLED_DIR, parse_robot
+
+EXAMPLES_DIR = BUNDLED_DIR.parent / "examples"
+ROBOT_BASES = {name: (BUNDLED_DIR / f"{name}.toml").read_text() for name in ("planar3", "panda", "iiwa14")}
+TASK_BASES = {p.stem: load_task(p)[0] for p in sorted(EXAMPLES_DIR.glob("*.toml"))}
+# The fully planned point-to-point cases sample at 10 ms instead of the examples' 1 ms.
+for _name in ("ptp_single_joint", "ptp_single_joint_timed"):
+    TASK_BASES[_name]["step"] = 0.01
+# Tasks planned in full for a sample of the cases: the point-to-point examples plan in
+# milliseconds, so a full plan (and its write) fits the per-case limit.
+FULL_PLAN_BASES = ("ptp_single_joint", "ptp_single_joint_timed")
+# Caps of the fully planned cases: a mutation that asks for more is refused before work.
+FUZZ_CAPS = ResourceCaps(max_steps=50_000, max_samples=200_000)
+VALIDATE_LIMIT_S = 5.0
+PLAN_LIMIT_S = 30.0
+
+JUNK_VALUES: list[Any] = ["x", "", "../../etc/passwd", "x */ int injected = 42; /*", "n" * 300, float("nan"),
+                          float("inf"), -float("inf"), 1e308, -1e308, 5e-324, 0, -1, 0.5, 1e300, True, [],
+                          [1, 2, 3], [float("nan")], ["a", 1], {}, {"k": 1}, 10**30, "1979-05-27"]
+FREE_TEXT_KEYS = ("description", "robot", "start", "name")
+BAD_TYPE_VALUES: list[Any] = [float("nan"), float("inf"), "x */ y", [[[]]], {"k": {"k": 1}}]
+
+
+class Hang(Exception):
+    """A case exceeded its time limit."""
+
+
+@contextlib.contextmanager
+def time_limit(seconds: float) -> Iterator[None]:
+    """Raise :class:`Hang` in the main thread after ``seconds`` (SIGALRM)."""
+    def on_alarm(signum, frame):
+        raise Hang(f"over {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, on_alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def _typo(rng: random.Random, key: str) -> str:
+    if len(key) < 2:
+        return key + "x"
+    k = rng.randrange(len(key) - 1)
+    return key[:k] + key[k + 1] + key[k] + key[k + 2:] if key[k] != key[k + 1] else key + "e"
+
+
+def _deep(depth: int) -> Any:
+    value: Any = 1
+    for _ in range(depth):
+        value = [value]
+    return value
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return {float("inf"): "inf", -float("inf"): "-inf"}.get(value, "nan" if value != value else repr(value))
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + "}"
+    return str(value)
+
+
+def mutate_robot(rng: random.Random) -> tuple[str, bool]:
+    """(robot TOML text, whether it certainly is invalid)."""
+    lines = ROBOT_BASES[rng.choice(sorted(ROBOT_BASES))].splitlines()
+    invalid = False
+    for _ in range(rng.randint(1, 3)):
+        k = rng.randrange(len(lines))
+        action = rng.choice(["drop", "value", "dup", "garble", "unknown", "bad", "deep", "name", "huge"])
+        line = lines[k]
+        has_value = "=" in line and not line.lstrip().startswith("#")
+        if action == "drop":
+            lines.pop(k)
+        elif action == "dup":
+            lines.insert(k, line)
+        elif action == "garble":
+            lines[k] = line[: len(line) // 2] + "".join(rng.choice("[]{}=\"'#.,x 0\n") for _ in range(rng.randint(1, 8)))
+        elif action == "value" and has_value:
+            lines[k] = line.split("=")[0] + "= " + _toml_value(rng.choice(JUNK_VALUES))
+        elif action == "unknown" and has_value:
+            key = line.split("=")[0].strip()
+            if key.isidentifier():
+                lines.insert(k + 1, f"{_typo(rng, key)}x = 1")
+                invalid = True
+        elif action == "bad" and has_value:
+            lines[k] = line.split("=")[0] + "= " + _toml_value(rng.choice(BAD_TYPE_VALUES))
+            invalid = not lines[k].lstrip().startswith(("description", "#"))
+        elif action == "deep" and has_value:
+            depth = rng.choice([17, 100, 500])
+            lines[k] = line.split("=")[0] + "= " + "[" * depth + "1" + "]" * depth
+            invalid = True
+        elif action == "name":
+            bad = rng.choice(["../../x", "/abs", ".", "a b", "x" * 300, "1x", "x*/y", ""])
+            idx = next((i for i, ln in enumerate(lines) if ln.startswith("name")), None)
+            if idx is not None:
+                lines[idx] = f"name = {json.dumps(bad)}"
+                invalid = True
+        elif action == "huge" and has_value and line.split("=")[0].strip() in ("a", "d"):
+            lines[k] = line.split("=")[0] + "= " + rng.choice(["1e300", "1e20", "-1e300"])
+            invalid = True
+        if not lines or invalid:  # later mutations could remove what made the file invalid
+            break
+    return "\n".join(lines), invalid
+
+
+def _tables(node: Any, path: tuple = ()) -> Iterator[tuple[tuple, Any]]:
+    if isinstance(node, dict):
+        yield path, node
+        for key, value in node.items():
+            yield from _tables(value, path + (key,))
+    elif isinstance(node, list):
+        for k, value in enumerate(node):
+            yield from _tables(value, path + (k,))
+
+
+def mutate_task(rng: random.Random, bases: tuple[str, ...] | None = None) -> tuple[str, dict[str, Any], bool]:
+    """(base name, mutated task dict, whether it certainly is invalid)."""
+    name = rng.choice(sorted(bases or TASK_BASES))
+    task = copy.deepcopy(TASK_BASES[name])
+    invalid = False
+    for _ in range(rng.randint(1, 3)):
+        tables = [(p, t) for p, t in _tables(task) if isinstance(t, dict)]
+        path, table = rng.choice(tables)
+        keys = [k for k in table if k != "planner"]
+        action = rng.choice(["value", "drop", "unknown", "bad", "deep", "extreme", "extreme", "value"])
+        if not keys:
+            action = "unknown"
+        key = rng.choice(keys) if keys else "x"
+        if action == "value":
+            table[key] = copy.deepcopy(rng.choice(JUNK_VALUES))
+        elif action == "drop":
+            del table[key]
+        elif action == "unknown":
+            table[_typo(rng, key) + "x"] = 1
+            invalid = True
+        elif action == "bad":
+            value = copy.deepcopy(rng.choice(BAD_TYPE_VALUES))
+            table[key] = value
+            # free text (description, an obstacle's name) and file references (robot, a
+            # start configuration's name) may hold any string
+            invalid = not (isinstance(value, str) and key in FREE_TEXT_KEYS)
+        elif action == "deep":
+            table[key] = _deep(rng.choice([17, 100]))
+            invalid = True
+        else:  # an extreme number where a number was
+            if isinstance(table[key], (int, float)) and not isinstance(table[key], bool):
+                table[key] = rng.choice([0, -1, 1e308, 5e-324, 1e-300, 10**30, 1e-9, 0.5])
+        if invalid:  # later mutations could remove what made the task invalid
+            break
+    return name, task, invalid
+
+
+PARSERS = {"ptp": "parse_ptp_task", "cartesian": "parse_cartesian_task",
+           "fault_tolerant": "parse_fault_tolerant_task", "wgpm": "parse_wgpm_task", "snake": "parse_snake_task"}
+
+
+def parse_task(task: dict[str, Any]) -> Any:
+    """The schema, then the planner's own parser (robot, joint names, cross-field rules),
+    everything before planning."""
+    validate_task(task, "fuzz.toml")
+    module = importlib.import_module(PLANNERS[task["planner"]] + ".planner")
+    return getattr(module, PARSERS[task["planner"]])(task, "fuzz.toml")
+
+
+@dataclass
+class Outcome:
+    kind: str  # "accepted", "clean", "traceback", "hang"
+    detail: str = ""
+    wrote: bool = False  # files appeared although the case failed
+
+
+def _classify(call: Callable[[], Any], limit: float, exit_codes: tuple[int, ...]) -> Outcome:
+    try:
+        with time_limit(limit):
+            call()
+    except Hang as exc:
+        return Outcome("hang", str(exc))
+    except ArmgenError as exc:
+        if exc.exit_code not in exit_codes or not str(exc).strip():
+            return Outcome("traceback", f"{type(exc).__name__} exit {exc.exit_code}: {exc}")
+        return Outcome("clean", str(exc))
+    except Exception as exc:  # noqa: BLE001 - the point of fuzzing is to find these
+        return Outcome("traceback", f"{type(exc).__name__}: {str(exc)[:200]}")
+    return Outcome("accepted")
+
+
+def robot_case(text: str) -> Outcome:
+    outcome = _classify(lambda: parse_robot(text, "fuzz.toml"), VALIDATE_LIMIT_S, (2,))
+    if outcome.kind == "clean" and not outcome.detail.startswith("fuzz.toml:"):
+        return Outcome("traceback", f"message does not name the file: {outcome.detail}")
+    return outcome
+
+
+def task_case(task: dict[str, Any], full_plan: bool) -> Outcome:
+    """Validate (schema) the task; with ``full_plan`` also plan it and write the plan into a
+    fresh folder, which must stay empty when the case fails."""
+    if not full_plan:
+        return _classify(lambda: parse_task(task), VALIDATE_LIMIT_S, (2,))
+    with tempfile.TemporaryDirectory(prefix="armgen-fuzz-") as tmp:
+        out = Path(tmp) / "plan.csv"
+        outcome = _classify(lambda: write_plan(run_task(task, "fuzz.toml", caps=FUZZ_CAPS), out), PLAN_LIMIT_S,
+                            (2, 3))
+        outcome.wrote = outcome.kind != "accepted" and any(Path(tmp).iterdir())
+        return outcome

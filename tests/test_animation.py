@@ -1,0 +1,83 @@
+"""``armgen animate``: the requested number of frames, GIF without ffmpeg, MP4 with it, clear errors."""
+
+from __future__ import annotations
+
+import shutil
+from importlib.resources import files
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from armgen.cli.main import cli
+from armgen.planning import animation
+from armgen.planning.animation import animate_plan, frame_samples
+from armgen.planning.result import write_plan
+from armgen.planning.tasks import load_task, run_task
+
+
+def _plan(tmp_path_factory, name):
+    path = files("armgen.data").joinpath("examples", f"{name}.toml")
+    task, sha = load_task(path)
+    result = run_task(task, str(path), sha)
+    csv, _ = write_plan(result, tmp_path_factory.mktemp(name) / "plan.csv")
+    return result, csv
+
+
+@pytest.fixture(scope="module")
+def short_plan(tmp_path_factory):
+    return _plan(tmp_path_factory, "iiwa14_fault_circle_gpm")  # 4 s, 201 samples
+
+
+@pytest.mark.parametrize("fps, duration", [(10, 1.2), (5, 2.0)])
+def test_gif_has_the_requested_frame_count(short_plan, tmp_path, fps, duration):
+    result, _ = short_plan
+    out = animate_plan(result, tmp_path / "arm.gif", fps=fps, duration=duration)
+    with Image.open(out) as gif:
+        assert gif.format == "GIF"
+        assert gif.n_frames == round(fps * duration)
+        assert gif.info["duration"] == pytest.approx(1000 / fps, abs=10)  # ms per frame (GIF stores 10 ms units)
+
+
+def test_cli_animate_gif_and_snake(tmp_path_factory, tmp_path):
+    _, csv = _plan(tmp_path_factory, "snake_planar")
+    out = tmp_path / "snake.gif"
+    run = CliRunner().invoke(cli, ["animate", str(csv), "-o", str(out), "--fps", "4", "--duration", "1"])
+    assert run.exit_code == 0, run.output
+    with Image.open(out) as gif:
+        assert gif.n_frames == 4
+    assert list(tmp_path.iterdir()) == [out]
+
+
+def test_mp4_with_ffmpeg(short_plan, tmp_path):
+    if shutil.which("ffmpeg") is None:
+        pytest.skip("ffmpeg not installed (apt-get install -y ffmpeg)")
+    out = animate_plan(short_plan[0], tmp_path / "arm.mp4", fps=5, duration=1)
+    assert out.read_bytes()[4:8] == b"ftyp"  # ISO base media file
+
+
+def test_mp4_without_ffmpeg_is_a_clear_error(short_plan, tmp_path, monkeypatch):
+    monkeypatch.setattr(animation.shutil, "which", lambda name: None)
+    run = CliRunner().invoke(cli, ["animate", str(short_plan[1]), "-o", str(tmp_path / "arm.mp4")])
+    assert run.exit_code == 4 and "ffmpeg" in run.output and ".gif" in run.output
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("args", [["-o", "-"], ["-o", "arm.avi"], ["-o", "arm.gif", "--fps", "0"],
+                                  ["-o", "arm.gif", "--duration", "-1"], ["-o", "arm.gif", "--fps", "1e6"]])
+def test_bad_options_exit_2_and_write_nothing(short_plan, tmp_path, monkeypatch, args):
+    monkeypatch.chdir(tmp_path)
+    run = CliRunner().invoke(cli, ["animate", str(short_plan[1]), *args])
+    assert run.exit_code == 2, run.output
+    assert not any(tmp_path.iterdir())
+
+
+def test_frames_are_evenly_spaced_plan_samples():
+    t = np.linspace(0.0, 10.0, 1001)
+    idx, duration = frame_samples(t, fps=4, duration=2.5)
+    assert duration == 2.5 and idx.size == 10
+    assert idx[0] == 0 and idx[-1] == t.size - 1
+    np.testing.assert_allclose(np.diff(t[idx]), 10.0 / 9, atol=0.011)  # one sample step
+    idx, duration = frame_samples(t, fps=20, duration=None)  # default: plan length capped at 10 s
+    assert duration == 10.0 and idx.size == 200

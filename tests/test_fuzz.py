@@ -1,0 +1,36 @@
+"""Fuzzing of the loaders (hypothesis, derandomized): 2 000 mutated robot files and 2 000
+mutated task files per run. Each case must end in a valid result or a clean ArmgenError with
+the documented exit code, within its time limit; a case that is certainly invalid must not
+be accepted; a failed plan writes nothing. ``benchmarks/fuzz.py`` runs 10 000+ of each."""
+
+from __future__ import annotations
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from fuzzing import FULL_PLAN_BASES, mutate_robot, mutate_task, robot_case, task_case
+
+FUZZ_SETTINGS = settings(max_examples=2000, derandomize=True, deadline=None, database=None,
+                         suppress_health_check=list(HealthCheck))
+# Share of task cases planned in full (and written) rather than only validated by the schema.
+FULL_PLAN_SHARE = 0.03
+
+
+@FUZZ_SETTINGS
+@given(st.randoms(use_true_random=False))
+def test_fuzzed_robot_files_end_cleanly(rng):
+    text, invalid = mutate_robot(rng)
+    outcome = robot_case(text)
+    assert outcome.kind in ("accepted", "clean"), f"{outcome.kind}: {outcome.detail}\n--- file:\n{text}"
+    assert not (invalid and outcome.kind == "accepted"), f"accepted nonsense:\n{text}"
+
+
+@FUZZ_SETTINGS
+@given(st.randoms(use_true_random=False))
+def test_fuzzed_task_files_end_cleanly(rng):
+    full = rng.random() < FULL_PLAN_SHARE
+    name, task, invalid = mutate_task(rng, FULL_PLAN_BASES if full else None)
+    outcome = task_case(task, full)
+    assert outcome.kind in ("accepted", "clean"), f"{name}: {outcome.kind}: {outcome.detail}\n{task}"
+    assert not (invalid and outcome.kind == "accepted"), f"{name}: accepted nonsense: {task}"
+    assert not outcome.wrote, f"{name}: a failed plan left files behind"

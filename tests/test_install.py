@@ -1,0 +1,331 @@
+"""A tool you install: build the sdist and the wheel, install the wheel into a fresh virtual
+environment outside the checkout, and use it from an empty folder as a new user would (your
+own robot file, your own folder, your own firmware project). Plus the bad-input cases of
+``gen``, ``verify``, ``firmware`` and ``examples``: one message naming the path and the fix,
+the documented exit code, nothing written."""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+import subprocess
+import sys
+import tarfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from armgen import fileio
+from armgen.cli.main import cli
+
+from conftest import require_tool
+
+REPO = Path(__file__).resolve().parent.parent
+HARDENED_IO = hasattr(fileio, "write_file_set")  # files created with the umask's permissions
+
+# A 6-DOF arm that is not bundled (UR5-like, standard DH, metres and degrees).
+ARM6 = """# A 6-DOF arm written by the install test (not bundled).
+name = "arm6"
+description = "UR5-like 6-DOF arm, standard DH"
+convention = "standard"
+
+[units]
+length = "m"
+angle = "deg"
+
+[[joints]]
+name = "shoulder_pan"
+type = "revolute"
+d = 0.089159
+a = 0
+alpha = 90
+qlim = [-360, 360]
+
+[[joints]]
+name = "shoulder_lift"
+type = "revolute"
+d = 0
+a = -0.425
+alpha = 0
+qlim = [-360, 360]
+
+[[joints]]
+name = "elbow"
+type = "revolute"
+d = 0
+a = -0.39225
+alpha = 0
+qlim = [-180, 180]
+
+[[joints]]
+name = "wrist1"
+type = "revolute"
+d = 0.10915
+a = 0
+alpha = 90
+qlim = [-360, 360]
+
+[[joints]]
+name = "wrist2"
+type = "revolute"
+d = 0.09465
+a = 0
+alpha = -90
+qlim = [-360, 360]
+
+[[joints]]
+name = "wrist3"
+type = "revolute"
+d = 0.0823
+a = 0
+alpha = 0
+qlim = [-360, 360]
+
+[configurations]
+q0 = [10, -100, 80, -70, -90, 20]
+"""
+
+
+def _hold_turns_into_a_rotation(robot_file: Path) -> bool:
+    """Issue 11's planner bug: the line path's axis-angle is acos of a trace that is ~1e-16 off,
+    so "orientation = hold" plans a ~3e-8 rad rotation for some start poses (arm6's q0 among
+    them) that the firmware, holding exactly, does not follow. True while the bug is present."""
+    from armgen.planning.paths import LinePath
+    from armgen.robot import load_robot
+    from armgen.symbolic.model import SymbolicModel
+
+    robot = load_robot(robot_file)
+    rot = np.array(SymbolicModel(robot).function("fk")(robot.configuration("q0")))[:3, :3]
+    return LinePath(np.zeros(3), np.ones(3), rot, rot).angle != 0.0
+
+
+def _mode(path: Path) -> int:
+    return stat.S_IMODE(path.stat().st_mode)
+
+
+def _tree(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def venv(tmp_path_factory):
+    """sdist + wheel built from the checkout; the wheel installed into a fresh venv (the
+    heavy dependencies come from the system site-packages; armgen itself from the wheel)."""
+    root = tmp_path_factory.mktemp("install")
+    dist = root / "dist"
+    proc = subprocess.run([sys.executable, "-m", "build", "--sdist", "--wheel", "--outdir", str(dist), str(REPO)],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    wheel = next(dist.glob("armgen-*.whl"))
+    sdist = next(dist.glob("armgen-*.tar.gz"))
+    env_dir = root / "venv"
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(env_dir)], check=True, timeout=300)
+    python = env_dir / "bin" / "python"
+    proc = subprocess.run([str(python), "-m", "pip", "install", "--no-deps", "--no-index", "--force-reinstall",
+                           str(wheel)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return {"python": python, "armgen": env_dir / "bin" / "armgen", "wheel": wheel, "sdist": sdist, "root": root}
+
+
+def _env() -> dict[str, str]:
+    """The user's environment: no PYTHONPATH pointing into a checkout."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    env["MPLBACKEND"] = "Agg"
+    return env
+
+
+def _run(venv, cwd: Path, *args: str, expect: int = 0, timeout: float = 600) -> subprocess.CompletedProcess:
+    proc = subprocess.run([str(venv["armgen"]), *args], cwd=cwd, env=_env(), capture_output=True, text=True,
+                          timeout=timeout, preexec_fn=lambda: os.umask(0o022))
+    assert proc.returncode == expect, f"armgen {' '.join(args)} -> {proc.returncode}\n{proc.stdout[-4000:]}\n{proc.stderr[-4000:]}"
+    return proc
+
+
+def test_distributions_carry_the_package_data_and_the_licence(venv):
+    wheel_names = set(zipfile.ZipFile(venv["wheel"]).namelist())
+    for name in ("armgen/data/robots/modular8.toml", "armgen/data/robots/snake12.toml",
+                 "armgen/data/examples/ptp_single_joint.toml", "armgen/data/firmware_stub/controller.c",
+                 "armgen/data/firmware_stub/host/main.c", "armgen/data/firmware_stub/arm/mps2_an386.ld",
+                 "armgen/data/firmware_stub/project/CMakeLists.txt.in",
+                 "armgen/data/firmware_stub/project/cmake/arm-none-eabi-cortex-m4.cmake"):
+        assert name in wheel_names, name
+    metadata = next(n for n in wheel_names if n.endswith("/METADATA"))
+    text = zipfile.ZipFile(venv["wheel"]).read(metadata).decode()
+    assert "BSD-3-Clause" in text
+    sdist_names = {n.split("/", 1)[1] for n in tarfile.open(venv["sdist"]).getnames() if "/" in n}
+    for name in ("LICENSE", "CHANGELOG.md", "CITATION.cff", "armgen/data/robots/panda.toml",
+                 "armgen/data/firmware_stub/project/README.md.in", "docs/robot-files.md"):
+        assert name in sdist_names, name
+
+
+def test_wheel_install_from_an_empty_folder(venv, tmp_path):
+    work = tmp_path / "work"
+    work.mkdir()
+    # armgen is the wheel's, not the checkout's
+    where = subprocess.run([str(venv["python"]), "-c", "import armgen, sys; print(armgen.__file__)"], cwd=work,
+                           env=_env(), capture_output=True, text=True, check=True).stdout.strip()
+    assert Path(where).is_relative_to(venv["root"] / "venv"), where
+
+    out = _run(venv, work, "robots").stdout
+    assert all(name in out for name in ("iiwa14", "modular8", "panda", "planar3", "snake12"))
+    assert "modified DH" in _run(venv, work, "show", "panda").stdout
+
+    # gen of a bundled robot: ./generated/<name>/ where the user is
+    _run(venv, work, "gen", "planar3")
+    gen = work / "generated" / "planar3"
+    assert sorted(p.name for p in gen.iterdir()) == ["manifest.json", "planar3.c", "planar3.h"]
+    assert (gen / "planar3.c").read_text() == (REPO / "generated" / "planar3" / "planar3.c").read_text()
+
+    # the user's 6-DOF robot, kept in a folder armgen must not write into
+    robots = work / "my_robots"
+    robots.mkdir()
+    (robots / "arm6.toml").write_text(ARM6)
+    robots.chmod(0o555)
+    before = _tree(robots)
+    _run(venv, work, "gen", "my_robots/arm6.toml")
+    assert (work / "generated" / "arm6" / "arm6.h").is_file()
+    _run(venv, work, "verify", "my_robots/arm6.toml", "--samples", "200")
+
+    # the examples, copied out and planned
+    _run(venv, work, "examples", "--copy", "examples")
+    assert (work / "examples" / "ptp_single_joint.toml").is_file()
+    _run(venv, work, "plan", "examples/ptp_single_joint.toml", "-o", "plans/ptp.csv")
+    assert (work / "plans" / "ptp.csv").is_file() and (work / "plans" / "ptp.json").is_file()
+
+    # a firmware project for the user's robot: CMake host build, demo run, verified
+    _run(venv, work, "firmware", "my_robots/arm6.toml", "--out", "fw")
+    fw = work / "fw"
+    subprocess.run(["cmake", "-S", str(fw), "-B", str(fw / "build")], check=True, capture_output=True, timeout=300)
+    build = subprocess.run(["cmake", "--build", str(fw / "build")], capture_output=True, text=True, timeout=600)
+    assert build.returncode == 0, build.stdout[-3000:] + build.stderr[-3000:]
+    demo = subprocess.run([str(fw / "build" / "arm6_demo")], capture_output=True, text=True, timeout=60)
+    assert demo.returncode == 0 and "# state DONE" in demo.stdout and "# fault NONE" in demo.stdout, demo.stdout[-2000:]
+    (fw / "run.csv").write_text(demo.stdout)
+    verify_run = ["verify", "robot.toml", "--generated", "generated", "--plan", "demo/plan.csv", "--run", "run.csv",
+                  "--samples", "100", "--precision", "double"]
+    if not _hold_turns_into_a_rotation(fw / "robot.toml"):
+        out = _run(venv, fw, *verify_run).stdout
+        assert "== run: PASS" in out and "== fresh: PASS" in out and "FAIL" not in out
+    else:  # the known planner bug: only the joint comparison with the (slightly rotating) plan may fail
+        out = _run(venv, fw, *verify_run, expect=5).stdout
+        assert "== fresh: PASS" in out and "== compile: PASS" in out and "== callbacks: PASS" in out
+        failing = [line for line in out.splitlines() if line.rstrip().endswith("FAIL") and "|" in line]
+        assert failing and all("max |Δq| [rad]" in line for line in failing), out[-3000:]
+        assert "DONE/NONE after 100 ticks" in out
+    assert _tree(robots) == before, "armgen wrote beside the robot file"
+
+    if HARDENED_IO:  # the all-or-nothing writer creates files with the umask's permissions
+        for path in [*gen.iterdir(), work / "plans" / "ptp.csv", work / "plans" / "ptp.json",
+                     fw / "generated" / "arm6.c", fw / "CMakeLists.txt"]:
+            assert _mode(path) == 0o644, (path, oct(_mode(path)))
+    else:  # the firmware project is written by this helper's own staging, already umask-true
+        for path in (fw / "generated" / "arm6.c", fw / "CMakeLists.txt", fw / "demo" / "plan.csv"):
+            assert _mode(path) == 0o644, (path, oct(_mode(path)))
+
+
+@pytest.mark.arm
+def test_firmware_project_cortex_m4_under_qemu(tmp_path, monkeypatch):
+    """The project's toolchain file builds the Cortex-M4F image; its QEMU run matches the plan."""
+    for tool in ("arm-none-eabi-gcc", "qemu-system-arm", "cmake"):
+        require_tool(tool)
+    monkeypatch.chdir(tmp_path)
+    out = CliRunner().invoke(cli, ["firmware", "modular8", "--out", "fw"])
+    assert out.exit_code == 0, out.output
+    fw = tmp_path / "fw"
+    configure = subprocess.run(["cmake", "-S", str(fw), "-B", str(fw / "build-m4"),
+                                f"-DCMAKE_TOOLCHAIN_FILE={fw / 'cmake' / 'arm-none-eabi-cortex-m4.cmake'}"],
+                               capture_output=True, text=True, timeout=300)
+    assert configure.returncode == 0, configure.stdout[-3000:] + configure.stderr[-3000:]
+    build = subprocess.run(["cmake", "--build", str(fw / "build-m4")], capture_output=True, text=True, timeout=600)
+    assert build.returncode == 0, build.stdout[-3000:] + build.stderr[-3000:]
+    # the README's `cmake --build build-m4 --target qemu > run-m4.csv 2>&1`
+    run = subprocess.run(["cmake", "--build", str(fw / "build-m4"), "--target", "qemu"], stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True, timeout=600)
+    assert run.returncode == 0 and "# state DONE" in run.stdout, run.stdout[-3000:]
+    (fw / "run-m4.csv").write_text(run.stdout)
+    monkeypatch.chdir(fw)
+    out = CliRunner().invoke(cli, ["verify", "robot.toml", "--generated", "generated", "--plan", "demo/plan.csv",
+                                   "--run", "run-m4.csv", "--samples", "50", "--precision", "float"])
+    assert out.exit_code == 0, out.output
+    assert "run-m4.csv (float)" in out.output and "== run: PASS" in out.output
+
+
+# --- bad input: one message naming the path and the fix, the exit code, nothing written ----
+
+def test_out_that_is_a_file(tmp_path):
+    target = tmp_path / "taken"
+    target.write_text("mine")
+    before = _tree(tmp_path)
+    out = CliRunner().invoke(cli, ["firmware", "planar3", "--out", str(target)])
+    assert out.exit_code == 4 and str(target) in out.output and "is a file" in out.output, out.output
+    out = CliRunner().invoke(cli, ["examples", "--copy", str(target)])
+    assert out.exit_code == 4 and str(target) in out.output, out.output
+    out = CliRunner().invoke(cli, ["gen", "planar3", "--out", str(target)])
+    assert out.exit_code in (2, 4) and str(target) in out.output, out.output
+    assert _tree(tmp_path) == before
+
+
+def test_firmware_refuses_a_foreign_folder_and_replaces_its_own(tmp_path):
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("keep")
+    out = CliRunner().invoke(cli, ["firmware", "planar3", "--out", str(foreign)])
+    assert out.exit_code == 4 and "not written by `armgen firmware`" in out.output, out.output
+    assert _tree(foreign) == {"notes.txt": b"keep"}
+    project = tmp_path / "project"
+    assert CliRunner().invoke(cli, ["firmware", "planar3", "--out", str(project)]).exit_code == 0
+    first = _tree(project)
+    assert CliRunner().invoke(cli, ["firmware", "planar3", "--out", str(project)]).exit_code == 0
+    second = _tree(project)
+    timing = "run_time_s"  # plan.json records how long planning took: the one varying field
+    metas = [json.loads(tree.pop("demo/plan.json")) for tree in (first, second)]
+    for meta in metas:
+        assert meta["summary"].pop(timing) >= 0 and meta["task_file"] == "demo/demo.toml"
+    assert second == first and metas[0] == metas[1], "regenerating the project is deterministic"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["foreign", "project"], "no staging folder left"
+
+
+def test_robot_file_in_a_read_only_folder_is_never_written_beside(tmp_path, monkeypatch):
+    robots = tmp_path / "ro"
+    robots.mkdir()
+    (robots / "arm6.toml").write_text(ARM6)
+    robots.chmod(0o555)
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    out = CliRunner().invoke(cli, ["gen", str(robots / "arm6.toml")])
+    assert out.exit_code == 0, out.output
+    assert (work / "generated" / "arm6" / "arm6.c").is_file()
+    assert [p.name for p in robots.iterdir()] == ["arm6.toml"]
+
+
+def test_unwritable_out_is_exit_4_and_writes_nothing(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    before = _tree(tmp_path)
+    out = CliRunner().invoke(cli, ["firmware", "planar3", "--out", str(blocker / "sub")])
+    assert out.exit_code == 4 and str(blocker) in out.output, out.output
+    assert _tree(tmp_path) == before
+
+
+def test_examples_copy_refuses_to_overwrite_a_changed_file(tmp_path):
+    assert CliRunner().invoke(cli, ["examples", "--copy", str(tmp_path)]).exit_code == 0
+    edited = tmp_path / "ptp_single_joint.toml"
+    edited.write_text("# my edits\n")
+    before = _tree(tmp_path)
+    out = CliRunner().invoke(cli, ["examples", "--copy", str(tmp_path)])
+    assert out.exit_code == 2 and str(edited) in out.output and "--force" in out.output, out.output
+    assert _tree(tmp_path) == before
+    assert CliRunner().invoke(cli, ["examples", "--copy", str(tmp_path), "--force"]).exit_code == 0
+    assert "my edits" not in edited.read_text()
+
+
+def test_examples_lists_every_bundled_task_file():
+    out = CliRunner().invoke(cli, ["examples"])
+    assert out.exit_code == 0
+    bundled = sorted(p.name for p in (REPO / "armgen" / "data" / "examples").glob("*.toml"))
+    assert bundled and all(name in out.output for name in bundled)

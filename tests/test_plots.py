@@ -1,0 +1,146 @@
+"""Figures of every planner: formats follow the extension, panels are the ones promised, the
+executed tool path (NumPy FK) matches the planner's own (CasADi) poses, bounds are drawn."""
+
+from __future__ import annotations
+
+from importlib.resources import files
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from armgen.cli.main import cli
+from armgen.planning.plotting import (JOINT_COLOURS, FigureWriteError, dh_frames,
+                                      executed_tool_path, plan_robot,
+                                      save_figure)
+from armgen.planning.result import write_plan
+from armgen.planning.tasks import load_task, plot_plan, run_task
+
+# example -> axes the figure promises: planner panels + twin axes + 3 tool-path views (3-D, top, side)
+EXPECTED_AXES = {
+    "modular8_circle_combined": 4 + 1 + 3,  # angles, velocities, criteria (+ windows twin), task error
+    "modular8_circle_pinv": 4 + 3,  # pinv still logs H_L (criteria panel) but opens no window (no twin)
+    "iiwa14_fault_circle_gpm": 5 + 3,  # no WLN-weights panel: GPM has no weights
+    "modular8_fault_circle_wln": 6 + 3,  # with the weights
+    "modular8_wgpm_demo": 6 + 3,
+    "ptp_single_joint": 4 * 3,  # θ ω ε jerk × three compared methods
+    "snake_planar": 6 + 2 + 1,  # six snapshots (top view), angles, accuracy (+ clearance twin)
+    "snake_tank": 12 + 2 + 1,  # six snapshots × (top, side)
+}
+SIGNATURES = {"png": (b"\x89PNG",), "svg": (b"<?xml", b"<svg"), "pdf": (b"%PDF",)}
+# FK of the plan's angles vs the planner's logged pose: both double precision, same chain
+FK_TOL = 1e-9  # m
+
+
+def example(name: str):
+    return files("armgen.data").joinpath("examples", f"{name}.toml")
+
+
+@pytest.fixture(scope="module")
+def plans(tmp_path_factory):
+    out = {}
+    root = tmp_path_factory.mktemp("plans")
+    for name in EXPECTED_AXES:
+        path = example(name)
+        task, sha = load_task(path)
+        result = run_task(task, str(path), sha)
+        csv, _ = write_plan(result, root / f"{name}.csv")
+        out[name] = (result, csv)
+    return out
+
+
+def labelled_lines(ax) -> list[str]:
+    return [line.get_label() for line in ax.get_lines() if not line.get_label().startswith("_")]
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED_AXES))
+def test_figure_has_the_promised_panels_none_empty(plans, name):
+    result, _ = plans[name]
+    fig = plot_plan(result, name)
+    assert len(fig.axes) == EXPECTED_AXES[name]
+    for ax in fig.axes:
+        assert ax.get_lines() or ax.collections or ax.patches, f"empty panel {ax.get_title()!r}"
+    if result.metadata["planner"] in ("cartesian", "fault_tolerant", "wgpm"):
+        n = len(result.metadata["robot"]["qlim_rad"])
+        angles = next(ax for ax in fig.axes if ax.get_title().startswith("joint angles"))
+        assert labelled_lines(angles)[:n] == [f"θ{i + 1}" for i in range(n)]
+        # each joint's limits are drawn in the joint's own colour
+        limit_colours = {line.get_color() for line in angles.get_lines() if line.get_label().startswith("_")}
+        assert {JOINT_COLOURS[i] for i in range(n)} <= limit_colours
+        velocities = next(ax for ax in fig.axes if ax.get_title().startswith("joint velocities"))
+        assert labelled_lines(velocities)[:n] == [f"θ̇{i + 1}" for i in range(n)]
+        title = fig.get_suptitle()
+        assert "closed path: final joint deviation" in title  # every bundled example is a closed circle
+        paths = [ax for ax in fig.axes if ax.get_title().startswith("tool path")]
+        assert len(paths) == 3 and all("executed" in " ".join(labelled_lines(ax)) for ax in paths)
+    if name == "iiwa14_fault_circle_gpm":
+        assert not any("WLN" in ax.get_title() for ax in fig.axes)
+    if name == "modular8_fault_circle_wln":
+        assert any("WLN" in ax.get_title() for ax in fig.axes)
+
+
+@pytest.mark.parametrize("name", ["modular8_circle_combined", "iiwa14_fault_circle_gpm", "snake_tank",
+                                  "ptp_single_joint"])
+@pytest.mark.parametrize("fmt", sorted(SIGNATURES))
+def test_plot_cli_writes_the_extensions_format(plans, tmp_path, name, fmt):
+    _, csv = plans[name]
+    out = tmp_path / f"figure.{fmt}"
+    run = CliRunner().invoke(cli, ["plot", str(csv), "-o", str(out)])
+    assert run.exit_code == 0, run.output
+    head = out.read_bytes()[:200].lstrip()
+    assert head.startswith(SIGNATURES[fmt]), head[:20]
+    assert list(tmp_path.iterdir()) == [out]  # no temporary left behind
+
+
+@pytest.mark.parametrize("bad", ["-", "figure.jpg", "figure", "outdir/"])
+def test_bad_output_is_a_clear_error_and_writes_nothing(plans, tmp_path, monkeypatch, bad):
+    _, csv = plans["ptp_single_joint"]
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "outdir").mkdir()
+    run = CliRunner().invoke(cli, ["plot", str(csv), "-o", bad])
+    assert run.exit_code == 2
+    assert "png" in run.output and "svg" in run.output and "pdf" in run.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["outdir"] and not any((tmp_path / "outdir").iterdir())
+
+
+def test_save_figure_rejects_a_directory(plans, tmp_path):
+    fig = plot_plan(plans["ptp_single_joint"][0], "ptp")
+    with pytest.raises(FigureWriteError, match="is a directory"):
+        save_figure(fig, tmp_path)
+
+
+@pytest.mark.parametrize("name", ["modular8_circle_combined", "iiwa14_fault_circle_gpm", "modular8_wgpm_demo"])
+def test_executed_tool_path_matches_the_planners_pose(plans, name):
+    """NumPy FK (plots, animation) against the planner's CasADi FK logged in x_m, y_m, z_m."""
+    result, _ = plans[name]
+    executed = executed_tool_path(result, plan_robot(result))
+    logged = np.column_stack([result.column(c) for c in ("x_m", "y_m", "z_m")])
+    np.testing.assert_allclose(executed, logged, atol=FK_TOL, rtol=0)
+
+
+def test_dh_frames_match_the_generated_fk(robot):
+    from armgen.symbolic.model import SymbolicModel
+
+    fk = SymbolicModel(robot).functions()["fk"]
+    q = np.random.default_rng(16).uniform(robot.qmin, robot.qmax, size=(20, robot.n))
+    frames = dh_frames(robot, q)
+    assert frames.shape == (20, robot.n + 2, 4, 4)
+    for k in range(q.shape[0]):
+        np.testing.assert_allclose(frames[k, -1], np.array(fk(q[k])), atol=FK_TOL, rtol=0)
+    np.testing.assert_allclose(frames[:, 0], np.broadcast_to(robot.base, (20, 4, 4)))
+
+
+def test_ptp_bounds_drawn_and_violations_marked(plans):
+    result, _ = plans["ptp_single_joint"]
+    fig = plot_plan(result, "ptp")
+    method_col = result.metadata["comparison"]["methods"].index(result.metadata["method"])
+    omega_ax = fig.axes[1 * 3 + method_col]  # row ω, the planned method's column
+    assert "bound j1" in labelled_lines(omega_ax)
+    crosses = [line for line in omega_ax.get_lines() if line.get_marker() == "x"]
+    failing = [c for c in result.metadata["timing"]["bound_check"] if not c["within_bounds"]]
+    assert len(crosses) == len(failing) > 0  # the planner's own bound check names the same segments
+    assert "bounds exceeded" in fig.axes[method_col].get_title()
+
+
+def test_joint_colours_distinct_for_25_joints():
+    assert len(set(JOINT_COLOURS[:25])) == 25
