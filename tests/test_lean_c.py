@@ -11,7 +11,6 @@ from armgen.codegen.generate import BOUNDED_TRIG_RANGE, BOUNDED_TRIG_ULP, Codege
 from armgen.codegen.stamp import comment_safe
 from armgen.codegen.toolchain import STRICT_FLAGS
 from armgen.errors import ArmgenError
-from pathlib import Path
 
 from armgen.robot import load_robot, parse_robot, resolve_robot_path
 from armgen.symbolic.model import STEP_FUNCTIONS, SymbolicModel

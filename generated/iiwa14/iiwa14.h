@@ -186,7 +186,7 @@ void iiwa14_zghal(const iiwa14_real q[IIWA14_NDOF], iiwa14_real *H_L, iiwa14_rea
 #define IIWA14_REPETITIVE_WORK_REALS 10
 void iiwa14_repetitive(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real q_init[IIWA14_NDOF], iiwa14_real *H_R, iiwa14_real grad_H_R[IIWA14_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 1192 add, 1318 mul, 197 div, 7 sqrt, 24 trig, 14 minmax, 26 compare; work: 257 reals. */
+ * ops: 1078 add, 1184 mul, 37 div, 13 sqrt, 24 trig, 7 minmax, 24 compare, 24 select; work: 315 reals. */
 #define IIWA14_JOINT_MANIPULABILITY_Q_ROWS 7
 #define IIWA14_JOINT_MANIPULABILITY_Q_COLS 1
 #define IIWA14_JOINT_MANIPULABILITY_A_ROWS 7
@@ -195,15 +195,15 @@ void iiwa14_repetitive(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real q_ini
 #define IIWA14_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define IIWA14_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 7
 #define IIWA14_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define IIWA14_JOINT_MANIPULABILITY_WORK_REALS 257
+#define IIWA14_JOINT_MANIPULABILITY_WORK_REALS 315
 void iiwa14_joint_manipulability(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 687 add, 834 mul, 59 div, 1 sqrt, 24 trig, 7 minmax, 12 compare; work: 158 reals. */
+ * ops: 903 add, 968 mul, 27 div, 6 sqrt, 24 trig, 6 minmax, 20 compare, 20 select; work: 230 reals. */
 #define IIWA14_MANIPULABILITY_Q_ROWS 7
 #define IIWA14_MANIPULABILITY_Q_COLS 1
 #define IIWA14_MANIPULABILITY_GRAD_W_ROWS 7
 #define IIWA14_MANIPULABILITY_GRAD_W_COLS 1
-#define IIWA14_MANIPULABILITY_WORK_REALS 158
+#define IIWA14_MANIPULABILITY_WORK_REALS 230
 void iiwa14_manipulability(const iiwa14_real q[IIWA14_NDOF], iiwa14_real delta, iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 63 add, 49 mul, 14 div, 29 minmax; work: 14 reals. */
@@ -214,7 +214,7 @@ void iiwa14_manipulability(const iiwa14_real q[IIWA14_NDOF], iiwa14_real delta, 
 #define IIWA14_CONTINUOUS_WEIGHTS_WORK_REALS 14
 void iiwa14_continuous_weights(const iiwa14_real q[IIWA14_NDOF], iiwa14_real band, iiwa14_real w_c[IIWA14_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 1683 add, 1991 mul, 241 div, 8 sqrt, 36 trig, 14 minmax, 38 compare; work: 284 reals. */
+ * ops: 1701 add, 1927 mul, 59 div, 14 sqrt, 36 trig, 7 minmax, 34 compare, 34 select; work: 343 reals. */
 #define IIWA14_FT_INDEX_Q_ROWS 7
 #define IIWA14_FT_INDEX_Q_COLS 1
 #define IIWA14_FT_INDEX_MASK_ROWS 7
@@ -227,7 +227,7 @@ void iiwa14_continuous_weights(const iiwa14_real q[IIWA14_NDOF], iiwa14_real ban
 #define IIWA14_FT_INDEX_GRAD_H_M_COLS 1
 #define IIWA14_FT_INDEX_GRAD_W_ROWS 7
 #define IIWA14_FT_INDEX_GRAD_W_COLS 1
-#define IIWA14_FT_INDEX_WORK_REALS 284
+#define IIWA14_FT_INDEX_WORK_REALS 343
 void iiwa14_ft_index(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF], iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 24 reals. */
@@ -286,7 +286,7 @@ iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_FAULT_WORK_REALS 138
 iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 3769 add, 4458 mul, 810 div, 280 sqrt, 24 trig, 2 pow, 178 minmax, 220 compare, 180 select; work: 317 reals. */
+ * ops: 3655 add, 4324 mul, 650 div, 286 sqrt, 24 trig, 2 pow, 171 minmax, 218 compare, 204 select; work: 380 reals. */
 #define IIWA14_STEP_WGPM_Q_ROWS 7
 #define IIWA14_STEP_WGPM_Q_COLS 1
 #define IIWA14_STEP_WGPM_XDOT_ROWS 6
@@ -311,7 +311,7 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
 #define IIWA14_STEP_WGPM_GAINS_COLS 1
 #define IIWA14_STEP_WGPM_H_ROWS 4
 #define IIWA14_STEP_WGPM_H_COLS 1
-#define IIWA14_STEP_WGPM_WORK_REALS 317
+#define IIWA14_STEP_WGPM_WORK_REALS 380
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 
 #ifdef __cplusplus

@@ -186,7 +186,7 @@ void modular8_zghal(const modular8_real q[MODULAR8_NDOF], modular8_real *H_L, mo
 #define MODULAR8_REPETITIVE_WORK_REALS 11
 void modular8_repetitive(const modular8_real q[MODULAR8_NDOF], const modular8_real q_init[MODULAR8_NDOF], modular8_real *H_R, modular8_real grad_H_R[MODULAR8_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 1392 add, 1510 mul, 217 div, 8 sqrt, 28 trig, 15 minmax, 28 compare; work: 293 reals. */
+ * ops: 1502 add, 1624 mul, 38 div, 14 sqrt, 28 trig, 7 minmax, 24 compare, 24 select; work: 437 reals. */
 #define MODULAR8_JOINT_MANIPULABILITY_Q_ROWS 8
 #define MODULAR8_JOINT_MANIPULABILITY_Q_COLS 1
 #define MODULAR8_JOINT_MANIPULABILITY_A_ROWS 8
@@ -195,15 +195,15 @@ void modular8_repetitive(const modular8_real q[MODULAR8_NDOF], const modular8_re
 #define MODULAR8_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define MODULAR8_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 8
 #define MODULAR8_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define MODULAR8_JOINT_MANIPULABILITY_WORK_REALS 293
+#define MODULAR8_JOINT_MANIPULABILITY_WORK_REALS 437
 void modular8_joint_manipulability(const modular8_real q[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 813 add, 957 mul, 59 div, 1 sqrt, 28 trig, 7 minmax, 12 compare; work: 190 reals. */
+ * ops: 1108 add, 1158 mul, 27 div, 6 sqrt, 28 trig, 6 minmax, 20 compare, 20 select; work: 281 reals. */
 #define MODULAR8_MANIPULABILITY_Q_ROWS 8
 #define MODULAR8_MANIPULABILITY_Q_COLS 1
 #define MODULAR8_MANIPULABILITY_GRAD_W_ROWS 8
 #define MODULAR8_MANIPULABILITY_GRAD_W_COLS 1
-#define MODULAR8_MANIPULABILITY_WORK_REALS 190
+#define MODULAR8_MANIPULABILITY_WORK_REALS 281
 void modular8_manipulability(const modular8_real q[MODULAR8_NDOF], modular8_real delta, modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 72 add, 56 mul, 16 div, 33 minmax; work: 11 reals. */
@@ -214,7 +214,7 @@ void modular8_manipulability(const modular8_real q[MODULAR8_NDOF], modular8_real
 #define MODULAR8_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void modular8_continuous_weights(const modular8_real q[MODULAR8_NDOF], modular8_real band, modular8_real w_c[MODULAR8_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 1965 add, 2281 mul, 261 div, 9 sqrt, 42 trig, 15 minmax, 40 compare; work: 324 reals. */
+ * ops: 2259 add, 2506 mul, 60 div, 15 sqrt, 42 trig, 7 minmax, 34 compare, 34 select; work: 470 reals. */
 #define MODULAR8_FT_INDEX_Q_ROWS 8
 #define MODULAR8_FT_INDEX_Q_COLS 1
 #define MODULAR8_FT_INDEX_MASK_ROWS 8
@@ -227,7 +227,7 @@ void modular8_continuous_weights(const modular8_real q[MODULAR8_NDOF], modular8_
 #define MODULAR8_FT_INDEX_GRAD_H_M_COLS 1
 #define MODULAR8_FT_INDEX_GRAD_W_ROWS 8
 #define MODULAR8_FT_INDEX_GRAD_W_COLS 1
-#define MODULAR8_FT_INDEX_WORK_REALS 324
+#define MODULAR8_FT_INDEX_WORK_REALS 470
 void modular8_ft_index(const modular8_real q[MODULAR8_NDOF], const modular8_real mask[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF], modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 40 add, 64 mul, 16 div, 34 minmax, 18 compare, 16 select; work: 26 reals. */
@@ -286,7 +286,7 @@ modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_FAULT_WORK_REALS 144
 modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 4059 add, 4744 mul, 835 div, 281 sqrt, 28 trig, 2 pow, 184 minmax, 224 compare, 180 select; work: 361 reals. */
+ * ops: 4169 add, 4858 mul, 656 div, 287 sqrt, 28 trig, 2 pow, 176 minmax, 220 compare, 204 select; work: 503 reals. */
 #define MODULAR8_STEP_WGPM_Q_ROWS 8
 #define MODULAR8_STEP_WGPM_Q_COLS 1
 #define MODULAR8_STEP_WGPM_XDOT_ROWS 6
@@ -311,7 +311,7 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_GAINS_COLS 1
 #define MODULAR8_STEP_WGPM_H_ROWS 4
 #define MODULAR8_STEP_WGPM_H_COLS 1
-#define MODULAR8_STEP_WGPM_WORK_REALS 361
+#define MODULAR8_STEP_WGPM_WORK_REALS 503
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 
 #ifdef __cplusplus

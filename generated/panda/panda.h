@@ -186,7 +186,7 @@ void panda_zghal(const panda_real q[PANDA_NDOF], panda_real *H_L, panda_real gra
 #define PANDA_REPETITIVE_WORK_REALS 10
 void panda_repetitive(const panda_real q[PANDA_NDOF], const panda_real q_init[PANDA_NDOF], panda_real *H_R, panda_real grad_H_R[PANDA_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 1234 add, 1354 mul, 197 div, 7 sqrt, 24 trig, 14 minmax, 26 compare; work: 263 reals. */
+ * ops: 1120 add, 1220 mul, 37 div, 13 sqrt, 24 trig, 7 minmax, 24 compare, 24 select; work: 321 reals. */
 #define PANDA_JOINT_MANIPULABILITY_Q_ROWS 7
 #define PANDA_JOINT_MANIPULABILITY_Q_COLS 1
 #define PANDA_JOINT_MANIPULABILITY_A_ROWS 7
@@ -195,15 +195,15 @@ void panda_repetitive(const panda_real q[PANDA_NDOF], const panda_real q_init[PA
 #define PANDA_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define PANDA_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 7
 #define PANDA_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define PANDA_JOINT_MANIPULABILITY_WORK_REALS 263
+#define PANDA_JOINT_MANIPULABILITY_WORK_REALS 321
 void panda_joint_manipulability(const panda_real q[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 729 add, 870 mul, 59 div, 1 sqrt, 24 trig, 7 minmax, 12 compare; work: 164 reals. */
+ * ops: 945 add, 1004 mul, 27 div, 6 sqrt, 24 trig, 6 minmax, 20 compare, 20 select; work: 236 reals. */
 #define PANDA_MANIPULABILITY_Q_ROWS 7
 #define PANDA_MANIPULABILITY_Q_COLS 1
 #define PANDA_MANIPULABILITY_GRAD_W_ROWS 7
 #define PANDA_MANIPULABILITY_GRAD_W_COLS 1
-#define PANDA_MANIPULABILITY_WORK_REALS 164
+#define PANDA_MANIPULABILITY_WORK_REALS 236
 void panda_manipulability(const panda_real q[PANDA_NDOF], panda_real delta, panda_real *w, panda_real grad_w[PANDA_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 63 add, 49 mul, 14 div, 29 minmax; work: 12 reals. */
@@ -214,7 +214,7 @@ void panda_manipulability(const panda_real q[PANDA_NDOF], panda_real delta, pand
 #define PANDA_CONTINUOUS_WEIGHTS_WORK_REALS 12
 void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, panda_real w_c[PANDA_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 1749 add, 2048 mul, 241 div, 8 sqrt, 36 trig, 14 minmax, 38 compare; work: 290 reals. */
+ * ops: 1767 add, 1984 mul, 59 div, 14 sqrt, 36 trig, 7 minmax, 34 compare, 34 select; work: 349 reals. */
 #define PANDA_FT_INDEX_Q_ROWS 7
 #define PANDA_FT_INDEX_Q_COLS 1
 #define PANDA_FT_INDEX_MASK_ROWS 7
@@ -227,7 +227,7 @@ void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, p
 #define PANDA_FT_INDEX_GRAD_H_M_COLS 1
 #define PANDA_FT_INDEX_GRAD_W_ROWS 7
 #define PANDA_FT_INDEX_GRAD_W_COLS 1
-#define PANDA_FT_INDEX_WORK_REALS 290
+#define PANDA_FT_INDEX_WORK_REALS 349
 void panda_ft_index(const panda_real q[PANDA_NDOF], const panda_real mask[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF], panda_real *w, panda_real grad_w[PANDA_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 24 reals. */
@@ -286,7 +286,7 @@ panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_FAULT_WORK_REALS 138
 panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 3811 add, 4494 mul, 810 div, 280 sqrt, 24 trig, 2 pow, 178 minmax, 220 compare, 180 select; work: 325 reals. */
+ * ops: 3697 add, 4360 mul, 650 div, 286 sqrt, 24 trig, 2 pow, 171 minmax, 218 compare, 204 select; work: 385 reals. */
 #define PANDA_STEP_WGPM_Q_ROWS 7
 #define PANDA_STEP_WGPM_Q_COLS 1
 #define PANDA_STEP_WGPM_XDOT_ROWS 6
@@ -311,7 +311,7 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_GAINS_COLS 1
 #define PANDA_STEP_WGPM_H_ROWS 4
 #define PANDA_STEP_WGPM_H_COLS 1
-#define PANDA_STEP_WGPM_WORK_REALS 325
+#define PANDA_STEP_WGPM_WORK_REALS 385
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 
 #ifdef __cplusplus

@@ -186,7 +186,7 @@ void snake12_zghal(const snake12_real q[SNAKE12_NDOF], snake12_real *H_L, snake1
 #define SNAKE12_REPETITIVE_WORK_REALS 28
 void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q_init[SNAKE12_NDOF], snake12_real *H_R, snake12_real grad_H_R[SNAKE12_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 4361 add, 4556 mul, 556 div, 25 sqrt, 96 trig, 32 minmax, 62 compare; work: 788 reals. */
+ * ops: 18698 add, 19641 mul, 55 div, 31 sqrt, 96 trig, 7 minmax, 22 compare, 20 select; work: 5825 reals. */
 #define SNAKE12_JOINT_MANIPULABILITY_Q_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_Q_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_A_ROWS 25
@@ -195,15 +195,15 @@ void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q
 #define SNAKE12_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 788
+#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 5825
 void snake12_joint_manipulability(const snake12_real q[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 2541 add, 2847 mul, 59 div, 1 sqrt, 96 trig, 7 minmax, 12 compare; work: 488 reals. */
+ * ops: 4177 add, 4215 mul, 27 div, 6 sqrt, 96 trig, 6 minmax, 18 compare, 16 select; work: 799 reals. */
 #define SNAKE12_MANIPULABILITY_Q_ROWS 25
 #define SNAKE12_MANIPULABILITY_Q_COLS 1
 #define SNAKE12_MANIPULABILITY_GRAD_W_ROWS 25
 #define SNAKE12_MANIPULABILITY_GRAD_W_COLS 1
-#define SNAKE12_MANIPULABILITY_WORK_REALS 488
+#define SNAKE12_MANIPULABILITY_WORK_REALS 799
 void snake12_manipulability(const snake12_real q[SNAKE12_NDOF], snake12_real delta, snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 224 add, 175 mul, 50 div, 101 minmax; work: 11 reals. */
@@ -214,7 +214,7 @@ void snake12_manipulability(const snake12_real q[SNAKE12_NDOF], snake12_real del
 #define SNAKE12_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real band, snake12_real w_c[SNAKE12_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 6108 add, 6876 mul, 600 div, 26 sqrt, 144 trig, 32 minmax, 74 compare; work: 884 reals. */
+ * ops: 21530 add, 22778 mul, 77 div, 32 sqrt, 144 trig, 7 minmax, 34 compare, 34 select; work: 5923 reals. */
 #define SNAKE12_FT_INDEX_Q_ROWS 25
 #define SNAKE12_FT_INDEX_Q_COLS 1
 #define SNAKE12_FT_INDEX_MASK_ROWS 25
@@ -227,7 +227,7 @@ void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real
 #define SNAKE12_FT_INDEX_GRAD_H_M_COLS 1
 #define SNAKE12_FT_INDEX_GRAD_W_ROWS 25
 #define SNAKE12_FT_INDEX_GRAD_W_COLS 1
-#define SNAKE12_FT_INDEX_WORK_REALS 884
+#define SNAKE12_FT_INDEX_WORK_REALS 5923
 void snake12_ft_index(const snake12_real q[SNAKE12_NDOF], const snake12_real mask[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF], snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 125 add, 200 mul, 50 div, 102 minmax, 52 compare, 50 select; work: 60 reals. */
@@ -286,7 +286,7 @@ snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_FAULT_WORK_REALS 320
 snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 8490 add, 9310 mul, 1259 div, 298 sqrt, 96 trig, 2 pow, 286 minmax, 292 compare, 180 select; work: 939 reals. */
+ * ops: 22827 add, 24395 mul, 758 div, 304 sqrt, 96 trig, 2 pow, 261 minmax, 252 compare, 200 select; work: 5992 reals. */
 #define SNAKE12_STEP_WGPM_Q_ROWS 25
 #define SNAKE12_STEP_WGPM_Q_COLS 1
 #define SNAKE12_STEP_WGPM_XDOT_ROWS 6
@@ -311,7 +311,7 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_GAINS_COLS 1
 #define SNAKE12_STEP_WGPM_H_ROWS 4
 #define SNAKE12_STEP_WGPM_H_COLS 1
-#define SNAKE12_STEP_WGPM_WORK_REALS 939
+#define SNAKE12_STEP_WGPM_WORK_REALS 5992
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 
 #ifdef __cplusplus
