@@ -82,11 +82,13 @@ typedef double iiwa14_real;
 /* Lean math (no library calls where the FPU or a comparison does the job). */
 static inline iiwa14_real iiwa14_fmin(iiwa14_real a, iiwa14_real b) { return ((a < b) || (b != b)) ? a : b; }
 static inline iiwa14_real iiwa14_fmax(iiwa14_real a, iiwa14_real b) { return ((a > b) || (b != b)) ? a : b; }
-static inline int iiwa14_isfinite(iiwa14_real x) { iiwa14_real d = x - x; return (d == d) ? 1 : 0; }
+/* x - x is 0 for a finite x and NaN for NaN/inf, and NaN propagates through the sum: one
+ * subtraction and one addition per value, a single comparison at the end. */
 static inline int iiwa14_all_finite(const iiwa14_real *x, int count) {
-  int k, ok = 1;
-  for (k = 0; k < count; ++k) { ok = ok & iiwa14_isfinite(x[k]); }
-  return ok;
+  int k;
+  iiwa14_real acc = x[0] - x[0];
+  for (k = 1; k < count; ++k) { acc += x[k] - x[k]; }
+  return (acc == acc) ? 1 : 0;
 }
 static inline iiwa14_real iiwa14_sqrt(iiwa14_real x) {
 #if IIWA14_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
@@ -100,30 +102,37 @@ static inline iiwa14_real iiwa14_sqrt(iiwa14_real x) {
 #endif
 }
 #if IIWA14_USE_FLOAT && IIWA14_BOUNDED_TRIG
+/* Always inlined (gcc/clang), also at -Os: the sin and cos of one joint angle then share the
+ * reduction, and no call is made. */
+#if defined(__GNUC__)
+#define IIWA14_TRIG_INLINE static inline __attribute__((always_inline))
+#else
+#define IIWA14_TRIG_INLINE static inline
+#endif
 /* x = k pi/2 + r, |r| <= pi/4; |x| beyond 100 rad is outside the documented range
  * (still finite), NaN/inf give NaN. */
-static inline float iiwa14_reduce(float x, int *quadrant) {
+IIWA14_TRIG_INLINE float iiwa14_reduce(float x, int *quadrant) {
   const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
   float k = (x * 0.636619772367581343f + shifter) - shifter;
   float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
   *quadrant = ((int)kc) & 3;
   return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
 }
-static inline float iiwa14_sin_poly(float r) {
+IIWA14_TRIG_INLINE float iiwa14_sin_poly(float r) {
   float z = r * r;
   return r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
 }
-static inline float iiwa14_cos_poly(float r) {
+IIWA14_TRIG_INLINE float iiwa14_cos_poly(float r) {
   float z = r * r;
   return 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
 }
-static inline float iiwa14_sin_bounded(float x) {
+IIWA14_TRIG_INLINE float iiwa14_sin_bounded(float x) {
   int quadrant;
   float r = iiwa14_reduce(x, &quadrant);
   float v = ((quadrant & 1) != 0) ? iiwa14_cos_poly(r) : iiwa14_sin_poly(r);
   return ((quadrant & 2) != 0) ? -v : v;
 }
-static inline float iiwa14_cos_bounded(float x) {
+IIWA14_TRIG_INLINE float iiwa14_cos_bounded(float x) {
   int quadrant;
   float r = iiwa14_reduce(x, &quadrant);
   float v = ((quadrant & 1) != 0) ? iiwa14_sin_poly(r) : iiwa14_cos_poly(r);

@@ -82,11 +82,13 @@ typedef double snake12_real;
 /* Lean math (no library calls where the FPU or a comparison does the job). */
 static inline snake12_real snake12_fmin(snake12_real a, snake12_real b) { return ((a < b) || (b != b)) ? a : b; }
 static inline snake12_real snake12_fmax(snake12_real a, snake12_real b) { return ((a > b) || (b != b)) ? a : b; }
-static inline int snake12_isfinite(snake12_real x) { snake12_real d = x - x; return (d == d) ? 1 : 0; }
+/* x - x is 0 for a finite x and NaN for NaN/inf, and NaN propagates through the sum: one
+ * subtraction and one addition per value, a single comparison at the end. */
 static inline int snake12_all_finite(const snake12_real *x, int count) {
-  int k, ok = 1;
-  for (k = 0; k < count; ++k) { ok = ok & snake12_isfinite(x[k]); }
-  return ok;
+  int k;
+  snake12_real acc = x[0] - x[0];
+  for (k = 1; k < count; ++k) { acc += x[k] - x[k]; }
+  return (acc == acc) ? 1 : 0;
 }
 static inline snake12_real snake12_sqrt(snake12_real x) {
 #if SNAKE12_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
@@ -100,30 +102,37 @@ static inline snake12_real snake12_sqrt(snake12_real x) {
 #endif
 }
 #if SNAKE12_USE_FLOAT && SNAKE12_BOUNDED_TRIG
+/* Always inlined (gcc/clang), also at -Os: the sin and cos of one joint angle then share the
+ * reduction, and no call is made. */
+#if defined(__GNUC__)
+#define SNAKE12_TRIG_INLINE static inline __attribute__((always_inline))
+#else
+#define SNAKE12_TRIG_INLINE static inline
+#endif
 /* x = k pi/2 + r, |r| <= pi/4; |x| beyond 100 rad is outside the documented range
  * (still finite), NaN/inf give NaN. */
-static inline float snake12_reduce(float x, int *quadrant) {
+SNAKE12_TRIG_INLINE float snake12_reduce(float x, int *quadrant) {
   const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
   float k = (x * 0.636619772367581343f + shifter) - shifter;
   float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
   *quadrant = ((int)kc) & 3;
   return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
 }
-static inline float snake12_sin_poly(float r) {
+SNAKE12_TRIG_INLINE float snake12_sin_poly(float r) {
   float z = r * r;
   return r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
 }
-static inline float snake12_cos_poly(float r) {
+SNAKE12_TRIG_INLINE float snake12_cos_poly(float r) {
   float z = r * r;
   return 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
 }
-static inline float snake12_sin_bounded(float x) {
+SNAKE12_TRIG_INLINE float snake12_sin_bounded(float x) {
   int quadrant;
   float r = snake12_reduce(x, &quadrant);
   float v = ((quadrant & 1) != 0) ? snake12_cos_poly(r) : snake12_sin_poly(r);
   return ((quadrant & 2) != 0) ? -v : v;
 }
-static inline float snake12_cos_bounded(float x) {
+SNAKE12_TRIG_INLINE float snake12_cos_bounded(float x) {
   int quadrant;
   float r = snake12_reduce(x, &quadrant);
   float v = ((quadrant & 1) != 0) ? snake12_sin_poly(r) : snake12_cos_poly(r);
