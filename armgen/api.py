@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
-from .errors import TaskFileError
+from .errors import OptionError
 from .robot import Robot, load_robot, load_robot_any
 
 if TYPE_CHECKING:  # heavy imports only for type checkers
@@ -101,20 +101,31 @@ class Plan:
 
         return plot_plan(self.result, str(self.metadata.get("task_file", "plan")))
 
+    def animate(self, path: str | Path, fps: float | None = None, duration: float | None = None) -> Path:
+        """Render the arm moving through the plan, as ``armgen animate`` does.
 
-def _set_override(task: dict[str, Any], key: str, value: Any) -> None:
-    parts = [p.strip() for p in key.replace("__", ".").split(".")]
-    if not all(parts):
-        raise TaskFileError(f"override {key!r}: empty key component")
-    node = task
-    for part in parts[:-1]:
-        node = node.setdefault(part, {})
-        if not isinstance(node, dict):
-            raise TaskFileError(f"override {key!r}: '{part}' is not a table in the task")
-    node[parts[-1]] = value
+        Parameters
+        ----------
+        path
+            ``.gif`` (Pillow) or ``.mp4`` (needs ffmpeg), written atomically.
+        fps
+            Frames per second (default: ``armgen animate``'s).
+        duration
+            Seconds of video (default: the plan's duration, at most 10 s); the samples are
+            subsampled to ``fps × duration`` frames.
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+        """
+        from .planning.animation import DEFAULT_FPS, animate_plan
+
+        return animate_plan(self.result, path, DEFAULT_FPS if fps is None else fps, duration)
 
 
-def plan(task: str | Path | dict[str, Any], backend: str = "symbolic", **overrides: Any) -> Plan:
+def plan(task: str | Path | dict[str, Any], backend: str = "symbolic", *, max_steps: int | None = None,
+         max_samples: int | None = None, **overrides: Any) -> Plan:
     """Plan a task, as ``armgen plan`` does (without writing files).
 
     Parameters
@@ -126,6 +137,9 @@ def plan(task: str | Path | dict[str, Any], backend: str = "symbolic", **overrid
     **overrides
         Task fields to replace, with dotted keys for tables: ``**{"timing.duration": 4.0}``,
         or ``timing__duration=4.0`` (``__`` stands for the dot). Values are Python values.
+    max_steps, max_samples
+        Caps on integration steps and output rows, checked before planning (default:
+        :data:`~armgen.planning.tasks.MAX_INTEGRATION_STEPS`, ``MAX_OUTPUT_SAMPLES``).
 
     Returns
     -------
@@ -138,7 +152,7 @@ def plan(task: str | Path | dict[str, Any], backend: str = "symbolic", **overrid
     PlanningError
         The task is infeasible (exit code 3).
     """
-    from .planning.tasks import load_task, run_task
+    from .planning.tasks import ResourceCaps, load_task, run_task, set_field
 
     if isinstance(task, dict):
         parsed, sha, source = copy.deepcopy(task), "", "<task dict>"
@@ -146,8 +160,10 @@ def plan(task: str | Path | dict[str, Any], backend: str = "symbolic", **overrid
         parsed, sha = load_task(task)
         source = str(task)
     for key, value in overrides.items():
-        _set_override(parsed, key, value)
-    return Plan(run_task(parsed, source, sha, backend))
+        set_field(parsed, key.replace("__", "."), value, f"override {key!r}")
+    caps = ResourceCaps()
+    caps = ResourceCaps(max_steps or caps.max_steps, max_samples or caps.max_samples)
+    return Plan(run_task(parsed, source, sha, backend, caps))
 
 
 # -- code generation ----------------------------------------------------------------------------
@@ -183,7 +199,7 @@ def generate(robot: Robot | str | Path, out: str | Path | None = None, precision
     robot
         A :class:`Robot`, a bundled name, a robot TOML or a URDF path.
     out
-        Output directory (default: the repository's ``generated/<robot>/``, as ``armgen gen``).
+        Output directory (default: ``./generated/<robot>/`` under the current directory).
     precision
         The header's default real type, ``"double"`` or ``"float"``.
     prefix
@@ -199,10 +215,8 @@ def generate(robot: Robot | str | Path, out: str | Path | None = None, precision
 
     try:
         code, paths = generate_robot(load_robot_any(robot), out, precision, prefix, functions)
-    except ValueError as exc:  # an unknown function name
-        from .errors import ArmgenError
-
-        raise ArmgenError(str(exc)) from None
+    except ValueError as exc:  # an invalid prefix or function name
+        raise OptionError(str(exc)) from None
     return Generated(code.prefix, tuple(paths), {e.name: e.flops for e in code.emitted}, code.generation_seconds)
 
 
@@ -238,14 +252,14 @@ class VerifyReport:
 
 def verify(robot: Robot | str | Path, plan: str | Path | None = None, samples: int = 10_000,
            precision: str | None = None, target: str | None = None, report: str | Path | None = None,
-           echo: Callable[[str], None] | None = None) -> VerifyReport:
-    """Check that the checked-in generated C does what the symbolic model does (spec 60).
+           echo: Callable[[str], None] | None = None, generated: str | Path | None = None,
+           run: str | Path | None = None) -> VerifyReport:
+    """Check that generated C, fresh for the robot's file, does what the symbolic model does.
 
     Parameters
     ----------
     robot
-        A :class:`Robot`, bundled name, robot TOML or URDF path; its C must be in
-        ``generated/<robot>/`` (``armgen.generate(robot)``).
+        A :class:`Robot`, bundled name, robot TOML or URDF path.
     plan
         A plan CSV (with its ``plan.json``) to replay through the C backend and firmware.
     samples
@@ -258,6 +272,10 @@ def verify(robot: Robot | str | Path, plan: str | Path | None = None, samples: i
         Also write the JSON report here.
     echo
         Called with each stage's table as it finishes (default: silent).
+    generated
+        The folder ``armgen.generate`` wrote (default: ``./generated/<robot>/``).
+    run
+        What a firmware run printed (CSV), compared with ``plan``.
 
     Returns
     -------
@@ -266,8 +284,15 @@ def verify(robot: Robot | str | Path, plan: str | Path | None = None, samples: i
     """
     from .verify.pipeline import VerifyConfig, run_pipeline
 
+    if run is not None and plan is None:
+        raise OptionError("--run needs --plan: the plan the firmware ran (e.g. demo/plan.csv of `armgen firmware`)")
+    if report is not None and Path(report).is_dir():
+        raise OptionError(f"--report {report}: is a folder; give a file name, e.g. {Path(report) / 'verify.json'}")
     precisions = (precision,) if precision else ("double", "float")
     loaded = load_robot_any(robot)
-    config = VerifyConfig(loaded, Path(plan) if plan else None, samples, precisions, target)
+    config = VerifyConfig(loaded, Path(plan) if plan else None, samples, precisions, target,
+                          generated=Path(generated) if generated else None,
+                          robot_ref=loaded.source if isinstance(robot, Robot) else str(robot),
+                          run=Path(run) if run else None)
     stages = run_pipeline(config, Path(report) if report else None, echo or (lambda _line: None))
     return VerifyReport(loaded.name, tuple(stages))

@@ -42,7 +42,7 @@ from numpy.typing import ArrayLike
 from pydantic import ValidationError
 
 from .errors import RobotFileError
-from .robot_schema import RobotFile
+from .robot_schema import RobotFile, UrdfRobotFile
 from .schemas import IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded
 
 BUNDLED_DIR = Path(str(resources.files("armgen.data") / "robots"))
@@ -488,10 +488,11 @@ def _robot_place(doc: dict[str, Any], loc: tuple) -> str:
     return "[" + ".".join(str(p) for p in loc) + "]"
 
 
-def validate_robot_document(doc: dict[str, Any], source: str) -> RobotFile:
-    """Check a parsed robot file against :class:`RobotFile` (keys, types, finite numbers, name rules)."""
+def validate_robot_document(doc: dict[str, Any], source: str) -> RobotFile | UrdfRobotFile:
+    """Check a parsed robot file against :class:`RobotFile`, or :class:`UrdfRobotFile` when it
+    references a URDF (keys, types, finite numbers, name rules)."""
     try:
-        return RobotFile.model_validate(doc)
+        return (UrdfRobotFile if "urdf" in doc else RobotFile).model_validate(doc)
     except ValidationError as exc:
         raise RobotFileError(format_validation_error(exc, source, doc, where=lambda loc: _robot_place(doc, loc))) from None
 
@@ -510,9 +511,9 @@ def parse_robot(text: str, source: str, sha256: str | None = None, directory: Pa
     reader = _Reader(source)
     doc = parse_toml_bounded(text, source, RobotFileError)
     sha256 = sha256 or hashlib.sha256(text.encode()).hexdigest()
+    validate_robot_document(doc, source)
     if "urdf" in doc:
         return _parse_urdf_robot_file(reader, doc, sha256, directory or Path("."))
-    validate_robot_document(doc, source)
     name = reader.string(doc, "name", "file")
     description = reader.string(doc, "description", "file", default="-")
     convention = reader.string(doc, "convention", "file", CONVENTIONS)
@@ -652,8 +653,6 @@ def _decode(path: Path, data: bytes) -> str:
 
 # A robot name becomes the default C prefix and output directory: letters, digits, _ and -.
 _ROBOT_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
-_URDF_TOP_FIELDS = {"name", "description", "urdf", "base_link", "tip_link", "units", "base", "tool",
-                    "configurations", "task_rows", "limits"}
 
 
 def _urdf_robot(path: Path, data: bytes, base_link: str | None, tip_link: str | None, sha256: str,
@@ -721,12 +720,9 @@ def _urdf_robot(path: Path, data: bytes, base_link: str | None, tip_link: str | 
 
 
 def _parse_urdf_robot_file(reader: _Reader, doc: dict, sha256: str, directory: Path) -> Robot:
-    """A robot file that references a URDF: ``urdf``, ``base_link``, ``tip_link`` plus the
-    usual name, units, base, tool, configurations, task_rows and a ``[limits]`` table."""
-    unknown = set(doc) - _URDF_TOP_FIELDS
-    if unknown:
-        raise reader.fail("file", f"unknown field(s) {', '.join(sorted(unknown))} for a robot that references a URDF; "
-                                  f"allowed: {', '.join(sorted(_URDF_TOP_FIELDS))}")
+    """A robot file that references a URDF (validated as :class:`UrdfRobotFile`): ``urdf``,
+    ``base_link``, ``tip_link`` plus the usual name, units, base, tool, configurations,
+    task_rows and a ``[limits]`` table."""
     urdf_path = directory / reader.string(doc, "urdf", "file")
     if not urdf_path.is_file():
         raise reader.fail("urdf", f"URDF file {urdf_path} not found (the path is relative to the robot file)")

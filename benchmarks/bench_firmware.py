@@ -68,41 +68,12 @@ MODE_PLANS = {
     "RESOLVED_RATE": ("modular8_circle_combined", ["path.type=line", "path.end=[-450, 400, 900]",
                                                    "timing.duration=5", "method.theta_s=75", "method.T_smo_L=0.5",
                                                    "method.T_sum_L=1", "method.rho_L=0.01"]),
-    "PLAYBACK": ("PTP_MODULAR8", []),
+    "PLAYBACK": ("modular8_ptp_two_segments", []),
     "FAULT_TOLERANT gpm": ("modular8_fault_circle_gpm", []),
     "FAULT_TOLERANT wln smooth": ("modular8_fault_circle_wln", []),
     "FAULT_TOLERANT wln plain": ("modular8_fault_circle_wln", ["method.weight_rule=plain"]),
     "WEIGHTED_GPM": ("modular8_wgpm_demo", []),
 }
-# Eight joints, two segments, 3-4-5 polynomials, 1 ms samples (tests/test_firmware.py's PTP task).
-PTP_MODULAR8 = """
-planner = "ptp"
-robot = "modular8"
-method = "3-4"
-step = 0.001
-[units]
-angle = "deg"
-[waypoints]
-t = [0, 1.5, 3]
-[waypoints.theta]
-j1 = [-57, -40, -30]
-j2 = [-45, -50, -60]
-j3 = [71, 80, 90]
-j4 = [-45, -30, -20]
-j5 = [32, 40, 50]
-j6 = [80, 60, 40]
-j7 = [34, 30, 20]
-j8 = [-28, -10, 0]
-[waypoints.omega]
-j1 = [0, 8, 0]
-j2 = [0, -8, 0]
-j3 = [0, 8, 0]
-j4 = [0, 8, 0]
-j5 = [0, 8, 0]
-j6 = [0, -8, 0]
-j7 = [0, -8, 0]
-j8 = [0, 8, 0]
-"""
 MODE_FUNCTIONS = {"RESOLVED_RATE": ("fk_jacobian", "zghal", "repetitive", "step_gpm"), "PLAYBACK": (),
                   "FAULT_TOLERANT": ("fk_jacobian", "ft_index", "wln_weights", "step_fault"),
                   "WEIGHTED_GPM": ("fk_jacobian", "step_wgpm")}
@@ -469,11 +440,7 @@ def main(argv=None) -> int:
 
 def mode_task(label: str, work: Path):
     name, overrides = MODE_PLANS[label]
-    if name == "PTP_MODULAR8":
-        path = work / "ptp_modular8.toml"
-        path.write_text(PTP_MODULAR8)
-    else:
-        path = REPO / "examples" / f"{name}.toml"
+    path = REPO / "examples" / f"{name}.toml"
     task, sha = load_task(path)
     apply_overrides(task, list(overrides))
     if task["planner"] == "ptp":

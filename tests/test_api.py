@@ -143,6 +143,7 @@ def test_load_robot_by_name_toml_and_urdf(tmp_path):
 
 def test_plan_overrides_pandas_save_and_plot(tmp_path):
     from matplotlib.figure import Figure
+    from PIL import Image
 
     task = {"planner": "cartesian", "robot": "planar3", "start": "q0", "task_rows_note": None}
     task.pop("task_rows_note")
@@ -161,6 +162,9 @@ def test_plan_overrides_pandas_save_and_plot(tmp_path):
     assert csv_path.is_file() and json.loads(json_path.read_text())["csv"]["samples"] == 101
     figure = plan.plot()
     assert isinstance(figure, Figure) and figure.get_axes()
+    gif = plan.animate(tmp_path / "line.gif", fps=4, duration=1.0)
+    with Image.open(gif) as frames:
+        assert frames.n_frames == 4  # fps × duration
     with pytest.raises(armgen.TaskFileError, match="planner"):
         armgen.plan({"planner": "nope"})
 

@@ -32,34 +32,7 @@ SHORT = ["path.type=line", "path.end=[-450, 400, 900]", "timing.duration=5"]
 HOST_SAN = fw.Variant("host", "double", sanitize=True, opt="-O1")
 HOST_FLOAT = fw.Variant("host", "float")
 
-PTP_MODULAR8 = """
-planner = "ptp"
-robot = "modular8"
-method = "3-4"
-step = 0.001
-[units]
-angle = "deg"
-[waypoints]
-t = [0, 1.5, 3]
-[waypoints.theta]
-j1 = [-57, -40, -30]
-j2 = [-45, -50, -60]
-j3 = [71, 80, 90]
-j4 = [-45, -30, -20]
-j5 = [32, 40, 50]
-j6 = [80, 60, 40]
-j7 = [34, 30, 20]
-j8 = [-28, -10, 0]
-[waypoints.omega]
-j1 = [0, 8, 0]
-j2 = [0, -8, 0]
-j3 = [0, 8, 0]
-j4 = [0, 8, 0]
-j5 = [0, 8, 0]
-j6 = [0, -8, 0]
-j7 = [0, -8, 0]
-j8 = [0, 8, 0]
-"""
+PTP_MODULAR8 = EXAMPLES / "modular8_ptp_two_segments.toml"  # eight joints, two segments, 3-4
 
 
 def example(name: str, overrides=()) -> dict:
@@ -233,7 +206,7 @@ def test_bad_configuration_is_refused_at_init(builder):
 
 def test_ptp_playback_matches_the_python_evaluation(builder, tmp_path):
     path = tmp_path / "ptp.toml"
-    path.write_text(PTP_MODULAR8)
+    path.write_text(PTP_MODULAR8.read_text())
     task, _ = load_task(path)
     result = plan(task, "ptp")
     ftask = fw.task_from_plan(result, "ptp")
@@ -274,7 +247,7 @@ def test_qemu_float_run_matches_the_plan(builder, short_plan, tmp_path):
     assert 1000 < ipt["mean"] < 20000 and ipt["insns_per_systick"] == 40.0
     # the PTP playback on the target too
     path = tmp_path / "ptp.toml"
-    path.write_text(PTP_MODULAR8)
+    path.write_text(PTP_MODULAR8.read_text())
     ptp_task, _ = load_task(path)
     result = plan(ptp_task, "ptp")
     ftask = fw.task_from_plan(result, "ptp")
@@ -567,7 +540,7 @@ def with_field(task: fw.FirmwareTask, name: str, value: str) -> fw.FirmwareTask:
 @pytest.fixture(scope="module")
 def ptp_task(tmp_path_factory):
     path = tmp_path_factory.mktemp("ptp") / "ptp.toml"
-    path.write_text(PTP_MODULAR8)
+    path.write_text(PTP_MODULAR8.read_text())
     task, _ = load_task(path)
     result = plan(task, "ptp")
     return result, fw.task_from_plan(result, "ptp")

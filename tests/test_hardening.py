@@ -138,8 +138,10 @@ def test_schema_command_prints_json_schema():
     out = run("schema", "robot")
     assert out.exit_code == 0
     robot = json.loads(out.output)
-    assert robot["properties"]["name"]["pattern"].startswith("^[A-Za-z]")
-    assert robot["additionalProperties"] is False
+    dh, urdf = (robot["$defs"][ref["$ref"].rsplit("/", 1)[1]] for ref in robot["anyOf"])
+    assert set(dh["required"]) == {"name", "convention", "joints"} and urdf["required"] == ["urdf"]
+    assert dh["properties"]["name"]["pattern"].startswith("^[A-Za-z]")
+    assert dh["additionalProperties"] is False and urdf["additionalProperties"] is False
     out = run("schema", "task", "--planner", "cartesian")
     task = json.loads(out.output)
     assert set(task["properties"]) >= {"planner", "robot", "path", "timing", "integrator"}

@@ -245,7 +245,7 @@ q0 = [10, 20, 30, 50, -40, 60]
     ('urdf = "arm.urdf"\n[limits]\nj3 = [1, -1]\n', "empty or reversed"),
     ('urdf = "arm.urdf"\n[configurations]\nq0 = [0, 0, 0, 0, 0, 9]\n', "outside its limits"),
     ('urdf = "arm.urdf"\ntip_link = "nowhere"\n', "tip_link"),
-    ('urdf = "arm.urdf"\nname = "../evil"\n', "robot name"),
+    ('urdf = "arm.urdf"\nname = "../evil"\n', "'name' = '../evil' is not a valid name"),
 ])
 def test_bad_robot_file_referencing_a_urdf(tmp_path, body, match):
     with pytest.raises(RobotFileError, match=match):

@@ -11,7 +11,6 @@ import click
 import numpy as np
 
 from .. import __version__
-from ..errors import OptionError
 from .handling import handle_errors
 
 
@@ -109,16 +108,13 @@ def show_cmd(robot: str, as_json: bool) -> None:
 @handle_errors
 def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functions: tuple[str, ...]) -> None:
     """Derive the robot's functions symbolically and write C (header, source, manifest)."""
-    from ..codegen.generate import generate_robot
+    from ..api import generate
 
-    try:
-        code, paths = generate_robot(robot, out_dir, precision, prefix, functions or None)
-    except ValueError as exc:  # an invalid --prefix or --function
-        raise OptionError(str(exc)) from None
-    for path in paths:
+    generated = generate(robot, out_dir, precision, prefix, functions or None)
+    for path in generated.paths:
         click.echo(f"wrote {path}")
-    flops = ", ".join(f"{e.name} {e.flops}" for e in code.emitted)
-    click.echo(f"generated {len(code.emitted)} functions in {code.generation_seconds:.2f} s; flops: {flops}")
+    flops = ", ".join(f"{name} {count}" for name, count in generated.flops.items())
+    click.echo(f"generated {len(generated.flops)} functions in {generated.seconds:.2f} s; flops: {flops}")
 
 
 @cli.command("gen-ptp")
@@ -152,19 +148,15 @@ def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
 def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[str, ...], units: str,
              max_steps: int | None, max_samples: int | None) -> None:
     """Plan a task file to CSV plus JSON metadata (written together or not at all)."""
-    from ..planning.result import write_plan
-    from ..planning.tasks import ResourceCaps, apply_overrides, load_task, run_task
+    from ..api import plan
+    from ..planning.tasks import parse_override
 
-    caps = ResourceCaps()
-    caps = ResourceCaps(max_steps or caps.max_steps, max_samples or caps.max_samples)
-    task, sha = load_task(task_file)
-    apply_overrides(task, list(overrides))
-    result = run_task(task, task_file, sha, backend, caps)
+    fields = dict(parse_override(item) for item in overrides)
+    planned = plan(task_file, backend, max_steps=max_steps, max_samples=max_samples, **fields)
     out = Path(output) if output else Path(Path(task_file).stem + ".csv")
-    csv_path, json_path = write_plan(result, out, units)
-    click.echo(f"wrote {csv_path} ({result.data.shape[0]} samples) and {json_path}")
-    summary = result.metadata.get("summary", {})
-    for key, value in summary.items():
+    csv_path, json_path = planned.save(out, units)
+    click.echo(f"wrote {csv_path} ({planned.data.shape[0]} samples) and {json_path}")
+    for key, value in planned.summary.items():
         click.echo(f"  {key}: {value}")
 
 
@@ -188,8 +180,8 @@ def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | 
 
     Exit codes: 0 all stages passed, 2 bad input (no manifest, code generated from another
     robot file, a malformed plan), 4 a missing tool, 5 a stage failed (stale code included)."""
+    from ..api import verify
     from ..errors import VerificationError
-    from ..verify.pipeline import verify
 
     if not verify(robot, plan_csv, samples, precision, target, report, click.echo, generated, run_csv):
         raise VerificationError("verification failed: see the FAIL stages above")

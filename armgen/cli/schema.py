@@ -16,10 +16,12 @@ from .handling import handle_errors
 def schema_of(kind: str, planner: str | None = None) -> dict:
     """JSON Schema of the robot file, one planner's task file, or any task file."""
     from ..planning.tasks import PLANNERS, SCHEMAS
-    from ..robot_schema import RobotFile
+    from ..robot_schema import RobotFile, UrdfRobotFile
 
     if kind == "robot":
-        return RobotFile.model_json_schema()
+        schema = TypeAdapter(Union[RobotFile, UrdfRobotFile]).json_schema()
+        schema["title"] = "armgen robot file (DH table, or a URDF reference)"
+        return schema
     models = {name: getattr(importlib.import_module(PLANNERS[name] + ".schema"), SCHEMAS[name]) for name in PLANNERS}
     if planner is not None:
         return models[planner].model_json_schema()

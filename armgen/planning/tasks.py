@@ -90,14 +90,20 @@ def set_field(task: dict[str, Any], key: str, value: Any, where: str) -> None:
     node[parts[-1]] = value
 
 
+def parse_override(item: str) -> tuple[str, Any]:
+    """``key=value`` as given to ``--set`` → (dotted key, value parsed as TOML)."""
+    if "=" not in item:
+        raise TaskFileError(f"--set {item!r}: expected key=value (e.g. --set integrator.h=0.01)")
+    key, raw = item.split("=", 1)
+    return key.strip(), parse_value(raw.strip(), f"--set {item!r}")
+
+
 def apply_overrides(task: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
     """Apply ``key=value`` overrides; dotted keys reach into tables; values are TOML. The
     result is validated by the planner's schema like the file itself (in :func:`run_task`)."""
     for item in overrides:
-        if "=" not in item:
-            raise TaskFileError(f"--set {item!r}: expected key=value (e.g. --set integrator.h=0.01)")
-        key, raw = item.split("=", 1)
-        set_field(task, key, parse_value(raw.strip(), f"--set {item!r}"), f"--set {item!r}")
+        key, value = parse_override(item)
+        set_field(task, key, value, f"--set {item!r}")
     return task
 
 

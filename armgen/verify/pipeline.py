@@ -465,18 +465,3 @@ def run_pipeline(config: VerifyConfig, report_path: Path | None = None,
 def passed(stages: list[Stage]) -> bool:
     """The run passes when no stage failed and at least one compared something."""
     return all(s.passed for s in stages) and any(not s.skipped for s in stages)
-
-
-def verify(robot: str, plan: str | None = None, samples: int = 10_000, precision: str | None = None,
-           target: str | None = None, report: str | None = None, echo: Callable[[str], None] = print,
-           generated: str | None = None, run: str | None = None) -> bool:
-    precisions = (precision,) if precision else ("double", "float")
-    config = VerifyConfig(load_robot(robot), Path(plan) if plan else None, samples, precisions, target,
-                          generated=Path(generated) if generated else None, robot_ref=str(robot),
-                          run=Path(run) if run else None)
-    if run is not None and plan is None:
-        raise OptionError("--run needs --plan: the plan the firmware ran (e.g. demo/plan.csv of `armgen firmware`)")
-    if report is not None and Path(report).is_dir():
-        raise OptionError(f"--report {report}: is a folder; give a file name, e.g. {Path(report) / 'verify.json'}")
-    stages = run_pipeline(config, Path(report) if report else None, echo)
-    return passed(stages)

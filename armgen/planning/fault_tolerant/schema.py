@@ -7,6 +7,7 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import Field
 
 from ...schemas import StrictModel
+from ..cartesian import schema as cartesian_schema
 from ..cartesian.schema import Damping, Description, NonNegative, Path, Positive, RobotReference, Start, Timing, Units
 
 JointRef = Union[Annotated[int, Field(ge=1)], Annotated[str, Field(min_length=1, max_length=64)]]
@@ -83,6 +84,5 @@ class FaultTolerantTaskFile(StrictModel):
     check: Check = Field(default_factory=Check)
 
 
-def workload(task: FaultTolerantTaskFile) -> tuple[float, float]:
-    steps = task.timing.duration / task.integrator.step
-    return steps, steps / task.integrator.output_every + 1
+# (integration steps, CSV samples): the same timing and integrator fields as a Cartesian task
+workload = cartesian_schema.workload

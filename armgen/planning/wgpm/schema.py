@@ -7,6 +7,7 @@ from typing import Literal, Optional
 from pydantic import Field
 
 from ...schemas import StrictModel
+from ..cartesian import schema as cartesian_schema
 from ..cartesian.schema import Damping, Description, NonNegative, Positive, RobotReference, Start, Timing, Units
 from ..fault_tolerant.schema import EulerIntegrator, RelativePath
 
@@ -58,6 +59,5 @@ class WgpmTaskFile(StrictModel):
     tracking: Tracking = Field(default_factory=Tracking)
 
 
-def workload(task: WgpmTaskFile) -> tuple[float, float]:
-    steps = task.timing.duration / task.integrator.step
-    return steps, steps / task.integrator.output_every + 1
+# (integration steps, CSV samples): the same timing and integrator fields as a Cartesian task
+workload = cartesian_schema.workload
