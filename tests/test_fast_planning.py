@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 
 from armgen.planning.tasks import apply_overrides, load_task, run_task
+from armgen.robot import load_robot
+from armgen.symbolic.criteria import ZGHAL_GAP_FLOOR
 
 HERE = Path(__file__).resolve().parent
 EXAMPLES = HERE.parent / "examples"
@@ -43,6 +45,17 @@ FD_INDEX_VALUE_TOL = 1e-7
 ANGLE_TOLS = {"m8_fault_sigma": FD_INDEX_ANGLE_TOL}
 VALUE_TOLS = {"m8_fault_sigma": FD_INDEX_VALUE_TOL}
 
+# The Zghal criterion H_L is the floored form since the lean criteria (its gap (q_max − q)(q − q_min)
+# floored at ZGHAL_GAP_FLOOR·range², i.e. saturated at and beyond the limits, where the
+# reference's raw formula went negative): H_L is compared where every joint is inside its
+# limits by more than that floor (the only change to the planners' outputs).
+def _inside_limits(robot_name, got, columns):
+    robot = load_robot(robot_name)
+    q = np.column_stack([got[:, columns.index(f"q{i + 1}_rad")] for i in range(robot.n)])
+    span = robot.qmax - robot.qmin
+    return np.all((robot.qmax - q) * (q - robot.qmin) > ZGHAL_GAP_FLOOR * span ** 2, axis=1)
+
+
 # Summary entries added since the reference (the sweep table reads them; copies of the verdict's).
 ADDED_SUMMARY_KEYS = {"max_weight_step", "w_min_after_lock_mm3"}
 
@@ -72,6 +85,11 @@ def check_against_reference(name, result):
             matters = (want[:, weight] - 1 > ACTIVE_MIN_PENALTY) | (got[:, weight] - 1 > ACTIVE_MIN_PENALTY)
             np.testing.assert_allclose(got[matters, k], want[matters, k], rtol=0, atol=value_tol,
                                        err_msg=f"{name}: {column}")
+        elif column == "H_L_1":
+            inside = _inside_limits(load_task(EXAMPLES / f"{CASE[name][0]}.toml")[0]["robot"], got, columns)
+            scale = max(1.0, float(np.max(np.abs(want[inside, k]))))
+            np.testing.assert_allclose(got[inside, k], want[inside, k], rtol=0, atol=value_tol * scale,
+                                       err_msg=f"{name}: {column} (inside the limits)")
         elif column == "sigma_min_1":
             np.testing.assert_allclose(got[:, k], want[:, k], rtol=value_tol, atol=SIGMA_ABS_TOL,
                                        err_msg=f"{name}: {column}")

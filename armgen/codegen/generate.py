@@ -31,9 +31,23 @@ from ..fileio import write_file_set
 from ..robot import Robot, load_robot_any
 from ..symbolic.model import DESCRIPTIONS, STEP_FUNCTIONS, ModelOptions, SymbolicModel
 from .c_emitter import MATH_MACROS, EmittedFunction, describe_counts, emit_body
-from .stamp import c_preamble
+from .stamp import c_preamble, comment_safe
 
 PRECISIONS = ("double", "float")
+# Identifiers a prefix must not be (or, for the generated <prefix>_<name> and <PREFIX>_…
+# names, must not collide with): the C99 keywords and the standard-library names that the
+# generated code includes or that a caller's translation unit commonly does (math.h functions,
+# the standard headers' own names).
+C_KEYWORDS = frozenset(
+    "auto break case char const continue default do double else enum extern float for goto if inline int long "
+    "register restrict return short signed sizeof static struct switch typedef union unsigned void volatile while "
+    "_Bool _Complex _Imaginary".split())
+STANDARD_NAMES = frozenset(
+    "assert complex ctype errno fenv float inttypes iso646 limits locale math setjmp signal stdarg stdbool stddef "
+    "stdint stdio stdlib string tgmath time wchar wctype "
+    "sin cos tan asin acos atan atan2 sinh cosh tanh exp log log10 pow sqrt hypot fabs floor ceil fmod fmin fmax "
+    "copysign round trunc nan isnan isfinite isinf signbit abs div exit free malloc calloc realloc printf main "
+    "errno_t size_t ptrdiff_t null".split())
 # Outputs go where the user is: ./generated/<name>/ under the current directory (at the
 # repository root that is the checked-in generated/).
 GENERATED_DIR = Path("generated")
@@ -61,8 +75,15 @@ def make_consistent(config: CodegenConfig) -> CodegenConfig:
     if config.precision not in PRECISIONS:
         raise OptionError(f"--precision {config.precision!r}: choose one of {', '.join(PRECISIONS)}")
     prefix = config.prefix or re.sub(r"[^0-9a-zA-Z_]", "_", config.robot.name).lower()
-    if not re.fullmatch(r"[a-z_][a-z0-9_]*", prefix):
-        raise OptionError(f"--prefix {prefix!r}: use a C identifier in lower case (letters, digits, _; not starting with a digit)")
+    if not re.fullmatch(r"[a-z_][a-z0-9_]{0,30}", prefix):
+        raise OptionError(f"--prefix {prefix!r}: use a C identifier in lower case of at most 31 characters "
+                          "(letters, digits, _; not starting with a digit)")
+    if prefix in C_KEYWORDS or prefix in STANDARD_NAMES:
+        raise OptionError(f"--prefix {prefix!r} is a C keyword or a standard-library name: choose another "
+                          f"(e.g. --prefix {prefix}_arm)")
+    if prefix.startswith("_"):
+        raise OptionError(f"--prefix {prefix!r}: identifiers starting with '_' are reserved in C (the generated "
+                          f"macros would be _<NAME>); start with a letter (e.g. --prefix arm{prefix})")
     return CodegenConfig(config.robot, config.precision, prefix, config.functions)
 
 
@@ -94,6 +115,19 @@ def _size_macros(func: ca.Function, P: str) -> list[str]:
     return lines
 
 
+def _status_check(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], res_names: list[str],
+                  res_scalar: list[bool], p: str, P: str) -> str:
+    """The status of a step function covers every input and every output: any non-finite
+    value in or out is <P>_NONFINITE (a NaN input that fmax/fmin would swallow included)."""
+    terms = []
+    for names, scalars, sizes, pointer in ((arg_names, arg_scalar, [func.sparsity_in(k).numel() for k in range(func.n_in())], ""),
+                                           (res_names, res_scalar, [func.sparsity_out(k).numel() for k in range(func.n_out())], "*")):
+        for name, scalar, size in zip(names, scalars, sizes):
+            terms.append(f"  ok = ok & {p}_all_finite(&{name}, 1);" if scalar and not pointer
+                         else f"  ok = ok & {p}_all_finite({name}, {size});")
+    return "\n".join(["  {", "  int ok = 1;", *terms, f"  return (ok != 0) ? {P}_OK : {P}_NONFINITE;", "  }"])
+
+
 def generate(config: CodegenConfig) -> GeneratedCode:
     """Derive the model and render the C files (nothing is written)."""
     config = make_consistent(config)
@@ -120,13 +154,12 @@ def generate(config: CodegenConfig) -> GeneratedCode:
                                  signature + ";"]))
         body = em.body
         if returns_status:
-            out = res_names[0]
-            numel = func.sparsity_out(0).numel()
-            body += (f"\n  {{\n    int k;\n    for (k = 0; k < {numel}; ++k) {{\n"
-                     f"      if (!isfinite({out}[k])) return {P}_NONFINITE;\n    }}\n  }}\n  return {P}_OK;")
+            body += "\n" + _status_check(func, arg_names, [s for _, s in in_decls], res_names,
+                                          [s for _, s in out_decls], p, P)
         definitions.append(f"/* {name}: {describe_counts(em.op_counts)} */\n{signature} {{\n{body}\n}}\n")
     robot = config.robot
-    preamble = c_preamble(robot.source, robot.sha256, f"armgen kinematics of robot '{robot.name}' ({robot.n} DOF)")
+    preamble = c_preamble(robot.source, robot.sha256,
+                          f"armgen kinematics of robot '{comment_safe(robot.name)}' ({robot.n} DOF)")
     header = _render_header(config, model, protos, preamble)
     source = (f"{preamble}\n#include \"{p}.h\"\n\n#include <math.h>\n\n"
               "/* Every function below is straight-line code from the SX algorithm; w<k> are the\n"
@@ -147,12 +180,89 @@ def generate(config: CodegenConfig) -> GeneratedCode:
     return GeneratedCode(p, files, manifest, emitted, time.perf_counter() - started)
 
 
+# The bounded-range sine/cosine of the float build: 3-part Cody–Waite reduction by π/2 (the
+# Cephes constants; exact products for |k| < 2^16) and Cephes' minimax polynomials on
+# [−π/4, π/4]. Documented (and tested in tests/test_lean_c.py) error bound and range:
+BOUNDED_TRIG_ULP = 2
+BOUNDED_TRIG_RANGE = 100
+
+
+def _lean_math(p: str, P: str) -> str:
+    """Static inline math of the generated header (also used by the firmware through <P>_SQRT …): fmin/fmax (C99 semantics: a NaN operand
+    yields the other) and the finiteness test need no library call; sqrt is the FPU's
+    vsqrt.f32 on a Cortex-M with a single-precision FPU (no errno path); the optional
+    bounded-range sin/cos. Everything else goes to libm."""
+    return f"""/* Lean math (no library calls where the FPU or a comparison does the job). */
+static inline {p}_real {p}_fmin({p}_real a, {p}_real b) {{ return ((a < b) || (b != b)) ? a : b; }}
+static inline {p}_real {p}_fmax({p}_real a, {p}_real b) {{ return ((a > b) || (b != b)) ? a : b; }}
+/* x - x is 0 for a finite x and NaN for NaN/inf, and NaN propagates through the sum: one
+ * subtraction and one addition per value, a single comparison at the end. */
+static inline int {p}_all_finite(const {p}_real *x, int count) {{
+  int k;
+  {p}_real acc = x[0] - x[0];
+  for (k = 1; k < count; ++k) {{ acc += x[k] - x[k]; }}
+  return (acc == acc) ? 1 : 0;
+}}
+static inline {p}_real {p}_sqrt({p}_real x) {{
+#if {P}_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
+  {p}_real r;
+  __asm__("vsqrt.f32 %0, %1" : "=t"(r) : "t"(x));
+  return r;
+#elif {P}_USE_FLOAT
+  return sqrtf(x);
+#else
+  return sqrt(x);
+#endif
+}}
+#if {P}_USE_FLOAT && {P}_BOUNDED_TRIG
+/* Always inlined (gcc/clang), also at -Os: the sin and cos of one joint angle then share the
+ * reduction, and no call is made. */
+#if defined(__GNUC__)
+#define {P}_TRIG_INLINE static inline __attribute__((always_inline))
+#else
+#define {P}_TRIG_INLINE static inline
+#endif
+/* x = k pi/2 + r, |r| <= pi/4; |x| beyond {BOUNDED_TRIG_RANGE} rad is outside the documented range
+ * (still finite), NaN/inf give NaN. */
+{P}_TRIG_INLINE float {p}_reduce(float x, int *quadrant) {{
+  const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
+  float k = (x * 0.636619772367581343f + shifter) - shifter;
+  float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
+  *quadrant = ((int)kc) & 3;
+  return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
+}}
+{P}_TRIG_INLINE float {p}_sin_poly(float r) {{
+  float z = r * r;
+  return r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
+}}
+{P}_TRIG_INLINE float {p}_cos_poly(float r) {{
+  float z = r * r;
+  return 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+}}
+{P}_TRIG_INLINE float {p}_sin_bounded(float x) {{
+  int quadrant;
+  float r = {p}_reduce(x, &quadrant);
+  float v = ((quadrant & 1) != 0) ? {p}_cos_poly(r) : {p}_sin_poly(r);
+  return ((quadrant & 2) != 0) ? -v : v;
+}}
+{P}_TRIG_INLINE float {p}_cos_bounded(float x) {{
+  int quadrant;
+  float r = {p}_reduce(x, &quadrant);
+  float v = ((quadrant & 1) != 0) ? {p}_sin_poly(r) : {p}_cos_poly(r);
+  return (((quadrant + 1) & 2) != 0) ? -v : v;
+}}
+#endif
+
+"""
+
+
 def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str], preamble: str) -> str:
     p, P = config.prefix, config.prefix.upper()
     guard = f"{P}_H"
     float_default = 1 if config.precision == "float" else 0
-    macros_f = "\n".join(f"#define {P}_{m} {m.lower()}f" for m in MATH_MACROS)
-    macros_d = "\n".join(f"#define {P}_{m} {m.lower()}" for m in MATH_MACROS)
+    lean = {"FMIN": f"{p}_fmin", "FMAX": f"{p}_fmax", "SQRT": f"{p}_sqrt"}
+    macros_f = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower() + 'f')}" for m in MATH_MACROS if m not in ("SIN", "COS"))
+    macros_d = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower())}" for m in MATH_MACROS)
     return f"""{preamble}
 #ifndef {guard}
 #define {guard}
@@ -174,13 +284,28 @@ extern "C" {{
 typedef float {p}_real;
 #define {P}_LIT(x) x##f
 {macros_f}
+/* {P}_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
+ * ({p}_sin_bounded/{p}_cos_bounded below: error <= {BOUNDED_TRIG_ULP} ulp for |x| <= {BOUNDED_TRIG_RANGE} rad,
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+#ifndef {P}_BOUNDED_TRIG
+#define {P}_BOUNDED_TRIG 0
+#endif
+#if {P}_BOUNDED_TRIG
+#define {P}_SIN {p}_sin_bounded
+#define {P}_COS {p}_cos_bounded
+#else
+#define {P}_SIN sinf
+#define {P}_COS cosf
+#endif
 #else
 typedef double {p}_real;
 #define {P}_LIT(x) x
 {macros_d}
 #endif
 
-/* Result of the functions that can fail. */
+#include <math.h>
+
+{_lean_math(p, P)}/* Result of the functions that can fail. */
 typedef enum {{
   {P}_OK = 0,        /* output is finite */
   {P}_NONFINITE = 1  /* output holds NaN/inf: a non-finite input, or an overflow */

@@ -20,8 +20,6 @@ KINEMATIC_FUNCTIONS = ("fk", "jacobian", "fk_jacobian")
 CRITERION_FUNCTIONS = ("zghal", "repetitive", "joint_manipulability", "manipulability", "continuous_weights",
                        "ft_index", "wln_weights")
 STEP_FUNCTIONS = ("step_gpm", "step_wln", "step_fault", "step_wgpm")
-# Functions that need the Cauchy–Binet minors (not derived past MAX_MINOR_SUBSETS).
-MINOR_FUNCTIONS = ("joint_manipulability", "manipulability", "ft_index", "step_wgpm")
 ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + CRITERION_FUNCTIONS + STEP_FUNCTIONS
 
 # One-line descriptions, used in the generated header and by `armgen show`.
@@ -81,15 +79,9 @@ class SymbolicModel:
     def task_jac(self) -> ca.SX:
         return self.jac[list(self.robot.task_rows), :]
 
-    @property
-    def supports_minors(self) -> bool:
-        return criteria.minors_supported(self.n, self.m)
-
     def available(self) -> tuple[str, ...]:
-        names = list(ALL_FUNCTIONS)
-        if not self.supports_minors:
-            names = [f for f in names if f not in MINOR_FUNCTIONS]
-        return tuple(names)
+        """Every function, for any chain length (the criteria cost O(n) after the kinematics)."""
+        return ALL_FUNCTIONS
 
     def selected(self) -> tuple[str, ...]:
         wanted = self.options.functions or self.available()
@@ -125,7 +117,8 @@ class SymbolicModel:
         if name == "fk_jacobian":
             return ca.Function("fk_jacobian", [q], [dense(self.tool), dense(self.jac)], ["q"], ["T", "J"])
         if name == "zghal":
-            h = criteria.zghal(q, qmin, qmax)
+            # the floored form: equal inside the limits, finite (saturated) at and beyond them
+            h = criteria.zghal_safe(q, qmin, qmax)
             return ca.Function("zghal", [q], [h, dense(ca.gradient(h, q))], ["q"], ["H_L", "grad_H_L"])
         if name == "repetitive":
             q_init = ca.SX.sym("q_init", self.n)
@@ -133,19 +126,15 @@ class SymbolicModel:
             return ca.Function("repetitive", [q, q_init], [h, dense(ca.gradient(h, q))],
                                ["q", "q_init"], ["H_R", "grad_H_R"])
         if name == "joint_manipulability":
-            a = ca.SX.sym("a", self.n)
-            delta = ca.SX.sym("delta")
-            _, reduced = criteria.gram_determinants(self.task_jac)
-            omega = ca.vertcat(*[ca.sqrt(g + delta * delta) for g in reduced])
-            h = ca.dot(a, omega)
-            return ca.Function("joint_manipulability", [q, a, delta], [dense(omega), h, dense(ca.gradient(h, q))],
+            # ft_index with every joint healthy: one construction for the whole family
+            a, delta = ca.SX.sym("a", self.n), ca.SX.sym("delta")
+            omega, h, grad, _, _ = self._build("ft_index")(q, ca.DM.ones(self.n), a, delta)
+            return ca.Function("joint_manipulability", [q, a, delta], [omega, h, grad],
                                ["q", "a", "delta"], ["omega", "H_M", "grad_H_M"])
         if name == "manipulability":
             delta = ca.SX.sym("delta")
-            full, _ = criteria.gram_determinants(self.task_jac)
-            w = ca.sqrt(full + delta * delta)
-            return ca.Function("manipulability", [q, delta], [w, dense(ca.gradient(w, q))],
-                               ["q", "delta"], ["w", "grad_w"])
+            _, _, _, w, grad = self._build("ft_index")(q, ca.DM.ones(self.n), ca.DM.zeros(self.n), delta)
+            return ca.Function("manipulability", [q, delta], [w, grad], ["q", "delta"], ["w", "grad_w"])
         if name == "continuous_weights":
             band = ca.SX.sym("band")
             return ca.Function("continuous_weights", [q, band], [dense(criteria.continuous_weights(q, qmin, qmax, band))],

@@ -33,12 +33,14 @@ FLOAT_BOUNDS = {
     "fk_jacobian": 2e-6,
     "repetitive": 2e-6,
     "zghal": 2e-2,  # [ulp(q)/distance-to-limit ≥ 2.4e-7/1e-3 per term, squared in the gradient]
-    "joint_manipulability": 1e-3,  # [cancellation in 6x6 minors near singular poses]
+    # [determinants by Householder QR of Jᵀ: relative error ~ ε κ(J), not ε κ(J)² as through
+    # J Jᵀ; the gradient outputs dominate; seen ≤ 5.5e-5 (modular8) / 9.9e-5 (planar3 w)]
+    "joint_manipulability": 1e-3,
     "manipulability": 1e-3,
     "continuous_weights": 1e-4,  # [band edges from float-rounded limits]
     "step_gpm": 2e-2,  # [condition number (σ_max/λ)² ≤ 1e4 with λ ≥ 1e-2, times float eps]
     "step_wln": 2e-2,
-    "ft_index": 1e-3,  # [as joint_manipulability: the same minors, masked columns; seen 4.5e-5]
+    "ft_index": 1e-3,  # [as joint_manipulability, masked columns; seen ≤ 5.2e-5 (planar3)]
     "wln_weights": 2e-6,  # [a few arithmetic ops per joint; seen 2.3e-7]
     # [σ_min² by Jacobi carries ~1e-7 ‖JJᵀ‖ absolute error, amplified by (λ_max/ε)² ≤ 2.8 into
     # ρ² and by the conditioning (σ_max/ε)² of the damped solve; seen 9e-4]

@@ -494,7 +494,8 @@ class Variant:
     opt: str = "-O2"
     max_segments: int = MAX_SEGMENTS
     print_rows: bool = True  # arm: FW_PRINT_ROWS
-    fast_trig: bool = True  # arm: sinf/cosf from arm/fw_fastmath.c (-Wl,--wrap), else newlib's
+    fast_trig: bool = True  # arm: <P>_BOUNDED_TRIG=1 for the generated code, sinf/cosf from arm/fw_fastmath.c
+                            # (-Wl,--wrap) for the rest; else newlib's everywhere
     gen_opt: str | None = None  # optimisation of the generated kinematics (default: opt)
     extra: tuple[str, ...] = ()  # more compiler flags (e.g. -fcallgraph-info=su for the benchmark)
 
@@ -567,6 +568,8 @@ class FirmwareBuilder:
         d += [f"-DCTRL_HAS_{mode}={1 if mode in self.modes else 0}" for mode in OPTIONAL_FUNCTIONS]
         if v.target == "arm":
             d += ["-DFW_CSV_HEX=1", f"-DFW_PRINT_ROWS={1 if v.print_rows else 0}"]
+            # the generated kinematics' own bounded-range sin/cos (inline, ≤ 2 ulp on the joint range)
+            d += [f"-D{P}_BOUNDED_TRIG={1 if v.fast_trig else 0}"]
         return d
 
     def cflags(self, v: Variant) -> list[str]:

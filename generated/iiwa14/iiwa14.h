@@ -23,14 +23,12 @@ extern "C" {
 #if IIWA14_USE_FLOAT
 typedef float iiwa14_real;
 #define IIWA14_LIT(x) x##f
-#define IIWA14_SIN sinf
-#define IIWA14_COS cosf
 #define IIWA14_TAN tanf
 #define IIWA14_ASIN asinf
 #define IIWA14_ACOS acosf
 #define IIWA14_ATAN atanf
 #define IIWA14_ATAN2 atan2f
-#define IIWA14_SQRT sqrtf
+#define IIWA14_SQRT iiwa14_sqrt
 #define IIWA14_HYPOT hypotf
 #define IIWA14_POW powf
 #define IIWA14_EXP expf
@@ -38,10 +36,23 @@ typedef float iiwa14_real;
 #define IIWA14_FABS fabsf
 #define IIWA14_FLOOR floorf
 #define IIWA14_CEIL ceilf
-#define IIWA14_FMIN fminf
-#define IIWA14_FMAX fmaxf
+#define IIWA14_FMIN iiwa14_fmin
+#define IIWA14_FMAX iiwa14_fmax
 #define IIWA14_FMOD fmodf
 #define IIWA14_COPYSIGN copysignf
+/* IIWA14_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
+ * (iiwa14_sin_bounded/iiwa14_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+#ifndef IIWA14_BOUNDED_TRIG
+#define IIWA14_BOUNDED_TRIG 0
+#endif
+#if IIWA14_BOUNDED_TRIG
+#define IIWA14_SIN iiwa14_sin_bounded
+#define IIWA14_COS iiwa14_cos_bounded
+#else
+#define IIWA14_SIN sinf
+#define IIWA14_COS cosf
+#endif
 #else
 typedef double iiwa14_real;
 #define IIWA14_LIT(x) x
@@ -52,7 +63,7 @@ typedef double iiwa14_real;
 #define IIWA14_ACOS acos
 #define IIWA14_ATAN atan
 #define IIWA14_ATAN2 atan2
-#define IIWA14_SQRT sqrt
+#define IIWA14_SQRT iiwa14_sqrt
 #define IIWA14_HYPOT hypot
 #define IIWA14_POW pow
 #define IIWA14_EXP exp
@@ -60,10 +71,73 @@ typedef double iiwa14_real;
 #define IIWA14_FABS fabs
 #define IIWA14_FLOOR floor
 #define IIWA14_CEIL ceil
-#define IIWA14_FMIN fmin
-#define IIWA14_FMAX fmax
+#define IIWA14_FMIN iiwa14_fmin
+#define IIWA14_FMAX iiwa14_fmax
 #define IIWA14_FMOD fmod
 #define IIWA14_COPYSIGN copysign
+#endif
+
+#include <math.h>
+
+/* Lean math (no library calls where the FPU or a comparison does the job). */
+static inline iiwa14_real iiwa14_fmin(iiwa14_real a, iiwa14_real b) { return ((a < b) || (b != b)) ? a : b; }
+static inline iiwa14_real iiwa14_fmax(iiwa14_real a, iiwa14_real b) { return ((a > b) || (b != b)) ? a : b; }
+/* x - x is 0 for a finite x and NaN for NaN/inf, and NaN propagates through the sum: one
+ * subtraction and one addition per value, a single comparison at the end. */
+static inline int iiwa14_all_finite(const iiwa14_real *x, int count) {
+  int k;
+  iiwa14_real acc = x[0] - x[0];
+  for (k = 1; k < count; ++k) { acc += x[k] - x[k]; }
+  return (acc == acc) ? 1 : 0;
+}
+static inline iiwa14_real iiwa14_sqrt(iiwa14_real x) {
+#if IIWA14_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
+  iiwa14_real r;
+  __asm__("vsqrt.f32 %0, %1" : "=t"(r) : "t"(x));
+  return r;
+#elif IIWA14_USE_FLOAT
+  return sqrtf(x);
+#else
+  return sqrt(x);
+#endif
+}
+#if IIWA14_USE_FLOAT && IIWA14_BOUNDED_TRIG
+/* Always inlined (gcc/clang), also at -Os: the sin and cos of one joint angle then share the
+ * reduction, and no call is made. */
+#if defined(__GNUC__)
+#define IIWA14_TRIG_INLINE static inline __attribute__((always_inline))
+#else
+#define IIWA14_TRIG_INLINE static inline
+#endif
+/* x = k pi/2 + r, |r| <= pi/4; |x| beyond 100 rad is outside the documented range
+ * (still finite), NaN/inf give NaN. */
+IIWA14_TRIG_INLINE float iiwa14_reduce(float x, int *quadrant) {
+  const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
+  float k = (x * 0.636619772367581343f + shifter) - shifter;
+  float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
+  *quadrant = ((int)kc) & 3;
+  return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
+}
+IIWA14_TRIG_INLINE float iiwa14_sin_poly(float r) {
+  float z = r * r;
+  return r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
+}
+IIWA14_TRIG_INLINE float iiwa14_cos_poly(float r) {
+  float z = r * r;
+  return 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+}
+IIWA14_TRIG_INLINE float iiwa14_sin_bounded(float x) {
+  int quadrant;
+  float r = iiwa14_reduce(x, &quadrant);
+  float v = ((quadrant & 1) != 0) ? iiwa14_cos_poly(r) : iiwa14_sin_poly(r);
+  return ((quadrant & 2) != 0) ? -v : v;
+}
+IIWA14_TRIG_INLINE float iiwa14_cos_bounded(float x) {
+  int quadrant;
+  float r = iiwa14_reduce(x, &quadrant);
+  float v = ((quadrant & 1) != 0) ? iiwa14_sin_poly(r) : iiwa14_cos_poly(r);
+  return (((quadrant + 1) & 2) != 0) ? -v : v;
+}
 #endif
 
 /* Result of the functions that can fail. */
@@ -103,12 +177,12 @@ void iiwa14_jacobian(const iiwa14_real q[IIWA14_NDOF], iiwa14_real J[42]);
 #define IIWA14_FK_JACOBIAN_WORK_REALS 30
 void iiwa14_fk_jacobian(const iiwa14_real q[IIWA14_NDOF], iiwa14_real T[16], iiwa14_real J[42]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 27 add, 21 mul, 14 div; work: 29 reals. */
+ * ops: 34 add, 28 mul, 21 div, 7 minmax, 14 compare; work: 39 reals. */
 #define IIWA14_ZGHAL_Q_ROWS 7
 #define IIWA14_ZGHAL_Q_COLS 1
 #define IIWA14_ZGHAL_GRAD_H_L_ROWS 7
 #define IIWA14_ZGHAL_GRAD_H_L_COLS 1
-#define IIWA14_ZGHAL_WORK_REALS 29
+#define IIWA14_ZGHAL_WORK_REALS 39
 void iiwa14_zghal(const iiwa14_real q[IIWA14_NDOF], iiwa14_real *H_L, iiwa14_real grad_H_L[IIWA14_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
  * ops: 13 add, 8 mul; work: 10 reals. */
@@ -121,7 +195,7 @@ void iiwa14_zghal(const iiwa14_real q[IIWA14_NDOF], iiwa14_real *H_L, iiwa14_rea
 #define IIWA14_REPETITIVE_WORK_REALS 10
 void iiwa14_repetitive(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real q_init[IIWA14_NDOF], iiwa14_real *H_R, iiwa14_real grad_H_R[IIWA14_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 1093 add, 1408 mul, 7 div, 7 sqrt, 24 trig; work: 313 reals. */
+ * ops: 1078 add, 1184 mul, 37 div, 13 sqrt, 24 trig, 7 minmax, 24 compare, 24 select; work: 315 reals. */
 #define IIWA14_JOINT_MANIPULABILITY_Q_ROWS 7
 #define IIWA14_JOINT_MANIPULABILITY_Q_COLS 1
 #define IIWA14_JOINT_MANIPULABILITY_A_ROWS 7
@@ -130,15 +204,15 @@ void iiwa14_repetitive(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real q_ini
 #define IIWA14_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define IIWA14_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 7
 #define IIWA14_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define IIWA14_JOINT_MANIPULABILITY_WORK_REALS 313
+#define IIWA14_JOINT_MANIPULABILITY_WORK_REALS 315
 void iiwa14_joint_manipulability(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 1073 add, 1388 mul, 7 div, 1 sqrt, 24 trig; work: 314 reals. */
+ * ops: 903 add, 968 mul, 27 div, 6 sqrt, 24 trig, 6 minmax, 20 compare, 20 select; work: 230 reals. */
 #define IIWA14_MANIPULABILITY_Q_ROWS 7
 #define IIWA14_MANIPULABILITY_Q_COLS 1
 #define IIWA14_MANIPULABILITY_GRAD_W_ROWS 7
 #define IIWA14_MANIPULABILITY_GRAD_W_COLS 1
-#define IIWA14_MANIPULABILITY_WORK_REALS 314
+#define IIWA14_MANIPULABILITY_WORK_REALS 230
 void iiwa14_manipulability(const iiwa14_real q[IIWA14_NDOF], iiwa14_real delta, iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 63 add, 49 mul, 14 div, 29 minmax; work: 14 reals. */
@@ -149,7 +223,7 @@ void iiwa14_manipulability(const iiwa14_real q[IIWA14_NDOF], iiwa14_real delta, 
 #define IIWA14_CONTINUOUS_WEIGHTS_WORK_REALS 14
 void iiwa14_continuous_weights(const iiwa14_real q[IIWA14_NDOF], iiwa14_real band, iiwa14_real w_c[IIWA14_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 1857 add, 2466 mul, 14 div, 8 sqrt, 36 trig, 1 minmax; work: 356 reals. */
+ * ops: 1701 add, 1927 mul, 59 div, 14 sqrt, 36 trig, 7 minmax, 34 compare, 34 select; work: 343 reals. */
 #define IIWA14_FT_INDEX_Q_ROWS 7
 #define IIWA14_FT_INDEX_Q_COLS 1
 #define IIWA14_FT_INDEX_MASK_ROWS 7
@@ -162,7 +236,7 @@ void iiwa14_continuous_weights(const iiwa14_real q[IIWA14_NDOF], iiwa14_real ban
 #define IIWA14_FT_INDEX_GRAD_H_M_COLS 1
 #define IIWA14_FT_INDEX_GRAD_W_ROWS 7
 #define IIWA14_FT_INDEX_GRAD_W_COLS 1
-#define IIWA14_FT_INDEX_WORK_REALS 356
+#define IIWA14_FT_INDEX_WORK_REALS 343
 void iiwa14_ft_index(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF], iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 24 reals. */
@@ -221,7 +295,7 @@ iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_FAULT_WORK_REALS 138
 iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 3682 add, 4548 mul, 620 div, 280 sqrt, 24 trig, 2 pow, 165 minmax, 194 compare, 180 select; work: 377 reals. */
+ * ops: 3655 add, 4324 mul, 650 div, 286 sqrt, 24 trig, 2 pow, 171 minmax, 218 compare, 204 select; work: 380 reals. */
 #define IIWA14_STEP_WGPM_Q_ROWS 7
 #define IIWA14_STEP_WGPM_Q_COLS 1
 #define IIWA14_STEP_WGPM_XDOT_ROWS 6
@@ -246,7 +320,7 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
 #define IIWA14_STEP_WGPM_GAINS_COLS 1
 #define IIWA14_STEP_WGPM_H_ROWS 4
 #define IIWA14_STEP_WGPM_H_COLS 1
-#define IIWA14_STEP_WGPM_WORK_REALS 377
+#define IIWA14_STEP_WGPM_WORK_REALS 380
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 
 #ifdef __cplusplus

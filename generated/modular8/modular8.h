@@ -23,14 +23,12 @@ extern "C" {
 #if MODULAR8_USE_FLOAT
 typedef float modular8_real;
 #define MODULAR8_LIT(x) x##f
-#define MODULAR8_SIN sinf
-#define MODULAR8_COS cosf
 #define MODULAR8_TAN tanf
 #define MODULAR8_ASIN asinf
 #define MODULAR8_ACOS acosf
 #define MODULAR8_ATAN atanf
 #define MODULAR8_ATAN2 atan2f
-#define MODULAR8_SQRT sqrtf
+#define MODULAR8_SQRT modular8_sqrt
 #define MODULAR8_HYPOT hypotf
 #define MODULAR8_POW powf
 #define MODULAR8_EXP expf
@@ -38,10 +36,23 @@ typedef float modular8_real;
 #define MODULAR8_FABS fabsf
 #define MODULAR8_FLOOR floorf
 #define MODULAR8_CEIL ceilf
-#define MODULAR8_FMIN fminf
-#define MODULAR8_FMAX fmaxf
+#define MODULAR8_FMIN modular8_fmin
+#define MODULAR8_FMAX modular8_fmax
 #define MODULAR8_FMOD fmodf
 #define MODULAR8_COPYSIGN copysignf
+/* MODULAR8_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
+ * (modular8_sin_bounded/modular8_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+#ifndef MODULAR8_BOUNDED_TRIG
+#define MODULAR8_BOUNDED_TRIG 0
+#endif
+#if MODULAR8_BOUNDED_TRIG
+#define MODULAR8_SIN modular8_sin_bounded
+#define MODULAR8_COS modular8_cos_bounded
+#else
+#define MODULAR8_SIN sinf
+#define MODULAR8_COS cosf
+#endif
 #else
 typedef double modular8_real;
 #define MODULAR8_LIT(x) x
@@ -52,7 +63,7 @@ typedef double modular8_real;
 #define MODULAR8_ACOS acos
 #define MODULAR8_ATAN atan
 #define MODULAR8_ATAN2 atan2
-#define MODULAR8_SQRT sqrt
+#define MODULAR8_SQRT modular8_sqrt
 #define MODULAR8_HYPOT hypot
 #define MODULAR8_POW pow
 #define MODULAR8_EXP exp
@@ -60,10 +71,73 @@ typedef double modular8_real;
 #define MODULAR8_FABS fabs
 #define MODULAR8_FLOOR floor
 #define MODULAR8_CEIL ceil
-#define MODULAR8_FMIN fmin
-#define MODULAR8_FMAX fmax
+#define MODULAR8_FMIN modular8_fmin
+#define MODULAR8_FMAX modular8_fmax
 #define MODULAR8_FMOD fmod
 #define MODULAR8_COPYSIGN copysign
+#endif
+
+#include <math.h>
+
+/* Lean math (no library calls where the FPU or a comparison does the job). */
+static inline modular8_real modular8_fmin(modular8_real a, modular8_real b) { return ((a < b) || (b != b)) ? a : b; }
+static inline modular8_real modular8_fmax(modular8_real a, modular8_real b) { return ((a > b) || (b != b)) ? a : b; }
+/* x - x is 0 for a finite x and NaN for NaN/inf, and NaN propagates through the sum: one
+ * subtraction and one addition per value, a single comparison at the end. */
+static inline int modular8_all_finite(const modular8_real *x, int count) {
+  int k;
+  modular8_real acc = x[0] - x[0];
+  for (k = 1; k < count; ++k) { acc += x[k] - x[k]; }
+  return (acc == acc) ? 1 : 0;
+}
+static inline modular8_real modular8_sqrt(modular8_real x) {
+#if MODULAR8_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
+  modular8_real r;
+  __asm__("vsqrt.f32 %0, %1" : "=t"(r) : "t"(x));
+  return r;
+#elif MODULAR8_USE_FLOAT
+  return sqrtf(x);
+#else
+  return sqrt(x);
+#endif
+}
+#if MODULAR8_USE_FLOAT && MODULAR8_BOUNDED_TRIG
+/* Always inlined (gcc/clang), also at -Os: the sin and cos of one joint angle then share the
+ * reduction, and no call is made. */
+#if defined(__GNUC__)
+#define MODULAR8_TRIG_INLINE static inline __attribute__((always_inline))
+#else
+#define MODULAR8_TRIG_INLINE static inline
+#endif
+/* x = k pi/2 + r, |r| <= pi/4; |x| beyond 100 rad is outside the documented range
+ * (still finite), NaN/inf give NaN. */
+MODULAR8_TRIG_INLINE float modular8_reduce(float x, int *quadrant) {
+  const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
+  float k = (x * 0.636619772367581343f + shifter) - shifter;
+  float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
+  *quadrant = ((int)kc) & 3;
+  return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
+}
+MODULAR8_TRIG_INLINE float modular8_sin_poly(float r) {
+  float z = r * r;
+  return r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
+}
+MODULAR8_TRIG_INLINE float modular8_cos_poly(float r) {
+  float z = r * r;
+  return 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+}
+MODULAR8_TRIG_INLINE float modular8_sin_bounded(float x) {
+  int quadrant;
+  float r = modular8_reduce(x, &quadrant);
+  float v = ((quadrant & 1) != 0) ? modular8_cos_poly(r) : modular8_sin_poly(r);
+  return ((quadrant & 2) != 0) ? -v : v;
+}
+MODULAR8_TRIG_INLINE float modular8_cos_bounded(float x) {
+  int quadrant;
+  float r = modular8_reduce(x, &quadrant);
+  float v = ((quadrant & 1) != 0) ? modular8_sin_poly(r) : modular8_cos_poly(r);
+  return (((quadrant + 1) & 2) != 0) ? -v : v;
+}
 #endif
 
 /* Result of the functions that can fail. */
@@ -103,12 +177,12 @@ void modular8_jacobian(const modular8_real q[MODULAR8_NDOF], modular8_real J[48]
 #define MODULAR8_FK_JACOBIAN_WORK_REALS 37
 void modular8_fk_jacobian(const modular8_real q[MODULAR8_NDOF], modular8_real T[16], modular8_real J[48]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 31 add, 24 mul, 16 div; work: 33 reals. */
+ * ops: 39 add, 32 mul, 24 div, 8 minmax, 16 compare; work: 42 reals. */
 #define MODULAR8_ZGHAL_Q_ROWS 8
 #define MODULAR8_ZGHAL_Q_COLS 1
 #define MODULAR8_ZGHAL_GRAD_H_L_ROWS 8
 #define MODULAR8_ZGHAL_GRAD_H_L_COLS 1
-#define MODULAR8_ZGHAL_WORK_REALS 33
+#define MODULAR8_ZGHAL_WORK_REALS 42
 void modular8_zghal(const modular8_real q[MODULAR8_NDOF], modular8_real *H_L, modular8_real grad_H_L[MODULAR8_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
  * ops: 15 add, 9 mul; work: 11 reals. */
@@ -121,7 +195,7 @@ void modular8_zghal(const modular8_real q[MODULAR8_NDOF], modular8_real *H_L, mo
 #define MODULAR8_REPETITIVE_WORK_REALS 11
 void modular8_repetitive(const modular8_real q[MODULAR8_NDOF], const modular8_real q_init[MODULAR8_NDOF], modular8_real *H_R, modular8_real grad_H_R[MODULAR8_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 2410 add, 2859 mul, 8 div, 8 sqrt, 28 trig; work: 553 reals. */
+ * ops: 1502 add, 1624 mul, 38 div, 14 sqrt, 28 trig, 7 minmax, 24 compare, 24 select; work: 437 reals. */
 #define MODULAR8_JOINT_MANIPULABILITY_Q_ROWS 8
 #define MODULAR8_JOINT_MANIPULABILITY_Q_COLS 1
 #define MODULAR8_JOINT_MANIPULABILITY_A_ROWS 8
@@ -130,15 +204,15 @@ void modular8_repetitive(const modular8_real q[MODULAR8_NDOF], const modular8_re
 #define MODULAR8_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define MODULAR8_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 8
 #define MODULAR8_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define MODULAR8_JOINT_MANIPULABILITY_WORK_REALS 553
+#define MODULAR8_JOINT_MANIPULABILITY_WORK_REALS 437
 void modular8_joint_manipulability(const modular8_real q[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 2311 add, 2816 mul, 28 div, 1 sqrt, 28 trig; work: 539 reals. */
+ * ops: 1108 add, 1158 mul, 27 div, 6 sqrt, 28 trig, 6 minmax, 20 compare, 20 select; work: 281 reals. */
 #define MODULAR8_MANIPULABILITY_Q_ROWS 8
 #define MODULAR8_MANIPULABILITY_Q_COLS 1
 #define MODULAR8_MANIPULABILITY_GRAD_W_ROWS 8
 #define MODULAR8_MANIPULABILITY_GRAD_W_COLS 1
-#define MODULAR8_MANIPULABILITY_WORK_REALS 539
+#define MODULAR8_MANIPULABILITY_WORK_REALS 281
 void modular8_manipulability(const modular8_real q[MODULAR8_NDOF], modular8_real delta, modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 72 add, 56 mul, 16 div, 33 minmax; work: 11 reals. */
@@ -149,7 +223,7 @@ void modular8_manipulability(const modular8_real q[MODULAR8_NDOF], modular8_real
 #define MODULAR8_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void modular8_continuous_weights(const modular8_real q[MODULAR8_NDOF], modular8_real band, modular8_real w_c[MODULAR8_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 4046 add, 4918 mul, 36 div, 9 sqrt, 42 trig, 1 minmax; work: 640 reals. */
+ * ops: 2259 add, 2506 mul, 60 div, 15 sqrt, 42 trig, 7 minmax, 34 compare, 34 select; work: 470 reals. */
 #define MODULAR8_FT_INDEX_Q_ROWS 8
 #define MODULAR8_FT_INDEX_Q_COLS 1
 #define MODULAR8_FT_INDEX_MASK_ROWS 8
@@ -162,7 +236,7 @@ void modular8_continuous_weights(const modular8_real q[MODULAR8_NDOF], modular8_
 #define MODULAR8_FT_INDEX_GRAD_H_M_COLS 1
 #define MODULAR8_FT_INDEX_GRAD_W_ROWS 8
 #define MODULAR8_FT_INDEX_GRAD_W_COLS 1
-#define MODULAR8_FT_INDEX_WORK_REALS 640
+#define MODULAR8_FT_INDEX_WORK_REALS 470
 void modular8_ft_index(const modular8_real q[MODULAR8_NDOF], const modular8_real mask[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF], modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 40 add, 64 mul, 16 div, 34 minmax, 18 compare, 16 select; work: 26 reals. */
@@ -221,7 +295,7 @@ modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_FAULT_WORK_REALS 144
 modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 5131 add, 6093 mul, 626 div, 281 sqrt, 28 trig, 2 pow, 170 minmax, 196 compare, 180 select; work: 600 reals. */
+ * ops: 4169 add, 4858 mul, 656 div, 287 sqrt, 28 trig, 2 pow, 176 minmax, 220 compare, 204 select; work: 503 reals. */
 #define MODULAR8_STEP_WGPM_Q_ROWS 8
 #define MODULAR8_STEP_WGPM_Q_COLS 1
 #define MODULAR8_STEP_WGPM_XDOT_ROWS 6
@@ -246,7 +320,7 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_GAINS_COLS 1
 #define MODULAR8_STEP_WGPM_H_ROWS 4
 #define MODULAR8_STEP_WGPM_H_COLS 1
-#define MODULAR8_STEP_WGPM_WORK_REALS 600
+#define MODULAR8_STEP_WGPM_WORK_REALS 503
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 
 #ifdef __cplusplus

@@ -23,14 +23,12 @@ extern "C" {
 #if PANDA_USE_FLOAT
 typedef float panda_real;
 #define PANDA_LIT(x) x##f
-#define PANDA_SIN sinf
-#define PANDA_COS cosf
 #define PANDA_TAN tanf
 #define PANDA_ASIN asinf
 #define PANDA_ACOS acosf
 #define PANDA_ATAN atanf
 #define PANDA_ATAN2 atan2f
-#define PANDA_SQRT sqrtf
+#define PANDA_SQRT panda_sqrt
 #define PANDA_HYPOT hypotf
 #define PANDA_POW powf
 #define PANDA_EXP expf
@@ -38,10 +36,23 @@ typedef float panda_real;
 #define PANDA_FABS fabsf
 #define PANDA_FLOOR floorf
 #define PANDA_CEIL ceilf
-#define PANDA_FMIN fminf
-#define PANDA_FMAX fmaxf
+#define PANDA_FMIN panda_fmin
+#define PANDA_FMAX panda_fmax
 #define PANDA_FMOD fmodf
 #define PANDA_COPYSIGN copysignf
+/* PANDA_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
+ * (panda_sin_bounded/panda_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+#ifndef PANDA_BOUNDED_TRIG
+#define PANDA_BOUNDED_TRIG 0
+#endif
+#if PANDA_BOUNDED_TRIG
+#define PANDA_SIN panda_sin_bounded
+#define PANDA_COS panda_cos_bounded
+#else
+#define PANDA_SIN sinf
+#define PANDA_COS cosf
+#endif
 #else
 typedef double panda_real;
 #define PANDA_LIT(x) x
@@ -52,7 +63,7 @@ typedef double panda_real;
 #define PANDA_ACOS acos
 #define PANDA_ATAN atan
 #define PANDA_ATAN2 atan2
-#define PANDA_SQRT sqrt
+#define PANDA_SQRT panda_sqrt
 #define PANDA_HYPOT hypot
 #define PANDA_POW pow
 #define PANDA_EXP exp
@@ -60,10 +71,73 @@ typedef double panda_real;
 #define PANDA_FABS fabs
 #define PANDA_FLOOR floor
 #define PANDA_CEIL ceil
-#define PANDA_FMIN fmin
-#define PANDA_FMAX fmax
+#define PANDA_FMIN panda_fmin
+#define PANDA_FMAX panda_fmax
 #define PANDA_FMOD fmod
 #define PANDA_COPYSIGN copysign
+#endif
+
+#include <math.h>
+
+/* Lean math (no library calls where the FPU or a comparison does the job). */
+static inline panda_real panda_fmin(panda_real a, panda_real b) { return ((a < b) || (b != b)) ? a : b; }
+static inline panda_real panda_fmax(panda_real a, panda_real b) { return ((a > b) || (b != b)) ? a : b; }
+/* x - x is 0 for a finite x and NaN for NaN/inf, and NaN propagates through the sum: one
+ * subtraction and one addition per value, a single comparison at the end. */
+static inline int panda_all_finite(const panda_real *x, int count) {
+  int k;
+  panda_real acc = x[0] - x[0];
+  for (k = 1; k < count; ++k) { acc += x[k] - x[k]; }
+  return (acc == acc) ? 1 : 0;
+}
+static inline panda_real panda_sqrt(panda_real x) {
+#if PANDA_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
+  panda_real r;
+  __asm__("vsqrt.f32 %0, %1" : "=t"(r) : "t"(x));
+  return r;
+#elif PANDA_USE_FLOAT
+  return sqrtf(x);
+#else
+  return sqrt(x);
+#endif
+}
+#if PANDA_USE_FLOAT && PANDA_BOUNDED_TRIG
+/* Always inlined (gcc/clang), also at -Os: the sin and cos of one joint angle then share the
+ * reduction, and no call is made. */
+#if defined(__GNUC__)
+#define PANDA_TRIG_INLINE static inline __attribute__((always_inline))
+#else
+#define PANDA_TRIG_INLINE static inline
+#endif
+/* x = k pi/2 + r, |r| <= pi/4; |x| beyond 100 rad is outside the documented range
+ * (still finite), NaN/inf give NaN. */
+PANDA_TRIG_INLINE float panda_reduce(float x, int *quadrant) {
+  const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
+  float k = (x * 0.636619772367581343f + shifter) - shifter;
+  float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
+  *quadrant = ((int)kc) & 3;
+  return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
+}
+PANDA_TRIG_INLINE float panda_sin_poly(float r) {
+  float z = r * r;
+  return r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
+}
+PANDA_TRIG_INLINE float panda_cos_poly(float r) {
+  float z = r * r;
+  return 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+}
+PANDA_TRIG_INLINE float panda_sin_bounded(float x) {
+  int quadrant;
+  float r = panda_reduce(x, &quadrant);
+  float v = ((quadrant & 1) != 0) ? panda_cos_poly(r) : panda_sin_poly(r);
+  return ((quadrant & 2) != 0) ? -v : v;
+}
+PANDA_TRIG_INLINE float panda_cos_bounded(float x) {
+  int quadrant;
+  float r = panda_reduce(x, &quadrant);
+  float v = ((quadrant & 1) != 0) ? panda_sin_poly(r) : panda_cos_poly(r);
+  return (((quadrant + 1) & 2) != 0) ? -v : v;
+}
 #endif
 
 /* Result of the functions that can fail. */
@@ -103,12 +177,12 @@ void panda_jacobian(const panda_real q[PANDA_NDOF], panda_real J[42]);
 #define PANDA_FK_JACOBIAN_WORK_REALS 40
 void panda_fk_jacobian(const panda_real q[PANDA_NDOF], panda_real T[16], panda_real J[42]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 27 add, 21 mul, 14 div; work: 29 reals. */
+ * ops: 34 add, 28 mul, 21 div, 7 minmax, 14 compare; work: 40 reals. */
 #define PANDA_ZGHAL_Q_ROWS 7
 #define PANDA_ZGHAL_Q_COLS 1
 #define PANDA_ZGHAL_GRAD_H_L_ROWS 7
 #define PANDA_ZGHAL_GRAD_H_L_COLS 1
-#define PANDA_ZGHAL_WORK_REALS 29
+#define PANDA_ZGHAL_WORK_REALS 40
 void panda_zghal(const panda_real q[PANDA_NDOF], panda_real *H_L, panda_real grad_H_L[PANDA_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
  * ops: 13 add, 8 mul; work: 10 reals. */
@@ -121,7 +195,7 @@ void panda_zghal(const panda_real q[PANDA_NDOF], panda_real *H_L, panda_real gra
 #define PANDA_REPETITIVE_WORK_REALS 10
 void panda_repetitive(const panda_real q[PANDA_NDOF], const panda_real q_init[PANDA_NDOF], panda_real *H_R, panda_real grad_H_R[PANDA_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 1135 add, 1444 mul, 7 div, 7 sqrt, 24 trig; work: 316 reals. */
+ * ops: 1120 add, 1220 mul, 37 div, 13 sqrt, 24 trig, 7 minmax, 24 compare, 24 select; work: 321 reals. */
 #define PANDA_JOINT_MANIPULABILITY_Q_ROWS 7
 #define PANDA_JOINT_MANIPULABILITY_Q_COLS 1
 #define PANDA_JOINT_MANIPULABILITY_A_ROWS 7
@@ -130,15 +204,15 @@ void panda_repetitive(const panda_real q[PANDA_NDOF], const panda_real q_init[PA
 #define PANDA_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define PANDA_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 7
 #define PANDA_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define PANDA_JOINT_MANIPULABILITY_WORK_REALS 316
+#define PANDA_JOINT_MANIPULABILITY_WORK_REALS 321
 void panda_joint_manipulability(const panda_real q[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 1115 add, 1424 mul, 7 div, 1 sqrt, 24 trig; work: 314 reals. */
+ * ops: 945 add, 1004 mul, 27 div, 6 sqrt, 24 trig, 6 minmax, 20 compare, 20 select; work: 236 reals. */
 #define PANDA_MANIPULABILITY_Q_ROWS 7
 #define PANDA_MANIPULABILITY_Q_COLS 1
 #define PANDA_MANIPULABILITY_GRAD_W_ROWS 7
 #define PANDA_MANIPULABILITY_GRAD_W_COLS 1
-#define PANDA_MANIPULABILITY_WORK_REALS 314
+#define PANDA_MANIPULABILITY_WORK_REALS 236
 void panda_manipulability(const panda_real q[PANDA_NDOF], panda_real delta, panda_real *w, panda_real grad_w[PANDA_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 63 add, 49 mul, 14 div, 29 minmax; work: 12 reals. */
@@ -149,7 +223,7 @@ void panda_manipulability(const panda_real q[PANDA_NDOF], panda_real delta, pand
 #define PANDA_CONTINUOUS_WEIGHTS_WORK_REALS 12
 void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, panda_real w_c[PANDA_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 1923 add, 2523 mul, 14 div, 8 sqrt, 36 trig, 1 minmax; work: 360 reals. */
+ * ops: 1767 add, 1984 mul, 59 div, 14 sqrt, 36 trig, 7 minmax, 34 compare, 34 select; work: 349 reals. */
 #define PANDA_FT_INDEX_Q_ROWS 7
 #define PANDA_FT_INDEX_Q_COLS 1
 #define PANDA_FT_INDEX_MASK_ROWS 7
@@ -162,7 +236,7 @@ void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, p
 #define PANDA_FT_INDEX_GRAD_H_M_COLS 1
 #define PANDA_FT_INDEX_GRAD_W_ROWS 7
 #define PANDA_FT_INDEX_GRAD_W_COLS 1
-#define PANDA_FT_INDEX_WORK_REALS 360
+#define PANDA_FT_INDEX_WORK_REALS 349
 void panda_ft_index(const panda_real q[PANDA_NDOF], const panda_real mask[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF], panda_real *w, panda_real grad_w[PANDA_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 24 reals. */
@@ -221,7 +295,7 @@ panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_FAULT_WORK_REALS 138
 panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 3724 add, 4584 mul, 620 div, 280 sqrt, 24 trig, 2 pow, 165 minmax, 194 compare, 180 select; work: 380 reals. */
+ * ops: 3697 add, 4360 mul, 650 div, 286 sqrt, 24 trig, 2 pow, 171 minmax, 218 compare, 204 select; work: 385 reals. */
 #define PANDA_STEP_WGPM_Q_ROWS 7
 #define PANDA_STEP_WGPM_Q_COLS 1
 #define PANDA_STEP_WGPM_XDOT_ROWS 6
@@ -246,7 +320,7 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_GAINS_COLS 1
 #define PANDA_STEP_WGPM_H_ROWS 4
 #define PANDA_STEP_WGPM_H_COLS 1
-#define PANDA_STEP_WGPM_WORK_REALS 380
+#define PANDA_STEP_WGPM_WORK_REALS 385
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 
 #ifdef __cplusplus

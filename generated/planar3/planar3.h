@@ -23,14 +23,12 @@ extern "C" {
 #if PLANAR3_USE_FLOAT
 typedef float planar3_real;
 #define PLANAR3_LIT(x) x##f
-#define PLANAR3_SIN sinf
-#define PLANAR3_COS cosf
 #define PLANAR3_TAN tanf
 #define PLANAR3_ASIN asinf
 #define PLANAR3_ACOS acosf
 #define PLANAR3_ATAN atanf
 #define PLANAR3_ATAN2 atan2f
-#define PLANAR3_SQRT sqrtf
+#define PLANAR3_SQRT planar3_sqrt
 #define PLANAR3_HYPOT hypotf
 #define PLANAR3_POW powf
 #define PLANAR3_EXP expf
@@ -38,10 +36,23 @@ typedef float planar3_real;
 #define PLANAR3_FABS fabsf
 #define PLANAR3_FLOOR floorf
 #define PLANAR3_CEIL ceilf
-#define PLANAR3_FMIN fminf
-#define PLANAR3_FMAX fmaxf
+#define PLANAR3_FMIN planar3_fmin
+#define PLANAR3_FMAX planar3_fmax
 #define PLANAR3_FMOD fmodf
 #define PLANAR3_COPYSIGN copysignf
+/* PLANAR3_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
+ * (planar3_sin_bounded/planar3_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+#ifndef PLANAR3_BOUNDED_TRIG
+#define PLANAR3_BOUNDED_TRIG 0
+#endif
+#if PLANAR3_BOUNDED_TRIG
+#define PLANAR3_SIN planar3_sin_bounded
+#define PLANAR3_COS planar3_cos_bounded
+#else
+#define PLANAR3_SIN sinf
+#define PLANAR3_COS cosf
+#endif
 #else
 typedef double planar3_real;
 #define PLANAR3_LIT(x) x
@@ -52,7 +63,7 @@ typedef double planar3_real;
 #define PLANAR3_ACOS acos
 #define PLANAR3_ATAN atan
 #define PLANAR3_ATAN2 atan2
-#define PLANAR3_SQRT sqrt
+#define PLANAR3_SQRT planar3_sqrt
 #define PLANAR3_HYPOT hypot
 #define PLANAR3_POW pow
 #define PLANAR3_EXP exp
@@ -60,10 +71,73 @@ typedef double planar3_real;
 #define PLANAR3_FABS fabs
 #define PLANAR3_FLOOR floor
 #define PLANAR3_CEIL ceil
-#define PLANAR3_FMIN fmin
-#define PLANAR3_FMAX fmax
+#define PLANAR3_FMIN planar3_fmin
+#define PLANAR3_FMAX planar3_fmax
 #define PLANAR3_FMOD fmod
 #define PLANAR3_COPYSIGN copysign
+#endif
+
+#include <math.h>
+
+/* Lean math (no library calls where the FPU or a comparison does the job). */
+static inline planar3_real planar3_fmin(planar3_real a, planar3_real b) { return ((a < b) || (b != b)) ? a : b; }
+static inline planar3_real planar3_fmax(planar3_real a, planar3_real b) { return ((a > b) || (b != b)) ? a : b; }
+/* x - x is 0 for a finite x and NaN for NaN/inf, and NaN propagates through the sum: one
+ * subtraction and one addition per value, a single comparison at the end. */
+static inline int planar3_all_finite(const planar3_real *x, int count) {
+  int k;
+  planar3_real acc = x[0] - x[0];
+  for (k = 1; k < count; ++k) { acc += x[k] - x[k]; }
+  return (acc == acc) ? 1 : 0;
+}
+static inline planar3_real planar3_sqrt(planar3_real x) {
+#if PLANAR3_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
+  planar3_real r;
+  __asm__("vsqrt.f32 %0, %1" : "=t"(r) : "t"(x));
+  return r;
+#elif PLANAR3_USE_FLOAT
+  return sqrtf(x);
+#else
+  return sqrt(x);
+#endif
+}
+#if PLANAR3_USE_FLOAT && PLANAR3_BOUNDED_TRIG
+/* Always inlined (gcc/clang), also at -Os: the sin and cos of one joint angle then share the
+ * reduction, and no call is made. */
+#if defined(__GNUC__)
+#define PLANAR3_TRIG_INLINE static inline __attribute__((always_inline))
+#else
+#define PLANAR3_TRIG_INLINE static inline
+#endif
+/* x = k pi/2 + r, |r| <= pi/4; |x| beyond 100 rad is outside the documented range
+ * (still finite), NaN/inf give NaN. */
+PLANAR3_TRIG_INLINE float planar3_reduce(float x, int *quadrant) {
+  const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
+  float k = (x * 0.636619772367581343f + shifter) - shifter;
+  float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
+  *quadrant = ((int)kc) & 3;
+  return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
+}
+PLANAR3_TRIG_INLINE float planar3_sin_poly(float r) {
+  float z = r * r;
+  return r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
+}
+PLANAR3_TRIG_INLINE float planar3_cos_poly(float r) {
+  float z = r * r;
+  return 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+}
+PLANAR3_TRIG_INLINE float planar3_sin_bounded(float x) {
+  int quadrant;
+  float r = planar3_reduce(x, &quadrant);
+  float v = ((quadrant & 1) != 0) ? planar3_cos_poly(r) : planar3_sin_poly(r);
+  return ((quadrant & 2) != 0) ? -v : v;
+}
+PLANAR3_TRIG_INLINE float planar3_cos_bounded(float x) {
+  int quadrant;
+  float r = planar3_reduce(x, &quadrant);
+  float v = ((quadrant & 1) != 0) ? planar3_sin_poly(r) : planar3_cos_poly(r);
+  return (((quadrant + 1) & 2) != 0) ? -v : v;
+}
 #endif
 
 /* Result of the functions that can fail. */
@@ -103,12 +177,12 @@ void planar3_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real J[18]);
 #define PLANAR3_FK_JACOBIAN_WORK_REALS 12
 void planar3_fk_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real T[16], planar3_real J[18]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 11 add, 9 mul, 6 div; work: 13 reals. */
+ * ops: 14 add, 12 mul, 9 div, 3 minmax, 6 compare; work: 17 reals. */
 #define PLANAR3_ZGHAL_Q_ROWS 3
 #define PLANAR3_ZGHAL_Q_COLS 1
 #define PLANAR3_ZGHAL_GRAD_H_L_ROWS 3
 #define PLANAR3_ZGHAL_GRAD_H_L_COLS 1
-#define PLANAR3_ZGHAL_WORK_REALS 13
+#define PLANAR3_ZGHAL_WORK_REALS 17
 void planar3_zghal(const planar3_real q[PLANAR3_NDOF], planar3_real *H_L, planar3_real grad_H_L[PLANAR3_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
  * ops: 5 add, 4 mul; work: 6 reals. */
@@ -121,7 +195,7 @@ void planar3_zghal(const planar3_real q[PLANAR3_NDOF], planar3_real *H_L, planar
 #define PLANAR3_REPETITIVE_WORK_REALS 6
 void planar3_repetitive(const planar3_real q[PLANAR3_NDOF], const planar3_real q_init[PLANAR3_NDOF], planar3_real *H_R, planar3_real grad_H_R[PLANAR3_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 2 add, 3 mul, 3 minmax; work: 4 reals. */
+ * ops: 2 add, 3 mul, 4 minmax; work: 4 reals. */
 #define PLANAR3_JOINT_MANIPULABILITY_Q_ROWS 3
 #define PLANAR3_JOINT_MANIPULABILITY_Q_COLS 1
 #define PLANAR3_JOINT_MANIPULABILITY_A_ROWS 3
@@ -133,12 +207,12 @@ void planar3_repetitive(const planar3_real q[PLANAR3_NDOF], const planar3_real q
 #define PLANAR3_JOINT_MANIPULABILITY_WORK_REALS 4
 void planar3_joint_manipulability(const planar3_real q[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 49 add, 74 mul, 1 div, 1 sqrt, 12 trig; work: 27 reals. */
+ * ops: 125 add, 144 mul, 12 div, 3 sqrt, 12 trig, 3 minmax, 8 compare, 8 select; work: 61 reals. */
 #define PLANAR3_MANIPULABILITY_Q_ROWS 3
 #define PLANAR3_MANIPULABILITY_Q_COLS 1
 #define PLANAR3_MANIPULABILITY_GRAD_W_ROWS 3
 #define PLANAR3_MANIPULABILITY_GRAD_W_COLS 1
-#define PLANAR3_MANIPULABILITY_WORK_REALS 27
+#define PLANAR3_MANIPULABILITY_WORK_REALS 61
 void planar3_manipulability(const planar3_real q[PLANAR3_NDOF], planar3_real delta, planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 27 add, 21 mul, 6 div, 13 minmax; work: 11 reals. */
@@ -149,7 +223,7 @@ void planar3_manipulability(const planar3_real q[PLANAR3_NDOF], planar3_real del
 #define PLANAR3_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void planar3_continuous_weights(const planar3_real q[PLANAR3_NDOF], planar3_real band, planar3_real w_c[PLANAR3_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 51 add, 98 mul, 1 div, 1 sqrt, 12 trig, 4 minmax; work: 32 reals. */
+ * ops: 131 add, 167 mul, 12 div, 3 sqrt, 12 trig, 6 minmax, 8 compare, 8 select; work: 63 reals. */
 #define PLANAR3_FT_INDEX_Q_ROWS 3
 #define PLANAR3_FT_INDEX_Q_COLS 1
 #define PLANAR3_FT_INDEX_MASK_ROWS 3
@@ -162,7 +236,7 @@ void planar3_continuous_weights(const planar3_real q[PLANAR3_NDOF], planar3_real
 #define PLANAR3_FT_INDEX_GRAD_H_M_COLS 1
 #define PLANAR3_FT_INDEX_GRAD_W_ROWS 3
 #define PLANAR3_FT_INDEX_GRAD_W_COLS 1
-#define PLANAR3_FT_INDEX_WORK_REALS 32
+#define PLANAR3_FT_INDEX_WORK_REALS 63
 void planar3_ft_index(const planar3_real q[PLANAR3_NDOF], const planar3_real mask[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF], planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 15 add, 24 mul, 6 div, 14 minmax, 8 compare, 6 select; work: 16 reals. */
@@ -221,7 +295,7 @@ planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar
 #define PLANAR3_STEP_FAULT_WORK_REALS 45
 planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 507 add, 517 mul, 145 div, 57 sqrt, 12 trig, 2 pow, 68 minmax, 42 compare, 36 select; work: 69 reals. */
+ * ops: 582 add, 588 mul, 155 div, 59 sqrt, 12 trig, 2 pow, 70 minmax, 50 compare, 44 select; work: 100 reals. */
 #define PLANAR3_STEP_WGPM_Q_ROWS 3
 #define PLANAR3_STEP_WGPM_Q_COLS 1
 #define PLANAR3_STEP_WGPM_XDOT_ROWS 3
@@ -246,7 +320,7 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 #define PLANAR3_STEP_WGPM_GAINS_COLS 1
 #define PLANAR3_STEP_WGPM_H_ROWS 4
 #define PLANAR3_STEP_WGPM_H_COLS 1
-#define PLANAR3_STEP_WGPM_WORK_REALS 69
+#define PLANAR3_STEP_WGPM_WORK_REALS 100
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 
 #ifdef __cplusplus

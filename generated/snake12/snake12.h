@@ -23,14 +23,12 @@ extern "C" {
 #if SNAKE12_USE_FLOAT
 typedef float snake12_real;
 #define SNAKE12_LIT(x) x##f
-#define SNAKE12_SIN sinf
-#define SNAKE12_COS cosf
 #define SNAKE12_TAN tanf
 #define SNAKE12_ASIN asinf
 #define SNAKE12_ACOS acosf
 #define SNAKE12_ATAN atanf
 #define SNAKE12_ATAN2 atan2f
-#define SNAKE12_SQRT sqrtf
+#define SNAKE12_SQRT snake12_sqrt
 #define SNAKE12_HYPOT hypotf
 #define SNAKE12_POW powf
 #define SNAKE12_EXP expf
@@ -38,10 +36,23 @@ typedef float snake12_real;
 #define SNAKE12_FABS fabsf
 #define SNAKE12_FLOOR floorf
 #define SNAKE12_CEIL ceilf
-#define SNAKE12_FMIN fminf
-#define SNAKE12_FMAX fmaxf
+#define SNAKE12_FMIN snake12_fmin
+#define SNAKE12_FMAX snake12_fmax
 #define SNAKE12_FMOD fmodf
 #define SNAKE12_COPYSIGN copysignf
+/* SNAKE12_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
+ * (snake12_sin_bounded/snake12_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+#ifndef SNAKE12_BOUNDED_TRIG
+#define SNAKE12_BOUNDED_TRIG 0
+#endif
+#if SNAKE12_BOUNDED_TRIG
+#define SNAKE12_SIN snake12_sin_bounded
+#define SNAKE12_COS snake12_cos_bounded
+#else
+#define SNAKE12_SIN sinf
+#define SNAKE12_COS cosf
+#endif
 #else
 typedef double snake12_real;
 #define SNAKE12_LIT(x) x
@@ -52,7 +63,7 @@ typedef double snake12_real;
 #define SNAKE12_ACOS acos
 #define SNAKE12_ATAN atan
 #define SNAKE12_ATAN2 atan2
-#define SNAKE12_SQRT sqrt
+#define SNAKE12_SQRT snake12_sqrt
 #define SNAKE12_HYPOT hypot
 #define SNAKE12_POW pow
 #define SNAKE12_EXP exp
@@ -60,10 +71,73 @@ typedef double snake12_real;
 #define SNAKE12_FABS fabs
 #define SNAKE12_FLOOR floor
 #define SNAKE12_CEIL ceil
-#define SNAKE12_FMIN fmin
-#define SNAKE12_FMAX fmax
+#define SNAKE12_FMIN snake12_fmin
+#define SNAKE12_FMAX snake12_fmax
 #define SNAKE12_FMOD fmod
 #define SNAKE12_COPYSIGN copysign
+#endif
+
+#include <math.h>
+
+/* Lean math (no library calls where the FPU or a comparison does the job). */
+static inline snake12_real snake12_fmin(snake12_real a, snake12_real b) { return ((a < b) || (b != b)) ? a : b; }
+static inline snake12_real snake12_fmax(snake12_real a, snake12_real b) { return ((a > b) || (b != b)) ? a : b; }
+/* x - x is 0 for a finite x and NaN for NaN/inf, and NaN propagates through the sum: one
+ * subtraction and one addition per value, a single comparison at the end. */
+static inline int snake12_all_finite(const snake12_real *x, int count) {
+  int k;
+  snake12_real acc = x[0] - x[0];
+  for (k = 1; k < count; ++k) { acc += x[k] - x[k]; }
+  return (acc == acc) ? 1 : 0;
+}
+static inline snake12_real snake12_sqrt(snake12_real x) {
+#if SNAKE12_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
+  snake12_real r;
+  __asm__("vsqrt.f32 %0, %1" : "=t"(r) : "t"(x));
+  return r;
+#elif SNAKE12_USE_FLOAT
+  return sqrtf(x);
+#else
+  return sqrt(x);
+#endif
+}
+#if SNAKE12_USE_FLOAT && SNAKE12_BOUNDED_TRIG
+/* Always inlined (gcc/clang), also at -Os: the sin and cos of one joint angle then share the
+ * reduction, and no call is made. */
+#if defined(__GNUC__)
+#define SNAKE12_TRIG_INLINE static inline __attribute__((always_inline))
+#else
+#define SNAKE12_TRIG_INLINE static inline
+#endif
+/* x = k pi/2 + r, |r| <= pi/4; |x| beyond 100 rad is outside the documented range
+ * (still finite), NaN/inf give NaN. */
+SNAKE12_TRIG_INLINE float snake12_reduce(float x, int *quadrant) {
+  const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
+  float k = (x * 0.636619772367581343f + shifter) - shifter;
+  float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
+  *quadrant = ((int)kc) & 3;
+  return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
+}
+SNAKE12_TRIG_INLINE float snake12_sin_poly(float r) {
+  float z = r * r;
+  return r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
+}
+SNAKE12_TRIG_INLINE float snake12_cos_poly(float r) {
+  float z = r * r;
+  return 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+}
+SNAKE12_TRIG_INLINE float snake12_sin_bounded(float x) {
+  int quadrant;
+  float r = snake12_reduce(x, &quadrant);
+  float v = ((quadrant & 1) != 0) ? snake12_cos_poly(r) : snake12_sin_poly(r);
+  return ((quadrant & 2) != 0) ? -v : v;
+}
+SNAKE12_TRIG_INLINE float snake12_cos_bounded(float x) {
+  int quadrant;
+  float r = snake12_reduce(x, &quadrant);
+  float v = ((quadrant & 1) != 0) ? snake12_sin_poly(r) : snake12_cos_poly(r);
+  return (((quadrant + 1) & 2) != 0) ? -v : v;
+}
 #endif
 
 /* Result of the functions that can fail. */
@@ -103,12 +177,12 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]);
 #define SNAKE12_FK_JACOBIAN_WORK_REALS 119
 void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16], snake12_real J[150]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 98 add, 75 mul, 50 div; work: 101 reals. */
+ * ops: 123 add, 100 mul, 75 div, 25 minmax, 50 compare; work: 128 reals. */
 #define SNAKE12_ZGHAL_Q_ROWS 25
 #define SNAKE12_ZGHAL_Q_COLS 1
 #define SNAKE12_ZGHAL_GRAD_H_L_ROWS 25
 #define SNAKE12_ZGHAL_GRAD_H_L_COLS 1
-#define SNAKE12_ZGHAL_WORK_REALS 101
+#define SNAKE12_ZGHAL_WORK_REALS 128
 void snake12_zghal(const snake12_real q[SNAKE12_NDOF], snake12_real *H_L, snake12_real grad_H_L[SNAKE12_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
  * ops: 49 add, 26 mul; work: 28 reals. */
@@ -120,6 +194,26 @@ void snake12_zghal(const snake12_real q[SNAKE12_NDOF], snake12_real *H_L, snake1
 #define SNAKE12_REPETITIVE_GRAD_H_R_COLS 1
 #define SNAKE12_REPETITIVE_WORK_REALS 28
 void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q_init[SNAKE12_NDOF], snake12_real *H_R, snake12_real grad_H_R[SNAKE12_NDOF]);
+/* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
+ * ops: 18698 add, 19641 mul, 55 div, 31 sqrt, 96 trig, 7 minmax, 22 compare, 20 select; work: 5825 reals. */
+#define SNAKE12_JOINT_MANIPULABILITY_Q_ROWS 25
+#define SNAKE12_JOINT_MANIPULABILITY_Q_COLS 1
+#define SNAKE12_JOINT_MANIPULABILITY_A_ROWS 25
+#define SNAKE12_JOINT_MANIPULABILITY_A_COLS 1
+#define SNAKE12_JOINT_MANIPULABILITY_OMEGA_ROWS 25
+#define SNAKE12_JOINT_MANIPULABILITY_OMEGA_COLS 1
+#define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 25
+#define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
+#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 5825
+void snake12_joint_manipulability(const snake12_real q[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
+/* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
+ * ops: 4177 add, 4215 mul, 27 div, 6 sqrt, 96 trig, 6 minmax, 18 compare, 16 select; work: 799 reals. */
+#define SNAKE12_MANIPULABILITY_Q_ROWS 25
+#define SNAKE12_MANIPULABILITY_Q_COLS 1
+#define SNAKE12_MANIPULABILITY_GRAD_W_ROWS 25
+#define SNAKE12_MANIPULABILITY_GRAD_W_COLS 1
+#define SNAKE12_MANIPULABILITY_WORK_REALS 799
+void snake12_manipulability(const snake12_real q[SNAKE12_NDOF], snake12_real delta, snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 224 add, 175 mul, 50 div, 101 minmax; work: 11 reals. */
 #define SNAKE12_CONTINUOUS_WEIGHTS_Q_ROWS 25
@@ -128,6 +222,22 @@ void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q
 #define SNAKE12_CONTINUOUS_WEIGHTS_W_C_COLS 1
 #define SNAKE12_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real band, snake12_real w_c[SNAKE12_NDOF]);
+/* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
+ * ops: 21530 add, 22778 mul, 77 div, 32 sqrt, 144 trig, 7 minmax, 34 compare, 34 select; work: 5923 reals. */
+#define SNAKE12_FT_INDEX_Q_ROWS 25
+#define SNAKE12_FT_INDEX_Q_COLS 1
+#define SNAKE12_FT_INDEX_MASK_ROWS 25
+#define SNAKE12_FT_INDEX_MASK_COLS 1
+#define SNAKE12_FT_INDEX_A_ROWS 25
+#define SNAKE12_FT_INDEX_A_COLS 1
+#define SNAKE12_FT_INDEX_OMEGA_ROWS 25
+#define SNAKE12_FT_INDEX_OMEGA_COLS 1
+#define SNAKE12_FT_INDEX_GRAD_H_M_ROWS 25
+#define SNAKE12_FT_INDEX_GRAD_H_M_COLS 1
+#define SNAKE12_FT_INDEX_GRAD_W_ROWS 25
+#define SNAKE12_FT_INDEX_GRAD_W_COLS 1
+#define SNAKE12_FT_INDEX_WORK_REALS 5923
+void snake12_ft_index(const snake12_real q[SNAKE12_NDOF], const snake12_real mask[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF], snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 125 add, 200 mul, 50 div, 102 minmax, 52 compare, 50 select; work: 60 reals. */
 #define SNAKE12_WLN_WEIGHTS_GRAD_H_ROWS 25
@@ -184,6 +294,34 @@ snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_FAULT_QDOT_COLS 1
 #define SNAKE12_STEP_FAULT_WORK_REALS 320
 snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
+/* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
+ * ops: 22827 add, 24395 mul, 758 div, 304 sqrt, 96 trig, 2 pow, 261 minmax, 252 compare, 200 select; work: 5992 reals. */
+#define SNAKE12_STEP_WGPM_Q_ROWS 25
+#define SNAKE12_STEP_WGPM_Q_COLS 1
+#define SNAKE12_STEP_WGPM_XDOT_ROWS 6
+#define SNAKE12_STEP_WGPM_XDOT_COLS 1
+#define SNAKE12_STEP_WGPM_H_LO_ROWS 4
+#define SNAKE12_STEP_WGPM_H_LO_COLS 1
+#define SNAKE12_STEP_WGPM_H_HI_ROWS 4
+#define SNAKE12_STEP_WGPM_H_HI_COLS 1
+#define SNAKE12_STEP_WGPM_K_HI_ROWS 4
+#define SNAKE12_STEP_WGPM_K_HI_COLS 1
+#define SNAKE12_STEP_WGPM_K_LO_ROWS 4
+#define SNAKE12_STEP_WGPM_K_LO_COLS 1
+#define SNAKE12_STEP_WGPM_U_TH_ROWS 4
+#define SNAKE12_STEP_WGPM_U_TH_COLS 1
+#define SNAKE12_STEP_WGPM_U_BAND_ROWS 4
+#define SNAKE12_STEP_WGPM_U_BAND_COLS 1
+#define SNAKE12_STEP_WGPM_QDOT_ROWS 25
+#define SNAKE12_STEP_WGPM_QDOT_COLS 1
+#define SNAKE12_STEP_WGPM_W_C_ROWS 25
+#define SNAKE12_STEP_WGPM_W_C_COLS 1
+#define SNAKE12_STEP_WGPM_GAINS_ROWS 4
+#define SNAKE12_STEP_WGPM_GAINS_COLS 1
+#define SNAKE12_STEP_WGPM_H_ROWS 4
+#define SNAKE12_STEP_WGPM_H_COLS 1
+#define SNAKE12_STEP_WGPM_WORK_REALS 5992
+snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 
 #ifdef __cplusplus
 }
