@@ -51,7 +51,7 @@ for path in (str(REPO), str(HERE)):
         sys.path.insert(0, path)
 
 from bench_kinematics import (FIRMWARE, QEMU_BASE, Report, Skip, arm_flags, arm_object, bar_note,  # noqa: E402
-                              build_host_driver, callgrind_instr, run, tool)
+                              build_host_driver, callgrind_instr, finish, run, tool)
 from armgen.codegen.generate import CodegenConfig, generate, write  # noqa: E402
 from armgen.codegen.toolchain import STRICT_FLAGS  # noqa: E402
 from armgen.robot import load_robot, parse_robot  # noqa: E402
@@ -359,17 +359,7 @@ void casadi_fkj_call(const float *q, float *T, float *J) {{
 
     rep.section("growth", f"4. Op counts of the emitted code, spatial chains, exponent fitted over n >= {FIT_FROM_DOF}:",
                 growth)
-    rep.data["meta"]["run_seconds"] = time.perf_counter() - started
-    rep.data["table"] = [{"what": w, "value": v, "unit": u, "note": n} for w, v, u, n in rep.rows]
-    out_path = Path(args.out)
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    out_path.write_text(json.dumps(rep.data, indent=2, default=str) + "\n")
-    print(f"\nwrote {out_path} (run {rep.data['meta']['run_seconds']:.1f} s)")
-    if args.keep:
-        print(f"build directory kept: {work}")
-    else:
-        shutil.rmtree(work, ignore_errors=True)
-    return 0
+    return finish(rep, args, work, started)
 
 
 if __name__ == "__main__":

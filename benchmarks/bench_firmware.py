@@ -35,7 +35,6 @@ import argparse
 import collections
 import copy
 import dataclasses
-import json
 import os
 import platform
 import re
@@ -50,6 +49,8 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 if str(REPO) not in sys.path:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(REPO))
+
+from bench_kinematics import Report, Skip, bar_note, finish  # noqa: E402
 
 from armgen.planning.result import write_plan  # noqa: E402
 from armgen.planning.tasks import apply_overrides, load_task, run_task  # noqa: E402
@@ -87,10 +88,6 @@ SPLIT_OVERRIDES = ["path.type=line", "path.end=[-450, 400, 900]", "timing.durati
                    "method.T_smo_R=1"]
 
 
-class Skip(Exception):
-    pass
-
-
 def tool(name: str) -> str:
     path = shutil.which(name)
     if path is None:
@@ -103,32 +100,6 @@ def run(cmd, timeout=600) -> str:
     if proc.returncode != 0:
         raise RuntimeError(f"{cmd[0]} failed ({proc.returncode}): {proc.stderr[-2000:]}")
     return proc.stdout + proc.stderr
-
-
-class Report:
-    def __init__(self):
-        self.rows: list[tuple[str, str, str, str]] = []
-        self.data: dict = {}
-
-    def row(self, what: str, value, unit: str = "", note: str = "") -> None:
-        value = f"{value:.4g}" if isinstance(value, float) else str(value)
-        self.rows.append((what, value, unit, note))
-        print(f"  {what:<50} {value:>12} {unit:<12} {note}", flush=True)
-
-    def section(self, key: str, title: str, func) -> None:
-        print(f"\n{title}", flush=True)
-        try:
-            func()
-        except Skip as exc:
-            self.row(title.split(":")[0], str(exc))
-            self.data.setdefault(key, {})["skipped"] = str(exc)
-        except Exception as exc:  # a benchmark reports, it does not stop at the first failure
-            self.row(title.split(":")[0], "FAILED", "", str(exc).splitlines()[0][:140])
-            self.data.setdefault(key, {})["error"] = str(exc)
-
-
-def bar_note(value: float, bar: float) -> str:
-    return f"target <= {bar:g}: {'meets' if value <= bar else 'ABOVE'}"
 
 
 # ------------------------------------------------------------------------------------------
@@ -489,20 +460,6 @@ def modes_table(rep: Report, work: Path, builder) -> None:
               f"{m['sizeof_ctrl']:>6} {static:>10}/{m['stack_peak_bytes']:<9} {m['end']}{note}", flush=True)
         rep.rows.append((f"mode {label}: instr/tick mean / max", f"{m['mean']:.0f} / {m['max']:.0f}", "instr/tick",
                          f"max/mean {m['max_over_mean']:.3f}; {m['us_per_tick_168MHz']:.1f} µs at 168 MHz{note}"))
-
-
-def finish(rep: Report, args, work: Path, started: float) -> int:
-    rep.data["meta"]["run_seconds"] = time.perf_counter() - started
-    rep.data["table"] = [{"what": w, "value": v, "unit": u, "note": n} for w, v, u, n in rep.rows]
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(rep.data, indent=2, default=str) + "\n")
-    print(f"\nwrote {out} (run {rep.data['meta']['run_seconds']:.1f} s)")
-    if args.keep:
-        print(f"build directory kept: {work}")
-    else:
-        shutil.rmtree(work, ignore_errors=True)
-    return 0
 
 
 if __name__ == "__main__":

@@ -421,7 +421,8 @@ class Report:
         self.rows: list[tuple[str, str, str, str]] = []
         self.data: dict = {}
 
-    def row(self, what: str, value: str, unit: str = "", note: str = "") -> None:
+    def row(self, what: str, value, unit: str = "", note: str = "") -> None:
+        value = f"{value:.4g}" if isinstance(value, float) else str(value)
         self.rows.append((what, value, unit, note))
         print(f"  {what:<46} {value:>12} {unit:<11} {note}", flush=True)
 
@@ -484,7 +485,7 @@ def main(argv=None) -> int:
     rep.section("generation", "Generation:", gen_robot)
     if "prefix" not in state:
         print("code generation failed; nothing else to measure")
-        return _finish(rep, args, work, started)
+        return finish(rep, args, work, started)
     prefix = state["prefix"]
     P = prefix.upper()
     q_check = q_table(robot.n)[3]
@@ -632,7 +633,7 @@ def main(argv=None) -> int:
             rep.row(f"  chain25 {name} flops", str(ops["flops"]), "ops", _ops_text(ops["op_counts"]))
 
     rep.section("generation", "5. Generation of a synthetic 25-DOF chain:", chain25)
-    return _finish(rep, args, work, started)
+    return finish(rep, args, work, started)
 
 
 def _ops_text(counts: dict) -> str:
@@ -654,7 +655,8 @@ def _cpu_model() -> str:
     return platform.processor()
 
 
-def _finish(rep: Report, args, work: Path, started: float) -> int:
+def finish(rep: Report, args, work: Path, started: float) -> int:
+    """Write the JSON report, print where, remove the build folder (unless --keep); exit code 0."""
     rep.data["meta"]["run_seconds"] = time.perf_counter() - started
     rep.data["table"] = [{"what": w, "value": v, "unit": u, "note": n} for w, v, u, n in rep.rows]
     out = Path(args.out)
