@@ -45,14 +45,11 @@ class Transform(StrictModel):
     rpy: Vector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="R = Rz(yaw) Ry(pitch) Rx(roll)")
 
 
-class RobotFile(StrictModel):
-    """A serial chain in standard or modified (Craig) DH."""
+class _RobotFileCommon(StrictModel):
+    """The fields every robot file has, whatever describes its chain."""
 
-    name: Identifier
     description: Annotated[str, StringConstraints(max_length=MAX_DESCRIPTION_CHARS)] = "-"
-    convention: Literal["standard", "modified"]
     units: Units = Field(default_factory=Units)
-    joints: Annotated[list[JointEntry], Field(min_length=1, max_length=MAX_DOF)]
     base: Transform = Field(default_factory=Transform)
     tool: Transform = Field(default_factory=Transform)
     configurations: Annotated[dict[Identifier, list[Number]], Field(max_length=MAX_CONFIGURATIONS)] = Field(
@@ -61,7 +58,15 @@ class RobotFile(StrictModel):
         default_factory=lambda: ["vx", "vy", "vz", "wx", "wy", "wz"])
 
 
-class UrdfRobotFile(StrictModel):
+class RobotFile(_RobotFileCommon):
+    """A serial chain in standard or modified (Craig) DH."""
+
+    name: Identifier
+    convention: Literal["standard", "modified"]
+    joints: Annotated[list[JointEntry], Field(min_length=1, max_length=MAX_DOF)]
+
+
+class UrdfRobotFile(_RobotFileCommon):
     """A robot file that takes its chain from a URDF: the chain from ``base_link`` to
     ``tip_link`` (defaults: the URDF's root and its single leaf), with the usual name, units,
     base/tool transforms, named configurations, task rows and optional joint-limit overrides."""
@@ -69,16 +74,8 @@ class UrdfRobotFile(StrictModel):
     urdf: Annotated[str, StringConstraints(min_length=1, max_length=4096)] = Field(
         description="path of the URDF file, relative to this robot file")
     name: Optional[Identifier] = Field(None, description="robot name (default: the URDF's robot name)")
-    description: Annotated[str, StringConstraints(max_length=MAX_DESCRIPTION_CHARS)] = "-"
     base_link: Optional[Annotated[str, StringConstraints(min_length=1, max_length=256)]] = None
     tip_link: Optional[Annotated[str, StringConstraints(min_length=1, max_length=256)]] = None
-    units: Units = Field(default_factory=Units)
-    base: Transform = Field(default_factory=Transform)
-    tool: Transform = Field(default_factory=Transform)
-    configurations: Annotated[dict[Identifier, list[Number]], Field(max_length=MAX_CONFIGURATIONS)] = Field(
-        default_factory=dict)
-    task_rows: Annotated[list[TaskRow], Field(min_length=1, max_length=6)] = Field(
-        default_factory=lambda: ["vx", "vy", "vz", "wx", "wy", "wz"])
     limits: Annotated[dict[str, Annotated[list[Number], Field(min_length=2, max_length=2)]],
                       Field(max_length=MAX_DOF, description="joint name = [lower, upper], overriding the URDF's")] = Field(
         default_factory=dict)
