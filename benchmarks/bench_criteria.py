@@ -75,6 +75,7 @@ ARM_NCALLS = 512  # calls per function and timing loop (a multiple of INPUT_SETS
 CHAIN_DOFS = (6, 8, 10, 12, 16, 20, 25, 30, 40)
 FIT_FROM_DOF = 12
 HOST_OPT = "-O2"
+SECTIONS = ("cortex_m4f", "x86", "snake12", "growth")
 
 
 def chain_toml(dof: int) -> str:
@@ -217,9 +218,11 @@ def main(argv=None) -> int:
     ap.add_argument("--previous", default=PREVIOUS_REV, help="git revision of the previous generated C")
     ap.add_argument("--out", default=str(HERE / "results" / "criteria.json"), help="JSON results file")
     ap.add_argument("--keep", action="store_true", help="keep the build directory and print its path")
+    ap.add_argument("--only", action="append", choices=SECTIONS,
+                    help="run only this section (repeatable; default: all)")
     args = ap.parse_args(argv)
     started = time.perf_counter()
-    rep = Report()
+    rep = Report(set(args.only) if args.only else None)
     work = Path(tempfile.mkdtemp(prefix="armgen_bench_crit_"))
     robot = load_robot(args.robot)
     model = SymbolicModel(robot)

@@ -417,9 +417,12 @@ def time_generation(robot, out_dir: Path, functions=None) -> dict:
 # ---------------------------------------------------------------------------------------------
 
 class Report:
-    def __init__(self):
+    """Rows printed as they come and kept for the JSON; ``only`` names the sections to run."""
+
+    def __init__(self, only: set[str] | None = None):
         self.rows: list[tuple[str, str, str, str]] = []
         self.data: dict = {}
+        self.only = only
 
     def row(self, what: str, value, unit: str = "", note: str = "") -> None:
         value = f"{value:.4g}" if isinstance(value, float) else str(value)
@@ -427,6 +430,8 @@ class Report:
         print(f"  {what:<46} {value:>12} {unit:<11} {note}", flush=True)
 
     def section(self, key: str, title: str, func) -> None:
+        if self.only is not None and key not in self.only:
+            return
         print(f"\n{title}", flush=True)
         label = re.sub(r"^\d+\.\s*", "", title).split(",")[0].split(":")[0]
         try:

@@ -79,6 +79,13 @@ class SymbolicModel:
     def task_jac(self) -> ca.SX:
         return self.jac[list(self.robot.task_rows), :]
 
+    def task_vjp(self, g: ca.SX) -> ca.SX:
+        """∇_q Σ G ∘ J_task for a G (m×n) held constant (criteria.jacobian_vjp)."""
+        full = ca.SX(6, self.n)
+        for r, row in enumerate(self.robot.task_rows):
+            full[row, :] = g[r, :]
+        return criteria.jacobian_vjp([j.revolute for j in self.robot.joints], self.jac, full)
+
     def available(self) -> tuple[str, ...]:
         """Every function, for any chain length (the criteria cost O(n) after the kinematics)."""
         return ALL_FUNCTIONS
@@ -151,13 +158,15 @@ class SymbolicModel:
                                ["q", "xdot", "W", "damping"], ["qdot"])
         if name == "ft_index":
             mask, a, delta = ca.SX.sym("mask", self.n), ca.SX.sym("a", self.n), ca.SX.sym("delta")
-            d = criteria.smooth_delta(delta)
-            full, reduced = criteria.gram_determinants(self.task_jac @ ca.diag(mask))
-            omega = ca.vertcat(*[ca.sqrt(g + d * d) for g in reduced])
-            h = ca.dot(mask * a, omega)
-            w = ca.sqrt(full + d * d)
+            masked = self.task_jac @ ca.diag(mask)
+            weights = mask * a
+            sens = criteria.manipulability_sensitivities(criteria.gram_qr(masked), masked, weights,
+                                                         criteria.smooth_delta(delta))
+            omega = ca.vertcat(*sens.omega)
+            # ∂/∂J = ∂/∂(J diag(mask)) · diag(mask), then through J(q) in closed form
             return ca.Function("ft_index", [q, mask, a, delta],
-                               [dense(omega), h, dense(ca.gradient(h, q)), w, dense(ca.gradient(w, q))],
+                               [dense(omega), ca.dot(weights, omega), dense(self.task_vjp(sens.grad_h @ ca.diag(mask))),
+                                sens.w, dense(self.task_vjp(sens.grad_w @ ca.diag(mask)))],
                                ["q", "mask", "a", "delta"], ["omega", "H_M", "grad_H_M", "w", "grad_w"])
         if name == "wln_weights":
             grad, omega = ca.SX.sym("grad_H", self.n), ca.SX.sym("omega", self.n)
@@ -184,7 +193,7 @@ class SymbolicModel:
             scalars = [ca.SX.sym(s) for s in scalar_names]
             vectors = [ca.SX.sym(s, nc) for s in vector_names]
             xdot = ca.SX.sym("xdot", self.m)
-            out = steps.step_wgpm(self.task_jac, q, qmin, qmax, xdot, *scalars, *vectors)
+            out = steps.step_wgpm(self.task_jac, self.task_vjp, q, qmin, qmax, xdot, *scalars, *vectors)
             names_out = ["qdot", "w_c", "rho", "sigma_min", "gains", "H"]
             inputs = [q, xdot, *scalars, *vectors]
             return ca.Function("step_wgpm", inputs, [dense(out[k]) for k in names_out],

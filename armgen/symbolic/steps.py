@@ -9,6 +9,8 @@ LDLᵀ solve of the m×m system. ``J Jᵀ + λ² I`` is symmetric positive defin
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import casadi as ca
 
 # Floor of the LDLᵀ pivots: 1e-18 is below the square of any meaningful Jacobian entry
@@ -36,10 +38,22 @@ def spd_solve(a: ca.SX, b: ca.SX) -> ca.SX:
     return ca.vertcat(*x)
 
 
+def weighted_gram(j: ca.SX, col_scale: ca.SX | None = None) -> ca.SX:
+    """J S Jᵀ (S = diag(col_scale), or I), exactly symmetric: each entry i ≤ j computed once
+    and mirrored (a plain product computes both triangles, with different rounding)."""
+    m = j.shape[0]
+    js = j if col_scale is None else j @ ca.diag(col_scale)
+    out = ca.SX(m, m)
+    for r in range(m):
+        for c in range(r, m):
+            out[r, c] = ca.dot(js[r, :], j[c, :])
+            out[c, r] = out[r, c]
+    return out
+
+
 def damped_gram(j: ca.SX, damping: ca.SX, col_scale: ca.SX | None = None) -> ca.SX:
     """J S Jᵀ + λ² I (S = diag(col_scale), or I)."""
-    js = j if col_scale is None else j @ ca.diag(col_scale)
-    return ca.mtimes(js, j.T) + damping * damping * ca.SX.eye(j.shape[0])
+    return weighted_gram(j, col_scale) + damping * damping * ca.SX.eye(j.shape[0])
 
 
 def step_gpm(j: ca.SX, xdot: ca.SX, alpha: ca.SX, damping: ca.SX) -> ca.SX:
@@ -57,10 +71,11 @@ def step_wln(j: ca.SX, xdot: ca.SX, weights: ca.SX, damping: ca.SX) -> ca.SX:
 # -- spec 30/35 additions: variable damping from σ_min, masked and weighted steps -----------
 
 # Cyclic Jacobi sweeps used to estimate λ_min(J S Jᵀ) (σ_min² of the weighted Jacobian).
-# Cyclic Jacobi converges quadratically; on the bundled robots (m ≤ 6) the off-diagonal
-# mass after 6 sweeps is at rounding level (see tests/test_wgpm.py for the measured error).
-JACOBI_SWEEPS = 6
-# Added to numerator and denominator of cos 2θ so that an already diagonal 2×2 block
+# Cyclic Jacobi converges quadratically: for m = 6, 4 sweeps leave up to 6e-6 ‖A‖ and the 5th
+# brings λ_min to rounding level (≤ 6e-16 ‖A‖ over 4000 seeded matrices, clustered and nearly
+# rank-deficient ones included; tests/test_wgpm.py checks it). A 6th sweep changed nothing.
+JACOBI_SWEEPS = 5
+# Added to the denominator of tan θ so that an already diagonal 2×2 block
 # (a_pq = 0, a_pp = a_qq) gives the identity rotation instead of 0/0; 1e-30 is
 # representable in float (min normal 1.2e-38) and far below any Jacobian entry squared.
 JACOBI_TINY = 1e-30
@@ -70,23 +85,24 @@ EPSILON_FLOOR = 1e-9
 
 def jacobi_min_eigenvalue(a: ca.SX, sweeps: int = JACOBI_SWEEPS) -> ca.SX:
     """Smallest eigenvalue of the symmetric m×m matrix ``a`` after ``sweeps`` cyclic Jacobi
-    sweeps (rotations with |θ| ≤ π/4 from half-angle formulas, renormalised so they stay
-    orthogonal; no division by anything that can vanish). Returns the minimum diagonal entry."""
+    sweeps (rotations with |θ| ≤ π/4 by tan θ, the diagonal updated as a_pp − t a_pq; no
+    division by anything that can vanish). Returns the minimum diagonal entry."""
     m = a.shape[0]
     A = [[a[i, j] for j in range(m)] for i in range(m)]
     for _ in range(sweeps):
         for p in range(m - 1):
             for q in range(p + 1, m):
                 apq, app, aqq = A[p][q], A[p][p], A[q][q]
+                # t = tan θ of the rotation zeroing a_pq, |θ| ≤ π/4 (the smaller root of
+                # t² + 2τt − 1 = 0, τ = d / (2 a_pq), written without dividing by a_pq)
                 d = aqq - app
-                r = ca.sqrt(d * d + 4 * apq * apq)
-                sgn = ca.if_else(d >= 0, 1, -1)
-                cos2 = (ca.fabs(d) + JACOBI_TINY) / (r + JACOBI_TINY)  # in [0, 1]
-                sin2 = sgn * 2 * apq / (r + JACOBI_TINY)
-                c = ca.sqrt((1 + cos2) / 2)  # ≥ 1/√2
-                s = sin2 / (2 * c)
-                norm = ca.sqrt(c * c + s * s)  # ≥ 1/√2: makes (c, s) exactly a rotation
-                c, s = c / norm, s / norm
+                twice = 2 * apq
+                # t = 2 a_pq sign(d) / (|d| + root): the sign moved into the denominator
+                t = twice / (d + ca.copysign(ca.sqrt(d * d + twice * twice) + JACOBI_TINY, d))
+                # sqrt(1/x), not 1/sqrt(x): SX folds a product with an inverse into a division,
+                # which would make every c·a_kp below a 14-cycle vdiv on the Cortex-M4
+                c = ca.sqrt(1 / (1 + t * t))
+                s = t * c
                 # A ← Gᵀ A G with G = I except G_pp = G_qq = c, G_pq = s, G_qp = −s
                 for k in range(m):
                     if k in (p, q):
@@ -94,9 +110,8 @@ def jacobi_min_eigenvalue(a: ca.SX, sweeps: int = JACOBI_SWEEPS) -> ca.SX:
                     akp, akq = A[k][p], A[k][q]
                     A[k][p] = A[p][k] = c * akp - s * akq
                     A[k][q] = A[q][k] = s * akp + c * akq
-                cc, ss, cs = c * c, s * s, c * s
-                A[p][p] = cc * app - 2 * cs * apq + ss * aqq
-                A[q][q] = ss * app + 2 * cs * apq + cc * aqq
+                A[p][p] = app - t * apq
+                A[q][q] = aqq + t * apq
                 A[p][q] = A[q][p] = ca.SX(0)
     out = A[0][0]
     for i in range(1, m):
@@ -111,14 +126,13 @@ def variable_damping_sq(lam_min: ca.SX, epsilon: ca.SX, damping_max: ca.SX) -> c
     return damping_max * damping_max * ca.fmax(0, 1 - lam_min / (eps * eps))
 
 
-def scaled_step(j: ca.SX, xdot: ca.SX, scale: ca.SX, z: ca.SX, damping_sq: ca.SX) -> ca.SX:
-    """q̇ = z + S Jᵀ (J S Jᵀ + ρ² I)⁻¹ (ẋ − J z), S = diag(scale ≥ 0).
+def scaled_step(j: ca.SX, xdot: ca.SX, scale: ca.SX, z: ca.SX, damping_sq: ca.SX, gram: ca.SX) -> ca.SX:
+    """q̇ = z + S Jᵀ (J S Jᵀ + ρ² I)⁻¹ (ẋ − J z), S = diag(scale ≥ 0), ``gram`` = J S Jᵀ.
 
     With S = W_b² this is W_b J_wb^# ẋ + N_wb z (spec 35); with S = mask ⊙ W⁻¹ and z = 0 the
     masked WLN; with S = mask and z = mask ⊙ α the masked GPM (spec 30)."""
-    m = j.shape[0]
-    gram = ca.mtimes(j @ ca.diag(scale), j.T) + damping_sq * ca.SX.eye(m)
-    return z + scale * ca.mtimes(j.T, spd_solve(gram, xdot - ca.mtimes(j, z)))
+    damped = gram + damping_sq * ca.SX.eye(j.shape[0])
+    return z + scale * ca.mtimes(j.T, spd_solve(damped, xdot - ca.mtimes(j, z)))
 
 
 def step_fault(j: ca.SX, xdot: ca.SX, mask: ca.SX, weights: ca.SX, alpha: ca.SX, epsilon: ca.SX,
@@ -128,10 +142,10 @@ def step_fault(j: ca.SX, xdot: ca.SX, mask: ca.SX, weights: ca.SX, alpha: ca.SX,
     q̇ = μα + S Jᵀ (J S Jᵀ + λ² I)⁻¹ (ẋ − J μα), S = diag(μ / max(W, 1)), μ = mask;
     λ² = λ_max² (1 − σ²/ε²)₊ with σ² = λ_min(J S Jᵀ) (Jacobi). Returns (q̇, λ, σ_min)."""
     scale = mask / ca.fmax(weights, 1)
-    gram = ca.mtimes(j @ ca.diag(scale), j.T)
+    gram = weighted_gram(j, scale)
     lam_min = jacobi_min_eigenvalue(gram)
     damping_sq = variable_damping_sq(lam_min, epsilon, damping_max)
-    qdot = scaled_step(j, xdot, scale, mask * alpha, damping_sq)
+    qdot = scaled_step(j, xdot, scale, mask * alpha, damping_sq, gram)
     return qdot, ca.sqrt(damping_sq), ca.sqrt(ca.fmax(lam_min, 0))
 
 
@@ -141,7 +155,7 @@ WGPM_CRITERIA = ("manipulability", "joint_manipulability", "zghal", "condition")
 WGPM_SENSE = (1, 1, -1, -1)
 
 
-def step_wgpm(j: ca.SX, q: ca.SX, qmin, qmax, xdot: ca.SX, band: ca.SX, t_rmax: ca.SX, epsilon: ca.SX,
+def step_wgpm(j: ca.SX, vjp: Callable[[ca.SX], ca.SX], q: ca.SX, qmin, qmax, xdot: ca.SX, band: ca.SX, t_rmax: ca.SX, epsilon: ca.SX,
               rho_max: ca.SX, delta: ca.SX, ramp: ca.SX, h_lo: ca.SX, h_hi: ca.SX, k_hi: ca.SX, k_lo: ca.SX,
               u_th: ca.SX, u_band: ca.SX) -> dict[str, ca.SX]:
     """The multi-constraint weighted GPM step of spec 35, in one expression:
@@ -159,27 +173,24 @@ def step_wgpm(j: ca.SX, q: ca.SX, qmin, qmax, xdot: ca.SX, band: ca.SX, t_rmax: 
     w_b = 1 - w_c
     t_r = t_rmax * (lower - upper)
     d = criteria.smooth_delta(delta)
-    full, reduced = criteria.gram_determinants(j)
-    h = ca.vertcat(
-        ca.sqrt(full + d * d),
-        ca.sum1(ca.vertcat(*[ca.sqrt(g + d * d) for g in reduced])),
-        criteria.zghal_safe(q, qmin, qmax),
-        criteria.condition_index(j, full, d),
-    )
+    sensitivities = criteria.manipulability_sensitivities(criteria.gram_qr(j), j, ca.DM.ones(j.shape[1]), d)
+    h = ca.vertcat(sensitivities.w, criteria.sum_of(sensitivities.omega), criteria.zghal_safe(q, qmin, qmax),
+                   sensitivities.condition)
     sense = ca.DM(WGPM_SENSE)
     span = ca.fmax(h_hi - h_lo, criteria.CRITERION_SPAN_FLOOR)
     h_n = ca.fmin(ca.fmax((h - h_lo) / span, 0), 1)
     u = ca.if_else(sense > 0, h_n, 1 - h_n)
     gains = sense * criteria.online_gain(u, k_hi, k_lo, u_th, u_band)
-    # Σ_j k_j ∇H_j / span_j by one reverse sweep: gradient of c·H with c held constant,
-    # then c substituted (the gains are not differentiated, as the spec's formula says).
-    c = ca.SX.sym("c", h.shape[0])
-    combined = ca.substitute(ca.gradient(ca.dot(c, h), q), c, gains / span)
+    # Σ_j k_j ∇H_j / span_j (the gains are not differentiated, as the spec's formula says): the
+    # J-dependent criteria through one closed-form vector–Jacobian product, Zghal by AD
+    c = gains / span
+    combined = (vjp(sensitivities.combine(c[0], c[1], c[3]))
+                + c[2] * ca.gradient(criteria.zghal_safe(q, qmin, qmax), q))
     z = ramp * (t_r + w_b * combined)
     scale = w_b * w_b
-    gram = ca.mtimes(j @ ca.diag(scale), j.T)
+    gram = weighted_gram(j, scale)
     lam_min = jacobi_min_eigenvalue(gram)
     rho_sq = variable_damping_sq(lam_min, epsilon, rho_max)
-    qdot = scaled_step(j, xdot, scale, z, rho_sq)
+    qdot = scaled_step(j, xdot, scale, z, rho_sq, gram)
     return {"qdot": qdot, "w_c": w_c, "rho": ca.sqrt(rho_sq), "sigma_min": ca.sqrt(ca.fmax(lam_min, 0)),
             "gains": gains, "H": h}

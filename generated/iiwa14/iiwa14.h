@@ -195,7 +195,7 @@ void iiwa14_zghal(const iiwa14_real q[IIWA14_NDOF], iiwa14_real *H_L, iiwa14_rea
 #define IIWA14_REPETITIVE_WORK_REALS 10
 void iiwa14_repetitive(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real q_init[IIWA14_NDOF], iiwa14_real *H_R, iiwa14_real grad_H_R[IIWA14_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 1078 add, 1184 mul, 37 div, 13 sqrt, 24 trig, 7 minmax, 24 compare, 24 select; work: 315 reals. */
+ * ops: 805 add, 1237 mul, 13 div, 13 sqrt, 12 trig, 7 minmax, 12 compare, 12 select; work: 149 reals. */
 #define IIWA14_JOINT_MANIPULABILITY_Q_ROWS 7
 #define IIWA14_JOINT_MANIPULABILITY_Q_COLS 1
 #define IIWA14_JOINT_MANIPULABILITY_A_ROWS 7
@@ -204,15 +204,15 @@ void iiwa14_repetitive(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real q_ini
 #define IIWA14_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define IIWA14_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 7
 #define IIWA14_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define IIWA14_JOINT_MANIPULABILITY_WORK_REALS 315
+#define IIWA14_JOINT_MANIPULABILITY_WORK_REALS 149
 void iiwa14_joint_manipulability(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 903 add, 968 mul, 27 div, 6 sqrt, 24 trig, 6 minmax, 20 compare, 20 select; work: 230 reals. */
+ * ops: 671 add, 1015 mul, 44 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select; work: 135 reals. */
 #define IIWA14_MANIPULABILITY_Q_ROWS 7
 #define IIWA14_MANIPULABILITY_Q_COLS 1
 #define IIWA14_MANIPULABILITY_GRAD_W_ROWS 7
 #define IIWA14_MANIPULABILITY_GRAD_W_COLS 1
-#define IIWA14_MANIPULABILITY_WORK_REALS 230
+#define IIWA14_MANIPULABILITY_WORK_REALS 135
 void iiwa14_manipulability(const iiwa14_real q[IIWA14_NDOF], iiwa14_real delta, iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 63 add, 49 mul, 14 div, 29 minmax; work: 14 reals. */
@@ -223,7 +223,7 @@ void iiwa14_manipulability(const iiwa14_real q[IIWA14_NDOF], iiwa14_real delta, 
 #define IIWA14_CONTINUOUS_WEIGHTS_WORK_REALS 14
 void iiwa14_continuous_weights(const iiwa14_real q[IIWA14_NDOF], iiwa14_real band, iiwa14_real w_c[IIWA14_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 1701 add, 1927 mul, 59 div, 14 sqrt, 36 trig, 7 minmax, 34 compare, 34 select; work: 343 reals. */
+ * ops: 930 add, 1494 mul, 51 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select; work: 165 reals. */
 #define IIWA14_FT_INDEX_Q_ROWS 7
 #define IIWA14_FT_INDEX_Q_COLS 1
 #define IIWA14_FT_INDEX_MASK_ROWS 7
@@ -236,7 +236,7 @@ void iiwa14_continuous_weights(const iiwa14_real q[IIWA14_NDOF], iiwa14_real ban
 #define IIWA14_FT_INDEX_GRAD_H_M_COLS 1
 #define IIWA14_FT_INDEX_GRAD_W_ROWS 7
 #define IIWA14_FT_INDEX_GRAD_W_COLS 1
-#define IIWA14_FT_INDEX_WORK_REALS 343
+#define IIWA14_FT_INDEX_WORK_REALS 165
 void iiwa14_ft_index(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF], iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 24 reals. */
@@ -267,7 +267,7 @@ void iiwa14_wln_weights(const iiwa14_real grad_H[IIWA14_NDOF], const iiwa14_real
 #define IIWA14_STEP_GPM_WORK_REALS 78
 iiwa14_status iiwa14_step_gpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 257 add, 348 mul, 68 div, 12 trig, 13 minmax; work: 83 reals. */
+ * ops: 257 add, 348 mul, 66 div, 12 trig, 13 minmax; work: 98 reals. */
 #define IIWA14_STEP_WLN_Q_ROWS 7
 #define IIWA14_STEP_WLN_Q_COLS 1
 #define IIWA14_STEP_WLN_XDOT_ROWS 6
@@ -276,10 +276,10 @@ iiwa14_status iiwa14_step_gpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_WLN_W_COLS 1
 #define IIWA14_STEP_WLN_QDOT_ROWS 7
 #define IIWA14_STEP_WLN_QDOT_COLS 1
-#define IIWA14_STEP_WLN_WORK_REALS 83
+#define IIWA14_STEP_WLN_WORK_REALS 98
 iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real W[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (Jacobi) (spec 30).
- * ops: 2355 add, 3036 mul, 569 div, 272 sqrt, 12 trig, 111 minmax, 180 compare, 180 select; work: 138 reals. */
+ * ops: 1320 add, 1849 mul, 178 div, 151 sqrt, 12 trig, 96 minmax; work: 125 reals. */
 #define IIWA14_STEP_FAULT_Q_ROWS 7
 #define IIWA14_STEP_FAULT_Q_COLS 1
 #define IIWA14_STEP_FAULT_XDOT_ROWS 6
@@ -292,10 +292,10 @@ iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_FAULT_ALPHA_COLS 1
 #define IIWA14_STEP_FAULT_QDOT_ROWS 7
 #define IIWA14_STEP_FAULT_QDOT_COLS 1
-#define IIWA14_STEP_FAULT_WORK_REALS 138
+#define IIWA14_STEP_FAULT_WORK_REALS 125
 iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 3655 add, 4324 mul, 650 div, 286 sqrt, 24 trig, 2 pow, 171 minmax, 218 compare, 204 select; work: 380 reals. */
+ * ops: 2324 add, 3191 mul, 250 div, 165 sqrt, 12 trig, 2 exp, 163 minmax, 26 compare, 12 select; work: 179 reals. */
 #define IIWA14_STEP_WGPM_Q_ROWS 7
 #define IIWA14_STEP_WGPM_Q_COLS 1
 #define IIWA14_STEP_WGPM_XDOT_ROWS 6
@@ -320,7 +320,7 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
 #define IIWA14_STEP_WGPM_GAINS_COLS 1
 #define IIWA14_STEP_WGPM_H_ROWS 4
 #define IIWA14_STEP_WGPM_H_COLS 1
-#define IIWA14_STEP_WGPM_WORK_REALS 380
+#define IIWA14_STEP_WGPM_WORK_REALS 179
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 
 #ifdef __cplusplus

@@ -195,7 +195,7 @@ void modular8_zghal(const modular8_real q[MODULAR8_NDOF], modular8_real *H_L, mo
 #define MODULAR8_REPETITIVE_WORK_REALS 11
 void modular8_repetitive(const modular8_real q[MODULAR8_NDOF], const modular8_real q_init[MODULAR8_NDOF], modular8_real *H_R, modular8_real grad_H_R[MODULAR8_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 1502 add, 1624 mul, 38 div, 14 sqrt, 28 trig, 7 minmax, 24 compare, 24 select; work: 437 reals. */
+ * ops: 1111 add, 1596 mul, 14 div, 14 sqrt, 14 trig, 7 minmax, 12 compare, 12 select; work: 170 reals. */
 #define MODULAR8_JOINT_MANIPULABILITY_Q_ROWS 8
 #define MODULAR8_JOINT_MANIPULABILITY_Q_COLS 1
 #define MODULAR8_JOINT_MANIPULABILITY_A_ROWS 8
@@ -204,15 +204,15 @@ void modular8_repetitive(const modular8_real q[MODULAR8_NDOF], const modular8_re
 #define MODULAR8_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define MODULAR8_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 8
 #define MODULAR8_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define MODULAR8_JOINT_MANIPULABILITY_WORK_REALS 437
+#define MODULAR8_JOINT_MANIPULABILITY_WORK_REALS 170
 void modular8_joint_manipulability(const modular8_real q[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 1108 add, 1158 mul, 27 div, 6 sqrt, 28 trig, 6 minmax, 20 compare, 20 select; work: 281 reals. */
+ * ops: 812 add, 1167 mul, 50 div, 7 sqrt, 14 trig, 7 minmax, 12 compare, 12 select; work: 146 reals. */
 #define MODULAR8_MANIPULABILITY_Q_ROWS 8
 #define MODULAR8_MANIPULABILITY_Q_COLS 1
 #define MODULAR8_MANIPULABILITY_GRAD_W_ROWS 8
 #define MODULAR8_MANIPULABILITY_GRAD_W_COLS 1
-#define MODULAR8_MANIPULABILITY_WORK_REALS 281
+#define MODULAR8_MANIPULABILITY_WORK_REALS 146
 void modular8_manipulability(const modular8_real q[MODULAR8_NDOF], modular8_real delta, modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 72 add, 56 mul, 16 div, 33 minmax; work: 11 reals. */
@@ -223,7 +223,7 @@ void modular8_manipulability(const modular8_real q[MODULAR8_NDOF], modular8_real
 #define MODULAR8_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void modular8_continuous_weights(const modular8_real q[MODULAR8_NDOF], modular8_real band, modular8_real w_c[MODULAR8_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 2259 add, 2506 mul, 60 div, 15 sqrt, 42 trig, 7 minmax, 34 compare, 34 select; work: 470 reals. */
+ * ops: 1260 add, 1896 mul, 58 div, 15 sqrt, 14 trig, 7 minmax, 12 compare, 12 select; work: 201 reals. */
 #define MODULAR8_FT_INDEX_Q_ROWS 8
 #define MODULAR8_FT_INDEX_Q_COLS 1
 #define MODULAR8_FT_INDEX_MASK_ROWS 8
@@ -236,7 +236,7 @@ void modular8_continuous_weights(const modular8_real q[MODULAR8_NDOF], modular8_
 #define MODULAR8_FT_INDEX_GRAD_H_M_COLS 1
 #define MODULAR8_FT_INDEX_GRAD_W_ROWS 8
 #define MODULAR8_FT_INDEX_GRAD_W_COLS 1
-#define MODULAR8_FT_INDEX_WORK_REALS 470
+#define MODULAR8_FT_INDEX_WORK_REALS 201
 void modular8_ft_index(const modular8_real q[MODULAR8_NDOF], const modular8_real mask[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF], modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 40 add, 64 mul, 16 div, 34 minmax, 18 compare, 16 select; work: 26 reals. */
@@ -267,7 +267,7 @@ void modular8_wln_weights(const modular8_real grad_H[MODULAR8_NDOF], const modul
 #define MODULAR8_STEP_GPM_WORK_REALS 82
 modular8_status modular8_step_gpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real alpha[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 306 add, 398 mul, 75 div, 14 trig, 14 minmax; work: 88 reals. */
+ * ops: 306 add, 398 mul, 73 div, 14 trig, 14 minmax; work: 107 reals. */
 #define MODULAR8_STEP_WLN_Q_ROWS 8
 #define MODULAR8_STEP_WLN_Q_COLS 1
 #define MODULAR8_STEP_WLN_XDOT_ROWS 6
@@ -276,10 +276,10 @@ modular8_status modular8_step_gpm(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_WLN_W_COLS 1
 #define MODULAR8_STEP_WLN_QDOT_ROWS 8
 #define MODULAR8_STEP_WLN_QDOT_COLS 1
-#define MODULAR8_STEP_WLN_WORK_REALS 88
+#define MODULAR8_STEP_WLN_WORK_REALS 107
 modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real W[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (Jacobi) (spec 30).
- * ops: 2432 add, 3127 mul, 570 div, 272 sqrt, 14 trig, 112 minmax, 180 compare, 180 select; work: 144 reals. */
+ * ops: 1376 add, 1913 mul, 179 div, 151 sqrt, 14 trig, 97 minmax; work: 130 reals. */
 #define MODULAR8_STEP_FAULT_Q_ROWS 8
 #define MODULAR8_STEP_FAULT_Q_COLS 1
 #define MODULAR8_STEP_FAULT_XDOT_ROWS 6
@@ -292,10 +292,10 @@ modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_FAULT_ALPHA_COLS 1
 #define MODULAR8_STEP_FAULT_QDOT_ROWS 8
 #define MODULAR8_STEP_FAULT_QDOT_COLS 1
-#define MODULAR8_STEP_FAULT_WORK_REALS 144
+#define MODULAR8_STEP_FAULT_WORK_REALS 130
 modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 4169 add, 4858 mul, 656 div, 287 sqrt, 28 trig, 2 pow, 176 minmax, 220 compare, 204 select; work: 503 reals. */
+ * ops: 2694 add, 3614 mul, 266 div, 166 sqrt, 14 trig, 2 exp, 169 minmax, 28 compare, 12 select; work: 201 reals. */
 #define MODULAR8_STEP_WGPM_Q_ROWS 8
 #define MODULAR8_STEP_WGPM_Q_COLS 1
 #define MODULAR8_STEP_WGPM_XDOT_ROWS 6
@@ -320,7 +320,7 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_GAINS_COLS 1
 #define MODULAR8_STEP_WGPM_H_ROWS 4
 #define MODULAR8_STEP_WGPM_H_COLS 1
-#define MODULAR8_STEP_WGPM_WORK_REALS 503
+#define MODULAR8_STEP_WGPM_WORK_REALS 201
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 
 #ifdef __cplusplus

@@ -195,7 +195,7 @@ void panda_zghal(const panda_real q[PANDA_NDOF], panda_real *H_L, panda_real gra
 #define PANDA_REPETITIVE_WORK_REALS 10
 void panda_repetitive(const panda_real q[PANDA_NDOF], const panda_real q_init[PANDA_NDOF], panda_real *H_R, panda_real grad_H_R[PANDA_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 1120 add, 1220 mul, 37 div, 13 sqrt, 24 trig, 7 minmax, 24 compare, 24 select; work: 321 reals. */
+ * ops: 823 add, 1252 mul, 13 div, 13 sqrt, 12 trig, 7 minmax, 12 compare, 12 select; work: 149 reals. */
 #define PANDA_JOINT_MANIPULABILITY_Q_ROWS 7
 #define PANDA_JOINT_MANIPULABILITY_Q_COLS 1
 #define PANDA_JOINT_MANIPULABILITY_A_ROWS 7
@@ -204,15 +204,15 @@ void panda_repetitive(const panda_real q[PANDA_NDOF], const panda_real q_init[PA
 #define PANDA_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define PANDA_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 7
 #define PANDA_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define PANDA_JOINT_MANIPULABILITY_WORK_REALS 321
+#define PANDA_JOINT_MANIPULABILITY_WORK_REALS 149
 void panda_joint_manipulability(const panda_real q[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 945 add, 1004 mul, 27 div, 6 sqrt, 24 trig, 6 minmax, 20 compare, 20 select; work: 236 reals. */
+ * ops: 689 add, 1030 mul, 44 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select; work: 135 reals. */
 #define PANDA_MANIPULABILITY_Q_ROWS 7
 #define PANDA_MANIPULABILITY_Q_COLS 1
 #define PANDA_MANIPULABILITY_GRAD_W_ROWS 7
 #define PANDA_MANIPULABILITY_GRAD_W_COLS 1
-#define PANDA_MANIPULABILITY_WORK_REALS 236
+#define PANDA_MANIPULABILITY_WORK_REALS 135
 void panda_manipulability(const panda_real q[PANDA_NDOF], panda_real delta, panda_real *w, panda_real grad_w[PANDA_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 63 add, 49 mul, 14 div, 29 minmax; work: 12 reals. */
@@ -223,7 +223,7 @@ void panda_manipulability(const panda_real q[PANDA_NDOF], panda_real delta, pand
 #define PANDA_CONTINUOUS_WEIGHTS_WORK_REALS 12
 void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, panda_real w_c[PANDA_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 1767 add, 1984 mul, 59 div, 14 sqrt, 36 trig, 7 minmax, 34 compare, 34 select; work: 349 reals. */
+ * ops: 948 add, 1509 mul, 51 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select; work: 165 reals. */
 #define PANDA_FT_INDEX_Q_ROWS 7
 #define PANDA_FT_INDEX_Q_COLS 1
 #define PANDA_FT_INDEX_MASK_ROWS 7
@@ -236,7 +236,7 @@ void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, p
 #define PANDA_FT_INDEX_GRAD_H_M_COLS 1
 #define PANDA_FT_INDEX_GRAD_W_ROWS 7
 #define PANDA_FT_INDEX_GRAD_W_COLS 1
-#define PANDA_FT_INDEX_WORK_REALS 349
+#define PANDA_FT_INDEX_WORK_REALS 165
 void panda_ft_index(const panda_real q[PANDA_NDOF], const panda_real mask[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF], panda_real *w, panda_real grad_w[PANDA_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 24 reals. */
@@ -267,7 +267,7 @@ void panda_wln_weights(const panda_real grad_H[PANDA_NDOF], const panda_real ome
 #define PANDA_STEP_GPM_WORK_REALS 78
 panda_status panda_step_gpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real alpha[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 275 add, 363 mul, 68 div, 12 trig, 13 minmax; work: 83 reals. */
+ * ops: 275 add, 363 mul, 66 div, 12 trig, 13 minmax; work: 98 reals. */
 #define PANDA_STEP_WLN_Q_ROWS 7
 #define PANDA_STEP_WLN_Q_COLS 1
 #define PANDA_STEP_WLN_XDOT_ROWS 6
@@ -276,10 +276,10 @@ panda_status panda_step_gpm(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_WLN_W_COLS 1
 #define PANDA_STEP_WLN_QDOT_ROWS 7
 #define PANDA_STEP_WLN_QDOT_COLS 1
-#define PANDA_STEP_WLN_WORK_REALS 83
+#define PANDA_STEP_WLN_WORK_REALS 98
 panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real W[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (Jacobi) (spec 30).
- * ops: 2373 add, 3051 mul, 569 div, 272 sqrt, 12 trig, 111 minmax, 180 compare, 180 select; work: 138 reals. */
+ * ops: 1338 add, 1864 mul, 178 div, 151 sqrt, 12 trig, 96 minmax; work: 125 reals. */
 #define PANDA_STEP_FAULT_Q_ROWS 7
 #define PANDA_STEP_FAULT_Q_COLS 1
 #define PANDA_STEP_FAULT_XDOT_ROWS 6
@@ -292,10 +292,10 @@ panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_FAULT_ALPHA_COLS 1
 #define PANDA_STEP_FAULT_QDOT_ROWS 7
 #define PANDA_STEP_FAULT_QDOT_COLS 1
-#define PANDA_STEP_FAULT_WORK_REALS 138
+#define PANDA_STEP_FAULT_WORK_REALS 125
 panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 3697 add, 4360 mul, 650 div, 286 sqrt, 24 trig, 2 pow, 171 minmax, 218 compare, 204 select; work: 385 reals. */
+ * ops: 2342 add, 3206 mul, 250 div, 165 sqrt, 12 trig, 2 exp, 163 minmax, 26 compare, 12 select; work: 179 reals. */
 #define PANDA_STEP_WGPM_Q_ROWS 7
 #define PANDA_STEP_WGPM_Q_COLS 1
 #define PANDA_STEP_WGPM_XDOT_ROWS 6
@@ -320,7 +320,7 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_GAINS_COLS 1
 #define PANDA_STEP_WGPM_H_ROWS 4
 #define PANDA_STEP_WGPM_H_COLS 1
-#define PANDA_STEP_WGPM_WORK_REALS 385
+#define PANDA_STEP_WGPM_WORK_REALS 179
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 
 #ifdef __cplusplus

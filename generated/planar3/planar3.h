@@ -207,12 +207,12 @@ void planar3_repetitive(const planar3_real q[PLANAR3_NDOF], const planar3_real q
 #define PLANAR3_JOINT_MANIPULABILITY_WORK_REALS 4
 void planar3_joint_manipulability(const planar3_real q[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 125 add, 144 mul, 12 div, 3 sqrt, 12 trig, 3 minmax, 8 compare, 8 select; work: 61 reals. */
+ * ops: 82 add, 124 mul, 9 div, 4 sqrt, 6 trig, 4 minmax, 6 compare, 6 select; work: 29 reals. */
 #define PLANAR3_MANIPULABILITY_Q_ROWS 3
 #define PLANAR3_MANIPULABILITY_Q_COLS 1
 #define PLANAR3_MANIPULABILITY_GRAD_W_ROWS 3
 #define PLANAR3_MANIPULABILITY_GRAD_W_COLS 1
-#define PLANAR3_MANIPULABILITY_WORK_REALS 61
+#define PLANAR3_MANIPULABILITY_WORK_REALS 29
 void planar3_manipulability(const planar3_real q[PLANAR3_NDOF], planar3_real delta, planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 27 add, 21 mul, 6 div, 13 minmax; work: 11 reals. */
@@ -223,7 +223,7 @@ void planar3_manipulability(const planar3_real q[PLANAR3_NDOF], planar3_real del
 #define PLANAR3_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void planar3_continuous_weights(const planar3_real q[PLANAR3_NDOF], planar3_real band, planar3_real w_c[PLANAR3_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 131 add, 167 mul, 12 div, 3 sqrt, 12 trig, 6 minmax, 8 compare, 8 select; work: 63 reals. */
+ * ops: 84 add, 148 mul, 9 div, 4 sqrt, 6 trig, 7 minmax, 6 compare, 6 select; work: 35 reals. */
 #define PLANAR3_FT_INDEX_Q_ROWS 3
 #define PLANAR3_FT_INDEX_Q_COLS 1
 #define PLANAR3_FT_INDEX_MASK_ROWS 3
@@ -236,7 +236,7 @@ void planar3_continuous_weights(const planar3_real q[PLANAR3_NDOF], planar3_real
 #define PLANAR3_FT_INDEX_GRAD_H_M_COLS 1
 #define PLANAR3_FT_INDEX_GRAD_W_ROWS 3
 #define PLANAR3_FT_INDEX_GRAD_W_COLS 1
-#define PLANAR3_FT_INDEX_WORK_REALS 63
+#define PLANAR3_FT_INDEX_WORK_REALS 35
 void planar3_ft_index(const planar3_real q[PLANAR3_NDOF], const planar3_real mask[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF], planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 15 add, 24 mul, 6 div, 14 minmax, 8 compare, 6 select; work: 16 reals. */
@@ -267,7 +267,7 @@ void planar3_wln_weights(const planar3_real grad_H[PLANAR3_NDOF], const planar3_
 #define PLANAR3_STEP_GPM_WORK_REALS 21
 planar3_status planar3_step_gpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real alpha[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 43 add, 48 mul, 24 div, 6 trig, 6 minmax; work: 21 reals. */
+ * ops: 43 add, 48 mul, 18 div, 6 trig, 6 minmax; work: 23 reals. */
 #define PLANAR3_STEP_WLN_Q_ROWS 3
 #define PLANAR3_STEP_WLN_Q_COLS 1
 #define PLANAR3_STEP_WLN_XDOT_ROWS 3
@@ -276,10 +276,10 @@ planar3_status planar3_step_gpm(const planar3_real q[PLANAR3_NDOF], const planar
 #define PLANAR3_STEP_WLN_W_COLS 1
 #define PLANAR3_STEP_WLN_QDOT_ROWS 3
 #define PLANAR3_STEP_WLN_QDOT_COLS 1
-#define PLANAR3_STEP_WLN_WORK_REALS 21
+#define PLANAR3_STEP_WLN_WORK_REALS 23
 planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real W[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (Jacobi) (spec 30).
- * ops: 365 add, 382 mul, 118 div, 56 sqrt, 6 trig, 29 minmax, 36 compare, 36 select; work: 45 reals. */
+ * ops: 185 add, 184 mul, 39 div, 31 sqrt, 6 trig, 26 minmax; work: 35 reals. */
 #define PLANAR3_STEP_FAULT_Q_ROWS 3
 #define PLANAR3_STEP_FAULT_Q_COLS 1
 #define PLANAR3_STEP_FAULT_XDOT_ROWS 3
@@ -292,10 +292,10 @@ planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar
 #define PLANAR3_STEP_FAULT_ALPHA_COLS 1
 #define PLANAR3_STEP_FAULT_QDOT_ROWS 3
 #define PLANAR3_STEP_FAULT_QDOT_COLS 1
-#define PLANAR3_STEP_FAULT_WORK_REALS 45
+#define PLANAR3_STEP_FAULT_WORK_REALS 35
 planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 582 add, 588 mul, 155 div, 59 sqrt, 12 trig, 2 pow, 70 minmax, 50 compare, 44 select; work: 100 reals. */
+ * ops: 362 add, 376 mul, 73 div, 35 sqrt, 6 trig, 2 exp, 71 minmax, 12 compare, 6 select; work: 54 reals. */
 #define PLANAR3_STEP_WGPM_Q_ROWS 3
 #define PLANAR3_STEP_WGPM_Q_COLS 1
 #define PLANAR3_STEP_WGPM_XDOT_ROWS 3
@@ -320,7 +320,7 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 #define PLANAR3_STEP_WGPM_GAINS_COLS 1
 #define PLANAR3_STEP_WGPM_H_ROWS 4
 #define PLANAR3_STEP_WGPM_H_COLS 1
-#define PLANAR3_STEP_WGPM_WORK_REALS 100
+#define PLANAR3_STEP_WGPM_WORK_REALS 54
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 
 #ifdef __cplusplus

@@ -195,7 +195,7 @@ void snake12_zghal(const snake12_real q[SNAKE12_NDOF], snake12_real *H_L, snake1
 #define SNAKE12_REPETITIVE_WORK_REALS 28
 void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q_init[SNAKE12_NDOF], snake12_real *H_R, snake12_real grad_H_R[SNAKE12_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 18698 add, 19641 mul, 55 div, 31 sqrt, 96 trig, 7 minmax, 22 compare, 20 select; work: 5825 reals. */
+ * ops: 12987 add, 15123 mul, 31 div, 31 sqrt, 48 trig, 7 minmax, 10 compare, 10 select; work: 1379 reals. */
 #define SNAKE12_JOINT_MANIPULABILITY_Q_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_Q_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_A_ROWS 25
@@ -204,15 +204,15 @@ void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q
 #define SNAKE12_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 5825
+#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 1379
 void snake12_joint_manipulability(const snake12_real q[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 4177 add, 4215 mul, 27 div, 6 sqrt, 96 trig, 6 minmax, 18 compare, 16 select; work: 799 reals. */
+ * ops: 2943 add, 3618 mul, 146 div, 7 sqrt, 48 trig, 7 minmax, 10 compare, 10 select; work: 398 reals. */
 #define SNAKE12_MANIPULABILITY_Q_ROWS 25
 #define SNAKE12_MANIPULABILITY_Q_COLS 1
 #define SNAKE12_MANIPULABILITY_GRAD_W_ROWS 25
 #define SNAKE12_MANIPULABILITY_GRAD_W_COLS 1
-#define SNAKE12_MANIPULABILITY_WORK_REALS 799
+#define SNAKE12_MANIPULABILITY_WORK_REALS 398
 void snake12_manipulability(const snake12_real q[SNAKE12_NDOF], snake12_real delta, snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 224 add, 175 mul, 50 div, 101 minmax; work: 11 reals. */
@@ -223,7 +223,7 @@ void snake12_manipulability(const snake12_real q[SNAKE12_NDOF], snake12_real del
 #define SNAKE12_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real band, snake12_real w_c[SNAKE12_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 21530 add, 22778 mul, 77 div, 32 sqrt, 144 trig, 7 minmax, 34 compare, 34 select; work: 5923 reals. */
+ * ops: 13505 add, 16115 mul, 171 div, 32 sqrt, 48 trig, 7 minmax, 12 compare, 12 select; work: 1496 reals. */
 #define SNAKE12_FT_INDEX_Q_ROWS 25
 #define SNAKE12_FT_INDEX_Q_COLS 1
 #define SNAKE12_FT_INDEX_MASK_ROWS 25
@@ -236,7 +236,7 @@ void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real
 #define SNAKE12_FT_INDEX_GRAD_H_M_COLS 1
 #define SNAKE12_FT_INDEX_GRAD_W_ROWS 25
 #define SNAKE12_FT_INDEX_GRAD_W_COLS 1
-#define SNAKE12_FT_INDEX_WORK_REALS 5923
+#define SNAKE12_FT_INDEX_WORK_REALS 1496
 void snake12_ft_index(const snake12_real q[SNAKE12_NDOF], const snake12_real mask[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF], snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 125 add, 200 mul, 50 div, 102 minmax, 52 compare, 50 select; work: 60 reals. */
@@ -267,7 +267,7 @@ void snake12_wln_weights(const snake12_real grad_H[SNAKE12_NDOF], const snake12_
 #define SNAKE12_STEP_GPM_WORK_REALS 200
 snake12_status snake12_step_gpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real alpha[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 940 add, 1152 mul, 189 div, 48 trig, 31 minmax; work: 221 reals. */
+ * ops: 940 add, 1152 mul, 187 div, 48 trig, 31 minmax; work: 304 reals. */
 #define SNAKE12_STEP_WLN_Q_ROWS 25
 #define SNAKE12_STEP_WLN_Q_COLS 1
 #define SNAKE12_STEP_WLN_XDOT_ROWS 6
@@ -276,10 +276,10 @@ snake12_status snake12_step_gpm(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_WLN_W_COLS 1
 #define SNAKE12_STEP_WLN_QDOT_ROWS 25
 #define SNAKE12_STEP_WLN_QDOT_COLS 1
-#define SNAKE12_STEP_WLN_WORK_REALS 221
+#define SNAKE12_STEP_WLN_WORK_REALS 304
 snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real W[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (Jacobi) (spec 30).
- * ops: 3517 add, 4539 mul, 587 div, 272 sqrt, 48 trig, 129 minmax, 180 compare, 180 select; work: 320 reals. */
+ * ops: 2124 add, 2893 mul, 196 div, 151 sqrt, 48 trig, 114 minmax; work: 341 reals. */
 #define SNAKE12_STEP_FAULT_Q_ROWS 25
 #define SNAKE12_STEP_FAULT_Q_COLS 1
 #define SNAKE12_STEP_FAULT_XDOT_ROWS 6
@@ -292,10 +292,10 @@ snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_FAULT_ALPHA_COLS 1
 #define SNAKE12_STEP_FAULT_QDOT_ROWS 25
 #define SNAKE12_STEP_FAULT_QDOT_COLS 1
-#define SNAKE12_STEP_FAULT_WORK_REALS 320
+#define SNAKE12_STEP_FAULT_WORK_REALS 341
 snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 22827 add, 24395 mul, 758 div, 304 sqrt, 96 trig, 2 pow, 261 minmax, 252 compare, 200 select; work: 5992 reals. */
+ * ops: 15631 add, 17872 mul, 844 div, 183 sqrt, 48 trig, 2 exp, 271 minmax, 60 compare, 10 select; work: 1434 reals. */
 #define SNAKE12_STEP_WGPM_Q_ROWS 25
 #define SNAKE12_STEP_WGPM_Q_COLS 1
 #define SNAKE12_STEP_WGPM_XDOT_ROWS 6
@@ -320,7 +320,7 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_GAINS_COLS 1
 #define SNAKE12_STEP_WGPM_H_ROWS 4
 #define SNAKE12_STEP_WGPM_H_COLS 1
-#define SNAKE12_STEP_WGPM_WORK_REALS 5992
+#define SNAKE12_STEP_WGPM_WORK_REALS 1434
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 
 #ifdef __cplusplus
