@@ -246,10 +246,12 @@ def main(argv=None) -> int:
             sub.mkdir()
             info = arm_object_with(sub, gen_dir, prefix, defines)
             obj = info.pop("object")
+            header = (gen_dir / f"{prefix}.h").read_text()
+            present = [n for n in names if f" {prefix}_{n}(" in header]  # the previous C has no twins
             figures[label] = {"text": info["text_bytes"], "text_total": info["text_total"],
                               "undefined": info["undefined"], "aeabi_double": info["aeabi_double"],
                               "instr": m4_instructions(sub, obj.parent if defines else gen_dir, model, prefix,
-                                                       names, obj, defines)}
+                                                       present, obj, defines)}
         rep.data["cortex_m4f"] = figures
         prev, now, fast = figures["previous"], figures["now"], figures["now+bounded"]
         print(f"  {'function':<22} {'text prev':>10} {'text now':>9} {'ratio':>6}   {'instr prev':>10} "
@@ -257,11 +259,12 @@ def main(argv=None) -> int:
         for name in names:
             tp, tn = prev["text"].get(name), now["text"].get(name)
             ip, i_now, ib = prev["instr"].get(name), now["instr"][name], fast["instr"][name]
+            ip_text = "-" if ip is None else str(round(ip))
             bar = BARS["m4_instr"].get(name)
             best = min(i_now, ib)
             note = bar_note(best, bar) if bar else ""
             print(f"  {name:<22} {tp if tp is not None else '-':>10} {tn:>9} "
-                  f"{(tn / tp if tp else float('nan')):>6.2f}   {ip if ip is None else round(ip):>10} {i_now:>9.0f} "
+                  f"{(tn / tp if tp else float('nan')):>6.2f}   {ip_text:>10} {i_now:>9.0f} "
                   f"{ib:>8.0f} {(best / ip if ip else float('nan')):>6.2f}  {note}")
             rep.rows.append((f"M4 {name}", f"{tn} B / {best:.0f} instr", "", f"previous {tp} B / {ip} instr; {note}"))
         print(f"  {'whole file':<22} {prev['text_total']:>10} {now['text_total']:>9} "

@@ -27,7 +27,7 @@ from make_planner_reference import CASES, summary_scalars  # noqa: E402
 # The bar: joint angles identical to the replaced planners within 1e-12 rad.
 ANGLE_TOL = 1e-12
 # Every other column and summary scalar: the same sums in another order (BLAS vs the fused
-# expression; Jacobi vs LAPACK for σ_min) differ by rounding, relative to the column's scale.
+# expression; bisection vs LAPACK for σ_min) differ by rounding, relative to the column's scale.
 VALUE_REL_TOL = 1e-9
 
 # σ_min is the square root of a Jacobi eigenvalue estimate: where the (masked) Jacobian is rank

@@ -29,7 +29,8 @@ from .. import __version__
 from ..errors import OptionError
 from ..fileio import write_file_set
 from ..robot import Robot, load_robot_any
-from ..symbolic.model import DESCRIPTIONS, STEP_FUNCTIONS, ModelOptions, SymbolicModel
+from ..symbolic.model import (DESCRIPTIONS, FROM_JACOBIAN, JACOBIAN_FUNCTIONS, STEP_FUNCTIONS, ModelOptions,
+                              SymbolicModel)
 from .c_emitter import MATH_MACROS, EmittedFunction, describe_counts, emit_body
 from .stamp import c_preamble, comment_safe
 
@@ -128,6 +129,22 @@ def _status_check(func: ca.Function, arg_names: list[str], arg_scalar: list[bool
     return "\n".join(["  {", "  int ok = 1;", *terms, f"  return (ok != 0) ? {P}_OK : {P}_NONFINITE;", "  }"])
 
 
+def _through_jacobian_body(func: ca.Function, twin: ca.Function, p: str, P: str) -> str:
+    """The body of a function of J: J = <p>_jacobian(q), then the twin (same operations as the
+    function's SX, which is the twin applied to jacobian(q)). A step's status also covers q: a
+    non-finite q need not reach J (a prismatic joint's value only moves points)."""
+    args = ["J" if twin.name_in(k) == "J" else twin.name_in(k) for k in range(twin.n_in())]
+    args += [twin.name_out(k) for k in range(twin.n_out())]
+    call = f"{p}_{twin.name()}({', '.join(args)})"
+    lines = [f"  {p}_real J[6 * {P}_NDOF];"]
+    if func.name() in STEP_FUNCTIONS:
+        lines += [f"  {p}_status status;", f"  {p}_jacobian(q, J);", f"  status = {call};",
+                  f"  return ({p}_all_finite(q, {P}_NDOF) != 0) ? status : {P}_NONFINITE;"]
+    else:
+        lines += [f"  {p}_jacobian(q, J);", f"  {call};"]
+    return "\n".join(lines)
+
+
 def generate(config: CodegenConfig) -> GeneratedCode:
     """Derive the model and render the C files (nothing is written)."""
     config = make_consistent(config)
@@ -143,20 +160,29 @@ def generate(config: CodegenConfig) -> GeneratedCode:
         res_names = [func.name_out(k) for k in range(func.n_out())]
         in_decls = [_arg_decl(func, k, True, model, p) for k in range(func.n_in())]
         out_decls = [_arg_decl(func, k, False, model, p) for k in range(func.n_out())]
-        em = emit_body(func, arg_names, [s for _, s in in_decls], res_names, [s for _, s in out_decls], P)
-        emitted.append(em)
         returns_status = name in STEP_FUNCTIONS
         ret = f"{p}_status" if returns_status else "void"
         signature = f"{ret} {p}_{name}({', '.join(d for d, _ in in_decls + out_decls)})"
+        if name in JACOBIAN_FUNCTIONS:
+            twin = next(em for em in emitted if em.name == name + FROM_JACOBIAN)
+            kinematics = next(em for em in emitted if em.name == "jacobian")
+            em = EmittedFunction(name, _through_jacobian_body(func, functions[name + FROM_JACOBIAN], p, P),
+                                 kinematics.op_counts + twin.op_counts, twin.work_reals + 6 * model.n)
+            calls = f"calls {p}_jacobian and {p}_{twin.name}"
+        else:
+            em = emit_body(func, arg_names, [s for _, s in in_decls], res_names, [s for _, s in out_decls], P)
+            calls = ""
+            if returns_status:
+                em.body += "\n" + _status_check(func, arg_names, [s for _, s in in_decls], res_names,
+                                                 [s for _, s in out_decls], p, P)
+        emitted.append(em)
         doc = (f"/* {name}: {DESCRIPTIONS[name]}.\n"
-               f" * ops: {describe_counts(em.op_counts)}; work: {em.work_reals} reals. */")
+               f" * ops: {describe_counts(em.op_counts)}{' (' + calls + ')' if calls else ''}; "
+               f"work: {em.work_reals} reals. */")
         protos.append("\n".join([doc, *_size_macros(func, P), f"#define {P}_{name.upper()}_WORK_REALS {em.work_reals}",
                                  signature + ";"]))
-        body = em.body
-        if returns_status:
-            body += "\n" + _status_check(func, arg_names, [s for _, s in in_decls], res_names,
-                                          [s for _, s in out_decls], p, P)
-        definitions.append(f"/* {name}: {describe_counts(em.op_counts)} */\n{signature} {{\n{body}\n}}\n")
+        definitions.append(f"/* {name}: {describe_counts(em.op_counts)}{'; ' + calls if calls else ''} */\n"
+                           f"{signature} {{\n{em.body}\n}}\n")
     robot = config.robot
     preamble = c_preamble(robot.source, robot.sha256,
                           f"armgen kinematics of robot '{comment_safe(robot.name)}' ({robot.n} DOF)")

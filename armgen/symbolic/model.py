@@ -19,8 +19,19 @@ from .kinematics import chain, geometric_jacobian
 KINEMATIC_FUNCTIONS = ("fk", "jacobian", "fk_jacobian")
 CRITERION_FUNCTIONS = ("zghal", "repetitive", "joint_manipulability", "manipulability", "continuous_weights",
                        "ft_index", "wln_weights")
-STEP_FUNCTIONS = ("step_gpm", "step_wln", "step_fault", "step_wgpm")
-ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + CRITERION_FUNCTIONS + STEP_FUNCTIONS
+# The functions that depend on q only through the geometric Jacobian J (step_wgpm: through J
+# and q). Each has a twin "<name>_from_jacobian" that takes J (6×n, the jacobian function's
+# output) in place of q's kinematics; <name> is that twin applied to jacobian(q) — the same
+# operations, so the generated <name> calls <prefix>_jacobian and the twin (one copy of each in
+# flash), and a controller that already holds J calls the twin directly.
+JACOBIAN_FUNCTIONS = ("manipulability", "joint_manipulability", "ft_index", "step_gpm", "step_wln", "step_fault",
+                      "step_wgpm")
+FROM_JACOBIAN = "_from_jacobian"
+TWINS = tuple(name + FROM_JACOBIAN for name in JACOBIAN_FUNCTIONS)
+STEP_FUNCTIONS = ("step_gpm", "step_wln", "step_fault", "step_wgpm",
+                  *(name + FROM_JACOBIAN for name in ("step_gpm", "step_wln", "step_fault", "step_wgpm")))
+# twins first: the generated functions of J call them (and jacobian)
+ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + TWINS + CRITERION_FUNCTIONS + STEP_FUNCTIONS[:4]
 
 # One-line descriptions, used in the generated header and by `armgen show`.
 DESCRIPTIONS = {
@@ -40,10 +51,17 @@ DESCRIPTIONS = {
     "wln_weights": "WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off "
                    "rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30)",
     "step_fault": "masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), "
-                  "S = mask/W, variable damping from sigma_min (Jacobi) (spec 30)",
+                  "S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30)",
     "step_wgpm": "multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from "
-                 "sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains",
+                 "sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains",
 }
+DESCRIPTIONS.update({twin: f"{DESCRIPTIONS[name]}; from a given Jacobian J (jacobian's output, 6xn)"
+                     for name, twin in zip(JACOBIAN_FUNCTIONS, TWINS)})
+
+
+def requirements(name: str) -> tuple[str, ...]:
+    """The functions the generated ``name`` calls (jacobian and the twin), then ``name``."""
+    return ("jacobian", name + FROM_JACOBIAN, name) if name in JACOBIAN_FUNCTIONS else (name,)
 
 
 @dataclass(frozen=True)
@@ -79,24 +97,26 @@ class SymbolicModel:
     def task_jac(self) -> ca.SX:
         return self.jac[list(self.robot.task_rows), :]
 
-    def task_vjp(self, g: ca.SX) -> ca.SX:
-        """∇_q Σ G ∘ J_task for a G (m×n) held constant (criteria.jacobian_vjp)."""
+    def task_vjp(self, jac: ca.SX, g: ca.SX) -> ca.SX:
+        """∇_q Σ G ∘ J_task for a G (m×n) held constant, J = ``jac`` (criteria.jacobian_vjp)."""
         full = ca.SX(6, self.n)
         for r, row in enumerate(self.robot.task_rows):
             full[row, :] = g[r, :]
-        return criteria.jacobian_vjp([j.revolute for j in self.robot.joints], self.jac, full)
+        return criteria.jacobian_vjp([j.revolute for j in self.robot.joints], jac, full)
 
     def available(self) -> tuple[str, ...]:
         """Every function, for any chain length (the criteria cost O(n) after the kinematics)."""
         return ALL_FUNCTIONS
 
     def selected(self) -> tuple[str, ...]:
+        """The requested functions with what they call (jacobian, the twins), in ALL_FUNCTIONS order."""
         wanted = self.options.functions or self.available()
         unknown = [f for f in wanted if f not in self.available()]
         if unknown:
             raise ValueError(f"functions not available for robot '{self.robot.name}': {', '.join(unknown)} "
                              f"(available: {', '.join(self.available())})")
-        return tuple(wanted)
+        needed = {r for name in wanted for r in requirements(name)}
+        return tuple(name for name in self.available() if name in needed)
 
     # -- the functions ---------------------------------------------------------------
     def function(self, name: str) -> ca.Function:
@@ -114,6 +134,10 @@ class SymbolicModel:
         return {name: self.function(name) for name in self.selected()}
 
     def _build(self, name: str) -> ca.Function:
+        if name in JACOBIAN_FUNCTIONS:
+            return self._through_jacobian(name)
+        if name in TWINS:
+            return self._twin(name[: -len(FROM_JACOBIAN)])
         q, robot = self.q, self.robot
         qmin, qmax = robot.qmin.tolist(), robot.qmax.tolist()
         dense = ca.densify
@@ -132,42 +156,10 @@ class SymbolicModel:
             h = criteria.repetitive(q, q_init)
             return ca.Function("repetitive", [q, q_init], [h, dense(ca.gradient(h, q))],
                                ["q", "q_init"], ["H_R", "grad_H_R"])
-        if name == "joint_manipulability":
-            # ft_index with every joint healthy: one construction for the whole family
-            a, delta = ca.SX.sym("a", self.n), ca.SX.sym("delta")
-            omega, h, grad, _, _ = self._build("ft_index")(q, ca.DM.ones(self.n), a, delta)
-            return ca.Function("joint_manipulability", [q, a, delta], [omega, h, grad],
-                               ["q", "a", "delta"], ["omega", "H_M", "grad_H_M"])
-        if name == "manipulability":
-            delta = ca.SX.sym("delta")
-            _, _, _, w, grad = self._build("ft_index")(q, ca.DM.ones(self.n), ca.DM.zeros(self.n), delta)
-            return ca.Function("manipulability", [q, delta], [w, grad], ["q", "delta"], ["w", "grad_w"])
         if name == "continuous_weights":
             band = ca.SX.sym("band")
             return ca.Function("continuous_weights", [q, band], [dense(criteria.continuous_weights(q, qmin, qmax, band))],
                                ["q", "band"], ["w_c"])
-        if name == "step_gpm":
-            xdot, alpha, damping = ca.SX.sym("xdot", self.m), ca.SX.sym("alpha", self.n), ca.SX.sym("damping")
-            qdot = steps.step_gpm(self.task_jac, xdot, alpha, damping)
-            return ca.Function("step_gpm", [q, xdot, alpha, damping], [dense(qdot)],
-                               ["q", "xdot", "alpha", "damping"], ["qdot"])
-        if name == "step_wln":
-            xdot, weights, damping = ca.SX.sym("xdot", self.m), ca.SX.sym("W", self.n), ca.SX.sym("damping")
-            qdot = steps.step_wln(self.task_jac, xdot, weights, damping)
-            return ca.Function("step_wln", [q, xdot, weights, damping], [dense(qdot)],
-                               ["q", "xdot", "W", "damping"], ["qdot"])
-        if name == "ft_index":
-            mask, a, delta = ca.SX.sym("mask", self.n), ca.SX.sym("a", self.n), ca.SX.sym("delta")
-            masked = self.task_jac @ ca.diag(mask)
-            weights = mask * a
-            sens = criteria.manipulability_sensitivities(criteria.gram_qr(masked), masked, weights,
-                                                         criteria.smooth_delta(delta))
-            omega = ca.vertcat(*sens.omega)
-            # ∂/∂J = ∂/∂(J diag(mask)) · diag(mask), then through J(q) in closed form
-            return ca.Function("ft_index", [q, mask, a, delta],
-                               [dense(omega), ca.dot(weights, omega), dense(self.task_vjp(sens.grad_h @ ca.diag(mask))),
-                                sens.w, dense(self.task_vjp(sens.grad_w @ ca.diag(mask)))],
-                               ["q", "mask", "a", "delta"], ["omega", "H_M", "grad_H_M", "w", "grad_w"])
         if name == "wln_weights":
             grad, omega = ca.SX.sym("grad_H", self.n), ca.SX.sym("omega", self.n)
             qdot_prev, mask = ca.SX.sym("qdot_prev", self.n), ca.SX.sym("mask", self.n)
@@ -177,25 +169,79 @@ class SymbolicModel:
                                [dense(weights), dense(active)],
                                ["grad_H", "omega", "qdot_prev", "mask", "b", "omega_floor", "v_band"],
                                ["W", "active"])
+        raise KeyError(name)
+
+    def _through_jacobian(self, name: str) -> ca.Function:
+        """``name`` = its twin applied to jacobian(q): the inputs of the twin with J replaced by q."""
+        twin = self.function(name + FROM_JACOBIAN)
+        labels = [twin.name_in(k) for k in range(1, twin.n_in())]
+        symbols = {label: self.q if label == "q" else ca.SX.sym(label, twin.sparsity_in(k + 1).shape)
+                   for k, label in enumerate(labels)}
+        outputs = twin(self.jac, *[symbols[label] for label in labels])
+        outputs = list(outputs) if isinstance(outputs, (list, tuple)) else [outputs]
+        names_in = ["q", *[label for label in labels if label != "q"]]
+        return ca.Function(name, [self.q if label == "q" else symbols[label] for label in names_in], outputs,
+                           names_in, twin.name_out())
+
+    def _twin(self, name: str) -> ca.Function:
+        """``<name>_from_jacobian``: ``name`` with the geometric Jacobian J (6×n) as its first input."""
+        q, robot, n, m = self.q, self.robot, self.n, self.m
+        jac = ca.SX.sym("J", 6, n)
+        task_jac = jac[list(robot.task_rows), :]
+        qmin, qmax = robot.qmin.tolist(), robot.qmax.tolist()
+        dense = ca.densify
+        twin = name + FROM_JACOBIAN
+        if name == "ft_index":
+            mask, a, delta = ca.SX.sym("mask", n), ca.SX.sym("a", n), ca.SX.sym("delta")
+            masked = task_jac @ ca.diag(mask)
+            weights = mask * a
+            sens = criteria.manipulability_sensitivities(criteria.gram_qr(masked), masked, weights,
+                                                         criteria.smooth_delta(delta))
+            omega = ca.vertcat(*sens.omega)
+            # ∂/∂J = ∂/∂(J diag(mask)) · diag(mask), then through J(q) in closed form
+            return ca.Function(twin, [jac, mask, a, delta],
+                               [dense(omega), ca.dot(weights, omega),
+                                dense(self.task_vjp(jac, sens.grad_h @ ca.diag(mask))),
+                                sens.w, dense(self.task_vjp(jac, sens.grad_w @ ca.diag(mask)))],
+                               ["J", "mask", "a", "delta"], ["omega", "H_M", "grad_H_M", "w", "grad_w"])
+        if name == "joint_manipulability":
+            # ft_index with every joint healthy: one construction for the whole family
+            a, delta = ca.SX.sym("a", n), ca.SX.sym("delta")
+            omega, h, grad, _, _ = self.function("ft_index" + FROM_JACOBIAN)(jac, ca.DM.ones(n), a, delta)
+            return ca.Function(twin, [jac, a, delta], [omega, h, grad], ["J", "a", "delta"],
+                               ["omega", "H_M", "grad_H_M"])
+        if name == "manipulability":
+            delta = ca.SX.sym("delta")
+            _, _, _, w, grad = self.function("ft_index" + FROM_JACOBIAN)(jac, ca.DM.ones(n), ca.DM.zeros(n), delta)
+            return ca.Function(twin, [jac, delta], [w, grad], ["J", "delta"], ["w", "grad_w"])
+        if name == "step_gpm":
+            xdot, alpha, damping = ca.SX.sym("xdot", m), ca.SX.sym("alpha", n), ca.SX.sym("damping")
+            qdot = steps.step_gpm(task_jac, xdot, alpha, damping)
+            return ca.Function(twin, [jac, xdot, alpha, damping], [dense(qdot)],
+                               ["J", "xdot", "alpha", "damping"], ["qdot"])
+        if name == "step_wln":
+            xdot, weights, damping = ca.SX.sym("xdot", m), ca.SX.sym("W", n), ca.SX.sym("damping")
+            qdot = steps.step_wln(task_jac, xdot, weights, damping)
+            return ca.Function(twin, [jac, xdot, weights, damping], [dense(qdot)],
+                               ["J", "xdot", "W", "damping"], ["qdot"])
         if name == "step_fault":
-            xdot, mask = ca.SX.sym("xdot", self.m), ca.SX.sym("mask", self.n)
-            weights, alpha = ca.SX.sym("W", self.n), ca.SX.sym("alpha", self.n)
+            xdot, mask = ca.SX.sym("xdot", m), ca.SX.sym("mask", n)
+            weights, alpha = ca.SX.sym("W", n), ca.SX.sym("alpha", n)
             epsilon, lambda_max = ca.SX.sym("epsilon"), ca.SX.sym("lambda_max")
-            qdot, lam, sigma = steps.step_fault(self.task_jac, xdot, mask, weights, alpha, epsilon, lambda_max)
-            return ca.Function("step_fault", [q, xdot, mask, weights, alpha, epsilon, lambda_max],
+            qdot, lam, sigma = steps.step_fault(task_jac, xdot, mask, weights, alpha, epsilon, lambda_max)
+            return ca.Function(twin, [jac, xdot, mask, weights, alpha, epsilon, lambda_max],
                                [dense(qdot), lam, sigma],
-                               ["q", "xdot", "mask", "W", "alpha", "epsilon", "lambda_max"],
+                               ["J", "xdot", "mask", "W", "alpha", "epsilon", "lambda_max"],
                                ["qdot", "damping", "sigma_min"])
         if name == "step_wgpm":
             nc = len(steps.WGPM_CRITERIA)
             scalar_names = ("band", "t_rmax", "epsilon", "rho_max", "delta", "ramp")
             vector_names = ("H_lo", "H_hi", "k_hi", "k_lo", "u_th", "u_band")
-            scalars = [ca.SX.sym(s) for s in scalar_names]
-            vectors = [ca.SX.sym(s, nc) for s in vector_names]
-            xdot = ca.SX.sym("xdot", self.m)
-            out = steps.step_wgpm(self.task_jac, self.task_vjp, q, qmin, qmax, xdot, *scalars, *vectors)
+            scalars = [ca.SX.sym(label) for label in scalar_names]
+            vectors = [ca.SX.sym(label, nc) for label in vector_names]
+            xdot = ca.SX.sym("xdot", m)
+            out = steps.step_wgpm(task_jac, lambda g: self.task_vjp(jac, g), q, qmin, qmax, xdot, *scalars, *vectors)
             names_out = ["qdot", "w_c", "rho", "sigma_min", "gains", "H"]
-            inputs = [q, xdot, *scalars, *vectors]
-            return ca.Function("step_wgpm", inputs, [dense(out[k]) for k in names_out],
-                               ["q", "xdot", *scalar_names, *vector_names], names_out)
+            return ca.Function(twin, [jac, q, xdot, *scalars, *vectors], [dense(out[k]) for k in names_out],
+                               ["J", "q", "xdot", *scalar_names, *vector_names], names_out)
         raise KeyError(name)

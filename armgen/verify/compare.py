@@ -16,6 +16,7 @@ import casadi as ca
 import numpy as np
 
 from ..robot import Robot
+from ..symbolic.model import FROM_JACOBIAN
 from ..codegen.compiled import CompiledModel
 from .samples import function_inputs, joint_samples
 
@@ -42,7 +43,7 @@ FLOAT_BOUNDS = {
     "step_wln": 2e-2,
     "ft_index": 1e-3,  # [as joint_manipulability, masked columns; seen ≤ 5.2e-5 (planar3)]
     "wln_weights": 2e-6,  # [a few arithmetic ops per joint; seen 2.3e-7]
-    # [σ_min² by Jacobi carries ~1e-7 ‖JJᵀ‖ absolute error, amplified by (λ_max/ε)² ≤ 2.8 into
+    # [σ_min² by bisection carries ~1e-7 ‖JJᵀ‖ absolute error, amplified by (λ_max/ε)² ≤ 2.8 into
     # ρ² and by the conditioning (σ_max/ε)² of the damped solve; seen 9e-4]
     "step_fault": 1e-2,
     # [step_fault's error plus the criteria gradients (condition index ~δ^{-2(m+1)/m} at a
@@ -116,6 +117,6 @@ def compare_model(compiled: CompiledModel, references: dict[str, ca.Function], r
                 err = max(err, float(np.max(np.abs(out - ref))) / scale)
             if not err <= worst:  # NaN counts as the worst
                 worst, worst_at = err, s
-        bound = DOUBLE_REL_BOUND if precision == "double" else FLOAT_BOUNDS[name]
+        bound = DOUBLE_REL_BOUND if precision == "double" else FLOAT_BOUNDS[name.removesuffix(FROM_JACOBIAN)]
         report.append(FunctionComparison(name, precision, len(calls), worst, worst_at, bound))
     return report

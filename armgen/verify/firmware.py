@@ -117,8 +117,10 @@ def robot_prefix(robot: Robot) -> str:
 
 # The generated functions the controller calls: always, and per optional mode (a robot whose
 # generated code lacks them gets a firmware without that mode: -DCTRL_HAS_<MODE>=0).
-FIRMWARE_FUNCTIONS = ("fk_jacobian", "zghal", "repetitive", "step_gpm")
-OPTIONAL_FUNCTIONS = {"FAULT_TOLERANT": ("ft_index", "wln_weights", "step_fault"), "WEIGHTED_GPM": ("step_wgpm",)}
+# The steps take the J of the tick's fk_jacobian (their *_from_jacobian twins).
+FIRMWARE_FUNCTIONS = ("fk_jacobian", "zghal", "repetitive", "step_gpm_from_jacobian")
+OPTIONAL_FUNCTIONS = {"FAULT_TOLERANT": ("ft_index_from_jacobian", "wln_weights", "step_fault_from_jacobian"),
+                      "WEIGHTED_GPM": ("step_wgpm_from_jacobian",)}
 
 
 def available_modes(source: str, prefix: str) -> tuple[str, ...]:
@@ -137,7 +139,7 @@ def extract_functions(source: str, prefix: str, names: Sequence[str] = FIRMWARE_
     each definition byte for byte. None when the file does not have the generator's layout
     (``/* name: ops */`` above each definition) or lacks a function.
 
-    The firmware needs 4 of the robot's functions; compiling only those keeps the builds
+    The firmware needs a few of the robot's functions; compiling only those keeps the builds
     fast (the whole generated file of modular8 is > 40 000 lines)."""
     pattern = re.compile(rf"^/\* (\w+): [^\n]*\*/\n(?:void|{prefix}_status) {prefix}_(\w+)\(", re.M)
     matches = list(pattern.finditer(source))

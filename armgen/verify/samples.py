@@ -18,6 +18,7 @@ import casadi as ca
 import numpy as np
 
 from ..robot import Robot
+from ..symbolic.model import FROM_JACOBIAN, SymbolicModel
 
 NEAR_LIMIT_FRACTION = 0.15
 NEAR_SINGULAR_FRACTION = 0.15
@@ -28,7 +29,7 @@ DAMPING_CHOICES = (0.0, 1e-4, 1e-2, 0.1)
 FLOAT_DAMPING_CHOICES = (1e-2, 0.1)
 # Variable damping (step_fault, step_wgpm): threshold ε and maximum λ (ρ_max). Float draws ε ≥ 0.03
 # and λ_max ≤ 0.05, so that the slope ∂ρ²/∂σ² = (λ_max/ε)² ≤ 2.8 does not amplify the float error
-# of the Jacobi estimate of σ_min² (~1e-7 ‖J Jᵀ‖) into the step.
+# of the bisection estimate of σ_min² (~1e-7 ‖J Jᵀ‖) into the step.
 EPSILON_RANGE = {"double": (0.005, 0.1), "float": (0.03, 0.1)}
 LAMBDA_MAX_RANGE = {"double": (0.01, 0.1), "float": (0.01, 0.05)}
 # step_wgpm's condition index tr(JJᵀ)/(m (det JJᵀ + δ²)^{1/m}) has a gradient that scales like
@@ -38,6 +39,16 @@ FLOAT_WGPM_MIN_LOG_DELTA = -2
 # Typical magnitudes of step_wgpm's criteria (w, H_M, H_L per joint, condition index): H_lo is
 # drawn in [0, 1]·scale and H_hi = H_lo + [0.5, 2]·scale.
 CRITERION_SCALES = (0.1, 0.5, 8.0, 20.0)
+
+
+_JACOBIANS: dict[str, ca.Function] = {}
+
+
+def _jacobian_at(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """The robot's geometric Jacobian at q: the J input of the ``*_from_jacobian`` functions."""
+    if robot.sha256 not in _JACOBIANS:
+        _JACOBIANS[robot.sha256] = SymbolicModel(robot).function("jacobian")
+    return np.array(_JACOBIANS[robot.sha256](q))
 
 
 def joint_samples(robot: Robot, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -71,12 +82,14 @@ def function_inputs(func: ca.Function, robot: Robot, q: np.ndarray, rng: np.rand
         shape = func.sparsity_in(k).shape
         if name == "q":
             args.append(q)
+        elif name == "J":
+            args.append(_jacobian_at(robot, q))
         elif name == "q_init":
             args.append(rng.uniform(robot.qmin, robot.qmax))
         elif name == "damping":
             args.append(float(rng.choice(damping)))
         elif name == "delta":
-            lo = FLOAT_WGPM_MIN_LOG_DELTA if (precision == "float" and func.name() == "step_wgpm") else -4
+            lo = FLOAT_WGPM_MIN_LOG_DELTA if (precision == "float" and func.name().removesuffix(FROM_JACOBIAN) == "step_wgpm") else -4
             args.append(float(10 ** rng.uniform(lo, -1)))
         elif name == "band":
             args.append(float(rng.uniform(0.02, 0.3)))

@@ -176,6 +176,112 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]);
 #define SNAKE12_FK_JACOBIAN_J_COLS 25
 #define SNAKE12_FK_JACOBIAN_WORK_REALS 119
 void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16], snake12_real J[150]);
+/* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn).
+ * ops: 2709 add, 3244 mul, 150 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 433 reals. */
+#define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
+#define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_J_COLS 25
+#define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 25
+#define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_COLS 1
+#define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 433
+void snake12_manipulability_from_jacobian(const snake12_real J[150], snake12_real delta, snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
+/* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn).
+ * ops: 12823 add, 14819 mul, 31 div, 31 sqrt, 7 minmax, 12 compare, 12 select; work: 1434 reals. */
+#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
+#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_COLS 25
+#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_A_ROWS 25
+#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_A_COLS 1
+#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_OMEGA_ROWS 25
+#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_OMEGA_COLS 1
+#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_ROWS 25
+#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_COLS 1
+#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 1434
+void snake12_joint_manipulability_from_jacobian(const snake12_real J[150], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
+/* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn).
+ * ops: 13361 add, 15850 mul, 175 div, 32 sqrt, 7 minmax, 12 compare, 12 select; work: 1577 reals. */
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_J_COLS 25
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 25
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_MASK_COLS 1
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_A_ROWS 25
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_A_COLS 1
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_OMEGA_ROWS 25
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_OMEGA_COLS 1
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_ROWS 25
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_COLS 1
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_W_ROWS 25
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_WORK_REALS 1577
+void snake12_ft_index_from_jacobian(const snake12_real J[150], const snake12_real mask[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF], snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn).
+ * ops: 875 add, 926 mul, 21 div, 6 minmax; work: 210 reals. */
+#define SNAKE12_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
+#define SNAKE12_STEP_GPM_FROM_JACOBIAN_J_COLS 25
+#define SNAKE12_STEP_GPM_FROM_JACOBIAN_XDOT_ROWS 6
+#define SNAKE12_STEP_GPM_FROM_JACOBIAN_XDOT_COLS 1
+#define SNAKE12_STEP_GPM_FROM_JACOBIAN_ALPHA_ROWS 25
+#define SNAKE12_STEP_GPM_FROM_JACOBIAN_ALPHA_COLS 1
+#define SNAKE12_STEP_GPM_FROM_JACOBIAN_QDOT_ROWS 25
+#define SNAKE12_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
+#define SNAKE12_STEP_GPM_FROM_JACOBIAN_WORK_REALS 210
+snake12_status snake12_step_gpm_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real alpha[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn).
+ * ops: 700 add, 776 mul, 196 div, 31 minmax; work: 304 reals. */
+#define SNAKE12_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
+#define SNAKE12_STEP_WLN_FROM_JACOBIAN_J_COLS 25
+#define SNAKE12_STEP_WLN_FROM_JACOBIAN_XDOT_ROWS 6
+#define SNAKE12_STEP_WLN_FROM_JACOBIAN_XDOT_COLS 1
+#define SNAKE12_STEP_WLN_FROM_JACOBIAN_W_ROWS 25
+#define SNAKE12_STEP_WLN_FROM_JACOBIAN_W_COLS 1
+#define SNAKE12_STEP_WLN_FROM_JACOBIAN_QDOT_ROWS 25
+#define SNAKE12_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
+#define SNAKE12_STEP_WLN_FROM_JACOBIAN_WORK_REALS 304
+snake12_status snake12_step_wln_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real W[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn).
+ * ops: 1745 add, 1504 mul, 291 div, 6 sqrt, 297 minmax, 48 compare; work: 256 reals. */
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_J_COLS 25
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_XDOT_COLS 1
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_MASK_ROWS 25
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_MASK_COLS 1
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_W_ROWS 25
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_W_COLS 1
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_ALPHA_ROWS 25
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 25
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 256
+snake12_status snake12_step_fault_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn).
+ * ops: 15392 add, 16627 mul, 939 div, 38 sqrt, 2 exp, 454 minmax, 110 compare, 12 select; work: 1491 reals. */
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_J_COLS 25
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 25
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_Q_COLS 1
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_XDOT_ROWS 6
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_XDOT_COLS 1
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_LO_ROWS 4
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_LO_COLS 1
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_HI_ROWS 4
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_HI_COLS 1
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_K_HI_ROWS 4
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_K_HI_COLS 1
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_K_LO_ROWS 4
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_K_LO_COLS 1
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_U_TH_ROWS 4
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_U_TH_COLS 1
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_U_BAND_ROWS 4
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_U_BAND_COLS 1
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_QDOT_ROWS 25
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_QDOT_COLS 1
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_W_C_ROWS 25
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_W_C_COLS 1
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_GAINS_ROWS 4
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 1491
+snake12_status snake12_step_wgpm_from_jacobian(const snake12_real J[150], const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
  * ops: 123 add, 100 mul, 75 div, 25 minmax, 50 compare; work: 128 reals. */
 #define SNAKE12_ZGHAL_Q_ROWS 25
@@ -195,7 +301,7 @@ void snake12_zghal(const snake12_real q[SNAKE12_NDOF], snake12_real *H_L, snake1
 #define SNAKE12_REPETITIVE_WORK_REALS 28
 void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q_init[SNAKE12_NDOF], snake12_real *H_R, snake12_real grad_H_R[SNAKE12_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 12987 add, 15123 mul, 31 div, 31 sqrt, 48 trig, 7 minmax, 10 compare, 10 select; work: 1379 reals. */
+ * ops: 13158 add, 15251 mul, 31 div, 31 sqrt, 48 trig, 7 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_joint_manipulability_from_jacobian); work: 1584 reals. */
 #define SNAKE12_JOINT_MANIPULABILITY_Q_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_Q_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_A_ROWS 25
@@ -204,15 +310,15 @@ void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q
 #define SNAKE12_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 1379
+#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 1584
 void snake12_joint_manipulability(const snake12_real q[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 2943 add, 3618 mul, 146 div, 7 sqrt, 48 trig, 7 minmax, 10 compare, 10 select; work: 398 reals. */
+ * ops: 3044 add, 3676 mul, 150 div, 7 sqrt, 48 trig, 7 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_manipulability_from_jacobian); work: 583 reals. */
 #define SNAKE12_MANIPULABILITY_Q_ROWS 25
 #define SNAKE12_MANIPULABILITY_Q_COLS 1
 #define SNAKE12_MANIPULABILITY_GRAD_W_ROWS 25
 #define SNAKE12_MANIPULABILITY_GRAD_W_COLS 1
-#define SNAKE12_MANIPULABILITY_WORK_REALS 398
+#define SNAKE12_MANIPULABILITY_WORK_REALS 583
 void snake12_manipulability(const snake12_real q[SNAKE12_NDOF], snake12_real delta, snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 224 add, 175 mul, 50 div, 101 minmax; work: 11 reals. */
@@ -223,7 +329,7 @@ void snake12_manipulability(const snake12_real q[SNAKE12_NDOF], snake12_real del
 #define SNAKE12_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real band, snake12_real w_c[SNAKE12_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 13505 add, 16115 mul, 171 div, 32 sqrt, 48 trig, 7 minmax, 12 compare, 12 select; work: 1496 reals. */
+ * ops: 13696 add, 16282 mul, 175 div, 32 sqrt, 48 trig, 7 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_ft_index_from_jacobian); work: 1727 reals. */
 #define SNAKE12_FT_INDEX_Q_ROWS 25
 #define SNAKE12_FT_INDEX_Q_COLS 1
 #define SNAKE12_FT_INDEX_MASK_ROWS 25
@@ -236,7 +342,7 @@ void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real
 #define SNAKE12_FT_INDEX_GRAD_H_M_COLS 1
 #define SNAKE12_FT_INDEX_GRAD_W_ROWS 25
 #define SNAKE12_FT_INDEX_GRAD_W_COLS 1
-#define SNAKE12_FT_INDEX_WORK_REALS 1496
+#define SNAKE12_FT_INDEX_WORK_REALS 1727
 void snake12_ft_index(const snake12_real q[SNAKE12_NDOF], const snake12_real mask[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF], snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 125 add, 200 mul, 50 div, 102 minmax, 52 compare, 50 select; work: 60 reals. */
@@ -255,7 +361,7 @@ void snake12_ft_index(const snake12_real q[SNAKE12_NDOF], const snake12_real mas
 #define SNAKE12_WLN_WEIGHTS_WORK_REALS 60
 void snake12_wln_weights(const snake12_real grad_H[SNAKE12_NDOF], const snake12_real omega[SNAKE12_NDOF], const snake12_real qdot_prev[SNAKE12_NDOF], const snake12_real mask[SNAKE12_NDOF], snake12_real b, snake12_real omega_floor, snake12_real v_band, snake12_real W[SNAKE12_NDOF], snake12_real active[SNAKE12_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
- * ops: 1106 add, 1291 mul, 21 div, 48 trig, 6 minmax; work: 200 reals. */
+ * ops: 1210 add, 1358 mul, 21 div, 48 trig, 6 minmax (calls snake12_jacobian and snake12_step_gpm_from_jacobian); work: 360 reals. */
 #define SNAKE12_STEP_GPM_Q_ROWS 25
 #define SNAKE12_STEP_GPM_Q_COLS 1
 #define SNAKE12_STEP_GPM_XDOT_ROWS 6
@@ -264,10 +370,10 @@ void snake12_wln_weights(const snake12_real grad_H[SNAKE12_NDOF], const snake12_
 #define SNAKE12_STEP_GPM_ALPHA_COLS 1
 #define SNAKE12_STEP_GPM_QDOT_ROWS 25
 #define SNAKE12_STEP_GPM_QDOT_COLS 1
-#define SNAKE12_STEP_GPM_WORK_REALS 200
+#define SNAKE12_STEP_GPM_WORK_REALS 360
 snake12_status snake12_step_gpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real alpha[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 940 add, 1152 mul, 187 div, 48 trig, 31 minmax; work: 304 reals. */
+ * ops: 1035 add, 1208 mul, 196 div, 48 trig, 31 minmax (calls snake12_jacobian and snake12_step_wln_from_jacobian); work: 454 reals. */
 #define SNAKE12_STEP_WLN_Q_ROWS 25
 #define SNAKE12_STEP_WLN_Q_COLS 1
 #define SNAKE12_STEP_WLN_XDOT_ROWS 6
@@ -276,10 +382,10 @@ snake12_status snake12_step_gpm(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_WLN_W_COLS 1
 #define SNAKE12_STEP_WLN_QDOT_ROWS 25
 #define SNAKE12_STEP_WLN_QDOT_COLS 1
-#define SNAKE12_STEP_WLN_WORK_REALS 304
+#define SNAKE12_STEP_WLN_WORK_REALS 454
 snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real W[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
-/* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (Jacobi) (spec 30).
- * ops: 2124 add, 2893 mul, 196 div, 151 sqrt, 48 trig, 114 minmax; work: 341 reals. */
+/* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
+ * ops: 2080 add, 1936 mul, 291 div, 6 sqrt, 48 trig, 297 minmax, 48 compare (calls snake12_jacobian and snake12_step_fault_from_jacobian); work: 406 reals. */
 #define SNAKE12_STEP_FAULT_Q_ROWS 25
 #define SNAKE12_STEP_FAULT_Q_COLS 1
 #define SNAKE12_STEP_FAULT_XDOT_ROWS 6
@@ -292,10 +398,10 @@ snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_FAULT_ALPHA_COLS 1
 #define SNAKE12_STEP_FAULT_QDOT_ROWS 25
 #define SNAKE12_STEP_FAULT_QDOT_COLS 1
-#define SNAKE12_STEP_FAULT_WORK_REALS 341
+#define SNAKE12_STEP_FAULT_WORK_REALS 406
 snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
-/* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (Jacobi), oblique projector, normalised criteria, online gains.
- * ops: 15631 add, 17872 mul, 844 div, 183 sqrt, 48 trig, 2 exp, 271 minmax, 60 compare, 10 select; work: 1434 reals. */
+/* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
+ * ops: 15727 add, 17059 mul, 939 div, 38 sqrt, 48 trig, 2 exp, 454 minmax, 110 compare, 12 select (calls snake12_jacobian and snake12_step_wgpm_from_jacobian); work: 1641 reals. */
 #define SNAKE12_STEP_WGPM_Q_ROWS 25
 #define SNAKE12_STEP_WGPM_Q_COLS 1
 #define SNAKE12_STEP_WGPM_XDOT_ROWS 6
@@ -320,7 +426,7 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_GAINS_COLS 1
 #define SNAKE12_STEP_WGPM_H_ROWS 4
 #define SNAKE12_STEP_WGPM_H_COLS 1
-#define SNAKE12_STEP_WGPM_WORK_REALS 1434
+#define SNAKE12_STEP_WGPM_WORK_REALS 1641
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 
 #ifdef __cplusplus

@@ -714,7 +714,7 @@ static ctrl_fault tick_resolved_rate(ctrl *c, const ctrl_input *in, ctrl_real t,
   task_command(c, in, t, q, J, cmd, &cmd_max);
   null_space_alpha(c, t, q, alpha);
   if (!all_finite(alpha, N) || !all_finite(cmd, CTRL_NTASK)) return CTRL_FAULT_NONFINITE_OUTPUT;
-  if (ctrl_gen_step_gpm(q, cmd, alpha, rr->damping, qd) != CTRL_GEN_OK) return CTRL_FAULT_NONFINITE_OUTPUT;
+  if (ctrl_gen_step_gpm(J, cmd, alpha, rr->damping, qd) != CTRL_GEN_OK) return CTRL_FAULT_NONFINITE_OUTPUT;
   f = check_step(c, J, cmd, cmd_max, qd, 0);
   if (f != CTRL_FAULT_NONE) return f;
   accept(c, t, q, qd, out);
@@ -740,7 +740,7 @@ static ctrl_fault tick_fault_tolerant(ctrl *c, const ctrl_input *in, ctrl_real t
   if (f != CTRL_FAULT_NONE) return f;
   task_command(c, in, t, q, J, cmd, &cmd_max);
   if (!all_finite(cmd, CTRL_NTASK)) return CTRL_FAULT_NONFINITE_OUTPUT;
-  ctrl_gen_ft_index(q, c->mask, ft->a, ft->delta, omega, &h_m, grad, &w, grad_w);
+  ctrl_gen_ft_index(J, c->mask, ft->a, ft->delta, omega, &h_m, grad, &w, grad_w);
   if (ft->index == CTRL_FT_INDEX_RELATIVE) { /* H_M / w by the quotient rule */
     for (i = 0; i < N; ++i) {
       grad[i] = grad[i] / w - h_m * grad_w[i] / (w * w);
@@ -761,7 +761,7 @@ static ctrl_fault tick_fault_tolerant(ctrl *c, const ctrl_input *in, ctrl_real t
         ones[i] = CTRL_LIT(1.0);
         zeros[i] = CTRL_LIT(0.0);
       }
-      if (ctrl_gen_step_fault(q, cmd, c->mask, ones, zeros, ft->epsilon, ft->lambda_max, qd, &lam, &sigma) !=
+      if (ctrl_gen_step_fault(J, cmd, c->mask, ones, zeros, ft->epsilon, ft->lambda_max, qd, &lam, &sigma) !=
           CTRL_GEN_OK) {
         return CTRL_FAULT_NONFINITE_OUTPUT;
       }
@@ -771,7 +771,7 @@ static ctrl_fault tick_fault_tolerant(ctrl *c, const ctrl_input *in, ctrl_real t
     ctrl_gen_wln_weights(grad, omega, reference, c->mask, ft->b, ft->omega_floor, v_band, W, active);
     if (!all_finite(W, N)) return CTRL_FAULT_NONFINITE_OUTPUT;
   }
-  if (ctrl_gen_step_fault(q, cmd, c->mask, W, alpha, ft->epsilon, ft->lambda_max, qd, &lam, &sigma) != CTRL_GEN_OK) {
+  if (ctrl_gen_step_fault(J, cmd, c->mask, W, alpha, ft->epsilon, ft->lambda_max, qd, &lam, &sigma) != CTRL_GEN_OK) {
     return CTRL_FAULT_NONFINITE_OUTPUT;
   }
   for (i = 0; i < N; ++i) {
@@ -813,7 +813,7 @@ static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, 
     ctrl_real down = wg->ramp_out ? smoothstep((c->cfg.rr.duration - t) / wg->ramp_time) : CTRL_LIT(1.0);
     ramp_value = up * down;
   }
-  if (ctrl_gen_step_wgpm(q, cmd, wg->band, wg->t_rmax, wg->epsilon, wg->rho_max, wg->delta, ramp_value, wg->H_lo,
+  if (ctrl_gen_step_wgpm(J, q, cmd, wg->band, wg->t_rmax, wg->epsilon, wg->rho_max, wg->delta, ramp_value, wg->H_lo,
                          wg->H_hi, wg->k_hi, wg->k_lo, wg->u_th, wg->u_band, qd, w_c, &rho, &sigma, gains,
                          h) != CTRL_GEN_OK) {
     return CTRL_FAULT_NONFINITE_OUTPUT;

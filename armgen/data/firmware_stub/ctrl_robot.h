@@ -9,8 +9,9 @@
  *   -DMODULAR8_USE_FLOAT=0|1   (the generated header's one precision switch)
  *
  * and put generated/<robot>/ on the include path. Without -D the binding is modular8.
- * The controller needs these generated functions: fk_jacobian, zghal, repetitive, step_gpm,
- * ft_index, wln_weights, step_fault, step_wgpm.
+ * The controller needs these generated functions: fk_jacobian, zghal, repetitive, wln_weights
+ * and the *_from_jacobian twins of step_gpm, ft_index, step_fault and step_wgpm (each tick
+ * computes J once, in fk_jacobian, and hands it to the steps).
  */
 #ifndef ARMGEN_CTRL_ROBOT_H
 #define ARMGEN_CTRL_ROBOT_H
@@ -46,10 +47,10 @@ typedef CTRL_FN(real) ctrl_real;
 #define ctrl_gen_fk_jacobian CTRL_FN(fk_jacobian)
 #define ctrl_gen_zghal CTRL_FN(zghal)
 #define ctrl_gen_repetitive CTRL_FN(repetitive)
-#define ctrl_gen_step_gpm CTRL_FN(step_gpm)
-#define ctrl_gen_ft_index CTRL_FN(ft_index)
+#define ctrl_gen_step_gpm CTRL_FN(step_gpm_from_jacobian)
+#define ctrl_gen_ft_index CTRL_FN(ft_index_from_jacobian)
 #define ctrl_gen_wln_weights CTRL_FN(wln_weights)
-#define ctrl_gen_step_fault CTRL_FN(step_fault)
-#define ctrl_gen_step_wgpm CTRL_FN(step_wgpm)
+#define ctrl_gen_step_fault CTRL_FN(step_fault_from_jacobian)
+#define ctrl_gen_step_wgpm CTRL_FN(step_wgpm_from_jacobian)
 
 #endif /* ARMGEN_CTRL_ROBOT_H */

@@ -19,7 +19,7 @@ import numpy as np
 from ...errors import PlanningError, TaskFileError
 from ...progress import progress
 from ...robot import Robot, load_robot, rpy_matrix
-from ...symbolic.steps import jacobi_min_eigenvalue
+from ...symbolic.steps import min_eigenvalue
 from ..backends import make_backend
 from ..paths import CirclePath, LinePath, TimeLaw
 from ..result import PlanResult
@@ -289,7 +289,7 @@ class CartesianPlanner:
 
         The damping needs σ_min(J) only below ε. The undamped kernel (``damped`` False) tests
         λ_min(J Jᵀ) > ε² by the pivots of J Jᵀ − ε² I (positive definite: all LDLᵀ pivots > 0),
-        uses λ = 0 and flags the step otherwise; the damped kernel estimates σ_min by Jacobi
+        uses λ = 0 and flags the step otherwise; the damped kernel computes σ_min by tridiagonal bisection
         sweeps and applies λ = λ_max √(1 − (σ_min/ε)²) below ε."""
         stages = 3 if self.task.integrator == "rk4" else 1
         rows = self.rows
@@ -311,7 +311,7 @@ class CartesianPlanner:
                 alpha = gamma_r * (a_r * (q_init - qs) / b_r) + windows * (-rho_l * grad_l)
                 gram = ca.mtimes(jac[rows, :], jac[rows, :].T)
                 if damped:
-                    sigma = ca.sqrt(ca.fmax(jacobi_min_eigenvalue(gram), 0))
+                    sigma = ca.sqrt(ca.fmax(min_eigenvalue(gram), 0))
                     lam = ca.if_else(sigma >= eps, 0, ca.sqrt(1 - (sigma / eps) ** 2) * lam_max)
                 else:
                     flags.append(1 - positive_definite(gram - eps * eps * ca.SX.eye(len(rows))))

@@ -3,7 +3,7 @@
 ``planner = "wgpm"``. The tool follows a Cartesian path (the Cartesian planner's circle or
 line, optionally relative to the start and over several turns) and each step is one call of
 the generated ``step_wgpm`` — continuous joint-limit weights ``W_b = I − W_c``, repulsive
-field ``t_r``, variable damping from σ_min of ``J W_b`` (Jacobi estimate in the C), the oblique
+field ``t_r``, variable damping from σ_min of ``J W_b`` (tridiagonal bisection in the C), the oblique
 projector ``N_wb = I − W_b J_wb^# J``, normalised criteria with online gains:
 
     q̇ = W_b J_wb^# ẋ + N_wb · ramp(t) · (t_r + W_b Σ_j k_j ∇H_nj)
