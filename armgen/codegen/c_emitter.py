@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 
 from ..errors import ArmgenError
+from ..symbolic.loops import Loop, find_loop
 
 # op code -> (category for op counts, C template over operand names a, b, the macro prefix P
 # and the type prefix p (the lower-case prefix of <p>_real))
@@ -88,6 +89,7 @@ class EmittedFunction:
     body: str
     op_counts: Counter = field(default_factory=Counter)
     work_reals: int = 0
+    loops: tuple[str, ...] = ()  # the loop functions (symbolic.loops) the body calls
 
     @property
     def flops(self) -> int:
@@ -109,6 +111,7 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
     counts: Counter = Counter()
     lines: list[str] = []
     used = set()
+    loops: set[str] = set()
     for k in range(func.n_instructions()):
         op = func.instruction_id(k)
         ins = func.instruction_input(k)
@@ -138,6 +141,14 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
             expr = template.format(a=f"w{ins[0]}", P=macro_prefix, p=macro_prefix.lower())
             lines.append(f"w{outs[0]} = {expr};")
             used.add(outs[0])
+        elif op == ca.OP_CALL:
+            loop = _called_loop(func)
+            outs_used = [o for o in outs if o >= 0]
+            lines += _loop_call(loop, ins, outs, macro_prefix)
+            counts.update({category: n * loop.count for category, n in emit_loop_step(loop, macro_prefix).op_counts.items()
+                           if category not in ("input", "output", "const", "copy")})
+            loops.add(loop.function.name())
+            used.update(outs_used)
         else:
             raise ArmgenError(f"function {func.name()}: CasADi operation {op} has no C translation in armgen")
     read_args = {func.instruction_input(k)[0] for k in range(func.n_instructions())
@@ -150,7 +161,69 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
         for start in range(0, len(names), 12):
             decl.insert(0, f"{macro_prefix.lower()}_real {', '.join(names[start:start + 12])};")
     body = "\n".join(indent + line for line in decl + lines)
-    return EmittedFunction(func.name(), body, counts, len(used))
+    return EmittedFunction(func.name(), body, counts, len(used), tuple(sorted(loops)))
+
+
+def _called_loop(func: ca.Function) -> Loop:
+    """The one loop function ``func`` calls (armgen's SX functions call nothing else)."""
+    called = func.get_function()
+    loop = find_loop(called[0]) if len(called) == 1 else None
+    if loop is None:
+        raise ArmgenError(f"function {func.name()} calls {', '.join(called)}: armgen emits calls of one "
+                          "registered loop (armgen.symbolic.loops) per function only")
+    return loop
+
+
+def _loop_call(loop: Loop, ins: list[int], outs: list[int], macro_prefix: str) -> list[str]:
+    """A block passing the call's work registers to the loop function and reading its result."""
+    p = macro_prefix.lower()
+    fn = loop.function
+    lines, args, start = ["{"], [], 0
+    for k in range(fn.n_in()):
+        size = fn.sparsity_in(k).nnz()
+        lines.append(f"  {p}_real call_in{k}[{size}] = {{{', '.join(f'w{i}' for i in ins[start:start + size])}}};")
+        args.append(f"call_in{k}")
+        start += size
+    lines.append(f"  {p}_real call_out[{len(outs)}];")
+    lines.append(f"  {p}_{fn.name()}({', '.join(args)}, call_out);")
+    lines += [f"  w{o} = call_out[{j}];" for j, o in enumerate(outs) if o >= 0]
+    return lines + ["}"]
+
+
+def emit_loop_step(loop: Loop, macro_prefix: str) -> EmittedFunction:
+    step = loop.step
+    return emit_body(step, ["current", *step.name_in()[1:]], [False] * step.n_in(), ["next"], [False],
+                     macro_prefix, indent="    ")
+
+
+def emit_loop(loop: Loop, macro_prefix: str) -> tuple[str, str]:
+    """(header lines, definition) of the loop function: the step's statements once, in a for
+    loop of <P>_<NAME>_COUNT iterations (the float build's count under <P>_USE_FLOAT)."""
+    p = macro_prefix.lower()
+    fn, step = loop.function, loop.step
+    size = step.sparsity_out(0).nnz()
+    params = [f"const {p}_real {fn.name_in(k)}[{fn.sparsity_in(k).nnz()}]" for k in range(fn.n_in())]
+    signature = f"void {p}_{fn.name()}({', '.join(params)}, {p}_real final[{size}])"
+    body = emit_loop_step(loop, macro_prefix)
+    first = fn.name_in(0)
+    count = f"{macro_prefix}_{fn.name().upper()}_COUNT"
+    definition = "\n".join([
+        f"/* {fn.name()}: {step.name()} {count} times ({describe_counts(body.op_counts)} each) */",
+        f"{signature} {{",
+        f"  {p}_real current[{size}];",
+        "  int k, i;",
+        f"  for (i = 0; i < {size}; ++i) {{ current[i] = {first}[i]; }}",
+        f"  for (k = 0; k < {count}; ++k) {{",
+        f"    {p}_real next[{size}];",
+        body.body,
+        f"    for (i = 0; i < {size}; ++i) {{ current[i] = next[i]; }}",
+        "  }",
+        f"  for (i = 0; i < {size}; ++i) {{ final[i] = current[i]; }}",
+        "}",
+        ""])
+    prototype = "\n".join([f"#if {macro_prefix}_USE_FLOAT", f"#define {count} {loop.float_count}", "#else",
+                           f"#define {count} {loop.count}", "#endif", signature + ";"])
+    return prototype, definition
 
 
 def describe_counts(counts: Counter) -> str:

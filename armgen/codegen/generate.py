@@ -31,7 +31,8 @@ from ..fileio import write_file_set
 from ..robot import Robot, load_robot_any
 from ..symbolic.model import (DESCRIPTIONS, FROM_JACOBIAN, JACOBIAN_FUNCTIONS, STEP_FUNCTIONS, ModelOptions,
                               SymbolicModel)
-from .c_emitter import MATH_MACROS, EmittedFunction, describe_counts, emit_body
+from ..symbolic.loops import find_loop
+from .c_emitter import MATH_MACROS, EmittedFunction, describe_counts, emit_body, emit_loop
 from .stamp import c_preamble, comment_safe
 
 PRECISIONS = ("double", "float")
@@ -183,13 +184,19 @@ def generate(config: CodegenConfig) -> GeneratedCode:
                                  signature + ";"]))
         definitions.append(f"/* {name}: {describe_counts(em.op_counts)}{'; ' + calls if calls else ''} */\n"
                            f"{signature} {{\n{em.body}\n}}\n")
+    for loop_name in sorted({name for em in emitted for name in em.loops}):
+        prototype, definition = emit_loop(find_loop(loop_name), P)
+        protos.append(f"/* {loop_name}: a fixed-count loop the functions above call (not for direct use). */\n"
+                      f"{prototype}")
+        definitions.append(definition)
     robot = config.robot
     preamble = c_preamble(robot.source, robot.sha256,
                           f"armgen kinematics of robot '{comment_safe(robot.name)}' ({robot.n} DOF)")
     header = _render_header(config, model, protos, preamble)
     source = (f"{preamble}\n#include \"{p}.h\"\n\n#include <math.h>\n\n"
-              "/* Every function below is straight-line code from the SX algorithm; w<k> are the\n"
-              " * algorithm's work registers. Literals and math calls go through the precision macros. */\n\n"
+              "/* Every function below is straight-line code from the SX algorithm (fixed-count loops\n"
+              " * are kept once, as for loops, at the end); w<k> are the algorithm's work registers.\n"
+              " * Literals and math calls go through the precision macros. */\n\n"
               + "\n".join(definitions))
     files = {f"{p}.h": header, f"{p}.c": source}
     manifest = {

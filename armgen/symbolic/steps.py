@@ -14,6 +14,7 @@ from collections.abc import Callable
 import casadi as ca
 
 from .criteria import sum_of
+from .loops import fixed_loop
 
 # Floor of the LDLᵀ pivots: 1e-18 is below the square of any meaningful Jacobian entry
 # in SI units (1e-9 m or rad), so it never alters a regular solve.
@@ -77,10 +78,13 @@ def step_wln(j: ca.SX, xdot: ca.SX, weights: ca.SX, damping: ca.SX) -> ca.SX:
 # The interval starts as [Gershgorin lower bound, smallest diagonal entry], at most 2‖A‖ wide,
 # and halves each step: 48 steps leave ≤ 2^-47 ‖A‖ ≈ 7e-15 ‖A‖, so the result is within a few
 # eps·‖A‖ of λ_min (≤ 1.3e-15 ‖A‖ seen over 6000 seeded matrices, clustered and nearly
-# rank-deficient ones included; tests/test_wgpm.py checks it). In float the interval stops
-# shrinking at the float resolution of λ_min after ~25 steps; the rest cost time, not accuracy.
+# rank-deficient ones included; tests/test_wgpm.py checks it). The steps are one loop in the C
+# (armgen.symbolic.loops), not 48 unrolled copies.
 # (It replaced 5 sweeps of cyclic Jacobi: same accuracy, 0.6× the operations at m = 6.)
 BISECTION_STEPS = 48
+# The float C stops after 26 halvings: 2^-25 ‖A‖ ≈ 3e-8 ‖A‖, below float's rounding of ‖A‖
+# (6e-8), which already bounds the tridiagonal reduction's error; more steps change nothing.
+BISECTION_STEPS_FLOAT = 26
 # Column norm² floor of the tridiagonal reduction's reflectors (relative to ‖A‖_F², plus an
 # absolute part for A = 0): only guards an exactly zero column (then vᵀv = floor > 0); a
 # floored entry is ≤ sqrt(floor) ≈ 1e-15 ‖A‖ + 1e-15, far below the bisection's resolution.
@@ -124,9 +128,9 @@ def tridiagonal(a: ca.SX) -> tuple[list[ca.SX], list[ca.SX]]:
     return diagonal, sub
 
 
-def min_eigenvalue(a: ca.SX, steps: int = BISECTION_STEPS) -> ca.SX:
+def min_eigenvalue(a: ca.SX) -> ca.SX:
     """Smallest eigenvalue of the symmetric m×m matrix ``a``: tridiagonal reduction, then
-    ``steps`` bisection steps on [Gershgorin lower bound, min diagonal]. At a trial x the Sturm
+    BISECTION_STEPS bisection steps on [Gershgorin lower bound, min diagonal]. At a trial x the Sturm
     recurrence q_i = (d_i − x) − e_{i−1}²/q_{i−1} has a negative q_i iff an eigenvalue lies below
     x (Sylvester's inertia of T − xI = L D Lᵀ, D = diag(q)). Fixed cost, no data-dependent loop."""
     m = a.shape[0]
@@ -140,17 +144,23 @@ def min_eigenvalue(a: ca.SX, steps: int = BISECTION_STEPS) -> ca.SX:
     for i in range(1, m):
         lo = ca.fmin(lo, d[i] - size[i - 1] - size[i])
         hi = ca.fmin(hi, d[i])  # a Rayleigh quotient: λ_min ≤ every diagonal entry
-    half = 0.5 * (hi - lo)
-    for _ in range(steps):
-        x = lo + half
-        q = d[0] - x
-        smallest = q
-        for i in range(1, m):
-            q = (d[i] - x) - e2[i - 1] / q
-            smallest = ca.fmin(smallest, q)
-        lo = lo + (smallest >= 0) * half  # no eigenvalue below x: continue in the upper half
-        half = 0.5 * half
-    return lo + half
+    final = fixed_loop(_bisection_step(m), BISECTION_STEPS, BISECTION_STEPS_FLOAT)(ca.vertcat(lo, 0.5 * (hi - lo)), ca.vertcat(*d), ca.vertcat(*e2))
+    return final[0] + final[1]
+
+
+def _bisection_step(m: int) -> ca.Function:
+    """One bisection step on (lo, half): the trial x = lo + half; no eigenvalue below x (every
+    Sturm pivot q_i ≥ 0) → continue in the upper half; the half-width halves."""
+    state, d, e2 = ca.SX.sym("state", 2), ca.SX.sym("d", m), ca.SX.sym("e2", m - 1)
+    lo, half = state[0], state[1]
+    x = lo + half
+    q = d[0] - x
+    smallest = q
+    for i in range(1, m):
+        q = (d[i] - x) - e2[i - 1] / q
+        smallest = ca.fmin(smallest, q)
+    return ca.Function(f"bisection_step{m}", [state, d, e2], [ca.vertcat(lo + (smallest >= 0) * half, 0.5 * half)],
+                       ["state", "d", "e2"], ["next"])
 
 
 def variable_damping_sq(lam_min: ca.SX, epsilon: ca.SX, damping_max: ca.SX) -> ca.SX:

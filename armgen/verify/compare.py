@@ -76,8 +76,8 @@ def _batched_reference(func: ca.Function, calls: list[list]) -> list[np.ndarray]
     mapped = func.map(n)
     stacked = []
     for k in range(func.n_in()):
-        cols = [np.reshape(np.asarray(c[k], dtype=float), (-1, 1), order="F") for c in calls]
-        stacked.append(np.hstack(cols))
+        shape = func.sparsity_in(k).shape  # map() takes the calls' matrices side by side
+        stacked.append(np.hstack([np.reshape(np.asarray(c[k], dtype=float), shape, order="F") for c in calls]))
     outs = mapped(*stacked)
     outs = outs if isinstance(outs, tuple) else (outs,)
     result = []

@@ -149,6 +149,8 @@ def extract_functions(source: str, prefix: str, names: Sequence[str] = FIRMWARE_
               for m, nxt in zip(matches, [*matches[1:], None])}
     if not all(n in blocks for n in names):
         return None
+    # and the loop functions (symbolic.loops) that those call
+    names = [*names, *(m for m in blocks if m not in names and any(f" {prefix}_{m}(" in blocks[n] for n in names))]
     note = (f"/* The definitions of {', '.join(names)} from {prefix}.c, byte for byte\n"
             " * (extracted by armgen.verify.firmware for the firmware build). */\n")
     body = "".join(blocks[n].rstrip("\n") + "\n\n" for n in names)

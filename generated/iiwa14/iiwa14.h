@@ -237,7 +237,7 @@ iiwa14_status iiwa14_step_gpm_from_jacobian(const iiwa14_real J[42], const iiwa1
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_WORK_REALS 106
 iiwa14_status iiwa14_step_wln_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real W[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
 /* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn).
- * ops: 1151 add, 766 mul, 273 div, 6 sqrt, 279 minmax, 48 compare; work: 112 reals. */
+ * ops: 1151 add, 766 mul, 273 div, 6 sqrt, 279 minmax, 48 compare; work: 113 reals. */
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -250,7 +250,7 @@ iiwa14_status iiwa14_step_wln_from_jacobian(const iiwa14_real J[42], const iiwa1
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 7
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define IIWA14_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 112
+#define IIWA14_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 113
 iiwa14_status iiwa14_step_fault_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn).
  * ops: 2201 add, 2161 mul, 345 div, 20 sqrt, 2 exp, 346 minmax, 74 compare, 12 select; work: 187 reals. */
@@ -385,7 +385,7 @@ iiwa14_status iiwa14_step_gpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_WLN_WORK_REALS 148
 iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real W[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 1209 add, 853 mul, 273 div, 6 sqrt, 12 trig, 279 minmax, 48 compare (calls iiwa14_jacobian and iiwa14_step_fault_from_jacobian); work: 154 reals. */
+ * ops: 1209 add, 853 mul, 273 div, 6 sqrt, 12 trig, 279 minmax, 48 compare (calls iiwa14_jacobian and iiwa14_step_fault_from_jacobian); work: 155 reals. */
 #define IIWA14_STEP_FAULT_Q_ROWS 7
 #define IIWA14_STEP_FAULT_Q_COLS 1
 #define IIWA14_STEP_FAULT_XDOT_ROWS 6
@@ -398,7 +398,7 @@ iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_FAULT_ALPHA_COLS 1
 #define IIWA14_STEP_FAULT_QDOT_ROWS 7
 #define IIWA14_STEP_FAULT_QDOT_COLS 1
-#define IIWA14_STEP_FAULT_WORK_REALS 154
+#define IIWA14_STEP_FAULT_WORK_REALS 155
 iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
  * ops: 2259 add, 2248 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 346 minmax, 74 compare, 12 select (calls iiwa14_jacobian and iiwa14_step_wgpm_from_jacobian); work: 229 reals. */
@@ -428,6 +428,13 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
 #define IIWA14_STEP_WGPM_H_COLS 1
 #define IIWA14_STEP_WGPM_WORK_REALS 229
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
+/* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
+#if IIWA14_USE_FLOAT
+#define IIWA14_BISECTION_STEP6_LOOP_COUNT 26
+#else
+#define IIWA14_BISECTION_STEP6_LOOP_COUNT 48
+#endif
+void iiwa14_bisection_step6_loop(const iiwa14_real state[2], const iiwa14_real d[6], const iiwa14_real e2[5], iiwa14_real final[2]);
 
 #ifdef __cplusplus
 }

@@ -237,7 +237,7 @@ modular8_status modular8_step_gpm_from_jacobian(const modular8_real J[48], const
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_WORK_REALS 117
 modular8_status modular8_step_wln_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real W[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
 /* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn).
- * ops: 1184 add, 807 mul, 274 div, 6 sqrt, 280 minmax, 48 compare; work: 120 reals. */
+ * ops: 1184 add, 807 mul, 274 div, 6 sqrt, 280 minmax, 48 compare; work: 121 reals. */
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -250,7 +250,7 @@ modular8_status modular8_step_wln_from_jacobian(const modular8_real J[48], const
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 8
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define MODULAR8_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 120
+#define MODULAR8_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 121
 modular8_status modular8_step_fault_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn).
  * ops: 2551 add, 2565 mul, 361 div, 21 sqrt, 2 exp, 352 minmax, 76 compare, 12 select; work: 226 reals. */
@@ -385,7 +385,7 @@ modular8_status modular8_step_gpm(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_WLN_WORK_REALS 165
 modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real W[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 1274 add, 917 mul, 274 div, 6 sqrt, 14 trig, 280 minmax, 48 compare (calls modular8_jacobian and modular8_step_fault_from_jacobian); work: 168 reals. */
+ * ops: 1274 add, 917 mul, 274 div, 6 sqrt, 14 trig, 280 minmax, 48 compare (calls modular8_jacobian and modular8_step_fault_from_jacobian); work: 169 reals. */
 #define MODULAR8_STEP_FAULT_Q_ROWS 8
 #define MODULAR8_STEP_FAULT_Q_COLS 1
 #define MODULAR8_STEP_FAULT_XDOT_ROWS 6
@@ -398,7 +398,7 @@ modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_FAULT_ALPHA_COLS 1
 #define MODULAR8_STEP_FAULT_QDOT_ROWS 8
 #define MODULAR8_STEP_FAULT_QDOT_COLS 1
-#define MODULAR8_STEP_FAULT_WORK_REALS 168
+#define MODULAR8_STEP_FAULT_WORK_REALS 169
 modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
  * ops: 2641 add, 2675 mul, 361 div, 21 sqrt, 14 trig, 2 exp, 352 minmax, 76 compare, 12 select (calls modular8_jacobian and modular8_step_wgpm_from_jacobian); work: 274 reals. */
@@ -428,6 +428,13 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_H_COLS 1
 #define MODULAR8_STEP_WGPM_WORK_REALS 274
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
+/* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
+#if MODULAR8_USE_FLOAT
+#define MODULAR8_BISECTION_STEP6_LOOP_COUNT 26
+#else
+#define MODULAR8_BISECTION_STEP6_LOOP_COUNT 48
+#endif
+void modular8_bisection_step6_loop(const modular8_real state[2], const modular8_real d[6], const modular8_real e2[5], modular8_real final[2]);
 
 #ifdef __cplusplus
 }

@@ -237,7 +237,7 @@ panda_status panda_step_gpm_from_jacobian(const panda_real J[42], const panda_re
 #define PANDA_STEP_WLN_FROM_JACOBIAN_WORK_REALS 106
 panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real W[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
 /* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn).
- * ops: 1151 add, 766 mul, 273 div, 6 sqrt, 279 minmax, 48 compare; work: 112 reals. */
+ * ops: 1151 add, 766 mul, 273 div, 6 sqrt, 279 minmax, 48 compare; work: 113 reals. */
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_J_COLS 7
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -250,7 +250,7 @@ panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_re
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 7
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define PANDA_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 112
+#define PANDA_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 113
 panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn).
  * ops: 2201 add, 2161 mul, 345 div, 20 sqrt, 2 exp, 346 minmax, 74 compare, 12 select; work: 187 reals. */
@@ -385,7 +385,7 @@ panda_status panda_step_gpm(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_WLN_WORK_REALS 148
 panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real W[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 1231 add, 868 mul, 273 div, 6 sqrt, 12 trig, 279 minmax, 48 compare (calls panda_jacobian and panda_step_fault_from_jacobian); work: 154 reals. */
+ * ops: 1231 add, 868 mul, 273 div, 6 sqrt, 12 trig, 279 minmax, 48 compare (calls panda_jacobian and panda_step_fault_from_jacobian); work: 155 reals. */
 #define PANDA_STEP_FAULT_Q_ROWS 7
 #define PANDA_STEP_FAULT_Q_COLS 1
 #define PANDA_STEP_FAULT_XDOT_ROWS 6
@@ -398,7 +398,7 @@ panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_FAULT_ALPHA_COLS 1
 #define PANDA_STEP_FAULT_QDOT_ROWS 7
 #define PANDA_STEP_FAULT_QDOT_COLS 1
-#define PANDA_STEP_FAULT_WORK_REALS 154
+#define PANDA_STEP_FAULT_WORK_REALS 155
 panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
  * ops: 2281 add, 2263 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 346 minmax, 74 compare, 12 select (calls panda_jacobian and panda_step_wgpm_from_jacobian); work: 229 reals. */
@@ -428,6 +428,13 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_H_COLS 1
 #define PANDA_STEP_WGPM_WORK_REALS 229
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
+/* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
+#if PANDA_USE_FLOAT
+#define PANDA_BISECTION_STEP6_LOOP_COUNT 26
+#else
+#define PANDA_BISECTION_STEP6_LOOP_COUNT 48
+#endif
+void panda_bisection_step6_loop(const panda_real state[2], const panda_real d[6], const panda_real e2[5], panda_real final[2]);
 
 #ifdef __cplusplus
 }

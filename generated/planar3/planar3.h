@@ -428,6 +428,13 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 #define PLANAR3_STEP_WGPM_H_COLS 1
 #define PLANAR3_STEP_WGPM_WORK_REALS 86
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
+/* bisection_step3_loop: a fixed-count loop the functions above call (not for direct use). */
+#if PLANAR3_USE_FLOAT
+#define PLANAR3_BISECTION_STEP3_LOOP_COUNT 26
+#else
+#define PLANAR3_BISECTION_STEP3_LOOP_COUNT 48
+#endif
+void planar3_bisection_step3_loop(const planar3_real state[2], const planar3_real d[3], const planar3_real e2[2], planar3_real final[2]);
 
 #ifdef __cplusplus
 }

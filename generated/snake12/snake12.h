@@ -237,7 +237,7 @@ snake12_status snake12_step_gpm_from_jacobian(const snake12_real J[150], const s
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_WORK_REALS 304
 snake12_status snake12_step_wln_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real W[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
 /* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn).
- * ops: 1745 add, 1504 mul, 291 div, 6 sqrt, 297 minmax, 48 compare; work: 256 reals. */
+ * ops: 1745 add, 1504 mul, 291 div, 6 sqrt, 297 minmax, 48 compare; work: 257 reals. */
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -250,7 +250,7 @@ snake12_status snake12_step_wln_from_jacobian(const snake12_real J[150], const s
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 25
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 256
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 257
 snake12_status snake12_step_fault_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn).
  * ops: 15392 add, 16627 mul, 939 div, 38 sqrt, 2 exp, 454 minmax, 110 compare, 12 select; work: 1491 reals. */
@@ -385,7 +385,7 @@ snake12_status snake12_step_gpm(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_WLN_WORK_REALS 454
 snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real W[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 2080 add, 1936 mul, 291 div, 6 sqrt, 48 trig, 297 minmax, 48 compare (calls snake12_jacobian and snake12_step_fault_from_jacobian); work: 406 reals. */
+ * ops: 2080 add, 1936 mul, 291 div, 6 sqrt, 48 trig, 297 minmax, 48 compare (calls snake12_jacobian and snake12_step_fault_from_jacobian); work: 407 reals. */
 #define SNAKE12_STEP_FAULT_Q_ROWS 25
 #define SNAKE12_STEP_FAULT_Q_COLS 1
 #define SNAKE12_STEP_FAULT_XDOT_ROWS 6
@@ -398,7 +398,7 @@ snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_FAULT_ALPHA_COLS 1
 #define SNAKE12_STEP_FAULT_QDOT_ROWS 25
 #define SNAKE12_STEP_FAULT_QDOT_COLS 1
-#define SNAKE12_STEP_FAULT_WORK_REALS 406
+#define SNAKE12_STEP_FAULT_WORK_REALS 407
 snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
  * ops: 15727 add, 17059 mul, 939 div, 38 sqrt, 48 trig, 2 exp, 454 minmax, 110 compare, 12 select (calls snake12_jacobian and snake12_step_wgpm_from_jacobian); work: 1641 reals. */
@@ -428,6 +428,13 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_H_COLS 1
 #define SNAKE12_STEP_WGPM_WORK_REALS 1641
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
+/* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
+#if SNAKE12_USE_FLOAT
+#define SNAKE12_BISECTION_STEP6_LOOP_COUNT 26
+#else
+#define SNAKE12_BISECTION_STEP6_LOOP_COUNT 48
+#endif
+void snake12_bisection_step6_loop(const snake12_real state[2], const snake12_real d[6], const snake12_real e2[5], snake12_real final[2]);
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,47 @@
+"""Fixed-count loops that stay loops in the generated C.
+
+An iteration with a fixed count (the bisection of :func:`armgen.symbolic.steps.min_eigenvalue`)
+would otherwise be unrolled into straight-line code, one copy per use: flash grows with the
+count. A :class:`Loop` keeps its body once: ``step`` is an SX function ``(state, *constants) →
+next state``, and ``function`` applies it ``count`` times (a CasADi ``fold``) behind a
+``never_inline`` MX function, so an SX expression that uses it holds one call node. The CasADi
+interpreter evaluates that call as the fold; the C emitter writes the step's statements once,
+inside ``for (k = 0; k < count; ++k)``, in a static function the calling functions share. Both
+run the step's operations in the same order, so double results agree to the bit. A loop may
+run fewer times in the float build (``float_count``: where the iteration converges to float's
+resolution sooner); the float C is compared with the double reference within its bounds anyway.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+
+@dataclass(frozen=True)
+class Loop:
+    function: ca.Function  # (state, *constants) -> final state; never inlined into SX
+    step: ca.Function  # (state, *constants) -> next state, one iteration, SX
+    count: int  # iterations (the CasADi function's, and the double C's)
+    float_count: int  # iterations of the float C
+
+
+_LOOPS: dict[str, Loop] = {}
+
+
+def fixed_loop(step: ca.Function, count: int, float_count: int | None = None) -> ca.Function:
+    """The function applying the SX ``step`` ``count`` times (``float_count`` times in the float
+    C), registered by the step's name, which must identify the step: one name, one loop."""
+    name = f"{step.name()}_loop"
+    if name not in _LOOPS:
+        inputs = [ca.MX.sym(step.name_in(k), step.sparsity_in(k).shape) for k in range(step.n_in())]
+        constants = [ca.repmat(x, 1, count) for x in inputs[1:]]
+        final = step.fold(count)(inputs[0], *constants)
+        function = ca.Function(name, inputs, [final], step.name_in(), ["final"], {"never_inline": True})
+        _LOOPS[name] = Loop(function, step, count, count if float_count is None else float_count)
+    return _LOOPS[name].function
+
+
+def find_loop(name: str) -> Loop | None:
+    return _LOOPS.get(name)
