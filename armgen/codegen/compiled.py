@@ -126,16 +126,20 @@ def kernel_cache_dir() -> Path:
 
 def kernel_source(func: ca.Function, symbol: str) -> str:
     """C99 of a one-input, one-output dense SX function: ``void <symbol>(const double *x, double *y)``."""
-    from .c_emitter import MATH_MACROS, emit_body
+    from ..symbolic.loops import find_loop
+    from .c_emitter import MATH_MACROS, emit_body, emit_loop
     from .stamp import c_preamble
 
     em = emit_body(func, ["x"], [False], ["y"], [False], "K")
+    loops = [emit_loop(find_loop(name), "K") for name in em.loops]
     macros = "\n".join(f"#define K_{m} {m.lower()}" for m in MATH_MACROS)
-    digest = hashlib.sha256(em.body.encode()).hexdigest()
+    helpers = "".join(f"{prototype}\n{definition}\n" for prototype, definition in loops)
+    digest = hashlib.sha256((helpers + em.body).encode()).hexdigest()
     return (c_preamble(f"kernel {func.name()}", digest, f"armgen planner kernel {func.name()} "
                        f"({func.nnz_in()} inputs, {func.nnz_out()} outputs, {em.flops} flops)", "the planner")
-            + "\n#include <math.h>\n\ntypedef double k_real;\n#define K_LIT(x) x\n" + macros
-            + f"\n\nvoid {symbol}(const k_real *x, k_real *y);\nvoid {symbol}(const k_real *x, k_real *y) {{\n"
+            + "\n#include <math.h>\n\ntypedef double k_real;\n#define K_USE_FLOAT 0\n#define K_LIT(x) x\n" + macros
+            + "\n\n" + helpers
+            + f"void {symbol}(const k_real *x, k_real *y);\nvoid {symbol}(const k_real *x, k_real *y) {{\n"
             + em.body + "\n}\n")
 
 

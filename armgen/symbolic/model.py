@@ -55,7 +55,7 @@ DESCRIPTIONS = {
     "step_wgpm": "multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from "
                  "sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains",
 }
-DESCRIPTIONS.update({twin: f"{DESCRIPTIONS[name]}; from a given Jacobian J (jacobian's output, 6xn)"
+DESCRIPTIONS.update({twin: f"{DESCRIPTIONS[name]}; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read)"
                      for name, twin in zip(JACOBIAN_FUNCTIONS, TWINS)})
 
 
@@ -183,14 +183,30 @@ class SymbolicModel:
         return ca.Function(name, [self.q if label == "q" else symbols[label] for label in names_in], outputs,
                            names_in, twin.name_out())
 
+    @cached_property
+    def _jacobian_input(self) -> tuple[ca.SX, ca.SX]:
+        """J as the twins see it: a symbol per entry, except the entries that are constant for this
+        robot (a prismatic joint's zero angular part, the base axis …), which are those constants.
+        Then the twin's operations are exactly those of <name> = twin(jacobian(q)), whose SX
+        simplifies with the same constants (signed zeros included), so C and interpreter agree to
+        the bit; the twin reads only the entries that vary. Returns (the input symbol, J as used)."""
+        symbol = ca.SX.sym("J", 6, self.n)
+        jac = ca.densify(self.jac)
+        out = ca.SX(6, self.n)
+        for r in range(6):
+            for c in range(self.n):
+                entry = jac[r, c]
+                out[r, c] = ca.SX(float(entry)) if entry.is_constant() else symbol[r, c]
+        return symbol, out
+
     def _twin(self, name: str) -> ca.Function:
         """``<name>_from_jacobian``: ``name`` with the geometric Jacobian J (6×n) as its first input."""
         q, robot, n, m = self.q, self.robot, self.n, self.m
-        jac = ca.SX.sym("J", 6, n)
-        task_jac = jac[list(robot.task_rows), :]
+        symbol, jac = self._jacobian_input
         qmin, qmax = robot.qmin.tolist(), robot.qmax.tolist()
         dense = ca.densify
         twin = name + FROM_JACOBIAN
+        task_jac = jac[list(robot.task_rows), :]
         if name == "ft_index":
             mask, a, delta = ca.SX.sym("mask", n), ca.SX.sym("a", n), ca.SX.sym("delta")
             masked = task_jac @ ca.diag(mask)
@@ -199,7 +215,7 @@ class SymbolicModel:
                                                          criteria.smooth_delta(delta))
             omega = ca.vertcat(*sens.omega)
             # ∂/∂J = ∂/∂(J diag(mask)) · diag(mask), then through J(q) in closed form
-            return ca.Function(twin, [jac, mask, a, delta],
+            return ca.Function(twin, [symbol, mask, a, delta],
                                [dense(omega), ca.dot(weights, omega),
                                 dense(self.task_vjp(jac, sens.grad_h @ ca.diag(mask))),
                                 sens.w, dense(self.task_vjp(jac, sens.grad_w @ ca.diag(mask)))],
@@ -208,28 +224,28 @@ class SymbolicModel:
             # ft_index with every joint healthy: one construction for the whole family
             a, delta = ca.SX.sym("a", n), ca.SX.sym("delta")
             omega, h, grad, _, _ = self.function("ft_index" + FROM_JACOBIAN)(jac, ca.DM.ones(n), a, delta)
-            return ca.Function(twin, [jac, a, delta], [omega, h, grad], ["J", "a", "delta"],
+            return ca.Function(twin, [symbol, a, delta], [omega, h, grad], ["J", "a", "delta"],
                                ["omega", "H_M", "grad_H_M"])
         if name == "manipulability":
             delta = ca.SX.sym("delta")
             _, _, _, w, grad = self.function("ft_index" + FROM_JACOBIAN)(jac, ca.DM.ones(n), ca.DM.zeros(n), delta)
-            return ca.Function(twin, [jac, delta], [w, grad], ["J", "delta"], ["w", "grad_w"])
+            return ca.Function(twin, [symbol, delta], [w, grad], ["J", "delta"], ["w", "grad_w"])
         if name == "step_gpm":
             xdot, alpha, damping = ca.SX.sym("xdot", m), ca.SX.sym("alpha", n), ca.SX.sym("damping")
             qdot = steps.step_gpm(task_jac, xdot, alpha, damping)
-            return ca.Function(twin, [jac, xdot, alpha, damping], [dense(qdot)],
+            return ca.Function(twin, [symbol, xdot, alpha, damping], [dense(qdot)],
                                ["J", "xdot", "alpha", "damping"], ["qdot"])
         if name == "step_wln":
             xdot, weights, damping = ca.SX.sym("xdot", m), ca.SX.sym("W", n), ca.SX.sym("damping")
             qdot = steps.step_wln(task_jac, xdot, weights, damping)
-            return ca.Function(twin, [jac, xdot, weights, damping], [dense(qdot)],
+            return ca.Function(twin, [symbol, xdot, weights, damping], [dense(qdot)],
                                ["J", "xdot", "W", "damping"], ["qdot"])
         if name == "step_fault":
             xdot, mask = ca.SX.sym("xdot", m), ca.SX.sym("mask", n)
             weights, alpha = ca.SX.sym("W", n), ca.SX.sym("alpha", n)
             epsilon, lambda_max = ca.SX.sym("epsilon"), ca.SX.sym("lambda_max")
             qdot, lam, sigma = steps.step_fault(task_jac, xdot, mask, weights, alpha, epsilon, lambda_max)
-            return ca.Function(twin, [jac, xdot, mask, weights, alpha, epsilon, lambda_max],
+            return ca.Function(twin, [symbol, xdot, mask, weights, alpha, epsilon, lambda_max],
                                [dense(qdot), lam, sigma],
                                ["J", "xdot", "mask", "W", "alpha", "epsilon", "lambda_max"],
                                ["qdot", "damping", "sigma_min"])
@@ -242,6 +258,6 @@ class SymbolicModel:
             xdot = ca.SX.sym("xdot", m)
             out = steps.step_wgpm(task_jac, lambda g: self.task_vjp(jac, g), q, qmin, qmax, xdot, *scalars, *vectors)
             names_out = ["qdot", "w_c", "rho", "sigma_min", "gains", "H"]
-            return ca.Function(twin, [jac, q, xdot, *scalars, *vectors], [dense(out[k]) for k in names_out],
+            return ca.Function(twin, [symbol, q, xdot, *scalars, *vectors], [dense(out[k]) for k in names_out],
                                ["J", "q", "xdot", *scalar_names, *vector_names], names_out)
         raise KeyError(name)

@@ -3,8 +3,9 @@
 The damped pseudo-inverse ``J⁺ = Jᵀ (J Jᵀ + λ² I)⁻¹`` is applied through a symbolic
 LDLᵀ solve of the m×m system. ``J Jᵀ + λ² I`` is symmetric positive definite for any
 ``λ > 0``, so every pivot is ≥ λ²; the pivots are additionally floored at
-``PIVOT_FLOOR`` so that even ``λ = 0`` at a singular pose divides by a finite number
-(the result is then a large but finite velocity, which the controller's limits catch).
+``PIVOT_FLOOR_REL · a_jj + PIVOT_FLOOR`` so that even ``λ = 0`` at a singular pose divides by a
+finite number (the result is then a large but finite velocity, which the controller's limits
+catch), in float as in double.
 """
 
 from __future__ import annotations
@@ -19,6 +20,11 @@ from .loops import fixed_loop
 # Floor of the LDLᵀ pivots: 1e-18 is below the square of any meaningful Jacobian entry
 # in SI units (1e-9 m or rad), so it never alters a regular solve.
 PIVOT_FLOOR = 1e-18
+# And relative to the pivot's diagonal entry a_jj: a Schur complement below 1e-10 a_jj means the
+# matrix is singular to 10 digits (κ > 1e10). Without it a float solve at an exact singular pose
+# with λ = 0 divides rounding residues (~1e-7 a_jj) by 1e-18, and the chained multipliers
+# overflow to inf − inf = NaN; with it they stay ≤ ~1e3 and the (large) result finite.
+PIVOT_FLOOR_REL = 1e-10
 
 
 def spd_solve(a: ca.SX, b: ca.SX) -> ca.SX:
@@ -28,7 +34,7 @@ def spd_solve(a: ca.SX, b: ca.SX) -> ca.SX:
     diag = [None] * m
     for j in range(m):
         dj = a[j, j] - sum((lower[j][k] * lower[j][k] * diag[k] for k in range(j)), ca.SX(0))
-        diag[j] = ca.fmax(dj, PIVOT_FLOOR)
+        diag[j] = ca.fmax(dj, PIVOT_FLOOR_REL * a[j, j] + PIVOT_FLOOR)
         for i in range(j + 1, m):
             lij = a[i, j] - sum((lower[i][k] * lower[j][k] * diag[k] for k in range(j)), ca.SX(0))
             lower[i][j] = lij / diag[j]

@@ -176,16 +176,16 @@ void iiwa14_jacobian(const iiwa14_real q[IIWA14_NDOF], iiwa14_real J[42]);
 #define IIWA14_FK_JACOBIAN_J_COLS 7
 #define IIWA14_FK_JACOBIAN_WORK_REALS 30
 void iiwa14_fk_jacobian(const iiwa14_real q[IIWA14_NDOF], iiwa14_real T[16], iiwa14_real J[42]);
-/* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 660 add, 973 mul, 48 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 152 reals. */
+/* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 620 add, 928 mul, 44 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 135 reals. */
 #define IIWA14_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_MANIPULABILITY_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 7
 #define IIWA14_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_COLS 1
-#define IIWA14_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 152
+#define IIWA14_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 135
 void iiwa14_manipulability_from_jacobian(const iiwa14_real J[42], iiwa14_real delta, iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
-/* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 792 add, 1193 mul, 13 div, 13 sqrt, 7 minmax, 12 compare, 12 select; work: 162 reals. */
+/* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 754 add, 1150 mul, 13 div, 13 sqrt, 7 minmax, 12 compare, 12 select; work: 149 reals. */
 #define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_A_ROWS 7
@@ -194,10 +194,10 @@ void iiwa14_manipulability_from_jacobian(const iiwa14_real J[42], iiwa14_real de
 #define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_OMEGA_COLS 1
 #define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_ROWS 7
 #define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_COLS 1
-#define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 162
+#define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 149
 void iiwa14_joint_manipulability_from_jacobian(const iiwa14_real J[42], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF]);
-/* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 939 add, 1486 mul, 55 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 207 reals. */
+/* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 879 add, 1407 mul, 51 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 165 reals. */
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 7
@@ -210,10 +210,10 @@ void iiwa14_joint_manipulability_from_jacobian(const iiwa14_real J[42], const ii
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_COLS 1
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_GRAD_W_ROWS 7
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
-#define IIWA14_FT_INDEX_FROM_JACOBIAN_WORK_REALS 207
+#define IIWA14_FT_INDEX_FROM_JACOBIAN_WORK_REALS 165
 void iiwa14_ft_index_from_jacobian(const iiwa14_real J[42], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF], iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 281 add, 332 mul, 21 div, 6 minmax; work: 84 reals. */
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 258 add, 304 mul, 21 div, 6 minmax; work: 80 reals. */
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_XDOT_ROWS 6
@@ -222,10 +222,10 @@ void iiwa14_ft_index_from_jacobian(const iiwa14_real J[42], const iiwa14_real ma
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_ALPHA_COLS 1
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_QDOT_ROWS 7
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
-#define IIWA14_STEP_GPM_FROM_JACOBIAN_WORK_REALS 84
+#define IIWA14_STEP_GPM_FROM_JACOBIAN_WORK_REALS 80
 iiwa14_status iiwa14_step_gpm_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 232 add, 290 mul, 70 div, 13 minmax; work: 106 reals. */
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 213 add, 267 mul, 66 div, 13 minmax; work: 96 reals. */
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_XDOT_ROWS 6
@@ -234,10 +234,10 @@ iiwa14_status iiwa14_step_gpm_from_jacobian(const iiwa14_real J[42], const iiwa1
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_W_COLS 1
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_QDOT_ROWS 7
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
-#define IIWA14_STEP_WLN_FROM_JACOBIAN_WORK_REALS 106
+#define IIWA14_STEP_WLN_FROM_JACOBIAN_WORK_REALS 96
 iiwa14_status iiwa14_step_wln_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real W[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn).
- * ops: 1151 add, 766 mul, 273 div, 6 sqrt, 279 minmax, 48 compare; work: 113 reals. */
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 1128 add, 733 mul, 273 div, 6 sqrt, 279 minmax, 48 compare; work: 108 reals. */
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -250,10 +250,10 @@ iiwa14_status iiwa14_step_wln_from_jacobian(const iiwa14_real J[42], const iiwa1
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 7
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define IIWA14_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 113
+#define IIWA14_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 108
 iiwa14_status iiwa14_step_fault_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 2201 add, 2161 mul, 345 div, 20 sqrt, 2 exp, 346 minmax, 74 compare, 12 select; work: 187 reals. */
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 2131 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 346 minmax, 74 compare, 12 select; work: 175 reals. */
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 7
@@ -280,7 +280,7 @@ iiwa14_status iiwa14_step_fault_from_jacobian(const iiwa14_real J[42], const iiw
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
-#define IIWA14_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 187
+#define IIWA14_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 175
 iiwa14_status iiwa14_step_wgpm_from_jacobian(const iiwa14_real J[42], const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
  * ops: 34 add, 28 mul, 21 div, 7 minmax, 14 compare; work: 39 reals. */
@@ -301,7 +301,7 @@ void iiwa14_zghal(const iiwa14_real q[IIWA14_NDOF], iiwa14_real *H_L, iiwa14_rea
 #define IIWA14_REPETITIVE_WORK_REALS 10
 void iiwa14_repetitive(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real q_init[IIWA14_NDOF], iiwa14_real *H_R, iiwa14_real grad_H_R[IIWA14_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 850 add, 1280 mul, 13 div, 13 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls iiwa14_jacobian and iiwa14_joint_manipulability_from_jacobian); work: 204 reals. */
+ * ops: 812 add, 1237 mul, 13 div, 13 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls iiwa14_jacobian and iiwa14_joint_manipulability_from_jacobian); work: 191 reals. */
 #define IIWA14_JOINT_MANIPULABILITY_Q_ROWS 7
 #define IIWA14_JOINT_MANIPULABILITY_Q_COLS 1
 #define IIWA14_JOINT_MANIPULABILITY_A_ROWS 7
@@ -310,15 +310,15 @@ void iiwa14_repetitive(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real q_ini
 #define IIWA14_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define IIWA14_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 7
 #define IIWA14_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define IIWA14_JOINT_MANIPULABILITY_WORK_REALS 204
+#define IIWA14_JOINT_MANIPULABILITY_WORK_REALS 191
 void iiwa14_joint_manipulability(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 718 add, 1060 mul, 48 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls iiwa14_jacobian and iiwa14_manipulability_from_jacobian); work: 194 reals. */
+ * ops: 678 add, 1015 mul, 44 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls iiwa14_jacobian and iiwa14_manipulability_from_jacobian); work: 177 reals. */
 #define IIWA14_MANIPULABILITY_Q_ROWS 7
 #define IIWA14_MANIPULABILITY_Q_COLS 1
 #define IIWA14_MANIPULABILITY_GRAD_W_ROWS 7
 #define IIWA14_MANIPULABILITY_GRAD_W_COLS 1
-#define IIWA14_MANIPULABILITY_WORK_REALS 194
+#define IIWA14_MANIPULABILITY_WORK_REALS 177
 void iiwa14_manipulability(const iiwa14_real q[IIWA14_NDOF], iiwa14_real delta, iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 63 add, 49 mul, 14 div, 29 minmax; work: 14 reals. */
@@ -329,7 +329,7 @@ void iiwa14_manipulability(const iiwa14_real q[IIWA14_NDOF], iiwa14_real delta, 
 #define IIWA14_CONTINUOUS_WEIGHTS_WORK_REALS 14
 void iiwa14_continuous_weights(const iiwa14_real q[IIWA14_NDOF], iiwa14_real band, iiwa14_real w_c[IIWA14_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 997 add, 1573 mul, 55 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls iiwa14_jacobian and iiwa14_ft_index_from_jacobian); work: 249 reals. */
+ * ops: 937 add, 1494 mul, 51 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls iiwa14_jacobian and iiwa14_ft_index_from_jacobian); work: 207 reals. */
 #define IIWA14_FT_INDEX_Q_ROWS 7
 #define IIWA14_FT_INDEX_Q_COLS 1
 #define IIWA14_FT_INDEX_MASK_ROWS 7
@@ -342,7 +342,7 @@ void iiwa14_continuous_weights(const iiwa14_real q[IIWA14_NDOF], iiwa14_real ban
 #define IIWA14_FT_INDEX_GRAD_H_M_COLS 1
 #define IIWA14_FT_INDEX_GRAD_W_ROWS 7
 #define IIWA14_FT_INDEX_GRAD_W_COLS 1
-#define IIWA14_FT_INDEX_WORK_REALS 249
+#define IIWA14_FT_INDEX_WORK_REALS 207
 void iiwa14_ft_index(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF], iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 24 reals. */
@@ -361,7 +361,7 @@ void iiwa14_ft_index(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real mask[II
 #define IIWA14_WLN_WEIGHTS_WORK_REALS 24
 void iiwa14_wln_weights(const iiwa14_real grad_H[IIWA14_NDOF], const iiwa14_real omega[IIWA14_NDOF], const iiwa14_real qdot_prev[IIWA14_NDOF], const iiwa14_real mask[IIWA14_NDOF], iiwa14_real b, iiwa14_real omega_floor, iiwa14_real v_band, iiwa14_real W[IIWA14_NDOF], iiwa14_real active[IIWA14_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
- * ops: 339 add, 419 mul, 21 div, 12 trig, 6 minmax (calls iiwa14_jacobian and iiwa14_step_gpm_from_jacobian); work: 126 reals. */
+ * ops: 316 add, 391 mul, 21 div, 12 trig, 6 minmax (calls iiwa14_jacobian and iiwa14_step_gpm_from_jacobian); work: 122 reals. */
 #define IIWA14_STEP_GPM_Q_ROWS 7
 #define IIWA14_STEP_GPM_Q_COLS 1
 #define IIWA14_STEP_GPM_XDOT_ROWS 6
@@ -370,10 +370,10 @@ void iiwa14_wln_weights(const iiwa14_real grad_H[IIWA14_NDOF], const iiwa14_real
 #define IIWA14_STEP_GPM_ALPHA_COLS 1
 #define IIWA14_STEP_GPM_QDOT_ROWS 7
 #define IIWA14_STEP_GPM_QDOT_COLS 1
-#define IIWA14_STEP_GPM_WORK_REALS 126
+#define IIWA14_STEP_GPM_WORK_REALS 122
 iiwa14_status iiwa14_step_gpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 290 add, 377 mul, 70 div, 12 trig, 13 minmax (calls iiwa14_jacobian and iiwa14_step_wln_from_jacobian); work: 148 reals. */
+ * ops: 271 add, 354 mul, 66 div, 12 trig, 13 minmax (calls iiwa14_jacobian and iiwa14_step_wln_from_jacobian); work: 138 reals. */
 #define IIWA14_STEP_WLN_Q_ROWS 7
 #define IIWA14_STEP_WLN_Q_COLS 1
 #define IIWA14_STEP_WLN_XDOT_ROWS 6
@@ -382,10 +382,10 @@ iiwa14_status iiwa14_step_gpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_WLN_W_COLS 1
 #define IIWA14_STEP_WLN_QDOT_ROWS 7
 #define IIWA14_STEP_WLN_QDOT_COLS 1
-#define IIWA14_STEP_WLN_WORK_REALS 148
+#define IIWA14_STEP_WLN_WORK_REALS 138
 iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real W[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 1209 add, 853 mul, 273 div, 6 sqrt, 12 trig, 279 minmax, 48 compare (calls iiwa14_jacobian and iiwa14_step_fault_from_jacobian); work: 155 reals. */
+ * ops: 1186 add, 820 mul, 273 div, 6 sqrt, 12 trig, 279 minmax, 48 compare (calls iiwa14_jacobian and iiwa14_step_fault_from_jacobian); work: 150 reals. */
 #define IIWA14_STEP_FAULT_Q_ROWS 7
 #define IIWA14_STEP_FAULT_Q_COLS 1
 #define IIWA14_STEP_FAULT_XDOT_ROWS 6
@@ -398,10 +398,10 @@ iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_FAULT_ALPHA_COLS 1
 #define IIWA14_STEP_FAULT_QDOT_ROWS 7
 #define IIWA14_STEP_FAULT_QDOT_COLS 1
-#define IIWA14_STEP_FAULT_WORK_REALS 155
+#define IIWA14_STEP_FAULT_WORK_REALS 150
 iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 2259 add, 2248 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 346 minmax, 74 compare, 12 select (calls iiwa14_jacobian and iiwa14_step_wgpm_from_jacobian); work: 229 reals. */
+ * ops: 2189 add, 2162 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 346 minmax, 74 compare, 12 select (calls iiwa14_jacobian and iiwa14_step_wgpm_from_jacobian); work: 217 reals. */
 #define IIWA14_STEP_WGPM_Q_ROWS 7
 #define IIWA14_STEP_WGPM_Q_COLS 1
 #define IIWA14_STEP_WGPM_XDOT_ROWS 6
@@ -426,7 +426,7 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
 #define IIWA14_STEP_WGPM_GAINS_COLS 1
 #define IIWA14_STEP_WGPM_H_ROWS 4
 #define IIWA14_STEP_WGPM_H_COLS 1
-#define IIWA14_STEP_WGPM_WORK_REALS 229
+#define IIWA14_STEP_WGPM_WORK_REALS 217
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if IIWA14_USE_FLOAT

@@ -176,16 +176,16 @@ void modular8_jacobian(const modular8_real q[MODULAR8_NDOF], modular8_real J[48]
 #define MODULAR8_FK_JACOBIAN_J_COLS 8
 #define MODULAR8_FK_JACOBIAN_WORK_REALS 37
 void modular8_fk_jacobian(const modular8_real q[MODULAR8_NDOF], modular8_real T[16], modular8_real J[48]);
-/* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 776 add, 1102 mul, 54 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 168 reals. */
+/* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 736 add, 1057 mul, 50 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 150 reals. */
 #define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 8
 #define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_COLS 1
-#define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 168
+#define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 150
 void modular8_manipulability_from_jacobian(const modular8_real J[48], modular8_real delta, modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
-/* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 1077 add, 1533 mul, 14 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 201 reals. */
+/* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 1035 add, 1486 mul, 14 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 174 reals. */
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_A_ROWS 8
@@ -194,10 +194,10 @@ void modular8_manipulability_from_jacobian(const modular8_real J[48], modular8_r
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_OMEGA_COLS 1
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_ROWS 8
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_COLS 1
-#define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 201
+#define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 174
 void modular8_joint_manipulability_from_jacobian(const modular8_real J[48], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF]);
-/* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 1247 add, 1869 mul, 62 div, 15 sqrt, 7 minmax, 12 compare, 12 select; work: 251 reals. */
+/* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 1183 add, 1786 mul, 58 div, 15 sqrt, 7 minmax, 12 compare, 12 select; work: 204 reals. */
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 8
@@ -210,10 +210,10 @@ void modular8_joint_manipulability_from_jacobian(const modular8_real J[48], cons
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_COLS 1
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_GRAD_W_ROWS 8
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
-#define MODULAR8_FT_INDEX_FROM_JACOBIAN_WORK_REALS 251
+#define MODULAR8_FT_INDEX_FROM_JACOBIAN_WORK_REALS 204
 void modular8_ft_index_from_jacobian(const modular8_real J[48], const modular8_real mask[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF], modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 314 add, 365 mul, 21 div, 6 minmax; work: 91 reals. */
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 291 add, 337 mul, 21 div, 6 minmax; work: 87 reals. */
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_XDOT_ROWS 6
@@ -222,10 +222,10 @@ void modular8_ft_index_from_jacobian(const modular8_real J[48], const modular8_r
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_ALPHA_COLS 1
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_QDOT_ROWS 8
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
-#define MODULAR8_STEP_GPM_FROM_JACOBIAN_WORK_REALS 91
+#define MODULAR8_STEP_GPM_FROM_JACOBIAN_WORK_REALS 87
 modular8_status modular8_step_gpm_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real alpha[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 258 add, 317 mul, 77 div, 14 minmax; work: 117 reals. */
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 239 add, 294 mul, 73 div, 14 minmax; work: 107 reals. */
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_XDOT_ROWS 6
@@ -234,10 +234,10 @@ modular8_status modular8_step_gpm_from_jacobian(const modular8_real J[48], const
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_W_COLS 1
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_QDOT_ROWS 8
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
-#define MODULAR8_STEP_WLN_FROM_JACOBIAN_WORK_REALS 117
+#define MODULAR8_STEP_WLN_FROM_JACOBIAN_WORK_REALS 107
 modular8_status modular8_step_wln_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real W[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn).
- * ops: 1184 add, 807 mul, 274 div, 6 sqrt, 280 minmax, 48 compare; work: 121 reals. */
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 1161 add, 774 mul, 274 div, 6 sqrt, 280 minmax, 48 compare; work: 116 reals. */
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -250,10 +250,10 @@ modular8_status modular8_step_wln_from_jacobian(const modular8_real J[48], const
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 8
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define MODULAR8_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 121
+#define MODULAR8_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 116
 modular8_status modular8_step_fault_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 2551 add, 2565 mul, 361 div, 21 sqrt, 2 exp, 352 minmax, 76 compare, 12 select; work: 226 reals. */
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 2477 add, 2475 mul, 361 div, 21 sqrt, 2 exp, 352 minmax, 76 compare, 12 select; work: 200 reals. */
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 8
@@ -280,7 +280,7 @@ modular8_status modular8_step_fault_from_jacobian(const modular8_real J[48], con
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
-#define MODULAR8_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 226
+#define MODULAR8_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 200
 modular8_status modular8_step_wgpm_from_jacobian(const modular8_real J[48], const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
  * ops: 39 add, 32 mul, 24 div, 8 minmax, 16 compare; work: 42 reals. */
@@ -301,7 +301,7 @@ void modular8_zghal(const modular8_real q[MODULAR8_NDOF], modular8_real *H_L, mo
 #define MODULAR8_REPETITIVE_WORK_REALS 11
 void modular8_repetitive(const modular8_real q[MODULAR8_NDOF], const modular8_real q_init[MODULAR8_NDOF], modular8_real *H_R, modular8_real grad_H_R[MODULAR8_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 1167 add, 1643 mul, 14 div, 14 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_joint_manipulability_from_jacobian); work: 249 reals. */
+ * ops: 1125 add, 1596 mul, 14 div, 14 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_joint_manipulability_from_jacobian); work: 222 reals. */
 #define MODULAR8_JOINT_MANIPULABILITY_Q_ROWS 8
 #define MODULAR8_JOINT_MANIPULABILITY_Q_COLS 1
 #define MODULAR8_JOINT_MANIPULABILITY_A_ROWS 8
@@ -310,15 +310,15 @@ void modular8_repetitive(const modular8_real q[MODULAR8_NDOF], const modular8_re
 #define MODULAR8_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define MODULAR8_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 8
 #define MODULAR8_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define MODULAR8_JOINT_MANIPULABILITY_WORK_REALS 249
+#define MODULAR8_JOINT_MANIPULABILITY_WORK_REALS 222
 void modular8_joint_manipulability(const modular8_real q[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 866 add, 1212 mul, 54 div, 7 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_manipulability_from_jacobian); work: 216 reals. */
+ * ops: 826 add, 1167 mul, 50 div, 7 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_manipulability_from_jacobian); work: 198 reals. */
 #define MODULAR8_MANIPULABILITY_Q_ROWS 8
 #define MODULAR8_MANIPULABILITY_Q_COLS 1
 #define MODULAR8_MANIPULABILITY_GRAD_W_ROWS 8
 #define MODULAR8_MANIPULABILITY_GRAD_W_COLS 1
-#define MODULAR8_MANIPULABILITY_WORK_REALS 216
+#define MODULAR8_MANIPULABILITY_WORK_REALS 198
 void modular8_manipulability(const modular8_real q[MODULAR8_NDOF], modular8_real delta, modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 72 add, 56 mul, 16 div, 33 minmax; work: 11 reals. */
@@ -329,7 +329,7 @@ void modular8_manipulability(const modular8_real q[MODULAR8_NDOF], modular8_real
 #define MODULAR8_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void modular8_continuous_weights(const modular8_real q[MODULAR8_NDOF], modular8_real band, modular8_real w_c[MODULAR8_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 1337 add, 1979 mul, 62 div, 15 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_ft_index_from_jacobian); work: 299 reals. */
+ * ops: 1273 add, 1896 mul, 58 div, 15 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_ft_index_from_jacobian); work: 252 reals. */
 #define MODULAR8_FT_INDEX_Q_ROWS 8
 #define MODULAR8_FT_INDEX_Q_COLS 1
 #define MODULAR8_FT_INDEX_MASK_ROWS 8
@@ -342,7 +342,7 @@ void modular8_continuous_weights(const modular8_real q[MODULAR8_NDOF], modular8_
 #define MODULAR8_FT_INDEX_GRAD_H_M_COLS 1
 #define MODULAR8_FT_INDEX_GRAD_W_ROWS 8
 #define MODULAR8_FT_INDEX_GRAD_W_COLS 1
-#define MODULAR8_FT_INDEX_WORK_REALS 299
+#define MODULAR8_FT_INDEX_WORK_REALS 252
 void modular8_ft_index(const modular8_real q[MODULAR8_NDOF], const modular8_real mask[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF], modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 40 add, 64 mul, 16 div, 34 minmax, 18 compare, 16 select; work: 26 reals. */
@@ -361,7 +361,7 @@ void modular8_ft_index(const modular8_real q[MODULAR8_NDOF], const modular8_real
 #define MODULAR8_WLN_WEIGHTS_WORK_REALS 26
 void modular8_wln_weights(const modular8_real grad_H[MODULAR8_NDOF], const modular8_real omega[MODULAR8_NDOF], const modular8_real qdot_prev[MODULAR8_NDOF], const modular8_real mask[MODULAR8_NDOF], modular8_real b, modular8_real omega_floor, modular8_real v_band, modular8_real W[MODULAR8_NDOF], modular8_real active[MODULAR8_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
- * ops: 404 add, 475 mul, 21 div, 14 trig, 6 minmax (calls modular8_jacobian and modular8_step_gpm_from_jacobian); work: 139 reals. */
+ * ops: 381 add, 447 mul, 21 div, 14 trig, 6 minmax (calls modular8_jacobian and modular8_step_gpm_from_jacobian); work: 135 reals. */
 #define MODULAR8_STEP_GPM_Q_ROWS 8
 #define MODULAR8_STEP_GPM_Q_COLS 1
 #define MODULAR8_STEP_GPM_XDOT_ROWS 6
@@ -370,10 +370,10 @@ void modular8_wln_weights(const modular8_real grad_H[MODULAR8_NDOF], const modul
 #define MODULAR8_STEP_GPM_ALPHA_COLS 1
 #define MODULAR8_STEP_GPM_QDOT_ROWS 8
 #define MODULAR8_STEP_GPM_QDOT_COLS 1
-#define MODULAR8_STEP_GPM_WORK_REALS 139
+#define MODULAR8_STEP_GPM_WORK_REALS 135
 modular8_status modular8_step_gpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real alpha[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 348 add, 427 mul, 77 div, 14 trig, 14 minmax (calls modular8_jacobian and modular8_step_wln_from_jacobian); work: 165 reals. */
+ * ops: 329 add, 404 mul, 73 div, 14 trig, 14 minmax (calls modular8_jacobian and modular8_step_wln_from_jacobian); work: 155 reals. */
 #define MODULAR8_STEP_WLN_Q_ROWS 8
 #define MODULAR8_STEP_WLN_Q_COLS 1
 #define MODULAR8_STEP_WLN_XDOT_ROWS 6
@@ -382,10 +382,10 @@ modular8_status modular8_step_gpm(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_WLN_W_COLS 1
 #define MODULAR8_STEP_WLN_QDOT_ROWS 8
 #define MODULAR8_STEP_WLN_QDOT_COLS 1
-#define MODULAR8_STEP_WLN_WORK_REALS 165
+#define MODULAR8_STEP_WLN_WORK_REALS 155
 modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real W[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 1274 add, 917 mul, 274 div, 6 sqrt, 14 trig, 280 minmax, 48 compare (calls modular8_jacobian and modular8_step_fault_from_jacobian); work: 169 reals. */
+ * ops: 1251 add, 884 mul, 274 div, 6 sqrt, 14 trig, 280 minmax, 48 compare (calls modular8_jacobian and modular8_step_fault_from_jacobian); work: 164 reals. */
 #define MODULAR8_STEP_FAULT_Q_ROWS 8
 #define MODULAR8_STEP_FAULT_Q_COLS 1
 #define MODULAR8_STEP_FAULT_XDOT_ROWS 6
@@ -398,10 +398,10 @@ modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_FAULT_ALPHA_COLS 1
 #define MODULAR8_STEP_FAULT_QDOT_ROWS 8
 #define MODULAR8_STEP_FAULT_QDOT_COLS 1
-#define MODULAR8_STEP_FAULT_WORK_REALS 169
+#define MODULAR8_STEP_FAULT_WORK_REALS 164
 modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 2641 add, 2675 mul, 361 div, 21 sqrt, 14 trig, 2 exp, 352 minmax, 76 compare, 12 select (calls modular8_jacobian and modular8_step_wgpm_from_jacobian); work: 274 reals. */
+ * ops: 2567 add, 2585 mul, 361 div, 21 sqrt, 14 trig, 2 exp, 352 minmax, 76 compare, 12 select (calls modular8_jacobian and modular8_step_wgpm_from_jacobian); work: 248 reals. */
 #define MODULAR8_STEP_WGPM_Q_ROWS 8
 #define MODULAR8_STEP_WGPM_Q_COLS 1
 #define MODULAR8_STEP_WGPM_XDOT_ROWS 6
@@ -426,7 +426,7 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_GAINS_COLS 1
 #define MODULAR8_STEP_WGPM_H_ROWS 4
 #define MODULAR8_STEP_WGPM_H_COLS 1
-#define MODULAR8_STEP_WGPM_WORK_REALS 274
+#define MODULAR8_STEP_WGPM_WORK_REALS 248
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if MODULAR8_USE_FLOAT

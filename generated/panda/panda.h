@@ -176,16 +176,16 @@ void panda_jacobian(const panda_real q[PANDA_NDOF], panda_real J[42]);
 #define PANDA_FK_JACOBIAN_J_COLS 7
 #define PANDA_FK_JACOBIAN_WORK_REALS 40
 void panda_fk_jacobian(const panda_real q[PANDA_NDOF], panda_real T[16], panda_real J[42]);
-/* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 660 add, 973 mul, 48 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 152 reals. */
+/* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 620 add, 928 mul, 44 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 135 reals. */
 #define PANDA_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_MANIPULABILITY_FROM_JACOBIAN_J_COLS 7
 #define PANDA_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 7
 #define PANDA_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_COLS 1
-#define PANDA_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 152
+#define PANDA_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 135
 void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta, panda_real *w, panda_real grad_w[PANDA_NDOF]);
-/* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 792 add, 1193 mul, 13 div, 13 sqrt, 7 minmax, 12 compare, 12 select; work: 162 reals. */
+/* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 754 add, 1150 mul, 13 div, 13 sqrt, 7 minmax, 12 compare, 12 select; work: 149 reals. */
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_COLS 7
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_A_ROWS 7
@@ -194,10 +194,10 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_OMEGA_COLS 1
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_ROWS 7
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_COLS 1
-#define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 162
+#define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 149
 void panda_joint_manipulability_from_jacobian(const panda_real J[42], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF]);
-/* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 939 add, 1486 mul, 55 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 207 reals. */
+/* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 879 add, 1407 mul, 51 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 165 reals. */
 #define PANDA_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_FT_INDEX_FROM_JACOBIAN_J_COLS 7
 #define PANDA_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 7
@@ -210,10 +210,10 @@ void panda_joint_manipulability_from_jacobian(const panda_real J[42], const pand
 #define PANDA_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_COLS 1
 #define PANDA_FT_INDEX_FROM_JACOBIAN_GRAD_W_ROWS 7
 #define PANDA_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
-#define PANDA_FT_INDEX_FROM_JACOBIAN_WORK_REALS 207
+#define PANDA_FT_INDEX_FROM_JACOBIAN_WORK_REALS 165
 void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF], panda_real *w, panda_real grad_w[PANDA_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 281 add, 332 mul, 21 div, 6 minmax; work: 84 reals. */
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 258 add, 304 mul, 21 div, 6 minmax; work: 80 reals. */
 #define PANDA_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_GPM_FROM_JACOBIAN_J_COLS 7
 #define PANDA_STEP_GPM_FROM_JACOBIAN_XDOT_ROWS 6
@@ -222,10 +222,10 @@ void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[
 #define PANDA_STEP_GPM_FROM_JACOBIAN_ALPHA_COLS 1
 #define PANDA_STEP_GPM_FROM_JACOBIAN_QDOT_ROWS 7
 #define PANDA_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
-#define PANDA_STEP_GPM_FROM_JACOBIAN_WORK_REALS 84
+#define PANDA_STEP_GPM_FROM_JACOBIAN_WORK_REALS 80
 panda_status panda_step_gpm_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real alpha[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 232 add, 290 mul, 70 div, 13 minmax; work: 106 reals. */
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 213 add, 267 mul, 66 div, 13 minmax; work: 96 reals. */
 #define PANDA_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_WLN_FROM_JACOBIAN_J_COLS 7
 #define PANDA_STEP_WLN_FROM_JACOBIAN_XDOT_ROWS 6
@@ -234,10 +234,10 @@ panda_status panda_step_gpm_from_jacobian(const panda_real J[42], const panda_re
 #define PANDA_STEP_WLN_FROM_JACOBIAN_W_COLS 1
 #define PANDA_STEP_WLN_FROM_JACOBIAN_QDOT_ROWS 7
 #define PANDA_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
-#define PANDA_STEP_WLN_FROM_JACOBIAN_WORK_REALS 106
+#define PANDA_STEP_WLN_FROM_JACOBIAN_WORK_REALS 96
 panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real W[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn).
- * ops: 1151 add, 766 mul, 273 div, 6 sqrt, 279 minmax, 48 compare; work: 113 reals. */
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 1128 add, 733 mul, 273 div, 6 sqrt, 279 minmax, 48 compare; work: 108 reals. */
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_J_COLS 7
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -250,10 +250,10 @@ panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_re
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 7
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define PANDA_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 113
+#define PANDA_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 108
 panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 2201 add, 2161 mul, 345 div, 20 sqrt, 2 exp, 346 minmax, 74 compare, 12 select; work: 187 reals. */
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 2131 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 346 minmax, 74 compare, 12 select; work: 175 reals. */
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_J_COLS 7
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 7
@@ -280,7 +280,7 @@ panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
-#define PANDA_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 187
+#define PANDA_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 175
 panda_status panda_step_wgpm_from_jacobian(const panda_real J[42], const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
  * ops: 34 add, 28 mul, 21 div, 7 minmax, 14 compare; work: 40 reals. */
@@ -301,7 +301,7 @@ void panda_zghal(const panda_real q[PANDA_NDOF], panda_real *H_L, panda_real gra
 #define PANDA_REPETITIVE_WORK_REALS 10
 void panda_repetitive(const panda_real q[PANDA_NDOF], const panda_real q_init[PANDA_NDOF], panda_real *H_R, panda_real grad_H_R[PANDA_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 872 add, 1295 mul, 13 div, 13 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_joint_manipulability_from_jacobian); work: 204 reals. */
+ * ops: 834 add, 1252 mul, 13 div, 13 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_joint_manipulability_from_jacobian); work: 191 reals. */
 #define PANDA_JOINT_MANIPULABILITY_Q_ROWS 7
 #define PANDA_JOINT_MANIPULABILITY_Q_COLS 1
 #define PANDA_JOINT_MANIPULABILITY_A_ROWS 7
@@ -310,15 +310,15 @@ void panda_repetitive(const panda_real q[PANDA_NDOF], const panda_real q_init[PA
 #define PANDA_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define PANDA_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 7
 #define PANDA_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define PANDA_JOINT_MANIPULABILITY_WORK_REALS 204
+#define PANDA_JOINT_MANIPULABILITY_WORK_REALS 191
 void panda_joint_manipulability(const panda_real q[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 740 add, 1075 mul, 48 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_manipulability_from_jacobian); work: 194 reals. */
+ * ops: 700 add, 1030 mul, 44 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_manipulability_from_jacobian); work: 177 reals. */
 #define PANDA_MANIPULABILITY_Q_ROWS 7
 #define PANDA_MANIPULABILITY_Q_COLS 1
 #define PANDA_MANIPULABILITY_GRAD_W_ROWS 7
 #define PANDA_MANIPULABILITY_GRAD_W_COLS 1
-#define PANDA_MANIPULABILITY_WORK_REALS 194
+#define PANDA_MANIPULABILITY_WORK_REALS 177
 void panda_manipulability(const panda_real q[PANDA_NDOF], panda_real delta, panda_real *w, panda_real grad_w[PANDA_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 63 add, 49 mul, 14 div, 29 minmax; work: 12 reals. */
@@ -329,7 +329,7 @@ void panda_manipulability(const panda_real q[PANDA_NDOF], panda_real delta, pand
 #define PANDA_CONTINUOUS_WEIGHTS_WORK_REALS 12
 void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, panda_real w_c[PANDA_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 1019 add, 1588 mul, 55 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_ft_index_from_jacobian); work: 249 reals. */
+ * ops: 959 add, 1509 mul, 51 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_ft_index_from_jacobian); work: 207 reals. */
 #define PANDA_FT_INDEX_Q_ROWS 7
 #define PANDA_FT_INDEX_Q_COLS 1
 #define PANDA_FT_INDEX_MASK_ROWS 7
@@ -342,7 +342,7 @@ void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, p
 #define PANDA_FT_INDEX_GRAD_H_M_COLS 1
 #define PANDA_FT_INDEX_GRAD_W_ROWS 7
 #define PANDA_FT_INDEX_GRAD_W_COLS 1
-#define PANDA_FT_INDEX_WORK_REALS 249
+#define PANDA_FT_INDEX_WORK_REALS 207
 void panda_ft_index(const panda_real q[PANDA_NDOF], const panda_real mask[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF], panda_real *w, panda_real grad_w[PANDA_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 24 reals. */
@@ -361,7 +361,7 @@ void panda_ft_index(const panda_real q[PANDA_NDOF], const panda_real mask[PANDA_
 #define PANDA_WLN_WEIGHTS_WORK_REALS 24
 void panda_wln_weights(const panda_real grad_H[PANDA_NDOF], const panda_real omega[PANDA_NDOF], const panda_real qdot_prev[PANDA_NDOF], const panda_real mask[PANDA_NDOF], panda_real b, panda_real omega_floor, panda_real v_band, panda_real W[PANDA_NDOF], panda_real active[PANDA_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
- * ops: 361 add, 434 mul, 21 div, 12 trig, 6 minmax (calls panda_jacobian and panda_step_gpm_from_jacobian); work: 126 reals. */
+ * ops: 338 add, 406 mul, 21 div, 12 trig, 6 minmax (calls panda_jacobian and panda_step_gpm_from_jacobian); work: 122 reals. */
 #define PANDA_STEP_GPM_Q_ROWS 7
 #define PANDA_STEP_GPM_Q_COLS 1
 #define PANDA_STEP_GPM_XDOT_ROWS 6
@@ -370,10 +370,10 @@ void panda_wln_weights(const panda_real grad_H[PANDA_NDOF], const panda_real ome
 #define PANDA_STEP_GPM_ALPHA_COLS 1
 #define PANDA_STEP_GPM_QDOT_ROWS 7
 #define PANDA_STEP_GPM_QDOT_COLS 1
-#define PANDA_STEP_GPM_WORK_REALS 126
+#define PANDA_STEP_GPM_WORK_REALS 122
 panda_status panda_step_gpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real alpha[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 312 add, 392 mul, 70 div, 12 trig, 13 minmax (calls panda_jacobian and panda_step_wln_from_jacobian); work: 148 reals. */
+ * ops: 293 add, 369 mul, 66 div, 12 trig, 13 minmax (calls panda_jacobian and panda_step_wln_from_jacobian); work: 138 reals. */
 #define PANDA_STEP_WLN_Q_ROWS 7
 #define PANDA_STEP_WLN_Q_COLS 1
 #define PANDA_STEP_WLN_XDOT_ROWS 6
@@ -382,10 +382,10 @@ panda_status panda_step_gpm(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_WLN_W_COLS 1
 #define PANDA_STEP_WLN_QDOT_ROWS 7
 #define PANDA_STEP_WLN_QDOT_COLS 1
-#define PANDA_STEP_WLN_WORK_REALS 148
+#define PANDA_STEP_WLN_WORK_REALS 138
 panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real W[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 1231 add, 868 mul, 273 div, 6 sqrt, 12 trig, 279 minmax, 48 compare (calls panda_jacobian and panda_step_fault_from_jacobian); work: 155 reals. */
+ * ops: 1208 add, 835 mul, 273 div, 6 sqrt, 12 trig, 279 minmax, 48 compare (calls panda_jacobian and panda_step_fault_from_jacobian); work: 150 reals. */
 #define PANDA_STEP_FAULT_Q_ROWS 7
 #define PANDA_STEP_FAULT_Q_COLS 1
 #define PANDA_STEP_FAULT_XDOT_ROWS 6
@@ -398,10 +398,10 @@ panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_FAULT_ALPHA_COLS 1
 #define PANDA_STEP_FAULT_QDOT_ROWS 7
 #define PANDA_STEP_FAULT_QDOT_COLS 1
-#define PANDA_STEP_FAULT_WORK_REALS 155
+#define PANDA_STEP_FAULT_WORK_REALS 150
 panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 2281 add, 2263 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 346 minmax, 74 compare, 12 select (calls panda_jacobian and panda_step_wgpm_from_jacobian); work: 229 reals. */
+ * ops: 2211 add, 2177 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 346 minmax, 74 compare, 12 select (calls panda_jacobian and panda_step_wgpm_from_jacobian); work: 217 reals. */
 #define PANDA_STEP_WGPM_Q_ROWS 7
 #define PANDA_STEP_WGPM_Q_COLS 1
 #define PANDA_STEP_WGPM_XDOT_ROWS 6
@@ -426,7 +426,7 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_GAINS_COLS 1
 #define PANDA_STEP_WGPM_H_ROWS 4
 #define PANDA_STEP_WGPM_H_COLS 1
-#define PANDA_STEP_WGPM_WORK_REALS 229
+#define PANDA_STEP_WGPM_WORK_REALS 217
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if PANDA_USE_FLOAT

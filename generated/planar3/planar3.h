@@ -176,15 +176,15 @@ void planar3_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real J[18]);
 #define PLANAR3_FK_JACOBIAN_J_COLS 3
 #define PLANAR3_FK_JACOBIAN_WORK_REALS 12
 void planar3_fk_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real T[16], planar3_real J[18]);
-/* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 90 add, 148 mul, 12 div, 4 sqrt, 4 minmax, 6 compare, 6 select; work: 45 reals. */
+/* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 69 add, 106 mul, 9 div, 4 sqrt, 4 minmax, 6 compare, 6 select; work: 29 reals. */
 #define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 3
 #define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_COLS 1
-#define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 45
+#define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 29
 void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real delta, planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
-/* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn).
+/* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 2 add, 3 mul, 4 minmax; work: 4 reals. */
 #define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_COLS 3
@@ -196,8 +196,8 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
 #define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_COLS 1
 #define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 4
 void planar3_joint_manipulability_from_jacobian(const planar3_real J[18], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF]);
-/* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 92 add, 172 mul, 12 div, 4 sqrt, 7 minmax, 6 compare, 6 select; work: 51 reals. */
+/* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 71 add, 130 mul, 9 div, 4 sqrt, 7 minmax, 6 compare, 6 select; work: 35 reals. */
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 3
@@ -210,10 +210,10 @@ void planar3_joint_manipulability_from_jacobian(const planar3_real J[18], const 
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_COLS 1
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_GRAD_W_ROWS 3
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
-#define PLANAR3_FT_INDEX_FROM_JACOBIAN_WORK_REALS 51
+#define PLANAR3_FT_INDEX_FROM_JACOBIAN_WORK_REALS 35
 void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real mask[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF], planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 43 add, 51 mul, 6 div, 3 minmax; work: 26 reals. */
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 44 add, 39 mul, 6 div, 3 minmax; work: 23 reals. */
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_XDOT_ROWS 3
@@ -222,10 +222,10 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_ALPHA_COLS 1
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_QDOT_ROWS 3
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
-#define PLANAR3_STEP_GPM_FROM_JACOBIAN_WORK_REALS 26
+#define PLANAR3_STEP_GPM_FROM_JACOBIAN_WORK_REALS 23
 planar3_status planar3_step_gpm_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real alpha[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 31 add, 42 mul, 18 div, 6 minmax; work: 26 reals. */
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 34 add, 33 mul, 18 div, 6 minmax; work: 25 reals. */
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_XDOT_ROWS 3
@@ -234,10 +234,10 @@ planar3_status planar3_step_gpm_from_jacobian(const planar3_real J[18], const pl
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_W_COLS 1
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_QDOT_ROWS 3
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
-#define PLANAR3_STEP_WLN_FROM_JACOBIAN_WORK_REALS 26
+#define PLANAR3_STEP_WLN_FROM_JACOBIAN_WORK_REALS 25
 planar3_status planar3_step_wln_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real W[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn).
- * ops: 420 add, 209 mul, 107 div, 3 sqrt, 113 minmax, 48 compare; work: 38 reals. */
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 423 add, 194 mul, 107 div, 3 sqrt, 113 minmax, 48 compare; work: 35 reals. */
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 3
@@ -250,10 +250,10 @@ planar3_status planar3_step_wln_from_jacobian(const planar3_real J[18], const pl
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 3
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define PLANAR3_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 38
+#define PLANAR3_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 35
 planar3_status planar3_step_fault_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 620 add, 452 mul, 141 div, 7 sqrt, 2 exp, 158 minmax, 60 compare, 6 select; work: 68 reals. */
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 599 add, 386 mul, 141 div, 7 sqrt, 2 exp, 158 minmax, 60 compare, 6 select; work: 52 reals. */
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 3
@@ -280,7 +280,7 @@ planar3_status planar3_step_fault_from_jacobian(const planar3_real J[18], const 
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
-#define PLANAR3_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 68
+#define PLANAR3_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 52
 planar3_status planar3_step_wgpm_from_jacobian(const planar3_real J[18], const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
  * ops: 14 add, 12 mul, 9 div, 3 minmax, 6 compare; work: 17 reals. */
@@ -313,12 +313,12 @@ void planar3_repetitive(const planar3_real q[PLANAR3_NDOF], const planar3_real q
 #define PLANAR3_JOINT_MANIPULABILITY_WORK_REALS 22
 void planar3_joint_manipulability(const planar3_real q[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 105 add, 166 mul, 12 div, 4 sqrt, 6 trig, 4 minmax, 6 compare, 6 select (calls planar3_jacobian and planar3_manipulability_from_jacobian); work: 63 reals. */
+ * ops: 84 add, 124 mul, 9 div, 4 sqrt, 6 trig, 4 minmax, 6 compare, 6 select (calls planar3_jacobian and planar3_manipulability_from_jacobian); work: 47 reals. */
 #define PLANAR3_MANIPULABILITY_Q_ROWS 3
 #define PLANAR3_MANIPULABILITY_Q_COLS 1
 #define PLANAR3_MANIPULABILITY_GRAD_W_ROWS 3
 #define PLANAR3_MANIPULABILITY_GRAD_W_COLS 1
-#define PLANAR3_MANIPULABILITY_WORK_REALS 63
+#define PLANAR3_MANIPULABILITY_WORK_REALS 47
 void planar3_manipulability(const planar3_real q[PLANAR3_NDOF], planar3_real delta, planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 27 add, 21 mul, 6 div, 13 minmax; work: 11 reals. */
@@ -329,7 +329,7 @@ void planar3_manipulability(const planar3_real q[PLANAR3_NDOF], planar3_real del
 #define PLANAR3_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void planar3_continuous_weights(const planar3_real q[PLANAR3_NDOF], planar3_real band, planar3_real w_c[PLANAR3_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 107 add, 190 mul, 12 div, 4 sqrt, 6 trig, 7 minmax, 6 compare, 6 select (calls planar3_jacobian and planar3_ft_index_from_jacobian); work: 69 reals. */
+ * ops: 86 add, 148 mul, 9 div, 4 sqrt, 6 trig, 7 minmax, 6 compare, 6 select (calls planar3_jacobian and planar3_ft_index_from_jacobian); work: 53 reals. */
 #define PLANAR3_FT_INDEX_Q_ROWS 3
 #define PLANAR3_FT_INDEX_Q_COLS 1
 #define PLANAR3_FT_INDEX_MASK_ROWS 3
@@ -342,7 +342,7 @@ void planar3_continuous_weights(const planar3_real q[PLANAR3_NDOF], planar3_real
 #define PLANAR3_FT_INDEX_GRAD_H_M_COLS 1
 #define PLANAR3_FT_INDEX_GRAD_W_ROWS 3
 #define PLANAR3_FT_INDEX_GRAD_W_COLS 1
-#define PLANAR3_FT_INDEX_WORK_REALS 69
+#define PLANAR3_FT_INDEX_WORK_REALS 53
 void planar3_ft_index(const planar3_real q[PLANAR3_NDOF], const planar3_real mask[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF], planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 15 add, 24 mul, 6 div, 14 minmax, 8 compare, 6 select; work: 16 reals. */
@@ -361,7 +361,7 @@ void planar3_ft_index(const planar3_real q[PLANAR3_NDOF], const planar3_real mas
 #define PLANAR3_WLN_WEIGHTS_WORK_REALS 16
 void planar3_wln_weights(const planar3_real grad_H[PLANAR3_NDOF], const planar3_real omega[PLANAR3_NDOF], const planar3_real qdot_prev[PLANAR3_NDOF], const planar3_real mask[PLANAR3_NDOF], planar3_real b, planar3_real omega_floor, planar3_real v_band, planar3_real W[PLANAR3_NDOF], planar3_real active[PLANAR3_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
- * ops: 58 add, 69 mul, 6 div, 6 trig, 3 minmax (calls planar3_jacobian and planar3_step_gpm_from_jacobian); work: 44 reals. */
+ * ops: 59 add, 57 mul, 6 div, 6 trig, 3 minmax (calls planar3_jacobian and planar3_step_gpm_from_jacobian); work: 41 reals. */
 #define PLANAR3_STEP_GPM_Q_ROWS 3
 #define PLANAR3_STEP_GPM_Q_COLS 1
 #define PLANAR3_STEP_GPM_XDOT_ROWS 3
@@ -370,10 +370,10 @@ void planar3_wln_weights(const planar3_real grad_H[PLANAR3_NDOF], const planar3_
 #define PLANAR3_STEP_GPM_ALPHA_COLS 1
 #define PLANAR3_STEP_GPM_QDOT_ROWS 3
 #define PLANAR3_STEP_GPM_QDOT_COLS 1
-#define PLANAR3_STEP_GPM_WORK_REALS 44
+#define PLANAR3_STEP_GPM_WORK_REALS 41
 planar3_status planar3_step_gpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real alpha[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 46 add, 60 mul, 18 div, 6 trig, 6 minmax (calls planar3_jacobian and planar3_step_wln_from_jacobian); work: 44 reals. */
+ * ops: 49 add, 51 mul, 18 div, 6 trig, 6 minmax (calls planar3_jacobian and planar3_step_wln_from_jacobian); work: 43 reals. */
 #define PLANAR3_STEP_WLN_Q_ROWS 3
 #define PLANAR3_STEP_WLN_Q_COLS 1
 #define PLANAR3_STEP_WLN_XDOT_ROWS 3
@@ -382,10 +382,10 @@ planar3_status planar3_step_gpm(const planar3_real q[PLANAR3_NDOF], const planar
 #define PLANAR3_STEP_WLN_W_COLS 1
 #define PLANAR3_STEP_WLN_QDOT_ROWS 3
 #define PLANAR3_STEP_WLN_QDOT_COLS 1
-#define PLANAR3_STEP_WLN_WORK_REALS 44
+#define PLANAR3_STEP_WLN_WORK_REALS 43
 planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real W[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 435 add, 227 mul, 107 div, 3 sqrt, 6 trig, 113 minmax, 48 compare (calls planar3_jacobian and planar3_step_fault_from_jacobian); work: 56 reals. */
+ * ops: 438 add, 212 mul, 107 div, 3 sqrt, 6 trig, 113 minmax, 48 compare (calls planar3_jacobian and planar3_step_fault_from_jacobian); work: 53 reals. */
 #define PLANAR3_STEP_FAULT_Q_ROWS 3
 #define PLANAR3_STEP_FAULT_Q_COLS 1
 #define PLANAR3_STEP_FAULT_XDOT_ROWS 3
@@ -398,10 +398,10 @@ planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar
 #define PLANAR3_STEP_FAULT_ALPHA_COLS 1
 #define PLANAR3_STEP_FAULT_QDOT_ROWS 3
 #define PLANAR3_STEP_FAULT_QDOT_COLS 1
-#define PLANAR3_STEP_FAULT_WORK_REALS 56
+#define PLANAR3_STEP_FAULT_WORK_REALS 53
 planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 635 add, 470 mul, 141 div, 7 sqrt, 6 trig, 2 exp, 158 minmax, 60 compare, 6 select (calls planar3_jacobian and planar3_step_wgpm_from_jacobian); work: 86 reals. */
+ * ops: 614 add, 404 mul, 141 div, 7 sqrt, 6 trig, 2 exp, 158 minmax, 60 compare, 6 select (calls planar3_jacobian and planar3_step_wgpm_from_jacobian); work: 70 reals. */
 #define PLANAR3_STEP_WGPM_Q_ROWS 3
 #define PLANAR3_STEP_WGPM_Q_COLS 1
 #define PLANAR3_STEP_WGPM_XDOT_ROWS 3
@@ -426,7 +426,7 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 #define PLANAR3_STEP_WGPM_GAINS_COLS 1
 #define PLANAR3_STEP_WGPM_H_ROWS 4
 #define PLANAR3_STEP_WGPM_H_COLS 1
-#define PLANAR3_STEP_WGPM_WORK_REALS 86
+#define PLANAR3_STEP_WGPM_WORK_REALS 70
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 /* bisection_step3_loop: a fixed-count loop the functions above call (not for direct use). */
 #if PLANAR3_USE_FLOAT

@@ -176,16 +176,16 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]);
 #define SNAKE12_FK_JACOBIAN_J_COLS 25
 #define SNAKE12_FK_JACOBIAN_WORK_REALS 119
 void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16], snake12_real J[150]);
-/* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 2709 add, 3244 mul, 150 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 433 reals. */
+/* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 2652 add, 3186 mul, 146 div, 7 sqrt, 7 minmax, 10 compare, 10 select; work: 399 reals. */
 #define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 25
 #define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_COLS 1
-#define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 433
+#define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 399
 void snake12_manipulability_from_jacobian(const snake12_real J[150], snake12_real delta, snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
-/* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 12823 add, 14819 mul, 31 div, 31 sqrt, 7 minmax, 12 compare, 12 select; work: 1434 reals. */
+/* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 12696 add, 14691 mul, 31 div, 31 sqrt, 7 minmax, 10 compare, 10 select; work: 1379 reals. */
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_A_ROWS 25
@@ -194,10 +194,10 @@ void snake12_manipulability_from_jacobian(const snake12_real J[150], snake12_rea
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_OMEGA_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_COLS 1
-#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 1434
+#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 1379
 void snake12_joint_manipulability_from_jacobian(const snake12_real J[150], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
-/* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 13361 add, 15850 mul, 175 div, 32 sqrt, 7 minmax, 12 compare, 12 select; work: 1577 reals. */
+/* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 13214 add, 15683 mul, 171 div, 32 sqrt, 7 minmax, 12 compare, 12 select; work: 1496 reals. */
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 25
@@ -210,10 +210,10 @@ void snake12_joint_manipulability_from_jacobian(const snake12_real J[150], const
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_COLS 1
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_W_ROWS 25
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
-#define SNAKE12_FT_INDEX_FROM_JACOBIAN_WORK_REALS 1577
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_WORK_REALS 1496
 void snake12_ft_index_from_jacobian(const snake12_real J[150], const snake12_real mask[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF], snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 875 add, 926 mul, 21 div, 6 minmax; work: 210 reals. */
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 822 add, 865 mul, 21 div, 6 minmax; work: 201 reals. */
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_XDOT_ROWS 6
@@ -222,10 +222,10 @@ void snake12_ft_index_from_jacobian(const snake12_real J[150], const snake12_rea
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_ALPHA_COLS 1
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_QDOT_ROWS 25
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
-#define SNAKE12_STEP_GPM_FROM_JACOBIAN_WORK_REALS 210
+#define SNAKE12_STEP_GPM_FROM_JACOBIAN_WORK_REALS 201
 snake12_status snake12_step_gpm_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real alpha[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 700 add, 776 mul, 196 div, 31 minmax; work: 304 reals. */
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 656 add, 726 mul, 187 div, 31 minmax; work: 284 reals. */
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_XDOT_ROWS 6
@@ -234,10 +234,10 @@ snake12_status snake12_step_gpm_from_jacobian(const snake12_real J[150], const s
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_W_COLS 1
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_QDOT_ROWS 25
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
-#define SNAKE12_STEP_WLN_FROM_JACOBIAN_WORK_REALS 304
+#define SNAKE12_STEP_WLN_FROM_JACOBIAN_WORK_REALS 284
 snake12_status snake12_step_wln_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real W[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn).
- * ops: 1745 add, 1504 mul, 291 div, 6 sqrt, 297 minmax, 48 compare; work: 257 reals. */
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 1692 add, 1432 mul, 291 div, 6 sqrt, 297 minmax, 48 compare; work: 246 reals. */
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -250,10 +250,10 @@ snake12_status snake12_step_wln_from_jacobian(const snake12_real J[150], const s
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 25
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 257
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 246
 snake12_status snake12_step_fault_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn).
- * ops: 15392 add, 16627 mul, 939 div, 38 sqrt, 2 exp, 454 minmax, 110 compare, 12 select; work: 1491 reals. */
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+ * ops: 15198 add, 16411 mul, 939 div, 38 sqrt, 2 exp, 454 minmax, 108 compare, 10 select; work: 1435 reals. */
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 25
@@ -280,7 +280,7 @@ snake12_status snake12_step_fault_from_jacobian(const snake12_real J[150], const
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
-#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 1491
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 1435
 snake12_status snake12_step_wgpm_from_jacobian(const snake12_real J[150], const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
  * ops: 123 add, 100 mul, 75 div, 25 minmax, 50 compare; work: 128 reals. */
@@ -301,7 +301,7 @@ void snake12_zghal(const snake12_real q[SNAKE12_NDOF], snake12_real *H_L, snake1
 #define SNAKE12_REPETITIVE_WORK_REALS 28
 void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q_init[SNAKE12_NDOF], snake12_real *H_R, snake12_real grad_H_R[SNAKE12_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 13158 add, 15251 mul, 31 div, 31 sqrt, 48 trig, 7 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_joint_manipulability_from_jacobian); work: 1584 reals. */
+ * ops: 13031 add, 15123 mul, 31 div, 31 sqrt, 48 trig, 7 minmax, 10 compare, 10 select (calls snake12_jacobian and snake12_joint_manipulability_from_jacobian); work: 1529 reals. */
 #define SNAKE12_JOINT_MANIPULABILITY_Q_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_Q_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_A_ROWS 25
@@ -310,15 +310,15 @@ void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q
 #define SNAKE12_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 1584
+#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 1529
 void snake12_joint_manipulability(const snake12_real q[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 3044 add, 3676 mul, 150 div, 7 sqrt, 48 trig, 7 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_manipulability_from_jacobian); work: 583 reals. */
+ * ops: 2987 add, 3618 mul, 146 div, 7 sqrt, 48 trig, 7 minmax, 10 compare, 10 select (calls snake12_jacobian and snake12_manipulability_from_jacobian); work: 549 reals. */
 #define SNAKE12_MANIPULABILITY_Q_ROWS 25
 #define SNAKE12_MANIPULABILITY_Q_COLS 1
 #define SNAKE12_MANIPULABILITY_GRAD_W_ROWS 25
 #define SNAKE12_MANIPULABILITY_GRAD_W_COLS 1
-#define SNAKE12_MANIPULABILITY_WORK_REALS 583
+#define SNAKE12_MANIPULABILITY_WORK_REALS 549
 void snake12_manipulability(const snake12_real q[SNAKE12_NDOF], snake12_real delta, snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
  * ops: 224 add, 175 mul, 50 div, 101 minmax; work: 11 reals. */
@@ -329,7 +329,7 @@ void snake12_manipulability(const snake12_real q[SNAKE12_NDOF], snake12_real del
 #define SNAKE12_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real band, snake12_real w_c[SNAKE12_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 13696 add, 16282 mul, 175 div, 32 sqrt, 48 trig, 7 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_ft_index_from_jacobian); work: 1727 reals. */
+ * ops: 13549 add, 16115 mul, 171 div, 32 sqrt, 48 trig, 7 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_ft_index_from_jacobian); work: 1646 reals. */
 #define SNAKE12_FT_INDEX_Q_ROWS 25
 #define SNAKE12_FT_INDEX_Q_COLS 1
 #define SNAKE12_FT_INDEX_MASK_ROWS 25
@@ -342,7 +342,7 @@ void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real
 #define SNAKE12_FT_INDEX_GRAD_H_M_COLS 1
 #define SNAKE12_FT_INDEX_GRAD_W_ROWS 25
 #define SNAKE12_FT_INDEX_GRAD_W_COLS 1
-#define SNAKE12_FT_INDEX_WORK_REALS 1727
+#define SNAKE12_FT_INDEX_WORK_REALS 1646
 void snake12_ft_index(const snake12_real q[SNAKE12_NDOF], const snake12_real mask[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF], snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 125 add, 200 mul, 50 div, 102 minmax, 52 compare, 50 select; work: 60 reals. */
@@ -361,7 +361,7 @@ void snake12_ft_index(const snake12_real q[SNAKE12_NDOF], const snake12_real mas
 #define SNAKE12_WLN_WEIGHTS_WORK_REALS 60
 void snake12_wln_weights(const snake12_real grad_H[SNAKE12_NDOF], const snake12_real omega[SNAKE12_NDOF], const snake12_real qdot_prev[SNAKE12_NDOF], const snake12_real mask[SNAKE12_NDOF], snake12_real b, snake12_real omega_floor, snake12_real v_band, snake12_real W[SNAKE12_NDOF], snake12_real active[SNAKE12_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
- * ops: 1210 add, 1358 mul, 21 div, 48 trig, 6 minmax (calls snake12_jacobian and snake12_step_gpm_from_jacobian); work: 360 reals. */
+ * ops: 1157 add, 1297 mul, 21 div, 48 trig, 6 minmax (calls snake12_jacobian and snake12_step_gpm_from_jacobian); work: 351 reals. */
 #define SNAKE12_STEP_GPM_Q_ROWS 25
 #define SNAKE12_STEP_GPM_Q_COLS 1
 #define SNAKE12_STEP_GPM_XDOT_ROWS 6
@@ -370,10 +370,10 @@ void snake12_wln_weights(const snake12_real grad_H[SNAKE12_NDOF], const snake12_
 #define SNAKE12_STEP_GPM_ALPHA_COLS 1
 #define SNAKE12_STEP_GPM_QDOT_ROWS 25
 #define SNAKE12_STEP_GPM_QDOT_COLS 1
-#define SNAKE12_STEP_GPM_WORK_REALS 360
+#define SNAKE12_STEP_GPM_WORK_REALS 351
 snake12_status snake12_step_gpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real alpha[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 1035 add, 1208 mul, 196 div, 48 trig, 31 minmax (calls snake12_jacobian and snake12_step_wln_from_jacobian); work: 454 reals. */
+ * ops: 991 add, 1158 mul, 187 div, 48 trig, 31 minmax (calls snake12_jacobian and snake12_step_wln_from_jacobian); work: 434 reals. */
 #define SNAKE12_STEP_WLN_Q_ROWS 25
 #define SNAKE12_STEP_WLN_Q_COLS 1
 #define SNAKE12_STEP_WLN_XDOT_ROWS 6
@@ -382,10 +382,10 @@ snake12_status snake12_step_gpm(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_WLN_W_COLS 1
 #define SNAKE12_STEP_WLN_QDOT_ROWS 25
 #define SNAKE12_STEP_WLN_QDOT_COLS 1
-#define SNAKE12_STEP_WLN_WORK_REALS 454
+#define SNAKE12_STEP_WLN_WORK_REALS 434
 snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real W[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 2080 add, 1936 mul, 291 div, 6 sqrt, 48 trig, 297 minmax, 48 compare (calls snake12_jacobian and snake12_step_fault_from_jacobian); work: 407 reals. */
+ * ops: 2027 add, 1864 mul, 291 div, 6 sqrt, 48 trig, 297 minmax, 48 compare (calls snake12_jacobian and snake12_step_fault_from_jacobian); work: 396 reals. */
 #define SNAKE12_STEP_FAULT_Q_ROWS 25
 #define SNAKE12_STEP_FAULT_Q_COLS 1
 #define SNAKE12_STEP_FAULT_XDOT_ROWS 6
@@ -398,10 +398,10 @@ snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_FAULT_ALPHA_COLS 1
 #define SNAKE12_STEP_FAULT_QDOT_ROWS 25
 #define SNAKE12_STEP_FAULT_QDOT_COLS 1
-#define SNAKE12_STEP_FAULT_WORK_REALS 407
+#define SNAKE12_STEP_FAULT_WORK_REALS 396
 snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 15727 add, 17059 mul, 939 div, 38 sqrt, 48 trig, 2 exp, 454 minmax, 110 compare, 12 select (calls snake12_jacobian and snake12_step_wgpm_from_jacobian); work: 1641 reals. */
+ * ops: 15533 add, 16843 mul, 939 div, 38 sqrt, 48 trig, 2 exp, 454 minmax, 108 compare, 10 select (calls snake12_jacobian and snake12_step_wgpm_from_jacobian); work: 1585 reals. */
 #define SNAKE12_STEP_WGPM_Q_ROWS 25
 #define SNAKE12_STEP_WGPM_Q_COLS 1
 #define SNAKE12_STEP_WGPM_XDOT_ROWS 6
@@ -426,7 +426,7 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_GAINS_COLS 1
 #define SNAKE12_STEP_WGPM_H_ROWS 4
 #define SNAKE12_STEP_WGPM_H_COLS 1
-#define SNAKE12_STEP_WGPM_WORK_REALS 1641
+#define SNAKE12_STEP_WGPM_WORK_REALS 1585
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if SNAKE12_USE_FLOAT
