@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 
 from ..errors import ArmgenError
-from ..symbolic.loops import Loop, find_loop
+from ..symbolic.loops import Loop, calls_in_order, find_loop
 
 # op code -> (category for op counts, C template over operand names a, b, the macro prefix P
 # and the type prefix p (the lower-case prefix of <p>_real))
@@ -112,6 +112,7 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
     lines: list[str] = []
     used = set()
     loops: set[str] = set()
+    callees = iter(calls_in_order(func))
     for k in range(func.n_instructions()):
         op = func.instruction_id(k)
         ins = func.instruction_input(k)
@@ -142,7 +143,7 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
             lines.append(f"w{outs[0]} = {expr};")
             used.add(outs[0])
         elif op == ca.OP_CALL:
-            loop = _called_loop(func)
+            loop = _called_loop(func, next(callees))
             outs_used = [o for o in outs if o >= 0]
             lines += _loop_call(loop, ins, outs, macro_prefix)
             counts.update({category: n * loop.count for category, n in emit_loop_step(loop, macro_prefix).op_counts.items()
@@ -164,13 +165,12 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
     return EmittedFunction(func.name(), body, counts, len(used), tuple(sorted(loops)))
 
 
-def _called_loop(func: ca.Function) -> Loop:
-    """The one loop function ``func`` calls (armgen's SX functions call nothing else)."""
-    called = func.get_function()
-    loop = find_loop(called[0]) if len(called) == 1 else None
+def _called_loop(func: ca.Function, callee: ca.Function) -> Loop:
+    """The loop (armgen.symbolic.loops) a call instruction calls: the only calls armgen emits."""
+    loop = find_loop(callee.name())
     if loop is None:
-        raise ArmgenError(f"function {func.name()} calls {', '.join(called)}: armgen emits calls of one "
-                          "registered loop (armgen.symbolic.loops) per function only")
+        raise ArmgenError(f"function {func.name()} calls {callee.name()}: armgen emits calls of its fixed "
+                          "loops (armgen.symbolic.loops) only; call the *_from_jacobian twins inline")
     return loop
 
 

@@ -14,6 +14,7 @@ resolution sooner); the float C is compared with the double reference within its
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import casadi as ca
@@ -45,3 +46,15 @@ def fixed_loop(step: ca.Function, count: int, float_count: int | None = None) ->
 
 def find_loop(name: str) -> Loop | None:
     return _LOOPS.get(name)
+
+
+def calls_in_order(func: ca.Function) -> list[ca.Function]:
+    """The functions ``func``'s call instructions (``OP_CALL``) call, one per instruction, in
+    the algorithm's order (CasADi numbers call nodes as it prints them)."""
+    names = re.findall(r"(\w+)\(\[", str(func.instructions_sx())) if func.get_function() else []
+    calls = [k for k in range(func.n_instructions()) if func.instruction_id(k) == ca.OP_CALL]
+    callees = [func.get_function(name) for name in names]
+    if len(callees) != len(calls) or any(len(func.instruction_input(k)) != callee.nnz_in()
+                                         for k, callee in zip(calls, callees)):
+        raise ValueError(f"{func.name()}: cannot match its {len(calls)} call instructions to the calls {names}")
+    return callees

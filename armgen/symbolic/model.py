@@ -177,8 +177,10 @@ class SymbolicModel:
         labels = [twin.name_in(k) for k in range(1, twin.n_in())]
         symbols = {label: self.q if label == "q" else ca.SX.sym(label, twin.sparsity_in(k + 1).shape)
                    for k, label in enumerate(labels)}
-        outputs = twin(self.jac, *[symbols[label] for label in labels])
-        outputs = list(outputs) if isinstance(outputs, (list, tuple)) else [outputs]
+        # a call node, not an inlined copy: CasADi would simplify the copy with J's shared and
+        # constant entries (x − x → 0 …), which is not the twin's arithmetic; the call evaluates
+        # exactly the twin's operations, as the generated <name> (jacobian, then the twin) does
+        outputs = twin.call([self.jac, *[symbols[label] for label in labels]], False, True)
         names_in = ["q", *[label for label in labels if label != "q"]]
         return ca.Function(name, [self.q if label == "q" else symbols[label] for label in names_in], outputs,
                            names_in, twin.name_out())

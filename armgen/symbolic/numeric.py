@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..robot import Robot
+from .loops import calls_in_order, find_loop
 from .model import SymbolicModel
 
 
@@ -54,14 +55,18 @@ class BatchFunction:
 
     def __init__(self, function: ca.Function):
         self.function = function
-        self._program: list[tuple[int, tuple[int, ...], tuple[int, ...], float]] = []
+        self._program: list[tuple[int, tuple[int, ...], tuple[int, ...], Any]] = []
+        calls = iter(calls_in_order(function))
         for k in range(function.n_instructions()):
             op = function.instruction_id(k)
-            if op not in _UNARY and op not in _BINARY and op not in (ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST):
+            if op not in _UNARY and op not in _BINARY and op not in (ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST,
+                                                                     ca.OP_CALL):
                 raise NotImplementedError(f"{function.name()}: CasADi operation {op} has no NumPy equivalent")
-            constant = function.instruction_constant(k) if op == ca.OP_CONST else 0.0
+            extra = function.instruction_constant(k) if op == ca.OP_CONST else 0.0
+            if op == ca.OP_CALL:
+                extra = _Call(next(calls))
             self._program.append((op, tuple(function.instruction_input(k)), tuple(function.instruction_output(k)),
-                                  constant))
+                                  extra))
 
     def __call__(self, inputs: list[np.ndarray], batch: int) -> list[np.ndarray]:
         """``inputs[k]`` has shape (nnz_k, batch), entries column-major; returns the outputs likewise.
@@ -86,10 +91,37 @@ class BatchFunction:
                     outputs[res[0]][res[1], chunk] = work[args[0]]
                 elif op == ca.OP_CONST:
                     work[res[0]] = constant
+                elif op == ca.OP_CALL:
+                    constant(work, args, res, chunk.stop - chunk.start)
                 elif op in _BINARY:
                     work[res[0]] = _BINARY[op](work[args[0]], work[args[1]])
                 else:
                     work[res[0]] = _UNARY[op](work[args[0]])
+
+
+class _Call:
+    """A call instruction: the callee (an SX function, or a fixed loop of an SX step) replayed
+    on the batch, its inputs gathered from and its outputs scattered to the work entries."""
+
+    def __init__(self, callee: ca.Function):
+        loop = find_loop(callee.name())
+        self.callee = callee
+        self.body = BatchFunction(loop.step if loop is not None else callee)
+        self.count = loop.count if loop is not None else 1
+
+    def __call__(self, work: list[Any], args: tuple[int, ...], res: tuple[int, ...], size: int) -> None:
+        inputs, start = [], 0
+        for k in range(self.callee.n_in()):
+            nnz = self.callee.nnz_in(k)
+            inputs.append(np.array([np.broadcast_to(work[i], (size,)) for i in args[start:start + nnz]]))
+            start += nnz
+        for _ in range(self.count):  # a loop feeds its state (the first input) back
+            outputs = self.body(inputs, size)
+            inputs = [outputs[0], *inputs[1:]]
+        flat = np.concatenate(outputs) if len(outputs) > 1 else outputs[0]
+        for j, target in enumerate(res):
+            if target >= 0:
+                work[target] = flat[j]
 
 
 def _shaped(value: np.ndarray, batch_shape: tuple[int, ...], rows: int, cols: int) -> np.ndarray:

@@ -218,7 +218,7 @@ def positive_definite(a: ca.SX) -> ca.SX:
 class CartesianPlanner:
     """Integrates the resolved-rate law; the same code for every backend."""
 
-    FUNCTIONS = ("fk_jacobian", "zghal", "step_gpm")
+    FUNCTIONS = ("fk_jacobian", "zghal", "step_gpm_from_jacobian")
 
     def __init__(self, task: CartesianTask, backend_kind: str = "symbolic"):
         self.task = task
@@ -316,7 +316,7 @@ class CartesianPlanner:
                 else:
                     flags.append(1 - positive_definite(gram - eps * eps * ca.SX.eye(len(rows))))
                     lam = ca.SX(0)
-                qd = step_gpm(qs, cmd[rows], alpha, lam)
+                qd = step_gpm(jac, cmd[rows], alpha, lam)  # the twin: J of this stage's fk_jacobian
                 return qd, pose, jac, pos_err, ori_err, cmd, lam, h_l
 
             qd, pose, jac, pos_err, ori_err, cmd, lam, h_l = law(q, *at[0])

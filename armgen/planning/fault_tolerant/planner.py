@@ -390,8 +390,9 @@ class FaultTolerantPlanner:
 
         def build(model, x, y):
             n = model.n
-            fk_jacobian, ft_index, wln_weights, step_fault = (
-                model.function(f) for f in ("fk_jacobian", "ft_index", "wln_weights", "step_fault"))
+            # the twins of ft_index and step_fault take the J of this step's fk_jacobian
+            fk_jacobian, ft_index, wln_weights, step_fault = (model.function(f) for f in (
+                "fk_jacobian", "ft_index_from_jacobian", "wln_weights", "step_fault_from_jacobian"))
             q, qd_prev, mask, a = (x.add(k, n) for k in ("q", "qd_prev", "mask", "a"))
             K, b, omega_floor, v_band, delta, gain, eps, lam_max, h = (
                 x.add(k, 1) for k in ("K", "b", "omega_floor", "v_band", "delta", "clik_gain", "epsilon", "lambda_max",
@@ -401,7 +402,7 @@ class FaultTolerantPlanner:
             timed = x.add("timed", TIMED_WIDTH)
             pose, jac = fk_jacobian(q)
             pos_err, ori_err, cmd = sym_tracking(pose, timed, gain)
-            omega, h_m, grad, w, grad_w = ft_index(q, mask, a, delta)
+            omega, h_m, grad, w, grad_w = ft_index(jac, mask, a, delta)
             if method.index == "omega":
                 index, grad_index, per = h_m, grad, omega
             elif method.index == "relative":
@@ -416,11 +417,11 @@ class FaultTolerantPlanner:
                 if method.weight_rule == "smooth":
                     # the direction test on the unweighted (minimum-norm) motion of this step:
                     # continuous in t and independent of W, so the weights cannot feed back on it
-                    probe = step_fault(q, cmd[rows], mask, ones, zeros, eps, lam_max)[0]
+                    probe = step_fault(jac, cmd[rows], mask, ones, zeros, eps, lam_max)[0]
                     weights, active = wln_weights(grad_index, per, probe, mask, b, omega_floor, v_band)
                 else:
                     weights, active = wln_weights(grad_index, per, qd_prev, mask, b, omega_floor, 0.0)
-            qd, lam, sigma = step_fault(q, cmd[rows], mask, weights, alpha, eps, lam_max)
+            qd, lam, sigma = step_fault(jac, cmd[rows], mask, weights, alpha, eps, lam_max)
             y.add("row", ca.vertcat(sym_base_row(q, qd, pose, jac, pos_err, ori_err, cmd, rows, lam, sigma), index, w,
                                     per, 1 - mask, weights, active))
             y.add("q_next", q + h * qd)

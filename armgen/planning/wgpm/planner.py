@@ -175,7 +175,7 @@ def smoothstep(x):
 
 
 class WgpmPlanner:
-    FUNCTIONS = ("fk_jacobian", "step_wgpm", "step_fault")
+    FUNCTIONS = ("fk_jacobian", "step_wgpm_from_jacobian", "step_fault_from_jacobian")
 
     def __init__(self, task: WgpmTask, backend_kind: str = "symbolic", backend: Backend | None = None):
         self.task = task
@@ -210,12 +210,12 @@ class WgpmPlanner:
             eps, lam_max = scalars[2], scalars[3]
             pose, jac = fk_jacobian(q)
             pos_err, ori_err, cmd = sym_tracking(pose, timed, gain)
-            qd, w_c, rho, sigma, gains, crit = step_wgpm(q, cmd[rows], *scalars, ramp, *vectors)
+            qd, w_c, rho, sigma, gains, crit = step_wgpm(jac, q, cmd[rows], *scalars, ramp, *vectors)
             if method.name != "wgpm":
                 ones, zeros = ca.DM.ones(n), ca.DM.zeros(n)
                 mask = ca.SX(ones)
                 for _ in range(n if method.name == "clamp" else 1):
-                    qd, rho, sigma = step_fault(q, cmd[rows], mask, ones, zeros, eps, lam_max)
+                    qd, rho, sigma = step_fault(jac, cmd[rows], mask, ones, zeros, eps, lam_max)
                     if method.name == "clamp":
                         nxt = q + h * qd
                         out = ca.logic_and(mask > 0, ca.logic_or(nxt > robot.qmax, nxt < robot.qmin))
