@@ -75,9 +75,12 @@ MODE_PLANS = {
     "FAULT_TOLERANT wln plain": ("modular8_fault_circle_wln", ["method.weight_rule=plain"]),
     "WEIGHTED_GPM": ("modular8_wgpm_demo", []),
 }
-MODE_FUNCTIONS = {"RESOLVED_RATE": ("fk_jacobian", "zghal", "repetitive", "step_gpm"), "PLAYBACK": (),
-                  "FAULT_TOLERANT": ("fk_jacobian", "ft_index", "wln_weights", "step_fault"),
-                  "WEIGHTED_GPM": ("fk_jacobian", "step_wgpm")}
+# The generated functions each mode links (the firmware's: the steps' *_from_jacobian twins),
+# plus the fixed loops (symbolic.loops) those call, matched by name in the image.
+MODE_FUNCTIONS = {"RESOLVED_RATE": fw.FIRMWARE_FUNCTIONS, "PLAYBACK": (),
+                  "FAULT_TOLERANT": ("fk_jacobian", *fw.OPTIONAL_FUNCTIONS["FAULT_TOLERANT"]),
+                  "WEIGHTED_GPM": ("fk_jacobian", *fw.OPTIONAL_FUNCTIONS["WEIGHTED_GPM"])}
+MODE_LOOPS = {"FAULT_TOLERANT", "WEIGHTED_GPM"}
 MODE_TICK = {"RESOLVED_RATE": "tick_resolved_rate", "PLAYBACK": "tick_playback",
              "FAULT_TOLERANT": "tick_fault_tolerant", "WEIGHTED_GPM": "tick_weighted_gpm"}
 HOST_REPEATS = 20
@@ -445,6 +448,8 @@ def modes_table(rep: Report, work: Path, builder) -> None:
     for label, m in modes.items():
         mode = m["mode"]
         gen = sum(syms.get(f"{builder.prefix}_{f}", 0) for f in MODE_FUNCTIONS[mode]) + (ptp if mode == "PLAYBACK" else 0)
+        if mode in MODE_LOOPS:
+            gen += sum(size for sym, size in syms.items() if sym.startswith(f"{builder.prefix}_") and sym.endswith("_loop"))
         others = tuple(t for k, t in MODE_TICK.items() if k != mode)
         static, path, _unknown = worst_chain(obj_dir, avoid=others)
         m.update({"flash_bytes": ctrl["flash"] + gen, "controller_flash": ctrl["flash"], "generated_flash": gen,

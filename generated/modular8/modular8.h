@@ -82,13 +82,20 @@ typedef double modular8_real;
 /* Lean math (no library calls where the FPU or a comparison does the job). */
 static inline modular8_real modular8_fmin(modular8_real a, modular8_real b) { return ((a < b) || (b != b)) ? a : b; }
 static inline modular8_real modular8_fmax(modular8_real a, modular8_real b) { return ((a > b) || (b != b)) ? a : b; }
-/* x - x is 0 for a finite x and NaN for NaN/inf, and NaN propagates through the sum: one
- * subtraction and one addition per value, a single comparison at the end. */
+/* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
+ * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
 static inline int modular8_all_finite(const modular8_real *x, int count) {
-  int k;
-  modular8_real acc = x[0] - x[0];
-  for (k = 1; k < count; ++k) { acc += x[k] - x[k]; }
-  return (acc == acc) ? 1 : 0;
+  int k, rest = count % 4;
+  modular8_real a0 = MODULAR8_LIT(0.0), a1 = MODULAR8_LIT(0.0), a2 = MODULAR8_LIT(0.0), a3 = MODULAR8_LIT(0.0);
+  for (k = 0; k < rest; ++k) { a0 += x[k] * MODULAR8_LIT(0.0); }
+  for (k = rest; k < count; k += 4) {
+    a0 += x[k] * MODULAR8_LIT(0.0);
+    a1 += x[k + 1] * MODULAR8_LIT(0.0);
+    a2 += x[k + 2] * MODULAR8_LIT(0.0);
+    a3 += x[k + 3] * MODULAR8_LIT(0.0);
+  }
+  a0 = (a0 + a1) + (a2 + a3);
+  return (a0 == a0) ? 1 : 0;
 }
 static inline modular8_real modular8_sqrt(modular8_real x) {
 #if MODULAR8_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)

@@ -82,13 +82,20 @@ typedef double snake12_real;
 /* Lean math (no library calls where the FPU or a comparison does the job). */
 static inline snake12_real snake12_fmin(snake12_real a, snake12_real b) { return ((a < b) || (b != b)) ? a : b; }
 static inline snake12_real snake12_fmax(snake12_real a, snake12_real b) { return ((a > b) || (b != b)) ? a : b; }
-/* x - x is 0 for a finite x and NaN for NaN/inf, and NaN propagates through the sum: one
- * subtraction and one addition per value, a single comparison at the end. */
+/* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
+ * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
 static inline int snake12_all_finite(const snake12_real *x, int count) {
-  int k;
-  snake12_real acc = x[0] - x[0];
-  for (k = 1; k < count; ++k) { acc += x[k] - x[k]; }
-  return (acc == acc) ? 1 : 0;
+  int k, rest = count % 4;
+  snake12_real a0 = SNAKE12_LIT(0.0), a1 = SNAKE12_LIT(0.0), a2 = SNAKE12_LIT(0.0), a3 = SNAKE12_LIT(0.0);
+  for (k = 0; k < rest; ++k) { a0 += x[k] * SNAKE12_LIT(0.0); }
+  for (k = rest; k < count; k += 4) {
+    a0 += x[k] * SNAKE12_LIT(0.0);
+    a1 += x[k + 1] * SNAKE12_LIT(0.0);
+    a2 += x[k + 2] * SNAKE12_LIT(0.0);
+    a3 += x[k + 3] * SNAKE12_LIT(0.0);
+  }
+  a0 = (a0 + a1) + (a2 + a3);
+  return (a0 == a0) ? 1 : 0;
 }
 static inline snake12_real snake12_sqrt(snake12_real x) {
 #if SNAKE12_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
