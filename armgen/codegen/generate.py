@@ -231,8 +231,12 @@ static inline {p}_real {p}_fmax({p}_real a, {p}_real b) {{ return ((a > b) || (b
 /* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
  * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
 static inline int {p}_all_finite(const {p}_real *x, int count) {{
-  int k, rest = count % 4;
-  {p}_real a0 = {P}_LIT(0.0), a1 = {P}_LIT(0.0), a2 = {P}_LIT(0.0), a3 = {P}_LIT(0.0);
+  int k;
+  int rest = count % 4;
+  {p}_real a0 = {P}_LIT(0.0);
+  {p}_real a1 = {P}_LIT(0.0);
+  {p}_real a2 = {P}_LIT(0.0);
+  {p}_real a3 = {P}_LIT(0.0);
   for (k = 0; k < rest; ++k) {{ a0 += x[k] * {P}_LIT(0.0); }}
   for (k = rest; k < count; k += 4) {{
     a0 += x[k] * {P}_LIT(0.0);

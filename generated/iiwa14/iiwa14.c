@@ -14123,7 +14123,8 @@ iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_re
 /* bisection_step6_loop: bisection_step6 IIWA14_BISECTION_STEP6_LOOP_COUNT times (13 add, 2 mul, 5 div, 5 minmax, 1 compare each) */
 void iiwa14_bisection_step6_loop(const iiwa14_real state[2], const iiwa14_real d[6], const iiwa14_real e2[5], iiwa14_real final[2]) {
   iiwa14_real current[2];
-  int k, i;
+  int k;
+  int i;
   for (i = 0; i < 2; ++i) { current[i] = state[i]; }
   for (k = 0; k < IIWA14_BISECTION_STEP6_LOOP_COUNT; ++k) {
     iiwa14_real next[2];

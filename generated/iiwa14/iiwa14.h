@@ -85,8 +85,12 @@ static inline iiwa14_real iiwa14_fmax(iiwa14_real a, iiwa14_real b) { return ((a
 /* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
  * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
 static inline int iiwa14_all_finite(const iiwa14_real *x, int count) {
-  int k, rest = count % 4;
-  iiwa14_real a0 = IIWA14_LIT(0.0), a1 = IIWA14_LIT(0.0), a2 = IIWA14_LIT(0.0), a3 = IIWA14_LIT(0.0);
+  int k;
+  int rest = count % 4;
+  iiwa14_real a0 = IIWA14_LIT(0.0);
+  iiwa14_real a1 = IIWA14_LIT(0.0);
+  iiwa14_real a2 = IIWA14_LIT(0.0);
+  iiwa14_real a3 = IIWA14_LIT(0.0);
   for (k = 0; k < rest; ++k) { a0 += x[k] * IIWA14_LIT(0.0); }
   for (k = rest; k < count; k += 4) {
     a0 += x[k] * IIWA14_LIT(0.0);

@@ -16951,7 +16951,8 @@ modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const m
 /* bisection_step6_loop: bisection_step6 MODULAR8_BISECTION_STEP6_LOOP_COUNT times (13 add, 2 mul, 5 div, 5 minmax, 1 compare each) */
 void modular8_bisection_step6_loop(const modular8_real state[2], const modular8_real d[6], const modular8_real e2[5], modular8_real final[2]) {
   modular8_real current[2];
-  int k, i;
+  int k;
+  int i;
   for (i = 0; i < 2; ++i) { current[i] = state[i]; }
   for (k = 0; k < MODULAR8_BISECTION_STEP6_LOOP_COUNT; ++k) {
     modular8_real next[2];

@@ -85,8 +85,12 @@ static inline modular8_real modular8_fmax(modular8_real a, modular8_real b) { re
 /* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
  * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
 static inline int modular8_all_finite(const modular8_real *x, int count) {
-  int k, rest = count % 4;
-  modular8_real a0 = MODULAR8_LIT(0.0), a1 = MODULAR8_LIT(0.0), a2 = MODULAR8_LIT(0.0), a3 = MODULAR8_LIT(0.0);
+  int k;
+  int rest = count % 4;
+  modular8_real a0 = MODULAR8_LIT(0.0);
+  modular8_real a1 = MODULAR8_LIT(0.0);
+  modular8_real a2 = MODULAR8_LIT(0.0);
+  modular8_real a3 = MODULAR8_LIT(0.0);
   for (k = 0; k < rest; ++k) { a0 += x[k] * MODULAR8_LIT(0.0); }
   for (k = rest; k < count; k += 4) {
     a0 += x[k] * MODULAR8_LIT(0.0);

@@ -14234,7 +14234,8 @@ panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xd
 /* bisection_step6_loop: bisection_step6 PANDA_BISECTION_STEP6_LOOP_COUNT times (13 add, 2 mul, 5 div, 5 minmax, 1 compare each) */
 void panda_bisection_step6_loop(const panda_real state[2], const panda_real d[6], const panda_real e2[5], panda_real final[2]) {
   panda_real current[2];
-  int k, i;
+  int k;
+  int i;
   for (i = 0; i < 2; ++i) { current[i] = state[i]; }
   for (k = 0; k < PANDA_BISECTION_STEP6_LOOP_COUNT; ++k) {
     panda_real next[2];

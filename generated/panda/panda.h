@@ -85,8 +85,12 @@ static inline panda_real panda_fmax(panda_real a, panda_real b) { return ((a > b
 /* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
  * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
 static inline int panda_all_finite(const panda_real *x, int count) {
-  int k, rest = count % 4;
-  panda_real a0 = PANDA_LIT(0.0), a1 = PANDA_LIT(0.0), a2 = PANDA_LIT(0.0), a3 = PANDA_LIT(0.0);
+  int k;
+  int rest = count % 4;
+  panda_real a0 = PANDA_LIT(0.0);
+  panda_real a1 = PANDA_LIT(0.0);
+  panda_real a2 = PANDA_LIT(0.0);
+  panda_real a3 = PANDA_LIT(0.0);
   for (k = 0; k < rest; ++k) { a0 += x[k] * PANDA_LIT(0.0); }
   for (k = rest; k < count; k += 4) {
     a0 += x[k] * PANDA_LIT(0.0);

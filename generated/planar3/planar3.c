@@ -2445,7 +2445,8 @@ planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const plana
 /* bisection_step3_loop: bisection_step3 PLANAR3_BISECTION_STEP3_LOOP_COUNT times (7 add, 2 mul, 2 div, 2 minmax, 1 compare each) */
 void planar3_bisection_step3_loop(const planar3_real state[2], const planar3_real d[3], const planar3_real e2[2], planar3_real final[2]) {
   planar3_real current[2];
-  int k, i;
+  int k;
+  int i;
   for (i = 0; i < 2; ++i) { current[i] = state[i]; }
   for (k = 0; k < PLANAR3_BISECTION_STEP3_LOOP_COUNT; ++k) {
     planar3_real next[2];

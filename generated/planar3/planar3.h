@@ -85,8 +85,12 @@ static inline planar3_real planar3_fmax(planar3_real a, planar3_real b) { return
 /* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
  * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
 static inline int planar3_all_finite(const planar3_real *x, int count) {
-  int k, rest = count % 4;
-  planar3_real a0 = PLANAR3_LIT(0.0), a1 = PLANAR3_LIT(0.0), a2 = PLANAR3_LIT(0.0), a3 = PLANAR3_LIT(0.0);
+  int k;
+  int rest = count % 4;
+  planar3_real a0 = PLANAR3_LIT(0.0);
+  planar3_real a1 = PLANAR3_LIT(0.0);
+  planar3_real a2 = PLANAR3_LIT(0.0);
+  planar3_real a3 = PLANAR3_LIT(0.0);
   for (k = 0; k < rest; ++k) { a0 += x[k] * PLANAR3_LIT(0.0); }
   for (k = rest; k < count; k += 4) {
     a0 += x[k] * PLANAR3_LIT(0.0);

@@ -107180,7 +107180,8 @@ snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake
 /* bisection_step6_loop: bisection_step6 SNAKE12_BISECTION_STEP6_LOOP_COUNT times (13 add, 2 mul, 5 div, 5 minmax, 1 compare each) */
 void snake12_bisection_step6_loop(const snake12_real state[2], const snake12_real d[6], const snake12_real e2[5], snake12_real final[2]) {
   snake12_real current[2];
-  int k, i;
+  int k;
+  int i;
   for (i = 0; i < 2; ++i) { current[i] = state[i]; }
   for (k = 0; k < SNAKE12_BISECTION_STEP6_LOOP_COUNT; ++k) {
     snake12_real next[2];

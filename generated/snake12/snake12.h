@@ -85,8 +85,12 @@ static inline snake12_real snake12_fmax(snake12_real a, snake12_real b) { return
 /* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
  * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
 static inline int snake12_all_finite(const snake12_real *x, int count) {
-  int k, rest = count % 4;
-  snake12_real a0 = SNAKE12_LIT(0.0), a1 = SNAKE12_LIT(0.0), a2 = SNAKE12_LIT(0.0), a3 = SNAKE12_LIT(0.0);
+  int k;
+  int rest = count % 4;
+  snake12_real a0 = SNAKE12_LIT(0.0);
+  snake12_real a1 = SNAKE12_LIT(0.0);
+  snake12_real a2 = SNAKE12_LIT(0.0);
+  snake12_real a3 = SNAKE12_LIT(0.0);
   for (k = 0; k < rest; ++k) { a0 += x[k] * SNAKE12_LIT(0.0); }
   for (k = rest; k < count; k += 4) {
     a0 += x[k] * SNAKE12_LIT(0.0);
