@@ -24,9 +24,13 @@ Division safety: each column norm² ``s_k`` that builds a reflector is floored a
 ``QR_NORM_FLOOR_REL · ‖A‖_F² + QR_NORM_FLOOR_ABS`` before its square root. The reflector
 ``H = I − 2 v vᵀ / (vᵀ v)`` with ``v = x + sign(x₀) sqrt(max(s, floor)) e₀`` is then exactly
 orthogonal for every input (``vᵀ v ≥ floor > 0``), so nothing divides by a vanishing number at
-an exact singular pose, ``‖row i of Q₂‖² ≤ 1``, and reverse-mode AD gradients (CasADi, of this
-construction) stay finite; the determinants use the unfloored ``s_k``, so a regular value is
-never altered (a column below the floor, ≤ 1e-15 ‖A‖_F², only arises at a singular pose).
+an exact singular pose and ``‖row i of Q₂‖² ≤ 1``; the determinants use the unfloored ``s_k``, so
+a regular value is never altered (a column below the floor, ≤ 1e-15 ‖A‖_F², only arises at a
+singular pose).
+
+Derivatives in closed form, not by AD through the QR: ``∂/∂A`` from the adjugate
+``Z = adj(A Aᵀ) A`` and Sherman–Morrison (:class:`Sensitivities`), then ``∂/∂q`` through the
+geometric Jacobian by :func:`jacobian_vjp` in O(n). Every division is by ``w`` or ``ω_i ≥ δ``.
 """
 
 from __future__ import annotations
@@ -189,14 +193,6 @@ def gram_qr(a: ca.SX) -> GramQR | None:
             cols[c] = cols[c][:k] + _reflect(cols[c][k:], v, beta)
     r = [[diagonal[i] if c == i else (cols[c][i] if c > i else ca.SX(0)) for c in range(m)] for i in range(m)]
     return GramQR(a, full, r, reflectors)
-
-
-def gram_determinants(a: ca.SX) -> tuple[ca.SX, list[ca.SX]]:
-    """(det(A Aᵀ), [det(A₋ᵢ A₋ᵢᵀ) for each column i]) from one floored Householder QR of Aᵀ."""
-    qr = gram_qr(a)
-    if qr is None:
-        return ca.SX(0), [ca.SX(0)] * a.shape[1]
-    return qr.det, qr.reduced
 
 
 def jacobian_vjp(robot_revolute: list[bool], jac: ca.SX, g: ca.SX) -> ca.SX:

@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import casadi as ca
 
-from .criteria import sum_of
+from . import criteria
 from .loops import fixed_loop
 
 # Floor of the LDLᵀ pivots: 1e-18 is below the square of any meaningful Jacobian entry
@@ -116,11 +116,11 @@ def tridiagonal(a: ca.SX) -> tuple[list[ca.SX], list[ca.SX]]:
     for k in range(m - 2):
         rows = list(range(k + 1, m))
         x = [A[r][k] for r in rows]
-        signed = ca.copysign(ca.sqrt(ca.fmax(sum_of(xi * xi for xi in x), floor)), x[0])
+        signed = ca.copysign(ca.sqrt(ca.fmax(criteria.sum_of(xi * xi for xi in x), floor)), x[0])
         v = [x[0] + signed, *x[1:]]  # H x = −signed e₀
-        beta = 2 / sum_of(vi * vi for vi in v)
-        p = [beta * sum_of(A[r][c] * vc for c, vc in zip(rows, v)) for r in rows]
-        half = 0.5 * beta * sum_of(pi * vi for pi, vi in zip(p, v))
+        beta = 2 / criteria.sum_of(vi * vi for vi in v)
+        p = [beta * criteria.sum_of(A[r][c] * vc for c, vc in zip(rows, v)) for r in rows]
+        half = 0.5 * beta * criteria.sum_of(pi * vi for pi, vi in zip(p, v))
         w = [pi - half * vi for pi, vi in zip(p, v)]
         for i, r in enumerate(rows):
             for j in range(i, len(rows)):
@@ -216,8 +216,6 @@ def step_wgpm(j: ca.SX, vjp: Callable[[ca.SX], ca.SX], q: ca.SX, qmin, qmax, xdo
     z = ramp (t_r + W_b Σ_j k_j ∇H_j/(H_hi − H_lo)),
     q̇ = W_b J_wb^# ẋ + N_wb z = z + W_b² Jᵀ (J_wb J_wbᵀ + ρ² I)⁻¹ (ẋ − J z).
     """
-    from . import criteria
-
     lower, upper = criteria.band_parts(q, qmin, qmax, band)
     w_c = lower + upper
     w_b = 1 - w_c
