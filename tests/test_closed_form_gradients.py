@@ -11,10 +11,11 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from armgen.robot import load_robot, parse_robot
+from armgen.robot import Robot, load_robot, parse_robot
 from armgen.symbolic import criteria
 from armgen.symbolic.model import FROM_JACOBIAN, JACOBIAN_FUNCTIONS, SymbolicModel
 from armgen.verify.samples import function_inputs, joint_samples
+from test_urdf import OBLIQUE_URDF
 
 # Both sides are double evaluations of the same derivative by different operation sequences:
 # they agree to rounding, relative to the gradient's norm (seen ≤ 3e-15; margin for the
@@ -83,8 +84,13 @@ qlim = [-170, 170]
 """
 
 
-def _robot(name):
-    return parse_robot(PRISMATIC_CHAIN, "prismatic_mix.toml") if name == "prismatic_mix" else load_robot(name)
+def _robot(name, tmp_path=None):
+    if name == "prismatic_mix":
+        return parse_robot(PRISMATIC_CHAIN, "prismatic_mix.toml")
+    if name == "oblique_urdf":  # general joints: origins and oblique axes, one prismatic
+        (tmp_path / "arm.urdf").write_text(OBLIQUE_URDF)
+        return Robot.from_urdf(tmp_path / "arm.urdf", tip_link="flange")
+    return load_robot(name)
 
 
 def _outputs(result):
@@ -95,9 +101,9 @@ def _relative(got, want):
     return float(np.max(np.abs(got - want)) / max(np.max(np.abs(want)), 1e-300))
 
 
-@pytest.mark.parametrize("name", ["planar3", "modular8", "iiwa14", "prismatic_mix"])
-def test_jacobian_vjp_matches_reverse_mode_ad(name):
-    model = SymbolicModel(_robot(name))
+@pytest.mark.parametrize("name", ["planar3", "modular8", "iiwa14", "prismatic_mix", "oblique_urdf"])
+def test_jacobian_vjp_matches_reverse_mode_ad(name, tmp_path):
+    model = SymbolicModel(_robot(name, tmp_path))
     revolute = [j.revolute for j in model.robot.joints]
     g = ca.SX.sym("G", 6, model.n)
     closed = ca.Function("closed", [model.q, g], [criteria.jacobian_vjp(revolute, model.jac, g)])
@@ -129,9 +135,9 @@ def test_criteria_derivatives_match_ad_through_the_qr(m, n):
         assert _relative(np.array(closed(*args)), np.array(ad(*args))) <= DERIVATIVE_REL_TOL
 
 
-@pytest.mark.parametrize("name", ["planar3", "modular8", "prismatic_mix"])
-def test_twins_are_the_functions_through_the_jacobian(name):
-    model = SymbolicModel(_robot(name))
+@pytest.mark.parametrize("name", ["planar3", "modular8", "prismatic_mix", "oblique_urdf"])
+def test_twins_are_the_functions_through_the_jacobian(name, tmp_path):
+    model = SymbolicModel(_robot(name, tmp_path))
     jacobian = model.function("jacobian")
     qs, _ = joint_samples(model.robot, 50, 3)
     for index, base in enumerate(JACOBIAN_FUNCTIONS):
