@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import casadi as ca
 
@@ -146,8 +147,7 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
             loop = _called_loop(func, next(callees))
             outs_used = [o for o in outs if o >= 0]
             lines += _loop_call(loop, ins, outs, macro_prefix)
-            counts.update({category: n * loop.count for category, n in emit_loop_step(loop, macro_prefix).op_counts.items()
-                           if category not in ("input", "output", "const", "copy")})
+            counts.update({category: n * loop.count for category, n in _step_counts(loop).items()})
             loops.add(loop.function.name())
             used.update(outs_used)
         else:
@@ -188,6 +188,13 @@ def _loop_call(loop: Loop, ins: list[int], outs: list[int], macro_prefix: str) -
     lines.append(f"  {p}_{fn.name()}({', '.join(args)}, call_out);")
     lines += [f"  w{o} = call_out[{j}];" for j, o in enumerate(outs) if o >= 0]
     return lines + ["}"]
+
+
+@lru_cache(maxsize=None)
+def _step_counts(loop: Loop) -> dict[str, int]:
+    """The arithmetic of one iteration (for the callers' op counts; emitted once per loop)."""
+    counts = emit_loop_step(loop, "K").op_counts
+    return {category: n for category, n in counts.items() if category not in ("input", "output", "const", "copy")}
 
 
 def emit_loop_step(loop: Loop, macro_prefix: str) -> EmittedFunction:

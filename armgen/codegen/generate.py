@@ -134,9 +134,7 @@ def _through_jacobian_body(func: ca.Function, twin: ca.Function, p: str, P: str)
     """The body of a function of J: J = <p>_jacobian(q), then the twin (same operations as the
     function's SX, which is the twin applied to jacobian(q)). A step's status also covers q: a
     non-finite q need not reach J (a prismatic joint's value only moves points)."""
-    args = ["J" if twin.name_in(k) == "J" else twin.name_in(k) for k in range(twin.n_in())]
-    args += [twin.name_out(k) for k in range(twin.n_out())]
-    call = f"{p}_{twin.name()}({', '.join(args)})"
+    call = f"{p}_{twin.name()}({', '.join(twin.name_in() + twin.name_out())})"
     lines = [f"  {p}_real J[6 * {P}_NDOF];"]
     if func.name() in STEP_FUNCTIONS:
         lines += [f"  {p}_status status;", f"  {p}_jacobian(q, J);", f"  status = {call};",

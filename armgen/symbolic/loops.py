@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import casadi as ca
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # hashed by identity: one Loop per registered name
 class Loop:
     function: ca.Function  # (state, *constants) -> final state; never inlined into SX
     step: ca.Function  # (state, *constants) -> next state, one iteration, SX

@@ -28,10 +28,10 @@ JACOBIAN_FUNCTIONS = ("manipulability", "joint_manipulability", "ft_index", "ste
                       "step_wgpm")
 FROM_JACOBIAN = "_from_jacobian"
 TWINS = tuple(name + FROM_JACOBIAN for name in JACOBIAN_FUNCTIONS)
-STEP_FUNCTIONS = ("step_gpm", "step_wln", "step_fault", "step_wgpm",
-                  *(name + FROM_JACOBIAN for name in ("step_gpm", "step_wln", "step_fault", "step_wgpm")))
+STEPS = ("step_gpm", "step_wln", "step_fault", "step_wgpm")
+STEP_FUNCTIONS = STEPS + tuple(name + FROM_JACOBIAN for name in STEPS)  # those that return a status
 # twins first: the generated functions of J call them (and jacobian)
-ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + TWINS + CRITERION_FUNCTIONS + STEP_FUNCTIONS[:4]
+ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + TWINS + CRITERION_FUNCTIONS + STEPS
 
 # One-line descriptions, used in the generated header and by `armgen show`.
 DESCRIPTIONS = {
@@ -55,7 +55,8 @@ DESCRIPTIONS = {
     "step_wgpm": "multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from "
                  "sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains",
 }
-DESCRIPTIONS.update({twin: f"{DESCRIPTIONS[name]}; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read)"
+DESCRIPTIONS.update({twin: f"{DESCRIPTIONS[name]}; from a given Jacobian J (jacobian's output, 6xn; "
+                           "its entries that are constant for this robot are not read)"
                      for name, twin in zip(JACOBIAN_FUNCTIONS, TWINS)})
 
 
@@ -188,10 +189,9 @@ class SymbolicModel:
     @cached_property
     def _jacobian_input(self) -> tuple[ca.SX, ca.SX]:
         """J as the twins see it: a symbol per entry, except the entries that are constant for this
-        robot (a prismatic joint's zero angular part, the base axis …), which are those constants.
-        Then the twin's operations are exactly those of <name> = twin(jacobian(q)), whose SX
-        simplifies with the same constants (signed zeros included), so C and interpreter agree to
-        the bit; the twin reads only the entries that vary. Returns (the input symbol, J as used)."""
+        robot (a prismatic joint's zero angular part, the base axis …), which are those constants,
+        so the twin spends no operations on them and reads only the entries that vary.
+        Returns (the input symbol, J as used)."""
         symbol = ca.SX.sym("J", 6, self.n)
         jac = ca.densify(self.jac)
         out = ca.SX(6, self.n)

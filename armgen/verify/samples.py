@@ -18,7 +18,7 @@ import casadi as ca
 import numpy as np
 
 from ..robot import Robot
-from ..symbolic.model import FROM_JACOBIAN, SymbolicModel
+from ..symbolic.model import FROM_JACOBIAN
 
 NEAR_LIMIT_FRACTION = 0.15
 NEAR_SINGULAR_FRACTION = 0.15
@@ -39,16 +39,6 @@ FLOAT_WGPM_MIN_LOG_DELTA = -2
 # Typical magnitudes of step_wgpm's criteria (w, H_M, H_L per joint, condition index): H_lo is
 # drawn in [0, 1]·scale and H_hi = H_lo + [0.5, 2]·scale.
 CRITERION_SCALES = (0.1, 0.5, 8.0, 20.0)
-
-
-_JACOBIANS: dict[str, ca.Function] = {}
-
-
-def _jacobian_at(robot: Robot, q: np.ndarray) -> np.ndarray:
-    """The robot's geometric Jacobian at q: the J input of the ``*_from_jacobian`` functions."""
-    if robot.sha256 not in _JACOBIANS:
-        _JACOBIANS[robot.sha256] = SymbolicModel(robot).function("jacobian")
-    return np.array(_JACOBIANS[robot.sha256](q))
 
 
 def joint_samples(robot: Robot, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -82,8 +72,8 @@ def function_inputs(func: ca.Function, robot: Robot, q: np.ndarray, rng: np.rand
         shape = func.sparsity_in(k).shape
         if name == "q":
             args.append(q)
-        elif name == "J":
-            args.append(_jacobian_at(robot, q))
+        elif name == "J":  # the J input of the *_from_jacobian twins: the robot's Jacobian at q
+            args.append(robot.jacobian(q))
         elif name == "q_init":
             args.append(rng.uniform(robot.qmin, robot.qmax))
         elif name == "damping":
