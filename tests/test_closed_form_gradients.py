@@ -115,7 +115,7 @@ def test_jacobian_vjp_matches_reverse_mode_ad(name, tmp_path):
         assert _relative(np.array(closed(q, weights)), np.array(ad(q, weights))) <= DERIVATIVE_REL_TOL
 
 
-@pytest.mark.parametrize("m, n", [(3, 3), (3, 7), (6, 8), (6, 12)])
+@pytest.mark.parametrize("m, n", [(3, 3), (3, 7), (6, 8), (6, 12), (6, 14)])
 def test_criteria_derivatives_match_ad_through_the_qr(m, n):
     """k_w ∂w/∂A + k_h ∂H_M/∂A + k_c ∂κ_s/∂A of the closed forms against AD of
     k_w w + k_h H_M + k_c κ_s, all built from one floored Householder QR of Aᵀ."""

@@ -52,7 +52,8 @@ def batch(func, count, *args):
     return [np.array(o) for o in out]
 
 
-@pytest.mark.parametrize("name", ["modular8", "iiwa14"])
+# snake12 (25 joints, 6 rows) takes the wide path of criteria.GramQR (ρ_i from Q₁)
+@pytest.mark.parametrize("name", ["modular8", "iiwa14", "snake12"])
 def test_determinants_match_numpy_at_10000_samples(name):
     m = SymbolicModel(load_robot(name))
     rows = list(m.robot.task_rows)

@@ -165,6 +165,13 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
     return EmittedFunction(func.name(), body, counts, len(used), tuple(sorted(loops)))
 
 
+def read_entries(func: ca.Function, k: int) -> set[int]:
+    """The nonzeros of input ``k`` that ``func``'s SX algorithm reads (a Jacobian entry that is
+    constant for the robot is folded into the expression and never read)."""
+    return {func.instruction_input(i)[1] for i in range(func.n_instructions())
+            if func.instruction_id(i) == ca.OP_INPUT and func.instruction_input(i)[0] == k}
+
+
 def _called_loop(func: ca.Function, callee: ca.Function) -> Loop:
     """The loop (armgen.symbolic.loops) a call instruction calls: the only calls armgen emits."""
     loop = find_loop(callee.name())

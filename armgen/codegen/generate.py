@@ -117,28 +117,47 @@ def _size_macros(func: ca.Function, P: str) -> list[str]:
     return lines
 
 
+def _finite_probe(values: list[str], p: str, P: str) -> list[str]:
+    """Statements folding each value into ``probe``: x * 0 is ±0 for a finite x and NaN for
+    NaN/inf, and a NaN survives the sum. Straight-line (a load and a multiply-add per value on
+    a Cortex-M4, no loop or call), so ``probe == probe`` is 1 iff every value is finite."""
+    return [f"  {p}_real probe = {P}_LIT(0.0);", *(f"  probe = probe + {v} * {P}_LIT(0.0);" for v in values)]
+
+
+def _values(names: list[str], scalars: list[bool], sizes: list[int], pointer: str) -> list[str]:
+    """The C lvalues of every element of the named arguments (scalar outputs are pointers)."""
+    out = []
+    for name, scalar, size in zip(names, scalars, sizes):
+        out += [f"{pointer}{name}"] if scalar else [f"{name}[{k}]" for k in range(size)]
+    return out
+
+
 def _status_check(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], res_names: list[str],
                   res_scalar: list[bool], p: str, P: str) -> str:
     """The status of a step function covers every input and every output: any non-finite
-    value in or out is <P>_NONFINITE (a NaN input that fmax/fmin would swallow included)."""
-    terms = []
-    for names, scalars, sizes, pointer in ((arg_names, arg_scalar, [func.sparsity_in(k).numel() for k in range(func.n_in())], ""),
-                                           (res_names, res_scalar, [func.sparsity_out(k).numel() for k in range(func.n_out())], "*")):
-        for name, scalar, size in zip(names, scalars, sizes):
-            terms.append(f"  ok = ok & {p}_all_finite(&{name}, 1);" if scalar and not pointer
-                         else f"  ok = ok & {p}_all_finite({name}, {size});")
-    return "\n".join(["  {", "  int ok = 1;", *terms, f"  return (ok != 0) ? {P}_OK : {P}_NONFINITE;", "  }"])
+    value in or out is <P>_NONFINITE (a NaN input that fmax/fmin would swallow included).
+
+    The J of a ``*_from_jacobian`` step is the exception: each entry it reads enters q̇ through
+    products and sums only (J ẋ-terms, the Gram, Jᵀ y), so a NaN/inf there is NaN/inf in the
+    output already (tests/test_lean_c.py fuzzes it entry by entry); scanning J's 6n values
+    again would be a fifth of the step's cost on the Cortex-M4."""
+    scanned = [k for k in range(func.n_in()) if not (func.name().endswith(FROM_JACOBIAN) and arg_names[k] == "J")]
+    values = (_values([arg_names[k] for k in scanned], [arg_scalar[k] for k in scanned],
+                      [func.sparsity_in(k).numel() for k in scanned], "")
+              + _values(res_names, res_scalar, [func.sparsity_out(k).numel() for k in range(func.n_out())], "*"))
+    return "\n".join(["  {", *_finite_probe(values, p, P), f"  return (probe == probe) ? {P}_OK : {P}_NONFINITE;", "  }"])
 
 
-def _through_jacobian_body(func: ca.Function, twin: ca.Function, p: str, P: str) -> str:
+def _through_jacobian_body(func: ca.Function, twin: ca.Function, n: int, p: str, P: str) -> str:
     """The body of a function of J: J = <p>_jacobian(q), then the twin (same operations as the
     function's SX, which is the twin applied to jacobian(q)). A step's status also covers q: a
     non-finite q need not reach J (a prismatic joint's value only moves points)."""
     call = f"{p}_{twin.name()}({', '.join(twin.name_in() + twin.name_out())})"
     lines = [f"  {p}_real J[6 * {P}_NDOF];"]
     if func.name() in STEP_FUNCTIONS:
-        lines += [f"  {p}_status status;", f"  {p}_jacobian(q, J);", f"  status = {call};",
-                  f"  return ({p}_all_finite(q, {P}_NDOF) != 0) ? status : {P}_NONFINITE;"]
+        lines += [f"  {p}_status status;", f"  {p}_jacobian(q, J);", f"  status = {call};", "  {",
+                  *_finite_probe([f"q[{k}]" for k in range(n)], p, P),
+                  f"  return (probe == probe) ? status : {P}_NONFINITE;", "  }"]
     else:
         lines += [f"  {p}_jacobian(q, J);", f"  {call};"]
     return "\n".join(lines)
@@ -165,7 +184,7 @@ def generate(config: CodegenConfig) -> GeneratedCode:
         if name in JACOBIAN_FUNCTIONS:
             twin = next(em for em in emitted if em.name == name + FROM_JACOBIAN)
             kinematics = next(em for em in emitted if em.name == "jacobian")
-            em = EmittedFunction(name, _through_jacobian_body(func, functions[name + FROM_JACOBIAN], p, P),
+            em = EmittedFunction(name, _through_jacobian_body(func, functions[name + FROM_JACOBIAN], model.n, p, P),
                                  kinematics.op_counts + twin.op_counts, twin.work_reals + 6 * model.n)
             calls = f"calls {p}_jacobian and {p}_{twin.name}"
         else:
@@ -220,31 +239,12 @@ BOUNDED_TRIG_RANGE = 100
 
 def _lean_math(p: str, P: str) -> str:
     """Static inline math of the generated header (also used by the firmware through <P>_SQRT …): fmin/fmax (C99 semantics: a NaN operand
-    yields the other) and the finiteness test need no library call; sqrt is the FPU's
+    yields the other) need no library call; sqrt is the FPU's
     vsqrt.f32 on a Cortex-M with a single-precision FPU (no errno path); the optional
     bounded-range sin/cos. Everything else goes to libm."""
     return f"""/* Lean math (no library calls where the FPU or a comparison does the job). */
 static inline {p}_real {p}_fmin({p}_real a, {p}_real b) {{ return ((a < b) || (b != b)) ? a : b; }}
 static inline {p}_real {p}_fmax({p}_real a, {p}_real b) {{ return ((a > b) || (b != b)) ? a : b; }}
-/* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
- * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
-static inline int {p}_all_finite(const {p}_real *x, int count) {{
-  int k;
-  int rest = count % 4;
-  {p}_real a0 = {P}_LIT(0.0);
-  {p}_real a1 = {P}_LIT(0.0);
-  {p}_real a2 = {P}_LIT(0.0);
-  {p}_real a3 = {P}_LIT(0.0);
-  for (k = 0; k < rest; ++k) {{ a0 += x[k] * {P}_LIT(0.0); }}
-  for (k = rest; k < count; k += 4) {{
-    a0 += x[k] * {P}_LIT(0.0);
-    a1 += x[k + 1] * {P}_LIT(0.0);
-    a2 += x[k + 2] * {P}_LIT(0.0);
-    a3 += x[k + 3] * {P}_LIT(0.0);
-  }}
-  a0 = (a0 + a1) + (a2 + a3);
-  return (a0 == a0) ? 1 : 0;
-}}
 static inline {p}_real {p}_sqrt({p}_real x) {{
 #if {P}_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
   {p}_real r;
@@ -269,7 +269,7 @@ static inline {p}_real {p}_sqrt({p}_real x) {{
 {P}_TRIG_INLINE float {p}_reduce(float x, int *quadrant) {{
   const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
   float k = (x * 0.636619772367581343f + shifter) - shifter;
-  float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
+  float kc = (fabsf(k) <= 65536.0f) ? k : 0.0f; /* false for NaN too: (int) stays defined */
   *quadrant = ((int)kc) & 3;
   return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
 }}

@@ -20,6 +20,17 @@ so the cost is O(n m²) for R plus O((n − m) m n) for Q₂: at fixed task size
 quadratic in the number of joints. Backward stability of Householder QR makes the relative
 error of each determinant about ``ε κ`` of the matrix involved (not ``ε κ²``).
 
+Hyper-redundant chains (``n − m > m``, :attr:`GramQR.wide`) use ``Q₁`` instead, which is
+already there for the gradients: ``ρ_i = 1 − ‖row i of Q₁‖²`` and the projection onto the
+complement ``y Q₂ Q₂ᵀ = y − (y Q₁) Q₁ᵀ``, O(m² n) in all (linear in the joints) where ``Q₂``
+would cost O(m n (n − m)) twice over (snake12: 0.4× the operations, and the host compile
+below the bar). The price is an absolute error ``ε`` in ``ρ_i`` (relative ``ε/ρ_i``) instead
+of a relative one: away from singularities (σ_min(A₋ᵢ) ≥ 1e-2 σ_max(A)) ``ρ_i =
+1/(1 + a_iᵀ(A₋ᵢA₋ᵢᵀ)⁻¹a_i) ≥ 1/(1 + 1e4)``, so double keeps ≤ 2.2e-12 relative; a joint
+whose loss makes the chain singular (ρ_i → 0) has ω_i to ``sqrt(ε det)`` absolute, below δ
+for δ ≥ 1e-7 sqrt(det) in double (in float, ε = 6e-8: documented in docs/snake.md). The
+projection has the same absolute error, ``ε ‖y‖``, either way.
+
 Division safety: each column norm² ``s_k`` that builds a reflector is floored at
 ``QR_NORM_FLOOR_REL · ‖A‖_F² + QR_NORM_FLOOR_ABS`` before its square root. The reflector
 ``H = I − 2 v vᵀ / (vᵀ v)`` with ``v = x + sign(x₀) sqrt(max(s, floor)) e₀`` is then exactly
@@ -106,13 +117,35 @@ class GramQR:
             rows.append(row)
         return rows
 
+    @property
+    def wide(self) -> bool:
+        """n − m > m: Q₂ would be the larger factor, so the Q₁ forms are used (module docstring)."""
+        m, n = self.a.shape
+        return n - m > m
+
     @cached_property
     def leverage_complement(self) -> list[ca.SX]:
-        """ρ_i = ‖row i of Q₂‖² = 1 − a_iᵀ (A Aᵀ)⁻¹ a_i, a sum of squares (no cancellation)."""
-        n = self.a.shape[1]
-        if not self.complement:
+        """ρ_i = ‖row i of Q₂‖² = 1 − a_iᵀ (A Aᵀ)⁻¹ a_i, a sum of squares (no cancellation);
+        wide: 1 − ‖row i of Q₁‖², floored at 0 (rounding may take it below at a singular pose)."""
+        m, n = self.a.shape
+        if n == m:
             return [ca.SX(0)] * n
+        if self.wide:
+            return [ca.fmax(1 - sum_of(row[i] * row[i] for row in self.q1_rows), 0) for i in range(n)]
         return [sum_of(row[i] * row[i] for row in self.complement) for i in range(n)]
+
+    def weighted_projection(self, z: ca.SX, c: list[ca.SX], k: ca.SX) -> ca.SX:
+        """k Z C Q₂ Q₂ᵀ (C = diag(c)): the rows of Z C projected onto the null space of A; 0
+        when m = n. Wide: k (Y − (Y Q₁) Q₁ᵀ) with Y = Z C."""
+        m, n = self.a.shape
+        if n == m:
+            return ca.SX(m, n)
+        if self.wide:
+            q1t = ca.vertcat(*[ca.horzcat(*row) for row in self.q1_rows])  # Q₁ᵀ, m×n
+            y = z @ ca.diag(ca.vertcat(*c))
+            return k * (y - ca.mtimes(ca.mtimes(y, q1t.T), q1t))
+        q2 = ca.horzcat(*[ca.vertcat(*row) for row in self.complement])
+        return ca.mtimes(k * ca.mtimes(z, ca.diag(ca.vertcat(*c)) @ q2), q2.T)
 
     @cached_property
     def reduced(self) -> list[ca.SX]:
@@ -235,8 +268,9 @@ class Sensitivities:
     ``H = Σ weights_i ω_i``. With Z = adj(A Aᵀ) A (``GramQR.adjugate_product``), ∂w/∂A = Z / w;
     by Sherman–Morrison on A₋ᵢ A₋ᵢᵀ = A Aᵀ − a_i a_iᵀ, adj(A₋ᵢ A₋ᵢᵀ) A₋ᵢ = ρ_i Z + Z e_i (P − I)_i
     (P = Q₁ Q₁ᵀ, I − P = Q₂ Q₂ᵀ), so ∂H/∂A = Σ c_i adj(A₋ᵢA₋ᵢᵀ)A₋ᵢ = s Z − (Z C Q₂) Q₂ᵀ with
-    c_i = weights_i / ω_i, C = diag(c), s = Σ c_i ρ_i: O(m n (n − m)), no division but by w and
-    ω_i ≥ δ. The smooth condition index is :func:`condition_index`."""
+    c_i = weights_i / ω_i, C = diag(c), s = Σ c_i ρ_i: O(m n (n − m)) (O(m² n) for a wide A,
+    :meth:`GramQR.weighted_projection`), no division but by w and ω_i ≥ δ. The smooth condition
+    index is :func:`condition_index`."""
 
     a: ca.SX
     det: ca.SX
@@ -245,7 +279,7 @@ class Sensitivities:
     omega: list[ca.SX]
     c: list[ca.SX]  # weights_i / ω_i
     s: ca.SX  # Σ c_i ρ_i
-    complement: ca.SX | None  # Q₂ (n × (n − m)), None when m = n
+    qr: GramQR | None  # None when m > n (every determinant 0)
     delta: ca.SX
 
     @property
@@ -276,9 +310,8 @@ class Sensitivities:
         out = (k_w / self.w + k_h * self.s - k_condition * beta) * self.z
         if not _is_zero(k_condition):
             out = out + (k_condition * alpha) * self.a
-        if self.complement is not None and not _is_zero(k_h):
-            weighted = ca.diag(ca.vertcat(*self.c)) @ self.complement  # C Q₂
-            out = out - ca.mtimes(k_h * ca.mtimes(self.z, weighted), self.complement.T)
+        if self.qr is not None and not _is_zero(k_h):
+            out = out - self.qr.weighted_projection(self.z, self.c, k_h)
         return out
 
 
@@ -296,8 +329,7 @@ def manipulability_sensitivities(qr: GramQR | None, a: ca.SX, weights: ca.SX, de
     omega = [ca.sqrt(g + delta * delta) for g in qr.reduced]
     c = [weights[i] / omega[i] for i in range(n)]
     s = sum_of(ci * rho for ci, rho in zip(c, qr.leverage_complement))
-    complement = ca.horzcat(*[ca.vertcat(*row) for row in qr.complement]) if qr.complement else None
-    return Sensitivities(a, qr.det, qr.adjugate_product, w, omega, c, s, complement, delta)
+    return Sensitivities(a, qr.det, qr.adjugate_product, w, omega, c, s, qr, delta)
 
 
 def zghal(q: ca.SX, qmin, qmax) -> ca.SX:

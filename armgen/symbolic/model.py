@@ -56,7 +56,9 @@ DESCRIPTIONS = {
                  "sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains",
 }
 DESCRIPTIONS.update({twin: f"{DESCRIPTIONS[name]}; from a given Jacobian J (jacobian's output, 6xn; "
-                           "its entries that are constant for this robot are not read)"
+                           "its entries that are constant for this robot are not read"
+                           + ("; a non-finite entry read shows in qdot, so the status does not scan J)"
+                              if name in STEPS else ")")
                      for name, twin in zip(JACOBIAN_FUNCTIONS, TWINS)})
 
 

@@ -7534,13 +7534,29 @@ iiwa14_status iiwa14_step_gpm_from_jacobian(const iiwa14_real J[42], const iiwa1
   w15 = w15 + w14;
   qdot[6] = w15;
   {
-  int ok = 1;
-  ok = ok & iiwa14_all_finite(J, 42);
-  ok = ok & iiwa14_all_finite(xdot, 6);
-  ok = ok & iiwa14_all_finite(alpha, 7);
-  ok = ok & iiwa14_all_finite(&damping, 1);
-  ok = ok & iiwa14_all_finite(qdot, 7);
-  return (ok != 0) ? IIWA14_OK : IIWA14_NONFINITE;
+  iiwa14_real probe = IIWA14_LIT(0.0);
+  probe = probe + xdot[0] * IIWA14_LIT(0.0);
+  probe = probe + xdot[1] * IIWA14_LIT(0.0);
+  probe = probe + xdot[2] * IIWA14_LIT(0.0);
+  probe = probe + xdot[3] * IIWA14_LIT(0.0);
+  probe = probe + xdot[4] * IIWA14_LIT(0.0);
+  probe = probe + xdot[5] * IIWA14_LIT(0.0);
+  probe = probe + alpha[0] * IIWA14_LIT(0.0);
+  probe = probe + alpha[1] * IIWA14_LIT(0.0);
+  probe = probe + alpha[2] * IIWA14_LIT(0.0);
+  probe = probe + alpha[3] * IIWA14_LIT(0.0);
+  probe = probe + alpha[4] * IIWA14_LIT(0.0);
+  probe = probe + alpha[5] * IIWA14_LIT(0.0);
+  probe = probe + alpha[6] * IIWA14_LIT(0.0);
+  probe = probe + damping * IIWA14_LIT(0.0);
+  probe = probe + qdot[0] * IIWA14_LIT(0.0);
+  probe = probe + qdot[1] * IIWA14_LIT(0.0);
+  probe = probe + qdot[2] * IIWA14_LIT(0.0);
+  probe = probe + qdot[3] * IIWA14_LIT(0.0);
+  probe = probe + qdot[4] * IIWA14_LIT(0.0);
+  probe = probe + qdot[5] * IIWA14_LIT(0.0);
+  probe = probe + qdot[6] * IIWA14_LIT(0.0);
+  return (probe == probe) ? IIWA14_OK : IIWA14_NONFINITE;
   }
 }
 
@@ -8175,17 +8191,33 @@ iiwa14_status iiwa14_step_wln_from_jacobian(const iiwa14_real J[42], const iiwa1
   w21 = w21 / w22;
   qdot[6] = w21;
   {
-  int ok = 1;
-  ok = ok & iiwa14_all_finite(J, 42);
-  ok = ok & iiwa14_all_finite(xdot, 6);
-  ok = ok & iiwa14_all_finite(W, 7);
-  ok = ok & iiwa14_all_finite(&damping, 1);
-  ok = ok & iiwa14_all_finite(qdot, 7);
-  return (ok != 0) ? IIWA14_OK : IIWA14_NONFINITE;
+  iiwa14_real probe = IIWA14_LIT(0.0);
+  probe = probe + xdot[0] * IIWA14_LIT(0.0);
+  probe = probe + xdot[1] * IIWA14_LIT(0.0);
+  probe = probe + xdot[2] * IIWA14_LIT(0.0);
+  probe = probe + xdot[3] * IIWA14_LIT(0.0);
+  probe = probe + xdot[4] * IIWA14_LIT(0.0);
+  probe = probe + xdot[5] * IIWA14_LIT(0.0);
+  probe = probe + W[0] * IIWA14_LIT(0.0);
+  probe = probe + W[1] * IIWA14_LIT(0.0);
+  probe = probe + W[2] * IIWA14_LIT(0.0);
+  probe = probe + W[3] * IIWA14_LIT(0.0);
+  probe = probe + W[4] * IIWA14_LIT(0.0);
+  probe = probe + W[5] * IIWA14_LIT(0.0);
+  probe = probe + W[6] * IIWA14_LIT(0.0);
+  probe = probe + damping * IIWA14_LIT(0.0);
+  probe = probe + qdot[0] * IIWA14_LIT(0.0);
+  probe = probe + qdot[1] * IIWA14_LIT(0.0);
+  probe = probe + qdot[2] * IIWA14_LIT(0.0);
+  probe = probe + qdot[3] * IIWA14_LIT(0.0);
+  probe = probe + qdot[4] * IIWA14_LIT(0.0);
+  probe = probe + qdot[5] * IIWA14_LIT(0.0);
+  probe = probe + qdot[6] * IIWA14_LIT(0.0);
+  return (probe == probe) ? IIWA14_OK : IIWA14_NONFINITE;
   }
 }
 
-/* step_fault_from_jacobian: 1128 add, 733 mul, 273 div, 6 sqrt, 279 minmax, 48 compare */
+/* step_fault_from_jacobian: 1656 add, 733 mul, 273 div, 6 sqrt, 327 minmax, 48 compare */
 iiwa14_status iiwa14_step_fault_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min) {
   iiwa14_real w96, w97, w98, w99, w100, w101, w102, w103, w104, w105, w106, w107;
   iiwa14_real w84, w85, w86, w87, w88, w89, w90, w91, w92, w93, w94, w95;
@@ -9508,22 +9540,50 @@ iiwa14_status iiwa14_step_fault_from_jacobian(const iiwa14_real J[42], const iiw
   w69 = IIWA14_SQRT(w69);
   *sigma_min = w69;
   {
-  int ok = 1;
-  ok = ok & iiwa14_all_finite(J, 42);
-  ok = ok & iiwa14_all_finite(xdot, 6);
-  ok = ok & iiwa14_all_finite(mask, 7);
-  ok = ok & iiwa14_all_finite(W, 7);
-  ok = ok & iiwa14_all_finite(alpha, 7);
-  ok = ok & iiwa14_all_finite(&epsilon, 1);
-  ok = ok & iiwa14_all_finite(&lambda_max, 1);
-  ok = ok & iiwa14_all_finite(qdot, 7);
-  ok = ok & iiwa14_all_finite(damping, 1);
-  ok = ok & iiwa14_all_finite(sigma_min, 1);
-  return (ok != 0) ? IIWA14_OK : IIWA14_NONFINITE;
+  iiwa14_real probe = IIWA14_LIT(0.0);
+  probe = probe + xdot[0] * IIWA14_LIT(0.0);
+  probe = probe + xdot[1] * IIWA14_LIT(0.0);
+  probe = probe + xdot[2] * IIWA14_LIT(0.0);
+  probe = probe + xdot[3] * IIWA14_LIT(0.0);
+  probe = probe + xdot[4] * IIWA14_LIT(0.0);
+  probe = probe + xdot[5] * IIWA14_LIT(0.0);
+  probe = probe + mask[0] * IIWA14_LIT(0.0);
+  probe = probe + mask[1] * IIWA14_LIT(0.0);
+  probe = probe + mask[2] * IIWA14_LIT(0.0);
+  probe = probe + mask[3] * IIWA14_LIT(0.0);
+  probe = probe + mask[4] * IIWA14_LIT(0.0);
+  probe = probe + mask[5] * IIWA14_LIT(0.0);
+  probe = probe + mask[6] * IIWA14_LIT(0.0);
+  probe = probe + W[0] * IIWA14_LIT(0.0);
+  probe = probe + W[1] * IIWA14_LIT(0.0);
+  probe = probe + W[2] * IIWA14_LIT(0.0);
+  probe = probe + W[3] * IIWA14_LIT(0.0);
+  probe = probe + W[4] * IIWA14_LIT(0.0);
+  probe = probe + W[5] * IIWA14_LIT(0.0);
+  probe = probe + W[6] * IIWA14_LIT(0.0);
+  probe = probe + alpha[0] * IIWA14_LIT(0.0);
+  probe = probe + alpha[1] * IIWA14_LIT(0.0);
+  probe = probe + alpha[2] * IIWA14_LIT(0.0);
+  probe = probe + alpha[3] * IIWA14_LIT(0.0);
+  probe = probe + alpha[4] * IIWA14_LIT(0.0);
+  probe = probe + alpha[5] * IIWA14_LIT(0.0);
+  probe = probe + alpha[6] * IIWA14_LIT(0.0);
+  probe = probe + epsilon * IIWA14_LIT(0.0);
+  probe = probe + lambda_max * IIWA14_LIT(0.0);
+  probe = probe + qdot[0] * IIWA14_LIT(0.0);
+  probe = probe + qdot[1] * IIWA14_LIT(0.0);
+  probe = probe + qdot[2] * IIWA14_LIT(0.0);
+  probe = probe + qdot[3] * IIWA14_LIT(0.0);
+  probe = probe + qdot[4] * IIWA14_LIT(0.0);
+  probe = probe + qdot[5] * IIWA14_LIT(0.0);
+  probe = probe + qdot[6] * IIWA14_LIT(0.0);
+  probe = probe + *damping * IIWA14_LIT(0.0);
+  probe = probe + *sigma_min * IIWA14_LIT(0.0);
+  return (probe == probe) ? IIWA14_OK : IIWA14_NONFINITE;
   }
 }
 
-/* step_wgpm_from_jacobian: 2131 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 346 minmax, 74 compare, 12 select */
+/* step_wgpm_from_jacobian: 2659 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 394 minmax, 74 compare, 12 select */
 iiwa14_status iiwa14_step_wgpm_from_jacobian(const iiwa14_real J[42], const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]) {
   iiwa14_real w168, w169, w170, w171, w172, w173, w174;
   iiwa14_real w156, w157, w158, w159, w160, w161, w162, w163, w164, w165, w166, w167;
@@ -13439,29 +13499,75 @@ iiwa14_status iiwa14_step_wgpm_from_jacobian(const iiwa14_real J[42], const iiwa
   H[2] = w62;
   H[3] = w135;
   {
-  int ok = 1;
-  ok = ok & iiwa14_all_finite(J, 42);
-  ok = ok & iiwa14_all_finite(q, 7);
-  ok = ok & iiwa14_all_finite(xdot, 6);
-  ok = ok & iiwa14_all_finite(&band, 1);
-  ok = ok & iiwa14_all_finite(&t_rmax, 1);
-  ok = ok & iiwa14_all_finite(&epsilon, 1);
-  ok = ok & iiwa14_all_finite(&rho_max, 1);
-  ok = ok & iiwa14_all_finite(&delta, 1);
-  ok = ok & iiwa14_all_finite(&ramp, 1);
-  ok = ok & iiwa14_all_finite(H_lo, 4);
-  ok = ok & iiwa14_all_finite(H_hi, 4);
-  ok = ok & iiwa14_all_finite(k_hi, 4);
-  ok = ok & iiwa14_all_finite(k_lo, 4);
-  ok = ok & iiwa14_all_finite(u_th, 4);
-  ok = ok & iiwa14_all_finite(u_band, 4);
-  ok = ok & iiwa14_all_finite(qdot, 7);
-  ok = ok & iiwa14_all_finite(w_c, 7);
-  ok = ok & iiwa14_all_finite(rho, 1);
-  ok = ok & iiwa14_all_finite(sigma_min, 1);
-  ok = ok & iiwa14_all_finite(gains, 4);
-  ok = ok & iiwa14_all_finite(H, 4);
-  return (ok != 0) ? IIWA14_OK : IIWA14_NONFINITE;
+  iiwa14_real probe = IIWA14_LIT(0.0);
+  probe = probe + q[0] * IIWA14_LIT(0.0);
+  probe = probe + q[1] * IIWA14_LIT(0.0);
+  probe = probe + q[2] * IIWA14_LIT(0.0);
+  probe = probe + q[3] * IIWA14_LIT(0.0);
+  probe = probe + q[4] * IIWA14_LIT(0.0);
+  probe = probe + q[5] * IIWA14_LIT(0.0);
+  probe = probe + q[6] * IIWA14_LIT(0.0);
+  probe = probe + xdot[0] * IIWA14_LIT(0.0);
+  probe = probe + xdot[1] * IIWA14_LIT(0.0);
+  probe = probe + xdot[2] * IIWA14_LIT(0.0);
+  probe = probe + xdot[3] * IIWA14_LIT(0.0);
+  probe = probe + xdot[4] * IIWA14_LIT(0.0);
+  probe = probe + xdot[5] * IIWA14_LIT(0.0);
+  probe = probe + band * IIWA14_LIT(0.0);
+  probe = probe + t_rmax * IIWA14_LIT(0.0);
+  probe = probe + epsilon * IIWA14_LIT(0.0);
+  probe = probe + rho_max * IIWA14_LIT(0.0);
+  probe = probe + delta * IIWA14_LIT(0.0);
+  probe = probe + ramp * IIWA14_LIT(0.0);
+  probe = probe + H_lo[0] * IIWA14_LIT(0.0);
+  probe = probe + H_lo[1] * IIWA14_LIT(0.0);
+  probe = probe + H_lo[2] * IIWA14_LIT(0.0);
+  probe = probe + H_lo[3] * IIWA14_LIT(0.0);
+  probe = probe + H_hi[0] * IIWA14_LIT(0.0);
+  probe = probe + H_hi[1] * IIWA14_LIT(0.0);
+  probe = probe + H_hi[2] * IIWA14_LIT(0.0);
+  probe = probe + H_hi[3] * IIWA14_LIT(0.0);
+  probe = probe + k_hi[0] * IIWA14_LIT(0.0);
+  probe = probe + k_hi[1] * IIWA14_LIT(0.0);
+  probe = probe + k_hi[2] * IIWA14_LIT(0.0);
+  probe = probe + k_hi[3] * IIWA14_LIT(0.0);
+  probe = probe + k_lo[0] * IIWA14_LIT(0.0);
+  probe = probe + k_lo[1] * IIWA14_LIT(0.0);
+  probe = probe + k_lo[2] * IIWA14_LIT(0.0);
+  probe = probe + k_lo[3] * IIWA14_LIT(0.0);
+  probe = probe + u_th[0] * IIWA14_LIT(0.0);
+  probe = probe + u_th[1] * IIWA14_LIT(0.0);
+  probe = probe + u_th[2] * IIWA14_LIT(0.0);
+  probe = probe + u_th[3] * IIWA14_LIT(0.0);
+  probe = probe + u_band[0] * IIWA14_LIT(0.0);
+  probe = probe + u_band[1] * IIWA14_LIT(0.0);
+  probe = probe + u_band[2] * IIWA14_LIT(0.0);
+  probe = probe + u_band[3] * IIWA14_LIT(0.0);
+  probe = probe + qdot[0] * IIWA14_LIT(0.0);
+  probe = probe + qdot[1] * IIWA14_LIT(0.0);
+  probe = probe + qdot[2] * IIWA14_LIT(0.0);
+  probe = probe + qdot[3] * IIWA14_LIT(0.0);
+  probe = probe + qdot[4] * IIWA14_LIT(0.0);
+  probe = probe + qdot[5] * IIWA14_LIT(0.0);
+  probe = probe + qdot[6] * IIWA14_LIT(0.0);
+  probe = probe + w_c[0] * IIWA14_LIT(0.0);
+  probe = probe + w_c[1] * IIWA14_LIT(0.0);
+  probe = probe + w_c[2] * IIWA14_LIT(0.0);
+  probe = probe + w_c[3] * IIWA14_LIT(0.0);
+  probe = probe + w_c[4] * IIWA14_LIT(0.0);
+  probe = probe + w_c[5] * IIWA14_LIT(0.0);
+  probe = probe + w_c[6] * IIWA14_LIT(0.0);
+  probe = probe + *rho * IIWA14_LIT(0.0);
+  probe = probe + *sigma_min * IIWA14_LIT(0.0);
+  probe = probe + gains[0] * IIWA14_LIT(0.0);
+  probe = probe + gains[1] * IIWA14_LIT(0.0);
+  probe = probe + gains[2] * IIWA14_LIT(0.0);
+  probe = probe + gains[3] * IIWA14_LIT(0.0);
+  probe = probe + H[0] * IIWA14_LIT(0.0);
+  probe = probe + H[1] * IIWA14_LIT(0.0);
+  probe = probe + H[2] * IIWA14_LIT(0.0);
+  probe = probe + H[3] * IIWA14_LIT(0.0);
+  return (probe == probe) ? IIWA14_OK : IIWA14_NONFINITE;
   }
 }
 
@@ -14090,7 +14196,17 @@ iiwa14_status iiwa14_step_gpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
   iiwa14_status status;
   iiwa14_jacobian(q, J);
   status = iiwa14_step_gpm_from_jacobian(J, xdot, alpha, damping, qdot);
-  return (iiwa14_all_finite(q, IIWA14_NDOF) != 0) ? status : IIWA14_NONFINITE;
+  {
+  iiwa14_real probe = IIWA14_LIT(0.0);
+  probe = probe + q[0] * IIWA14_LIT(0.0);
+  probe = probe + q[1] * IIWA14_LIT(0.0);
+  probe = probe + q[2] * IIWA14_LIT(0.0);
+  probe = probe + q[3] * IIWA14_LIT(0.0);
+  probe = probe + q[4] * IIWA14_LIT(0.0);
+  probe = probe + q[5] * IIWA14_LIT(0.0);
+  probe = probe + q[6] * IIWA14_LIT(0.0);
+  return (probe == probe) ? status : IIWA14_NONFINITE;
+  }
 }
 
 /* step_wln: 271 add, 354 mul, 66 div, 12 trig, 13 minmax; calls iiwa14_jacobian and iiwa14_step_wln_from_jacobian */
@@ -14099,28 +14215,58 @@ iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
   iiwa14_status status;
   iiwa14_jacobian(q, J);
   status = iiwa14_step_wln_from_jacobian(J, xdot, W, damping, qdot);
-  return (iiwa14_all_finite(q, IIWA14_NDOF) != 0) ? status : IIWA14_NONFINITE;
+  {
+  iiwa14_real probe = IIWA14_LIT(0.0);
+  probe = probe + q[0] * IIWA14_LIT(0.0);
+  probe = probe + q[1] * IIWA14_LIT(0.0);
+  probe = probe + q[2] * IIWA14_LIT(0.0);
+  probe = probe + q[3] * IIWA14_LIT(0.0);
+  probe = probe + q[4] * IIWA14_LIT(0.0);
+  probe = probe + q[5] * IIWA14_LIT(0.0);
+  probe = probe + q[6] * IIWA14_LIT(0.0);
+  return (probe == probe) ? status : IIWA14_NONFINITE;
+  }
 }
 
-/* step_fault: 1186 add, 820 mul, 273 div, 6 sqrt, 12 trig, 279 minmax, 48 compare; calls iiwa14_jacobian and iiwa14_step_fault_from_jacobian */
+/* step_fault: 1714 add, 820 mul, 273 div, 6 sqrt, 12 trig, 327 minmax, 48 compare; calls iiwa14_jacobian and iiwa14_step_fault_from_jacobian */
 iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min) {
   iiwa14_real J[6 * IIWA14_NDOF];
   iiwa14_status status;
   iiwa14_jacobian(q, J);
   status = iiwa14_step_fault_from_jacobian(J, xdot, mask, W, alpha, epsilon, lambda_max, qdot, damping, sigma_min);
-  return (iiwa14_all_finite(q, IIWA14_NDOF) != 0) ? status : IIWA14_NONFINITE;
+  {
+  iiwa14_real probe = IIWA14_LIT(0.0);
+  probe = probe + q[0] * IIWA14_LIT(0.0);
+  probe = probe + q[1] * IIWA14_LIT(0.0);
+  probe = probe + q[2] * IIWA14_LIT(0.0);
+  probe = probe + q[3] * IIWA14_LIT(0.0);
+  probe = probe + q[4] * IIWA14_LIT(0.0);
+  probe = probe + q[5] * IIWA14_LIT(0.0);
+  probe = probe + q[6] * IIWA14_LIT(0.0);
+  return (probe == probe) ? status : IIWA14_NONFINITE;
+  }
 }
 
-/* step_wgpm: 2189 add, 2162 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 346 minmax, 74 compare, 12 select; calls iiwa14_jacobian and iiwa14_step_wgpm_from_jacobian */
+/* step_wgpm: 2717 add, 2162 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 394 minmax, 74 compare, 12 select; calls iiwa14_jacobian and iiwa14_step_wgpm_from_jacobian */
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]) {
   iiwa14_real J[6 * IIWA14_NDOF];
   iiwa14_status status;
   iiwa14_jacobian(q, J);
   status = iiwa14_step_wgpm_from_jacobian(J, q, xdot, band, t_rmax, epsilon, rho_max, delta, ramp, H_lo, H_hi, k_hi, k_lo, u_th, u_band, qdot, w_c, rho, sigma_min, gains, H);
-  return (iiwa14_all_finite(q, IIWA14_NDOF) != 0) ? status : IIWA14_NONFINITE;
+  {
+  iiwa14_real probe = IIWA14_LIT(0.0);
+  probe = probe + q[0] * IIWA14_LIT(0.0);
+  probe = probe + q[1] * IIWA14_LIT(0.0);
+  probe = probe + q[2] * IIWA14_LIT(0.0);
+  probe = probe + q[3] * IIWA14_LIT(0.0);
+  probe = probe + q[4] * IIWA14_LIT(0.0);
+  probe = probe + q[5] * IIWA14_LIT(0.0);
+  probe = probe + q[6] * IIWA14_LIT(0.0);
+  return (probe == probe) ? status : IIWA14_NONFINITE;
+  }
 }
 
-/* bisection_step6_loop: bisection_step6 IIWA14_BISECTION_STEP6_LOOP_COUNT times (13 add, 2 mul, 5 div, 5 minmax, 1 compare each) */
+/* bisection_step6_loop: bisection_step6 IIWA14_BISECTION_STEP6_LOOP_COUNT times (24 add, 2 mul, 5 div, 6 minmax, 1 compare each) */
 void iiwa14_bisection_step6_loop(const iiwa14_real state[2], const iiwa14_real d[6], const iiwa14_real e2[5], iiwa14_real final[2]) {
   iiwa14_real current[2];
   int k;
@@ -14135,37 +14281,49 @@ void iiwa14_bisection_step6_loop(const iiwa14_real state[2], const iiwa14_real d
     w3 = current[1];
     w4 = w0 + w3;
     w2 = w2 - w4;
-    w5 = d[1];
-    w5 = w5 - w4;
-    w6 = e2[0];
-    w6 = w6 / w2;
-    w5 = w5 - w6;
-    w2 = IIWA14_FMIN(w2, w5);
-    w6 = d[2];
+    w5 = IIWA14_FABS(w2);
+    w5 = w2 - w5;
+    w6 = d[1];
     w6 = w6 - w4;
-    w7 = e2[1];
-    w7 = w7 / w5;
+    w7 = e2[0];
+    w7 = w7 / w2;
     w6 = w6 - w7;
-    w2 = IIWA14_FMIN(w2, w6);
-    w7 = d[3];
+    w7 = IIWA14_FABS(w6);
+    w7 = w6 - w7;
+    w5 = w5 + w7;
+    w7 = d[2];
     w7 = w7 - w4;
-    w5 = e2[2];
-    w5 = w5 / w6;
-    w7 = w7 - w5;
-    w2 = IIWA14_FMIN(w2, w7);
-    w5 = d[4];
-    w5 = w5 - w4;
-    w6 = e2[3];
+    w2 = e2[1];
+    w2 = w2 / w6;
+    w7 = w7 - w2;
+    w2 = IIWA14_FABS(w7);
+    w2 = w7 - w2;
+    w5 = w5 + w2;
+    w2 = d[3];
+    w2 = w2 - w4;
+    w6 = e2[2];
     w6 = w6 / w7;
-    w5 = w5 - w6;
-    w2 = IIWA14_FMIN(w2, w5);
-    w6 = d[5];
+    w2 = w2 - w6;
+    w6 = IIWA14_FABS(w2);
+    w6 = w2 - w6;
+    w5 = w5 + w6;
+    w6 = d[4];
     w6 = w6 - w4;
+    w7 = e2[3];
+    w7 = w7 / w2;
+    w6 = w6 - w7;
+    w7 = IIWA14_FABS(w6);
+    w7 = w6 - w7;
+    w5 = w5 + w7;
+    w7 = d[5];
+    w7 = w7 - w4;
     w4 = e2[4];
-    w4 = w4 / w5;
-    w6 = w6 - w4;
-    w2 = IIWA14_FMIN(w2, w6);
-    w1 = (iiwa14_real)(w1 <= w2);
+    w4 = w4 / w6;
+    w7 = w7 - w4;
+    w4 = IIWA14_FABS(w7);
+    w7 = w7 - w4;
+    w5 = w5 + w7;
+    w1 = (iiwa14_real)(w1 <= w5);
     w1 = w1 * w3;
     w0 = w0 + w1;
     next[0] = w0;

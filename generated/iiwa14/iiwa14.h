@@ -82,25 +82,6 @@ typedef double iiwa14_real;
 /* Lean math (no library calls where the FPU or a comparison does the job). */
 static inline iiwa14_real iiwa14_fmin(iiwa14_real a, iiwa14_real b) { return ((a < b) || (b != b)) ? a : b; }
 static inline iiwa14_real iiwa14_fmax(iiwa14_real a, iiwa14_real b) { return ((a > b) || (b != b)) ? a : b; }
-/* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
- * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
-static inline int iiwa14_all_finite(const iiwa14_real *x, int count) {
-  int k;
-  int rest = count % 4;
-  iiwa14_real a0 = IIWA14_LIT(0.0);
-  iiwa14_real a1 = IIWA14_LIT(0.0);
-  iiwa14_real a2 = IIWA14_LIT(0.0);
-  iiwa14_real a3 = IIWA14_LIT(0.0);
-  for (k = 0; k < rest; ++k) { a0 += x[k] * IIWA14_LIT(0.0); }
-  for (k = rest; k < count; k += 4) {
-    a0 += x[k] * IIWA14_LIT(0.0);
-    a1 += x[k + 1] * IIWA14_LIT(0.0);
-    a2 += x[k + 2] * IIWA14_LIT(0.0);
-    a3 += x[k + 3] * IIWA14_LIT(0.0);
-  }
-  a0 = (a0 + a1) + (a2 + a3);
-  return (a0 == a0) ? 1 : 0;
-}
 static inline iiwa14_real iiwa14_sqrt(iiwa14_real x) {
 #if IIWA14_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
   iiwa14_real r;
@@ -125,7 +106,7 @@ static inline iiwa14_real iiwa14_sqrt(iiwa14_real x) {
 IIWA14_TRIG_INLINE float iiwa14_reduce(float x, int *quadrant) {
   const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
   float k = (x * 0.636619772367581343f + shifter) - shifter;
-  float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
+  float kc = (fabsf(k) <= 65536.0f) ? k : 0.0f; /* false for NaN too: (int) stays defined */
   *quadrant = ((int)kc) & 3;
   return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
 }
@@ -223,7 +204,7 @@ void iiwa14_joint_manipulability_from_jacobian(const iiwa14_real J[42], const ii
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_WORK_REALS 165
 void iiwa14_ft_index_from_jacobian(const iiwa14_real J[42], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF], iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
  * ops: 258 add, 304 mul, 21 div, 6 minmax; work: 80 reals. */
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_J_COLS 7
@@ -235,7 +216,7 @@ void iiwa14_ft_index_from_jacobian(const iiwa14_real J[42], const iiwa14_real ma
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_WORK_REALS 80
 iiwa14_status iiwa14_step_gpm_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
  * ops: 213 add, 267 mul, 66 div, 13 minmax; work: 96 reals. */
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_J_COLS 7
@@ -247,8 +228,8 @@ iiwa14_status iiwa14_step_gpm_from_jacobian(const iiwa14_real J[42], const iiwa1
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_WORK_REALS 96
 iiwa14_status iiwa14_step_wln_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real W[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 1128 add, 733 mul, 273 div, 6 sqrt, 279 minmax, 48 compare; work: 108 reals. */
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+ * ops: 1656 add, 733 mul, 273 div, 6 sqrt, 327 minmax, 48 compare; work: 108 reals. */
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -263,8 +244,8 @@ iiwa14_status iiwa14_step_wln_from_jacobian(const iiwa14_real J[42], const iiwa1
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 108
 iiwa14_status iiwa14_step_fault_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 2131 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 346 minmax, 74 compare, 12 select; work: 175 reals. */
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+ * ops: 2659 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 394 minmax, 74 compare, 12 select; work: 175 reals. */
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 7
@@ -396,7 +377,7 @@ iiwa14_status iiwa14_step_gpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_WLN_WORK_REALS 138
 iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real W[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 1186 add, 820 mul, 273 div, 6 sqrt, 12 trig, 279 minmax, 48 compare (calls iiwa14_jacobian and iiwa14_step_fault_from_jacobian); work: 150 reals. */
+ * ops: 1714 add, 820 mul, 273 div, 6 sqrt, 12 trig, 327 minmax, 48 compare (calls iiwa14_jacobian and iiwa14_step_fault_from_jacobian); work: 150 reals. */
 #define IIWA14_STEP_FAULT_Q_ROWS 7
 #define IIWA14_STEP_FAULT_Q_COLS 1
 #define IIWA14_STEP_FAULT_XDOT_ROWS 6
@@ -412,7 +393,7 @@ iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_FAULT_WORK_REALS 150
 iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 2189 add, 2162 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 346 minmax, 74 compare, 12 select (calls iiwa14_jacobian and iiwa14_step_wgpm_from_jacobian); work: 217 reals. */
+ * ops: 2717 add, 2162 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 394 minmax, 74 compare, 12 select (calls iiwa14_jacobian and iiwa14_step_wgpm_from_jacobian); work: 217 reals. */
 #define IIWA14_STEP_WGPM_Q_ROWS 7
 #define IIWA14_STEP_WGPM_Q_COLS 1
 #define IIWA14_STEP_WGPM_XDOT_ROWS 6
@@ -441,7 +422,7 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if IIWA14_USE_FLOAT
-#define IIWA14_BISECTION_STEP6_LOOP_COUNT 26
+#define IIWA14_BISECTION_STEP6_LOOP_COUNT 24
 #else
 #define IIWA14_BISECTION_STEP6_LOOP_COUNT 48
 #endif

@@ -9371,13 +9371,31 @@ modular8_status modular8_step_gpm_from_jacobian(const modular8_real J[48], const
   w17 = w17 + w16;
   qdot[7] = w17;
   {
-  int ok = 1;
-  ok = ok & modular8_all_finite(J, 48);
-  ok = ok & modular8_all_finite(xdot, 6);
-  ok = ok & modular8_all_finite(alpha, 8);
-  ok = ok & modular8_all_finite(&damping, 1);
-  ok = ok & modular8_all_finite(qdot, 8);
-  return (ok != 0) ? MODULAR8_OK : MODULAR8_NONFINITE;
+  modular8_real probe = MODULAR8_LIT(0.0);
+  probe = probe + xdot[0] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[1] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[2] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[3] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[4] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[5] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[0] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[1] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[2] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[3] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[4] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[5] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[6] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[7] * MODULAR8_LIT(0.0);
+  probe = probe + damping * MODULAR8_LIT(0.0);
+  probe = probe + qdot[0] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[1] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[2] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[3] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[4] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[5] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[6] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[7] * MODULAR8_LIT(0.0);
+  return (probe == probe) ? MODULAR8_OK : MODULAR8_NONFINITE;
   }
 }
 
@@ -10082,17 +10100,35 @@ modular8_status modular8_step_wln_from_jacobian(const modular8_real J[48], const
   w24 = w24 / w25;
   qdot[7] = w24;
   {
-  int ok = 1;
-  ok = ok & modular8_all_finite(J, 48);
-  ok = ok & modular8_all_finite(xdot, 6);
-  ok = ok & modular8_all_finite(W, 8);
-  ok = ok & modular8_all_finite(&damping, 1);
-  ok = ok & modular8_all_finite(qdot, 8);
-  return (ok != 0) ? MODULAR8_OK : MODULAR8_NONFINITE;
+  modular8_real probe = MODULAR8_LIT(0.0);
+  probe = probe + xdot[0] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[1] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[2] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[3] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[4] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[5] * MODULAR8_LIT(0.0);
+  probe = probe + W[0] * MODULAR8_LIT(0.0);
+  probe = probe + W[1] * MODULAR8_LIT(0.0);
+  probe = probe + W[2] * MODULAR8_LIT(0.0);
+  probe = probe + W[3] * MODULAR8_LIT(0.0);
+  probe = probe + W[4] * MODULAR8_LIT(0.0);
+  probe = probe + W[5] * MODULAR8_LIT(0.0);
+  probe = probe + W[6] * MODULAR8_LIT(0.0);
+  probe = probe + W[7] * MODULAR8_LIT(0.0);
+  probe = probe + damping * MODULAR8_LIT(0.0);
+  probe = probe + qdot[0] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[1] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[2] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[3] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[4] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[5] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[6] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[7] * MODULAR8_LIT(0.0);
+  return (probe == probe) ? MODULAR8_OK : MODULAR8_NONFINITE;
   }
 }
 
-/* step_fault_from_jacobian: 1161 add, 774 mul, 274 div, 6 sqrt, 280 minmax, 48 compare */
+/* step_fault_from_jacobian: 1689 add, 774 mul, 274 div, 6 sqrt, 328 minmax, 48 compare */
 modular8_status modular8_step_fault_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min) {
   modular8_real w108, w109, w110, w111, w112, w113, w114, w115;
   modular8_real w96, w97, w98, w99, w100, w101, w102, w103, w104, w105, w106, w107;
@@ -11502,22 +11538,54 @@ modular8_status modular8_step_fault_from_jacobian(const modular8_real J[48], con
   w77 = MODULAR8_SQRT(w77);
   *sigma_min = w77;
   {
-  int ok = 1;
-  ok = ok & modular8_all_finite(J, 48);
-  ok = ok & modular8_all_finite(xdot, 6);
-  ok = ok & modular8_all_finite(mask, 8);
-  ok = ok & modular8_all_finite(W, 8);
-  ok = ok & modular8_all_finite(alpha, 8);
-  ok = ok & modular8_all_finite(&epsilon, 1);
-  ok = ok & modular8_all_finite(&lambda_max, 1);
-  ok = ok & modular8_all_finite(qdot, 8);
-  ok = ok & modular8_all_finite(damping, 1);
-  ok = ok & modular8_all_finite(sigma_min, 1);
-  return (ok != 0) ? MODULAR8_OK : MODULAR8_NONFINITE;
+  modular8_real probe = MODULAR8_LIT(0.0);
+  probe = probe + xdot[0] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[1] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[2] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[3] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[4] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[5] * MODULAR8_LIT(0.0);
+  probe = probe + mask[0] * MODULAR8_LIT(0.0);
+  probe = probe + mask[1] * MODULAR8_LIT(0.0);
+  probe = probe + mask[2] * MODULAR8_LIT(0.0);
+  probe = probe + mask[3] * MODULAR8_LIT(0.0);
+  probe = probe + mask[4] * MODULAR8_LIT(0.0);
+  probe = probe + mask[5] * MODULAR8_LIT(0.0);
+  probe = probe + mask[6] * MODULAR8_LIT(0.0);
+  probe = probe + mask[7] * MODULAR8_LIT(0.0);
+  probe = probe + W[0] * MODULAR8_LIT(0.0);
+  probe = probe + W[1] * MODULAR8_LIT(0.0);
+  probe = probe + W[2] * MODULAR8_LIT(0.0);
+  probe = probe + W[3] * MODULAR8_LIT(0.0);
+  probe = probe + W[4] * MODULAR8_LIT(0.0);
+  probe = probe + W[5] * MODULAR8_LIT(0.0);
+  probe = probe + W[6] * MODULAR8_LIT(0.0);
+  probe = probe + W[7] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[0] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[1] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[2] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[3] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[4] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[5] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[6] * MODULAR8_LIT(0.0);
+  probe = probe + alpha[7] * MODULAR8_LIT(0.0);
+  probe = probe + epsilon * MODULAR8_LIT(0.0);
+  probe = probe + lambda_max * MODULAR8_LIT(0.0);
+  probe = probe + qdot[0] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[1] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[2] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[3] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[4] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[5] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[6] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[7] * MODULAR8_LIT(0.0);
+  probe = probe + *damping * MODULAR8_LIT(0.0);
+  probe = probe + *sigma_min * MODULAR8_LIT(0.0);
+  return (probe == probe) ? MODULAR8_OK : MODULAR8_NONFINITE;
   }
 }
 
-/* step_wgpm_from_jacobian: 2477 add, 2475 mul, 361 div, 21 sqrt, 2 exp, 352 minmax, 76 compare, 12 select */
+/* step_wgpm_from_jacobian: 3005 add, 2475 mul, 361 div, 21 sqrt, 2 exp, 400 minmax, 76 compare, 12 select */
 modular8_status modular8_step_wgpm_from_jacobian(const modular8_real J[48], const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]) {
   modular8_real w192, w193, w194, w195, w196, w197, w198, w199;
   modular8_real w180, w181, w182, w183, w184, w185, w186, w187, w188, w189, w190, w191;
@@ -16205,29 +16273,78 @@ modular8_status modular8_step_wgpm_from_jacobian(const modular8_real J[48], cons
   H[2] = w150;
   H[3] = w158;
   {
-  int ok = 1;
-  ok = ok & modular8_all_finite(J, 48);
-  ok = ok & modular8_all_finite(q, 8);
-  ok = ok & modular8_all_finite(xdot, 6);
-  ok = ok & modular8_all_finite(&band, 1);
-  ok = ok & modular8_all_finite(&t_rmax, 1);
-  ok = ok & modular8_all_finite(&epsilon, 1);
-  ok = ok & modular8_all_finite(&rho_max, 1);
-  ok = ok & modular8_all_finite(&delta, 1);
-  ok = ok & modular8_all_finite(&ramp, 1);
-  ok = ok & modular8_all_finite(H_lo, 4);
-  ok = ok & modular8_all_finite(H_hi, 4);
-  ok = ok & modular8_all_finite(k_hi, 4);
-  ok = ok & modular8_all_finite(k_lo, 4);
-  ok = ok & modular8_all_finite(u_th, 4);
-  ok = ok & modular8_all_finite(u_band, 4);
-  ok = ok & modular8_all_finite(qdot, 8);
-  ok = ok & modular8_all_finite(w_c, 8);
-  ok = ok & modular8_all_finite(rho, 1);
-  ok = ok & modular8_all_finite(sigma_min, 1);
-  ok = ok & modular8_all_finite(gains, 4);
-  ok = ok & modular8_all_finite(H, 4);
-  return (ok != 0) ? MODULAR8_OK : MODULAR8_NONFINITE;
+  modular8_real probe = MODULAR8_LIT(0.0);
+  probe = probe + q[0] * MODULAR8_LIT(0.0);
+  probe = probe + q[1] * MODULAR8_LIT(0.0);
+  probe = probe + q[2] * MODULAR8_LIT(0.0);
+  probe = probe + q[3] * MODULAR8_LIT(0.0);
+  probe = probe + q[4] * MODULAR8_LIT(0.0);
+  probe = probe + q[5] * MODULAR8_LIT(0.0);
+  probe = probe + q[6] * MODULAR8_LIT(0.0);
+  probe = probe + q[7] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[0] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[1] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[2] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[3] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[4] * MODULAR8_LIT(0.0);
+  probe = probe + xdot[5] * MODULAR8_LIT(0.0);
+  probe = probe + band * MODULAR8_LIT(0.0);
+  probe = probe + t_rmax * MODULAR8_LIT(0.0);
+  probe = probe + epsilon * MODULAR8_LIT(0.0);
+  probe = probe + rho_max * MODULAR8_LIT(0.0);
+  probe = probe + delta * MODULAR8_LIT(0.0);
+  probe = probe + ramp * MODULAR8_LIT(0.0);
+  probe = probe + H_lo[0] * MODULAR8_LIT(0.0);
+  probe = probe + H_lo[1] * MODULAR8_LIT(0.0);
+  probe = probe + H_lo[2] * MODULAR8_LIT(0.0);
+  probe = probe + H_lo[3] * MODULAR8_LIT(0.0);
+  probe = probe + H_hi[0] * MODULAR8_LIT(0.0);
+  probe = probe + H_hi[1] * MODULAR8_LIT(0.0);
+  probe = probe + H_hi[2] * MODULAR8_LIT(0.0);
+  probe = probe + H_hi[3] * MODULAR8_LIT(0.0);
+  probe = probe + k_hi[0] * MODULAR8_LIT(0.0);
+  probe = probe + k_hi[1] * MODULAR8_LIT(0.0);
+  probe = probe + k_hi[2] * MODULAR8_LIT(0.0);
+  probe = probe + k_hi[3] * MODULAR8_LIT(0.0);
+  probe = probe + k_lo[0] * MODULAR8_LIT(0.0);
+  probe = probe + k_lo[1] * MODULAR8_LIT(0.0);
+  probe = probe + k_lo[2] * MODULAR8_LIT(0.0);
+  probe = probe + k_lo[3] * MODULAR8_LIT(0.0);
+  probe = probe + u_th[0] * MODULAR8_LIT(0.0);
+  probe = probe + u_th[1] * MODULAR8_LIT(0.0);
+  probe = probe + u_th[2] * MODULAR8_LIT(0.0);
+  probe = probe + u_th[3] * MODULAR8_LIT(0.0);
+  probe = probe + u_band[0] * MODULAR8_LIT(0.0);
+  probe = probe + u_band[1] * MODULAR8_LIT(0.0);
+  probe = probe + u_band[2] * MODULAR8_LIT(0.0);
+  probe = probe + u_band[3] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[0] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[1] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[2] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[3] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[4] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[5] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[6] * MODULAR8_LIT(0.0);
+  probe = probe + qdot[7] * MODULAR8_LIT(0.0);
+  probe = probe + w_c[0] * MODULAR8_LIT(0.0);
+  probe = probe + w_c[1] * MODULAR8_LIT(0.0);
+  probe = probe + w_c[2] * MODULAR8_LIT(0.0);
+  probe = probe + w_c[3] * MODULAR8_LIT(0.0);
+  probe = probe + w_c[4] * MODULAR8_LIT(0.0);
+  probe = probe + w_c[5] * MODULAR8_LIT(0.0);
+  probe = probe + w_c[6] * MODULAR8_LIT(0.0);
+  probe = probe + w_c[7] * MODULAR8_LIT(0.0);
+  probe = probe + *rho * MODULAR8_LIT(0.0);
+  probe = probe + *sigma_min * MODULAR8_LIT(0.0);
+  probe = probe + gains[0] * MODULAR8_LIT(0.0);
+  probe = probe + gains[1] * MODULAR8_LIT(0.0);
+  probe = probe + gains[2] * MODULAR8_LIT(0.0);
+  probe = probe + gains[3] * MODULAR8_LIT(0.0);
+  probe = probe + H[0] * MODULAR8_LIT(0.0);
+  probe = probe + H[1] * MODULAR8_LIT(0.0);
+  probe = probe + H[2] * MODULAR8_LIT(0.0);
+  probe = probe + H[3] * MODULAR8_LIT(0.0);
+  return (probe == probe) ? MODULAR8_OK : MODULAR8_NONFINITE;
   }
 }
 
@@ -16918,7 +17035,18 @@ modular8_status modular8_step_gpm(const modular8_real q[MODULAR8_NDOF], const mo
   modular8_status status;
   modular8_jacobian(q, J);
   status = modular8_step_gpm_from_jacobian(J, xdot, alpha, damping, qdot);
-  return (modular8_all_finite(q, MODULAR8_NDOF) != 0) ? status : MODULAR8_NONFINITE;
+  {
+  modular8_real probe = MODULAR8_LIT(0.0);
+  probe = probe + q[0] * MODULAR8_LIT(0.0);
+  probe = probe + q[1] * MODULAR8_LIT(0.0);
+  probe = probe + q[2] * MODULAR8_LIT(0.0);
+  probe = probe + q[3] * MODULAR8_LIT(0.0);
+  probe = probe + q[4] * MODULAR8_LIT(0.0);
+  probe = probe + q[5] * MODULAR8_LIT(0.0);
+  probe = probe + q[6] * MODULAR8_LIT(0.0);
+  probe = probe + q[7] * MODULAR8_LIT(0.0);
+  return (probe == probe) ? status : MODULAR8_NONFINITE;
+  }
 }
 
 /* step_wln: 329 add, 404 mul, 73 div, 14 trig, 14 minmax; calls modular8_jacobian and modular8_step_wln_from_jacobian */
@@ -16927,28 +17055,61 @@ modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const mo
   modular8_status status;
   modular8_jacobian(q, J);
   status = modular8_step_wln_from_jacobian(J, xdot, W, damping, qdot);
-  return (modular8_all_finite(q, MODULAR8_NDOF) != 0) ? status : MODULAR8_NONFINITE;
+  {
+  modular8_real probe = MODULAR8_LIT(0.0);
+  probe = probe + q[0] * MODULAR8_LIT(0.0);
+  probe = probe + q[1] * MODULAR8_LIT(0.0);
+  probe = probe + q[2] * MODULAR8_LIT(0.0);
+  probe = probe + q[3] * MODULAR8_LIT(0.0);
+  probe = probe + q[4] * MODULAR8_LIT(0.0);
+  probe = probe + q[5] * MODULAR8_LIT(0.0);
+  probe = probe + q[6] * MODULAR8_LIT(0.0);
+  probe = probe + q[7] * MODULAR8_LIT(0.0);
+  return (probe == probe) ? status : MODULAR8_NONFINITE;
+  }
 }
 
-/* step_fault: 1251 add, 884 mul, 274 div, 6 sqrt, 14 trig, 280 minmax, 48 compare; calls modular8_jacobian and modular8_step_fault_from_jacobian */
+/* step_fault: 1779 add, 884 mul, 274 div, 6 sqrt, 14 trig, 328 minmax, 48 compare; calls modular8_jacobian and modular8_step_fault_from_jacobian */
 modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min) {
   modular8_real J[6 * MODULAR8_NDOF];
   modular8_status status;
   modular8_jacobian(q, J);
   status = modular8_step_fault_from_jacobian(J, xdot, mask, W, alpha, epsilon, lambda_max, qdot, damping, sigma_min);
-  return (modular8_all_finite(q, MODULAR8_NDOF) != 0) ? status : MODULAR8_NONFINITE;
+  {
+  modular8_real probe = MODULAR8_LIT(0.0);
+  probe = probe + q[0] * MODULAR8_LIT(0.0);
+  probe = probe + q[1] * MODULAR8_LIT(0.0);
+  probe = probe + q[2] * MODULAR8_LIT(0.0);
+  probe = probe + q[3] * MODULAR8_LIT(0.0);
+  probe = probe + q[4] * MODULAR8_LIT(0.0);
+  probe = probe + q[5] * MODULAR8_LIT(0.0);
+  probe = probe + q[6] * MODULAR8_LIT(0.0);
+  probe = probe + q[7] * MODULAR8_LIT(0.0);
+  return (probe == probe) ? status : MODULAR8_NONFINITE;
+  }
 }
 
-/* step_wgpm: 2567 add, 2585 mul, 361 div, 21 sqrt, 14 trig, 2 exp, 352 minmax, 76 compare, 12 select; calls modular8_jacobian and modular8_step_wgpm_from_jacobian */
+/* step_wgpm: 3095 add, 2585 mul, 361 div, 21 sqrt, 14 trig, 2 exp, 400 minmax, 76 compare, 12 select; calls modular8_jacobian and modular8_step_wgpm_from_jacobian */
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]) {
   modular8_real J[6 * MODULAR8_NDOF];
   modular8_status status;
   modular8_jacobian(q, J);
   status = modular8_step_wgpm_from_jacobian(J, q, xdot, band, t_rmax, epsilon, rho_max, delta, ramp, H_lo, H_hi, k_hi, k_lo, u_th, u_band, qdot, w_c, rho, sigma_min, gains, H);
-  return (modular8_all_finite(q, MODULAR8_NDOF) != 0) ? status : MODULAR8_NONFINITE;
+  {
+  modular8_real probe = MODULAR8_LIT(0.0);
+  probe = probe + q[0] * MODULAR8_LIT(0.0);
+  probe = probe + q[1] * MODULAR8_LIT(0.0);
+  probe = probe + q[2] * MODULAR8_LIT(0.0);
+  probe = probe + q[3] * MODULAR8_LIT(0.0);
+  probe = probe + q[4] * MODULAR8_LIT(0.0);
+  probe = probe + q[5] * MODULAR8_LIT(0.0);
+  probe = probe + q[6] * MODULAR8_LIT(0.0);
+  probe = probe + q[7] * MODULAR8_LIT(0.0);
+  return (probe == probe) ? status : MODULAR8_NONFINITE;
+  }
 }
 
-/* bisection_step6_loop: bisection_step6 MODULAR8_BISECTION_STEP6_LOOP_COUNT times (13 add, 2 mul, 5 div, 5 minmax, 1 compare each) */
+/* bisection_step6_loop: bisection_step6 MODULAR8_BISECTION_STEP6_LOOP_COUNT times (24 add, 2 mul, 5 div, 6 minmax, 1 compare each) */
 void modular8_bisection_step6_loop(const modular8_real state[2], const modular8_real d[6], const modular8_real e2[5], modular8_real final[2]) {
   modular8_real current[2];
   int k;
@@ -16963,37 +17124,49 @@ void modular8_bisection_step6_loop(const modular8_real state[2], const modular8_
     w3 = current[1];
     w4 = w0 + w3;
     w2 = w2 - w4;
-    w5 = d[1];
-    w5 = w5 - w4;
-    w6 = e2[0];
-    w6 = w6 / w2;
-    w5 = w5 - w6;
-    w2 = MODULAR8_FMIN(w2, w5);
-    w6 = d[2];
+    w5 = MODULAR8_FABS(w2);
+    w5 = w2 - w5;
+    w6 = d[1];
     w6 = w6 - w4;
-    w7 = e2[1];
-    w7 = w7 / w5;
+    w7 = e2[0];
+    w7 = w7 / w2;
     w6 = w6 - w7;
-    w2 = MODULAR8_FMIN(w2, w6);
-    w7 = d[3];
+    w7 = MODULAR8_FABS(w6);
+    w7 = w6 - w7;
+    w5 = w5 + w7;
+    w7 = d[2];
     w7 = w7 - w4;
-    w5 = e2[2];
-    w5 = w5 / w6;
-    w7 = w7 - w5;
-    w2 = MODULAR8_FMIN(w2, w7);
-    w5 = d[4];
-    w5 = w5 - w4;
-    w6 = e2[3];
+    w2 = e2[1];
+    w2 = w2 / w6;
+    w7 = w7 - w2;
+    w2 = MODULAR8_FABS(w7);
+    w2 = w7 - w2;
+    w5 = w5 + w2;
+    w2 = d[3];
+    w2 = w2 - w4;
+    w6 = e2[2];
     w6 = w6 / w7;
-    w5 = w5 - w6;
-    w2 = MODULAR8_FMIN(w2, w5);
-    w6 = d[5];
+    w2 = w2 - w6;
+    w6 = MODULAR8_FABS(w2);
+    w6 = w2 - w6;
+    w5 = w5 + w6;
+    w6 = d[4];
     w6 = w6 - w4;
+    w7 = e2[3];
+    w7 = w7 / w2;
+    w6 = w6 - w7;
+    w7 = MODULAR8_FABS(w6);
+    w7 = w6 - w7;
+    w5 = w5 + w7;
+    w7 = d[5];
+    w7 = w7 - w4;
     w4 = e2[4];
-    w4 = w4 / w5;
-    w6 = w6 - w4;
-    w2 = MODULAR8_FMIN(w2, w6);
-    w1 = (modular8_real)(w1 <= w2);
+    w4 = w4 / w6;
+    w7 = w7 - w4;
+    w4 = MODULAR8_FABS(w7);
+    w7 = w7 - w4;
+    w5 = w5 + w7;
+    w1 = (modular8_real)(w1 <= w5);
     w1 = w1 * w3;
     w0 = w0 + w1;
     next[0] = w0;

@@ -82,25 +82,6 @@ typedef double modular8_real;
 /* Lean math (no library calls where the FPU or a comparison does the job). */
 static inline modular8_real modular8_fmin(modular8_real a, modular8_real b) { return ((a < b) || (b != b)) ? a : b; }
 static inline modular8_real modular8_fmax(modular8_real a, modular8_real b) { return ((a > b) || (b != b)) ? a : b; }
-/* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
- * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
-static inline int modular8_all_finite(const modular8_real *x, int count) {
-  int k;
-  int rest = count % 4;
-  modular8_real a0 = MODULAR8_LIT(0.0);
-  modular8_real a1 = MODULAR8_LIT(0.0);
-  modular8_real a2 = MODULAR8_LIT(0.0);
-  modular8_real a3 = MODULAR8_LIT(0.0);
-  for (k = 0; k < rest; ++k) { a0 += x[k] * MODULAR8_LIT(0.0); }
-  for (k = rest; k < count; k += 4) {
-    a0 += x[k] * MODULAR8_LIT(0.0);
-    a1 += x[k + 1] * MODULAR8_LIT(0.0);
-    a2 += x[k + 2] * MODULAR8_LIT(0.0);
-    a3 += x[k + 3] * MODULAR8_LIT(0.0);
-  }
-  a0 = (a0 + a1) + (a2 + a3);
-  return (a0 == a0) ? 1 : 0;
-}
 static inline modular8_real modular8_sqrt(modular8_real x) {
 #if MODULAR8_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
   modular8_real r;
@@ -125,7 +106,7 @@ static inline modular8_real modular8_sqrt(modular8_real x) {
 MODULAR8_TRIG_INLINE float modular8_reduce(float x, int *quadrant) {
   const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
   float k = (x * 0.636619772367581343f + shifter) - shifter;
-  float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
+  float kc = (fabsf(k) <= 65536.0f) ? k : 0.0f; /* false for NaN too: (int) stays defined */
   *quadrant = ((int)kc) & 3;
   return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
 }
@@ -223,7 +204,7 @@ void modular8_joint_manipulability_from_jacobian(const modular8_real J[48], cons
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_WORK_REALS 204
 void modular8_ft_index_from_jacobian(const modular8_real J[48], const modular8_real mask[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF], modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
  * ops: 291 add, 337 mul, 21 div, 6 minmax; work: 87 reals. */
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_J_COLS 8
@@ -235,7 +216,7 @@ void modular8_ft_index_from_jacobian(const modular8_real J[48], const modular8_r
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_WORK_REALS 87
 modular8_status modular8_step_gpm_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real alpha[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
  * ops: 239 add, 294 mul, 73 div, 14 minmax; work: 107 reals. */
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_J_COLS 8
@@ -247,8 +228,8 @@ modular8_status modular8_step_gpm_from_jacobian(const modular8_real J[48], const
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_WORK_REALS 107
 modular8_status modular8_step_wln_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real W[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 1161 add, 774 mul, 274 div, 6 sqrt, 280 minmax, 48 compare; work: 116 reals. */
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+ * ops: 1689 add, 774 mul, 274 div, 6 sqrt, 328 minmax, 48 compare; work: 116 reals. */
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -263,8 +244,8 @@ modular8_status modular8_step_wln_from_jacobian(const modular8_real J[48], const
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 116
 modular8_status modular8_step_fault_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 2477 add, 2475 mul, 361 div, 21 sqrt, 2 exp, 352 minmax, 76 compare, 12 select; work: 200 reals. */
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+ * ops: 3005 add, 2475 mul, 361 div, 21 sqrt, 2 exp, 400 minmax, 76 compare, 12 select; work: 200 reals. */
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 8
@@ -396,7 +377,7 @@ modular8_status modular8_step_gpm(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_WLN_WORK_REALS 155
 modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real W[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 1251 add, 884 mul, 274 div, 6 sqrt, 14 trig, 280 minmax, 48 compare (calls modular8_jacobian and modular8_step_fault_from_jacobian); work: 164 reals. */
+ * ops: 1779 add, 884 mul, 274 div, 6 sqrt, 14 trig, 328 minmax, 48 compare (calls modular8_jacobian and modular8_step_fault_from_jacobian); work: 164 reals. */
 #define MODULAR8_STEP_FAULT_Q_ROWS 8
 #define MODULAR8_STEP_FAULT_Q_COLS 1
 #define MODULAR8_STEP_FAULT_XDOT_ROWS 6
@@ -412,7 +393,7 @@ modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_FAULT_WORK_REALS 164
 modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 2567 add, 2585 mul, 361 div, 21 sqrt, 14 trig, 2 exp, 352 minmax, 76 compare, 12 select (calls modular8_jacobian and modular8_step_wgpm_from_jacobian); work: 248 reals. */
+ * ops: 3095 add, 2585 mul, 361 div, 21 sqrt, 14 trig, 2 exp, 400 minmax, 76 compare, 12 select (calls modular8_jacobian and modular8_step_wgpm_from_jacobian); work: 248 reals. */
 #define MODULAR8_STEP_WGPM_Q_ROWS 8
 #define MODULAR8_STEP_WGPM_Q_COLS 1
 #define MODULAR8_STEP_WGPM_XDOT_ROWS 6
@@ -441,7 +422,7 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if MODULAR8_USE_FLOAT
-#define MODULAR8_BISECTION_STEP6_LOOP_COUNT 26
+#define MODULAR8_BISECTION_STEP6_LOOP_COUNT 24
 #else
 #define MODULAR8_BISECTION_STEP6_LOOP_COUNT 48
 #endif

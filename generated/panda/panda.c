@@ -7634,13 +7634,29 @@ panda_status panda_step_gpm_from_jacobian(const panda_real J[42], const panda_re
   w15 = w15 + w14;
   qdot[6] = w15;
   {
-  int ok = 1;
-  ok = ok & panda_all_finite(J, 42);
-  ok = ok & panda_all_finite(xdot, 6);
-  ok = ok & panda_all_finite(alpha, 7);
-  ok = ok & panda_all_finite(&damping, 1);
-  ok = ok & panda_all_finite(qdot, 7);
-  return (ok != 0) ? PANDA_OK : PANDA_NONFINITE;
+  panda_real probe = PANDA_LIT(0.0);
+  probe = probe + xdot[0] * PANDA_LIT(0.0);
+  probe = probe + xdot[1] * PANDA_LIT(0.0);
+  probe = probe + xdot[2] * PANDA_LIT(0.0);
+  probe = probe + xdot[3] * PANDA_LIT(0.0);
+  probe = probe + xdot[4] * PANDA_LIT(0.0);
+  probe = probe + xdot[5] * PANDA_LIT(0.0);
+  probe = probe + alpha[0] * PANDA_LIT(0.0);
+  probe = probe + alpha[1] * PANDA_LIT(0.0);
+  probe = probe + alpha[2] * PANDA_LIT(0.0);
+  probe = probe + alpha[3] * PANDA_LIT(0.0);
+  probe = probe + alpha[4] * PANDA_LIT(0.0);
+  probe = probe + alpha[5] * PANDA_LIT(0.0);
+  probe = probe + alpha[6] * PANDA_LIT(0.0);
+  probe = probe + damping * PANDA_LIT(0.0);
+  probe = probe + qdot[0] * PANDA_LIT(0.0);
+  probe = probe + qdot[1] * PANDA_LIT(0.0);
+  probe = probe + qdot[2] * PANDA_LIT(0.0);
+  probe = probe + qdot[3] * PANDA_LIT(0.0);
+  probe = probe + qdot[4] * PANDA_LIT(0.0);
+  probe = probe + qdot[5] * PANDA_LIT(0.0);
+  probe = probe + qdot[6] * PANDA_LIT(0.0);
+  return (probe == probe) ? PANDA_OK : PANDA_NONFINITE;
   }
 }
 
@@ -8275,17 +8291,33 @@ panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_re
   w21 = w21 / w22;
   qdot[6] = w21;
   {
-  int ok = 1;
-  ok = ok & panda_all_finite(J, 42);
-  ok = ok & panda_all_finite(xdot, 6);
-  ok = ok & panda_all_finite(W, 7);
-  ok = ok & panda_all_finite(&damping, 1);
-  ok = ok & panda_all_finite(qdot, 7);
-  return (ok != 0) ? PANDA_OK : PANDA_NONFINITE;
+  panda_real probe = PANDA_LIT(0.0);
+  probe = probe + xdot[0] * PANDA_LIT(0.0);
+  probe = probe + xdot[1] * PANDA_LIT(0.0);
+  probe = probe + xdot[2] * PANDA_LIT(0.0);
+  probe = probe + xdot[3] * PANDA_LIT(0.0);
+  probe = probe + xdot[4] * PANDA_LIT(0.0);
+  probe = probe + xdot[5] * PANDA_LIT(0.0);
+  probe = probe + W[0] * PANDA_LIT(0.0);
+  probe = probe + W[1] * PANDA_LIT(0.0);
+  probe = probe + W[2] * PANDA_LIT(0.0);
+  probe = probe + W[3] * PANDA_LIT(0.0);
+  probe = probe + W[4] * PANDA_LIT(0.0);
+  probe = probe + W[5] * PANDA_LIT(0.0);
+  probe = probe + W[6] * PANDA_LIT(0.0);
+  probe = probe + damping * PANDA_LIT(0.0);
+  probe = probe + qdot[0] * PANDA_LIT(0.0);
+  probe = probe + qdot[1] * PANDA_LIT(0.0);
+  probe = probe + qdot[2] * PANDA_LIT(0.0);
+  probe = probe + qdot[3] * PANDA_LIT(0.0);
+  probe = probe + qdot[4] * PANDA_LIT(0.0);
+  probe = probe + qdot[5] * PANDA_LIT(0.0);
+  probe = probe + qdot[6] * PANDA_LIT(0.0);
+  return (probe == probe) ? PANDA_OK : PANDA_NONFINITE;
   }
 }
 
-/* step_fault_from_jacobian: 1128 add, 733 mul, 273 div, 6 sqrt, 279 minmax, 48 compare */
+/* step_fault_from_jacobian: 1656 add, 733 mul, 273 div, 6 sqrt, 327 minmax, 48 compare */
 panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min) {
   panda_real w96, w97, w98, w99, w100, w101, w102, w103, w104, w105, w106, w107;
   panda_real w84, w85, w86, w87, w88, w89, w90, w91, w92, w93, w94, w95;
@@ -9608,22 +9640,50 @@ panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_
   w69 = PANDA_SQRT(w69);
   *sigma_min = w69;
   {
-  int ok = 1;
-  ok = ok & panda_all_finite(J, 42);
-  ok = ok & panda_all_finite(xdot, 6);
-  ok = ok & panda_all_finite(mask, 7);
-  ok = ok & panda_all_finite(W, 7);
-  ok = ok & panda_all_finite(alpha, 7);
-  ok = ok & panda_all_finite(&epsilon, 1);
-  ok = ok & panda_all_finite(&lambda_max, 1);
-  ok = ok & panda_all_finite(qdot, 7);
-  ok = ok & panda_all_finite(damping, 1);
-  ok = ok & panda_all_finite(sigma_min, 1);
-  return (ok != 0) ? PANDA_OK : PANDA_NONFINITE;
+  panda_real probe = PANDA_LIT(0.0);
+  probe = probe + xdot[0] * PANDA_LIT(0.0);
+  probe = probe + xdot[1] * PANDA_LIT(0.0);
+  probe = probe + xdot[2] * PANDA_LIT(0.0);
+  probe = probe + xdot[3] * PANDA_LIT(0.0);
+  probe = probe + xdot[4] * PANDA_LIT(0.0);
+  probe = probe + xdot[5] * PANDA_LIT(0.0);
+  probe = probe + mask[0] * PANDA_LIT(0.0);
+  probe = probe + mask[1] * PANDA_LIT(0.0);
+  probe = probe + mask[2] * PANDA_LIT(0.0);
+  probe = probe + mask[3] * PANDA_LIT(0.0);
+  probe = probe + mask[4] * PANDA_LIT(0.0);
+  probe = probe + mask[5] * PANDA_LIT(0.0);
+  probe = probe + mask[6] * PANDA_LIT(0.0);
+  probe = probe + W[0] * PANDA_LIT(0.0);
+  probe = probe + W[1] * PANDA_LIT(0.0);
+  probe = probe + W[2] * PANDA_LIT(0.0);
+  probe = probe + W[3] * PANDA_LIT(0.0);
+  probe = probe + W[4] * PANDA_LIT(0.0);
+  probe = probe + W[5] * PANDA_LIT(0.0);
+  probe = probe + W[6] * PANDA_LIT(0.0);
+  probe = probe + alpha[0] * PANDA_LIT(0.0);
+  probe = probe + alpha[1] * PANDA_LIT(0.0);
+  probe = probe + alpha[2] * PANDA_LIT(0.0);
+  probe = probe + alpha[3] * PANDA_LIT(0.0);
+  probe = probe + alpha[4] * PANDA_LIT(0.0);
+  probe = probe + alpha[5] * PANDA_LIT(0.0);
+  probe = probe + alpha[6] * PANDA_LIT(0.0);
+  probe = probe + epsilon * PANDA_LIT(0.0);
+  probe = probe + lambda_max * PANDA_LIT(0.0);
+  probe = probe + qdot[0] * PANDA_LIT(0.0);
+  probe = probe + qdot[1] * PANDA_LIT(0.0);
+  probe = probe + qdot[2] * PANDA_LIT(0.0);
+  probe = probe + qdot[3] * PANDA_LIT(0.0);
+  probe = probe + qdot[4] * PANDA_LIT(0.0);
+  probe = probe + qdot[5] * PANDA_LIT(0.0);
+  probe = probe + qdot[6] * PANDA_LIT(0.0);
+  probe = probe + *damping * PANDA_LIT(0.0);
+  probe = probe + *sigma_min * PANDA_LIT(0.0);
+  return (probe == probe) ? PANDA_OK : PANDA_NONFINITE;
   }
 }
 
-/* step_wgpm_from_jacobian: 2131 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 346 minmax, 74 compare, 12 select */
+/* step_wgpm_from_jacobian: 2659 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 394 minmax, 74 compare, 12 select */
 panda_status panda_step_wgpm_from_jacobian(const panda_real J[42], const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]) {
   panda_real w168, w169, w170, w171, w172, w173, w174;
   panda_real w156, w157, w158, w159, w160, w161, w162, w163, w164, w165, w166, w167;
@@ -13544,29 +13604,75 @@ panda_status panda_step_wgpm_from_jacobian(const panda_real J[42], const panda_r
   H[2] = w62;
   H[3] = w135;
   {
-  int ok = 1;
-  ok = ok & panda_all_finite(J, 42);
-  ok = ok & panda_all_finite(q, 7);
-  ok = ok & panda_all_finite(xdot, 6);
-  ok = ok & panda_all_finite(&band, 1);
-  ok = ok & panda_all_finite(&t_rmax, 1);
-  ok = ok & panda_all_finite(&epsilon, 1);
-  ok = ok & panda_all_finite(&rho_max, 1);
-  ok = ok & panda_all_finite(&delta, 1);
-  ok = ok & panda_all_finite(&ramp, 1);
-  ok = ok & panda_all_finite(H_lo, 4);
-  ok = ok & panda_all_finite(H_hi, 4);
-  ok = ok & panda_all_finite(k_hi, 4);
-  ok = ok & panda_all_finite(k_lo, 4);
-  ok = ok & panda_all_finite(u_th, 4);
-  ok = ok & panda_all_finite(u_band, 4);
-  ok = ok & panda_all_finite(qdot, 7);
-  ok = ok & panda_all_finite(w_c, 7);
-  ok = ok & panda_all_finite(rho, 1);
-  ok = ok & panda_all_finite(sigma_min, 1);
-  ok = ok & panda_all_finite(gains, 4);
-  ok = ok & panda_all_finite(H, 4);
-  return (ok != 0) ? PANDA_OK : PANDA_NONFINITE;
+  panda_real probe = PANDA_LIT(0.0);
+  probe = probe + q[0] * PANDA_LIT(0.0);
+  probe = probe + q[1] * PANDA_LIT(0.0);
+  probe = probe + q[2] * PANDA_LIT(0.0);
+  probe = probe + q[3] * PANDA_LIT(0.0);
+  probe = probe + q[4] * PANDA_LIT(0.0);
+  probe = probe + q[5] * PANDA_LIT(0.0);
+  probe = probe + q[6] * PANDA_LIT(0.0);
+  probe = probe + xdot[0] * PANDA_LIT(0.0);
+  probe = probe + xdot[1] * PANDA_LIT(0.0);
+  probe = probe + xdot[2] * PANDA_LIT(0.0);
+  probe = probe + xdot[3] * PANDA_LIT(0.0);
+  probe = probe + xdot[4] * PANDA_LIT(0.0);
+  probe = probe + xdot[5] * PANDA_LIT(0.0);
+  probe = probe + band * PANDA_LIT(0.0);
+  probe = probe + t_rmax * PANDA_LIT(0.0);
+  probe = probe + epsilon * PANDA_LIT(0.0);
+  probe = probe + rho_max * PANDA_LIT(0.0);
+  probe = probe + delta * PANDA_LIT(0.0);
+  probe = probe + ramp * PANDA_LIT(0.0);
+  probe = probe + H_lo[0] * PANDA_LIT(0.0);
+  probe = probe + H_lo[1] * PANDA_LIT(0.0);
+  probe = probe + H_lo[2] * PANDA_LIT(0.0);
+  probe = probe + H_lo[3] * PANDA_LIT(0.0);
+  probe = probe + H_hi[0] * PANDA_LIT(0.0);
+  probe = probe + H_hi[1] * PANDA_LIT(0.0);
+  probe = probe + H_hi[2] * PANDA_LIT(0.0);
+  probe = probe + H_hi[3] * PANDA_LIT(0.0);
+  probe = probe + k_hi[0] * PANDA_LIT(0.0);
+  probe = probe + k_hi[1] * PANDA_LIT(0.0);
+  probe = probe + k_hi[2] * PANDA_LIT(0.0);
+  probe = probe + k_hi[3] * PANDA_LIT(0.0);
+  probe = probe + k_lo[0] * PANDA_LIT(0.0);
+  probe = probe + k_lo[1] * PANDA_LIT(0.0);
+  probe = probe + k_lo[2] * PANDA_LIT(0.0);
+  probe = probe + k_lo[3] * PANDA_LIT(0.0);
+  probe = probe + u_th[0] * PANDA_LIT(0.0);
+  probe = probe + u_th[1] * PANDA_LIT(0.0);
+  probe = probe + u_th[2] * PANDA_LIT(0.0);
+  probe = probe + u_th[3] * PANDA_LIT(0.0);
+  probe = probe + u_band[0] * PANDA_LIT(0.0);
+  probe = probe + u_band[1] * PANDA_LIT(0.0);
+  probe = probe + u_band[2] * PANDA_LIT(0.0);
+  probe = probe + u_band[3] * PANDA_LIT(0.0);
+  probe = probe + qdot[0] * PANDA_LIT(0.0);
+  probe = probe + qdot[1] * PANDA_LIT(0.0);
+  probe = probe + qdot[2] * PANDA_LIT(0.0);
+  probe = probe + qdot[3] * PANDA_LIT(0.0);
+  probe = probe + qdot[4] * PANDA_LIT(0.0);
+  probe = probe + qdot[5] * PANDA_LIT(0.0);
+  probe = probe + qdot[6] * PANDA_LIT(0.0);
+  probe = probe + w_c[0] * PANDA_LIT(0.0);
+  probe = probe + w_c[1] * PANDA_LIT(0.0);
+  probe = probe + w_c[2] * PANDA_LIT(0.0);
+  probe = probe + w_c[3] * PANDA_LIT(0.0);
+  probe = probe + w_c[4] * PANDA_LIT(0.0);
+  probe = probe + w_c[5] * PANDA_LIT(0.0);
+  probe = probe + w_c[6] * PANDA_LIT(0.0);
+  probe = probe + *rho * PANDA_LIT(0.0);
+  probe = probe + *sigma_min * PANDA_LIT(0.0);
+  probe = probe + gains[0] * PANDA_LIT(0.0);
+  probe = probe + gains[1] * PANDA_LIT(0.0);
+  probe = probe + gains[2] * PANDA_LIT(0.0);
+  probe = probe + gains[3] * PANDA_LIT(0.0);
+  probe = probe + H[0] * PANDA_LIT(0.0);
+  probe = probe + H[1] * PANDA_LIT(0.0);
+  probe = probe + H[2] * PANDA_LIT(0.0);
+  probe = probe + H[3] * PANDA_LIT(0.0);
+  return (probe == probe) ? PANDA_OK : PANDA_NONFINITE;
   }
 }
 
@@ -14201,7 +14307,17 @@ panda_status panda_step_gpm(const panda_real q[PANDA_NDOF], const panda_real xdo
   panda_status status;
   panda_jacobian(q, J);
   status = panda_step_gpm_from_jacobian(J, xdot, alpha, damping, qdot);
-  return (panda_all_finite(q, PANDA_NDOF) != 0) ? status : PANDA_NONFINITE;
+  {
+  panda_real probe = PANDA_LIT(0.0);
+  probe = probe + q[0] * PANDA_LIT(0.0);
+  probe = probe + q[1] * PANDA_LIT(0.0);
+  probe = probe + q[2] * PANDA_LIT(0.0);
+  probe = probe + q[3] * PANDA_LIT(0.0);
+  probe = probe + q[4] * PANDA_LIT(0.0);
+  probe = probe + q[5] * PANDA_LIT(0.0);
+  probe = probe + q[6] * PANDA_LIT(0.0);
+  return (probe == probe) ? status : PANDA_NONFINITE;
+  }
 }
 
 /* step_wln: 293 add, 369 mul, 66 div, 12 trig, 13 minmax; calls panda_jacobian and panda_step_wln_from_jacobian */
@@ -14210,28 +14326,58 @@ panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdo
   panda_status status;
   panda_jacobian(q, J);
   status = panda_step_wln_from_jacobian(J, xdot, W, damping, qdot);
-  return (panda_all_finite(q, PANDA_NDOF) != 0) ? status : PANDA_NONFINITE;
+  {
+  panda_real probe = PANDA_LIT(0.0);
+  probe = probe + q[0] * PANDA_LIT(0.0);
+  probe = probe + q[1] * PANDA_LIT(0.0);
+  probe = probe + q[2] * PANDA_LIT(0.0);
+  probe = probe + q[3] * PANDA_LIT(0.0);
+  probe = probe + q[4] * PANDA_LIT(0.0);
+  probe = probe + q[5] * PANDA_LIT(0.0);
+  probe = probe + q[6] * PANDA_LIT(0.0);
+  return (probe == probe) ? status : PANDA_NONFINITE;
+  }
 }
 
-/* step_fault: 1208 add, 835 mul, 273 div, 6 sqrt, 12 trig, 279 minmax, 48 compare; calls panda_jacobian and panda_step_fault_from_jacobian */
+/* step_fault: 1736 add, 835 mul, 273 div, 6 sqrt, 12 trig, 327 minmax, 48 compare; calls panda_jacobian and panda_step_fault_from_jacobian */
 panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min) {
   panda_real J[6 * PANDA_NDOF];
   panda_status status;
   panda_jacobian(q, J);
   status = panda_step_fault_from_jacobian(J, xdot, mask, W, alpha, epsilon, lambda_max, qdot, damping, sigma_min);
-  return (panda_all_finite(q, PANDA_NDOF) != 0) ? status : PANDA_NONFINITE;
+  {
+  panda_real probe = PANDA_LIT(0.0);
+  probe = probe + q[0] * PANDA_LIT(0.0);
+  probe = probe + q[1] * PANDA_LIT(0.0);
+  probe = probe + q[2] * PANDA_LIT(0.0);
+  probe = probe + q[3] * PANDA_LIT(0.0);
+  probe = probe + q[4] * PANDA_LIT(0.0);
+  probe = probe + q[5] * PANDA_LIT(0.0);
+  probe = probe + q[6] * PANDA_LIT(0.0);
+  return (probe == probe) ? status : PANDA_NONFINITE;
+  }
 }
 
-/* step_wgpm: 2211 add, 2177 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 346 minmax, 74 compare, 12 select; calls panda_jacobian and panda_step_wgpm_from_jacobian */
+/* step_wgpm: 2739 add, 2177 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 394 minmax, 74 compare, 12 select; calls panda_jacobian and panda_step_wgpm_from_jacobian */
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]) {
   panda_real J[6 * PANDA_NDOF];
   panda_status status;
   panda_jacobian(q, J);
   status = panda_step_wgpm_from_jacobian(J, q, xdot, band, t_rmax, epsilon, rho_max, delta, ramp, H_lo, H_hi, k_hi, k_lo, u_th, u_band, qdot, w_c, rho, sigma_min, gains, H);
-  return (panda_all_finite(q, PANDA_NDOF) != 0) ? status : PANDA_NONFINITE;
+  {
+  panda_real probe = PANDA_LIT(0.0);
+  probe = probe + q[0] * PANDA_LIT(0.0);
+  probe = probe + q[1] * PANDA_LIT(0.0);
+  probe = probe + q[2] * PANDA_LIT(0.0);
+  probe = probe + q[3] * PANDA_LIT(0.0);
+  probe = probe + q[4] * PANDA_LIT(0.0);
+  probe = probe + q[5] * PANDA_LIT(0.0);
+  probe = probe + q[6] * PANDA_LIT(0.0);
+  return (probe == probe) ? status : PANDA_NONFINITE;
+  }
 }
 
-/* bisection_step6_loop: bisection_step6 PANDA_BISECTION_STEP6_LOOP_COUNT times (13 add, 2 mul, 5 div, 5 minmax, 1 compare each) */
+/* bisection_step6_loop: bisection_step6 PANDA_BISECTION_STEP6_LOOP_COUNT times (24 add, 2 mul, 5 div, 6 minmax, 1 compare each) */
 void panda_bisection_step6_loop(const panda_real state[2], const panda_real d[6], const panda_real e2[5], panda_real final[2]) {
   panda_real current[2];
   int k;
@@ -14246,37 +14392,49 @@ void panda_bisection_step6_loop(const panda_real state[2], const panda_real d[6]
     w3 = current[1];
     w4 = w0 + w3;
     w2 = w2 - w4;
-    w5 = d[1];
-    w5 = w5 - w4;
-    w6 = e2[0];
-    w6 = w6 / w2;
-    w5 = w5 - w6;
-    w2 = PANDA_FMIN(w2, w5);
-    w6 = d[2];
+    w5 = PANDA_FABS(w2);
+    w5 = w2 - w5;
+    w6 = d[1];
     w6 = w6 - w4;
-    w7 = e2[1];
-    w7 = w7 / w5;
+    w7 = e2[0];
+    w7 = w7 / w2;
     w6 = w6 - w7;
-    w2 = PANDA_FMIN(w2, w6);
-    w7 = d[3];
+    w7 = PANDA_FABS(w6);
+    w7 = w6 - w7;
+    w5 = w5 + w7;
+    w7 = d[2];
     w7 = w7 - w4;
-    w5 = e2[2];
-    w5 = w5 / w6;
-    w7 = w7 - w5;
-    w2 = PANDA_FMIN(w2, w7);
-    w5 = d[4];
-    w5 = w5 - w4;
-    w6 = e2[3];
+    w2 = e2[1];
+    w2 = w2 / w6;
+    w7 = w7 - w2;
+    w2 = PANDA_FABS(w7);
+    w2 = w7 - w2;
+    w5 = w5 + w2;
+    w2 = d[3];
+    w2 = w2 - w4;
+    w6 = e2[2];
     w6 = w6 / w7;
-    w5 = w5 - w6;
-    w2 = PANDA_FMIN(w2, w5);
-    w6 = d[5];
+    w2 = w2 - w6;
+    w6 = PANDA_FABS(w2);
+    w6 = w2 - w6;
+    w5 = w5 + w6;
+    w6 = d[4];
     w6 = w6 - w4;
+    w7 = e2[3];
+    w7 = w7 / w2;
+    w6 = w6 - w7;
+    w7 = PANDA_FABS(w6);
+    w7 = w6 - w7;
+    w5 = w5 + w7;
+    w7 = d[5];
+    w7 = w7 - w4;
     w4 = e2[4];
-    w4 = w4 / w5;
-    w6 = w6 - w4;
-    w2 = PANDA_FMIN(w2, w6);
-    w1 = (panda_real)(w1 <= w2);
+    w4 = w4 / w6;
+    w7 = w7 - w4;
+    w4 = PANDA_FABS(w7);
+    w7 = w7 - w4;
+    w5 = w5 + w7;
+    w1 = (panda_real)(w1 <= w5);
     w1 = w1 * w3;
     w0 = w0 + w1;
     next[0] = w0;

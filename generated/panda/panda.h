@@ -82,25 +82,6 @@ typedef double panda_real;
 /* Lean math (no library calls where the FPU or a comparison does the job). */
 static inline panda_real panda_fmin(panda_real a, panda_real b) { return ((a < b) || (b != b)) ? a : b; }
 static inline panda_real panda_fmax(panda_real a, panda_real b) { return ((a > b) || (b != b)) ? a : b; }
-/* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
- * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
-static inline int panda_all_finite(const panda_real *x, int count) {
-  int k;
-  int rest = count % 4;
-  panda_real a0 = PANDA_LIT(0.0);
-  panda_real a1 = PANDA_LIT(0.0);
-  panda_real a2 = PANDA_LIT(0.0);
-  panda_real a3 = PANDA_LIT(0.0);
-  for (k = 0; k < rest; ++k) { a0 += x[k] * PANDA_LIT(0.0); }
-  for (k = rest; k < count; k += 4) {
-    a0 += x[k] * PANDA_LIT(0.0);
-    a1 += x[k + 1] * PANDA_LIT(0.0);
-    a2 += x[k + 2] * PANDA_LIT(0.0);
-    a3 += x[k + 3] * PANDA_LIT(0.0);
-  }
-  a0 = (a0 + a1) + (a2 + a3);
-  return (a0 == a0) ? 1 : 0;
-}
 static inline panda_real panda_sqrt(panda_real x) {
 #if PANDA_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
   panda_real r;
@@ -125,7 +106,7 @@ static inline panda_real panda_sqrt(panda_real x) {
 PANDA_TRIG_INLINE float panda_reduce(float x, int *quadrant) {
   const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
   float k = (x * 0.636619772367581343f + shifter) - shifter;
-  float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
+  float kc = (fabsf(k) <= 65536.0f) ? k : 0.0f; /* false for NaN too: (int) stays defined */
   *quadrant = ((int)kc) & 3;
   return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
 }
@@ -223,7 +204,7 @@ void panda_joint_manipulability_from_jacobian(const panda_real J[42], const pand
 #define PANDA_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
 #define PANDA_FT_INDEX_FROM_JACOBIAN_WORK_REALS 165
 void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF], panda_real *w, panda_real grad_w[PANDA_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
  * ops: 258 add, 304 mul, 21 div, 6 minmax; work: 80 reals. */
 #define PANDA_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_GPM_FROM_JACOBIAN_J_COLS 7
@@ -235,7 +216,7 @@ void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[
 #define PANDA_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
 #define PANDA_STEP_GPM_FROM_JACOBIAN_WORK_REALS 80
 panda_status panda_step_gpm_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real alpha[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
  * ops: 213 add, 267 mul, 66 div, 13 minmax; work: 96 reals. */
 #define PANDA_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_WLN_FROM_JACOBIAN_J_COLS 7
@@ -247,8 +228,8 @@ panda_status panda_step_gpm_from_jacobian(const panda_real J[42], const panda_re
 #define PANDA_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
 #define PANDA_STEP_WLN_FROM_JACOBIAN_WORK_REALS 96
 panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real W[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 1128 add, 733 mul, 273 div, 6 sqrt, 279 minmax, 48 compare; work: 108 reals. */
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+ * ops: 1656 add, 733 mul, 273 div, 6 sqrt, 327 minmax, 48 compare; work: 108 reals. */
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_J_COLS 7
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -263,8 +244,8 @@ panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_re
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 108
 panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 2131 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 346 minmax, 74 compare, 12 select; work: 175 reals. */
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+ * ops: 2659 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 394 minmax, 74 compare, 12 select; work: 175 reals. */
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_J_COLS 7
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 7
@@ -396,7 +377,7 @@ panda_status panda_step_gpm(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_WLN_WORK_REALS 138
 panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real W[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 1208 add, 835 mul, 273 div, 6 sqrt, 12 trig, 279 minmax, 48 compare (calls panda_jacobian and panda_step_fault_from_jacobian); work: 150 reals. */
+ * ops: 1736 add, 835 mul, 273 div, 6 sqrt, 12 trig, 327 minmax, 48 compare (calls panda_jacobian and panda_step_fault_from_jacobian); work: 150 reals. */
 #define PANDA_STEP_FAULT_Q_ROWS 7
 #define PANDA_STEP_FAULT_Q_COLS 1
 #define PANDA_STEP_FAULT_XDOT_ROWS 6
@@ -412,7 +393,7 @@ panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_FAULT_WORK_REALS 150
 panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 2211 add, 2177 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 346 minmax, 74 compare, 12 select (calls panda_jacobian and panda_step_wgpm_from_jacobian); work: 217 reals. */
+ * ops: 2739 add, 2177 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 394 minmax, 74 compare, 12 select (calls panda_jacobian and panda_step_wgpm_from_jacobian); work: 217 reals. */
 #define PANDA_STEP_WGPM_Q_ROWS 7
 #define PANDA_STEP_WGPM_Q_COLS 1
 #define PANDA_STEP_WGPM_XDOT_ROWS 6
@@ -441,7 +422,7 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if PANDA_USE_FLOAT
-#define PANDA_BISECTION_STEP6_LOOP_COUNT 26
+#define PANDA_BISECTION_STEP6_LOOP_COUNT 24
 #else
 #define PANDA_BISECTION_STEP6_LOOP_COUNT 48
 #endif

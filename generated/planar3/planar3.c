@@ -888,13 +888,18 @@ planar3_status planar3_step_gpm_from_jacobian(const planar3_real J[18], const pl
   w7 = w7 + w6;
   qdot[2] = w7;
   {
-  int ok = 1;
-  ok = ok & planar3_all_finite(J, 18);
-  ok = ok & planar3_all_finite(xdot, 3);
-  ok = ok & planar3_all_finite(alpha, 3);
-  ok = ok & planar3_all_finite(&damping, 1);
-  ok = ok & planar3_all_finite(qdot, 3);
-  return (ok != 0) ? PLANAR3_OK : PLANAR3_NONFINITE;
+  planar3_real probe = PLANAR3_LIT(0.0);
+  probe = probe + xdot[0] * PLANAR3_LIT(0.0);
+  probe = probe + xdot[1] * PLANAR3_LIT(0.0);
+  probe = probe + xdot[2] * PLANAR3_LIT(0.0);
+  probe = probe + alpha[0] * PLANAR3_LIT(0.0);
+  probe = probe + alpha[1] * PLANAR3_LIT(0.0);
+  probe = probe + alpha[2] * PLANAR3_LIT(0.0);
+  probe = probe + damping * PLANAR3_LIT(0.0);
+  probe = probe + qdot[0] * PLANAR3_LIT(0.0);
+  probe = probe + qdot[1] * PLANAR3_LIT(0.0);
+  probe = probe + qdot[2] * PLANAR3_LIT(0.0);
+  return (probe == probe) ? PLANAR3_OK : PLANAR3_NONFINITE;
   }
 }
 
@@ -1014,17 +1019,22 @@ planar3_status planar3_step_wln_from_jacobian(const planar3_real J[18], const pl
   w9 = w9 / w10;
   qdot[2] = w9;
   {
-  int ok = 1;
-  ok = ok & planar3_all_finite(J, 18);
-  ok = ok & planar3_all_finite(xdot, 3);
-  ok = ok & planar3_all_finite(W, 3);
-  ok = ok & planar3_all_finite(&damping, 1);
-  ok = ok & planar3_all_finite(qdot, 3);
-  return (ok != 0) ? PLANAR3_OK : PLANAR3_NONFINITE;
+  planar3_real probe = PLANAR3_LIT(0.0);
+  probe = probe + xdot[0] * PLANAR3_LIT(0.0);
+  probe = probe + xdot[1] * PLANAR3_LIT(0.0);
+  probe = probe + xdot[2] * PLANAR3_LIT(0.0);
+  probe = probe + W[0] * PLANAR3_LIT(0.0);
+  probe = probe + W[1] * PLANAR3_LIT(0.0);
+  probe = probe + W[2] * PLANAR3_LIT(0.0);
+  probe = probe + damping * PLANAR3_LIT(0.0);
+  probe = probe + qdot[0] * PLANAR3_LIT(0.0);
+  probe = probe + qdot[1] * PLANAR3_LIT(0.0);
+  probe = probe + qdot[2] * PLANAR3_LIT(0.0);
+  return (probe == probe) ? PLANAR3_OK : PLANAR3_NONFINITE;
   }
 }
 
-/* step_fault_from_jacobian: 423 add, 194 mul, 107 div, 3 sqrt, 113 minmax, 48 compare */
+/* step_fault_from_jacobian: 663 add, 194 mul, 107 div, 3 sqrt, 161 minmax, 48 compare */
 planar3_status planar3_step_fault_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min) {
   planar3_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34;
   planar3_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
@@ -1288,22 +1298,31 @@ planar3_status planar3_step_fault_from_jacobian(const planar3_real J[18], const 
   w25 = PLANAR3_SQRT(w25);
   *sigma_min = w25;
   {
-  int ok = 1;
-  ok = ok & planar3_all_finite(J, 18);
-  ok = ok & planar3_all_finite(xdot, 3);
-  ok = ok & planar3_all_finite(mask, 3);
-  ok = ok & planar3_all_finite(W, 3);
-  ok = ok & planar3_all_finite(alpha, 3);
-  ok = ok & planar3_all_finite(&epsilon, 1);
-  ok = ok & planar3_all_finite(&lambda_max, 1);
-  ok = ok & planar3_all_finite(qdot, 3);
-  ok = ok & planar3_all_finite(damping, 1);
-  ok = ok & planar3_all_finite(sigma_min, 1);
-  return (ok != 0) ? PLANAR3_OK : PLANAR3_NONFINITE;
+  planar3_real probe = PLANAR3_LIT(0.0);
+  probe = probe + xdot[0] * PLANAR3_LIT(0.0);
+  probe = probe + xdot[1] * PLANAR3_LIT(0.0);
+  probe = probe + xdot[2] * PLANAR3_LIT(0.0);
+  probe = probe + mask[0] * PLANAR3_LIT(0.0);
+  probe = probe + mask[1] * PLANAR3_LIT(0.0);
+  probe = probe + mask[2] * PLANAR3_LIT(0.0);
+  probe = probe + W[0] * PLANAR3_LIT(0.0);
+  probe = probe + W[1] * PLANAR3_LIT(0.0);
+  probe = probe + W[2] * PLANAR3_LIT(0.0);
+  probe = probe + alpha[0] * PLANAR3_LIT(0.0);
+  probe = probe + alpha[1] * PLANAR3_LIT(0.0);
+  probe = probe + alpha[2] * PLANAR3_LIT(0.0);
+  probe = probe + epsilon * PLANAR3_LIT(0.0);
+  probe = probe + lambda_max * PLANAR3_LIT(0.0);
+  probe = probe + qdot[0] * PLANAR3_LIT(0.0);
+  probe = probe + qdot[1] * PLANAR3_LIT(0.0);
+  probe = probe + qdot[2] * PLANAR3_LIT(0.0);
+  probe = probe + *damping * PLANAR3_LIT(0.0);
+  probe = probe + *sigma_min * PLANAR3_LIT(0.0);
+  return (probe == probe) ? PLANAR3_OK : PLANAR3_NONFINITE;
   }
 }
 
-/* step_wgpm_from_jacobian: 599 add, 386 mul, 141 div, 7 sqrt, 2 exp, 158 minmax, 60 compare, 6 select */
+/* step_wgpm_from_jacobian: 839 add, 386 mul, 141 div, 7 sqrt, 2 exp, 206 minmax, 60 compare, 6 select */
 planar3_status planar3_step_wgpm_from_jacobian(const planar3_real J[18], const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]) {
   planar3_real w48, w49, w50, w51;
   planar3_real w36, w37, w38, w39, w40, w41, w42, w43, w44, w45, w46, w47;
@@ -2082,29 +2101,60 @@ planar3_status planar3_step_wgpm_from_jacobian(const planar3_real J[18], const p
   H[2] = w32;
   H[3] = w47;
   {
-  int ok = 1;
-  ok = ok & planar3_all_finite(J, 18);
-  ok = ok & planar3_all_finite(q, 3);
-  ok = ok & planar3_all_finite(xdot, 3);
-  ok = ok & planar3_all_finite(&band, 1);
-  ok = ok & planar3_all_finite(&t_rmax, 1);
-  ok = ok & planar3_all_finite(&epsilon, 1);
-  ok = ok & planar3_all_finite(&rho_max, 1);
-  ok = ok & planar3_all_finite(&delta, 1);
-  ok = ok & planar3_all_finite(&ramp, 1);
-  ok = ok & planar3_all_finite(H_lo, 4);
-  ok = ok & planar3_all_finite(H_hi, 4);
-  ok = ok & planar3_all_finite(k_hi, 4);
-  ok = ok & planar3_all_finite(k_lo, 4);
-  ok = ok & planar3_all_finite(u_th, 4);
-  ok = ok & planar3_all_finite(u_band, 4);
-  ok = ok & planar3_all_finite(qdot, 3);
-  ok = ok & planar3_all_finite(w_c, 3);
-  ok = ok & planar3_all_finite(rho, 1);
-  ok = ok & planar3_all_finite(sigma_min, 1);
-  ok = ok & planar3_all_finite(gains, 4);
-  ok = ok & planar3_all_finite(H, 4);
-  return (ok != 0) ? PLANAR3_OK : PLANAR3_NONFINITE;
+  planar3_real probe = PLANAR3_LIT(0.0);
+  probe = probe + q[0] * PLANAR3_LIT(0.0);
+  probe = probe + q[1] * PLANAR3_LIT(0.0);
+  probe = probe + q[2] * PLANAR3_LIT(0.0);
+  probe = probe + xdot[0] * PLANAR3_LIT(0.0);
+  probe = probe + xdot[1] * PLANAR3_LIT(0.0);
+  probe = probe + xdot[2] * PLANAR3_LIT(0.0);
+  probe = probe + band * PLANAR3_LIT(0.0);
+  probe = probe + t_rmax * PLANAR3_LIT(0.0);
+  probe = probe + epsilon * PLANAR3_LIT(0.0);
+  probe = probe + rho_max * PLANAR3_LIT(0.0);
+  probe = probe + delta * PLANAR3_LIT(0.0);
+  probe = probe + ramp * PLANAR3_LIT(0.0);
+  probe = probe + H_lo[0] * PLANAR3_LIT(0.0);
+  probe = probe + H_lo[1] * PLANAR3_LIT(0.0);
+  probe = probe + H_lo[2] * PLANAR3_LIT(0.0);
+  probe = probe + H_lo[3] * PLANAR3_LIT(0.0);
+  probe = probe + H_hi[0] * PLANAR3_LIT(0.0);
+  probe = probe + H_hi[1] * PLANAR3_LIT(0.0);
+  probe = probe + H_hi[2] * PLANAR3_LIT(0.0);
+  probe = probe + H_hi[3] * PLANAR3_LIT(0.0);
+  probe = probe + k_hi[0] * PLANAR3_LIT(0.0);
+  probe = probe + k_hi[1] * PLANAR3_LIT(0.0);
+  probe = probe + k_hi[2] * PLANAR3_LIT(0.0);
+  probe = probe + k_hi[3] * PLANAR3_LIT(0.0);
+  probe = probe + k_lo[0] * PLANAR3_LIT(0.0);
+  probe = probe + k_lo[1] * PLANAR3_LIT(0.0);
+  probe = probe + k_lo[2] * PLANAR3_LIT(0.0);
+  probe = probe + k_lo[3] * PLANAR3_LIT(0.0);
+  probe = probe + u_th[0] * PLANAR3_LIT(0.0);
+  probe = probe + u_th[1] * PLANAR3_LIT(0.0);
+  probe = probe + u_th[2] * PLANAR3_LIT(0.0);
+  probe = probe + u_th[3] * PLANAR3_LIT(0.0);
+  probe = probe + u_band[0] * PLANAR3_LIT(0.0);
+  probe = probe + u_band[1] * PLANAR3_LIT(0.0);
+  probe = probe + u_band[2] * PLANAR3_LIT(0.0);
+  probe = probe + u_band[3] * PLANAR3_LIT(0.0);
+  probe = probe + qdot[0] * PLANAR3_LIT(0.0);
+  probe = probe + qdot[1] * PLANAR3_LIT(0.0);
+  probe = probe + qdot[2] * PLANAR3_LIT(0.0);
+  probe = probe + w_c[0] * PLANAR3_LIT(0.0);
+  probe = probe + w_c[1] * PLANAR3_LIT(0.0);
+  probe = probe + w_c[2] * PLANAR3_LIT(0.0);
+  probe = probe + *rho * PLANAR3_LIT(0.0);
+  probe = probe + *sigma_min * PLANAR3_LIT(0.0);
+  probe = probe + gains[0] * PLANAR3_LIT(0.0);
+  probe = probe + gains[1] * PLANAR3_LIT(0.0);
+  probe = probe + gains[2] * PLANAR3_LIT(0.0);
+  probe = probe + gains[3] * PLANAR3_LIT(0.0);
+  probe = probe + H[0] * PLANAR3_LIT(0.0);
+  probe = probe + H[1] * PLANAR3_LIT(0.0);
+  probe = probe + H[2] * PLANAR3_LIT(0.0);
+  probe = probe + H[3] * PLANAR3_LIT(0.0);
+  return (probe == probe) ? PLANAR3_OK : PLANAR3_NONFINITE;
   }
 }
 
@@ -2412,7 +2462,13 @@ planar3_status planar3_step_gpm(const planar3_real q[PLANAR3_NDOF], const planar
   planar3_status status;
   planar3_jacobian(q, J);
   status = planar3_step_gpm_from_jacobian(J, xdot, alpha, damping, qdot);
-  return (planar3_all_finite(q, PLANAR3_NDOF) != 0) ? status : PLANAR3_NONFINITE;
+  {
+  planar3_real probe = PLANAR3_LIT(0.0);
+  probe = probe + q[0] * PLANAR3_LIT(0.0);
+  probe = probe + q[1] * PLANAR3_LIT(0.0);
+  probe = probe + q[2] * PLANAR3_LIT(0.0);
+  return (probe == probe) ? status : PLANAR3_NONFINITE;
+  }
 }
 
 /* step_wln: 49 add, 51 mul, 18 div, 6 trig, 6 minmax; calls planar3_jacobian and planar3_step_wln_from_jacobian */
@@ -2421,28 +2477,46 @@ planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar
   planar3_status status;
   planar3_jacobian(q, J);
   status = planar3_step_wln_from_jacobian(J, xdot, W, damping, qdot);
-  return (planar3_all_finite(q, PLANAR3_NDOF) != 0) ? status : PLANAR3_NONFINITE;
+  {
+  planar3_real probe = PLANAR3_LIT(0.0);
+  probe = probe + q[0] * PLANAR3_LIT(0.0);
+  probe = probe + q[1] * PLANAR3_LIT(0.0);
+  probe = probe + q[2] * PLANAR3_LIT(0.0);
+  return (probe == probe) ? status : PLANAR3_NONFINITE;
+  }
 }
 
-/* step_fault: 438 add, 212 mul, 107 div, 3 sqrt, 6 trig, 113 minmax, 48 compare; calls planar3_jacobian and planar3_step_fault_from_jacobian */
+/* step_fault: 678 add, 212 mul, 107 div, 3 sqrt, 6 trig, 161 minmax, 48 compare; calls planar3_jacobian and planar3_step_fault_from_jacobian */
 planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min) {
   planar3_real J[6 * PLANAR3_NDOF];
   planar3_status status;
   planar3_jacobian(q, J);
   status = planar3_step_fault_from_jacobian(J, xdot, mask, W, alpha, epsilon, lambda_max, qdot, damping, sigma_min);
-  return (planar3_all_finite(q, PLANAR3_NDOF) != 0) ? status : PLANAR3_NONFINITE;
+  {
+  planar3_real probe = PLANAR3_LIT(0.0);
+  probe = probe + q[0] * PLANAR3_LIT(0.0);
+  probe = probe + q[1] * PLANAR3_LIT(0.0);
+  probe = probe + q[2] * PLANAR3_LIT(0.0);
+  return (probe == probe) ? status : PLANAR3_NONFINITE;
+  }
 }
 
-/* step_wgpm: 614 add, 404 mul, 141 div, 7 sqrt, 6 trig, 2 exp, 158 minmax, 60 compare, 6 select; calls planar3_jacobian and planar3_step_wgpm_from_jacobian */
+/* step_wgpm: 854 add, 404 mul, 141 div, 7 sqrt, 6 trig, 2 exp, 206 minmax, 60 compare, 6 select; calls planar3_jacobian and planar3_step_wgpm_from_jacobian */
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]) {
   planar3_real J[6 * PLANAR3_NDOF];
   planar3_status status;
   planar3_jacobian(q, J);
   status = planar3_step_wgpm_from_jacobian(J, q, xdot, band, t_rmax, epsilon, rho_max, delta, ramp, H_lo, H_hi, k_hi, k_lo, u_th, u_band, qdot, w_c, rho, sigma_min, gains, H);
-  return (planar3_all_finite(q, PLANAR3_NDOF) != 0) ? status : PLANAR3_NONFINITE;
+  {
+  planar3_real probe = PLANAR3_LIT(0.0);
+  probe = probe + q[0] * PLANAR3_LIT(0.0);
+  probe = probe + q[1] * PLANAR3_LIT(0.0);
+  probe = probe + q[2] * PLANAR3_LIT(0.0);
+  return (probe == probe) ? status : PLANAR3_NONFINITE;
+  }
 }
 
-/* bisection_step3_loop: bisection_step3 PLANAR3_BISECTION_STEP3_LOOP_COUNT times (7 add, 2 mul, 2 div, 2 minmax, 1 compare each) */
+/* bisection_step3_loop: bisection_step3 PLANAR3_BISECTION_STEP3_LOOP_COUNT times (12 add, 2 mul, 2 div, 3 minmax, 1 compare each) */
 void planar3_bisection_step3_loop(const planar3_real state[2], const planar3_real d[3], const planar3_real e2[2], planar3_real final[2]) {
   planar3_real current[2];
   int k;
@@ -2450,26 +2524,32 @@ void planar3_bisection_step3_loop(const planar3_real state[2], const planar3_rea
   for (i = 0; i < 2; ++i) { current[i] = state[i]; }
   for (k = 0; k < PLANAR3_BISECTION_STEP3_LOOP_COUNT; ++k) {
     planar3_real next[2];
-    planar3_real w0, w1, w2, w3, w4, w5, w6;
+    planar3_real w0, w1, w2, w3, w4, w5, w6, w7;
     w0 = current[0];
     w1 = PLANAR3_LIT(0.0);
     w2 = d[0];
     w3 = current[1];
     w4 = w0 + w3;
     w2 = w2 - w4;
-    w5 = d[1];
-    w5 = w5 - w4;
-    w6 = e2[0];
-    w6 = w6 / w2;
-    w5 = w5 - w6;
-    w2 = PLANAR3_FMIN(w2, w5);
-    w6 = d[2];
+    w5 = PLANAR3_FABS(w2);
+    w5 = w2 - w5;
+    w6 = d[1];
     w6 = w6 - w4;
+    w7 = e2[0];
+    w7 = w7 / w2;
+    w6 = w6 - w7;
+    w7 = PLANAR3_FABS(w6);
+    w7 = w6 - w7;
+    w5 = w5 + w7;
+    w7 = d[2];
+    w7 = w7 - w4;
     w4 = e2[1];
-    w4 = w4 / w5;
-    w6 = w6 - w4;
-    w2 = PLANAR3_FMIN(w2, w6);
-    w1 = (planar3_real)(w1 <= w2);
+    w4 = w4 / w6;
+    w7 = w7 - w4;
+    w4 = PLANAR3_FABS(w7);
+    w7 = w7 - w4;
+    w5 = w5 + w7;
+    w1 = (planar3_real)(w1 <= w5);
     w1 = w1 * w3;
     w0 = w0 + w1;
     next[0] = w0;

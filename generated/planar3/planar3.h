@@ -82,25 +82,6 @@ typedef double planar3_real;
 /* Lean math (no library calls where the FPU or a comparison does the job). */
 static inline planar3_real planar3_fmin(planar3_real a, planar3_real b) { return ((a < b) || (b != b)) ? a : b; }
 static inline planar3_real planar3_fmax(planar3_real a, planar3_real b) { return ((a > b) || (b != b)) ? a : b; }
-/* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
- * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
-static inline int planar3_all_finite(const planar3_real *x, int count) {
-  int k;
-  int rest = count % 4;
-  planar3_real a0 = PLANAR3_LIT(0.0);
-  planar3_real a1 = PLANAR3_LIT(0.0);
-  planar3_real a2 = PLANAR3_LIT(0.0);
-  planar3_real a3 = PLANAR3_LIT(0.0);
-  for (k = 0; k < rest; ++k) { a0 += x[k] * PLANAR3_LIT(0.0); }
-  for (k = rest; k < count; k += 4) {
-    a0 += x[k] * PLANAR3_LIT(0.0);
-    a1 += x[k + 1] * PLANAR3_LIT(0.0);
-    a2 += x[k + 2] * PLANAR3_LIT(0.0);
-    a3 += x[k + 3] * PLANAR3_LIT(0.0);
-  }
-  a0 = (a0 + a1) + (a2 + a3);
-  return (a0 == a0) ? 1 : 0;
-}
 static inline planar3_real planar3_sqrt(planar3_real x) {
 #if PLANAR3_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
   planar3_real r;
@@ -125,7 +106,7 @@ static inline planar3_real planar3_sqrt(planar3_real x) {
 PLANAR3_TRIG_INLINE float planar3_reduce(float x, int *quadrant) {
   const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
   float k = (x * 0.636619772367581343f + shifter) - shifter;
-  float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
+  float kc = (fabsf(k) <= 65536.0f) ? k : 0.0f; /* false for NaN too: (int) stays defined */
   *quadrant = ((int)kc) & 3;
   return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
 }
@@ -223,7 +204,7 @@ void planar3_joint_manipulability_from_jacobian(const planar3_real J[18], const 
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_WORK_REALS 35
 void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real mask[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF], planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
  * ops: 44 add, 39 mul, 6 div, 3 minmax; work: 23 reals. */
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_J_COLS 3
@@ -235,7 +216,7 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_WORK_REALS 23
 planar3_status planar3_step_gpm_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real alpha[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
  * ops: 34 add, 33 mul, 18 div, 6 minmax; work: 25 reals. */
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_J_COLS 3
@@ -247,8 +228,8 @@ planar3_status planar3_step_gpm_from_jacobian(const planar3_real J[18], const pl
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_WORK_REALS 25
 planar3_status planar3_step_wln_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real W[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 423 add, 194 mul, 107 div, 3 sqrt, 113 minmax, 48 compare; work: 35 reals. */
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+ * ops: 663 add, 194 mul, 107 div, 3 sqrt, 161 minmax, 48 compare; work: 35 reals. */
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 3
@@ -263,8 +244,8 @@ planar3_status planar3_step_wln_from_jacobian(const planar3_real J[18], const pl
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 35
 planar3_status planar3_step_fault_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 599 add, 386 mul, 141 div, 7 sqrt, 2 exp, 158 minmax, 60 compare, 6 select; work: 52 reals. */
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+ * ops: 839 add, 386 mul, 141 div, 7 sqrt, 2 exp, 206 minmax, 60 compare, 6 select; work: 52 reals. */
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 3
@@ -396,7 +377,7 @@ planar3_status planar3_step_gpm(const planar3_real q[PLANAR3_NDOF], const planar
 #define PLANAR3_STEP_WLN_WORK_REALS 43
 planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real W[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 438 add, 212 mul, 107 div, 3 sqrt, 6 trig, 113 minmax, 48 compare (calls planar3_jacobian and planar3_step_fault_from_jacobian); work: 53 reals. */
+ * ops: 678 add, 212 mul, 107 div, 3 sqrt, 6 trig, 161 minmax, 48 compare (calls planar3_jacobian and planar3_step_fault_from_jacobian); work: 53 reals. */
 #define PLANAR3_STEP_FAULT_Q_ROWS 3
 #define PLANAR3_STEP_FAULT_Q_COLS 1
 #define PLANAR3_STEP_FAULT_XDOT_ROWS 3
@@ -412,7 +393,7 @@ planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar
 #define PLANAR3_STEP_FAULT_WORK_REALS 53
 planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 614 add, 404 mul, 141 div, 7 sqrt, 6 trig, 2 exp, 158 minmax, 60 compare, 6 select (calls planar3_jacobian and planar3_step_wgpm_from_jacobian); work: 70 reals. */
+ * ops: 854 add, 404 mul, 141 div, 7 sqrt, 6 trig, 2 exp, 206 minmax, 60 compare, 6 select (calls planar3_jacobian and planar3_step_wgpm_from_jacobian); work: 70 reals. */
 #define PLANAR3_STEP_WGPM_Q_ROWS 3
 #define PLANAR3_STEP_WGPM_Q_COLS 1
 #define PLANAR3_STEP_WGPM_XDOT_ROWS 3
@@ -441,7 +422,7 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 /* bisection_step3_loop: a fixed-count loop the functions above call (not for direct use). */
 #if PLANAR3_USE_FLOAT
-#define PLANAR3_BISECTION_STEP3_LOOP_COUNT 26
+#define PLANAR3_BISECTION_STEP3_LOOP_COUNT 24
 #else
 #define PLANAR3_BISECTION_STEP3_LOOP_COUNT 48
 #endif

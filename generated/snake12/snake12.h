@@ -82,25 +82,6 @@ typedef double snake12_real;
 /* Lean math (no library calls where the FPU or a comparison does the job). */
 static inline snake12_real snake12_fmin(snake12_real a, snake12_real b) { return ((a < b) || (b != b)) ? a : b; }
 static inline snake12_real snake12_fmax(snake12_real a, snake12_real b) { return ((a > b) || (b != b)) ? a : b; }
-/* x * 0 is +-0 for a finite x and NaN for NaN/inf, and NaN propagates through the sums: one
- * multiply-add per value into four sums (a quarter of the loop overhead), one comparison. */
-static inline int snake12_all_finite(const snake12_real *x, int count) {
-  int k;
-  int rest = count % 4;
-  snake12_real a0 = SNAKE12_LIT(0.0);
-  snake12_real a1 = SNAKE12_LIT(0.0);
-  snake12_real a2 = SNAKE12_LIT(0.0);
-  snake12_real a3 = SNAKE12_LIT(0.0);
-  for (k = 0; k < rest; ++k) { a0 += x[k] * SNAKE12_LIT(0.0); }
-  for (k = rest; k < count; k += 4) {
-    a0 += x[k] * SNAKE12_LIT(0.0);
-    a1 += x[k + 1] * SNAKE12_LIT(0.0);
-    a2 += x[k + 2] * SNAKE12_LIT(0.0);
-    a3 += x[k + 3] * SNAKE12_LIT(0.0);
-  }
-  a0 = (a0 + a1) + (a2 + a3);
-  return (a0 == a0) ? 1 : 0;
-}
 static inline snake12_real snake12_sqrt(snake12_real x) {
 #if SNAKE12_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
   snake12_real r;
@@ -125,7 +106,7 @@ static inline snake12_real snake12_sqrt(snake12_real x) {
 SNAKE12_TRIG_INLINE float snake12_reduce(float x, int *quadrant) {
   const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
   float k = (x * 0.636619772367581343f + shifter) - shifter;
-  float kc = ((k > 65536.0f) || (k < -65536.0f) || (k != k)) ? 0.0f : k;
+  float kc = (fabsf(k) <= 65536.0f) ? k : 0.0f; /* false for NaN too: (int) stays defined */
   *quadrant = ((int)kc) & 3;
   return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
 }
@@ -196,7 +177,7 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
 #define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 399
 void snake12_manipulability_from_jacobian(const snake12_real J[150], snake12_real delta, snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 12696 add, 14691 mul, 31 div, 31 sqrt, 7 minmax, 10 compare, 10 select; work: 1379 reals. */
+ * ops: 4740 add, 5502 mul, 31 div, 31 sqrt, 32 minmax, 10 compare, 10 select; work: 543 reals. */
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_A_ROWS 25
@@ -205,10 +186,10 @@ void snake12_manipulability_from_jacobian(const snake12_real J[150], snake12_rea
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_OMEGA_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_COLS 1
-#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 1379
+#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 543
 void snake12_joint_manipulability_from_jacobian(const snake12_real J[150], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
 /* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 13214 add, 15683 mul, 171 div, 32 sqrt, 7 minmax, 12 compare, 12 select; work: 1496 reals. */
+ * ops: 5258 add, 6494 mul, 171 div, 32 sqrt, 32 minmax, 12 compare, 12 select; work: 627 reals. */
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 25
@@ -221,9 +202,9 @@ void snake12_joint_manipulability_from_jacobian(const snake12_real J[150], const
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_COLS 1
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_W_ROWS 25
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
-#define SNAKE12_FT_INDEX_FROM_JACOBIAN_WORK_REALS 1496
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_WORK_REALS 627
 void snake12_ft_index_from_jacobian(const snake12_real J[150], const snake12_real mask[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF], snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
  * ops: 822 add, 865 mul, 21 div, 6 minmax; work: 201 reals. */
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_J_COLS 25
@@ -235,7 +216,7 @@ void snake12_ft_index_from_jacobian(const snake12_real J[150], const snake12_rea
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_WORK_REALS 201
 snake12_status snake12_step_gpm_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real alpha[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
  * ops: 656 add, 726 mul, 187 div, 31 minmax; work: 284 reals. */
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_J_COLS 25
@@ -247,8 +228,8 @@ snake12_status snake12_step_gpm_from_jacobian(const snake12_real J[150], const s
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_WORK_REALS 284
 snake12_status snake12_step_wln_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real W[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 1692 add, 1432 mul, 291 div, 6 sqrt, 297 minmax, 48 compare; work: 246 reals. */
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+ * ops: 2220 add, 1432 mul, 291 div, 6 sqrt, 345 minmax, 48 compare; work: 246 reals. */
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -263,8 +244,8 @@ snake12_status snake12_step_wln_from_jacobian(const snake12_real J[150], const s
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 246
 snake12_status snake12_step_fault_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 15198 add, 16411 mul, 939 div, 38 sqrt, 2 exp, 454 minmax, 108 compare, 10 select; work: 1435 reals. */
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+ * ops: 7770 add, 7573 mul, 614 div, 38 sqrt, 2 exp, 527 minmax, 108 compare, 10 select; work: 599 reals. */
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 25
@@ -291,7 +272,7 @@ snake12_status snake12_step_fault_from_jacobian(const snake12_real J[150], const
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
-#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 1435
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 599
 snake12_status snake12_step_wgpm_from_jacobian(const snake12_real J[150], const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
  * ops: 123 add, 100 mul, 75 div, 25 minmax, 50 compare; work: 128 reals. */
@@ -312,7 +293,7 @@ void snake12_zghal(const snake12_real q[SNAKE12_NDOF], snake12_real *H_L, snake1
 #define SNAKE12_REPETITIVE_WORK_REALS 28
 void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q_init[SNAKE12_NDOF], snake12_real *H_R, snake12_real grad_H_R[SNAKE12_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 13031 add, 15123 mul, 31 div, 31 sqrt, 48 trig, 7 minmax, 10 compare, 10 select (calls snake12_jacobian and snake12_joint_manipulability_from_jacobian); work: 1529 reals. */
+ * ops: 5075 add, 5934 mul, 31 div, 31 sqrt, 48 trig, 32 minmax, 10 compare, 10 select (calls snake12_jacobian and snake12_joint_manipulability_from_jacobian); work: 693 reals. */
 #define SNAKE12_JOINT_MANIPULABILITY_Q_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_Q_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_A_ROWS 25
@@ -321,7 +302,7 @@ void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q
 #define SNAKE12_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 1529
+#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 693
 void snake12_joint_manipulability(const snake12_real q[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
  * ops: 2987 add, 3618 mul, 146 div, 7 sqrt, 48 trig, 7 minmax, 10 compare, 10 select (calls snake12_jacobian and snake12_manipulability_from_jacobian); work: 549 reals. */
@@ -340,7 +321,7 @@ void snake12_manipulability(const snake12_real q[SNAKE12_NDOF], snake12_real del
 #define SNAKE12_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real band, snake12_real w_c[SNAKE12_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 13549 add, 16115 mul, 171 div, 32 sqrt, 48 trig, 7 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_ft_index_from_jacobian); work: 1646 reals. */
+ * ops: 5593 add, 6926 mul, 171 div, 32 sqrt, 48 trig, 32 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_ft_index_from_jacobian); work: 777 reals. */
 #define SNAKE12_FT_INDEX_Q_ROWS 25
 #define SNAKE12_FT_INDEX_Q_COLS 1
 #define SNAKE12_FT_INDEX_MASK_ROWS 25
@@ -353,7 +334,7 @@ void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real
 #define SNAKE12_FT_INDEX_GRAD_H_M_COLS 1
 #define SNAKE12_FT_INDEX_GRAD_W_ROWS 25
 #define SNAKE12_FT_INDEX_GRAD_W_COLS 1
-#define SNAKE12_FT_INDEX_WORK_REALS 1646
+#define SNAKE12_FT_INDEX_WORK_REALS 777
 void snake12_ft_index(const snake12_real q[SNAKE12_NDOF], const snake12_real mask[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF], snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
  * ops: 125 add, 200 mul, 50 div, 102 minmax, 52 compare, 50 select; work: 60 reals. */
@@ -396,7 +377,7 @@ snake12_status snake12_step_gpm(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_WLN_WORK_REALS 434
 snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real W[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 2027 add, 1864 mul, 291 div, 6 sqrt, 48 trig, 297 minmax, 48 compare (calls snake12_jacobian and snake12_step_fault_from_jacobian); work: 396 reals. */
+ * ops: 2555 add, 1864 mul, 291 div, 6 sqrt, 48 trig, 345 minmax, 48 compare (calls snake12_jacobian and snake12_step_fault_from_jacobian); work: 396 reals. */
 #define SNAKE12_STEP_FAULT_Q_ROWS 25
 #define SNAKE12_STEP_FAULT_Q_COLS 1
 #define SNAKE12_STEP_FAULT_XDOT_ROWS 6
@@ -412,7 +393,7 @@ snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_FAULT_WORK_REALS 396
 snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 15533 add, 16843 mul, 939 div, 38 sqrt, 48 trig, 2 exp, 454 minmax, 108 compare, 10 select (calls snake12_jacobian and snake12_step_wgpm_from_jacobian); work: 1585 reals. */
+ * ops: 8105 add, 8005 mul, 614 div, 38 sqrt, 48 trig, 2 exp, 527 minmax, 108 compare, 10 select (calls snake12_jacobian and snake12_step_wgpm_from_jacobian); work: 749 reals. */
 #define SNAKE12_STEP_WGPM_Q_ROWS 25
 #define SNAKE12_STEP_WGPM_Q_COLS 1
 #define SNAKE12_STEP_WGPM_XDOT_ROWS 6
@@ -437,11 +418,11 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_GAINS_COLS 1
 #define SNAKE12_STEP_WGPM_H_ROWS 4
 #define SNAKE12_STEP_WGPM_H_COLS 1
-#define SNAKE12_STEP_WGPM_WORK_REALS 1585
+#define SNAKE12_STEP_WGPM_WORK_REALS 749
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if SNAKE12_USE_FLOAT
-#define SNAKE12_BISECTION_STEP6_LOOP_COUNT 26
+#define SNAKE12_BISECTION_STEP6_LOOP_COUNT 24
 #else
 #define SNAKE12_BISECTION_STEP6_LOOP_COUNT 48
 #endif

@@ -666,7 +666,7 @@ static ctrl_fault check_step(const ctrl *c, const ctrl_real *J, const ctrl_real 
   const ctrl_config *cfg = &c->cfg;
   ctrl_real v[6], res_max = CTRL_LIT(0.0);
   int i, r;
-  if (!all_finite(qd, N)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  /* q_dot is finite here: every step's status covers its output */
   /* A singular pose: with lambda = 0 the step's floored pivots give a huge velocity, or one
    * that does not meet the task (damping > 0: the same once the damping is exceeded). */
   for (i = 0; i < N; ++i) {
@@ -713,7 +713,7 @@ static ctrl_fault tick_resolved_rate(ctrl *c, const ctrl_input *in, ctrl_real t,
   }
   task_command(c, in, t, q, J, cmd, &cmd_max);
   null_space_alpha(c, t, q, alpha);
-  if (!all_finite(alpha, N) || !all_finite(cmd, CTRL_NTASK)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  /* the step's status covers its inputs (cmd, alpha) and q_dot: NaN/inf in any is a fault */
   if (ctrl_gen_step_gpm(J, cmd, alpha, rr->damping, qd) != CTRL_GEN_OK) return CTRL_FAULT_NONFINITE_OUTPUT;
   f = check_step(c, J, cmd, cmd_max, qd, 0);
   if (f != CTRL_FAULT_NONE) return f;
@@ -733,13 +733,13 @@ static ctrl_fault tick_fault_tolerant(ctrl *c, const ctrl_input *in, ctrl_real t
   ctrl_real *q = c->q;
   ctrl_real J[6 * N], cmd[CTRL_NTASK], cmd_max, omega[N], grad[N], grad_w[N], h_m, w;
   ctrl_real W[N], alpha[N], active[N], qd[N], lam = CTRL_LIT(0.0), sigma = CTRL_LIT(0.0);
+  ctrl_real k_alpha = ft->method == CTRL_FT_GPM ? ft->K : CTRL_LIT(0.0);
   ctrl_fault f;
   int i;
 
   f = check_command(c, q);
   if (f != CTRL_FAULT_NONE) return f;
-  task_command(c, in, t, q, J, cmd, &cmd_max);
-  if (!all_finite(cmd, CTRL_NTASK)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  task_command(c, in, t, q, J, cmd, &cmd_max); /* cmd: step_fault's status covers it */
   ctrl_gen_ft_index(J, c->mask, ft->a, ft->delta, omega, &h_m, grad, &w, grad_w);
   if (ft->index == CTRL_FT_INDEX_RELATIVE) { /* H_M / w by the quotient rule */
     for (i = 0; i < N; ++i) {
@@ -747,21 +747,16 @@ static ctrl_fault tick_fault_tolerant(ctrl *c, const ctrl_input *in, ctrl_real t
       omega[i] = omega[i] / w;
     }
   }
-  for (i = 0; i < N; ++i) {
-    W[i] = CTRL_LIT(1.0);
-    alpha[i] = ft->method == CTRL_FT_GPM ? ft->K * grad[i] : CTRL_LIT(0.0);
-  }
   if (!all_finite(omega, N) || !all_finite(grad, N)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  for (i = 0; i < N; ++i) { /* WLN: alpha = 0 * grad, a (signed) zero; no memset call */
+    W[i] = CTRL_LIT(1.0);
+    alpha[i] = k_alpha * grad[i];
+  }
   if (ft->method == CTRL_FT_WLN) {
     const ctrl_real *reference = c->qd_prev; /* plain rule: the previous tick's velocity */
     ctrl_real v_band = CTRL_LIT(0.0);
-    if (ft->rule == CTRL_WLN_SMOOTH) { /* the unweighted minimum-norm motion of this tick */
-      ctrl_real ones[N], zeros[N];
-      for (i = 0; i < N; ++i) {
-        ones[i] = CTRL_LIT(1.0);
-        zeros[i] = CTRL_LIT(0.0);
-      }
-      if (ctrl_gen_step_fault(J, cmd, c->mask, ones, zeros, ft->epsilon, ft->lambda_max, qd, &lam, &sigma) !=
+    if (ft->rule == CTRL_WLN_SMOOTH) { /* the unweighted minimum-norm motion of this tick: W = 1, alpha = 0 */
+      if (ctrl_gen_step_fault(J, cmd, c->mask, W, alpha, ft->epsilon, ft->lambda_max, qd, &lam, &sigma) !=
           CTRL_GEN_OK) {
         return CTRL_FAULT_NONFINITE_OUTPUT;
       }
@@ -769,14 +764,12 @@ static ctrl_fault tick_fault_tolerant(ctrl *c, const ctrl_input *in, ctrl_real t
       v_band = ft->v_band;
     }
     ctrl_gen_wln_weights(grad, omega, reference, c->mask, ft->b, ft->omega_floor, v_band, W, active);
-    if (!all_finite(W, N)) return CTRL_FAULT_NONFINITE_OUTPUT;
   }
   if (ctrl_gen_step_fault(J, cmd, c->mask, W, alpha, ft->epsilon, ft->lambda_max, qd, &lam, &sigma) != CTRL_GEN_OK) {
     return CTRL_FAULT_NONFINITE_OUTPUT;
   }
-  for (i = 0; i < N; ++i) {
-    qd[i] = qd[i] * c->mask[i]; /* a locked joint's velocity is exactly 0 (step_fault gives 0 already) */
-  }
+  /* a locked joint's q_dot is exactly 0: step_fault scales its column by mask/W = 0 and adds
+   * mask * alpha = 0 (finite, as the status says) */
   f = check_step(c, J, cmd, cmd_max, qd, lam > CTRL_LIT(0.0));
   if (f != CTRL_FAULT_NONE) return f;
   accept(c, t, q, qd, out);
@@ -806,8 +799,7 @@ static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, 
 
   f = check_command(c, q);
   if (f != CTRL_FAULT_NONE) return f;
-  task_command(c, in, t, q, J, cmd, &cmd_max);
-  if (!all_finite(cmd, CTRL_NTASK)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  task_command(c, in, t, q, J, cmd, &cmd_max); /* cmd: step_wgpm's status covers it */
   if (wg->ramp_time > CTRL_LIT(0.0)) {
     ctrl_real up = smoothstep(t / wg->ramp_time);
     ctrl_real down = wg->ramp_out ? smoothstep((c->cfg.rr.duration - t) / wg->ramp_time) : CTRL_LIT(1.0);
@@ -881,9 +873,11 @@ static ctrl_fault update_locks(ctrl *c, uint32_t reported) {
     ++count;
   }
   if (count > allowed) return CTRL_FAULT_REDUNDANCY;
-  c->locked = reported;
-  for (i = 0; i < N; ++i) {
-    c->mask[i] = (((reported >> i) & 1u) != 0u) ? CTRL_LIT(0.0) : CTRL_LIT(1.0);
+  if (reported != c->locked) { /* a new lock (a lock is never withdrawn): the mask follows */
+    c->locked = reported;
+    for (i = 0; i < N; ++i) {
+      c->mask[i] = (((reported >> i) & 1u) != 0u) ? CTRL_LIT(0.0) : CTRL_LIT(1.0);
+    }
   }
   if (reported != 0u && c->state == CTRL_STATE_RUNNING) {
     c->state = CTRL_STATE_DEGRADED;
