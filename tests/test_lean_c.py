@@ -13,8 +13,8 @@ from armgen.codegen.toolchain import STRICT_FLAGS
 from armgen.errors import ArmgenError
 
 from armgen.robot import load_robot, parse_robot, resolve_robot_path
-from armgen.codegen.c_emitter import read_entries
-from armgen.symbolic.model import FROM_JACOBIAN, STEP_FUNCTIONS, SymbolicModel
+from armgen.codegen.c_emitter import carried_entries, read_entries
+from armgen.symbolic.model import STEP_FUNCTIONS, SymbolicModel
 
 from conftest import require_tool
 
@@ -109,12 +109,11 @@ def _fuzz_harness(model: SymbolicModel, p: str) -> str:
         for index, (nm, size) in enumerate(ins):
             is_q = {"q": 1, "mask": 2}.get(nm, 0)  # a mask is 0/1 by its documented domain
             lines.append(f"      for (k = 0; k < {size}; ++k) {{ {nm}_[k] = draw({is_q}, k, &extreme); }}")
-            if nm == "J" and name.endswith(FROM_JACOBIAN):
-                # a twin reads only J's entries that are not constant for the robot
+            if nm == "q":  # a step's status covers all of q, also angles J does not depend on
+                lines.append(f"      in_ok = in_ok && all_finite({nm}_, {size});")
+            else:  # an entry the function does not read (J's robot-constant ones) cannot matter
                 for e in sorted(read_entries(func, index)):
                     lines.append(f"      in_ok = in_ok && isfinite({nm}_[{e}]);")
-            else:
-                lines.append(f"      in_ok = in_ok && all_finite({nm}_, {size});")
         lines.append("      moderate = in_ok && !extreme;")
         for nm, size in outs:
             lines.append(f"      for (k = 0; k < {size}; ++k) {{ {nm}_[k] = ({p}_real)-7.0; }}")
@@ -127,24 +126,26 @@ def _fuzz_harness(model: SymbolicModel, p: str) -> str:
             lines.append(f'      if ((status == 0) != (in_ok && out_ok)) {{ ++bad; printf("{name} status %d in_ok %d out_ok %d\\n", status, in_ok, out_ok); }}')
         lines.append(f'      if (moderate && (!out_ok || status != 0)) {{ ++bad; printf("{name} non-finite at moderate inputs\\n"); }}')
         lines.append("    }")
-        if name in STEP_FUNCTIONS and name.endswith(FROM_JACOBIAN):
-            # one non-finite entry of J at a time, every other input moderate: the step must
-            # say NONFINITE although its status does not scan J
-            j_index = [nm for nm, _ in ins].index("J")
+        carried = sorted(carried_entries(func)) if name in STEP_FUNCTIONS else []
+        if carried:
+            # one non-finite entry at a time, every other input moderate: the status does not
+            # scan the entries whose NaN/inf the arithmetic carries to an output, so it must
+            # say NONFINITE through the outputs
             lines.append("    for (t = 0; t < 8; ++t) {")
             for nm, size in ins:
                 lines.append(f"      for (k = 0; k < {size}; ++k) {{ do {{ extreme = 0; {nm}_[k] = "
                              f"draw({ {'q': 1, 'mask': 2}.get(nm, 0)}, k, &extreme); }} while (extreme || !isfinite({nm}_[k])); }}")
-            read = sorted(read_entries(func, j_index)) or [-1]
-            lines.append(f"      static const int read[{len(read)}] = {{{', '.join(map(str, read))}}};")
+            lines.append(f"      static const int which[{len(carried)}] = {{{', '.join(str(i) for i, _ in carried)}}};")
+            lines.append(f"      static const int entry[{len(carried)}] = {{{', '.join(str(e) for _, e in carried)}}};")
+            lines.append(f"      {p}_real *const inputs[{len(ins)}] = {{{', '.join(f'{nm}_' for nm, _ in ins)}}};")
             lines.append(f"      const {p}_real bad_values[3] = {{({p}_real)NAN, ({p}_real)INFINITY, -({p}_real)INFINITY}};")
-            lines.append(f"      int e, v;")
-            lines.append(f"      for (e = 0; e < {len(read)} && read[e] >= 0; ++e) {{")
+            lines.append("      int e, v;")
+            lines.append(f"      for (e = 0; e < {len(carried)}; ++e) {{")
             lines.append("        for (v = 0; v < 3; ++v) {")
-            lines.append(f"          {p}_real keep = J_[read[e]];")
-            lines.append("          J_[read[e]] = bad_values[v];")
-            lines.append(f'          if ((int){call} == 0) {{ ++bad; printf("{name} OK with J[%d] = %g\\n", read[e], (double)bad_values[v]); }}')
-            lines.append("          J_[read[e]] = keep;")
+            lines.append(f"          {p}_real keep = inputs[which[e]][entry[e]];")
+            lines.append("          inputs[which[e]][entry[e]] = bad_values[v];")
+            lines.append(f'          if ((int){call} == 0) {{ ++bad; printf("{name} OK with input %d[%d] = %g\\n", which[e], entry[e], (double)bad_values[v]); }}')
+            lines.append("          inputs[which[e]][entry[e]] = keep;")
             lines.append("        }")
             lines.append("      }")
             lines.append("    }")
@@ -159,9 +160,10 @@ def test_fuzz_extreme_inputs_status_contract(name, precision, tmp_path):
     """Every function: with moderate finite inputs (q anywhere within 1 rad of the limits,
     exactly at them, the singular q = 0, denormals) all outputs are finite and steps return OK;
     with any NaN/inf/1e30 input a step returns OK only if every input and output is finite —
-    and NONFINITE whenever one is not. The J of a *_from_jacobian step is not scanned by the
-    status, so this checks that each entry it reads carries a NaN/inf into q̇ (the entries
-    constant for the robot are not read, so not counted). Under ASan/UBSan."""
+    and NONFINITE whenever one it reads is not (J's robot-constant entries are not read). The
+    status does not scan the input entries whose NaN/inf the arithmetic carries to an output
+    (generate._status_check), so each of those gets NaN, +inf and −inf in turn with every
+    other input moderate, and the step must still say NONFINITE. Under ASan/UBSan."""
     require_tool("gcc")
     model = SymbolicModel(load_robot(name))
     code = generate(CodegenConfig(model.robot, precision=precision))

@@ -165,6 +165,38 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
     return EmittedFunction(func.name(), body, counts, len(used), tuple(sorted(loops)))
 
 
+# The operand positions whose NaN/inf makes the result NaN/inf whatever the other operand
+# holds (IEEE 754: inf·0 = NaN, inf − inf = NaN, inf/inf = NaN; a denominator is not one,
+# x/inf = 0; nor are fmin/fmax, comparisons and selects, which may drop a NaN).
+_CARRIES = {ca.OP_ADD: (0, 1), ca.OP_SUB: (0, 1), ca.OP_MUL: (0, 1), ca.OP_DIV: (0,), ca.OP_NEG: (0,),
+            ca.OP_SQ: (0,), ca.OP_TWICE: (0,), ca.OP_ASSIGN: (0,), ca.OP_SQRT: (0,), ca.OP_FABS: (0,),
+            ca.OP_SIN: (0,), ca.OP_COS: (0,)}
+
+
+def carried_entries(func: ca.Function) -> set[tuple[int, int]]:
+    """The (input, nonzero) pairs with a path to an output through carrying operands only
+    (:data:`_CARRIES`): a NaN or inf there makes that output non-finite, so a status that
+    checks the outputs needs not scan them. Calls (fixed loops) carry nothing."""
+    taint: dict[int, int] = {}  # work register -> bit set over the read entries
+    bits: dict[tuple[int, int], int] = {}
+    reached = 0
+    for k in range(func.n_instructions()):
+        op, ins, outs = func.instruction_id(k), func.instruction_input(k), func.instruction_output(k)
+        if op == ca.OP_INPUT:
+            taint[outs[0]] = 1 << bits.setdefault((ins[0], ins[1]), len(bits))
+        elif op == ca.OP_OUTPUT:
+            reached |= taint.get(ins[0], 0)
+        elif op == ca.OP_CALL:
+            for o in outs:
+                taint[o] = 0
+        else:
+            carried = 0
+            for position in _CARRIES.get(op, ()):
+                carried |= taint.get(ins[position], 0)
+            taint[outs[0]] = carried
+    return {entry for entry, bit in bits.items() if (reached >> bit) & 1}
+
+
 def read_entries(func: ca.Function, k: int) -> set[int]:
     """The nonzeros of input ``k`` that ``func``'s SX algorithm reads (a Jacobian entry that is
     constant for the robot is folded into the expression and never read)."""

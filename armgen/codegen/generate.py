@@ -32,7 +32,8 @@ from ..robot import Robot, load_robot_any
 from ..symbolic.model import (DESCRIPTIONS, FROM_JACOBIAN, JACOBIAN_FUNCTIONS, STEP_FUNCTIONS, ModelOptions,
                               SymbolicModel)
 from ..symbolic.loops import find_loop
-from .c_emitter import MATH_MACROS, EmittedFunction, describe_counts, emit_body, emit_loop
+from .c_emitter import (MATH_MACROS, EmittedFunction, carried_entries, describe_counts, emit_body, emit_loop,
+                        read_entries)
 from .stamp import c_preamble, comment_safe
 
 PRECISIONS = ("double", "float")
@@ -134,17 +135,19 @@ def _values(names: list[str], scalars: list[bool], sizes: list[int], pointer: st
 
 def _status_check(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], res_names: list[str],
                   res_scalar: list[bool], p: str, P: str) -> str:
-    """The status of a step function covers every input and every output: any non-finite
-    value in or out is <P>_NONFINITE (a NaN input that fmax/fmin would swallow included).
-
-    The J of a ``*_from_jacobian`` step is the exception: each entry it reads enters q̇ through
-    products and sums only (J ẋ-terms, the Gram, Jᵀ y), so a NaN/inf there is NaN/inf in the
-    output already (tests/test_lean_c.py fuzzes it entry by entry); scanning J's 6n values
-    again would be a fifth of the step's cost on the Cortex-M4."""
-    scanned = [k for k in range(func.n_in()) if not (func.name().endswith(FROM_JACOBIAN) and arg_names[k] == "J")]
-    values = (_values([arg_names[k] for k in scanned], [arg_scalar[k] for k in scanned],
-                      [func.sparsity_in(k).numel() for k in scanned], "")
-              + _values(res_names, res_scalar, [func.sparsity_out(k).numel() for k in range(func.n_out())], "*"))
+    """The status of a step function: <P>_NONFINITE when an output is non-finite or an input
+    value the function reads is. The probe scans every output, and those read inputs that
+    may not reach one: an entry with a path to an output through arithmetic that carries a
+    NaN/inf (c_emitter.carried_entries: J, ẋ, mask, α of the steps) shows there already, while
+    one behind fmax, a comparison or a denominator (a weight, ε, the damping) is scanned. On
+    the Cortex-M4 that halves a step's probe; tests/test_lean_c.py puts NaN/±inf in each
+    carried entry in turn."""
+    carried = carried_entries(func)
+    values = []
+    for k, (name, scalar) in enumerate(zip(arg_names, arg_scalar)):
+        scanned = sorted(read_entries(func, k) - {e for i, e in carried if i == k})
+        values += [name] if scalar and scanned else [f"{name}[{e}]" for e in scanned if not scalar]
+    values += _values(res_names, res_scalar, [func.sparsity_out(k).numel() for k in range(func.n_out())], "*")
     return "\n".join(["  {", *_finite_probe(values, p, P), f"  return (probe == probe) ? {P}_OK : {P}_NONFINITE;", "  }"])
 
 

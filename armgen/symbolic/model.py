@@ -56,9 +56,7 @@ DESCRIPTIONS = {
                  "sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains",
 }
 DESCRIPTIONS.update({twin: f"{DESCRIPTIONS[name]}; from a given Jacobian J (jacobian's output, 6xn; "
-                           "its entries that are constant for this robot are not read"
-                           + ("; a non-finite entry read shows in qdot, so the status does not scan J)"
-                              if name in STEPS else ")")
+                           "its entries that are constant for this robot are not read)"
                      for name, twin in zip(JACOBIAN_FUNCTIONS, TWINS)})
 
 
@@ -222,7 +220,7 @@ class SymbolicModel:
             return ca.Function(twin, [symbol, mask, a, delta],
                                [dense(omega), ca.dot(weights, omega),
                                 dense(self.task_vjp(jac, sens.grad_h @ ca.diag(mask))),
-                                sens.w, dense(self.task_vjp(jac, sens.grad_w @ ca.diag(mask)))],
+                                sens.w, dense(self.task_vjp(jac, sens.z @ ca.diag(mask)) / sens.w)],  # ∂w/∂J = Z/w
                                ["J", "mask", "a", "delta"], ["omega", "H_M", "grad_H_M", "w", "grad_w"])
         if name == "joint_manipulability":
             # ft_index with every joint healthy: one construction for the whole family

@@ -169,7 +169,7 @@ void modular8_jacobian(const modular8_real q[MODULAR8_NDOF], modular8_real J[48]
 #define MODULAR8_FK_JACOBIAN_WORK_REALS 37
 void modular8_fk_jacobian(const modular8_real q[MODULAR8_NDOF], modular8_real T[16], modular8_real J[48]);
 /* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 736 add, 1057 mul, 50 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 150 reals. */
+ * ops: 736 add, 1057 mul, 14 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 150 reals. */
 #define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 8
@@ -189,7 +189,7 @@ void modular8_manipulability_from_jacobian(const modular8_real J[48], modular8_r
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 174
 void modular8_joint_manipulability_from_jacobian(const modular8_real J[48], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF]);
 /* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 1183 add, 1786 mul, 58 div, 15 sqrt, 7 minmax, 12 compare, 12 select; work: 204 reals. */
+ * ops: 1183 add, 1786 mul, 22 div, 15 sqrt, 7 minmax, 12 compare, 12 select; work: 204 reals. */
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 8
@@ -204,7 +204,7 @@ void modular8_joint_manipulability_from_jacobian(const modular8_real J[48], cons
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_WORK_REALS 204
 void modular8_ft_index_from_jacobian(const modular8_real J[48], const modular8_real mask[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF], modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 291 add, 337 mul, 21 div, 6 minmax; work: 87 reals. */
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_J_COLS 8
@@ -216,7 +216,7 @@ void modular8_ft_index_from_jacobian(const modular8_real J[48], const modular8_r
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_WORK_REALS 87
 modular8_status modular8_step_gpm_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real alpha[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 239 add, 294 mul, 73 div, 14 minmax; work: 107 reals. */
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_J_COLS 8
@@ -228,7 +228,7 @@ modular8_status modular8_step_gpm_from_jacobian(const modular8_real J[48], const
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_WORK_REALS 107
 modular8_status modular8_step_wln_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real W[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 1689 add, 774 mul, 274 div, 6 sqrt, 328 minmax, 48 compare; work: 116 reals. */
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_J_COLS 8
@@ -244,7 +244,7 @@ modular8_status modular8_step_wln_from_jacobian(const modular8_real J[48], const
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 116
 modular8_status modular8_step_fault_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 3005 add, 2475 mul, 361 div, 21 sqrt, 2 exp, 400 minmax, 76 compare, 12 select; work: 200 reals. */
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_J_COLS 8
@@ -305,7 +305,7 @@ void modular8_repetitive(const modular8_real q[MODULAR8_NDOF], const modular8_re
 #define MODULAR8_JOINT_MANIPULABILITY_WORK_REALS 222
 void modular8_joint_manipulability(const modular8_real q[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 826 add, 1167 mul, 50 div, 7 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_manipulability_from_jacobian); work: 198 reals. */
+ * ops: 826 add, 1167 mul, 14 div, 7 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_manipulability_from_jacobian); work: 198 reals. */
 #define MODULAR8_MANIPULABILITY_Q_ROWS 8
 #define MODULAR8_MANIPULABILITY_Q_COLS 1
 #define MODULAR8_MANIPULABILITY_GRAD_W_ROWS 8
@@ -321,7 +321,7 @@ void modular8_manipulability(const modular8_real q[MODULAR8_NDOF], modular8_real
 #define MODULAR8_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void modular8_continuous_weights(const modular8_real q[MODULAR8_NDOF], modular8_real band, modular8_real w_c[MODULAR8_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 1273 add, 1896 mul, 58 div, 15 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_ft_index_from_jacobian); work: 252 reals. */
+ * ops: 1273 add, 1896 mul, 22 div, 15 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_ft_index_from_jacobian); work: 252 reals. */
 #define MODULAR8_FT_INDEX_Q_ROWS 8
 #define MODULAR8_FT_INDEX_Q_COLS 1
 #define MODULAR8_FT_INDEX_MASK_ROWS 8

@@ -751,7 +751,7 @@ void panda_fk_jacobian(const panda_real q[PANDA_NDOF], panda_real T[16], panda_r
   J[41] = w31;
 }
 
-/* manipulability_from_jacobian: 620 add, 928 mul, 44 div, 7 sqrt, 7 minmax, 12 compare, 12 select */
+/* manipulability_from_jacobian: 620 add, 928 mul, 13 div, 7 sqrt, 7 minmax, 12 compare, 12 select */
 void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta, panda_real *w, panda_real grad_w[PANDA_NDOF]) {
   panda_real w132, w133, w134;
   panda_real w120, w121, w122, w123, w124, w125, w126, w127, w128, w129, w130, w131;
@@ -1718,7 +1718,6 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w93 = w93 + w52;
   w52 = w90 * w93;
   w110 = w110 + w52;
-  w110 = w110 / w1;
   w52 = w7 * w110;
   w55 = w56 * w56;
   w50 = w44 * w55;
@@ -1812,7 +1811,6 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w53 = w53 * w12;
   w56 = w53 * w93;
   w49 = w49 - w56;
-  w49 = w49 / w1;
   w56 = w39 * w49;
   w52 = w52 - w56;
   w56 = w99 * w55;
@@ -1829,7 +1827,6 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w92 = w92 * w12;
   w86 = w92 * w93;
   w44 = w44 + w86;
-  w44 = w44 / w1;
   w86 = w41 * w44;
   w45 = w99 * w55;
   w45 = w45 * w101;
@@ -1853,7 +1850,6 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w85 = w85 * w12;
   w63 = w85 * w93;
   w74 = w74 + w63;
-  w74 = w74 / w1;
   w63 = w42 * w74;
   w86 = w86 - w63;
   w52 = w52 + w86;
@@ -1876,7 +1872,6 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w9 = w9 - w63;
   w63 = w90 * w9;
   w86 = w86 - w63;
-  w86 = w86 / w1;
   w63 = w6 * w86;
   w88 = w13 * w6;
   w88 = w50 * w88;
@@ -1890,21 +1885,18 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w88 = w88 + w98;
   w98 = w53 * w9;
   w88 = w88 + w98;
-  w88 = w88 / w1;
   w98 = w34 * w88;
   w63 = w63 - w98;
   w63 = w52 + w63;
   w98 = w56 * w123;
   w60 = w92 * w9;
   w98 = w98 - w60;
-  w98 = w98 / w1;
   w60 = w36 * w98;
   w62 = w45 * w114;
   w61 = w79 * w123;
   w62 = w62 + w61;
   w61 = w85 * w9;
   w62 = w62 - w61;
-  w62 = w62 / w1;
   w61 = w37 * w62;
   w60 = w60 - w61;
   w63 = w63 + w60;
@@ -1927,7 +1919,6 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w96 = w96 + w61;
   w61 = w90 * w96;
   w60 = w60 + w61;
-  w60 = w60 / w1;
   w61 = w5 * w60;
   w71 = w13 * w5;
   w71 = w50 * w71;
@@ -1941,21 +1932,18 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w71 = w71 - w109;
   w109 = w53 * w96;
   w71 = w71 - w109;
-  w71 = w71 / w1;
   w109 = w29 * w71;
   w61 = w61 - w109;
   w61 = w63 + w61;
   w109 = w92 * w96;
   w59 = w56 * w127;
   w109 = w109 - w59;
-  w109 = w109 / w1;
   w59 = w31 * w109;
   w58 = w45 * w122;
   w69 = w79 * w127;
   w58 = w58 - w69;
   w69 = w85 * w96;
   w58 = w58 + w69;
-  w58 = w58 / w1;
   w69 = w32 * w58;
   w59 = w59 - w69;
   w61 = w61 + w59;
@@ -1978,7 +1966,6 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w64 = w64 + w69;
   w69 = w90 * w64;
   w59 = w59 + w69;
-  w59 = w59 / w1;
   w69 = w4 * w59;
   w70 = w13 * w4;
   w70 = w50 * w70;
@@ -1992,21 +1979,18 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w70 = w70 + w108;
   w108 = w53 * w64;
   w70 = w70 - w108;
-  w70 = w70 / w1;
   w108 = w24 * w70;
   w69 = w69 - w108;
   w69 = w61 + w69;
   w108 = w56 * w130;
   w83 = w92 * w64;
   w108 = w108 + w83;
-  w108 = w108 / w1;
   w83 = w26 * w108;
   w68 = w79 * w130;
   w80 = w45 * w120;
   w68 = w68 - w80;
   w80 = w85 * w64;
   w68 = w68 + w80;
-  w68 = w68 / w1;
   w80 = w27 * w68;
   w83 = w83 - w80;
   w69 = w69 + w83;
@@ -2029,7 +2013,6 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w54 = w54 + w80;
   w80 = w90 * w54;
   w83 = w83 + w80;
-  w83 = w83 / w1;
   w80 = w3 * w83;
   w75 = w13 * w3;
   w75 = w50 * w75;
@@ -2043,21 +2026,18 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w75 = w75 + w107;
   w107 = w53 * w54;
   w75 = w75 - w107;
-  w75 = w75 / w1;
   w107 = w19 * w75;
   w80 = w80 - w107;
   w80 = w69 + w80;
   w107 = w56 * w131;
   w81 = w92 * w54;
   w107 = w107 + w81;
-  w107 = w107 / w1;
   w81 = w21 * w107;
   w87 = w45 * w124;
   w65 = w79 * w131;
   w87 = w87 + w65;
   w65 = w85 * w54;
   w87 = w87 + w65;
-  w87 = w87 / w1;
   w65 = w22 * w87;
   w81 = w81 - w65;
   w80 = w80 + w81;
@@ -2080,7 +2060,6 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w46 = w46 + w65;
   w65 = w90 * w46;
   w81 = w81 + w65;
-  w81 = w81 / w1;
   w65 = w2 * w81;
   w89 = w13 * w2;
   w89 = w50 * w89;
@@ -2094,21 +2073,18 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w89 = w89 + w105;
   w105 = w53 * w46;
   w89 = w89 - w105;
-  w89 = w89 / w1;
   w105 = w8 * w89;
   w65 = w65 - w105;
   w65 = w80 + w65;
   w56 = w56 * w132;
   w92 = w92 * w46;
   w56 = w56 + w92;
-  w56 = w56 / w1;
   w56 = w17 * w56;
   w45 = w45 * w125;
   w79 = w79 * w132;
   w45 = w45 + w79;
   w85 = w85 * w46;
   w45 = w45 + w85;
-  w45 = w45 / w1;
   w45 = w18 * w45;
   w56 = w56 - w45;
   w65 = w65 + w56;
@@ -2126,7 +2102,6 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w51 = w51 * w11;
   w90 = w90 * w51;
   w100 = w100 + w90;
-  w100 = w100 / w1;
   w0 = w0 * w100;
   w48 = w48 * w106;
   w13 = w13 * w11;
@@ -2141,10 +2116,10 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w48 = w48 + w82;
   w53 = w53 * w51;
   w48 = w48 - w53;
-  w48 = w48 / w1;
   w14 = w14 * w48;
   w0 = w0 - w14;
   w65 = w65 + w0;
+  w65 = w65 / w1;
   grad_w[0] = w65;
   w65 = w2 * w100;
   w0 = w8 * w48;
@@ -2179,7 +2154,6 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w91 = w91 * w12;
   w97 = w91 * w93;
   w112 = w112 + w97;
-  w112 = w112 / w1;
   w97 = w39 * w112;
   w110 = w40 * w110;
   w97 = w97 - w110;
@@ -2189,7 +2163,6 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w99 = w99 * w103;
   w99 = w99 * w12;
   w93 = w99 * w93;
-  w93 = w93 / w1;
   w12 = w42 * w93;
   w44 = w43 * w44;
   w12 = w12 - w44;
@@ -2201,13 +2174,11 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w111 = w111 + w123;
   w123 = w91 * w9;
   w111 = w111 - w123;
-  w111 = w111 / w1;
   w123 = w34 * w111;
   w114 = w35 * w86;
   w123 = w123 - w114;
   w123 = w97 + w123;
   w9 = w99 * w9;
-  w9 = w9 / w1;
   w114 = w37 * w9;
   w98 = w38 * w98;
   w114 = w114 + w98;
@@ -2219,13 +2190,11 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w116 = w116 - w127;
   w127 = w91 * w96;
   w116 = w116 + w127;
-  w116 = w116 / w1;
   w127 = w29 * w116;
   w122 = w30 * w60;
   w127 = w127 - w122;
   w127 = w123 + w127;
   w96 = w99 * w96;
-  w96 = w96 / w1;
   w122 = w32 * w96;
   w109 = w33 * w109;
   w122 = w122 - w109;
@@ -2237,13 +2206,11 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w115 = w115 + w130;
   w130 = w91 * w64;
   w115 = w115 + w130;
-  w115 = w115 / w1;
   w130 = w24 * w115;
   w120 = w25 * w59;
   w130 = w130 - w120;
   w130 = w127 + w130;
   w64 = w99 * w64;
-  w64 = w64 / w1;
   w120 = w27 * w64;
   w108 = w28 * w108;
   w120 = w120 - w108;
@@ -2255,13 +2222,11 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w124 = w124 + w131;
   w131 = w91 * w54;
   w124 = w124 + w131;
-  w124 = w124 / w1;
   w131 = w19 * w124;
   w113 = w20 * w83;
   w131 = w131 - w113;
   w131 = w130 + w131;
   w54 = w99 * w54;
-  w54 = w54 / w1;
   w113 = w22 * w54;
   w107 = w23 * w107;
   w113 = w113 - w107;
@@ -2273,15 +2238,13 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w0 = w0 + w73;
   w91 = w91 * w46;
   w0 = w0 + w91;
-  w0 = w0 / w1;
   w8 = w8 * w0;
   w91 = w16 * w81;
   w8 = w8 - w91;
   w8 = w131 + w8;
   w99 = w99 * w46;
-  w99 = w99 / w1;
-  w1 = w18 * w99;
-  w8 = w8 + w1;
+  w46 = w18 * w99;
+  w8 = w8 + w46;
   w8 = w17 * w8;
   w49 = w40 * w49;
   w112 = w7 * w112;
@@ -2331,6 +2294,7 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w16 = w18 * w16;
   w8 = w8 + w16;
   w65 = w65 + w8;
+  w65 = w65 / w1;
   grad_w[1] = w65;
   w65 = w0 * w18;
   w100 = w100 - w65;
@@ -2350,6 +2314,7 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w80 = w23 * w80;
   w131 = w131 + w80;
   w3 = w3 + w131;
+  w3 = w3 / w1;
   grad_w[2] = w3;
   w3 = w83 * w23;
   w131 = w124 * w22;
@@ -2374,6 +2339,7 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w69 = w28 * w69;
   w130 = w130 + w69;
   w4 = w4 + w130;
+  w4 = w4 / w1;
   grad_w[3] = w4;
   w4 = w59 * w28;
   w130 = w115 * w27;
@@ -2398,6 +2364,7 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w61 = w33 * w61;
   w127 = w127 + w61;
   w5 = w5 + w127;
+  w5 = w5 / w1;
   grad_w[4] = w5;
   w5 = w60 * w33;
   w127 = w116 * w32;
@@ -2422,6 +2389,7 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w63 = w38 * w63;
   w123 = w123 + w63;
   w6 = w6 + w123;
+  w6 = w6 / w1;
   grad_w[5] = w6;
   w6 = w86 * w38;
   w123 = w111 * w37;
@@ -2446,6 +2414,7 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
   w43 = w43 * w52;
   w41 = w41 + w43;
   w7 = w7 + w41;
+  w7 = w7 / w1;
   grad_w[6] = w7;
 }
 
@@ -4493,7 +4462,7 @@ void panda_joint_manipulability_from_jacobian(const panda_real J[42], const pand
   grad_H_M[6] = w7;
 }
 
-/* ft_index_from_jacobian: 879 add, 1407 mul, 51 div, 14 sqrt, 7 minmax, 12 compare, 12 select */
+/* ft_index_from_jacobian: 879 add, 1407 mul, 20 div, 14 sqrt, 7 minmax, 12 compare, 12 select */
 void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF], panda_real *w, panda_real grad_w[PANDA_NDOF]) {
   panda_real w156, w157, w158, w159, w160, w161, w162, w163, w164;
   panda_real w144, w145, w146, w147, w148, w149, w150, w151, w152, w153, w154, w155;
@@ -6631,179 +6600,142 @@ void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[
   w3 = w3 + w121;
   w3 = PANDA_SQRT(w3);
   *w = w3;
-  w134 = w134 / w3;
   w134 = w134 * w20;
   w121 = w19 * w134;
-  w21 = w21 / w3;
   w21 = w21 * w20;
   w44 = w77 * w21;
   w121 = w121 - w44;
-  w89 = w89 / w3;
   w89 = w89 * w20;
   w44 = w81 * w89;
-  w120 = w120 / w3;
   w120 = w120 * w20;
   w38 = w83 * w120;
   w44 = w44 - w38;
   w121 = w121 + w44;
-  w132 = w132 / w3;
   w132 = w132 * w17;
   w44 = w16 * w132;
-  w68 = w68 / w3;
   w68 = w68 * w17;
   w38 = w67 * w68;
   w44 = w44 - w38;
   w44 = w121 + w44;
-  w112 = w112 / w3;
   w112 = w112 * w17;
   w38 = w71 * w112;
-  w66 = w66 / w3;
   w66 = w66 * w17;
   w60 = w73 * w66;
   w38 = w38 - w60;
   w44 = w44 + w38;
-  w101 = w101 / w3;
   w101 = w101 * w14;
   w38 = w13 * w101;
-  w15 = w15 / w3;
   w15 = w15 * w14;
   w60 = w57 * w15;
   w38 = w38 - w60;
   w38 = w44 + w38;
-  w18 = w18 / w3;
   w18 = w18 * w14;
   w60 = w61 * w18;
-  w98 = w98 / w3;
   w98 = w98 * w14;
   w91 = w63 * w98;
   w60 = w60 - w91;
   w38 = w38 + w60;
-  w82 = w82 / w3;
   w82 = w82 * w11;
   w60 = w10 * w82;
-  w12 = w12 / w3;
   w12 = w12 * w11;
   w91 = w47 * w12;
   w60 = w60 - w91;
   w60 = w38 + w60;
-  w26 = w26 / w3;
   w26 = w26 * w11;
   w91 = w51 * w26;
-  w30 = w30 / w3;
   w30 = w30 * w11;
   w107 = w53 * w30;
   w91 = w91 - w107;
   w60 = w60 + w91;
-  w72 = w72 / w3;
   w72 = w72 * w8;
   w91 = w7 * w72;
-  w9 = w9 / w3;
   w9 = w9 * w8;
   w107 = w37 * w9;
   w91 = w91 - w107;
   w91 = w60 + w91;
-  w126 = w126 / w3;
   w126 = w126 * w8;
   w107 = w41 * w126;
-  w104 = w104 / w3;
   w104 = w104 * w8;
   w103 = w43 * w104;
   w107 = w107 - w103;
   w91 = w91 + w107;
-  w50 = w50 / w3;
   w50 = w50 * w5;
   w107 = w4 * w50;
-  w6 = w6 / w3;
   w6 = w6 * w5;
   w103 = w22 * w6;
   w107 = w107 - w103;
   w107 = w91 + w107;
-  w28 = w28 / w3;
   w28 = w28 * w5;
   w28 = w33 * w28;
-  w2 = w2 / w3;
   w2 = w2 * w5;
   w2 = w35 * w2;
   w28 = w28 - w2;
   w107 = w107 + w28;
-  w48 = w48 / w3;
   w48 = w48 * w1;
   w0 = w0 * w48;
-  w58 = w58 / w3;
   w58 = w58 * w1;
   w29 = w29 * w58;
   w0 = w0 - w29;
   w107 = w107 + w0;
+  w107 = w107 / w3;
   grad_w[0] = w107;
   w107 = w4 * w48;
   w0 = w22 * w58;
   w107 = w107 - w0;
-  w142 = w142 / w3;
   w142 = w142 * w20;
   w0 = w77 * w142;
   w134 = w79 * w134;
   w0 = w0 - w134;
-  w86 = w86 / w3;
   w86 = w86 * w20;
   w20 = w83 * w86;
   w89 = w85 * w89;
   w20 = w20 - w89;
   w0 = w0 + w20;
-  w90 = w90 / w3;
   w90 = w90 * w17;
   w20 = w67 * w90;
   w89 = w69 * w132;
   w20 = w20 - w89;
   w20 = w0 + w20;
-  w24 = w24 / w3;
   w24 = w24 * w17;
   w17 = w73 * w24;
   w112 = w75 * w112;
   w17 = w17 + w112;
   w20 = w20 - w17;
-  w146 = w146 / w3;
   w146 = w146 * w14;
   w17 = w57 * w146;
   w112 = w59 * w101;
   w17 = w17 - w112;
   w17 = w20 + w17;
-  w118 = w118 / w3;
   w118 = w118 * w14;
   w14 = w63 * w118;
   w18 = w65 * w18;
   w14 = w14 - w18;
   w17 = w17 + w14;
-  w145 = w145 / w3;
   w145 = w145 * w11;
   w14 = w47 * w145;
   w18 = w49 * w82;
   w14 = w14 - w18;
   w14 = w17 + w14;
-  w52 = w52 / w3;
   w52 = w52 * w11;
   w11 = w53 * w52;
   w26 = w55 * w26;
   w11 = w11 - w26;
   w14 = w14 + w11;
-  w154 = w154 / w3;
   w154 = w154 * w8;
   w11 = w37 * w154;
   w26 = w39 * w72;
   w11 = w11 - w26;
   w11 = w14 + w11;
-  w40 = w40 / w3;
   w40 = w40 * w8;
   w8 = w43 * w40;
   w126 = w45 * w126;
   w8 = w8 - w126;
   w11 = w11 + w8;
-  w148 = w148 / w3;
   w148 = w148 * w5;
   w22 = w22 * w148;
   w8 = w31 * w50;
   w22 = w22 - w8;
   w22 = w11 + w22;
-  w23 = w23 / w3;
   w23 = w23 * w5;
   w5 = w35 * w23;
   w22 = w22 + w5;
@@ -6856,6 +6788,7 @@ void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[
   w31 = w35 * w31;
   w22 = w22 + w31;
   w107 = w107 + w22;
+  w107 = w107 / w3;
   grad_w[1] = w107;
   w107 = w148 * w35;
   w48 = w48 - w107;
@@ -6875,6 +6808,7 @@ void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[
   w91 = w45 * w91;
   w11 = w11 + w91;
   w7 = w7 + w11;
+  w7 = w7 / w3;
   grad_w[2] = w7;
   w7 = w72 * w45;
   w11 = w154 * w43;
@@ -6899,6 +6833,7 @@ void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[
   w60 = w55 * w60;
   w14 = w14 + w60;
   w10 = w10 + w14;
+  w10 = w10 / w3;
   grad_w[3] = w10;
   w10 = w82 * w55;
   w14 = w145 * w53;
@@ -6923,6 +6858,7 @@ void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[
   w38 = w65 * w38;
   w17 = w17 + w38;
   w13 = w13 + w17;
+  w13 = w13 / w3;
   grad_w[4] = w13;
   w13 = w101 * w65;
   w17 = w146 * w63;
@@ -6947,6 +6883,7 @@ void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[
   w44 = w75 * w44;
   w20 = w20 + w44;
   w16 = w16 + w20;
+  w16 = w16 / w3;
   grad_w[5] = w16;
   w16 = w132 * w75;
   w20 = w90 * w73;
@@ -6971,6 +6908,7 @@ void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[
   w85 = w85 * w121;
   w81 = w81 + w85;
   w19 = w19 + w81;
+  w19 = w19 / w3;
   grad_w[6] = w19;
 }
 
@@ -7635,19 +7573,6 @@ panda_status panda_step_gpm_from_jacobian(const panda_real J[42], const panda_re
   qdot[6] = w15;
   {
   panda_real probe = PANDA_LIT(0.0);
-  probe = probe + xdot[0] * PANDA_LIT(0.0);
-  probe = probe + xdot[1] * PANDA_LIT(0.0);
-  probe = probe + xdot[2] * PANDA_LIT(0.0);
-  probe = probe + xdot[3] * PANDA_LIT(0.0);
-  probe = probe + xdot[4] * PANDA_LIT(0.0);
-  probe = probe + xdot[5] * PANDA_LIT(0.0);
-  probe = probe + alpha[0] * PANDA_LIT(0.0);
-  probe = probe + alpha[1] * PANDA_LIT(0.0);
-  probe = probe + alpha[2] * PANDA_LIT(0.0);
-  probe = probe + alpha[3] * PANDA_LIT(0.0);
-  probe = probe + alpha[4] * PANDA_LIT(0.0);
-  probe = probe + alpha[5] * PANDA_LIT(0.0);
-  probe = probe + alpha[6] * PANDA_LIT(0.0);
   probe = probe + damping * PANDA_LIT(0.0);
   probe = probe + qdot[0] * PANDA_LIT(0.0);
   probe = probe + qdot[1] * PANDA_LIT(0.0);
@@ -8292,12 +8217,6 @@ panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_re
   qdot[6] = w21;
   {
   panda_real probe = PANDA_LIT(0.0);
-  probe = probe + xdot[0] * PANDA_LIT(0.0);
-  probe = probe + xdot[1] * PANDA_LIT(0.0);
-  probe = probe + xdot[2] * PANDA_LIT(0.0);
-  probe = probe + xdot[3] * PANDA_LIT(0.0);
-  probe = probe + xdot[4] * PANDA_LIT(0.0);
-  probe = probe + xdot[5] * PANDA_LIT(0.0);
   probe = probe + W[0] * PANDA_LIT(0.0);
   probe = probe + W[1] * PANDA_LIT(0.0);
   probe = probe + W[2] * PANDA_LIT(0.0);
@@ -9641,19 +9560,6 @@ panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_
   *sigma_min = w69;
   {
   panda_real probe = PANDA_LIT(0.0);
-  probe = probe + xdot[0] * PANDA_LIT(0.0);
-  probe = probe + xdot[1] * PANDA_LIT(0.0);
-  probe = probe + xdot[2] * PANDA_LIT(0.0);
-  probe = probe + xdot[3] * PANDA_LIT(0.0);
-  probe = probe + xdot[4] * PANDA_LIT(0.0);
-  probe = probe + xdot[5] * PANDA_LIT(0.0);
-  probe = probe + mask[0] * PANDA_LIT(0.0);
-  probe = probe + mask[1] * PANDA_LIT(0.0);
-  probe = probe + mask[2] * PANDA_LIT(0.0);
-  probe = probe + mask[3] * PANDA_LIT(0.0);
-  probe = probe + mask[4] * PANDA_LIT(0.0);
-  probe = probe + mask[5] * PANDA_LIT(0.0);
-  probe = probe + mask[6] * PANDA_LIT(0.0);
   probe = probe + W[0] * PANDA_LIT(0.0);
   probe = probe + W[1] * PANDA_LIT(0.0);
   probe = probe + W[2] * PANDA_LIT(0.0);
@@ -9661,15 +9567,7 @@ panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_
   probe = probe + W[4] * PANDA_LIT(0.0);
   probe = probe + W[5] * PANDA_LIT(0.0);
   probe = probe + W[6] * PANDA_LIT(0.0);
-  probe = probe + alpha[0] * PANDA_LIT(0.0);
-  probe = probe + alpha[1] * PANDA_LIT(0.0);
-  probe = probe + alpha[2] * PANDA_LIT(0.0);
-  probe = probe + alpha[3] * PANDA_LIT(0.0);
-  probe = probe + alpha[4] * PANDA_LIT(0.0);
-  probe = probe + alpha[5] * PANDA_LIT(0.0);
-  probe = probe + alpha[6] * PANDA_LIT(0.0);
   probe = probe + epsilon * PANDA_LIT(0.0);
-  probe = probe + lambda_max * PANDA_LIT(0.0);
   probe = probe + qdot[0] * PANDA_LIT(0.0);
   probe = probe + qdot[1] * PANDA_LIT(0.0);
   probe = probe + qdot[2] * PANDA_LIT(0.0);
@@ -13605,25 +13503,9 @@ panda_status panda_step_wgpm_from_jacobian(const panda_real J[42], const panda_r
   H[3] = w135;
   {
   panda_real probe = PANDA_LIT(0.0);
-  probe = probe + q[0] * PANDA_LIT(0.0);
-  probe = probe + q[1] * PANDA_LIT(0.0);
-  probe = probe + q[2] * PANDA_LIT(0.0);
-  probe = probe + q[3] * PANDA_LIT(0.0);
-  probe = probe + q[4] * PANDA_LIT(0.0);
-  probe = probe + q[5] * PANDA_LIT(0.0);
-  probe = probe + q[6] * PANDA_LIT(0.0);
-  probe = probe + xdot[0] * PANDA_LIT(0.0);
-  probe = probe + xdot[1] * PANDA_LIT(0.0);
-  probe = probe + xdot[2] * PANDA_LIT(0.0);
-  probe = probe + xdot[3] * PANDA_LIT(0.0);
-  probe = probe + xdot[4] * PANDA_LIT(0.0);
-  probe = probe + xdot[5] * PANDA_LIT(0.0);
   probe = probe + band * PANDA_LIT(0.0);
-  probe = probe + t_rmax * PANDA_LIT(0.0);
   probe = probe + epsilon * PANDA_LIT(0.0);
-  probe = probe + rho_max * PANDA_LIT(0.0);
   probe = probe + delta * PANDA_LIT(0.0);
-  probe = probe + ramp * PANDA_LIT(0.0);
   probe = probe + H_lo[0] * PANDA_LIT(0.0);
   probe = probe + H_lo[1] * PANDA_LIT(0.0);
   probe = probe + H_lo[2] * PANDA_LIT(0.0);
@@ -13632,14 +13514,6 @@ panda_status panda_step_wgpm_from_jacobian(const panda_real J[42], const panda_r
   probe = probe + H_hi[1] * PANDA_LIT(0.0);
   probe = probe + H_hi[2] * PANDA_LIT(0.0);
   probe = probe + H_hi[3] * PANDA_LIT(0.0);
-  probe = probe + k_hi[0] * PANDA_LIT(0.0);
-  probe = probe + k_hi[1] * PANDA_LIT(0.0);
-  probe = probe + k_hi[2] * PANDA_LIT(0.0);
-  probe = probe + k_hi[3] * PANDA_LIT(0.0);
-  probe = probe + k_lo[0] * PANDA_LIT(0.0);
-  probe = probe + k_lo[1] * PANDA_LIT(0.0);
-  probe = probe + k_lo[2] * PANDA_LIT(0.0);
-  probe = probe + k_lo[3] * PANDA_LIT(0.0);
   probe = probe + u_th[0] * PANDA_LIT(0.0);
   probe = probe + u_th[1] * PANDA_LIT(0.0);
   probe = probe + u_th[2] * PANDA_LIT(0.0);
@@ -13875,7 +13749,7 @@ void panda_joint_manipulability(const panda_real q[PANDA_NDOF], const panda_real
   panda_joint_manipulability_from_jacobian(J, a, delta, omega, H_M, grad_H_M);
 }
 
-/* manipulability: 700 add, 1030 mul, 44 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select; calls panda_jacobian and panda_manipulability_from_jacobian */
+/* manipulability: 700 add, 1030 mul, 13 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select; calls panda_jacobian and panda_manipulability_from_jacobian */
 void panda_manipulability(const panda_real q[PANDA_NDOF], panda_real delta, panda_real *w, panda_real grad_w[PANDA_NDOF]) {
   panda_real J[6 * PANDA_NDOF];
   panda_jacobian(q, J);
@@ -14073,7 +13947,7 @@ void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, p
   w_c[6] = w11;
 }
 
-/* ft_index: 959 add, 1509 mul, 51 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select; calls panda_jacobian and panda_ft_index_from_jacobian */
+/* ft_index: 959 add, 1509 mul, 20 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select; calls panda_jacobian and panda_ft_index_from_jacobian */
 void panda_ft_index(const panda_real q[PANDA_NDOF], const panda_real mask[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF], panda_real *w, panda_real grad_w[PANDA_NDOF]) {
   panda_real J[6 * PANDA_NDOF];
   panda_jacobian(q, J);

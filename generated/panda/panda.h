@@ -169,7 +169,7 @@ void panda_jacobian(const panda_real q[PANDA_NDOF], panda_real J[42]);
 #define PANDA_FK_JACOBIAN_WORK_REALS 40
 void panda_fk_jacobian(const panda_real q[PANDA_NDOF], panda_real T[16], panda_real J[42]);
 /* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 620 add, 928 mul, 44 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 135 reals. */
+ * ops: 620 add, 928 mul, 13 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 135 reals. */
 #define PANDA_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_MANIPULABILITY_FROM_JACOBIAN_J_COLS 7
 #define PANDA_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 7
@@ -189,7 +189,7 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 149
 void panda_joint_manipulability_from_jacobian(const panda_real J[42], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF]);
 /* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 879 add, 1407 mul, 51 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 165 reals. */
+ * ops: 879 add, 1407 mul, 20 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 165 reals. */
 #define PANDA_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_FT_INDEX_FROM_JACOBIAN_J_COLS 7
 #define PANDA_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 7
@@ -204,7 +204,7 @@ void panda_joint_manipulability_from_jacobian(const panda_real J[42], const pand
 #define PANDA_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
 #define PANDA_FT_INDEX_FROM_JACOBIAN_WORK_REALS 165
 void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF], panda_real *w, panda_real grad_w[PANDA_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 258 add, 304 mul, 21 div, 6 minmax; work: 80 reals. */
 #define PANDA_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_GPM_FROM_JACOBIAN_J_COLS 7
@@ -216,7 +216,7 @@ void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[
 #define PANDA_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
 #define PANDA_STEP_GPM_FROM_JACOBIAN_WORK_REALS 80
 panda_status panda_step_gpm_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real alpha[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 213 add, 267 mul, 66 div, 13 minmax; work: 96 reals. */
 #define PANDA_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_WLN_FROM_JACOBIAN_J_COLS 7
@@ -228,7 +228,7 @@ panda_status panda_step_gpm_from_jacobian(const panda_real J[42], const panda_re
 #define PANDA_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
 #define PANDA_STEP_WLN_FROM_JACOBIAN_WORK_REALS 96
 panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real W[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 1656 add, 733 mul, 273 div, 6 sqrt, 327 minmax, 48 compare; work: 108 reals. */
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_J_COLS 7
@@ -244,7 +244,7 @@ panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_re
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 108
 panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 2659 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 394 minmax, 74 compare, 12 select; work: 175 reals. */
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_J_COLS 7
@@ -305,7 +305,7 @@ void panda_repetitive(const panda_real q[PANDA_NDOF], const panda_real q_init[PA
 #define PANDA_JOINT_MANIPULABILITY_WORK_REALS 191
 void panda_joint_manipulability(const panda_real q[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 700 add, 1030 mul, 44 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_manipulability_from_jacobian); work: 177 reals. */
+ * ops: 700 add, 1030 mul, 13 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_manipulability_from_jacobian); work: 177 reals. */
 #define PANDA_MANIPULABILITY_Q_ROWS 7
 #define PANDA_MANIPULABILITY_Q_COLS 1
 #define PANDA_MANIPULABILITY_GRAD_W_ROWS 7
@@ -321,7 +321,7 @@ void panda_manipulability(const panda_real q[PANDA_NDOF], panda_real delta, pand
 #define PANDA_CONTINUOUS_WEIGHTS_WORK_REALS 12
 void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, panda_real w_c[PANDA_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 959 add, 1509 mul, 51 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_ft_index_from_jacobian); work: 207 reals. */
+ * ops: 959 add, 1509 mul, 20 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_ft_index_from_jacobian); work: 207 reals. */
 #define PANDA_FT_INDEX_Q_ROWS 7
 #define PANDA_FT_INDEX_Q_COLS 1
 #define PANDA_FT_INDEX_MASK_ROWS 7

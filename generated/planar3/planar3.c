@@ -246,7 +246,7 @@ void planar3_fk_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real T[16],
   J[17] = w3;
 }
 
-/* manipulability_from_jacobian: 69 add, 106 mul, 9 div, 4 sqrt, 4 minmax, 6 compare, 6 select */
+/* manipulability_from_jacobian: 69 add, 106 mul, 6 div, 4 sqrt, 4 minmax, 6 compare, 6 select */
 void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real delta, planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]) {
   planar3_real w24, w25, w26, w27, w28;
   planar3_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
@@ -394,7 +394,6 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
   w5 = w5 - w15;
   w15 = w24 * w5;
   w28 = w28 - w15;
-  w28 = w28 / w1;
   w28 = w3 * w28;
   w15 = w21 * w21;
   w15 = w13 * w15;
@@ -419,7 +418,6 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
   w14 = w14 * w8;
   w5 = w14 * w5;
   w19 = w19 - w5;
-  w19 = w19 / w1;
   w19 = w12 * w19;
   w28 = w28 - w19;
   w19 = w17 * w2;
@@ -429,7 +427,6 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
   w23 = w23 - w5;
   w5 = w25 * w23;
   w19 = w19 - w5;
-  w19 = w19 / w1;
   w5 = w2 * w19;
   w8 = w9 * w2;
   w8 = w15 * w8;
@@ -437,7 +434,6 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
   w8 = w8 - w23;
   w20 = w14 * w20;
   w8 = w8 + w20;
-  w8 = w8 / w1;
   w20 = w4 * w8;
   w5 = w5 - w20;
   w5 = w28 + w5;
@@ -446,7 +442,6 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
   w17 = w17 * w7;
   w24 = w24 * w17;
   w25 = w25 + w24;
-  w25 = w25 / w1;
   w0 = w0 * w25;
   w22 = w22 * w27;
   w9 = w9 * w7;
@@ -455,15 +450,16 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
   w22 = w22 - w15;
   w14 = w14 * w17;
   w22 = w22 + w14;
-  w22 = w22 / w1;
   w10 = w10 * w22;
   w0 = w0 - w10;
   w0 = w5 + w0;
+  w0 = w0 / w1;
   grad_w[0] = w0;
   w2 = w2 * w25;
   w4 = w4 * w22;
   w2 = w2 - w4;
   w2 = w2 + w5;
+  w2 = w2 / w1;
   grad_w[1] = w2;
   w25 = w25 + w19;
   w3 = w3 * w25;
@@ -471,6 +467,7 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
   w12 = w12 * w22;
   w3 = w3 - w12;
   w3 = w3 + w28;
+  w3 = w3 / w1;
   grad_w[2] = w3;
 }
 
@@ -502,7 +499,7 @@ void planar3_joint_manipulability_from_jacobian(const planar3_real J[18], const 
   grad_H_M[2] = w3;
 }
 
-/* ft_index_from_jacobian: 71 add, 130 mul, 9 div, 4 sqrt, 7 minmax, 6 compare, 6 select */
+/* ft_index_from_jacobian: 71 add, 130 mul, 6 div, 4 sqrt, 7 minmax, 6 compare, 6 select */
 void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real mask[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF], planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]) {
   planar3_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34;
   planar3_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
@@ -686,7 +683,6 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
   w14 = w14 - w13;
   w13 = w0 * w14;
   w34 = w34 - w13;
-  w34 = w34 / w7;
   w34 = w34 * w6;
   w34 = w10 * w34;
   w13 = w27 * w27;
@@ -712,7 +708,6 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
   w19 = w19 * w16;
   w14 = w19 * w14;
   w11 = w11 - w14;
-  w11 = w11 / w7;
   w11 = w11 * w6;
   w11 = w20 * w11;
   w34 = w34 - w11;
@@ -723,7 +718,6 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
   w29 = w29 - w6;
   w6 = w30 * w29;
   w11 = w11 - w6;
-  w11 = w11 / w7;
   w11 = w11 * w1;
   w6 = w8 * w11;
   w9 = w15 * w9;
@@ -732,7 +726,6 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
   w9 = w9 - w29;
   w26 = w19 * w26;
   w9 = w9 + w26;
-  w9 = w9 / w7;
   w9 = w9 * w1;
   w1 = w12 * w9;
   w6 = w6 - w1;
@@ -742,7 +735,6 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
   w21 = w21 * w3;
   w0 = w0 * w21;
   w30 = w30 + w0;
-  w30 = w30 / w7;
   w30 = w30 * w4;
   w2 = w2 * w30;
   w17 = w17 * w33;
@@ -752,16 +744,17 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
   w17 = w17 - w13;
   w19 = w19 * w21;
   w17 = w17 + w19;
-  w17 = w17 / w7;
   w17 = w17 * w4;
   w18 = w18 * w17;
   w2 = w2 - w18;
   w2 = w6 + w2;
+  w2 = w2 / w7;
   grad_w[0] = w2;
   w8 = w8 * w30;
   w12 = w12 * w17;
   w8 = w8 - w12;
   w8 = w8 + w6;
+  w8 = w8 / w7;
   grad_w[1] = w8;
   w30 = w30 + w11;
   w10 = w10 * w30;
@@ -769,6 +762,7 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
   w20 = w20 * w17;
   w10 = w10 - w20;
   w10 = w10 + w34;
+  w10 = w10 / w7;
   grad_w[2] = w10;
 }
 
@@ -889,12 +883,6 @@ planar3_status planar3_step_gpm_from_jacobian(const planar3_real J[18], const pl
   qdot[2] = w7;
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + xdot[0] * PLANAR3_LIT(0.0);
-  probe = probe + xdot[1] * PLANAR3_LIT(0.0);
-  probe = probe + xdot[2] * PLANAR3_LIT(0.0);
-  probe = probe + alpha[0] * PLANAR3_LIT(0.0);
-  probe = probe + alpha[1] * PLANAR3_LIT(0.0);
-  probe = probe + alpha[2] * PLANAR3_LIT(0.0);
   probe = probe + damping * PLANAR3_LIT(0.0);
   probe = probe + qdot[0] * PLANAR3_LIT(0.0);
   probe = probe + qdot[1] * PLANAR3_LIT(0.0);
@@ -1020,9 +1008,6 @@ planar3_status planar3_step_wln_from_jacobian(const planar3_real J[18], const pl
   qdot[2] = w9;
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + xdot[0] * PLANAR3_LIT(0.0);
-  probe = probe + xdot[1] * PLANAR3_LIT(0.0);
-  probe = probe + xdot[2] * PLANAR3_LIT(0.0);
   probe = probe + W[0] * PLANAR3_LIT(0.0);
   probe = probe + W[1] * PLANAR3_LIT(0.0);
   probe = probe + W[2] * PLANAR3_LIT(0.0);
@@ -1299,20 +1284,10 @@ planar3_status planar3_step_fault_from_jacobian(const planar3_real J[18], const 
   *sigma_min = w25;
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + xdot[0] * PLANAR3_LIT(0.0);
-  probe = probe + xdot[1] * PLANAR3_LIT(0.0);
-  probe = probe + xdot[2] * PLANAR3_LIT(0.0);
-  probe = probe + mask[0] * PLANAR3_LIT(0.0);
-  probe = probe + mask[1] * PLANAR3_LIT(0.0);
-  probe = probe + mask[2] * PLANAR3_LIT(0.0);
   probe = probe + W[0] * PLANAR3_LIT(0.0);
   probe = probe + W[1] * PLANAR3_LIT(0.0);
   probe = probe + W[2] * PLANAR3_LIT(0.0);
-  probe = probe + alpha[0] * PLANAR3_LIT(0.0);
-  probe = probe + alpha[1] * PLANAR3_LIT(0.0);
-  probe = probe + alpha[2] * PLANAR3_LIT(0.0);
   probe = probe + epsilon * PLANAR3_LIT(0.0);
-  probe = probe + lambda_max * PLANAR3_LIT(0.0);
   probe = probe + qdot[0] * PLANAR3_LIT(0.0);
   probe = probe + qdot[1] * PLANAR3_LIT(0.0);
   probe = probe + qdot[2] * PLANAR3_LIT(0.0);
@@ -2102,18 +2077,9 @@ planar3_status planar3_step_wgpm_from_jacobian(const planar3_real J[18], const p
   H[3] = w47;
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + q[0] * PLANAR3_LIT(0.0);
-  probe = probe + q[1] * PLANAR3_LIT(0.0);
-  probe = probe + q[2] * PLANAR3_LIT(0.0);
-  probe = probe + xdot[0] * PLANAR3_LIT(0.0);
-  probe = probe + xdot[1] * PLANAR3_LIT(0.0);
-  probe = probe + xdot[2] * PLANAR3_LIT(0.0);
   probe = probe + band * PLANAR3_LIT(0.0);
-  probe = probe + t_rmax * PLANAR3_LIT(0.0);
   probe = probe + epsilon * PLANAR3_LIT(0.0);
-  probe = probe + rho_max * PLANAR3_LIT(0.0);
   probe = probe + delta * PLANAR3_LIT(0.0);
-  probe = probe + ramp * PLANAR3_LIT(0.0);
   probe = probe + H_lo[0] * PLANAR3_LIT(0.0);
   probe = probe + H_lo[1] * PLANAR3_LIT(0.0);
   probe = probe + H_lo[2] * PLANAR3_LIT(0.0);
@@ -2122,14 +2088,6 @@ planar3_status planar3_step_wgpm_from_jacobian(const planar3_real J[18], const p
   probe = probe + H_hi[1] * PLANAR3_LIT(0.0);
   probe = probe + H_hi[2] * PLANAR3_LIT(0.0);
   probe = probe + H_hi[3] * PLANAR3_LIT(0.0);
-  probe = probe + k_hi[0] * PLANAR3_LIT(0.0);
-  probe = probe + k_hi[1] * PLANAR3_LIT(0.0);
-  probe = probe + k_hi[2] * PLANAR3_LIT(0.0);
-  probe = probe + k_hi[3] * PLANAR3_LIT(0.0);
-  probe = probe + k_lo[0] * PLANAR3_LIT(0.0);
-  probe = probe + k_lo[1] * PLANAR3_LIT(0.0);
-  probe = probe + k_lo[2] * PLANAR3_LIT(0.0);
-  probe = probe + k_lo[3] * PLANAR3_LIT(0.0);
   probe = probe + u_th[0] * PLANAR3_LIT(0.0);
   probe = probe + u_th[1] * PLANAR3_LIT(0.0);
   probe = probe + u_th[2] * PLANAR3_LIT(0.0);
@@ -2251,7 +2209,7 @@ void planar3_joint_manipulability(const planar3_real q[PLANAR3_NDOF], const plan
   planar3_joint_manipulability_from_jacobian(J, a, delta, omega, H_M, grad_H_M);
 }
 
-/* manipulability: 84 add, 124 mul, 9 div, 4 sqrt, 6 trig, 4 minmax, 6 compare, 6 select; calls planar3_jacobian and planar3_manipulability_from_jacobian */
+/* manipulability: 84 add, 124 mul, 6 div, 4 sqrt, 6 trig, 4 minmax, 6 compare, 6 select; calls planar3_jacobian and planar3_manipulability_from_jacobian */
 void planar3_manipulability(const planar3_real q[PLANAR3_NDOF], planar3_real delta, planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]) {
   planar3_real J[6 * PLANAR3_NDOF];
   planar3_jacobian(q, J);
@@ -2344,7 +2302,7 @@ void planar3_continuous_weights(const planar3_real q[PLANAR3_NDOF], planar3_real
   w_c[2] = w5;
 }
 
-/* ft_index: 86 add, 148 mul, 9 div, 4 sqrt, 6 trig, 7 minmax, 6 compare, 6 select; calls planar3_jacobian and planar3_ft_index_from_jacobian */
+/* ft_index: 86 add, 148 mul, 6 div, 4 sqrt, 6 trig, 7 minmax, 6 compare, 6 select; calls planar3_jacobian and planar3_ft_index_from_jacobian */
 void planar3_ft_index(const planar3_real q[PLANAR3_NDOF], const planar3_real mask[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF], planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]) {
   planar3_real J[6 * PLANAR3_NDOF];
   planar3_jacobian(q, J);

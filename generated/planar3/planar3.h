@@ -169,7 +169,7 @@ void planar3_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real J[18]);
 #define PLANAR3_FK_JACOBIAN_WORK_REALS 12
 void planar3_fk_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real T[16], planar3_real J[18]);
 /* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 69 add, 106 mul, 9 div, 4 sqrt, 4 minmax, 6 compare, 6 select; work: 29 reals. */
+ * ops: 69 add, 106 mul, 6 div, 4 sqrt, 4 minmax, 6 compare, 6 select; work: 29 reals. */
 #define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 3
@@ -189,7 +189,7 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
 #define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 4
 void planar3_joint_manipulability_from_jacobian(const planar3_real J[18], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF]);
 /* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 71 add, 130 mul, 9 div, 4 sqrt, 7 minmax, 6 compare, 6 select; work: 35 reals. */
+ * ops: 71 add, 130 mul, 6 div, 4 sqrt, 7 minmax, 6 compare, 6 select; work: 35 reals. */
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 3
@@ -204,7 +204,7 @@ void planar3_joint_manipulability_from_jacobian(const planar3_real J[18], const 
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_WORK_REALS 35
 void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real mask[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF], planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 44 add, 39 mul, 6 div, 3 minmax; work: 23 reals. */
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_J_COLS 3
@@ -216,7 +216,7 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_WORK_REALS 23
 planar3_status planar3_step_gpm_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real alpha[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 34 add, 33 mul, 18 div, 6 minmax; work: 25 reals. */
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_J_COLS 3
@@ -228,7 +228,7 @@ planar3_status planar3_step_gpm_from_jacobian(const planar3_real J[18], const pl
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_WORK_REALS 25
 planar3_status planar3_step_wln_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real W[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 663 add, 194 mul, 107 div, 3 sqrt, 161 minmax, 48 compare; work: 35 reals. */
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_J_COLS 3
@@ -244,7 +244,7 @@ planar3_status planar3_step_wln_from_jacobian(const planar3_real J[18], const pl
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 35
 planar3_status planar3_step_fault_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 839 add, 386 mul, 141 div, 7 sqrt, 2 exp, 206 minmax, 60 compare, 6 select; work: 52 reals. */
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_J_COLS 3
@@ -305,7 +305,7 @@ void planar3_repetitive(const planar3_real q[PLANAR3_NDOF], const planar3_real q
 #define PLANAR3_JOINT_MANIPULABILITY_WORK_REALS 22
 void planar3_joint_manipulability(const planar3_real q[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 84 add, 124 mul, 9 div, 4 sqrt, 6 trig, 4 minmax, 6 compare, 6 select (calls planar3_jacobian and planar3_manipulability_from_jacobian); work: 47 reals. */
+ * ops: 84 add, 124 mul, 6 div, 4 sqrt, 6 trig, 4 minmax, 6 compare, 6 select (calls planar3_jacobian and planar3_manipulability_from_jacobian); work: 47 reals. */
 #define PLANAR3_MANIPULABILITY_Q_ROWS 3
 #define PLANAR3_MANIPULABILITY_Q_COLS 1
 #define PLANAR3_MANIPULABILITY_GRAD_W_ROWS 3
@@ -321,7 +321,7 @@ void planar3_manipulability(const planar3_real q[PLANAR3_NDOF], planar3_real del
 #define PLANAR3_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void planar3_continuous_weights(const planar3_real q[PLANAR3_NDOF], planar3_real band, planar3_real w_c[PLANAR3_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 86 add, 148 mul, 9 div, 4 sqrt, 6 trig, 7 minmax, 6 compare, 6 select (calls planar3_jacobian and planar3_ft_index_from_jacobian); work: 53 reals. */
+ * ops: 86 add, 148 mul, 6 div, 4 sqrt, 6 trig, 7 minmax, 6 compare, 6 select (calls planar3_jacobian and planar3_ft_index_from_jacobian); work: 53 reals. */
 #define PLANAR3_FT_INDEX_Q_ROWS 3
 #define PLANAR3_FT_INDEX_Q_COLS 1
 #define PLANAR3_FT_INDEX_MASK_ROWS 3

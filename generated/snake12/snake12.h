@@ -169,7 +169,7 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]);
 #define SNAKE12_FK_JACOBIAN_WORK_REALS 119
 void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16], snake12_real J[150]);
 /* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 2652 add, 3186 mul, 146 div, 7 sqrt, 7 minmax, 10 compare, 10 select; work: 399 reals. */
+ * ops: 2652 add, 3186 mul, 30 div, 7 sqrt, 7 minmax, 10 compare, 10 select; work: 399 reals. */
 #define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 25
@@ -189,7 +189,7 @@ void snake12_manipulability_from_jacobian(const snake12_real J[150], snake12_rea
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 543
 void snake12_joint_manipulability_from_jacobian(const snake12_real J[150], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
 /* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 5258 add, 6494 mul, 171 div, 32 sqrt, 32 minmax, 12 compare, 12 select; work: 627 reals. */
+ * ops: 5258 add, 6494 mul, 55 div, 32 sqrt, 32 minmax, 12 compare, 12 select; work: 627 reals. */
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 25
@@ -204,7 +204,7 @@ void snake12_joint_manipulability_from_jacobian(const snake12_real J[150], const
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_WORK_REALS 627
 void snake12_ft_index_from_jacobian(const snake12_real J[150], const snake12_real mask[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF], snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
-/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 822 add, 865 mul, 21 div, 6 minmax; work: 201 reals. */
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_J_COLS 25
@@ -216,7 +216,7 @@ void snake12_ft_index_from_jacobian(const snake12_real J[150], const snake12_rea
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_WORK_REALS 201
 snake12_status snake12_step_gpm_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real alpha[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
-/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 656 add, 726 mul, 187 div, 31 minmax; work: 284 reals. */
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_J_COLS 25
@@ -228,7 +228,7 @@ snake12_status snake12_step_gpm_from_jacobian(const snake12_real J[150], const s
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_WORK_REALS 284
 snake12_status snake12_step_wln_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real W[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
-/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 2220 add, 1432 mul, 291 div, 6 sqrt, 345 minmax, 48 compare; work: 246 reals. */
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_J_COLS 25
@@ -244,7 +244,7 @@ snake12_status snake12_step_wln_from_jacobian(const snake12_real J[150], const s
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 246
 snake12_status snake12_step_fault_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
-/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read; a non-finite entry read shows in qdot, so the status does not scan J).
+/* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 7770 add, 7573 mul, 614 div, 38 sqrt, 2 exp, 527 minmax, 108 compare, 10 select; work: 599 reals. */
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_J_COLS 25
@@ -305,7 +305,7 @@ void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q
 #define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 693
 void snake12_joint_manipulability(const snake12_real q[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 2987 add, 3618 mul, 146 div, 7 sqrt, 48 trig, 7 minmax, 10 compare, 10 select (calls snake12_jacobian and snake12_manipulability_from_jacobian); work: 549 reals. */
+ * ops: 2987 add, 3618 mul, 30 div, 7 sqrt, 48 trig, 7 minmax, 10 compare, 10 select (calls snake12_jacobian and snake12_manipulability_from_jacobian); work: 549 reals. */
 #define SNAKE12_MANIPULABILITY_Q_ROWS 25
 #define SNAKE12_MANIPULABILITY_Q_COLS 1
 #define SNAKE12_MANIPULABILITY_GRAD_W_ROWS 25
@@ -321,7 +321,7 @@ void snake12_manipulability(const snake12_real q[SNAKE12_NDOF], snake12_real del
 #define SNAKE12_CONTINUOUS_WEIGHTS_WORK_REALS 11
 void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real band, snake12_real w_c[SNAKE12_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 5593 add, 6926 mul, 171 div, 32 sqrt, 48 trig, 32 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_ft_index_from_jacobian); work: 777 reals. */
+ * ops: 5593 add, 6926 mul, 55 div, 32 sqrt, 48 trig, 32 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_ft_index_from_jacobian); work: 777 reals. */
 #define SNAKE12_FT_INDEX_Q_ROWS 25
 #define SNAKE12_FT_INDEX_Q_COLS 1
 #define SNAKE12_FT_INDEX_MASK_ROWS 25
