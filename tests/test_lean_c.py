@@ -202,3 +202,19 @@ def test_zghal_is_finite_exactly_at_and_beyond_the_limits():
     for q in (m.robot.qmin, m.robot.qmax, m.robot.qmax + 1.0, m.robot.qmin - 1.0):
         h, g = f(q)
         assert np.isfinite(float(h)) and np.all(np.isfinite(np.array(g)))
+
+
+def test_header_refuses_fast_math(tmp_path):
+    """-ffast-math would fold the status probe's x * 0 to 0 and the NaN tests to false: the
+    generated header stops such a build with a message instead."""
+    require_tool("gcc")
+    code = generate(CodegenConfig(load_robot("planar3")))
+    write(code, tmp_path)
+    (tmp_path / "use.c").write_text('#include "planar3.h"\nint main(void) { return 0; }\n')
+    for flag in ("-ffast-math", "-ffinite-math-only"):
+        proc = subprocess.run(["gcc", *STRICT_FLAGS, flag, "-I", str(tmp_path), "-c", str(tmp_path / "use.c"), "-o",
+                               str(tmp_path / "use.o")], capture_output=True, text=True)
+        assert proc.returncode != 0 and "needs IEEE 754 semantics" in proc.stderr, (flag, proc.stderr)
+    subprocess.run(["gcc", *STRICT_FLAGS, "-I", str(tmp_path), "-c", str(tmp_path / "use.c"), "-o",
+                    str(tmp_path / "use.o")], check=True)
+

@@ -320,6 +320,12 @@ extern "C" {{
 #define {P}_NTASK {model.m}  /* task-space rows used by criteria and steps */
 #define {P}_ROBOT_SHA256 "{config.robot.sha256}"
 
+/* The status probes (x * 0 is NaN only for NaN/inf), fmin/fmax and the Sturm counts rely on
+ * IEEE 754 arithmetic, which -ffast-math / -ffinite-math-only give up. */
+#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && (__FINITE_MATH_ONLY__ != 0))
+#error "{p}.h needs IEEE 754 semantics: compile without -ffast-math and -ffinite-math-only"
+#endif
+
 /* The one precision switch: {P}_USE_FLOAT 1 is true single precision (sinf, f literals,
  * no promotion); 0 is double. The generator's default is below; -D{P}_USE_FLOAT=… overrides. */
 #ifndef {P}_USE_FLOAT

@@ -15,6 +15,12 @@ extern "C" {
 #define IIWA14_NTASK 6  /* task-space rows used by criteria and steps */
 #define IIWA14_ROBOT_SHA256 "ce874d48ce6ec21a427bcac58718f171885cddffbe9d25fe0c2f787d5184ed23"
 
+/* The status probes (x * 0 is NaN only for NaN/inf), fmin/fmax and the Sturm counts rely on
+ * IEEE 754 arithmetic, which -ffast-math / -ffinite-math-only give up. */
+#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && (__FINITE_MATH_ONLY__ != 0))
+#error "iiwa14.h needs IEEE 754 semantics: compile without -ffast-math and -ffinite-math-only"
+#endif
+
 /* The one precision switch: IIWA14_USE_FLOAT 1 is true single precision (sinf, f literals,
  * no promotion); 0 is double. The generator's default is below; -DIIWA14_USE_FLOAT=… overrides. */
 #ifndef IIWA14_USE_FLOAT

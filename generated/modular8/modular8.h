@@ -15,6 +15,12 @@ extern "C" {
 #define MODULAR8_NTASK 6  /* task-space rows used by criteria and steps */
 #define MODULAR8_ROBOT_SHA256 "38bd41f92ca53c02b96c15b614fc5c7a44be3c1de10da8fce507e1981dceae34"
 
+/* The status probes (x * 0 is NaN only for NaN/inf), fmin/fmax and the Sturm counts rely on
+ * IEEE 754 arithmetic, which -ffast-math / -ffinite-math-only give up. */
+#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && (__FINITE_MATH_ONLY__ != 0))
+#error "modular8.h needs IEEE 754 semantics: compile without -ffast-math and -ffinite-math-only"
+#endif
+
 /* The one precision switch: MODULAR8_USE_FLOAT 1 is true single precision (sinf, f literals,
  * no promotion); 0 is double. The generator's default is below; -DMODULAR8_USE_FLOAT=… overrides. */
 #ifndef MODULAR8_USE_FLOAT

@@ -15,6 +15,12 @@ extern "C" {
 #define PANDA_NTASK 6  /* task-space rows used by criteria and steps */
 #define PANDA_ROBOT_SHA256 "e58c5eebd0700d7e318e6fa90496bcfb0bd8cf91febf7c4c02b3c812cfabae99"
 
+/* The status probes (x * 0 is NaN only for NaN/inf), fmin/fmax and the Sturm counts rely on
+ * IEEE 754 arithmetic, which -ffast-math / -ffinite-math-only give up. */
+#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && (__FINITE_MATH_ONLY__ != 0))
+#error "panda.h needs IEEE 754 semantics: compile without -ffast-math and -ffinite-math-only"
+#endif
+
 /* The one precision switch: PANDA_USE_FLOAT 1 is true single precision (sinf, f literals,
  * no promotion); 0 is double. The generator's default is below; -DPANDA_USE_FLOAT=… overrides. */
 #ifndef PANDA_USE_FLOAT

@@ -15,6 +15,12 @@ extern "C" {
 #define PLANAR3_NTASK 3  /* task-space rows used by criteria and steps */
 #define PLANAR3_ROBOT_SHA256 "90f6630c1cbbc2697dcfa8324e2040faa900842bb94e1646f878df1f41adc6fb"
 
+/* The status probes (x * 0 is NaN only for NaN/inf), fmin/fmax and the Sturm counts rely on
+ * IEEE 754 arithmetic, which -ffast-math / -ffinite-math-only give up. */
+#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && (__FINITE_MATH_ONLY__ != 0))
+#error "planar3.h needs IEEE 754 semantics: compile without -ffast-math and -ffinite-math-only"
+#endif
+
 /* The one precision switch: PLANAR3_USE_FLOAT 1 is true single precision (sinf, f literals,
  * no promotion); 0 is double. The generator's default is below; -DPLANAR3_USE_FLOAT=… overrides. */
 #ifndef PLANAR3_USE_FLOAT

@@ -15,6 +15,12 @@ extern "C" {
 #define SNAKE12_NTASK 6  /* task-space rows used by criteria and steps */
 #define SNAKE12_ROBOT_SHA256 "fcec5f599a3f578439e8bacf76d203eca1f8c72dfd5ae94bc694bf8c00423bcb"
 
+/* The status probes (x * 0 is NaN only for NaN/inf), fmin/fmax and the Sturm counts rely on
+ * IEEE 754 arithmetic, which -ffast-math / -ffinite-math-only give up. */
+#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && (__FINITE_MATH_ONLY__ != 0))
+#error "snake12.h needs IEEE 754 semantics: compile without -ffast-math and -ffinite-math-only"
+#endif
+
 /* The one precision switch: SNAKE12_USE_FLOAT 1 is true single precision (sinf, f literals,
  * no promotion); 0 is double. The generator's default is below; -DSNAKE12_USE_FLOAT=… overrides. */
 #ifndef SNAKE12_USE_FLOAT
