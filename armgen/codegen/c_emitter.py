@@ -97,12 +97,65 @@ class EmittedFunction:
         return sum(v for k, v in self.op_counts.items() if k not in ("copy", "const", "input", "output"))
 
 
+# Operations a trigonometric argument may be built of for the sin/cos table (joint angle plus
+# offset, a scale): anything else keeps sin/cos inline. Longer argument expressions (C text) are
+# not worth a table slot.
+_ANGLE_OPS = {ca.OP_ADD, ca.OP_SUB, ca.OP_MUL, ca.OP_NEG, ca.OP_ASSIGN, ca.OP_TWICE}
+_ANGLE_TEXT_MAX = 160
+
+
+def _trig_table(func: ca.Function, arg_names: list[str], arg_scalar: list[bool],
+                macro_prefix: str) -> tuple[dict[int, int], list[str]]:
+    """Slots of a sin/cos table: {instruction of a sin or cos: slot} and each slot's angle as a
+    C expression of the inputs (the same operations as the SX, so the same value). Empty when
+    an argument is not such an expression."""
+    text: dict[int, str | None] = {}
+    slots: dict[str, int] = {}
+    table: dict[int, int] = {}
+    p = macro_prefix.lower()
+    for k in range(func.n_instructions()):
+        op, ins, outs = func.instruction_id(k), func.instruction_input(k), func.instruction_output(k)
+        if op == ca.OP_OUTPUT:
+            continue
+        value = None
+        if op == ca.OP_INPUT:
+            value = arg_names[ins[0]] if arg_scalar[ins[0]] else f"{arg_names[ins[0]]}[{ins[1]}]"
+        elif op == ca.OP_CONST:
+            value = c_literal(func.instruction_constant(k), macro_prefix)
+        elif op in (ca.OP_SIN, ca.OP_COS):
+            angle = text.get(ins[0])
+            if angle is None:
+                return {}, []
+            table[k] = slots.setdefault(angle, len(slots))
+        elif op in _ANGLE_OPS:
+            operands = [text.get(i) for i in ins[:2 if op in _BINARY else 1]]
+            if None not in operands:
+                template = (_BINARY if op in _BINARY else _UNARY)[op][1]
+                value = "(" + template.format(a=operands[0], b=operands[-1], P=macro_prefix, p=p) + ")"
+                value = value if len(value) <= _ANGLE_TEXT_MAX else None
+        for o in outs:
+            if o >= 0:
+                text[o] = value
+    return table, list(slots)
+
+
+def _whole_input(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], angles: list[str]) -> str | None:
+    """The name of the vector input whose entries are exactly the table's angles, if any."""
+    for k, (name, scalar) in enumerate(zip(arg_names, arg_scalar)):
+        size = func.sparsity_in(k).nnz()
+        if not scalar and size == len(angles) and set(angles) == {f"{name}[{i}]" for i in range(size)}:
+            return name
+    return None
+
+
 def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], res_names: list[str],
-              res_scalar: list[bool], macro_prefix: str, indent: str = "  ") -> EmittedFunction:
+              res_scalar: list[bool], macro_prefix: str, indent: str = "  ", trig_table: bool = False) -> EmittedFunction:
     """The statements of ``func``'s SX algorithm as C; inputs/outputs by the given names.
 
     Outputs must be dense (see ``casadi.densify``); the nonzero index then equals the
     column-major element index. A scalar input is a value, a scalar output ``x`` is ``*x``.
+    ``trig_table``: the sin and cos of every angle come first, from one call of the header's
+    ``<p>_sincos_table`` (a loop a compiler may vectorise), and the body reads them.
     """
     if not func.is_a("SXFunction"):
         raise ArmgenError(f"function {func.name()} is not an SX function")
@@ -114,11 +167,24 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
     used = set()
     loops: set[str] = set()
     callees = iter(calls_in_order(func))
+    table, angles = _trig_table(func, arg_names, arg_scalar, macro_prefix) if trig_table else ({}, [])
+    p = macro_prefix.lower()
+    angle_input = _whole_input(func, arg_names, arg_scalar, angles)
+    if angle_input is not None:  # the angles are an input vector, entry by entry: no copy
+        table = {k: int(angles[slot].rsplit("[", 1)[1][:-1]) for k, slot in table.items()}
+        lines.append(f"{p}_sincos_table({angle_input}, trig_sin, trig_cos, {len(angles)});")
+    elif angles:
+        lines += [f"trig_angle[{slot}] = {angle};" for slot, angle in enumerate(angles)]
+        lines.append(f"{p}_sincos_table(trig_angle, trig_sin, trig_cos, {len(angles)});")
     for k in range(func.n_instructions()):
         op = func.instruction_id(k)
         ins = func.instruction_input(k)
         outs = func.instruction_output(k)
-        if op == ca.OP_INPUT:
+        if k in table:
+            counts["trig"] += 1
+            lines.append(f"w{outs[0]} = trig_{'sin' if op == ca.OP_SIN else 'cos'}[{table[k]}];")
+            used.add(outs[0])
+        elif op == ca.OP_INPUT:
             counts["input"] += 1
             source = arg_names[ins[0]] if arg_scalar[ins[0]] else f"{arg_names[ins[0]]}[{ins[1]}]"
             lines.append(f"w{outs[0]} = {source};")
@@ -160,9 +226,13 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
     if used:
         names = [f"w{i}" for i in sorted(used)]
         for start in range(0, len(names), 12):
-            decl.insert(0, f"{macro_prefix.lower()}_real {', '.join(names[start:start + 12])};")
+            decl.insert(0, f"{p}_real {', '.join(names[start:start + 12])};")
+    if angles:
+        decl.insert(0, f"{p}_real trig_sin[{len(angles)}], trig_cos[{len(angles)}];")
+        if angle_input is None:
+            decl.insert(0, f"{p}_real trig_angle[{len(angles)}];")
     body = "\n".join(indent + line for line in decl + lines)
-    return EmittedFunction(func.name(), body, counts, len(used), tuple(sorted(loops)))
+    return EmittedFunction(func.name(), body, counts, len(used) + (2 if angle_input else 3) * len(angles), tuple(sorted(loops)))
 
 
 # The operand positions whose NaN/inf makes the result NaN/inf whatever the other operand

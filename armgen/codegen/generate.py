@@ -191,7 +191,8 @@ def generate(config: CodegenConfig) -> GeneratedCode:
                                  kinematics.op_counts + twin.op_counts, twin.work_reals + 6 * model.n)
             calls = f"calls {p}_jacobian and {p}_{twin.name}"
         else:
-            em = emit_body(func, arg_names, [s for _, s in in_decls], res_names, [s for _, s in out_decls], P)
+            em = emit_body(func, arg_names, [s for _, s in in_decls], res_names, [s for _, s in out_decls], P,
+                           trig_table=True)
             calls = ""
             if returns_status:
                 em.body += "\n" + _status_check(func, arg_names, [s for _, s in in_decls], res_names,
@@ -259,44 +260,56 @@ static inline {p}_real {p}_sqrt({p}_real x) {{
   return sqrt(x);
 #endif
 }}
-#if {P}_USE_FLOAT && {P}_BOUNDED_TRIG
-/* Always inlined (gcc/clang), also at -Os: the sin and cos of one joint angle then share the
- * reduction, and no call is made. */
 #if defined(__GNUC__)
 #define {P}_TRIG_INLINE static inline __attribute__((always_inline))
 #else
 #define {P}_TRIG_INLINE static inline
 #endif
-/* x = k pi/2 + r, |r| <= pi/4; |x| beyond {BOUNDED_TRIG_RANGE} rad is outside the documented range
- * (still finite), NaN/inf give NaN. */
-{P}_TRIG_INLINE float {p}_reduce(float x, int *quadrant) {{
+#if {P}_USE_FLOAT && {P}_BOUNDED_TRIG
+/* sin and cos of x without a branch, always inlined (gcc/clang), also at -Os: x = k pi/2 + r,
+ * |r| <= pi/4, the polynomials of r, then the rotation by j pi/2 (j = k mod 4 in -2..2) as
+ * exact factors a = cos(j pi/2), b = sin(j pi/2) in {{-1, 0, 1}}, so that a loop over angles
+ * runs four lanes wide where the compiler vectorises (x86 SSE). |x| beyond {BOUNDED_TRIG_RANGE} rad is
+ * outside the documented range; NaN/inf give NaN. */
+{P}_TRIG_INLINE void {p}_sincos_bounded(float x, float *s, float *c) {{
   const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
   float k = (x * 0.636619772367581343f + shifter) - shifter;
-  float kc = (fabsf(k) <= 65536.0f) ? k : 0.0f; /* false for NaN too: (int) stays defined */
-  *quadrant = ((int)kc) & 3;
-  return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
-}}
-{P}_TRIG_INLINE float {p}_sin_poly(float r) {{
+  float r = ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
   float z = r * r;
-  return r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
-}}
-{P}_TRIG_INLINE float {p}_cos_poly(float r) {{
-  float z = r * r;
-  return 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+  float sp = r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
+  float cp = 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+  float j = k - 4.0f * ((k * 0.25f + shifter) - shifter);
+  float aj = fabsf(j);
+  float odd = aj * (2.0f - aj);                         /* 1 for j = +-1, else 0 */
+  float a = (1.0f - odd) * (1.0f - aj * (aj - 1.0f));   /* 1, 0, -1 for |j| = 0, 1, 2 */
+  float b = j * odd;
+  *s = a * sp + b * cp;
+  *c = a * cp - b * sp;
 }}
 {P}_TRIG_INLINE float {p}_sin_bounded(float x) {{
-  int quadrant;
-  float r = {p}_reduce(x, &quadrant);
-  float v = ((quadrant & 1) != 0) ? {p}_cos_poly(r) : {p}_sin_poly(r);
-  return ((quadrant & 2) != 0) ? -v : v;
+  float s, c;
+  {p}_sincos_bounded(x, &s, &c);
+  return s;
 }}
 {P}_TRIG_INLINE float {p}_cos_bounded(float x) {{
-  int quadrant;
-  float r = {p}_reduce(x, &quadrant);
-  float v = ((quadrant & 1) != 0) ? {p}_sin_poly(r) : {p}_cos_poly(r);
-  return (((quadrant + 1) & 2) != 0) ? -v : v;
+  float s, c;
+  {p}_sincos_bounded(x, &s, &c);
+  return c;
 }}
 #endif
+/* The sin and cos of a function's n angles, in one loop before its straight-line code (the
+ * generated kinematics call it): branch-free bodies, so the loop vectorises where it can. */
+{P}_TRIG_INLINE void {p}_sincos_table(const {p}_real *angle, {p}_real *s, {p}_real *c, int n) {{
+  int i;
+  for (i = 0; i < n; ++i) {{
+#if {P}_USE_FLOAT && {P}_BOUNDED_TRIG
+    {p}_sincos_bounded(angle[i], &s[i], &c[i]);
+#else
+    s[i] = {P}_SIN(angle[i]);
+    c[i] = {P}_COS(angle[i]);
+#endif
+  }}
+}}
 
 """
 

@@ -99,44 +99,56 @@ static inline panda_real panda_sqrt(panda_real x) {
   return sqrt(x);
 #endif
 }
-#if PANDA_USE_FLOAT && PANDA_BOUNDED_TRIG
-/* Always inlined (gcc/clang), also at -Os: the sin and cos of one joint angle then share the
- * reduction, and no call is made. */
 #if defined(__GNUC__)
 #define PANDA_TRIG_INLINE static inline __attribute__((always_inline))
 #else
 #define PANDA_TRIG_INLINE static inline
 #endif
-/* x = k pi/2 + r, |r| <= pi/4; |x| beyond 100 rad is outside the documented range
- * (still finite), NaN/inf give NaN. */
-PANDA_TRIG_INLINE float panda_reduce(float x, int *quadrant) {
+#if PANDA_USE_FLOAT && PANDA_BOUNDED_TRIG
+/* sin and cos of x without a branch, always inlined (gcc/clang), also at -Os: x = k pi/2 + r,
+ * |r| <= pi/4, the polynomials of r, then the rotation by j pi/2 (j = k mod 4 in -2..2) as
+ * exact factors a = cos(j pi/2), b = sin(j pi/2) in {-1, 0, 1}, so that a loop over angles
+ * runs four lanes wide where the compiler vectorises (x86 SSE). |x| beyond 100 rad is
+ * outside the documented range; NaN/inf give NaN. */
+PANDA_TRIG_INLINE void panda_sincos_bounded(float x, float *s, float *c) {
   const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
   float k = (x * 0.636619772367581343f + shifter) - shifter;
-  float kc = (fabsf(k) <= 65536.0f) ? k : 0.0f; /* false for NaN too: (int) stays defined */
-  *quadrant = ((int)kc) & 3;
-  return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
-}
-PANDA_TRIG_INLINE float panda_sin_poly(float r) {
+  float r = ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
   float z = r * r;
-  return r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
-}
-PANDA_TRIG_INLINE float panda_cos_poly(float r) {
-  float z = r * r;
-  return 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+  float sp = r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
+  float cp = 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+  float j = k - 4.0f * ((k * 0.25f + shifter) - shifter);
+  float aj = fabsf(j);
+  float odd = aj * (2.0f - aj);                         /* 1 for j = +-1, else 0 */
+  float a = (1.0f - odd) * (1.0f - aj * (aj - 1.0f));   /* 1, 0, -1 for |j| = 0, 1, 2 */
+  float b = j * odd;
+  *s = a * sp + b * cp;
+  *c = a * cp - b * sp;
 }
 PANDA_TRIG_INLINE float panda_sin_bounded(float x) {
-  int quadrant;
-  float r = panda_reduce(x, &quadrant);
-  float v = ((quadrant & 1) != 0) ? panda_cos_poly(r) : panda_sin_poly(r);
-  return ((quadrant & 2) != 0) ? -v : v;
+  float s, c;
+  panda_sincos_bounded(x, &s, &c);
+  return s;
 }
 PANDA_TRIG_INLINE float panda_cos_bounded(float x) {
-  int quadrant;
-  float r = panda_reduce(x, &quadrant);
-  float v = ((quadrant & 1) != 0) ? panda_sin_poly(r) : panda_cos_poly(r);
-  return (((quadrant + 1) & 2) != 0) ? -v : v;
+  float s, c;
+  panda_sincos_bounded(x, &s, &c);
+  return c;
 }
 #endif
+/* The sin and cos of a function's n angles, in one loop before its straight-line code (the
+ * generated kinematics call it): branch-free bodies, so the loop vectorises where it can. */
+PANDA_TRIG_INLINE void panda_sincos_table(const panda_real *angle, panda_real *s, panda_real *c, int n) {
+  int i;
+  for (i = 0; i < n; ++i) {
+#if PANDA_USE_FLOAT && PANDA_BOUNDED_TRIG
+    panda_sincos_bounded(angle[i], &s[i], &c[i]);
+#else
+    s[i] = PANDA_SIN(angle[i]);
+    c[i] = PANDA_COS(angle[i]);
+#endif
+  }
+}
 
 /* Result of the functions that can fail. */
 typedef enum {
@@ -149,30 +161,30 @@ typedef enum {
  * inputs. No heap, no globals, reentrant; locals are the WORK_REALS scalars listed. */
 
 /* fk: tool pose T (4x4 homogeneous) in the base frame.
- * ops: 49 add, 80 mul, 14 trig; work: 28 reals. */
+ * ops: 49 add, 80 mul, 14 trig; work: 42 reals. */
 #define PANDA_FK_Q_ROWS 7
 #define PANDA_FK_Q_COLS 1
 #define PANDA_FK_T_ROWS 4
 #define PANDA_FK_T_COLS 4
-#define PANDA_FK_WORK_REALS 28
+#define PANDA_FK_WORK_REALS 42
 void panda_fk(const panda_real q[PANDA_NDOF], panda_real T[16]);
 /* jacobian: geometric Jacobian J (6xn, rows [v; w] of the tool origin, base frame).
- * ops: 80 add, 102 mul, 12 trig; work: 41 reals. */
+ * ops: 80 add, 102 mul, 12 trig; work: 59 reals. */
 #define PANDA_JACOBIAN_Q_ROWS 7
 #define PANDA_JACOBIAN_Q_COLS 1
 #define PANDA_JACOBIAN_J_ROWS 6
 #define PANDA_JACOBIAN_J_COLS 7
-#define PANDA_JACOBIAN_WORK_REALS 41
+#define PANDA_JACOBIAN_WORK_REALS 59
 void panda_jacobian(const panda_real q[PANDA_NDOF], panda_real J[42]);
 /* fk_jacobian: tool pose T and geometric Jacobian J in one call (shared trig).
- * ops: 88 add, 114 mul, 14 trig; work: 40 reals. */
+ * ops: 88 add, 114 mul, 14 trig; work: 54 reals. */
 #define PANDA_FK_JACOBIAN_Q_ROWS 7
 #define PANDA_FK_JACOBIAN_Q_COLS 1
 #define PANDA_FK_JACOBIAN_T_ROWS 4
 #define PANDA_FK_JACOBIAN_T_COLS 4
 #define PANDA_FK_JACOBIAN_J_ROWS 6
 #define PANDA_FK_JACOBIAN_J_COLS 7
-#define PANDA_FK_JACOBIAN_WORK_REALS 40
+#define PANDA_FK_JACOBIAN_WORK_REALS 54
 void panda_fk_jacobian(const panda_real q[PANDA_NDOF], panda_real T[16], panda_real J[42]);
 /* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 620 add, 928 mul, 13 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 135 reals. */

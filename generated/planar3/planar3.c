@@ -14,23 +14,25 @@
 
 /* fk: 13 add, 22 mul, 6 trig */
 void planar3_fk(const planar3_real q[PLANAR3_NDOF], planar3_real T[16]) {
+  planar3_real trig_sin[3], trig_cos[3];
   planar3_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
+  planar3_sincos_table(q, trig_sin, trig_cos, 3);
   w0 = q[0];
-  w1 = PLANAR3_COS(w0);
+  w1 = trig_cos[0];
   w2 = q[1];
-  w3 = PLANAR3_COS(w2);
+  w3 = trig_cos[1];
   w4 = w1 * w3;
-  w0 = PLANAR3_SIN(w0);
-  w2 = PLANAR3_SIN(w2);
+  w0 = trig_sin[0];
+  w2 = trig_sin[1];
   w5 = w0 * w2;
   w4 = w4 - w5;
   w5 = q[2];
-  w6 = PLANAR3_COS(w5);
+  w6 = trig_cos[2];
   w7 = w4 * w6;
   w8 = w1 * w2;
   w9 = w0 * w3;
   w8 = w8 + w9;
-  w5 = PLANAR3_SIN(w5);
+  w5 = trig_sin[2];
   w9 = w8 * w5;
   w7 = w7 - w9;
   T[0] = w7;
@@ -84,25 +86,27 @@ void planar3_fk(const planar3_real q[PLANAR3_NDOF], planar3_real T[16]) {
 
 /* jacobian: 15 add, 18 mul, 6 trig */
 void planar3_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real J[18]) {
+  planar3_real trig_sin[3], trig_cos[3];
   planar3_real w12, w13;
   planar3_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
+  planar3_sincos_table(q, trig_sin, trig_cos, 3);
   w0 = PLANAR3_LIT(0.3);
   w1 = q[0];
-  w2 = PLANAR3_SIN(w1);
+  w2 = trig_sin[0];
   w3 = q[1];
-  w4 = PLANAR3_COS(w3);
+  w4 = trig_cos[1];
   w5 = w2 * w4;
-  w1 = PLANAR3_COS(w1);
-  w3 = PLANAR3_SIN(w3);
+  w1 = trig_cos[0];
+  w3 = trig_sin[1];
   w6 = w1 * w3;
   w5 = w5 + w6;
   w6 = q[2];
-  w7 = PLANAR3_COS(w6);
+  w7 = trig_cos[2];
   w8 = w5 * w7;
   w9 = w1 * w4;
   w10 = w2 * w3;
   w9 = w9 - w10;
-  w6 = PLANAR3_SIN(w6);
+  w6 = trig_sin[2];
   w9 = w9 * w6;
   w8 = w8 + w9;
   w8 = w0 * w8;
@@ -155,23 +159,25 @@ void planar3_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real J[18]) {
 
 /* fk_jacobian: 18 add, 22 mul, 6 trig */
 void planar3_fk_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real T[16], planar3_real J[18]) {
+  planar3_real trig_sin[3], trig_cos[3];
   planar3_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
+  planar3_sincos_table(q, trig_sin, trig_cos, 3);
   w0 = q[0];
-  w1 = PLANAR3_COS(w0);
+  w1 = trig_cos[0];
   w2 = q[1];
-  w3 = PLANAR3_COS(w2);
+  w3 = trig_cos[1];
   w4 = w1 * w3;
-  w0 = PLANAR3_SIN(w0);
-  w2 = PLANAR3_SIN(w2);
+  w0 = trig_sin[0];
+  w2 = trig_sin[1];
   w5 = w0 * w2;
   w4 = w4 - w5;
   w5 = q[2];
-  w6 = PLANAR3_COS(w5);
+  w6 = trig_cos[2];
   w7 = w4 * w6;
   w8 = w1 * w2;
   w9 = w0 * w3;
   w8 = w8 + w9;
-  w5 = PLANAR3_SIN(w5);
+  w5 = trig_sin[2];
   w9 = w8 * w5;
   w7 = w7 - w9;
   T[0] = w7;

@@ -99,44 +99,56 @@ static inline planar3_real planar3_sqrt(planar3_real x) {
   return sqrt(x);
 #endif
 }
-#if PLANAR3_USE_FLOAT && PLANAR3_BOUNDED_TRIG
-/* Always inlined (gcc/clang), also at -Os: the sin and cos of one joint angle then share the
- * reduction, and no call is made. */
 #if defined(__GNUC__)
 #define PLANAR3_TRIG_INLINE static inline __attribute__((always_inline))
 #else
 #define PLANAR3_TRIG_INLINE static inline
 #endif
-/* x = k pi/2 + r, |r| <= pi/4; |x| beyond 100 rad is outside the documented range
- * (still finite), NaN/inf give NaN. */
-PLANAR3_TRIG_INLINE float planar3_reduce(float x, int *quadrant) {
+#if PLANAR3_USE_FLOAT && PLANAR3_BOUNDED_TRIG
+/* sin and cos of x without a branch, always inlined (gcc/clang), also at -Os: x = k pi/2 + r,
+ * |r| <= pi/4, the polynomials of r, then the rotation by j pi/2 (j = k mod 4 in -2..2) as
+ * exact factors a = cos(j pi/2), b = sin(j pi/2) in {-1, 0, 1}, so that a loop over angles
+ * runs four lanes wide where the compiler vectorises (x86 SSE). |x| beyond 100 rad is
+ * outside the documented range; NaN/inf give NaN. */
+PLANAR3_TRIG_INLINE void planar3_sincos_bounded(float x, float *s, float *c) {
   const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
   float k = (x * 0.636619772367581343f + shifter) - shifter;
-  float kc = (fabsf(k) <= 65536.0f) ? k : 0.0f; /* false for NaN too: (int) stays defined */
-  *quadrant = ((int)kc) & 3;
-  return ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
-}
-PLANAR3_TRIG_INLINE float planar3_sin_poly(float r) {
+  float r = ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
   float z = r * r;
-  return r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
-}
-PLANAR3_TRIG_INLINE float planar3_cos_poly(float r) {
-  float z = r * r;
-  return 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+  float sp = r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
+  float cp = 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+  float j = k - 4.0f * ((k * 0.25f + shifter) - shifter);
+  float aj = fabsf(j);
+  float odd = aj * (2.0f - aj);                         /* 1 for j = +-1, else 0 */
+  float a = (1.0f - odd) * (1.0f - aj * (aj - 1.0f));   /* 1, 0, -1 for |j| = 0, 1, 2 */
+  float b = j * odd;
+  *s = a * sp + b * cp;
+  *c = a * cp - b * sp;
 }
 PLANAR3_TRIG_INLINE float planar3_sin_bounded(float x) {
-  int quadrant;
-  float r = planar3_reduce(x, &quadrant);
-  float v = ((quadrant & 1) != 0) ? planar3_cos_poly(r) : planar3_sin_poly(r);
-  return ((quadrant & 2) != 0) ? -v : v;
+  float s, c;
+  planar3_sincos_bounded(x, &s, &c);
+  return s;
 }
 PLANAR3_TRIG_INLINE float planar3_cos_bounded(float x) {
-  int quadrant;
-  float r = planar3_reduce(x, &quadrant);
-  float v = ((quadrant & 1) != 0) ? planar3_sin_poly(r) : planar3_cos_poly(r);
-  return (((quadrant + 1) & 2) != 0) ? -v : v;
+  float s, c;
+  planar3_sincos_bounded(x, &s, &c);
+  return c;
 }
 #endif
+/* The sin and cos of a function's n angles, in one loop before its straight-line code (the
+ * generated kinematics call it): branch-free bodies, so the loop vectorises where it can. */
+PLANAR3_TRIG_INLINE void planar3_sincos_table(const planar3_real *angle, planar3_real *s, planar3_real *c, int n) {
+  int i;
+  for (i = 0; i < n; ++i) {
+#if PLANAR3_USE_FLOAT && PLANAR3_BOUNDED_TRIG
+    planar3_sincos_bounded(angle[i], &s[i], &c[i]);
+#else
+    s[i] = PLANAR3_SIN(angle[i]);
+    c[i] = PLANAR3_COS(angle[i]);
+#endif
+  }
+}
 
 /* Result of the functions that can fail. */
 typedef enum {
@@ -149,30 +161,30 @@ typedef enum {
  * inputs. No heap, no globals, reentrant; locals are the WORK_REALS scalars listed. */
 
 /* fk: tool pose T (4x4 homogeneous) in the base frame.
- * ops: 13 add, 22 mul, 6 trig; work: 12 reals. */
+ * ops: 13 add, 22 mul, 6 trig; work: 18 reals. */
 #define PLANAR3_FK_Q_ROWS 3
 #define PLANAR3_FK_Q_COLS 1
 #define PLANAR3_FK_T_ROWS 4
 #define PLANAR3_FK_T_COLS 4
-#define PLANAR3_FK_WORK_REALS 12
+#define PLANAR3_FK_WORK_REALS 18
 void planar3_fk(const planar3_real q[PLANAR3_NDOF], planar3_real T[16]);
 /* jacobian: geometric Jacobian J (6xn, rows [v; w] of the tool origin, base frame).
- * ops: 15 add, 18 mul, 6 trig; work: 14 reals. */
+ * ops: 15 add, 18 mul, 6 trig; work: 20 reals. */
 #define PLANAR3_JACOBIAN_Q_ROWS 3
 #define PLANAR3_JACOBIAN_Q_COLS 1
 #define PLANAR3_JACOBIAN_J_ROWS 6
 #define PLANAR3_JACOBIAN_J_COLS 3
-#define PLANAR3_JACOBIAN_WORK_REALS 14
+#define PLANAR3_JACOBIAN_WORK_REALS 20
 void planar3_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real J[18]);
 /* fk_jacobian: tool pose T and geometric Jacobian J in one call (shared trig).
- * ops: 18 add, 22 mul, 6 trig; work: 12 reals. */
+ * ops: 18 add, 22 mul, 6 trig; work: 18 reals. */
 #define PLANAR3_FK_JACOBIAN_Q_ROWS 3
 #define PLANAR3_FK_JACOBIAN_Q_COLS 1
 #define PLANAR3_FK_JACOBIAN_T_ROWS 4
 #define PLANAR3_FK_JACOBIAN_T_COLS 4
 #define PLANAR3_FK_JACOBIAN_J_ROWS 6
 #define PLANAR3_FK_JACOBIAN_J_COLS 3
-#define PLANAR3_FK_JACOBIAN_WORK_REALS 12
+#define PLANAR3_FK_JACOBIAN_WORK_REALS 18
 void planar3_fk_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real T[16], planar3_real J[18]);
 /* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
  * ops: 69 add, 106 mul, 6 div, 4 sqrt, 4 minmax, 6 compare, 6 select; work: 29 reals. */
