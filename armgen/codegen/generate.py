@@ -146,7 +146,10 @@ def _status_check(func: ca.Function, arg_names: list[str], arg_scalar: list[bool
     values = []
     for k, (name, scalar) in enumerate(zip(arg_names, arg_scalar)):
         scanned = sorted(read_entries(func, k) - {e for i, e in carried if i == k})
-        values += [name] if scalar and scanned else [f"{name}[{e}]" for e in scanned if not scalar]
+        if scalar:
+            values += [name] if scanned else []
+        else:
+            values += [f"{name}[{e}]" for e in scanned]
     values += _values(res_names, res_scalar, [func.sparsity_out(k).numel() for k in range(func.n_out())], "*")
     return "\n".join(["  {", *_finite_probe(values, p, P), f"  return (probe == probe) ? {P}_OK : {P}_NONFINITE;", "  }"])
 
@@ -242,10 +245,11 @@ BOUNDED_TRIG_RANGE = 100
 
 
 def _lean_math(p: str, P: str) -> str:
-    """Static inline math of the generated header (also used by the firmware through <P>_SQRT …): fmin/fmax (C99 semantics: a NaN operand
-    yields the other) need no library call; sqrt is the FPU's
-    vsqrt.f32 on a Cortex-M with a single-precision FPU (no errno path); the optional
-    bounded-range sin/cos. Everything else goes to libm."""
+    """Static inline math of the generated header (also used by the firmware through <P>_SQRT …):
+    fmin/fmax (C99 semantics: a NaN operand yields the other) need no library call; sqrt is the
+    FPU's vsqrt.f32 on a Cortex-M with a single-precision FPU (no errno path); the optional
+    branch-free bounded-range sin/cos, and the sin/cos table the kinematics fill first.
+    Everything else goes to libm."""
     return f"""/* Lean math (no library calls where the FPU or a comparison does the job). */
 static inline {p}_real {p}_fmin({p}_real a, {p}_real b) {{ return ((a < b) || (b != b)) ? a : b; }}
 static inline {p}_real {p}_fmax({p}_real a, {p}_real b) {{ return ((a > b) || (b != b)) ? a : b; }}
