@@ -98,9 +98,11 @@ class EmittedFunction:
 
 
 # Operations a trigonometric argument may be built of for the sin/cos table (joint angle plus
-# offset, a scale): anything else keeps sin/cos inline. Longer argument expressions (C text) are
-# not worth a table slot.
-_ANGLE_OPS = {ca.OP_ADD, ca.OP_SUB, ca.OP_MUL, ca.OP_NEG, ca.OP_ASSIGN, ca.OP_TWICE}
+# offsets, a sign): anything else keeps sin/cos inline. No product, so that a compiler that
+# contracts within an expression (clang's default) cannot fuse the one-line angle into an FMA
+# that the one-operation-per-statement body never allows. Longer argument expressions (C text)
+# are not worth a table slot.
+_ANGLE_OPS = {ca.OP_ADD, ca.OP_SUB, ca.OP_NEG, ca.OP_ASSIGN, ca.OP_TWICE}
 _ANGLE_TEXT_MAX = 160
 
 
@@ -140,10 +142,13 @@ def _trig_table(func: ca.Function, arg_names: list[str], arg_scalar: list[bool],
 
 
 def _whole_input(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], angles: list[str]) -> str | None:
-    """The name of the vector input whose entries are exactly the table's angles, if any."""
+    """The name of the vector input whose first len(angles) entries are exactly the table's
+    angles, if any (then the table reads it in place)."""
+    if not angles:
+        return None
     for k, (name, scalar) in enumerate(zip(arg_names, arg_scalar)):
-        size = func.sparsity_in(k).nnz()
-        if not scalar and size == len(angles) and set(angles) == {f"{name}[{i}]" for i in range(size)}:
+        if (not scalar and func.sparsity_in(k).nnz() >= len(angles)
+                and set(angles) == {f"{name}[{i}]" for i in range(len(angles))}):
             return name
     return None
 

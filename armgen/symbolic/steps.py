@@ -162,7 +162,9 @@ def _bisection_step(m: int) -> ca.Function:
     "Every q_i ≥ 0" is tested as Σ (q_i − |q_i|) ≥ 0: each term is exactly 0 for q_i ≥ 0 and
     2q_i < 0 otherwise, and a sum of non-positive terms is 0 only if all are, so the decision is
     that of min_i q_i ≥ 0 — by a subtraction, an absolute value and an addition per pivot,
-    where a NaN-aware fmin is a compare-and-branch (a third of the step on the Cortex-M4)."""
+    where a NaN-aware fmin is a compare-and-branch (a third of the step on the Cortex-M4). (One
+    corner differs: a pivot of exactly −0 makes the next one +inf, whose term inf − inf is NaN,
+    counted as "below x"; it needs d_i − x = −0 exactly with the STURM_TINY-padded e² above.)"""
     state, d, e2 = ca.SX.sym("state", 2), ca.SX.sym("d", m), ca.SX.sym("e2", m - 1)
     lo, half = state[0], state[1]
     x = lo + half

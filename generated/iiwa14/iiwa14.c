@@ -172,18 +172,11 @@ void iiwa14_fk(const iiwa14_real q[IIWA14_NDOF], iiwa14_real T[16]) {
 
 /* jacobian: 58 add, 87 mul, 12 trig */
 void iiwa14_jacobian(const iiwa14_real q[IIWA14_NDOF], iiwa14_real J[42]) {
-  iiwa14_real trig_angle[6];
   iiwa14_real trig_sin[6], trig_cos[6];
   iiwa14_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33;
   iiwa14_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   iiwa14_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  trig_angle[0] = q[0];
-  trig_angle[1] = q[1];
-  trig_angle[2] = q[2];
-  trig_angle[3] = q[3];
-  trig_angle[4] = q[4];
-  trig_angle[5] = q[5];
-  iiwa14_sincos_table(trig_angle, trig_sin, trig_cos, 6);
+  iiwa14_sincos_table(q, trig_sin, trig_cos, 6);
   w0 = IIWA14_LIT(0.126);
   w1 = q[0];
   w2 = trig_sin[0];

@@ -169,12 +169,12 @@ typedef enum {
 #define IIWA14_FK_WORK_REALS 38
 void iiwa14_fk(const iiwa14_real q[IIWA14_NDOF], iiwa14_real T[16]);
 /* jacobian: geometric Jacobian J (6xn, rows [v; w] of the tool origin, base frame).
- * ops: 58 add, 87 mul, 12 trig; work: 52 reals. */
+ * ops: 58 add, 87 mul, 12 trig; work: 46 reals. */
 #define IIWA14_JACOBIAN_Q_ROWS 7
 #define IIWA14_JACOBIAN_Q_COLS 1
 #define IIWA14_JACOBIAN_J_ROWS 6
 #define IIWA14_JACOBIAN_J_COLS 7
-#define IIWA14_JACOBIAN_WORK_REALS 52
+#define IIWA14_JACOBIAN_WORK_REALS 46
 void iiwa14_jacobian(const iiwa14_real q[IIWA14_NDOF], iiwa14_real J[42]);
 /* fk_jacobian: tool pose T and geometric Jacobian J in one call (shared trig).
  * ops: 68 add, 105 mul, 14 trig; work: 44 reals. */

@@ -207,20 +207,12 @@ void modular8_fk(const modular8_real q[MODULAR8_NDOF], modular8_real T[16]) {
 
 /* jacobian: 90 add, 110 mul, 14 trig */
 void modular8_jacobian(const modular8_real q[MODULAR8_NDOF], modular8_real J[48]) {
-  modular8_real trig_angle[7];
   modular8_real trig_sin[7], trig_cos[7];
   modular8_real w36, w37, w38, w39, w40;
   modular8_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
   modular8_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   modular8_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  trig_angle[0] = q[0];
-  trig_angle[1] = q[1];
-  trig_angle[2] = q[2];
-  trig_angle[3] = q[3];
-  trig_angle[4] = q[4];
-  trig_angle[5] = q[5];
-  trig_angle[6] = q[6];
-  modular8_sincos_table(trig_angle, trig_sin, trig_cos, 7);
+  modular8_sincos_table(q, trig_sin, trig_cos, 7);
   w0 = MODULAR8_LIT(0.185);
   w1 = q[0];
   w2 = trig_cos[0];

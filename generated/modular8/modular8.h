@@ -169,12 +169,12 @@ typedef enum {
 #define MODULAR8_FK_WORK_REALS 46
 void modular8_fk(const modular8_real q[MODULAR8_NDOF], modular8_real T[16]);
 /* jacobian: geometric Jacobian J (6xn, rows [v; w] of the tool origin, base frame).
- * ops: 90 add, 110 mul, 14 trig; work: 62 reals. */
+ * ops: 90 add, 110 mul, 14 trig; work: 55 reals. */
 #define MODULAR8_JACOBIAN_Q_ROWS 8
 #define MODULAR8_JACOBIAN_Q_COLS 1
 #define MODULAR8_JACOBIAN_J_ROWS 6
 #define MODULAR8_JACOBIAN_J_COLS 8
-#define MODULAR8_JACOBIAN_WORK_REALS 62
+#define MODULAR8_JACOBIAN_WORK_REALS 55
 void modular8_jacobian(const modular8_real q[MODULAR8_NDOF], modular8_real J[48]);
 /* fk_jacobian: tool pose T and geometric Jacobian J in one call (shared trig).
  * ops: 99 add, 128 mul, 16 trig; work: 53 reals. */

@@ -198,19 +198,12 @@ void panda_fk(const panda_real q[PANDA_NDOF], panda_real T[16]) {
 
 /* jacobian: 80 add, 102 mul, 12 trig */
 void panda_jacobian(const panda_real q[PANDA_NDOF], panda_real J[42]) {
-  panda_real trig_angle[6];
   panda_real trig_sin[6], trig_cos[6];
   panda_real w36, w37, w38, w39, w40;
   panda_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
   panda_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   panda_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-  trig_angle[0] = q[0];
-  trig_angle[1] = q[1];
-  trig_angle[2] = q[2];
-  trig_angle[3] = q[3];
-  trig_angle[4] = q[4];
-  trig_angle[5] = q[5];
-  panda_sincos_table(trig_angle, trig_sin, trig_cos, 6);
+  panda_sincos_table(q, trig_sin, trig_cos, 6);
   w0 = PANDA_LIT(0.088);
   w1 = q[0];
   w2 = trig_sin[0];

@@ -169,12 +169,12 @@ typedef enum {
 #define PANDA_FK_WORK_REALS 42
 void panda_fk(const panda_real q[PANDA_NDOF], panda_real T[16]);
 /* jacobian: geometric Jacobian J (6xn, rows [v; w] of the tool origin, base frame).
- * ops: 80 add, 102 mul, 12 trig; work: 59 reals. */
+ * ops: 80 add, 102 mul, 12 trig; work: 53 reals. */
 #define PANDA_JACOBIAN_Q_ROWS 7
 #define PANDA_JACOBIAN_Q_COLS 1
 #define PANDA_JACOBIAN_J_ROWS 6
 #define PANDA_JACOBIAN_J_COLS 7
-#define PANDA_JACOBIAN_WORK_REALS 59
+#define PANDA_JACOBIAN_WORK_REALS 53
 void panda_jacobian(const panda_real q[PANDA_NDOF], panda_real J[42]);
 /* fk_jacobian: tool pose T and geometric Jacobian J in one call (shared trig).
  * ops: 88 add, 114 mul, 14 trig; work: 54 reals. */
