@@ -62,6 +62,11 @@ def test_bounded_trig_error_in_ulp(tmp_path):
         assert (np.abs(a[:, k] - ref) / ulp).max() <= BOUNDED_TRIG_ULP
 
 
+# draw()'s kind of an input: 1 a joint angle (near its limits), 2 a lock mask (0/1 by its
+# documented domain), 0 anything else
+DRAW_KIND = {"q": 1, "mask": 2}
+
+
 def _fuzz_harness(model: SymbolicModel, p: str) -> str:
     """C that calls every generated function FUZZ_TRIALS times with inputs drawn from normal
     values and extremes (NaN, ±inf, ±1e30, denormals, 0, q exactly at a limit, q = 0) and
@@ -107,8 +112,7 @@ def _fuzz_harness(model: SymbolicModel, p: str) -> str:
         lines.append("      int in_ok = 1, out_ok = 1, moderate = 1, status = 0;")
         lines.append("      extreme = 0;")
         for index, (nm, size) in enumerate(ins):
-            is_q = {"q": 1, "mask": 2}.get(nm, 0)  # a mask is 0/1 by its documented domain
-            lines.append(f"      for (k = 0; k < {size}; ++k) {{ {nm}_[k] = draw({is_q}, k, &extreme); }}")
+            lines.append(f"      for (k = 0; k < {size}; ++k) {{ {nm}_[k] = draw({DRAW_KIND.get(nm, 0)}, k, &extreme); }}")
             if nm == "q":  # a step's status covers all of q, also angles J does not depend on
                 lines.append(f"      in_ok = in_ok && all_finite({nm}_, {size});")
             else:  # an entry the function does not read (J's robot-constant ones) cannot matter
@@ -134,7 +138,7 @@ def _fuzz_harness(model: SymbolicModel, p: str) -> str:
             lines.append("    for (t = 0; t < 8; ++t) {")
             for nm, size in ins:
                 lines.append(f"      for (k = 0; k < {size}; ++k) {{ do {{ extreme = 0; {nm}_[k] = "
-                             f"draw({ {'q': 1, 'mask': 2}.get(nm, 0)}, k, &extreme); }} while (extreme || !isfinite({nm}_[k])); }}")
+                             f"draw({DRAW_KIND.get(nm, 0)}, k, &extreme); }} while (extreme || !isfinite({nm}_[k])); }}")
             lines.append(f"      static const int which[{len(carried)}] = {{{', '.join(str(i) for i, _ in carried)}}};")
             lines.append(f"      static const int entry[{len(carried)}] = {{{', '.join(str(e) for _, e in carried)}}};")
             lines.append(f"      {p}_real *const inputs[{len(ins)}] = {{{', '.join(f'{nm}_' for nm, _ in ins)}}};")

@@ -106,6 +106,11 @@ _ANGLE_OPS = {ca.OP_ADD, ca.OP_SUB, ca.OP_NEG, ca.OP_ASSIGN, ca.OP_TWICE}
 _ANGLE_TEXT_MAX = 160
 
 
+def _input_text(arg_names: list[str], arg_scalar: list[bool], ins: list[int]) -> str:
+    """The C that reads an input instruction's value: ``x`` for a scalar, ``x[nz]`` else."""
+    return arg_names[ins[0]] if arg_scalar[ins[0]] else f"{arg_names[ins[0]]}[{ins[1]}]"
+
+
 def _trig_table(func: ca.Function, arg_names: list[str], arg_scalar: list[bool],
                 macro_prefix: str) -> tuple[dict[int, int], list[str]]:
     """Slots of a sin/cos table: {instruction of a sin or cos: slot} and each slot's angle as a
@@ -121,7 +126,7 @@ def _trig_table(func: ca.Function, arg_names: list[str], arg_scalar: list[bool],
             continue
         value = None
         if op == ca.OP_INPUT:
-            value = arg_names[ins[0]] if arg_scalar[ins[0]] else f"{arg_names[ins[0]]}[{ins[1]}]"
+            value = _input_text(arg_names, arg_scalar, ins)
         elif op == ca.OP_CONST:
             value = c_literal(func.instruction_constant(k), macro_prefix)
         elif op in (ca.OP_SIN, ca.OP_COS):
@@ -176,7 +181,8 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
     p = macro_prefix.lower()
     angle_input = _whole_input(func, arg_names, arg_scalar, angles)
     if angle_input is not None:  # the angles are an input vector, entry by entry: no copy
-        table = {k: int(angles[slot].rsplit("[", 1)[1][:-1]) for k, slot in table.items()}
+        entry = {f"{angle_input}[{i}]": i for i in range(len(angles))}
+        table = {k: entry[angles[slot]] for k, slot in table.items()}
         lines.append(f"{p}_sincos_table({angle_input}, trig_sin, trig_cos, {len(angles)});")
     elif angles:
         lines += [f"trig_angle[{slot}] = {angle};" for slot, angle in enumerate(angles)]
@@ -191,8 +197,7 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
             used.add(outs[0])
         elif op == ca.OP_INPUT:
             counts["input"] += 1
-            source = arg_names[ins[0]] if arg_scalar[ins[0]] else f"{arg_names[ins[0]]}[{ins[1]}]"
-            lines.append(f"w{outs[0]} = {source};")
+            lines.append(f"w{outs[0]} = {_input_text(arg_names, arg_scalar, ins)};")
             used.add(outs[0])
         elif op == ca.OP_OUTPUT:
             counts["output"] += 1
