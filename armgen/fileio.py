@@ -5,8 +5,11 @@ source and manifest) so that they appear together or not at all: every file is s
 hidden temporary folder inside the target folder, flushed to disk, and only then renamed into
 place. On any exception (a planner error, disk full, SIGINT) the staging folder is removed and
 the previous files stay untouched. Concurrent runs writing the same set serialise on a lock of
-the output folder (``fcntl.flock``), so two runs never leave a mix of their files. New files get the
-permissions the umask gives (0644 under umask 022), also when they replace older files.
+the output folder, so two runs never leave a mix of their files: on POSIX ``fcntl.flock`` on the
+folder itself (no lock file; a reader may take ``LOCK_SH`` on it to see only whole sets); where
+``fcntl`` is missing (Windows), :mod:`filelock` on a hidden ``.armgen.lock`` file in the folder
+(Windows removes it on release). New files get the permissions the umask gives (0644 under
+umask 022), also when they replace older files.
 
 Every OS failure (the target is a directory, a read-only folder, a full disk) becomes an
 :class:`~armgen.errors.OutputError` (exit 4) that names the path.
@@ -15,7 +18,6 @@ Every OS failure (the target is a directory, a read-only folder, a full disk) be
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import io
 import os
 import shutil
@@ -24,6 +26,14 @@ from pathlib import Path
 from typing import Iterator, Mapping
 
 from .errors import OutputError
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: the folder lock falls back to filelock (see the module docstring)
+    fcntl = None
+
+FALLBACK_LOCK_NAME = ".armgen.lock"
+
 
 def _umask_mode() -> int:
     """0666 less the process umask (read without changing it for other threads)."""
@@ -41,7 +51,14 @@ def _check_targets(targets: list[Path]) -> None:
 @contextlib.contextmanager
 def _folder_lock(folder: Path) -> Iterator[None]:
     """An exclusive lock on the output folder itself (flock on its descriptor), held while one
-    set is written: it leaves no lock file behind in the output."""
+    set is written: it leaves no lock file behind in the output. Without fcntl, a filelock on
+    ``FALLBACK_LOCK_NAME`` in the folder."""
+    if fcntl is None:
+        from filelock import FileLock
+
+        with FileLock(folder / FALLBACK_LOCK_NAME):
+            yield
+        return
     fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)
