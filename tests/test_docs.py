@@ -13,17 +13,16 @@ from __future__ import annotations
 
 import importlib.util
 import os
-import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from doc_blocks import blocks, skip_reason
+
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
-BLOCK = re.compile(r"^```(sh|bash|python)[^\n]*\n(.*?)^```", re.M | re.S)
-SKIP = re.compile(r"^#\s*docs-test:\s*skip\s*\((.+)\)\s*$")
 LINKED = ("examples", "robots", "firmware_stub", "benchmarks")
 BLOCK_TIMEOUT_S = 600  # a block that runs longer is marked skip (CI machines are 2-core)
 DOCS_PACKAGES = ("mkdocs", "material", "mkdocstrings", "mkdocstrings_handlers")
@@ -32,10 +31,8 @@ DOCS_HINT = "pip install '.[docs]' (mkdocs, mkdocs-material, mkdocstrings[python
 
 def _blocks():
     for page in PAGES:
-        text = page.read_text(encoding="utf-8")
-        for k, match in enumerate(BLOCK.finditer(text)):
-            line = text[:match.start()].count("\n") + 1
-            yield pytest.param(page, k, match.group(1), match.group(2), id=f"{page.relative_to(ROOT)}:{line}")
+        for k, block in enumerate(blocks(page.read_text(encoding="utf-8"))):
+            yield pytest.param(page, k, block.lang, block.code, id=f"{page.relative_to(ROOT)}:{block.line}")
 
 
 _sandboxes: dict[Path, tuple[Path, list[int]]] = {}
@@ -65,16 +62,10 @@ def _run(work: Path, lang: str, code: str) -> subprocess.CompletedProcess:
     return subprocess.run(command, cwd=work, env=env, capture_output=True, text=True, timeout=BLOCK_TIMEOUT_S)
 
 
-def _skip_reason(code: str) -> str | None:
-    first = code.strip().splitlines()[0] if code.strip() else ""
-    match = SKIP.match(first)
-    return match.group(1) if match else None
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("page, index, lang, code", list(_blocks()))
 def test_code_block_runs(page, index, lang, code, tmp_path_factory):
-    reason = _skip_reason(code)
+    reason = skip_reason(code)
     if reason:
         pytest.skip(f"marked not to run: {reason}")
     work, done = _sandbox(page, tmp_path_factory)
@@ -82,7 +73,7 @@ def test_code_block_runs(page, index, lang, code, tmp_path_factory):
     for k, (_, _, earlier_lang, earlier) in enumerate(b.values for b in _blocks() if b.values[0] == page):
         if k >= index:
             break
-        if k not in done and not _skip_reason(earlier):
+        if k not in done and not skip_reason(earlier):
             run = _run(work, earlier_lang, earlier)
             assert run.returncode == 0, f"earlier block {k} of {page.name} failed:\n{run.stdout}\n{run.stderr}"
             done.append(k)

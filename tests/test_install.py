@@ -1,8 +1,10 @@
-"""A tool you install: build the sdist and the wheel, install the wheel into a fresh virtual
-environment outside the checkout, and use it from an empty folder as a new user would (your
-own robot file, your own folder, your own firmware project). Plus the bad-input cases of
-``gen``, ``verify``, ``firmware`` and ``examples``: one message naming the path and the fix,
-the documented exit code, nothing written."""
+"""A tool you install: build the sdist and the wheel, install the wheel with the dependencies
+its own metadata declares into a bare virtual environment (no system site-packages) outside the
+checkout, and use it from an empty folder as a new user would: the README's wheel block and the
+getting-started page, run literally (the docs are the script), and your own robot file, folder
+and firmware project. Plus the bad-input cases of ``gen``, ``verify``, ``firmware`` and
+``examples``: one message naming the path and the fix, the documented exit code, nothing
+written."""
 
 from __future__ import annotations
 
@@ -12,19 +14,26 @@ import stat
 import subprocess
 import sys
 import tarfile
+import time
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from filelock import FileLock
 
 from armgen import fileio
 from armgen.cli.main import cli
 
 from conftest import require_tool
+from doc_blocks import blocks, skip_reason
 
 REPO = Path(__file__).resolve().parent.parent
+WHEEL_BLOCK_INTRO = "From an installed wheel"  # the README paragraph just above the wheel block
+BUILD_TIMEOUT_S = 600
+INSTALL_TIMEOUT_S = 1800  # downloads every dependency when pip's cache is cold
+BLOCK_TIMEOUT_S = 900
 HARDENED_IO = hasattr(fileio, "write_file_set")  # files created with the umask's permissions
 
 # A 6-DOF arm that is not bundled (UR5-like, standard DH, metres and degrees).
@@ -111,35 +120,67 @@ def _tree(folder: Path) -> dict[str, bytes]:
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
-@pytest.fixture(scope="module")
-def venv(tmp_path_factory):
-    """sdist + wheel built from the checkout; the wheel installed into a fresh venv (the
-    heavy dependencies come from the system site-packages; armgen itself from the wheel)."""
-    root = tmp_path_factory.mktemp("install")
+def _install_the_wheel(root: Path) -> dict:
+    """Build sdist + wheel from the checkout, then a bare venv with the wheel and its dependencies."""
     dist = root / "dist"
     proc = subprocess.run([sys.executable, "-m", "build", "--sdist", "--wheel", "--outdir", str(dist), str(REPO)],
-                          capture_output=True, text=True, timeout=600)
+                          capture_output=True, text=True, timeout=BUILD_TIMEOUT_S)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     wheel = next(dist.glob("armgen-*.whl"))
     sdist = next(dist.glob("armgen-*.tar.gz"))
     env_dir = root / "venv"
-    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(env_dir)], check=True, timeout=300)
+    started = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "venv", str(env_dir)], check=True, timeout=300)  # bare: no system site
+    created = time.perf_counter()
     python = env_dir / "bin" / "python"
-    proc = subprocess.run([str(python), "-m", "pip", "install", "--no-deps", "--no-index", "--force-reinstall",
-                           str(wheel)], capture_output=True, text=True, timeout=300)
+    proc = subprocess.run([str(python), "-m", "pip", "install", "--disable-pip-version-check", str(wheel)],
+                          env=_env(), capture_output=True, text=True, timeout=INSTALL_TIMEOUT_S)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    return {"python": python, "armgen": env_dir / "bin" / "armgen", "wheel": wheel, "sdist": sdist, "root": root}
+    installed = time.perf_counter()
+    print(f"bare venv: {created - started:.1f} s; pip install of the wheel with its dependencies: "
+          f"{installed - created:.1f} s")
+    return {"python": str(python), "armgen": str(env_dir / "bin" / "armgen"), "wheel": str(wheel),
+            "sdist": str(sdist), "root": str(root), "venv_seconds": created - started,
+            "install_seconds": installed - created}
 
 
-def _env() -> dict[str, str]:
-    """The user's environment: no PYTHONPATH pointing into a checkout."""
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+@pytest.fixture(scope="module")
+def venv(tmp_path_factory):
+    """The wheel installed into a bare venv, as a user would: ``pip install armgen-*.whl`` with
+    every dependency resolved from the wheel's metadata (pip's cache or PyPI), nothing from the
+    interpreter running the tests. Built once per test run, also under pytest-xdist (the workers
+    share it through a lock)."""
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        found = _install_the_wheel(tmp_path_factory.mktemp("install"))
+    else:
+        shared = tmp_path_factory.getbasetemp().parent  # this run's folder, common to its workers
+        record = shared / "armgen-wheel-install.json"
+        with FileLock(str(record) + ".lock"):
+            if record.is_file():
+                found = json.loads(record.read_text())
+            else:
+                root = shared / "armgen-wheel-install"
+                root.mkdir()
+                found = _install_the_wheel(root)
+                record.write_text(json.dumps(found))
+    return {k: Path(v) if k in ("python", "armgen", "wheel", "sdist", "root") else v for k, v in found.items()}
+
+
+def _env(venv: dict | None = None) -> dict[str, str]:
+    """The user's environment: no PYTHONPATH pointing into a checkout; with ``venv``, that venv
+    activated (its ``bin`` first on PATH, so ``armgen`` and ``python`` are the installed ones) and
+    an empty kernel store of its own, as a new user has."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV")}
     env["MPLBACKEND"] = "Agg"
+    if venv is not None:
+        env["VIRTUAL_ENV"] = str(venv["python"].parent.parent)
+        env["PATH"] = f"{venv['python'].parent}{os.pathsep}{env.get('PATH', '')}"
+        env["ARMGEN_CACHE_DIR"] = str(venv["root"] / "kernel-store")
     return env
 
 
 def _run(venv, cwd: Path, *args: str, expect: int = 0, timeout: float = 600) -> subprocess.CompletedProcess:
-    proc = subprocess.run([str(venv["armgen"]), *args], cwd=cwd, env=_env(), capture_output=True, text=True,
+    proc = subprocess.run([str(venv["armgen"]), *args], cwd=cwd, env=_env(venv), capture_output=True, text=True,
                           timeout=timeout, preexec_fn=lambda: os.umask(0o022))
     assert proc.returncode == expect, f"armgen {' '.join(args)} -> {proc.returncode}\n{proc.stdout[-4000:]}\n{proc.stderr[-4000:]}"
     return proc
@@ -162,12 +203,74 @@ def test_distributions_carry_the_package_data_and_the_licence(venv):
         assert name in sdist_names, name
 
 
+def test_the_venv_is_bare_and_consistent(venv):
+    """Nothing reaches the wheel's venv from the interpreter running the tests: pytest is here,
+    not there (it is no runtime dependency); and pip finds every installed requirement met."""
+    config = (venv["root"] / "venv" / "pyvenv.cfg").read_text()
+    assert "include-system-site-packages = false" in config, config
+    probe = subprocess.run([str(venv["python"]), "-c", "import pytest"], env=_env(venv), capture_output=True,
+                           text=True, timeout=60)
+    assert probe.returncode != 0 and "No module named 'pytest'" in probe.stderr, probe.stderr
+    check = subprocess.run([str(venv["python"]), "-m", "pip", "check"], env=_env(venv), capture_output=True,
+                           text=True, timeout=120)
+    assert check.returncode == 0, check.stdout + check.stderr
+
+
+def _run_block(venv, work: Path, lang: str, code: str) -> subprocess.CompletedProcess:
+    """A docs block as the user types it, in ``work``, with the venv activated: bash stops at the
+    first command that exits non-zero (and traces each command, so the report names it)."""
+    if lang == "python":
+        command = [str(venv["python"]), "-c", code]
+    else:
+        command = ["bash", "-e", "-o", "pipefail", "-x", "-c", code]
+    started = time.perf_counter()
+    run = subprocess.run(command, cwd=work, env=_env(venv), capture_output=True, text=True, timeout=BLOCK_TIMEOUT_S,
+                         preexec_fn=lambda: os.umask(0o022))
+    print(f"{lang} block, {time.perf_counter() - started:.1f} s, exit {run.returncode}")
+    return run
+
+
+def _empty_folder(tmp_path: Path) -> Path:
+    work = tmp_path / "mine"
+    work.mkdir()
+    return work
+
+
+def test_readme_wheel_block_from_an_empty_folder(venv, tmp_path):
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    block = blocks(text, text.index(WHEEL_BLOCK_INTRO))[0]
+    assert block.lang == "sh" and skip_reason(block.code) is None and "armgen " in block.code, block
+    run = _run_block(venv, _empty_folder(tmp_path), block.lang, block.code)
+    assert run.returncode == 0, f"README.md:{block.line} exit {run.returncode}\n{run.stdout[-3000:]}\n{run.stderr[-5000:]}"
+
+
+def test_getting_started_from_an_empty_folder(venv, tmp_path):
+    page = REPO / "docs" / "getting-started.md"
+    to_run = [b for b in blocks(page.read_text(encoding="utf-8")) if skip_reason(b.code) is None]
+    assert len(to_run) >= 5 and {b.lang for b in to_run} == {"sh", "python"}, to_run
+    work = _empty_folder(tmp_path)
+    for block in to_run:  # in order, in one folder: later blocks use what earlier ones wrote
+        run = _run_block(venv, work, block.lang, block.code)
+        assert run.returncode == 0, \
+            f"{page.name}:{block.line} exit {run.returncode}\n{run.stdout[-3000:]}\n{run.stderr[-5000:]}"
+
+
+def test_readme_quick_start_is_what_ci_runs():
+    """.ci/run installs and tests with the README's own commands, line for line."""
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    block = blocks(text, text.index("## Quick start"))[0]
+    commands = [line.strip() for line in block.code.splitlines() if line.strip() and not line.startswith("#")]
+    assert any(c.startswith("pip install") for c in commands) and any("pytest" in c for c in commands), commands
+    ci_lines = {line.strip() for line in (REPO / ".ci" / "run").read_text(encoding="utf-8").splitlines()}
+    assert [c for c in commands if c not in ci_lines] == []
+
+
 def test_wheel_install_from_an_empty_folder(venv, tmp_path):
     work = tmp_path / "work"
     work.mkdir()
     # armgen is the wheel's, not the checkout's
     where = subprocess.run([str(venv["python"]), "-c", "import armgen, sys; print(armgen.__file__)"], cwd=work,
-                           env=_env(), capture_output=True, text=True, check=True).stdout.strip()
+                           env=_env(venv), capture_output=True, text=True, check=True).stdout.strip()
     assert Path(where).is_relative_to(venv["root"] / "venv"), where
 
     out = _run(venv, work, "robots").stdout
