@@ -44,6 +44,12 @@ class OutputError(ArmgenError):
     exit_code = 4
 
 
+class Interrupted(ArmgenError):
+    """The user interrupted a long command (Ctrl-C); the message says what was kept."""
+
+    exit_code = 130
+
+
 class PlanFileError(ArmgenError):
     """A plan CSV or its plan.json is malformed."""
 

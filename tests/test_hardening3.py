@@ -3,13 +3,23 @@ all-or-nothing, URDF robots obey the robot-file bounds, caps and clean errors ev
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
 from armgen.cli.main import cli
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 def run(*args: str):
@@ -82,3 +92,123 @@ def test_firmware_other_robot_replaces_only_its_own_files(project, tmp_path):
     assert result.exit_code == 0, result.output
     assert not (out / "generated" / "planar3.c").exists(), "the old robot's generated code is the command's own"
     assert (out / "generated" / "modular8.c").is_file() and (out / "NOTES.md").read_text() == "my notes"
+
+
+# -- 3, 6, 7, 8. sweeps: Ctrl-C keeps the finished rows, caps, clean errors, resume refuses --
+
+SWEEP_TASK = EXAMPLES / "ptp_single_joint.toml"
+
+
+def sweep_args(out: Path, *extra: str) -> list[str]:
+    return ["sweep", str(SWEEP_TASK), "-o", str(out), *extra]
+
+
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_ctrl_c_stops_the_sweep_and_keeps_the_finished_rows(tmp_path, workers):
+    """SIGINT to the sweep's process (as Ctrl-C sends it to the whole process group) stops it
+    promptly, writes the rows that finished and says so truthfully; --resume then skips them."""
+    out = tmp_path / "s.csv"
+    env = {**os.environ, "ARMGEN_NO_PROGRESS": "1"}
+    values = ", ".join(str(1 + k * 1e-3) for k in range(SWEEP_RUNS))
+    proc = subprocess.Popen([sys.executable, "-m", "armgen.cli.main", "sweep", str(FAULT_TASK), "-o", str(out),
+                             "--set", "timing.duration=1", "--set", "fault.time=0.5", "--set", "path.turns=0.5",
+                             "--grid", f"method.K=[{values}]", "--workers", workers],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
+    time.sleep(SWEEP_INTERRUPT_AFTER_S)
+    os.killpg(proc.pid, signal.SIGINT)
+    try:
+        stdout, stderr = proc.communicate(timeout=SWEEP_STOP_WITHIN_S)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        pytest.fail(f"the sweep still ran {SWEEP_STOP_WITHIN_S} s after Ctrl-C")
+    assert proc.returncode == 130, stdout + stderr
+    import pandas as pd
+
+    if "no run finished" in stderr:
+        assert not out.exists()
+    else:
+        rows = len(pd.read_csv(out))
+        assert f"wrote the {rows} finished runs to {out}" in stderr and "--resume" in stderr, stderr
+        assert 0 < rows < SWEEP_RUNS
+
+
+# 2000 short fault-tolerant plans (~50 ms each: a minute or more in all). Ctrl-C comes once the
+# sweep has planned for a while (imports take ~2 s); it must be over well before the sweep
+# would be (the finding: it ran on for the whole sweep).
+FAULT_TASK = EXAMPLES / "modular8_fault_circle_gpm.toml"
+SWEEP_RUNS = 2000
+SWEEP_INTERRUPT_AFTER_S = 10.0
+SWEEP_STOP_WITHIN_S = 15.0
+
+
+@pytest.mark.parametrize("args", [["--random", "1000000000", "--range", "step=0.001:0.002"],
+                                  ["--grid", f"step=[{', '.join(['0.001'] * 3000)}]",
+                                   "--grid", f"compare=[{', '.join(['[]'] * 3000)}]"]])
+def test_sweep_size_is_capped_before_work(tmp_path, args):
+    out = tmp_path / "s.csv"
+    result = run(*sweep_args(out, *args))
+    assert result.exit_code == 2 and "more than the cap of 100000" in result.output, result.output
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("table, why", [
+    ("date,city\n2020-01-01,Paris\n", "not a table of `armgen sweep`"),
+    ('run,step,status,exit_code,message,overrides\n0,0.001,ok,0,,"{""step"": 0.001}"\nxyz,??,garbage,,,[[\n',
+     "row 3 is not a row of `armgen sweep`"),
+])
+def test_resume_refuses_a_table_it_did_not_write(tmp_path, table, why):
+    out = tmp_path / "s.csv"
+    out.write_text(table)
+    result = run(*sweep_args(out, "--grid", "step=[0.001, 0.002]", "--resume", "--workers", "1"))
+    assert result.exit_code == 2 and why in result.output and "drop --resume" in result.output, result.output
+    assert out.read_text() == table
+
+
+def test_sweep_in_which_every_run_fails_exits_3(tmp_path):
+    out = tmp_path / "s.csv"
+    result = run(*sweep_args(out, "--grid", "step=[-1, -2]", "--workers", "1"))
+    assert result.exit_code == 3 and "every run of the sweep failed" in result.output, result.output
+    assert out.exists()  # the table says why
+
+
+@pytest.fixture
+def nonsense_service():
+    """A TCP listener on 127.0.0.1 that answers every connection with garbage."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+    stop = threading.Event()
+
+    def serve():
+        server.settimeout(0.2)
+        while not stop.is_set():
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                continue
+            with conn:
+                with contextlib.suppress(OSError):
+                    conn.sendall(b"\xff" * 64 + b"HTTP/1.0 200 OK\r\n\r\nnot dask\n")
+                    time.sleep(0.5)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    yield f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    stop.set()
+    thread.join()
+    server.close()
+
+
+def test_scheduler_that_is_not_dask_is_a_tool_error(tmp_path, nonsense_service):
+    pytest.importorskip("distributed")
+    for address in (nonsense_service, "nonsense://x"):
+        out = tmp_path / "s.csv"
+        start = time.monotonic()
+        result = run(*sweep_args(out, "--grid", "step=[0.001]", "--scheduler", address))
+        assert result.exit_code == 4 and "cannot reach a Dask scheduler" in result.output, result.output
+        assert time.monotonic() - start < SCHEDULER_GIVE_UP_S
+        assert not out.exists()
+
+
+# the connection timeout (10 s) plus Dask's import and teardown
+SCHEDULER_GIVE_UP_S = 40.0

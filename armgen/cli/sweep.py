@@ -27,12 +27,17 @@ from .handling import handle_errors
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="local worker processes (default: the number of CPUs)")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="run on this Dask distributed scheduler (e.g. tcp://host:8786) instead of local workers")
+              help="run on this Dask distributed scheduler (e.g. tcp://host:8786) instead of local workers; "
+                   "it and its workers are trusted (Dask exchanges pickles)")
 @click.option("--resume", is_flag=True, help="skip the runs already in the output table")
 @handle_errors
 def sweep_cmd(task_file, grids, draws, ranges, seed, overrides, output, backend, workers, scheduler, resume) -> None:
-    """Plan TASK_FILE once per combination of the --grid values (and per --random draw)."""
-    from ..errors import TaskFileError
+    """Plan TASK_FILE once per combination of the --grid values (and per --random draw).
+
+    Exit codes: 0 the table was written (failed runs are rows), 2 bad options or task file,
+    3 every run failed, 4 the table or the scheduler cannot be used, 130 interrupted (the
+    finished runs are written; --resume runs the rest)."""
+    from ..errors import PlanningError, TaskFileError
     from ..planning.sweep import SweepSpec, parse_grid, parse_range, sweep
     from ..planning.tasks import apply_overrides, load_task
 
@@ -50,3 +55,5 @@ def sweep_cmd(task_file, grids, draws, ranges, seed, overrides, output, backend,
                  click.echo)
     failed = sum(r["status"] != "ok" for r in rows)
     click.echo(f"wrote {out}: {len(rows)} runs, {len(rows) - failed} ok, {failed} failed")
+    if rows and failed == len(rows):
+        raise PlanningError(f"every run of the sweep failed; {out} holds why (column 'message')")
