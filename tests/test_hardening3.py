@@ -212,3 +212,65 @@ def test_scheduler_that_is_not_dask_is_a_tool_error(tmp_path, nonsense_service):
 
 # the connection timeout (10 s) plus Dask's import and teardown
 SCHEDULER_GIVE_UP_S = 40.0
+
+
+# -- 4. an output set is all-or-nothing, also when a later rename fails or the process dies --
+
+def old_set(folder: Path) -> dict[Path, str]:
+    files = {folder / "plan.csv": "old csv", folder / "plan.json": "old json"}
+    for path, text in files.items():
+        path.write_text(text)
+    return files
+
+
+def test_failing_second_rename_puts_the_first_file_back(tmp_path, monkeypatch):
+    from armgen import fileio
+    from armgen.errors import OutputError
+
+    old = old_set(tmp_path)
+    real = os.replace
+
+    def replace(src, dst, *args, **kwargs):
+        if Path(dst).name == "plan.json" and ".armgen-staging-" in str(src):
+            raise PermissionError(13, "Permission denied", str(dst))
+        return real(src, dst, *args, **kwargs)
+
+    monkeypatch.setattr(fileio.os, "replace", replace)
+    with pytest.raises(OutputError, match="nothing was written"):
+        fileio.write_file_set({tmp_path / "plan.csv": "new csv", tmp_path / "plan.json": "new json"})
+    assert {p: p.read_text() for p in old} == old
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plan.csv", "plan.json"]
+
+
+def test_set_cut_by_a_kill_between_renames_is_rolled_back_by_the_next_write(tmp_path):
+    """A child process dies (os._exit) right after the first rename; the folder then holds a
+    mixed set, which the next write into the folder rolls back before writing its own."""
+    from armgen import fileio
+
+    old = old_set(tmp_path)
+    new_file = tmp_path / "new.csv"  # not there before: goes away on roll-back
+    pid = os.fork()
+    if pid == 0:  # the child: dies between the renames
+        real = os.replace
+        count = []
+
+        def replace(src, dst, *args, **kwargs):
+            if ".armgen-staging-" in str(src):
+                count.append(dst)
+                if len(count) == 3:
+                    os._exit(9)
+            return real(src, dst, *args, **kwargs)
+
+        os.replace = replace
+        try:
+            fileio.write_file_set({tmp_path / "new.csv": "cut", tmp_path / "plan.csv": "cut csv",
+                                   tmp_path / "plan.json": "cut json"})
+        finally:
+            os._exit(1)
+    _, status = os.waitpid(pid, 0)
+    assert os.WEXITSTATUS(status) == 9
+    assert (tmp_path / "plan.csv").read_text() == "cut csv" and (tmp_path / "plan.json").read_text() == "old json"
+    fileio.write_file_set({tmp_path / "other.txt": "another set"})
+    assert {p: p.read_text() for p in old} == old
+    assert not new_file.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["other.txt", "plan.csv", "plan.json"]
