@@ -41,7 +41,7 @@ from numpy.typing import ArrayLike
 
 from pydantic import ValidationError
 
-from .errors import RobotFileError
+from .errors import RobotFileError, excerpt
 from .robot_schema import RobotFile, UrdfRobotFile
 from .schemas import IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded
 
@@ -407,7 +407,7 @@ class _Reader:
             raise self.fail(where, f"missing field '{key}'; add '{key} = <number>'")
         value = table[key]
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(where, f"field '{key}' must be a number, got {type(value).__name__} {value!r}")
+            raise self.fail(where, f"field '{key}' must be a number, got {type(value).__name__} {excerpt(repr(value))}")
         if not math.isfinite(value):
             raise self.fail(where, f"field '{key}' is {value}; give a finite number")
         return float(value)
@@ -420,9 +420,9 @@ class _Reader:
             raise self.fail(where, f"missing field '{key}'")
         value = table[key]
         if not isinstance(value, str) or not value:
-            raise self.fail(where, f"field '{key}' must be a non-empty string, got {value!r}")
+            raise self.fail(where, f"field '{key}' must be a non-empty string, got {excerpt(repr(value))}")
         if choices is not None and value not in choices:
-            raise self.fail(where, f"field '{key}' = {value!r} is not one of {', '.join(choices)}")
+            raise self.fail(where, f"field '{key}' = {excerpt(repr(value))} is not one of {', '.join(choices)}")
         return value
 
     def vector(self, table: dict, key: str, where: str, length: int | None = None,
@@ -439,7 +439,7 @@ class _Reader:
         out = []
         for k, item in enumerate(value):
             if isinstance(item, bool) or not isinstance(item, (int, float)):
-                raise self.fail(where, f"field '{key}'[{k}] must be a number, got {item!r}")
+                raise self.fail(where, f"field '{key}'[{k}] must be a number, got {excerpt(repr(item))}")
             if not math.isfinite(item):
                 raise self.fail(where, f"field '{key}'[{k}] is {item}; give a finite number")
             out.append(float(item))
@@ -501,7 +501,7 @@ def _task_rows(reader: _Reader, doc: dict) -> tuple[int, ...]:
     task_rows_raw = doc.get("task_rows", list(TASK_ROWS))
     if not isinstance(task_rows_raw, list) or not task_rows_raw or any(r not in TASK_ROWS for r in task_rows_raw) \
             or len(set(task_rows_raw)) != len(task_rows_raw):
-        raise reader.fail("file", f"task_rows = {task_rows_raw!r} must be a non-empty list of distinct names from {', '.join(TASK_ROWS)}")
+        raise reader.fail("file", f"task_rows = {excerpt(repr(task_rows_raw))} must be a non-empty list of distinct names from {', '.join(TASK_ROWS)}")
     return tuple(sorted(TASK_ROWS.index(r) for r in task_rows_raw))
 
 
@@ -665,7 +665,7 @@ def _urdf_robot(path: Path, data: bytes, base_link: str | None, tip_link: str | 
     reader = reader or _Reader(str(path))
     name = reader.string(doc, "name", "file", default=chain.robot_name)
     if not _ROBOT_NAME.fullmatch(name):
-        raise reader.fail("file", f"robot name {name!r} must be a letter then letters, digits, _ or - "
+        raise reader.fail("file", f"robot name {excerpt(repr(name))} must be a letter then letters, digits, _ or - "
                                   "(at most 64); set name = \"…\" in a robot file that references the URDF")
     units = reader.table(doc, "units", "file")
     unknown_units = set(units) - {"length", "angle"}

@@ -16,6 +16,8 @@ from typing import Any, Callable
 from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
 
+from .errors import excerpt
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
@@ -78,7 +80,7 @@ def _unknown_message(err: dict[str, Any], loc: tuple, label: str | None) -> str:
             near = by_last.get(closest_key(key, list(by_last)) or "")
         if near:
             notes.append(f"did you mean `{near}`?")
-        parts.append(key + (f" ({'; '.join(notes)})" if notes else ""))
+        parts.append(excerpt(key) + (f" ({'; '.join(notes)})" if notes else ""))
     head = f"{label}: " if label else (f"'{_dotted(loc)}' has " if loc else "")
     return f"{head}unknown field(s) {', '.join(parts)}; allowed: {', '.join(allowed)}"
 
@@ -104,8 +106,8 @@ def parse_toml_bounded(data: bytes | str, source: str, error: type[Exception]) -
             raise error(f"{source}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     try:
         doc = tomllib.loads(data)
-    except tomllib.TOMLDecodeError as exc:
-        raise error(f"{source}: not valid TOML: {exc}") from None
+    except ValueError as exc:  # a TOMLDecodeError, or an integer beyond Python's digit limit
+        raise error(f"{source}: not valid TOML: {excerpt(str(exc), 200)}") from None
     except RecursionError:
         doc = None
     if doc is None or nesting_depth(doc) > MAX_NESTING_DEPTH:
@@ -115,14 +117,13 @@ def parse_toml_bounded(data: bytes | str, source: str, error: type[Exception]) -
 
 
 def _render(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
+    return excerpt(repr(value))
 
 
 def _dotted(loc: tuple) -> str:
     out = ""
     for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+        out += f"[{part}]" if isinstance(part, int) else (f".{excerpt(part)}" if out else excerpt(part))
     return out
 
 

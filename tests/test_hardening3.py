@@ -274,3 +274,80 @@ def test_set_cut_by_a_kill_between_renames_is_rolled_back_by_the_next_write(tmp_
     assert {p: p.read_text() for p in old} == old
     assert not new_file.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["other.txt", "plan.csv", "plan.json"]
+
+
+# -- 5. URDF robots obey the robot-file bounds; 12. messages quote a bounded excerpt ---------
+
+def urdf_chain(joints: int = 2, name: str = "j", xyz: str = "0 0 0.1", axis: str = "0 0 1",
+               lower: str = "-1", upper: str = "1", robot: str = "arm") -> str:
+    links = "".join(f'<link name="l{k}"/>' for k in range(joints + 1))
+    body = "".join(f'<joint name="{name}{k}" type="revolute"><parent link="l{k}"/><child link="l{k + 1}"/>'
+                   f'<origin xyz="{xyz}"/><axis xyz="{axis}"/><limit lower="{lower}" upper="{upper}"/></joint>'
+                   for k in range(joints))
+    return f'<robot name="{robot}">{links}{body}</robot>'
+
+
+def load_urdf(tmp_path: Path, text: str):
+    from armgen.robot import load_robot
+
+    path = tmp_path / "f.urdf"
+    path.write_text(text)
+    return load_robot(path)
+
+
+@pytest.mark.parametrize("text, match", [
+    (urdf_chain(joints=200), r"200 moving joints, more than 64"),
+    (urdf_chain(joints=1000), r"1000 moving joints, more than 64"),
+    (urdf_chain(xyz="1e12 0 0"), r"xyz = 1e\+12 0 0 is beyond ±1000 m"),
+    (urdf_chain(lower="-1e300", upper="1e300"), r"reach beyond ±1000 rad"),
+    (urdf_chain(axis="1e155 1e155 1e155"), r"<axis>: xyz is so long its length overflows"),
+    (urdf_chain(name="not a name "), r"a moving joint's name must be a letter then"),
+    (urdf_chain(name="x" * 500_000), r"name=\"x{60}… \(500001 characters\)\"> is longer than 256"),
+    (urdf_chain(robot="r" * 500_000), r"is longer than 256"),
+    (urdf_chain(robot="not an identifier"), r"robot name 'not an identifier' must be a letter"),
+])
+def test_urdf_obeys_the_robot_file_bounds(tmp_path, text, match):
+    from armgen.errors import RobotFileError
+
+    with pytest.raises(RobotFileError, match=match) as caught:
+        load_urdf(tmp_path, text)
+    assert len(str(caught.value)) < MAX_MESSAGE_CHARS
+
+
+# An error message names the file, the place and the fix, and quotes a bounded excerpt.
+MAX_MESSAGE_CHARS = 600
+
+
+def test_sensible_urdf_still_loads(tmp_path):
+    robot = load_urdf(tmp_path, urdf_chain(joints=64, xyz="999 0 0", lower="-999", upper="999"))
+    assert robot.n == 64
+
+
+@pytest.mark.parametrize("args", [
+    ["plan", "{task}", "--set", "method.name=\"" + "m" * 500_000 + "\""],
+    ["plan", "{task}", "--set", "k" * 500_000 + "=1"],
+    ["sweep", "{task}", "--grid", "step=" + "9" * 500_000],
+])
+def test_error_messages_quote_a_bounded_excerpt(tmp_path, args):
+    task = str(EXAMPLES / "modular8_wgpm_demo.toml")
+    result = run(*[a.replace("{task}", task) for a in args])
+    assert result.exit_code == 2, result.output[:300]
+    assert len(result.output) < MAX_MESSAGE_CHARS and "characters)" in result.output, result.output
+
+
+def test_excerpt_helper():
+    from armgen.errors import EXCERPT_CHARS, excerpt
+
+    assert excerpt("short") == "short"
+    assert excerpt("y" * 1000) == "y" * EXCERPT_CHARS + "… (1000 characters)"
+    assert excerpt(list(range(3))) == "[0, 1, 2]"
+
+
+def test_integer_beyond_the_digit_limit_is_bad_input(tmp_path):
+    from armgen.errors import RobotFileError
+    from armgen.robot import BUNDLED_DIR, load_robot
+
+    robot = tmp_path / "huge.toml"
+    robot.write_text((BUNDLED_DIR / "planar3.toml").read_text().replace("a = 0.5", "a = " + "9" * 5000, 1))
+    with pytest.raises(RobotFileError, match=r"huge\.toml: not valid TOML: .*digits"):
+        load_robot(robot)

@@ -26,7 +26,7 @@ import casadi as ca
 import sympy
 
 from .. import __version__
-from ..errors import OptionError
+from ..errors import OptionError, excerpt
 from ..fileio import write_file_set
 from ..robot import Robot, load_robot_any
 from ..symbolic.model import (DESCRIPTIONS, FROM_JACOBIAN, JACOBIAN_FUNCTIONS, STEP_FUNCTIONS, ModelOptions,
@@ -76,16 +76,16 @@ class GeneratedCode:
 def make_consistent(config: CodegenConfig) -> CodegenConfig:
     """Fill defaults and validate the options; errors name the option and the fix."""
     if config.precision not in PRECISIONS:
-        raise OptionError(f"--precision {config.precision!r}: choose one of {', '.join(PRECISIONS)}")
+        raise OptionError(f"--precision {excerpt(repr(config.precision))}: choose one of {', '.join(PRECISIONS)}")
     prefix = config.prefix or re.sub(r"[^0-9a-zA-Z_]", "_", config.robot.name).lower()
     if not re.fullmatch(r"[a-z_][a-z0-9_]{0,30}", prefix):
-        raise OptionError(f"--prefix {prefix!r}: use a C identifier in lower case of at most 31 characters "
+        raise OptionError(f"--prefix {excerpt(repr(prefix))}: use a C identifier in lower case of at most 31 characters "
                           "(letters, digits, _; not starting with a digit)")
     if prefix in C_KEYWORDS or prefix in STANDARD_NAMES:
-        raise OptionError(f"--prefix {prefix!r} is a C keyword or a standard-library name: choose another "
+        raise OptionError(f"--prefix {excerpt(repr(prefix))} is a C keyword or a standard-library name: choose another "
                           f"(e.g. --prefix {prefix}_arm)")
     if prefix.startswith("_"):
-        raise OptionError(f"--prefix {prefix!r}: identifiers starting with '_' are reserved in C (the generated "
+        raise OptionError(f"--prefix {excerpt(repr(prefix))}: identifiers starting with '_' are reserved in C (the generated "
                           f"macros would be _<NAME>); start with a letter (e.g. --prefix arm{prefix})")
     return CodegenConfig(config.robot, config.precision, prefix, config.functions)
 

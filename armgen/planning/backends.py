@@ -31,7 +31,7 @@ import numpy as np
 
 from ..codegen import kernel_store
 from ..codegen.compiled import CompiledModel, NativeKernel, build_library
-from ..errors import TaskFileError
+from ..errors import TaskFileError, excerpt
 from ..robot import Robot
 from ..symbolic.model import ModelOptions, SymbolicModel
 
@@ -239,7 +239,7 @@ def _load_entry(stem: Path, backend: str) -> Kernel | tuple[ca.Function, dict, d
 def make_backend(robot: Robot, kind: str, functions: tuple[str, ...] = ()) -> Backend:
     """A backend; ``c`` generates, compiles (double) and loads the named functions."""
     if kind not in BACKENDS:
-        raise TaskFileError(f"backend {kind!r} is not one of {', '.join(BACKENDS)}")
+        raise TaskFileError(f"backend {excerpt(repr(kind))} is not one of {', '.join(BACKENDS)}")
     model = SymbolicModel(robot, ModelOptions(functions or None))
     if kind == "symbolic" or not functions:
         return Backend(kind, model, {name: model.function(name) for name in functions})

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import OutputError, PlanFileError
+from ..errors import OutputError, PlanFileError, excerpt
 from ..fileio import write_file_set
 
 ANGLE_UNITS = ("rad", "deg")
@@ -64,7 +64,7 @@ def _split_unit(column: str) -> tuple[str, str]:
 
 def convert_angle_units(columns: list[str], data: np.ndarray, units: str) -> tuple[list[str], np.ndarray]:
     if units not in ANGLE_UNITS:
-        raise ValueError(f"units must be one of {ANGLE_UNITS}, got {units!r}")
+        raise ValueError(f"units must be one of {ANGLE_UNITS}, got {excerpt(repr(units))}")
     if units == "rad":
         return list(columns), data
     data = data.copy()
@@ -149,7 +149,7 @@ def read_plan(csv_path: str | Path) -> PlanResult:
         raise PlanFileError(f"{csv_path}: empty plan file; give a plan CSV written by armgen plan")
     columns = [c.strip() for c in lines[0]]
     if "t_s" not in columns or len(set(columns)) != len(columns):
-        raise PlanFileError(f"{csv_path}: line 1: the header {columns[:6]!r}... must name distinct columns including "
+        raise PlanFileError(f"{csv_path}: line 1: the header {excerpt(repr(columns[:6]))}... must name distinct columns including "
                             "'t_s'; give a plan CSV written by armgen plan")
     rows = []
     for number, row in enumerate(lines[1:], start=2):
@@ -162,7 +162,7 @@ def read_plan(csv_path: str | Path) -> PlanResult:
             values = [float(v) for v in row]
         except ValueError:
             bad = next(v for v in row if not _is_float(v))
-            raise PlanFileError(f"{csv_path}: line {number}: {bad[:40]!r} is not a number") from None
+            raise PlanFileError(f"{csv_path}: line {number}: {excerpt(repr(bad[:40]))} is not a number") from None
         rows.append(values)
     if not rows:
         raise PlanFileError(f"{csv_path}: no samples after the header line")

@@ -101,13 +101,13 @@ def parse_grid(item: str) -> tuple[str, list[Any]]:
     """``KEY=ARRAY`` (ARRAY a TOML array of the field's values)."""
     key, values = _split(item, "--grid", "KEY=ARRAY, e.g. --grid 'method.K=[0, 1, 2]'")
     if not isinstance(values, list) or not values:
-        raise TaskFileError(f"--grid {item!r}: the values must be a non-empty TOML array, e.g. {key}=[1, 2]")
+        raise TaskFileError(f"--grid {excerpt(repr(item))}: the values must be a non-empty TOML array, e.g. {key}=[1, 2]")
     return key, values
 
 
 def parse_range(item: str) -> Range:
     """``KEY=LO:HI`` (numbers, or TOML arrays of numbers for a vector field)."""
-    where = f"--range {item!r}"
+    where = f"--range {excerpt(repr(item))}"
     key, text = _split(item, "--range", "KEY=LO:HI, e.g. --range 'method.K=0:4'", parse=False)
     if text.count(":") != 1:
         raise TaskFileError(f"{where}: expected KEY=LO:HI, e.g. --range 'method.K=0:4'")
@@ -127,9 +127,9 @@ def parse_range(item: str) -> Range:
 
 def _split(item: str, option: str, usage: str, parse: bool = True) -> tuple[str, Any]:
     if "=" not in item or not item.split("=", 1)[0].strip():
-        raise TaskFileError(f"{option} {item!r}: expected {usage}")
+        raise TaskFileError(f"{option} {excerpt(repr(item))}: expected {usage}")
     key, text = item.split("=", 1)
-    return key.strip(), parse_value(text.strip(), f"{option} {item!r}") if parse else text.strip()
+    return key.strip(), parse_value(text.strip(), f"{option} {excerpt(repr(item))}") if parse else text.strip()
 
 
 def _cell(value: Any) -> Any:
@@ -146,7 +146,7 @@ def run_one(task: dict[str, Any], source: str, sha256: str, index: int, fields: 
         try:
             run = copy.deepcopy(task)
             for key, value in fields.items():
-                set_field(run, key, value, f"sweep field {key!r}")
+                set_field(run, key, value, f"sweep field {excerpt(repr(key))}")
             summary = run_task(run, source, sha256, backend).metadata.get("summary", {})
         except ArmgenError as exc:
             return {**row, "status": "error", "exit_code": exc.exit_code, "message": str(exc)}
@@ -204,15 +204,15 @@ def _row_problem(row: dict[str, Any]) -> str | None:
     # (one text cell makes pandas read the whole column as text)
     if isinstance(run, bool) or not (isinstance(run, (int, np.integer)) and run >= 0
                                      or isinstance(run, str) and run.isascii() and run.isdigit()):
-        return f"run {excerpt(run)!r} is not a run index"
+        return f"run {excerpt(repr(run))} is not a run index"
     if status not in ("ok", "error"):
-        return f"status {excerpt(status)!r} is neither ok nor error"
+        return f"status {excerpt(repr(status))} is neither ok nor error"
     try:
         fields = json.loads(overrides) if isinstance(overrides, str) else None
     except ValueError:
         fields = None
     if not isinstance(fields, dict):
-        return f"overrides {excerpt(overrides)!r} is not a JSON table of fields"
+        return f"overrides {excerpt(repr(overrides))} is not a JSON table of fields"
     return None
 
 
