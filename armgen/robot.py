@@ -43,7 +43,8 @@ from pydantic import ValidationError
 
 from .errors import RobotFileError, excerpt
 from .robot_schema import RobotFile, UrdfRobotFile
-from .schemas import IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded
+from .schemas import (IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded,
+                      read_input_file)
 
 BUNDLED_DIR = Path(str(resources.files("armgen.data") / "robots"))
 
@@ -606,6 +607,9 @@ def resolve_robot_path(name_or_path: str | Path) -> Path:
     candidate = Path(name_or_path)
     try:
         if candidate.suffix == ".toml" or candidate.exists():
+            if candidate.exists() and not candidate.is_file():
+                raise RobotFileError(f"{candidate}: not a regular file (a folder, FIFO or device); give the robot file "
+                                     "itself")
             if not candidate.is_file():
                 raise RobotFileError(f"{candidate}: robot file not found")
             return candidate
@@ -613,10 +617,10 @@ def resolve_robot_path(name_or_path: str | Path) -> Path:
         if re.fullmatch(IDENTIFIER_PATTERN, str(name_or_path)) and bundled.is_file():
             return bundled
     except (OSError, ValueError) as exc:  # a name too long for the file system, a NUL byte, no permission
-        raise RobotFileError(f"{str(candidate)[:80]}: not a readable robot file ({exc.strerror or exc}); give a "
+        raise RobotFileError(f"{excerpt(str(candidate))}: not a readable robot file ({exc.strerror or exc}); give a "
                              f"bundled name ({', '.join(bundled_robots())}) or a path") from None
     raise RobotFileError(
-        f"unknown robot '{name_or_path}': not a file and not bundled (bundled: {', '.join(bundled_robots())})"
+        f"unknown robot '{excerpt(str(name_or_path))}': not a file and not bundled (bundled: {', '.join(bundled_robots())})"
     )
 
 
@@ -631,15 +635,8 @@ def load_robot(name_or_path: str | Path) -> Robot:
 
 
 def _read_bounded(path: Path) -> bytes:
-    """The bytes of a robot or URDF file, refusing a missing, unreadable or oversized one."""
-    try:
-        if path.stat().st_size > MAX_INPUT_FILE_BYTES:
-            raise RobotFileError(f"{path}: larger than the {MAX_INPUT_FILE_BYTES} bytes a robot file may have")
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise RobotFileError(f"{path}: robot file not found") from None
-    except OSError as exc:
-        raise RobotFileError(f"{path}: cannot read the robot file: {exc.strerror or exc}") from None
+    """The bytes of a robot or URDF file, refusing a missing, unreadable, oversized or not regular one."""
+    return read_input_file(path, MAX_INPUT_FILE_BYTES, "robot file", RobotFileError)
 
 
 def _decode(path: Path, data: bytes) -> str:

@@ -10,7 +10,10 @@ pydantic ``ValidationError`` into one message that names the file, the field and
 from __future__ import annotations
 
 import difflib
+import os
+import stat
 import sys
+from pathlib import Path
 from typing import Any, Callable
 
 from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
@@ -91,6 +94,35 @@ def nesting_depth(value: Any, limit: int = MAX_NESTING_DEPTH + 1) -> int:
         return 0
     children = value.values() if isinstance(value, dict) else value
     return 1 + max((nesting_depth(v, limit - 1) for v in children), default=0)
+
+
+def read_input_file(path: str | Path, limit: int, what: str, error: type[Exception]) -> bytes:
+    """The bytes of an input file (robot, URDF, task, plan), at most ``limit``: read with that
+    bound, not by the size the file reports (a /proc file says 0 and has more); a FIFO, device
+    or folder is refused without waiting for a writer. Every failure is ``error`` naming ``what``."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        raise error(f"{path}: {what} not found") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what}: {exc.strerror or exc}") from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise error(f"{path}: not a regular file (a folder, FIFO or device); give the {what} itself")
+        chunks, size = [], 0
+        while size <= limit:
+            chunk = os.read(fd, min(1 << 20, limit + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what}: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+    if size > limit:
+        raise error(f"{path}: larger than the {limit} bytes a {what} may have")
+    return b"".join(chunks)
 
 
 def parse_toml_bounded(data: bytes | str, source: str, error: type[Exception]) -> dict[str, Any]:

@@ -351,3 +351,59 @@ def test_integer_beyond_the_digit_limit_is_bad_input(tmp_path):
     robot.write_text((BUNDLED_DIR / "planar3.toml").read_text().replace("a = 0.5", "a = " + "9" * 5000, 1))
     with pytest.raises(RobotFileError, match=r"huge\.toml: not valid TOML: .*digits"):
         load_robot(robot)
+
+
+# -- 7. a closed pipe; 10. FIFOs and files that lie about their size --------------------------
+
+def test_show_into_a_closed_pipe_exits_quietly():
+    """`armgen show modular8 | head -1`: the reader is gone before armgen writes (closed here
+    before the interpreter has even imported armgen)."""
+    read, write = os.pipe()
+    os.close(read)
+    proc = subprocess.run([sys.executable, "-m", "armgen.cli.main", "show", "modular8"], stdout=write,
+                          stderr=subprocess.PIPE, text=True, timeout=120)
+    os.close(write)
+    assert proc.returncode == 141 and proc.stderr == "", proc.stderr
+
+
+@pytest.mark.parametrize("suffix", [".urdf", ".toml"])
+def test_show_refuses_a_fifo_without_blocking(tmp_path, suffix):
+    fifo = tmp_path / f"f{suffix}"
+    os.mkfifo(fifo)
+    proc = subprocess.run([sys.executable, "-m", "armgen.cli.main", "show", str(fifo)], capture_output=True,
+                          text=True, timeout=120)  # it used to block for ever: the timeout is the finding
+    assert proc.returncode == 2 and "not a regular file" in proc.stderr, proc.stderr
+
+
+def test_task_file_that_is_a_fifo_is_refused(tmp_path):
+    fifo = tmp_path / "t.toml"
+    os.mkfifo(fifo)
+    result = run("plan", str(fifo))
+    assert result.exit_code == 2 and "not a regular file" in result.output, result.output
+
+
+def test_input_read_is_bounded_not_sized_by_stat(tmp_path, monkeypatch):
+    """A file that reports size 0 (as /proc files do) but holds more than the cap."""
+    from armgen import schemas
+    from armgen.errors import TaskFileError
+
+    big = tmp_path / "big.toml"
+    big.write_bytes(b"#" * (schemas.MAX_INPUT_FILE_BYTES + 10))
+    real_fstat = os.fstat
+
+    def lying_fstat(fd):
+        st = real_fstat(fd)
+        return os.stat_result((st.st_mode, st.st_ino, st.st_dev, st.st_nlink, st.st_uid, st.st_gid, 0,
+                               st.st_atime, st.st_mtime, st.st_ctime))
+
+    monkeypatch.setattr(schemas.os, "fstat", lying_fstat)
+    monkeypatch.setattr(Path, "stat", lambda self, **kw: os.stat_result((0o100644,) + (0,) * 9))
+    with pytest.raises(TaskFileError, match=r"larger than the 1048576 bytes a task file may have"):
+        schemas.read_input_file(big, schemas.MAX_INPUT_FILE_BYTES, "task file", TaskFileError)
+    proc = Path("/proc/self/status")  # a real one: stat says 0 bytes, it holds ~1.5 kB
+    if proc.exists():
+        monkeypatch.undo()
+        assert os.stat(proc).st_size == 0
+        with pytest.raises(TaskFileError, match=r"larger than the 100 bytes"):
+            schemas.read_input_file(proc, 100, "task file", TaskFileError)
+        assert b"Pid" in schemas.read_input_file(proc, schemas.MAX_INPUT_FILE_BYTES, "task file", TaskFileError)

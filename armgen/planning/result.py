@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import OutputError, PlanFileError, excerpt
 from ..fileio import write_file_set
+from ..schemas import read_input_file
 
 ANGLE_UNITS = ("rad", "deg")
 
@@ -132,15 +133,10 @@ def read_plan(csv_path: str | Path) -> PlanResult:
     Any malformed content is a :class:`PlanFileError` naming the file and the line."""
     csv_path = Path(csv_path)
     try:
-        size = csv_path.stat().st_size
-        if size > MAX_PLAN_FILE_BYTES:
-            raise PlanFileError(f"{csv_path}: {size} bytes is larger than the {MAX_PLAN_FILE_BYTES} bytes a plan may have")
-        text = csv_path.read_text(encoding="utf-8")
+        text = read_input_file(csv_path, MAX_PLAN_FILE_BYTES, "plan", PlanFileError).decode("utf-8")
     except UnicodeDecodeError as exc:
         raise PlanFileError(f"{csv_path}: not UTF-8 text ({exc.reason} at byte {exc.start}); give a plan CSV "
                             "written by armgen plan") from None
-    except OSError as exc:
-        raise PlanFileError(f"{csv_path}: cannot read the plan: {exc.strerror or exc}") from None
     try:
         lines = list(csv.reader(io.StringIO(text, newline="")))
     except csv.Error as exc:
@@ -201,7 +197,7 @@ def read_plan_metadata(path: Path, columns: list[str], samples: int) -> dict[str
     from .plan_schema import PlanMetadata
 
     try:
-        raw = json.loads(path.read_text(encoding="utf-8"))
+        raw = json.loads(read_input_file(path, MAX_PLAN_FILE_BYTES, "plan.json", PlanFileError).decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise PlanFileError(f"{path}: not valid JSON ({exc}); regenerate it with armgen plan") from None
     try:

@@ -16,7 +16,8 @@ from pydantic import ValidationError
 
 from .. import __version__
 from ..errors import PlanFileError, PlanningError, TaskFileError, excerpt
-from ..schemas import MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, closest_key, format_validation_error, parse_toml_bounded
+from ..schemas import (MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, closest_key, format_validation_error, parse_toml_bounded,
+                       read_input_file)
 from .result import PlanResult, first_invalid_sample
 
 # planner name -> its package: ``planner.plan_task(task: dict, source: str, backend: str)`` and
@@ -51,14 +52,7 @@ class ResourceCaps:
 def load_task(path: str | Path) -> tuple[dict[str, Any], str]:
     """Read a task file (size and nesting bounded); returns the parsed dict and the file's sha256."""
     path = Path(path)
-    if not path.is_file():
-        raise TaskFileError(f"{path}: task file not found")
-    try:
-        if path.stat().st_size > MAX_INPUT_FILE_BYTES:
-            raise TaskFileError(f"{path}: larger than the {MAX_INPUT_FILE_BYTES} bytes a task file may have")
-        data = path.read_bytes()
-    except OSError as exc:
-        raise TaskFileError(f"{path}: cannot read the task file: {exc.strerror or exc}") from None
+    data = read_input_file(path, MAX_INPUT_FILE_BYTES, "task file", TaskFileError)
     return parse_toml_bounded(data, str(path), TaskFileError), hashlib.sha256(data).hexdigest()
 
 
