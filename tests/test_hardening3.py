@@ -407,3 +407,45 @@ def test_input_read_is_bounded_not_sized_by_stat(tmp_path, monkeypatch):
         with pytest.raises(TaskFileError, match=r"larger than the 100 bytes"):
             schemas.read_input_file(proc, 100, "task file", TaskFileError)
         assert b"Pid" in schemas.read_input_file(proc, schemas.MAX_INPUT_FILE_BYTES, "task file", TaskFileError)
+
+
+# -- 9. a ptp task's given knot times may not make its plan absurd ----------------------------
+
+PTP_NO_ROBOT = """
+planner = "ptp"
+method = "cubic"
+step = 0.001
+[waypoints]
+t = [0, {t1}, 2]
+theta = [0, 1, 2]
+omega = [0, 0.5, 0]
+{timing}
+"""
+
+
+@pytest.mark.parametrize("t1, timing, match", [
+    ("1e-9", "", r"segment 1 \(A→B\), joint 'j1'.* beyond 1000 rad/s"),
+    ("1e-9", "[timing]\nomega_max = [2, 2]", r"segment 1 \(A→B\), joint 'j1'"),
+    ("0.2", "[timing]\nomega_max = [2, 2]", r"segment 1 \(A→B\).*over 2 times its timing.omega_max of 2 rad/s"),
+])
+def test_ptp_refuses_absurd_given_times(tmp_path, t1, timing, match):
+    task = tmp_path / "t.toml"
+    task.write_text(PTP_NO_ROBOT.format(t1=t1, timing=timing))
+    result = run("plan", str(task), "-o", str(tmp_path / "p.csv"))
+    assert result.exit_code == 3, result.output
+    import re
+
+    assert re.search(match, result.output), result.output
+    assert not (tmp_path / "p.csv").exists()
+
+
+def test_ptp_given_times_may_round_a_bound(tmp_path):
+    """1 rad in 0.8 s, at rest at both ends: the cubic peaks at 3Δθ/(2T) = 1.875 rad/s, 1.875
+    times the bound of 1 rad/s (< 2): recorded as a violation, planned."""
+    task = tmp_path / "t.toml"
+    task.write_text(PTP_NO_ROBOT.format(t1="0.8", timing="[timing]\nomega_max = [1, 2]").replace(
+        "omega = [0, 0.5, 0]", "omega = [0, 0, 0]"))
+    result = run("plan", str(task), "-o", str(tmp_path / "p.csv"))
+    assert result.exit_code == 0, result.output
+    meta = json.loads((tmp_path / "p.json").read_text())
+    assert meta["summary"]["bound_violations"] >= 1

@@ -930,6 +930,31 @@ def bound_check(config: PtpConfig, plan: PtpPlan) -> list[dict[str, Any]]:
 
 # --------------------------------------------------------------------------- entry point
 
+# Given knot times are checked, not obeyed (the spec-40 example rounds a segment to 5 s and
+# exceeds its bound by 4 %); knot times that exceed a segment's bound by more than this
+# factor are a mistake, not a rounding, and refused.
+MAX_BOUND_OVERSHOOT = 2.0
+# Whatever the bounds, a planned joint speed beyond this (about 160 turns per second, 100 times
+# the fastest arm joints) comes from knot times too close together, with or without a robot.
+MAX_PLANNED_SPEED_RAD_S = 1e3
+
+
+def _check_given_times(config: PtpConfig, plan: PtpPlan) -> None:
+    """Refuse given knot times whose plan is absurdly fast or far beyond the task's own bounds."""
+    scale, unit = ANGLE_SCALE[config.angle_unit], config.angle_unit
+    for j, name in enumerate(plan.joint_names):
+        for k, (c, d) in enumerate(zip(plan.coeffs[j], np.diff(plan.knots))):
+            peak = peak_abs(c, d, 1)
+            bound = None if config.omega_max is None else float(config.omega_max[j, k])
+            if peak > MAX_PLANNED_SPEED_RAD_S or (bound is not None and peak > MAX_BOUND_OVERSHOOT * bound):
+                what = (f"beyond {MAX_PLANNED_SPEED_RAD_S:g} rad/s" if peak > MAX_PLANNED_SPEED_RAD_S else
+                        f"over {MAX_BOUND_OVERSHOOT:g} times its timing.omega_max of {bound / scale:.6g} {unit}/s")
+                raise PlanningError(
+                    f"{config.source}: {segment_label(k)}, joint '{name}': the knot times given in waypoints.t "
+                    f"({d:.6g} s for the segment) make the planned speed {peak / scale:.6g} {unit}/s, {what}; "
+                    "space the knot times further apart, or remove waypoints.t to compute them from timing.omega_max")
+
+
 def plan(config: PtpConfig) -> tuple[PtpPlan, list[dict[str, Any]]]:
     """The task's plan (knots given or computed) and the time solver's report (empty if given)."""
     if config.times is not None:
@@ -937,6 +962,8 @@ def plan(config: PtpConfig) -> tuple[PtpPlan, list[dict[str, Any]]]:
     else:
         knots, report = compute_knot_times(config)
     result = plan_with_times(config, config.method, knots)
+    if config.times is not None:
+        _check_given_times(config, result)
     for j, jw in enumerate(config.joints):
         if jw.qlim is None:
             continue
