@@ -449,3 +449,70 @@ def test_ptp_given_times_may_round_a_bound(tmp_path):
     assert result.exit_code == 0, result.output
     meta = json.loads((tmp_path / "p.json").read_text())
     assert meta["summary"]["bound_violations"] >= 1
+
+
+# -- 11. the firmware header generator and the controller refuse out-of-range configurations --
+
+@pytest.fixture(scope="module")
+def firmware_builder(tmp_path_factory):
+    from armgen.verify import firmware as fw
+
+    return fw.FirmwareBuilder("modular8", tmp_path_factory.mktemp("firmware"))
+
+
+@pytest.fixture(scope="module")
+def line_task():
+    """A 1 s line of modular8's tool (resolved rate), as firmware parameters."""
+    from armgen.planning.tasks import apply_overrides, load_task
+    from armgen.verify import firmware as fw
+
+    task, _ = load_task(EXAMPLES / "modular8_circle_combined.toml")
+    apply_overrides(task, ["path.type=line", "path.end=[-450, 400, 900]", "timing.duration=1"])
+    return fw.task_from_dict(task, "line")
+
+
+def rewrite(task, field: str, value: str):
+    import dataclasses
+    import re
+
+    header, count = re.subn(rf"\.{field} = [^,]+,", f".{field} = {value},", task.header, count=1)
+    assert count == 1, field
+    return dataclasses.replace(task, header="#include <math.h>\n" + header)
+
+
+@pytest.mark.parametrize("field, value", [
+    ("qdot_max", "CTRL_LIT(1e300)"), ("residual_rel", "CTRL_LIT(1e300)"), ("residual_abs", "CTRL_LIT(1e300)"),
+    ("pos_err_max", "CTRL_LIT(1e300)"), ("blend", "CTRL_LIT(NAN)"), ("blend", "CTRL_LIT(0.75)"),
+])
+def test_controller_refuses_guards_out_of_range(firmware_builder, line_task, field, value):
+    from armgen.verify import firmware as fw
+
+    variant = fw.Variant("host", "double")
+    assert fw.run_host(firmware_builder.executable(variant, line_task, "line")).state == "DONE"  # as written
+    run_ = fw.run_host(firmware_builder.executable(variant, rewrite(line_task, field, value), f"bad_{field}"))
+    assert (run_.summary["init"], run_.fault) == ("BAD_CONFIG", "BAD_CONFIG"), field
+
+
+def test_header_generator_refuses_non_increasing_knots(tmp_path):
+    from armgen.planning.result import read_plan
+    from armgen.verify import firmware as fw
+
+    out = tmp_path / "p.csv"
+    assert run("plan", str(EXAMPLES / "modular8_ptp_two_segments.toml"), "-o", str(out)).exit_code == 0
+    meta = json.loads((tmp_path / "p.json").read_text())
+    for knots in ([0.0, 2.0, 2.0], [0.0, 3.0, 1.0], [0.0, float("nan"), 3.0]):
+        meta["knot_times_s"] = knots[:len(meta["knot_times_s"])]
+        plan = read_plan(out)
+        plan.metadata["knot_times_s"] = meta["knot_times_s"]
+        with pytest.raises(fw.FirmwareError, match=r"knot_times_s = .* strictly increasing"):
+            fw.task_from_plan(plan, "p.csv")
+
+
+def test_header_generator_names_a_bad_blend():
+    from armgen.planning.tasks import apply_overrides, load_task
+    from armgen.verify import firmware as fw
+
+    task, _ = load_task(EXAMPLES / "modular8_circle_combined.toml")
+    apply_overrides(task, ["timing.law=\"cubic\"", "timing.blend=0.75"])  # unused by the cubic law
+    with pytest.raises(fw.FirmwareError, match=r"timing.blend = 0.75 must be in \[0, 0.5\]"):
+        fw.task_from_dict(task, "t.toml")

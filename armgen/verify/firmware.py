@@ -182,6 +182,14 @@ class FirmwareTask:
         return max(MAX_SEGMENTS, self.nseg)
 
 
+def _blend(law, source: str) -> str:
+    """The time law's blend for the controller, which checks it whatever the law: [0, 0.5]."""
+    if not (math.isfinite(law.blend) and 0.0 <= law.blend <= 0.5):
+        raise FirmwareError(f"{source}: timing.blend = {law.blend!r} must be in [0, 0.5] (the fraction of the duration "
+                            "spent accelerating), also when the time law does not use it")
+    return f".blend = {_lit(law.blend)},"
+
+
 def _lit(x: float) -> str:
     x = float(x)
     if not math.isfinite(x):
@@ -255,7 +263,7 @@ def cartesian_task(task: dict[str, Any], source: str) -> FirmwareTask:
         f".rot_angle = {_lit(angle)},",
         f".duration = {_lit(parsed.duration)},",
         f".law = {LAW_IDS[parsed.law.kind]},",
-        f".blend = {_lit(parsed.law.blend)},",
+        _blend(parsed.law, source),
         f".method = {METHOD_IDS[mp.name]},",
         f".rho_R = {_lit(mp.rho_R)}, .T_smo_R = {_lit(mp.T_smo_R)},",
         f".rho_L = {_lit(mp.rho_L)}, .theta_s = {_lit(mp.theta_s)},",
@@ -301,6 +309,9 @@ def playback_task(plan: PlanResult, source: str, robot: Robot | None = None) -> 
     robot, joints = _ptp_robot(meta, robot, source)
     knots = np.asarray(meta["knot_times_s"], dtype=float)
     nseg = len(knots) - 1
+    if knots.ndim != 1 or nseg < 1 or not np.all(np.isfinite(knots)) or not np.all(np.diff(knots) > 0):
+        raise FirmwareError(f"{source}: knot_times_s = {excerpt(knots.tolist())} must be at least two finite, strictly "
+                            "increasing times; regenerate plan.json with armgen plan")
     coeffs = meta["segments"]["coefficients"]
     t = plan.column("t_s")
     dt = float(meta.get("parameters", {}).get("step_s") or (t[1] - t[0]))
@@ -353,7 +364,7 @@ def _path_fields(path, source: str) -> list[str]:
         f".rot_angle = {_lit(angle)},",
         f".duration = {_lit(path.duration)},",
         f".law = {LAW_IDS[path.law.kind]},",
-        f".blend = {_lit(path.law.blend)},",
+        _blend(path.law, source),
         f".relative = {1 if path.relative else 0},",
         f".turns = {_lit(path.turns)},",
         f".clik_gain = {_lit(path.clik_gain if path.clik else 0.0)},",
