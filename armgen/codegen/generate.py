@@ -216,12 +216,13 @@ def generate(config: CodegenConfig) -> GeneratedCode:
     robot = config.robot
     preamble = c_preamble(robot.source, robot.sha256,
                           f"armgen kinematics of robot '{comment_safe(robot.name)}' ({robot.n} DOF)")
-    header = _render_header(config, model, protos, preamble)
     source = (f"{preamble}\n#include \"{p}.h\"\n\n#include <math.h>\n\n"
               "/* Every function below is straight-line code from the SX algorithm (fixed-count loops\n"
               " * are kept once, as for loops, at the end); w<k> are the algorithm's work registers.\n"
               " * Literals and math calls go through the precision macros. */\n\n"
               + "\n".join(definitions))
+    math = [m for m in MATH_MACROS if m in HEADER_MATH_MACROS or f"{P}_{m}(" in source]
+    header = _render_header(config, model, protos, preamble, math)
     files = {f"{p}.h": header, f"{p}.c": source}
     manifest = {
         "generator": f"armgen {__version__}",
@@ -318,13 +319,20 @@ static inline {p}_real {p}_sqrt({p}_real x) {{
 """
 
 
-def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str], preamble: str) -> str:
+# The math macros every header defines: sin and cos (the header's own sin/cos table) and what
+# the firmware stub reads through them (ctrl_robot.h: SIN, COS, SQRT, FABS). Any other is
+# defined only when the generated source calls it (MISRA 2.5: no unused macro).
+HEADER_MATH_MACROS = ("SIN", "COS", "SQRT", "FABS")
+
+
+def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str], preamble: str,
+                   math: list[str]) -> str:
     p, P = config.prefix, config.prefix.upper()
     guard = f"{P}_H"
     float_default = 1 if config.precision == "float" else 0
     lean = {"FMIN": f"{p}_fmin", "FMAX": f"{p}_fmax", "SQRT": f"{p}_sqrt"}
-    macros_f = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower() + 'f')}" for m in MATH_MACROS if m not in ("SIN", "COS"))
-    macros_d = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower())}" for m in MATH_MACROS)
+    macros_f = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower() + 'f')}" for m in math if m not in ("SIN", "COS"))
+    macros_d = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower())}" for m in math)
     return f"""{preamble}
 #ifndef {guard}
 #define {guard}

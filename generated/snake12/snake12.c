@@ -48,19 +48,15 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   trig_angle[22] = q[23];
   trig_angle[23] = q[24];
   snake12_sincos_table(trig_angle, trig_sin, trig_cos, 24);
-  w0 = q[1];
   w1 = trig_cos[0];
-  w2 = q[2];
   w3 = trig_cos[1];
   w4 = w1 * w3;
-  w5 = q[3];
   w6 = trig_cos[2];
   w7 = w4 * w6;
   w0 = trig_sin[0];
   w5 = trig_sin[2];
   w8 = w0 * w5;
   w7 = w7 - w8;
-  w8 = q[4];
   w9 = trig_cos[3];
   w10 = w7 * w9;
   w2 = trig_sin[1];
@@ -68,7 +64,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w8 = trig_sin[3];
   w12 = w11 * w8;
   w10 = w10 - w12;
-  w12 = q[5];
   w13 = trig_cos[4];
   w14 = w10 * w13;
   w15 = w4 * w5;
@@ -77,7 +72,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w12 = trig_sin[4];
   w16 = w15 * w12;
   w14 = w14 - w16;
-  w16 = q[6];
   w17 = trig_cos[5];
   w18 = w14 * w17;
   w7 = w7 * w8;
@@ -86,7 +80,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w16 = trig_sin[5];
   w11 = w7 * w16;
   w18 = w18 - w11;
-  w11 = q[7];
   w19 = trig_cos[6];
   w20 = w18 * w19;
   w21 = w10 * w12;
@@ -95,7 +88,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w11 = trig_sin[6];
   w15 = w21 * w11;
   w20 = w20 - w15;
-  w15 = q[8];
   w22 = trig_cos[7];
   w23 = w20 * w22;
   w14 = w14 * w16;
@@ -104,7 +96,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w15 = trig_sin[7];
   w7 = w14 * w15;
   w23 = w23 - w7;
-  w7 = q[9];
   w24 = trig_cos[8];
   w25 = w23 * w24;
   w26 = w18 * w11;
@@ -113,7 +104,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w7 = trig_sin[8];
   w21 = w26 * w7;
   w25 = w25 - w21;
-  w21 = q[10];
   w27 = trig_cos[9];
   w28 = w25 * w27;
   w20 = w20 * w15;
@@ -122,7 +112,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w21 = trig_sin[9];
   w14 = w20 * w21;
   w28 = w28 - w14;
-  w14 = q[11];
   w29 = trig_cos[10];
   w30 = w28 * w29;
   w31 = w23 * w7;
@@ -131,7 +120,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w14 = trig_sin[10];
   w26 = w31 * w14;
   w30 = w30 - w26;
-  w26 = q[12];
   w32 = trig_cos[11];
   w33 = w30 * w32;
   w25 = w25 * w21;
@@ -140,7 +128,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w26 = trig_sin[11];
   w20 = w25 * w26;
   w33 = w33 - w20;
-  w20 = q[13];
   w34 = trig_cos[12];
   w35 = w33 * w34;
   w36 = w28 * w14;
@@ -149,7 +136,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w20 = trig_sin[12];
   w31 = w36 * w20;
   w35 = w35 - w31;
-  w31 = q[14];
   w37 = trig_cos[13];
   w38 = w35 * w37;
   w30 = w30 * w26;
@@ -158,7 +144,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w31 = trig_sin[13];
   w25 = w30 * w31;
   w38 = w38 - w25;
-  w25 = q[15];
   w39 = trig_cos[14];
   w40 = w38 * w39;
   w41 = w33 * w20;
@@ -167,7 +152,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w25 = trig_sin[14];
   w36 = w41 * w25;
   w40 = w40 - w36;
-  w36 = q[16];
   w42 = trig_cos[15];
   w43 = w40 * w42;
   w35 = w35 * w31;
@@ -176,7 +160,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w36 = trig_sin[15];
   w30 = w35 * w36;
   w43 = w43 - w30;
-  w30 = q[17];
   w44 = trig_cos[16];
   w45 = w43 * w44;
   w46 = w38 * w25;
@@ -185,7 +168,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w30 = trig_sin[16];
   w41 = w46 * w30;
   w45 = w45 - w41;
-  w41 = q[18];
   w47 = trig_cos[17];
   w48 = w45 * w47;
   w40 = w40 * w36;
@@ -194,7 +176,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w41 = trig_sin[17];
   w35 = w40 * w41;
   w48 = w48 - w35;
-  w35 = q[19];
   w49 = trig_cos[18];
   w50 = w48 * w49;
   w51 = w43 * w30;
@@ -203,7 +184,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w35 = trig_sin[18];
   w46 = w51 * w35;
   w50 = w50 - w46;
-  w46 = q[20];
   w52 = trig_cos[19];
   w53 = w50 * w52;
   w45 = w45 * w41;
@@ -212,7 +192,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w46 = trig_sin[19];
   w40 = w45 * w46;
   w53 = w53 - w40;
-  w40 = q[21];
   w54 = trig_cos[20];
   w55 = w53 * w54;
   w56 = w48 * w35;
@@ -221,7 +200,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w40 = trig_sin[20];
   w51 = w56 * w40;
   w55 = w55 - w51;
-  w51 = q[22];
   w57 = trig_cos[21];
   w58 = w55 * w57;
   w50 = w50 * w46;
@@ -230,7 +208,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w51 = trig_sin[21];
   w45 = w50 * w51;
   w58 = w58 - w45;
-  w45 = q[23];
   w59 = trig_cos[22];
   w60 = w58 * w59;
   w61 = w53 * w40;
@@ -239,7 +216,6 @@ void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]) {
   w45 = trig_sin[22];
   w56 = w61 * w45;
   w60 = w60 - w56;
-  w56 = q[24];
   w62 = trig_cos[23];
   w63 = w60 * w62;
   w55 = w55 * w51;
@@ -659,19 +635,15 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   J[4] = w1;
   J[5] = w1;
   w2 = SNAKE12_LIT(0.10400000000000001);
-  w3 = q[1];
   w4 = trig_sin[0];
-  w5 = q[2];
   w6 = trig_cos[1];
   w7 = w4 * w6;
-  w8 = q[3];
   w9 = trig_cos[2];
   w10 = w7 * w9;
   w3 = trig_cos[0];
   w8 = trig_sin[2];
   w11 = w3 * w8;
   w10 = w10 + w11;
-  w11 = q[4];
   w12 = trig_cos[3];
   w13 = w10 * w12;
   w5 = trig_sin[1];
@@ -679,7 +651,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w11 = trig_sin[3];
   w15 = w14 * w11;
   w13 = w13 - w15;
-  w15 = q[5];
   w16 = trig_cos[4];
   w17 = w13 * w16;
   w18 = w3 * w9;
@@ -688,7 +659,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w15 = trig_sin[4];
   w19 = w18 * w15;
   w17 = w17 + w19;
-  w19 = q[6];
   w20 = trig_cos[5];
   w21 = w17 * w20;
   w10 = w10 * w11;
@@ -697,7 +667,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w19 = trig_sin[5];
   w22 = w10 * w19;
   w21 = w21 - w22;
-  w22 = q[7];
   w23 = trig_cos[6];
   w24 = w21 * w23;
   w25 = w18 * w16;
@@ -706,7 +675,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w22 = trig_sin[6];
   w26 = w25 * w22;
   w24 = w24 + w26;
-  w26 = q[8];
   w27 = trig_cos[7];
   w28 = w24 * w27;
   w17 = w17 * w19;
@@ -715,7 +683,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w26 = trig_sin[7];
   w29 = w17 * w26;
   w28 = w28 - w29;
-  w29 = q[9];
   w30 = trig_cos[8];
   w31 = w28 * w30;
   w32 = w25 * w23;
@@ -724,7 +691,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w29 = trig_sin[8];
   w33 = w32 * w29;
   w31 = w31 + w33;
-  w33 = q[10];
   w34 = trig_cos[9];
   w35 = w31 * w34;
   w24 = w24 * w26;
@@ -733,7 +699,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w33 = trig_sin[9];
   w36 = w24 * w33;
   w35 = w35 - w36;
-  w36 = q[11];
   w37 = trig_cos[10];
   w38 = w35 * w37;
   w39 = w32 * w30;
@@ -742,7 +707,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w36 = trig_sin[10];
   w40 = w39 * w36;
   w38 = w38 + w40;
-  w40 = q[12];
   w41 = trig_cos[11];
   w42 = w38 * w41;
   w31 = w31 * w33;
@@ -751,7 +715,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w40 = trig_sin[11];
   w43 = w31 * w40;
   w42 = w42 - w43;
-  w43 = q[13];
   w44 = trig_cos[12];
   w45 = w42 * w44;
   w46 = w39 * w37;
@@ -760,7 +723,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w43 = trig_sin[12];
   w47 = w46 * w43;
   w45 = w45 + w47;
-  w47 = q[14];
   w48 = trig_cos[13];
   w49 = w45 * w48;
   w38 = w38 * w40;
@@ -769,7 +731,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w47 = trig_sin[13];
   w50 = w38 * w47;
   w49 = w49 - w50;
-  w50 = q[15];
   w51 = trig_cos[14];
   w52 = w49 * w51;
   w53 = w46 * w44;
@@ -778,7 +739,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w50 = trig_sin[14];
   w54 = w53 * w50;
   w52 = w52 + w54;
-  w54 = q[16];
   w55 = trig_cos[15];
   w56 = w52 * w55;
   w45 = w45 * w47;
@@ -787,7 +747,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w54 = trig_sin[15];
   w57 = w45 * w54;
   w56 = w56 - w57;
-  w57 = q[17];
   w58 = trig_cos[16];
   w59 = w56 * w58;
   w60 = w53 * w51;
@@ -796,7 +755,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w57 = trig_sin[16];
   w61 = w60 * w57;
   w59 = w59 + w61;
-  w61 = q[18];
   w62 = trig_cos[17];
   w63 = w59 * w62;
   w52 = w52 * w54;
@@ -805,7 +763,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w61 = trig_sin[17];
   w64 = w52 * w61;
   w63 = w63 - w64;
-  w64 = q[19];
   w65 = trig_cos[18];
   w66 = w63 * w65;
   w67 = w60 * w58;
@@ -814,7 +771,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w64 = trig_sin[18];
   w68 = w67 * w64;
   w66 = w66 + w68;
-  w68 = q[20];
   w69 = trig_cos[19];
   w70 = w66 * w69;
   w59 = w59 * w61;
@@ -823,7 +779,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w68 = trig_sin[19];
   w71 = w59 * w68;
   w70 = w70 - w71;
-  w71 = q[21];
   w72 = trig_cos[20];
   w73 = w70 * w72;
   w74 = w67 * w65;
@@ -832,7 +787,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w71 = trig_sin[20];
   w75 = w74 * w71;
   w73 = w73 + w75;
-  w75 = q[22];
   w76 = trig_cos[21];
   w77 = w73 * w76;
   w66 = w66 * w68;
@@ -841,7 +795,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w75 = trig_sin[21];
   w78 = w66 * w75;
   w77 = w77 - w78;
-  w78 = q[23];
   w79 = trig_cos[22];
   w80 = w77 * w79;
   w81 = w74 * w72;
@@ -850,7 +803,6 @@ void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]) {
   w78 = trig_sin[22];
   w82 = w81 * w78;
   w80 = w80 + w82;
-  w82 = q[24];
   w83 = trig_cos[23];
   w80 = w80 * w83;
   w73 = w73 * w75;
@@ -1684,19 +1636,15 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   trig_angle[22] = q[23];
   trig_angle[23] = q[24];
   snake12_sincos_table(trig_angle, trig_sin, trig_cos, 24);
-  w0 = q[1];
   w1 = trig_cos[0];
-  w2 = q[2];
   w3 = trig_cos[1];
   w4 = w1 * w3;
-  w5 = q[3];
   w6 = trig_cos[2];
   w7 = w4 * w6;
   w0 = trig_sin[0];
   w5 = trig_sin[2];
   w8 = w0 * w5;
   w7 = w7 - w8;
-  w8 = q[4];
   w9 = trig_cos[3];
   w10 = w7 * w9;
   w2 = trig_sin[1];
@@ -1704,7 +1652,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w8 = trig_sin[3];
   w12 = w11 * w8;
   w10 = w10 - w12;
-  w12 = q[5];
   w13 = trig_cos[4];
   w14 = w10 * w13;
   w15 = w4 * w5;
@@ -1713,7 +1660,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w12 = trig_sin[4];
   w16 = w15 * w12;
   w14 = w14 - w16;
-  w16 = q[6];
   w17 = trig_cos[5];
   w18 = w14 * w17;
   w7 = w7 * w8;
@@ -1722,7 +1668,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w16 = trig_sin[5];
   w19 = w7 * w16;
   w18 = w18 - w19;
-  w19 = q[7];
   w20 = trig_cos[6];
   w21 = w18 * w20;
   w22 = w10 * w12;
@@ -1731,7 +1676,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w19 = trig_sin[6];
   w23 = w22 * w19;
   w21 = w21 - w23;
-  w23 = q[8];
   w24 = trig_cos[7];
   w25 = w21 * w24;
   w14 = w14 * w16;
@@ -1740,7 +1684,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w23 = trig_sin[7];
   w26 = w14 * w23;
   w25 = w25 - w26;
-  w26 = q[9];
   w27 = trig_cos[8];
   w28 = w25 * w27;
   w29 = w18 * w19;
@@ -1749,7 +1692,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w26 = trig_sin[8];
   w30 = w29 * w26;
   w28 = w28 - w30;
-  w30 = q[10];
   w31 = trig_cos[9];
   w32 = w28 * w31;
   w21 = w21 * w23;
@@ -1758,7 +1700,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w30 = trig_sin[9];
   w33 = w21 * w30;
   w32 = w32 - w33;
-  w33 = q[11];
   w34 = trig_cos[10];
   w35 = w32 * w34;
   w36 = w25 * w26;
@@ -1767,7 +1708,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w33 = trig_sin[10];
   w37 = w36 * w33;
   w35 = w35 - w37;
-  w37 = q[12];
   w38 = trig_cos[11];
   w39 = w35 * w38;
   w28 = w28 * w30;
@@ -1776,7 +1716,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w37 = trig_sin[11];
   w40 = w28 * w37;
   w39 = w39 - w40;
-  w40 = q[13];
   w41 = trig_cos[12];
   w42 = w39 * w41;
   w43 = w32 * w33;
@@ -1785,7 +1724,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w40 = trig_sin[12];
   w44 = w43 * w40;
   w42 = w42 - w44;
-  w44 = q[14];
   w45 = trig_cos[13];
   w46 = w42 * w45;
   w35 = w35 * w37;
@@ -1794,7 +1732,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w44 = trig_sin[13];
   w47 = w35 * w44;
   w46 = w46 - w47;
-  w47 = q[15];
   w48 = trig_cos[14];
   w49 = w46 * w48;
   w50 = w39 * w40;
@@ -1803,7 +1740,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w47 = trig_sin[14];
   w51 = w50 * w47;
   w49 = w49 - w51;
-  w51 = q[16];
   w52 = trig_cos[15];
   w53 = w49 * w52;
   w42 = w42 * w44;
@@ -1812,7 +1748,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w51 = trig_sin[15];
   w54 = w42 * w51;
   w53 = w53 - w54;
-  w54 = q[17];
   w55 = trig_cos[16];
   w56 = w53 * w55;
   w57 = w46 * w47;
@@ -1821,7 +1756,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w54 = trig_sin[16];
   w58 = w57 * w54;
   w56 = w56 - w58;
-  w58 = q[18];
   w59 = trig_cos[17];
   w60 = w56 * w59;
   w49 = w49 * w51;
@@ -1830,7 +1764,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w58 = trig_sin[17];
   w61 = w49 * w58;
   w60 = w60 - w61;
-  w61 = q[19];
   w62 = trig_cos[18];
   w63 = w60 * w62;
   w64 = w53 * w54;
@@ -1839,7 +1772,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w61 = trig_sin[18];
   w65 = w64 * w61;
   w63 = w63 - w65;
-  w65 = q[20];
   w66 = trig_cos[19];
   w67 = w63 * w66;
   w56 = w56 * w58;
@@ -1848,7 +1780,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w65 = trig_sin[19];
   w68 = w56 * w65;
   w67 = w67 - w68;
-  w68 = q[21];
   w69 = trig_cos[20];
   w70 = w67 * w69;
   w71 = w60 * w61;
@@ -1857,7 +1788,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w68 = trig_sin[20];
   w72 = w71 * w68;
   w70 = w70 - w72;
-  w72 = q[22];
   w73 = trig_cos[21];
   w74 = w70 * w73;
   w63 = w63 * w65;
@@ -1866,7 +1796,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w72 = trig_sin[21];
   w75 = w63 * w72;
   w74 = w74 - w75;
-  w75 = q[23];
   w76 = trig_cos[22];
   w77 = w74 * w76;
   w78 = w67 * w68;
@@ -1875,7 +1804,6 @@ void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16],
   w75 = trig_sin[22];
   w79 = w78 * w75;
   w77 = w77 - w79;
-  w79 = q[24];
   w80 = trig_cos[23];
   w81 = w77 * w80;
   w70 = w70 * w72;
