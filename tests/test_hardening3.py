@@ -516,3 +516,50 @@ def test_header_generator_names_a_bad_blend():
     apply_overrides(task, ["timing.law=\"cubic\"", "timing.blend=0.75"])  # unused by the cubic law
     with pytest.raises(fw.FirmwareError, match=r"timing.blend = 0.75 must be in \[0, 0.5\]"):
         fw.task_from_dict(task, "t.toml")
+
+
+# -- 13. MISRA: the generated code's findings are the documented deviations -------------------
+
+REPO = Path(__file__).resolve().parents[1]
+GENERATED_MISRA_HEADING = "## MISRA C:2012 deviations (generated code)"
+
+
+def generated_code_deviations() -> list[tuple[set[str], set[str]]]:
+    """(rules, files) per row of the generated code's table in docs/firmware.md."""
+    import re
+
+    text = (REPO / "docs" / "firmware.md").read_text(encoding="utf-8")
+    section = text.split(GENERATED_MISRA_HEADING, 1)[1].split("\n## ", 1)[0]
+    rows = []
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 3 and re.fullmatch(r"[\d.]+(, [\d.]+)*", cells[0]):
+            rows.append(({r.strip() for r in cells[0].split(",")}, {f.strip() for f in cells[1].split(",")}))
+    return rows
+
+
+def test_generated_code_misra_findings_are_documented():
+    import re
+    import shutil
+
+    cppcheck = shutil.which("cppcheck")
+    if cppcheck is None:
+        pytest.skip("cppcheck is not installed (apt-get install -y cppcheck)")
+    rows = generated_code_deviations()
+    assert rows, "the generated code's deviation table is missing from docs/firmware.md"
+    folder = REPO / "generated" / "modular8"
+    proc = subprocess.run([cppcheck, "--addon=misra", "--std=c99", "--enable=style", "-q",
+                           "--template={file}:{line}:{id}", f"-I{folder}", str(folder / "modular8.c")],
+                          capture_output=True, text=True, timeout=1800)
+    output = proc.stdout + proc.stderr
+    findings = {(Path(f).name.replace("modular8", "<robot>"), int(line), rule) for f, line, rule in
+                re.findall(r"^(.+?):(\d+):misra-c2012-([\d.]+)$", output, re.M)}
+    assert findings, "cppcheck's MISRA addon reported nothing: is the addon installed?"
+    dead = re.findall(r"^.+?:\d+:(?:redundantAssignment|unreadVariable|unusedVariable)$", output, re.M)
+    assert not dead, f"dead stores in the generated code: {dead[:5]}"
+    undocumented = sorted(f"{name}:{line} rule {rule}" for name, line, rule in findings
+                          if not any(rule in rules and name in files for rules, files in rows))
+    assert not undocumented, "MISRA findings outside the generated code's deviation list:\n" + "\n".join(undocumented)
+    stale = [sorted(rules) for rules, files in rows
+             if not any(rule in rules and name in files for name, _, rule in findings)]
+    assert not stale, f"deviation rows that no finding needs any more: {stale}"

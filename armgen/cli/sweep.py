@@ -37,19 +37,14 @@ def sweep_cmd(task_file, grids, draws, ranges, seed, overrides, output, backend,
     Exit codes: 0 the table was written (failed runs are rows), 2 bad options or task file,
     3 every run failed, 4 the table or the scheduler cannot be used, 130 interrupted (the
     finished runs are written; --resume runs the rest)."""
-    from ..errors import PlanningError, TaskFileError
+    from ..errors import PlanningError
     from ..planning.sweep import SweepSpec, parse_grid, parse_range, sweep
     from ..planning.tasks import apply_overrides, load_task
 
     task, sha = load_task(task_file)
     apply_overrides(task, list(overrides))
     spec = SweepSpec([parse_grid(g) for g in grids], [parse_range(r) for r in ranges], draws, seed)
-    if spec.ranges and not draws:
-        raise TaskFileError("--range needs --random N (the number of draws)")
-    if draws and not spec.ranges:
-        raise TaskFileError("--random needs at least one --range KEY=LO:HI to draw")
-    if not spec.grid and not spec.ranges:
-        raise TaskFileError("nothing to sweep: give --grid KEY=ARRAY and/or --random N with --range KEY=LO:HI")
+    spec.check()
     out = Path(output) if output else Path(Path(task_file).stem + "_sweep.csv")
     rows = sweep(task, task_file, sha, spec, out, backend, workers or os.cpu_count() or 1, scheduler, resume,
                  click.echo)

@@ -39,9 +39,9 @@ _BINARY = {
     ca.OP_LE: ("compare", "({p}_real)({a} <= {b})"),
     ca.OP_EQ: ("compare", "({p}_real)({a} == {b})"),
     ca.OP_NE: ("compare", "({p}_real)({a} != {b})"),
-    ca.OP_AND: ("compare", "({p}_real)({a} != {P}_LIT(0.0) && {b} != {P}_LIT(0.0))"),
-    ca.OP_OR: ("compare", "({p}_real)({a} != {P}_LIT(0.0) || {b} != {P}_LIT(0.0))"),
-    ca.OP_IF_ELSE_ZERO: ("select", "({a} != {P}_LIT(0.0) ? {b} : {P}_LIT(0.0))"),
+    ca.OP_AND: ("compare", "({p}_real)(({a} != {P}_LIT(0.0)) && ({b} != {P}_LIT(0.0)))"),
+    ca.OP_OR: ("compare", "({p}_real)(({a} != {P}_LIT(0.0)) || ({b} != {P}_LIT(0.0)))"),
+    ca.OP_IF_ELSE_ZERO: ("select", "(({a} != {P}_LIT(0.0)) ? {b} : {P}_LIT(0.0))"),
 }
 _UNARY = {
     ca.OP_ASSIGN: ("copy", "{a}"),
@@ -61,7 +61,7 @@ _UNARY = {
     ca.OP_FABS: ("minmax", "{P}_FABS({a})"),
     ca.OP_FLOOR: ("minmax", "{P}_FLOOR({a})"),
     ca.OP_CEIL: ("minmax", "{P}_CEIL({a})"),
-    ca.OP_SIGN: ("compare", "({a} > {P}_LIT(0.0) ? {P}_LIT(1.0) : ({a} < {P}_LIT(0.0) ? {P}_LIT(-1.0) : {a}))"),
+    ca.OP_SIGN: ("compare", "(({a} > {P}_LIT(0.0)) ? {P}_LIT(1.0) : (({a} < {P}_LIT(0.0)) ? {P}_LIT(-1.0) : {a}))"),
     ca.OP_NOT: ("compare", "({p}_real)({a} == {P}_LIT(0.0))"),
 }
 

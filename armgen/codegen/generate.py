@@ -122,7 +122,7 @@ def _finite_probe(values: list[str], p: str, P: str) -> list[str]:
     """Statements folding each value into ``probe``: x * 0 is ±0 for a finite x and NaN for
     NaN/inf, and a NaN survives the sum. Straight-line (a load and a multiply-add per value on
     a Cortex-M4, no loop or call), so ``probe == probe`` is 1 iff every value is finite."""
-    return [f"  {p}_real probe = {P}_LIT(0.0);", *(f"  probe = probe + {v} * {P}_LIT(0.0);" for v in values)]
+    return [f"  {p}_real probe = {P}_LIT(0.0);", *(f"  probe = probe + ({v} * {P}_LIT(0.0));" for v in values)]
 
 
 def _values(names: list[str], scalars: list[bool], sizes: list[int], pointer: str) -> list[str]:
@@ -356,16 +356,16 @@ extern "C" {{
 #ifndef {P}_USE_FLOAT
 #define {P}_USE_FLOAT {float_default}
 #endif
-#if {P}_USE_FLOAT
-typedef float {p}_real;
-#define {P}_LIT(x) x##f
-{macros_f}
 /* {P}_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
  * ({p}_sin_bounded/{p}_cos_bounded below: error <= {BOUNDED_TRIG_ULP} ulp for |x| <= {BOUNDED_TRIG_RANGE} rad,
  * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
 #ifndef {P}_BOUNDED_TRIG
 #define {P}_BOUNDED_TRIG 0
 #endif
+#if {P}_USE_FLOAT
+typedef float {p}_real;
+#define {P}_LIT(x) x##f
+{macros_f}
 #if {P}_BOUNDED_TRIG
 #define {P}_SIN {p}_sin_bounded
 #define {P}_COS {p}_cos_bounded

@@ -73,6 +73,17 @@ class SweepSpec:
         """How many runs :meth:`runs` gives (without making them)."""
         return math.prod(len(values) for _, values in self.grid) * (self.draws if self.ranges else 1)
 
+    def check(self) -> None:
+        """Refuse a sweep that is not one: ranges without draws (or draws without ranges),
+        nothing to vary, or more than :data:`MAX_SWEEP_RUNS` runs."""
+        if self.ranges and not self.draws:
+            raise TaskFileError("--range needs --random N (the number of draws)")
+        if self.draws and not self.ranges:
+            raise TaskFileError("--random needs at least one --range KEY=LO:HI to draw")
+        if not self.grid and not self.ranges:
+            raise TaskFileError("nothing to sweep: give --grid KEY=ARRAY and/or --random N with --range KEY=LO:HI")
+        self.check_size()
+
     def check_size(self) -> None:
         count = self.count()
         if count > MAX_SWEEP_RUNS:

@@ -26,6 +26,12 @@ extern "C" {
 #ifndef IIWA14_USE_FLOAT
 #define IIWA14_USE_FLOAT 0
 #endif
+/* IIWA14_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
+ * (iiwa14_sin_bounded/iiwa14_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+#ifndef IIWA14_BOUNDED_TRIG
+#define IIWA14_BOUNDED_TRIG 0
+#endif
 #if IIWA14_USE_FLOAT
 typedef float iiwa14_real;
 #define IIWA14_LIT(x) x##f
@@ -36,12 +42,6 @@ typedef float iiwa14_real;
 #define IIWA14_FMIN iiwa14_fmin
 #define IIWA14_FMAX iiwa14_fmax
 #define IIWA14_COPYSIGN copysignf
-/* IIWA14_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
- * (iiwa14_sin_bounded/iiwa14_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
- * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
-#ifndef IIWA14_BOUNDED_TRIG
-#define IIWA14_BOUNDED_TRIG 0
-#endif
 #if IIWA14_BOUNDED_TRIG
 #define IIWA14_SIN iiwa14_sin_bounded
 #define IIWA14_COS iiwa14_cos_bounded

@@ -26,6 +26,12 @@ extern "C" {
 #ifndef MODULAR8_USE_FLOAT
 #define MODULAR8_USE_FLOAT 0
 #endif
+/* MODULAR8_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
+ * (modular8_sin_bounded/modular8_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+#ifndef MODULAR8_BOUNDED_TRIG
+#define MODULAR8_BOUNDED_TRIG 0
+#endif
 #if MODULAR8_USE_FLOAT
 typedef float modular8_real;
 #define MODULAR8_LIT(x) x##f
@@ -36,12 +42,6 @@ typedef float modular8_real;
 #define MODULAR8_FMIN modular8_fmin
 #define MODULAR8_FMAX modular8_fmax
 #define MODULAR8_COPYSIGN copysignf
-/* MODULAR8_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
- * (modular8_sin_bounded/modular8_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
- * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
-#ifndef MODULAR8_BOUNDED_TRIG
-#define MODULAR8_BOUNDED_TRIG 0
-#endif
 #if MODULAR8_BOUNDED_TRIG
 #define MODULAR8_SIN modular8_sin_bounded
 #define MODULAR8_COS modular8_cos_bounded

@@ -26,6 +26,12 @@ extern "C" {
 #ifndef PANDA_USE_FLOAT
 #define PANDA_USE_FLOAT 0
 #endif
+/* PANDA_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
+ * (panda_sin_bounded/panda_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+#ifndef PANDA_BOUNDED_TRIG
+#define PANDA_BOUNDED_TRIG 0
+#endif
 #if PANDA_USE_FLOAT
 typedef float panda_real;
 #define PANDA_LIT(x) x##f
@@ -36,12 +42,6 @@ typedef float panda_real;
 #define PANDA_FMIN panda_fmin
 #define PANDA_FMAX panda_fmax
 #define PANDA_COPYSIGN copysignf
-/* PANDA_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
- * (panda_sin_bounded/panda_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
- * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
-#ifndef PANDA_BOUNDED_TRIG
-#define PANDA_BOUNDED_TRIG 0
-#endif
 #if PANDA_BOUNDED_TRIG
 #define PANDA_SIN panda_sin_bounded
 #define PANDA_COS panda_cos_bounded

@@ -26,6 +26,12 @@ extern "C" {
 #ifndef PLANAR3_USE_FLOAT
 #define PLANAR3_USE_FLOAT 0
 #endif
+/* PLANAR3_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
+ * (planar3_sin_bounded/planar3_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+#ifndef PLANAR3_BOUNDED_TRIG
+#define PLANAR3_BOUNDED_TRIG 0
+#endif
 #if PLANAR3_USE_FLOAT
 typedef float planar3_real;
 #define PLANAR3_LIT(x) x##f
@@ -36,12 +42,6 @@ typedef float planar3_real;
 #define PLANAR3_FMIN planar3_fmin
 #define PLANAR3_FMAX planar3_fmax
 #define PLANAR3_COPYSIGN copysignf
-/* PLANAR3_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
- * (planar3_sin_bounded/planar3_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
- * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
-#ifndef PLANAR3_BOUNDED_TRIG
-#define PLANAR3_BOUNDED_TRIG 0
-#endif
 #if PLANAR3_BOUNDED_TRIG
 #define PLANAR3_SIN planar3_sin_bounded
 #define PLANAR3_COS planar3_cos_bounded

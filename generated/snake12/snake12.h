@@ -26,6 +26,12 @@ extern "C" {
 #ifndef SNAKE12_USE_FLOAT
 #define SNAKE12_USE_FLOAT 0
 #endif
+/* SNAKE12_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
+ * (snake12_sin_bounded/snake12_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+#ifndef SNAKE12_BOUNDED_TRIG
+#define SNAKE12_BOUNDED_TRIG 0
+#endif
 #if SNAKE12_USE_FLOAT
 typedef float snake12_real;
 #define SNAKE12_LIT(x) x##f
@@ -36,12 +42,6 @@ typedef float snake12_real;
 #define SNAKE12_FMIN snake12_fmin
 #define SNAKE12_FMAX snake12_fmax
 #define SNAKE12_COPYSIGN copysignf
-/* SNAKE12_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
- * (snake12_sin_bounded/snake12_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
- * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
-#ifndef SNAKE12_BOUNDED_TRIG
-#define SNAKE12_BOUNDED_TRIG 0
-#endif
 #if SNAKE12_BOUNDED_TRIG
 #define SNAKE12_SIN snake12_sin_bounded
 #define SNAKE12_COS snake12_cos_bounded
