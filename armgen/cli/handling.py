@@ -11,7 +11,7 @@ import sys
 
 import click
 
-from ..errors import ArmgenError
+from ..errors import ArmgenError, excerpt
 
 
 def handle_errors(func):
@@ -34,7 +34,7 @@ def handle_errors(func):
         except Exception as exc:  # the last resort, not the mechanism: every known failure is an ArmgenError
             if os.environ.get("ARMGEN_DEBUG"):
                 raise
-            click.echo(f"internal error: {type(exc).__name__}: {str(exc)[:300]}\nThis is a bug in armgen; please "
+            click.echo(f"internal error: {type(exc).__name__}: {excerpt(str(exc), 300)}\nThis is a bug in armgen; please "
                        "report it with the command line and the input files (ARMGEN_DEBUG=1 shows the traceback).",
                        err=True)
             sys.exit(1)
