@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
-from .errors import OptionError
+from .errors import OptionError, excerpt
 from .robot import Robot, load_robot, load_robot_any
 
 if TYPE_CHECKING:  # heavy imports only for type checkers
@@ -160,7 +160,7 @@ def plan(task: str | Path | dict[str, Any], backend: str = "symbolic", *, max_st
         parsed, sha = load_task(task)
         source = str(task)
     for key, value in overrides.items():
-        set_field(parsed, key.replace("__", "."), value, f"override {key!r}")
+        set_field(parsed, key.replace("__", "."), value, f"override {excerpt(repr(key))}")
     caps = ResourceCaps()
     caps = ResourceCaps(max_steps or caps.max_steps, max_samples or caps.max_samples)
     return Plan(run_task(parsed, source, sha, backend, caps))

@@ -44,6 +44,12 @@ class OutputError(ArmgenError):
     exit_code = 4
 
 
+class Interrupted(ArmgenError):
+    """The user interrupted a long command (Ctrl-C); the message says what was kept."""
+
+    exit_code = 130
+
+
 class PlanFileError(ArmgenError):
     """A plan CSV or its plan.json is malformed."""
 
@@ -54,3 +60,14 @@ class OptionError(ArmgenError):
     """A command-line option has an invalid value (e.g. a C prefix that is a keyword)."""
 
     exit_code = 2
+
+
+# An error message quotes at most this much of an offending value (a name, a path, a cell):
+# enough to find it, never a megabyte of it.
+EXCERPT_CHARS = 60
+
+
+def excerpt(value: object, limit: int = EXCERPT_CHARS) -> str:
+    """``value`` (its text, else its repr) cut to ``limit`` characters, saying how long it was."""
+    text = value if isinstance(value, str) else repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}… ({len(text)} characters)"

@@ -41,9 +41,10 @@ from numpy.typing import ArrayLike
 
 from pydantic import ValidationError
 
-from .errors import RobotFileError
+from .errors import RobotFileError, excerpt
 from .robot_schema import RobotFile, UrdfRobotFile
-from .schemas import IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded
+from .schemas import (IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded,
+                      read_input_file)
 
 BUNDLED_DIR = Path(str(resources.files("armgen.data") / "robots"))
 
@@ -407,7 +408,7 @@ class _Reader:
             raise self.fail(where, f"missing field '{key}'; add '{key} = <number>'")
         value = table[key]
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(where, f"field '{key}' must be a number, got {type(value).__name__} {value!r}")
+            raise self.fail(where, f"field '{key}' must be a number, got {type(value).__name__} {excerpt(repr(value))}")
         if not math.isfinite(value):
             raise self.fail(where, f"field '{key}' is {value}; give a finite number")
         return float(value)
@@ -420,9 +421,9 @@ class _Reader:
             raise self.fail(where, f"missing field '{key}'")
         value = table[key]
         if not isinstance(value, str) or not value:
-            raise self.fail(where, f"field '{key}' must be a non-empty string, got {value!r}")
+            raise self.fail(where, f"field '{key}' must be a non-empty string, got {excerpt(repr(value))}")
         if choices is not None and value not in choices:
-            raise self.fail(where, f"field '{key}' = {value!r} is not one of {', '.join(choices)}")
+            raise self.fail(where, f"field '{key}' = {excerpt(repr(value))} is not one of {', '.join(choices)}")
         return value
 
     def vector(self, table: dict, key: str, where: str, length: int | None = None,
@@ -439,7 +440,7 @@ class _Reader:
         out = []
         for k, item in enumerate(value):
             if isinstance(item, bool) or not isinstance(item, (int, float)):
-                raise self.fail(where, f"field '{key}'[{k}] must be a number, got {item!r}")
+                raise self.fail(where, f"field '{key}'[{k}] must be a number, got {excerpt(repr(item))}")
             if not math.isfinite(item):
                 raise self.fail(where, f"field '{key}'[{k}] is {item}; give a finite number")
             out.append(float(item))
@@ -501,7 +502,7 @@ def _task_rows(reader: _Reader, doc: dict) -> tuple[int, ...]:
     task_rows_raw = doc.get("task_rows", list(TASK_ROWS))
     if not isinstance(task_rows_raw, list) or not task_rows_raw or any(r not in TASK_ROWS for r in task_rows_raw) \
             or len(set(task_rows_raw)) != len(task_rows_raw):
-        raise reader.fail("file", f"task_rows = {task_rows_raw!r} must be a non-empty list of distinct names from {', '.join(TASK_ROWS)}")
+        raise reader.fail("file", f"task_rows = {excerpt(repr(task_rows_raw))} must be a non-empty list of distinct names from {', '.join(TASK_ROWS)}")
     return tuple(sorted(TASK_ROWS.index(r) for r in task_rows_raw))
 
 
@@ -606,6 +607,9 @@ def resolve_robot_path(name_or_path: str | Path) -> Path:
     candidate = Path(name_or_path)
     try:
         if candidate.suffix == ".toml" or candidate.exists():
+            if candidate.exists() and not candidate.is_file():
+                raise RobotFileError(f"{candidate}: not a regular file (a folder, FIFO or device); give the robot file "
+                                     "itself")
             if not candidate.is_file():
                 raise RobotFileError(f"{candidate}: robot file not found")
             return candidate
@@ -613,10 +617,10 @@ def resolve_robot_path(name_or_path: str | Path) -> Path:
         if re.fullmatch(IDENTIFIER_PATTERN, str(name_or_path)) and bundled.is_file():
             return bundled
     except (OSError, ValueError) as exc:  # a name too long for the file system, a NUL byte, no permission
-        raise RobotFileError(f"{str(candidate)[:80]}: not a readable robot file ({exc.strerror or exc}); give a "
+        raise RobotFileError(f"{excerpt(str(candidate))}: not a readable robot file ({exc.strerror or exc}); give a "
                              f"bundled name ({', '.join(bundled_robots())}) or a path") from None
     raise RobotFileError(
-        f"unknown robot '{name_or_path}': not a file and not bundled (bundled: {', '.join(bundled_robots())})"
+        f"unknown robot '{excerpt(str(name_or_path))}': not a file and not bundled (bundled: {', '.join(bundled_robots())})"
     )
 
 
@@ -631,15 +635,8 @@ def load_robot(name_or_path: str | Path) -> Robot:
 
 
 def _read_bounded(path: Path) -> bytes:
-    """The bytes of a robot or URDF file, refusing a missing, unreadable or oversized one."""
-    try:
-        if path.stat().st_size > MAX_INPUT_FILE_BYTES:
-            raise RobotFileError(f"{path}: larger than the {MAX_INPUT_FILE_BYTES} bytes a robot file may have")
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise RobotFileError(f"{path}: robot file not found") from None
-    except OSError as exc:
-        raise RobotFileError(f"{path}: cannot read the robot file: {exc.strerror or exc}") from None
+    """The bytes of a robot or URDF file, refusing a missing, unreadable, oversized or not regular one."""
+    return read_input_file(path, MAX_INPUT_FILE_BYTES, "robot file", RobotFileError)
 
 
 def _decode(path: Path, data: bytes) -> str:
@@ -665,7 +662,7 @@ def _urdf_robot(path: Path, data: bytes, base_link: str | None, tip_link: str | 
     reader = reader or _Reader(str(path))
     name = reader.string(doc, "name", "file", default=chain.robot_name)
     if not _ROBOT_NAME.fullmatch(name):
-        raise reader.fail("file", f"robot name {name!r} must be a letter then letters, digits, _ or - "
+        raise reader.fail("file", f"robot name {excerpt(repr(name))} must be a letter then letters, digits, _ or - "
                                   "(at most 64); set name = \"…\" in a robot file that references the URDF")
     units = reader.table(doc, "units", "file")
     unknown_units = set(units) - {"length", "angle"}

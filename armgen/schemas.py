@@ -10,11 +10,16 @@ pydantic ``ValidationError`` into one message that names the file, the field and
 from __future__ import annotations
 
 import difflib
+import os
+import stat
 import sys
+from pathlib import Path
 from typing import Any, Callable
 
 from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
+
+from .errors import excerpt
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -78,7 +83,7 @@ def _unknown_message(err: dict[str, Any], loc: tuple, label: str | None) -> str:
             near = by_last.get(closest_key(key, list(by_last)) or "")
         if near:
             notes.append(f"did you mean `{near}`?")
-        parts.append(key + (f" ({'; '.join(notes)})" if notes else ""))
+        parts.append(excerpt(key) + (f" ({'; '.join(notes)})" if notes else ""))
     head = f"{label}: " if label else (f"'{_dotted(loc)}' has " if loc else "")
     return f"{head}unknown field(s) {', '.join(parts)}; allowed: {', '.join(allowed)}"
 
@@ -89,6 +94,35 @@ def nesting_depth(value: Any, limit: int = MAX_NESTING_DEPTH + 1) -> int:
         return 0
     children = value.values() if isinstance(value, dict) else value
     return 1 + max((nesting_depth(v, limit - 1) for v in children), default=0)
+
+
+def read_input_file(path: str | Path, limit: int, what: str, error: type[Exception]) -> bytes:
+    """The bytes of an input file (robot, URDF, task, plan), at most ``limit``: read with that
+    bound, not by the size the file reports (a /proc file says 0 and has more); a FIFO, device
+    or folder is refused without waiting for a writer. Every failure is ``error`` naming ``what``."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        raise error(f"{path}: {what} not found") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what}: {exc.strerror or exc}") from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise error(f"{path}: not a regular file (a folder, FIFO or device); give the {what} itself")
+        chunks, size = [], 0
+        while size <= limit:
+            chunk = os.read(fd, min(1 << 20, limit + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what}: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+    if size > limit:
+        raise error(f"{path}: larger than the {limit} bytes a {what} may have")
+    return b"".join(chunks)
 
 
 def parse_toml_bounded(data: bytes | str, source: str, error: type[Exception]) -> dict[str, Any]:
@@ -104,8 +138,8 @@ def parse_toml_bounded(data: bytes | str, source: str, error: type[Exception]) -
             raise error(f"{source}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     try:
         doc = tomllib.loads(data)
-    except tomllib.TOMLDecodeError as exc:
-        raise error(f"{source}: not valid TOML: {exc}") from None
+    except ValueError as exc:  # a TOMLDecodeError, or an integer beyond Python's digit limit
+        raise error(f"{source}: not valid TOML: {excerpt(str(exc), 200)}") from None
     except RecursionError:
         doc = None
     if doc is None or nesting_depth(doc) > MAX_NESTING_DEPTH:
@@ -115,14 +149,13 @@ def parse_toml_bounded(data: bytes | str, source: str, error: type[Exception]) -
 
 
 def _render(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
+    return excerpt(repr(value))
 
 
 def _dotted(loc: tuple) -> str:
     out = ""
     for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+        out += f"[{part}]" if isinstance(part, int) else (f".{excerpt(part)}" if out else excerpt(part))
     return out
 
 

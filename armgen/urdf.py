@@ -30,8 +30,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import RobotFileError
-from .robot import rpy_matrix, snap_quarter_turn
+from .errors import RobotFileError, excerpt
+from .robot import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, rpy_matrix, snap_quarter_turn
+from .robot_schema import MAX_DOF
+from .schemas import IDENTIFIER_PATTERN
 
 # Default range of a continuous joint (rad): one full turn about zero. Criteria and planners
 # need finite limits; bound the joint in a robot file's [limits] table to change it.
@@ -42,6 +44,12 @@ UNSUPPORTED_TYPES = ("floating", "planar")
 URDF_JOINT_TYPES = MOVING_TYPES + ("fixed",) + UNSUPPORTED_TYPES
 
 _DECLARATION = re.compile(r"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
+# The robot-file bounds hold for URDF robots too: a moving joint's name is an identifier (it
+# names the joint in the generated C and the CSV columns), at most MAX_DOF moving joints on
+# the chain, origins and limits within MAX_ABS_LENGTH_M / MAX_ABS_ANGLE_RAD. Link and fixed
+# joint names only appear in messages: any text up to this length.
+MAX_URDF_NAME_CHARS = 256
+_IDENTIFIER = re.compile(IDENTIFIER_PATTERN)
 
 
 @dataclass(frozen=True)
@@ -92,6 +100,9 @@ class _Parser:
         value = element.get("name")
         if not value or not value.strip():
             raise self.fail(where, f"<{element.tag}> has no 'name' attribute; add name=\"…\"")
+        if len(value) > MAX_URDF_NAME_CHARS:
+            raise self.fail(where, f"<{element.tag} name=\"{excerpt(value)}\"> is longer than {MAX_URDF_NAME_CHARS} "
+                                   "characters; give a shorter name")
         return value
 
     def numbers(self, element: ET.Element | None, attribute: str, where: str, count: int,
@@ -106,11 +117,12 @@ class _Parser:
         try:
             values = tuple(float(p) for p in parts)
         except ValueError:
-            raise self.fail(where, f"<{element.tag} {attribute}=\"{text}\"> must be {count} numbers") from None
+            raise self.fail(where, f"<{element.tag} {attribute}=\"{excerpt(text)}\"> must be {count} numbers") from None
         if len(values) != count:
-            raise self.fail(where, f"<{element.tag} {attribute}=\"{text}\"> must be {count} numbers, got {len(values)}")
+            raise self.fail(where, f"<{element.tag} {attribute}=\"{excerpt(text)}\"> must be {count} numbers, "
+                                   f"got {len(values)}")
         if not all(math.isfinite(v) for v in values):
-            raise self.fail(where, f"<{element.tag} {attribute}=\"{text}\"> must be finite numbers")
+            raise self.fail(where, f"<{element.tag} {attribute}=\"{excerpt(text)}\"> must be finite numbers")
         return values
 
     def link_of(self, joint: ET.Element, tag: str, where: str) -> str:
@@ -157,7 +169,7 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
     for element in root.findall("link"):
         name = p.name(element, "<link>")
         if name in links:
-            raise p.fail(f"link '{name}'", "defined twice; link names must be unique")
+            raise p.fail(f"link '{excerpt(name)}'", "defined twice; link names must be unique")
         links.add(name)
     if not links:
         raise p.fail("<robot>", "no <link> elements")
@@ -167,12 +179,12 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
     children: dict[str, list[_RawJoint]] = {}
     for element in root.findall("joint"):
         name = p.name(element, "<joint>")
-        where = f"joint '{name}'"
+        where = f"joint '{excerpt(name)}'"
         if name in joints:
             raise p.fail(where, "defined twice; joint names must be unique")
         jtype = element.get("type")
         if jtype not in URDF_JOINT_TYPES:
-            raise p.fail(where, f"type {jtype!r} is not a URDF joint type ({', '.join(URDF_JOINT_TYPES)})")
+            raise p.fail(where, f"type {excerpt(repr(jtype))} is not a URDF joint type ({', '.join(URDF_JOINT_TYPES)})")
         parent, child = p.link_of(element, "parent", where), p.link_of(element, "child", where)
         for role, link in (("parent", parent), ("child", child)):
             if link not in links:
@@ -222,11 +234,15 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
         if len(path) > len(joints):  # unreachable for a tree; guards against a cycle above the tip
             raise p.fail(f"link '{link}'", "the joints form a loop")
     path.reverse()
+    moving = [raw for raw in path if raw.type != "fixed"]
+    if len(moving) > MAX_DOF:
+        raise p.fail("tip_link", f"the chain from '{excerpt(base_link)}' to '{excerpt(tip_link)}' has {len(moving)} "
+                                 f"moving joints, more than {MAX_DOF}; choose a shorter chain with base_link/tip_link")
 
     chain: list[UrdfJoint] = []
     pending = np.eye(4)
     for raw in path:
-        where = f"joint '{raw.name}'"
+        where = f"joint '{excerpt(raw.name)}'"
         if raw.type in UNSUPPORTED_TYPES:
             raise p.fail(where, f"type '{raw.type}' is not supported on the chain (only revolute, continuous, "
                                 "prismatic and fixed); choose base_link/tip_link to exclude it")
@@ -235,10 +251,16 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
         pending = pending @ _origin(p, raw.element, where)
         if raw.type == "fixed":
             continue
+        if not _IDENTIFIER.fullmatch(raw.name):
+            raise p.fail(where, "a moving joint's name must be a letter then letters, digits or _ (at most 48): it "
+                                "names the joint in the generated C and the CSV columns; rename the joint")
         axis = np.array(p.numbers(raw.element.find("axis"), "xyz", f"{where} <axis>", 3, (1.0, 0.0, 0.0)))
-        norm = float(np.linalg.norm(axis))
+        with np.errstate(over="ignore"):
+            norm = float(np.linalg.norm(axis))
         if norm == 0.0:
             raise p.fail(f"{where} <axis>", "xyz is the zero vector; give the joint's axis direction")
+        if not math.isfinite(norm):
+            raise p.fail(f"{where} <axis>", "xyz is so long its length overflows; give the axis as a unit vector")
         chain.append(UrdfJoint(raw.name, raw.type, pending, tuple(float(v) for v in axis / norm),
                                _limits(p, raw, where)))
         pending = np.eye(4)
@@ -254,6 +276,10 @@ def _origin(p: _Parser, element: ET.Element, where: str) -> np.ndarray:
     origin = origins[0] if origins else None
     xyz = p.numbers(origin, "xyz", f"{where} <origin>", 3, (0.0, 0.0, 0.0))
     rpy = p.numbers(origin, "rpy", f"{where} <origin>", 3, (0.0, 0.0, 0.0))
+    for attribute, values, bound, unit in (("xyz", xyz, MAX_ABS_LENGTH_M, "m"), ("rpy", rpy, MAX_ABS_ANGLE_RAD, "rad")):
+        if max(abs(v) for v in values) > bound:
+            raise p.fail(f"{where} <origin>", f"{attribute} = {' '.join(f'{v:g}' for v in values)} is beyond "
+                                              f"±{bound:g} {unit} (URDF is in m and rad); check the value")
     out = np.eye(4)
     out[:3, :3] = rpy_matrix(*[snap_quarter_turn(v) for v in rpy])
     out[:3, 3] = xyz
@@ -270,4 +296,8 @@ def _limits(p: _Parser, raw: _RawJoint, where: str) -> tuple[float, float]:
     (upper,) = p.numbers(limit, "upper", f"{where} <limit>", 1, None)
     if not lower < upper:
         raise p.fail(f"{where} <limit>", f"lower = {lower} is not below upper = {upper}")
+    bound, unit = (MAX_ABS_LENGTH_M, "m") if raw.type == "prismatic" else (MAX_ABS_ANGLE_RAD, "rad")
+    if max(abs(lower), abs(upper)) > bound:
+        raise p.fail(f"{where} <limit>", f"lower = {lower:g}, upper = {upper:g} reach beyond ±{bound:g} {unit}; "
+                                         "check the values (URDF is in m and rad)")
     return (lower, upper)

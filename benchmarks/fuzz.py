@@ -1,10 +1,12 @@
-"""Mutation fuzzing of the loaders at scale (issue 11): 10 000 robot files and 10 000 task
-files by default, seeded, with the suite's mutators (tests/fuzzing.py). Prints one row per
+"""Mutation fuzzing of the loaders at scale (issues 11, 27): 10 000 robot files, 10 000 task
+files, 10 000 URDF files and 2 000 sets of sweep options by default, seeded, with the suite's
+mutators (tests/fuzzing.py). Prints one row per
 file kind: cases, clean errors, accepted, tracebacks, hangs, accepted nonsense (a certainly
 invalid file that was accepted) and failed plans that left files behind; then the first
 example of each bad outcome. Not a test: nothing here asserts.
 
-    python benchmarks/fuzz.py [--robots 10000] [--tasks 10000] [--seed 0] [--full-plan-share 0.03]
+    python benchmarks/fuzz.py [--robots 10000] [--tasks 10000] [--urdfs 10000] [--sweeps 2000] [--seed 0]
+                              [--full-plan-share 0.03]
 """
 
 from __future__ import annotations
@@ -19,7 +21,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-from fuzzing import FULL_PLAN_BASES, mutate_robot, mutate_task, robot_case, task_case  # noqa: E402
+from fuzzing import (FULL_PLAN_BASES, mutate_robot, mutate_sweep, mutate_task, mutate_urdf, robot_case,  # noqa: E402
+                     sweep_case, task_case, urdf_case)
 
 from armgen.progress import progress  # noqa: E402
 
@@ -44,6 +47,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--robots", type=int, default=10_000)
     parser.add_argument("--tasks", type=int, default=10_000)
+    parser.add_argument("--urdfs", type=int, default=10_000)
+    parser.add_argument("--sweeps", type=int, default=2_000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--full-plan-share", type=float, default=0.03,
                         help="share of task cases planned and written in full (the rest: schema validation)")
@@ -72,6 +77,18 @@ def main() -> None:
             _tally(counts, examples, task_case(task, full), invalid, f"task case {k} ({name})")
             bar.update(1)
     rows["task files"], seconds["task files"] = counts, time.perf_counter() - started
+
+    for kind, count, mutate, case in (("URDF files", args.urdfs, mutate_urdf, urdf_case),
+                                      ("sweep options", args.sweeps, mutate_sweep, sweep_case)):
+        started = time.perf_counter()
+        counts = Counter()
+        with progress(count, kind) as bar:
+            for k in range(count):
+                rng = random.Random(f"{kind}-{args.seed}-{k}")
+                case_input, invalid = mutate(rng)
+                _tally(counts, examples, case(case_input), invalid, f"{kind} case {k}")
+                bar.update(1)
+        rows[kind], seconds[kind] = counts, time.perf_counter() - started
 
     print("| file kind | " + " | ".join(COLUMNS) + " | full plans | wall s |")
     print("|---" * (len(COLUMNS) + 3) + "|")

@@ -237,3 +237,188 @@ def task_case(task: dict[str, Any], full_plan: bool) -> Outcome:
                             (2, 3))
         outcome.wrote = outcome.kind != "accepted" and any(Path(tmp).iterdir())
         return outcome
+
+
+# -- URDF files ---------------------------------------------------------------------------
+
+# A six-joint chain with the features the importer handles: fixed joints before, between and
+# after the moving ones, oblique axes, a continuous and a prismatic joint, non-trivial origins.
+URDF_JOINTS = [("mount", "fixed", "0.1 -0.2 0.05", "0.1 0.2 0.3", None, None),
+               ("j1", "revolute", "0 0 0.3", "0 0 0", "0 0 1", ("-2.9", "2.9")),
+               ("j2", "revolute", "0.05 0.02 0.1", "-1.5707963267948966 0 0.4", "0.3 0.5 0.8", ("-1.5", "1.7")),
+               ("j3", "continuous", "0.3 0 0", "0 0.7 0", "0 -1 0", None),
+               ("j4", "prismatic", "0 0.1 0.2", "0.2 -0.1 1.0", "1 1 0", ("-0.1", "0.25")),
+               ("elbow", "fixed", "0.01 0.02 0.03", "3.141592653589793 0 0", None, None),
+               ("j5", "revolute", "0 0 0.25", "0 0 0", "-1 0 0", ("-2", "2")),
+               ("j6", "revolute", "0.08 0 0.02", "0 -0.3 0.9", "0.0 0.6 -0.8", ("-3", "3")),
+               ("tcp", "fixed", "0 0 0.12", "0 0 -0.7853981633974483", None, None)]
+
+
+def _urdf_text(joints: list[list[Any]], robot: str = "fuzzarm", prolog: str = "") -> str:
+    links = "".join(f'<link name="l{k}"/>' for k in range(len(joints) + 1))
+    body = []
+    for k, (name, jtype, xyz, rpy, axis, limit) in enumerate(joints):
+        parts = [f'<joint name="{name}" type="{jtype}"><parent link="l{k}"/><child link="l{k + 1}"/>',
+                 f'<origin xyz="{xyz}" rpy="{rpy}"/>']
+        if axis is not None:
+            parts.append(f'<axis xyz="{axis}"/>')
+        if limit is not None:
+            parts.append(f'<limit lower="{limit[0]}" upper="{limit[1]}" effort="1" velocity="1"/>')
+        body.append("".join(parts) + "</joint>")
+    return f'{prolog}<robot name="{robot}">{links}{"".join(body)}</robot>'
+
+
+def mutate_urdf(rng: random.Random) -> tuple[str, bool]:
+    """(URDF text, whether it certainly is invalid): the robot-file bounds (joint count,
+    origin and limit magnitudes, names, axes) and XML-level damage."""
+    joints = [list(j) for j in URDF_JOINTS]
+    robot, prolog, invalid = "fuzzarm", "", False
+    moving = [k for k, j in enumerate(joints) if j[1] != "fixed"]
+    bounded = [k for k, j in enumerate(joints) if j[5] is not None]
+    for _ in range(rng.randint(1, 3)):
+        action = rng.choice(["many", "origin", "limit", "name", "long_name", "axis", "zero_axis", "nan", "doctype",
+                             "swap", "type", "robot_name", "fine_origin", "fine_limit", "garble"])
+        k = rng.choice(moving)
+        if action == "many":
+            count = rng.choice([65, 200, 1000])
+            joints = [[f"j{i}", "revolute", "0 0 0.01", "0 0 0", "0 0 1", ("-1", "1")] for i in range(count)]
+            invalid = True
+        elif action == "origin":
+            joints[rng.randrange(len(joints))][2] = rng.choice(["1e12 0 0", "0 -1e300 0", "0 0 1001"])
+            invalid = True
+        elif action == "limit" and bounded:
+            b = rng.choice([i for i in bounded if i < len(joints)] or [0])
+            if joints[b][5] is not None:
+                joints[b][5] = rng.choice([("-1e300", "1e300"), ("-1", "1e12"), ("-1001", "0")])
+                invalid = True
+        elif action == "name":
+            joints[k][0] = rng.choice(["not a name", "1abc", "a-b", "x*/y", "naïve", "../x"])
+            invalid = True
+        elif action == "long_name":
+            joints[rng.randrange(len(joints))][0] = "x" * rng.choice([257, 5000, 500_000])
+            invalid = True
+        elif action == "axis":
+            joints[k][4] = rng.choice(["1e155 1e155 1e155", "1e200 0 1e200", "-1e308 -1e308 0"])
+            invalid = True
+        elif action == "zero_axis":
+            joints[k][4] = "0 0 0"
+            invalid = True
+        elif action == "nan":
+            field = rng.choice([2, 3, 4])
+            joints[k][field] = rng.choice(["nan 0 0", "0 inf 0", "0 0 -inf"])
+            invalid = True
+        elif action == "doctype":
+            prolog = '<!DOCTYPE r [<!ENTITY e "x">]>'
+            invalid = True
+        elif action == "swap" and joints[k][5] is not None:
+            joints[k][5] = (joints[k][5][1], joints[k][5][0])
+            invalid = True
+        elif action == "type":
+            joints[k][1] = rng.choice(["floating", "planar", "spherical", ""])
+            invalid = True
+        elif action == "robot_name":
+            robot = rng.choice(["not an identifier", "r" * 500_000, "../r"])
+            invalid = True
+        elif action == "fine_origin":  # within the bounds: must still load
+            joints[rng.randrange(len(joints))][2] = rng.choice(["999 0 0", "0 -0.001 1e-9", "1e-300 0 0"])
+        elif action == "fine_limit" and joints[k][5] is not None:
+            joints[k][5] = rng.choice([("-999", "999"), ("-1e-6", "1e-6"), ("0", "1")])
+        elif action == "garble":  # may or may not still be a valid file
+            text = _urdf_text(joints, robot, prolog)
+            cut = rng.randrange(len(text))
+            return text[:cut] + "".join(rng.choice("<>/=\"' x0") for _ in range(rng.randint(1, 6))) + text[cut:], \
+                invalid
+        if invalid:
+            break
+    return _urdf_text(joints, robot, prolog), invalid
+
+
+def urdf_case(text: str) -> Outcome:
+    """Load the URDF as ``armgen show f.urdf`` does (a file in a fresh folder)."""
+    from armgen.robot import load_robot
+
+    with tempfile.TemporaryDirectory(prefix="armgen-fuzz-") as tmp:
+        path = Path(tmp) / "fuzz.urdf"
+        path.write_text(text, encoding="utf-8", errors="surrogatepass")
+        outcome = _classify(lambda: load_robot(path), VALIDATE_LIMIT_S, (2,))
+        if outcome.kind == "clean" and (not outcome.detail.startswith(str(path)) or len(outcome.detail) > MAX_MESSAGE_CHARS):
+            return Outcome("traceback", f"message does not name the file or is too long: {outcome.detail[:300]}")
+        return outcome
+
+
+# An error message names the file, the place and the fix, quoting a bounded excerpt.
+MAX_MESSAGE_CHARS = 600
+
+
+# -- sweep options ---------------------------------------------------------------------------
+
+SWEEP_BASE = "ptp_single_joint"
+SWEEP_GRIDS = ["step=[0.01, 0.02]", "method=[\"cubic\", \"3-4\"]", "compare=[[], [\"cubic\"]]"]
+SWEEP_RANGES = ["step=0.01:0.02", "waypoints.t=[0, 5, 13, 22, 35]:[0, 6, 14, 23, 36]"]
+
+
+def mutate_sweep(rng: random.Random) -> tuple[dict[str, Any], bool]:
+    """(the options of ``armgen sweep``: grids, ranges, draws, a table to resume from; whether
+    they certainly are invalid)."""
+    grids = rng.sample(SWEEP_GRIDS, rng.randint(0, 2))
+    ranges = rng.sample(SWEEP_RANGES, rng.randint(0, 1))
+    draws = rng.choice([1, 3]) if ranges else 0
+    table = None
+    invalid = False
+    action = rng.choice(["none", "grid", "range", "draws", "huge_grid", "table", "key", "no_draws"])
+    if action == "grid":
+        grids.append(rng.choice(["step", "step=", "=[1]", "step=3", "step=[]", "step=[1", "step={a=1}",
+                                 "step=" + "9" * 5000, "x" * 500_000 + "=[1]"]))
+        invalid = True
+    elif action == "range":
+        ranges.append(rng.choice(["step=1", "step=a:b", "step=3:1", "step=0:nan", "step=[1, 2]:[3]", "step=1:2:3",
+                                  "step=" + "1" * 5000 + ":2"]))
+        draws = max(draws, 1)
+        invalid = True
+    elif action == "draws":
+        ranges = ranges or [SWEEP_RANGES[0]]
+        draws = rng.choice([100_001, 10**9, 10**18])
+        invalid = True
+    elif action == "huge_grid":
+        values = ", ".join(["0.01"] * rng.choice([400, 3000]))
+        grids = [f"step=[{values}]", f"compare=[{', '.join(['[]'] * 400)}]"]
+        invalid = True
+    elif action == "table":
+        table = rng.choice(["date,city\n2020-01-01,Paris\n", "run,status,exit_code,message,overrides\nx,ok,0,,{}\n",
+                            "run,status,exit_code,message,overrides\n0,maybe,0,,\"{}\"\n",
+                            "run,status,exit_code,message,overrides\n0,ok,0,,[[\n", "\x00\xff garbage",
+                            "run,status,exit_code,message,overrides\n-1,ok,0,,\"{}\"\n"])
+        grids = grids or [SWEEP_GRIDS[0]]
+        invalid = True
+    elif action == "no_draws" and ranges:
+        draws = 0
+        invalid = True
+    elif action == "key":
+        grids.append(rng.choice(["nosuch.field=[1, 2]", "waypoints.nosuch=[1]", "a..b=[1]"]))
+    if not grids and not ranges:
+        grids = [SWEEP_GRIDS[0]]
+    return {"grids": grids, "ranges": ranges, "draws": draws, "table": table}, invalid
+
+
+def sweep_case(options: dict[str, Any]) -> Outcome:
+    """Everything ``armgen sweep`` does before planning: parse the options, size the sweep,
+    read the table to resume, and validate every run's task (schema and planner parser)."""
+    from armgen.planning.sweep import SweepSpec, parse_grid, parse_range, read_table
+    from armgen.planning.tasks import set_field
+
+    def run() -> None:
+        spec = SweepSpec([parse_grid(g) for g in options["grids"]], [parse_range(r) for r in options["ranges"]],
+                         options["draws"], 0)
+        spec.check()
+        if options["table"] is not None:
+            with tempfile.TemporaryDirectory(prefix="armgen-fuzz-") as tmp:
+                path = Path(tmp) / "table.csv"
+                path.write_bytes(options["table"].encode("utf-8", "surrogateescape"))
+                read_table(path)
+        for fields in spec.runs():
+            task = copy.deepcopy(TASK_BASES[SWEEP_BASE])
+            for key, value in fields.items():
+                set_field(task, key, value, f"sweep field {key!r}")
+            parse_task(task)
+
+    return _classify(run, VALIDATE_LIMIT_S, (2,))

@@ -1,5 +1,5 @@
 """Fuzzing of the loaders (hypothesis, derandomized): 2 000 mutated robot files and 2 000
-mutated task files per run. Each case must end in a valid result or a clean ArmgenError with
+mutated task files per run, 500 mutated URDF files and 500 sets of sweep options. Each case must end in a valid result or a clean ArmgenError with
 the documented exit code, within its time limit; a case that is certainly invalid must not
 be accepted; a failed plan writes nothing. ``benchmarks/fuzz.py`` runs 10 000+ of each."""
 
@@ -8,7 +8,8 @@ from __future__ import annotations
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzzing import FULL_PLAN_BASES, mutate_robot, mutate_task, robot_case, task_case
+from fuzzing import (FULL_PLAN_BASES, mutate_robot, mutate_sweep, mutate_task, mutate_urdf, robot_case, sweep_case,
+                     task_case, urdf_case)
 
 FUZZ_SETTINGS = settings(max_examples=2000, derandomize=True, deadline=None, database=None,
                          suppress_health_check=list(HealthCheck))
@@ -34,3 +35,26 @@ def test_fuzzed_task_files_end_cleanly(rng):
     assert outcome.kind in ("accepted", "clean"), f"{name}: {outcome.kind}: {outcome.detail}\n{task}"
     assert not (invalid and outcome.kind == "accepted"), f"{name}: accepted nonsense: {task}"
     assert not outcome.wrote, f"{name}: a failed plan left files behind"
+
+
+SMALL_FUZZ_SETTINGS = settings(FUZZ_SETTINGS, max_examples=500)
+
+
+@SMALL_FUZZ_SETTINGS
+@given(st.randoms(use_true_random=False))
+def test_fuzzed_urdf_files_end_cleanly(rng):
+    text, invalid = mutate_urdf(rng)
+    outcome = urdf_case(text)
+    assert outcome.kind in ("accepted", "clean"), f"{outcome.kind}: {outcome.detail}\n--- file:\n{text[:2000]}"
+    assert not (invalid and outcome.kind == "accepted"), f"accepted nonsense:\n{text[:2000]}"
+
+
+@SMALL_FUZZ_SETTINGS
+@given(st.randoms(use_true_random=False))
+def test_fuzzed_sweep_options_end_cleanly(rng):
+    options, invalid = mutate_sweep(rng)
+    outcome = sweep_case(options)
+    shown = {k: (v[:200] if isinstance(v, str) else [x[:200] for x in v] if isinstance(v, list) else v)
+             for k, v in options.items()}
+    assert outcome.kind in ("accepted", "clean"), f"{outcome.kind}: {outcome.detail}\n{shown}"
+    assert not (invalid and outcome.kind == "accepted"), f"accepted nonsense: {shown}"

@@ -1,11 +1,18 @@
 """The on-disk kernel store: a new process loads the fused step a former one composed, and
 plans exactly what composing it afresh gives; a damaged entry or a changed robot composes anew."""
 
+import hashlib
+import json
+import os
+import stat
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from armgen.codegen import kernel_store
 from armgen.planning import backends
 from armgen.planning.tasks import apply_overrides, load_task, run_task
 
@@ -97,3 +104,150 @@ def test_prune_drops_least_recently_used_files_past_the_cap(tmp_path):
     assert len(list(store.iterdir())) == 4
     backends._prune(store, 300)  # over it: down to 3/4 of the cap (225 bytes), oldest first
     assert sorted(p.name for p in store.iterdir()) == ["newer", "newest"]
+
+
+# -- the store is code: nothing in it is loaded unless this user wrote it, whole ------------
+
+PLANTED_CONSTRUCTOR = r"""
+#include <stdio.h>
+__attribute__((constructor)) static void planted(void) {
+    FILE *f = fopen(MARKER, "w");
+    if (f) { fputs("ran", f); fclose(f); }
+}
+int g(const double **arg, double **res, long long *iw, double *w, int mem) {
+    (void)iw; (void)w; (void)mem; res[0][0] = arg[0][0]; return 0;
+}
+void armgen_kernel(const double *x, double *y) { (void)x; (void)y; }
+"""
+
+
+@pytest.fixture
+def planted(tmp_path):
+    """A shared library whose constructor writes a marker file: loading it is the finding."""
+    marker = tmp_path / "constructor-ran"
+    source = tmp_path / "planted.c"
+    source.write_text(PLANTED_CONSTRUCTOR)
+    library = tmp_path / "libplanted.so"
+    subprocess.run(["gcc", "-shared", "-fPIC", f'-DMARKER="{marker}"', str(source), "-o", str(library)],
+                   check=True)
+    return library, marker
+
+
+def entry_of(tmp_path):
+    [entry] = store_entries(tmp_path, ".json")
+    return entry, json.loads(entry.read_text())
+
+
+def test_planted_library_under_the_expected_name_is_not_loaded(tmp_path, monkeypatch, planted):
+    library, marker = planted
+    composed = plan("pinv", "c")
+    [stored] = store_entries(tmp_path, ".so")
+    stored.unlink()  # (a new file: the mapped one stays as this process loaded it)
+    stored.write_bytes(library.read_bytes())  # same name, someone else's code
+    monkeypatch.setattr(backends, "_KERNELS", {})
+    again = plan("pinv", "c")
+    assert not marker.exists()
+    np.testing.assert_array_equal(again.data, composed.data)
+    assert stored.read_bytes() != library.read_bytes()  # rebuilt over the planted file
+
+
+def test_entry_naming_a_library_outside_the_store_is_not_loaded(tmp_path, monkeypatch, planted):
+    library, marker = planted
+    composed = plan("pinv", "c")
+    entry, fields = entry_of(tmp_path)
+    for name in (str(library), f"../../{library.name}"):
+        fields["library"] = name
+        entry.write_text(json.dumps(fields))
+        monkeypatch.setattr(backends, "_KERNELS", {})
+        again = plan("pinv", "c")
+        assert not marker.exists()
+        np.testing.assert_array_equal(again.data, composed.data)
+        entry, fields = entry_of(tmp_path)
+        assert fields["library"] != name  # the entry was written anew
+
+
+def test_stored_function_calling_an_external_is_not_deserialised(tmp_path, monkeypatch, planted):
+    """The default (symbolic) backend: a .casadi whose SX function calls a CasADi `external`
+    would load that library when deserialised; its digest is even made to match."""
+    library, marker = planted
+    composed = plan()
+    entry, fields = entry_of(tmp_path)
+    stored = entry.with_suffix(".casadi")
+    attacker = ("import casadi as ca, sys; x = ca.SX.sym('x', 1); "
+                "ca.Function('k', [x], [ca.external('g', sys.argv[1])(x) * 2]).save(sys.argv[2])")
+    # in a process of its own: the library's constructor runs there
+    subprocess.run([sys.executable, "-c", attacker, str(library), str(stored)], check=True)
+    marker.unlink()
+    fields["function_sha256"] = hashlib.sha256(stored.read_bytes()).hexdigest()
+    entry.write_text(json.dumps(fields))
+    monkeypatch.setattr(backends, "_KERNELS", {})
+    again = plan()
+    assert not marker.exists()
+    np.testing.assert_array_equal(again.data, composed.data)
+
+
+def test_edited_function_is_composed_again_not_planned_with(tmp_path, monkeypatch):
+    """A stored function edited to move joint 8 (a valid SXFunction, digest not updated)."""
+    import casadi as ca
+
+    composed = plan()
+    entry, fields = entry_of(tmp_path)
+    stored = entry.with_suffix(".casadi")
+    func = ca.Function.load(str(stored))
+    x = ca.SX.sym("x", func.nnz_in())
+    shifted = func(x) + ca.DM([0.25 if k == 7 else 0.0 for k in range(func.nnz_out())])
+    ca.Function(func.name(), [x], [shifted], ["x"], ["y"]).save(str(stored))
+    monkeypatch.setattr(backends, "_KERNELS", {})
+    again = plan()
+    np.testing.assert_array_equal(again.data, composed.data)
+
+
+@pytest.mark.parametrize("what", ["folder", "entry"])
+def test_store_writable_by_others_is_not_trusted(tmp_path, monkeypatch, what):
+    composed = plan()
+    entry, _ = entry_of(tmp_path)
+    target = entry.parent if what == "folder" else entry.with_suffix(".casadi")
+    target.chmod(target.stat().st_mode | 0o002)
+    monkeypatch.setattr(backends, "_KERNELS", {})
+    forbid_loading(monkeypatch)
+    if what == "folder":
+        with pytest.warns(UserWarning, match=r"writable by group or others.*chmod go-w"):
+            again = plan()
+    else:
+        again = plan()
+    np.testing.assert_array_equal(again.data, composed.data)
+
+
+def test_store_owned_by_someone_else_is_not_trusted(tmp_path, monkeypatch):
+    composed = plan()
+    monkeypatch.setattr(kernel_store, "_user", lambda: os.geteuid() + 1)  # every file is now another user's
+    monkeypatch.setattr(backends, "_KERNELS", {})
+    forbid_loading(monkeypatch)
+    with pytest.warns(UserWarning, match=r"owned by uid \d+, not by this user"):
+        again = plan()
+    np.testing.assert_array_equal(again.data, composed.data)
+
+
+def forbid_loading(monkeypatch):
+    def deserialize(*_):
+        raise AssertionError("an untrusted entry was deserialised")
+
+    monkeypatch.setattr(backends.ca, "StringDeserializer", deserialize)
+
+
+def test_new_store_folder_is_private(tmp_path):
+    plan()
+    assert stat.S_IMODE((tmp_path / "cache" / "kernels").stat().st_mode) == 0o700
+    for path in (tmp_path / "cache" / "kernels").iterdir():
+        assert not path.stat().st_mode & 0o022, path
+
+
+def test_serialised_text_check_accepts_sx_and_refuses_others():
+    import casadi as ca
+
+    x = ca.SX.sym("x", 2)
+    plain = ca.Function("f", [x], [ca.sin(x) * 2]).serialize().encode()
+    assert kernel_store.sx_function_text_loads_no_code(plain)
+    mx = ca.MX.sym("x", 2)
+    assert not kernel_store.sx_function_text_loads_no_code(ca.Function("f", [mx], [ca.sin(mx)]).serialize().encode())
+    assert not kernel_store.sx_function_text_loads_no_code(b"not casadi text")

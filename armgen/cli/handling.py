@@ -1,5 +1,7 @@
 """One error policy for every command: an :class:`ArmgenError` prints its message and exits
-with its code; anything else is reported as a bug in armgen."""
+with its code; a reader that closed the pipe (``armgen show x | head -1``) ends the command
+quietly with 141 (128 + SIGPIPE, as a Unix tool killed by SIGPIPE); anything else is
+reported as a bug in armgen."""
 
 from __future__ import annotations
 
@@ -9,7 +11,7 @@ import sys
 
 import click
 
-from ..errors import ArmgenError
+from ..errors import ArmgenError, excerpt
 
 
 def handle_errors(func):
@@ -22,13 +24,17 @@ def handle_errors(func):
         except ArmgenError as exc:
             click.echo(f"error: {exc}", err=True)
             sys.exit(exc.exit_code)
+        except BrokenPipeError:
+            # stdout's reader is gone: nothing more to say, and nothing for Python to flush at exit
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            sys.exit(141)
         except KeyboardInterrupt:
             click.echo("interrupted: no output was written", err=True)
             sys.exit(130)
         except Exception as exc:  # the last resort, not the mechanism: every known failure is an ArmgenError
             if os.environ.get("ARMGEN_DEBUG"):
                 raise
-            click.echo(f"internal error: {type(exc).__name__}: {str(exc)[:300]}\nThis is a bug in armgen; please "
+            click.echo(f"internal error: {type(exc).__name__}: {excerpt(str(exc), 300)}\nThis is a bug in armgen; please "
                        "report it with the command line and the input files (ARMGEN_DEBUG=1 shows the traceback).",
                        err=True)
             sys.exit(1)

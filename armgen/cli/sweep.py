@@ -27,26 +27,28 @@ from .handling import handle_errors
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="local worker processes (default: the number of CPUs)")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="run on this Dask distributed scheduler (e.g. tcp://host:8786) instead of local workers")
+              help="run on this Dask distributed scheduler (e.g. tcp://host:8786) instead of local workers; "
+                   "it and its workers are trusted (Dask exchanges pickles)")
 @click.option("--resume", is_flag=True, help="skip the runs already in the output table")
 @handle_errors
 def sweep_cmd(task_file, grids, draws, ranges, seed, overrides, output, backend, workers, scheduler, resume) -> None:
-    """Plan TASK_FILE once per combination of the --grid values (and per --random draw)."""
-    from ..errors import TaskFileError
+    """Plan TASK_FILE once per combination of the --grid values (and per --random draw).
+
+    Exit codes: 0 the table was written (failed runs are rows), 2 bad options or task file,
+    3 every run failed, 4 the table or the scheduler cannot be used, 130 interrupted (the
+    finished runs are written; --resume runs the rest)."""
+    from ..errors import PlanningError
     from ..planning.sweep import SweepSpec, parse_grid, parse_range, sweep
     from ..planning.tasks import apply_overrides, load_task
 
     task, sha = load_task(task_file)
     apply_overrides(task, list(overrides))
     spec = SweepSpec([parse_grid(g) for g in grids], [parse_range(r) for r in ranges], draws, seed)
-    if spec.ranges and not draws:
-        raise TaskFileError("--range needs --random N (the number of draws)")
-    if draws and not spec.ranges:
-        raise TaskFileError("--random needs at least one --range KEY=LO:HI to draw")
-    if not spec.grid and not spec.ranges:
-        raise TaskFileError("nothing to sweep: give --grid KEY=ARRAY and/or --random N with --range KEY=LO:HI")
+    spec.check()
     out = Path(output) if output else Path(Path(task_file).stem + "_sweep.csv")
     rows = sweep(task, task_file, sha, spec, out, backend, workers or os.cpu_count() or 1, scheduler, resume,
                  click.echo)
     failed = sum(r["status"] != "ok" for r in rows)
     click.echo(f"wrote {out}: {len(rows)} runs, {len(rows) - failed} ok, {failed} failed")
+    if rows and failed == len(rows):
+        raise PlanningError(f"every run of the sweep failed; {out} holds why (column 'message')")

@@ -39,9 +39,9 @@ _BINARY = {
     ca.OP_LE: ("compare", "({p}_real)({a} <= {b})"),
     ca.OP_EQ: ("compare", "({p}_real)({a} == {b})"),
     ca.OP_NE: ("compare", "({p}_real)({a} != {b})"),
-    ca.OP_AND: ("compare", "({p}_real)({a} != {P}_LIT(0.0) && {b} != {P}_LIT(0.0))"),
-    ca.OP_OR: ("compare", "({p}_real)({a} != {P}_LIT(0.0) || {b} != {P}_LIT(0.0))"),
-    ca.OP_IF_ELSE_ZERO: ("select", "({a} != {P}_LIT(0.0) ? {b} : {P}_LIT(0.0))"),
+    ca.OP_AND: ("compare", "({p}_real)(({a} != {P}_LIT(0.0)) && ({b} != {P}_LIT(0.0)))"),
+    ca.OP_OR: ("compare", "({p}_real)(({a} != {P}_LIT(0.0)) || ({b} != {P}_LIT(0.0)))"),
+    ca.OP_IF_ELSE_ZERO: ("select", "(({a} != {P}_LIT(0.0)) ? {b} : {P}_LIT(0.0))"),
 }
 _UNARY = {
     ca.OP_ASSIGN: ("copy", "{a}"),
@@ -61,7 +61,7 @@ _UNARY = {
     ca.OP_FABS: ("minmax", "{P}_FABS({a})"),
     ca.OP_FLOOR: ("minmax", "{P}_FLOOR({a})"),
     ca.OP_CEIL: ("minmax", "{P}_CEIL({a})"),
-    ca.OP_SIGN: ("compare", "({a} > {P}_LIT(0.0) ? {P}_LIT(1.0) : ({a} < {P}_LIT(0.0) ? {P}_LIT(-1.0) : {a}))"),
+    ca.OP_SIGN: ("compare", "(({a} > {P}_LIT(0.0)) ? {P}_LIT(1.0) : (({a} < {P}_LIT(0.0)) ? {P}_LIT(-1.0) : {a}))"),
     ca.OP_NOT: ("compare", "({p}_real)({a} == {P}_LIT(0.0))"),
 }
 
@@ -158,6 +158,30 @@ def _whole_input(func: ca.Function, arg_names: list[str], arg_scalar: list[bool]
     return None
 
 
+@dataclass(frozen=True)
+class _Statement:
+    """The C of one SX instruction, with the work registers it writes and reads."""
+
+    lines: list[str]
+    writes: tuple[int, ...]
+    reads: tuple[int, ...]
+
+
+def _live(statements: list[_Statement]) -> list[_Statement]:
+    """The statements without dead stores: a register written and then written again (or never
+    read) before any read. The SX algorithm has none; reading sin and cos from the table leaves
+    the instructions that only fed them (a joint angle's load, its offset) without a reader."""
+    live: set[int] = set()
+    kept = []
+    for statement in reversed(statements):
+        if statement.writes and live.isdisjoint(statement.writes):
+            continue  # every instruction but an output is pure: nothing else sees it
+        kept.append(statement)
+        live.difference_update(statement.writes)
+        live.update(statement.reads)
+    return kept[::-1]
+
+
 def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], res_names: list[str],
               res_scalar: list[bool], macro_prefix: str, indent: str = "  ", trig_table: bool = False) -> EmittedFunction:
     """The statements of ``func``'s SX algorithm as C; inputs/outputs by the given names.
@@ -187,47 +211,47 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
     elif angles:
         lines += [f"trig_angle[{slot}] = {angle};" for slot, angle in enumerate(angles)]
         lines.append(f"{p}_sincos_table(trig_angle, trig_sin, trig_cos, {len(angles)});")
+    statements: list[_Statement] = []
     for k in range(func.n_instructions()):
         op = func.instruction_id(k)
         ins = func.instruction_input(k)
         outs = func.instruction_output(k)
         if k in table:
             counts["trig"] += 1
-            lines.append(f"w{outs[0]} = trig_{'sin' if op == ca.OP_SIN else 'cos'}[{table[k]}];")
-            used.add(outs[0])
+            statements.append(_Statement([f"w{outs[0]} = trig_{'sin' if op == ca.OP_SIN else 'cos'}[{table[k]}];"],
+                                         (outs[0],), ()))
         elif op == ca.OP_INPUT:
             counts["input"] += 1
-            lines.append(f"w{outs[0]} = {_input_text(arg_names, arg_scalar, ins)};")
-            used.add(outs[0])
+            statements.append(_Statement([f"w{outs[0]} = {_input_text(arg_names, arg_scalar, ins)};"], (outs[0],), ()))
         elif op == ca.OP_OUTPUT:
             counts["output"] += 1
             target = f"*{res_names[outs[0]]}" if res_scalar[outs[0]] else f"{res_names[outs[0]]}[{outs[1]}]"
-            lines.append(f"{target} = w{ins[0]};")
+            statements.append(_Statement([f"{target} = w{ins[0]};"], (), (ins[0],)))
         elif op == ca.OP_CONST:
             counts["const"] += 1
-            lines.append(f"w{outs[0]} = {c_literal(func.instruction_constant(k), macro_prefix)};")
-            used.add(outs[0])
+            statements.append(_Statement([f"w{outs[0]} = {c_literal(func.instruction_constant(k), macro_prefix)};"],
+                                         (outs[0],), ()))
         elif op in _BINARY:
             category, template = _BINARY[op]
             counts[category] += 1
             expr = template.format(a=f"w{ins[0]}", b=f"w{ins[1]}", P=macro_prefix, p=macro_prefix.lower())
-            lines.append(f"w{outs[0]} = {expr};")
-            used.add(outs[0])
+            statements.append(_Statement([f"w{outs[0]} = {expr};"], (outs[0],), (ins[0], ins[1])))
         elif op in _UNARY:
             category, template = _UNARY[op]
             counts[category] += 1
             expr = template.format(a=f"w{ins[0]}", P=macro_prefix, p=macro_prefix.lower())
-            lines.append(f"w{outs[0]} = {expr};")
-            used.add(outs[0])
+            statements.append(_Statement([f"w{outs[0]} = {expr};"], (outs[0],), (ins[0],)))
         elif op == ca.OP_CALL:
             loop = _called_loop(func, next(callees))
-            outs_used = [o for o in outs if o >= 0]
-            lines += _loop_call(loop, ins, outs, macro_prefix)
             counts.update({category: n * loop.count for category, n in _step_counts(loop).items()})
             loops.add(loop.function.name())
-            used.update(outs_used)
+            statements.append(_Statement(_loop_call(loop, ins, outs, macro_prefix), tuple(o for o in outs if o >= 0),
+                                         tuple(i for i in ins if i >= 0)))
         else:
             raise ArmgenError(f"function {func.name()}: CasADi operation {op} has no C translation in armgen")
+    for statement in _live(statements):
+        lines += statement.lines
+        used.update(statement.writes)
     read_args = {func.instruction_input(k)[0] for k in range(func.n_instructions())
                  if func.instruction_id(k) == ca.OP_INPUT}
     # an input the expression does not depend on (e.g. q of a constant criterion) is still

@@ -15,6 +15,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from .kernel_store import seal
 from .toolchain import compile_shared
 from ..errors import ArmgenError
 
@@ -116,14 +117,6 @@ class CompiledModel:
 
 # -- one fused SX function as native code, called on NumPy buffers ---------------------------
 
-def kernel_cache_dir() -> Path:
-    """Where compiled kernels are kept between runs (keyed by the hash of their C source, so a
-    changed model or emitter compiles afresh); ARMGEN_CACHE_DIR overrides."""
-    base = os.environ.get("ARMGEN_CACHE_DIR") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "armgen")
-    return Path(base) / "kernels"
-
-
 def kernel_source(func: ca.Function, symbol: str) -> str:
     """C99 of a one-input, one-output dense SX function: ``void <symbol>(const double *x, double *y)``."""
     from ..symbolic.loops import find_loop
@@ -145,23 +138,24 @@ def kernel_source(func: ca.Function, symbol: str) -> str:
 
 class NativeKernel:
     """``func`` (one dense input vector, one dense output vector) compiled to a shared library
-    (cached on disk by source hash) and called by ctypes on two fixed NumPy buffers."""
+    in the kernel store folder ``store`` and called by ctypes on two fixed NumPy buffers.
+
+    It always compiles: a library already in the store is loaded only through :meth:`load`,
+    after its entry's digest matched (see :mod:`armgen.codegen.kernel_store`)."""
 
     # -O1 keeps the compile of these long straight-line functions (tens of thousands of
     # statements for the wgpm clamp kernel) short; the first run pays it, later runs load the
-    # cached library.
-    def __init__(self, func: ca.Function, opt: str = "-O1"):
+    # stored library.
+    def __init__(self, func: ca.Function, store: Path, opt: str = "-O1"):
         source = kernel_source(func, "armgen_kernel")
         key = hashlib.sha256((source + opt).encode()).hexdigest()[:24]
-        cache = kernel_cache_dir()
-        library = cache / f"{func.name()}-{key}.so"
-        if not library.is_file():
-            cache.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(prefix="armgen-kernel-", dir=cache) as work:
-                c_file = Path(work) / f"{func.name()}.c"
-                c_file.write_text(source, encoding="utf-8")
-                built = compile_shared([c_file], Path(work) / library.name, opt=opt)
-                os.replace(built, library)  # atomic: concurrent builders leave one complete file
+        library = store / f"{func.name()}-{key}.so"
+        with tempfile.TemporaryDirectory(prefix="armgen-kernel-", dir=store) as work:
+            c_file = Path(work) / f"{func.name()}.c"
+            c_file.write_text(source, encoding="utf-8")
+            built = compile_shared([c_file], Path(work) / library.name, opt=opt)
+            self.sha256 = seal(built)
+            os.replace(built, library)  # atomic: concurrent builders leave one complete file
         self._load(library, func.nnz_in(), func.nnz_out())
 
     @classmethod

@@ -26,7 +26,7 @@ import casadi as ca
 import sympy
 
 from .. import __version__
-from ..errors import OptionError
+from ..errors import OptionError, excerpt
 from ..fileio import write_file_set
 from ..robot import Robot, load_robot_any
 from ..symbolic.model import (DESCRIPTIONS, FROM_JACOBIAN, JACOBIAN_FUNCTIONS, STEP_FUNCTIONS, ModelOptions,
@@ -76,16 +76,16 @@ class GeneratedCode:
 def make_consistent(config: CodegenConfig) -> CodegenConfig:
     """Fill defaults and validate the options; errors name the option and the fix."""
     if config.precision not in PRECISIONS:
-        raise OptionError(f"--precision {config.precision!r}: choose one of {', '.join(PRECISIONS)}")
+        raise OptionError(f"--precision {excerpt(repr(config.precision))}: choose one of {', '.join(PRECISIONS)}")
     prefix = config.prefix or re.sub(r"[^0-9a-zA-Z_]", "_", config.robot.name).lower()
     if not re.fullmatch(r"[a-z_][a-z0-9_]{0,30}", prefix):
-        raise OptionError(f"--prefix {prefix!r}: use a C identifier in lower case of at most 31 characters "
+        raise OptionError(f"--prefix {excerpt(repr(prefix))}: use a C identifier in lower case of at most 31 characters "
                           "(letters, digits, _; not starting with a digit)")
     if prefix in C_KEYWORDS or prefix in STANDARD_NAMES:
-        raise OptionError(f"--prefix {prefix!r} is a C keyword or a standard-library name: choose another "
+        raise OptionError(f"--prefix {excerpt(repr(prefix))} is a C keyword or a standard-library name: choose another "
                           f"(e.g. --prefix {prefix}_arm)")
     if prefix.startswith("_"):
-        raise OptionError(f"--prefix {prefix!r}: identifiers starting with '_' are reserved in C (the generated "
+        raise OptionError(f"--prefix {excerpt(repr(prefix))}: identifiers starting with '_' are reserved in C (the generated "
                           f"macros would be _<NAME>); start with a letter (e.g. --prefix arm{prefix})")
     return CodegenConfig(config.robot, config.precision, prefix, config.functions)
 
@@ -122,7 +122,7 @@ def _finite_probe(values: list[str], p: str, P: str) -> list[str]:
     """Statements folding each value into ``probe``: x * 0 is ±0 for a finite x and NaN for
     NaN/inf, and a NaN survives the sum. Straight-line (a load and a multiply-add per value on
     a Cortex-M4, no loop or call), so ``probe == probe`` is 1 iff every value is finite."""
-    return [f"  {p}_real probe = {P}_LIT(0.0);", *(f"  probe = probe + {v} * {P}_LIT(0.0);" for v in values)]
+    return [f"  {p}_real probe = {P}_LIT(0.0);", *(f"  probe = probe + ({v} * {P}_LIT(0.0));" for v in values)]
 
 
 def _values(names: list[str], scalars: list[bool], sizes: list[int], pointer: str) -> list[str]:
@@ -216,12 +216,13 @@ def generate(config: CodegenConfig) -> GeneratedCode:
     robot = config.robot
     preamble = c_preamble(robot.source, robot.sha256,
                           f"armgen kinematics of robot '{comment_safe(robot.name)}' ({robot.n} DOF)")
-    header = _render_header(config, model, protos, preamble)
     source = (f"{preamble}\n#include \"{p}.h\"\n\n#include <math.h>\n\n"
               "/* Every function below is straight-line code from the SX algorithm (fixed-count loops\n"
               " * are kept once, as for loops, at the end); w<k> are the algorithm's work registers.\n"
               " * Literals and math calls go through the precision macros. */\n\n"
               + "\n".join(definitions))
+    math = [m for m in MATH_MACROS if m in HEADER_MATH_MACROS or f"{P}_{m}(" in source]
+    header = _render_header(config, model, protos, preamble, math)
     files = {f"{p}.h": header, f"{p}.c": source}
     manifest = {
         "generator": f"armgen {__version__}",
@@ -318,13 +319,20 @@ static inline {p}_real {p}_sqrt({p}_real x) {{
 """
 
 
-def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str], preamble: str) -> str:
+# The math macros every header defines: sin and cos (the header's own sin/cos table) and what
+# the firmware stub reads through them (ctrl_robot.h: SIN, COS, SQRT, FABS). Any other is
+# defined only when the generated source calls it (MISRA 2.5: no unused macro).
+HEADER_MATH_MACROS = ("SIN", "COS", "SQRT", "FABS")
+
+
+def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str], preamble: str,
+                   math: list[str]) -> str:
     p, P = config.prefix, config.prefix.upper()
     guard = f"{P}_H"
     float_default = 1 if config.precision == "float" else 0
     lean = {"FMIN": f"{p}_fmin", "FMAX": f"{p}_fmax", "SQRT": f"{p}_sqrt"}
-    macros_f = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower() + 'f')}" for m in MATH_MACROS if m not in ("SIN", "COS"))
-    macros_d = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower())}" for m in MATH_MACROS)
+    macros_f = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower() + 'f')}" for m in math if m not in ("SIN", "COS"))
+    macros_d = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower())}" for m in math)
     return f"""{preamble}
 #ifndef {guard}
 #define {guard}
@@ -348,16 +356,16 @@ extern "C" {{
 #ifndef {P}_USE_FLOAT
 #define {P}_USE_FLOAT {float_default}
 #endif
-#if {P}_USE_FLOAT
-typedef float {p}_real;
-#define {P}_LIT(x) x##f
-{macros_f}
 /* {P}_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
  * ({p}_sin_bounded/{p}_cos_bounded below: error <= {BOUNDED_TRIG_ULP} ulp for |x| <= {BOUNDED_TRIG_RANGE} rad,
  * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
 #ifndef {P}_BOUNDED_TRIG
 #define {P}_BOUNDED_TRIG 0
 #endif
+#if {P}_USE_FLOAT
+typedef float {p}_real;
+#define {P}_LIT(x) x##f
+{macros_f}
 #if {P}_BOUNDED_TRIG
 #define {P}_SIN {p}_sin_bounded
 #define {P}_COS {p}_cos_bounded

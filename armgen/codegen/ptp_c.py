@@ -17,7 +17,7 @@ import hashlib
 import re
 from pathlib import Path
 
-from ..errors import ArmgenError
+from ..errors import ArmgenError, excerpt
 from ..fileio import write_text_atomic
 from .stamp import c_preamble
 
@@ -122,9 +122,9 @@ _SOURCE = """#include "{p}_ptp.h"
 def render_ptp_evaluator(prefix: str = "armgen", precision: str = "double") -> dict[str, str]:
     """The evaluator's files as ``{name: text}`` (nothing is written)."""
     if precision not in PRECISIONS:
-        raise ArmgenError(f"precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
+        raise ArmgenError(f"precision {excerpt(repr(precision))}: choose one of {', '.join(PRECISIONS)}")
     if not re.fullmatch(r"[a-z_][a-z0-9_]*", prefix):
-        raise ArmgenError(f"prefix {prefix!r}: use a C identifier in lower case (letters, digits, _; not starting with a digit)")
+        raise ArmgenError(f"prefix {excerpt(repr(prefix))}: use a C identifier in lower case (letters, digits, _; not starting with a digit)")
     fmt = {"p": prefix, "P": prefix.upper(), "float_default": 1 if precision == "float" else 0}
     header, source = _HEADER.format(**fmt), _SOURCE.format(**fmt)
     digest = hashlib.sha256((header + source).encode()).hexdigest()

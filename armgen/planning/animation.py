@@ -18,7 +18,7 @@ import numpy as np
 from matplotlib.animation import FFMpegWriter, PillowWriter
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-from ..errors import ArmgenError, TaskFileError, ToolchainError
+from ..errors import ArmgenError, TaskFileError, ToolchainError, excerpt
 from ..fileio import atomic_open
 from ..progress import progress
 from ..robot import load_robot
@@ -64,9 +64,9 @@ def _check_output(out_path: str | Path) -> Path:
     text = str(out_path)
     out = Path(out_path)
     if text in ("", "-") or text.endswith(("/", "\\")) or out.is_dir():
-        raise FigureOutputError(f"output {text!r} is not a file name; give e.g. -o plan.gif or -o plan.mp4")
+        raise FigureOutputError(f"output {excerpt(repr(text))} is not a file name; give e.g. -o plan.gif or -o plan.mp4")
     if out.suffix.lower() not in VIDEO_FORMATS:
-        raise FigureOutputError(f"output {text!r}: unknown video format {out.suffix or '(no extension)'!r}; "
+        raise FigureOutputError(f"output {excerpt(repr(text))}: unknown video format {excerpt(repr(out.suffix or '(no extension)'))}; "
                                 f"use one of {', '.join(VIDEO_FORMATS)}")
     return out
 
@@ -170,7 +170,7 @@ def animate_plan(result: PlanResult, out_path: str | Path, fps: float = DEFAULT_
     elif planner in ("cartesian", "fault_tolerant", "wgpm", "ptp"):
         draw = _serial_scene(fig, result, frames)
     else:
-        raise ArmgenError(f"no animation for planner {planner!r} (plan.json missing or unknown planner)")
+        raise ArmgenError(f"no animation for planner {excerpt(repr(planner))} (plan.json missing or unknown planner)")
     name = result.metadata.get("robot", {}).get("name") or (result.metadata.get("parameters") or {}).get("robot", "")
     stamp = fig.suptitle("")
     with tempfile.TemporaryDirectory(prefix="armgen-animate-") as scratch:

@@ -29,8 +29,9 @@ from typing import Callable
 import casadi as ca
 import numpy as np
 
-from ..codegen.compiled import CompiledModel, NativeKernel, build_library, kernel_cache_dir
-from ..errors import TaskFileError
+from ..codegen import kernel_store
+from ..codegen.compiled import CompiledModel, NativeKernel, build_library
+from ..errors import TaskFileError, excerpt
 from ..robot import Robot
 from ..symbolic.model import ModelOptions, SymbolicModel
 
@@ -125,7 +126,7 @@ class Backend:
 # found by a digest of everything it is made from: the robot (its pickled description), the
 # backend, the kernel key, and the code and libraries that compose it (armgen's sources,
 # CasADi's and NumPy's versions), so an edited planner or model composes afresh.
-KERNEL_STORE_FORMAT = 1
+KERNEL_STORE_FORMAT = 2
 # Every armgen version or robot edit adds entries (1–6 MB each with the compiled library);
 # past this size the store drops the entries used least recently, when it stores a new one.
 KERNEL_STORE_MAX_BYTES = 1 << 30
@@ -147,13 +148,17 @@ def _kernel_digest(robot: Robot, backend: str, key: tuple) -> str:
 
 def stored_kernel(model: SymbolicModel, backend: str, key: tuple,
                   build: Callable[[SymbolicModel, Packing, Packing], None]) -> Kernel:
-    """The kernel from the on-disk store (``kernel_cache_dir()``), composed and stored when missing.
+    """The kernel from the on-disk store (:func:`~armgen.codegen.kernel_store.store_dir`),
+    composed and stored when missing.
 
-    An entry is ``<name>-<digest>.json`` (the packing, the sizes, the compiled library's file)
-    beside ``<name>-<digest>.casadi`` (the serialised function); the JSON is written last, so a
-    reader sees a whole entry or none. An unreadable entry is composed again."""
+    An entry is ``<name>-<digest>.json`` (the packing, the sizes, the compiled library's file
+    name, the SHA-256 of each file it lists) beside ``<name>-<digest>.casadi`` (the serialised
+    function); the JSON is written last, so a reader sees a whole entry or none. An entry that
+    is unreadable, not this user's alone, names a library outside the store, holds anything
+    but an SXFunction free of code-loading classes or whose files do not match their digests is never loaded: the
+    kernel is composed again and the entry replaced."""
     name = "_".join(k for k in key if isinstance(k, str) and k)
-    store = kernel_cache_dir()
+    store = kernel_store.store_dir()
     stem = store / f"{name}-{_kernel_digest(model.robot, backend, key)}"
     stored = _load_entry(stem, backend)
     if isinstance(stored, Kernel):
@@ -165,16 +170,18 @@ def stored_kernel(model: SymbolicModel, backend: str, key: tuple,
         inputs, outputs = packed_in.slices, packed_out.slices
     else:  # the function is stored, its compiled library is gone
         func, inputs, outputs = stored
-    native = NativeKernel(func) if backend == "c" else None
-    library = native.library.name if native is not None and native.library.parent == store else None
+    native = NativeKernel(func, store) if backend == "c" else None
     entry = {"inputs": {k: [v.start, v.stop] for k, v in inputs.items()},
              "outputs": {k: [v.start, v.stop] for k, v in outputs.items()},
-             "n_in": func.nnz_in(), "n_out": func.nnz_out(), "library": library}
+             "n_in": func.nnz_in(), "n_out": func.nnz_out(),
+             "library": native.library.name if native is not None else None,
+             "library_sha256": native.sha256 if native is not None else None}
     try:
-        store.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix="armgen-store-", dir=store) as work:
             func.save(str(Path(work) / "f.casadi"))
+            entry["function_sha256"] = kernel_store.seal(Path(work) / "f.casadi")
             Path(work, "f.json").write_text(json.dumps(entry), encoding="utf-8")
+            kernel_store.seal(Path(work) / "f.json")
             os.replace(Path(work) / "f.casadi", stem.with_suffix(".casadi"))
             os.replace(Path(work) / "f.json", stem.with_suffix(".json"))  # last: the entry is whole
         _prune(store, KERNEL_STORE_MAX_BYTES)
@@ -198,17 +205,31 @@ def _prune(store: Path, max_bytes: int) -> None:
 
 
 def _load_entry(stem: Path, backend: str) -> Kernel | tuple[ca.Function, dict, dict] | None:
-    """The stored kernel; or its function and packing when its library is missing; or None."""
+    """The stored kernel; or its function and packing when its library is missing (or does not
+    match its digest); or None when the entry is missing or not to be trusted."""
+    text = kernel_store.read_trusted(stem.with_suffix(".json"))
     try:
-        entry = json.loads(stem.with_suffix(".json").read_text(encoding="utf-8"))
+        entry = json.loads(text) if text is not None else None
         inputs = {k: slice(*v) for k, v in entry["inputs"].items()}
         outputs = {k: slice(*v) for k, v in entry["outputs"].items()}
-        library = stem.parent / entry["library"] if entry["library"] else None
-        os.utime(stem.with_suffix(".json"))  # used now (with the file it loads): pruned last
-        if backend == "c" and library is not None and library.is_file():
-            os.utime(library)
-            return Kernel.native(NativeKernel.load(library, entry["n_in"], entry["n_out"]), inputs, outputs)
-        func = ca.Function.load(str(stem.with_suffix(".casadi")))
+        library_name = entry["library"]
+        if library_name is not None and not kernel_store.LIBRARY_NAME.fullmatch(library_name):
+            return None  # a path, or a name this code never gives: not an entry of ours
+        if backend == "c" and library_name is not None:
+            library = stem.parent / library_name
+            binary = kernel_store.read_trusted(library)
+            if binary is not None and kernel_store.digest(binary) == entry["library_sha256"]:
+                os.utime(stem.with_suffix(".json"))  # used now (with the file it loads): pruned last
+                os.utime(library)
+                return Kernel.native(NativeKernel.load(library, entry["n_in"], entry["n_out"]), inputs, outputs)
+        serialised = kernel_store.read_trusted(stem.with_suffix(".casadi"))
+        if (serialised is None or kernel_store.digest(serialised) != entry["function_sha256"]
+                or not kernel_store.sx_function_text_loads_no_code(serialised)):
+            return None
+        func = ca.StringDeserializer(serialised.decode("ascii")).unpack()  # the bytes checked, not the file again
+        if not isinstance(func, ca.Function) or func.class_name() != "SXFunction" or func.nnz_in() != entry["n_in"] or func.nnz_out() != entry["n_out"]:
+            return None
+        os.utime(stem.with_suffix(".json"))
         os.utime(stem.with_suffix(".casadi"))
     except (OSError, ValueError, KeyError, TypeError, AttributeError, RuntimeError):
         return None  # not stored yet, or a partial or foreign entry
@@ -218,7 +239,7 @@ def _load_entry(stem: Path, backend: str) -> Kernel | tuple[ca.Function, dict, d
 def make_backend(robot: Robot, kind: str, functions: tuple[str, ...] = ()) -> Backend:
     """A backend; ``c`` generates, compiles (double) and loads the named functions."""
     if kind not in BACKENDS:
-        raise TaskFileError(f"backend {kind!r} is not one of {', '.join(BACKENDS)}")
+        raise TaskFileError(f"backend {excerpt(repr(kind))} is not one of {', '.join(BACKENDS)}")
     model = SymbolicModel(robot, ModelOptions(functions or None))
     if kind == "symbolic" or not functions:
         return Backend(kind, model, {name: model.function(name) for name in functions})

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import TaskFileError
+from ..errors import TaskFileError, excerpt
 
 # Three circle points closer than this to a line (relative to the chord lengths) do not
 # define a circle: the circumradius would exceed ~1e6 times the chord.
@@ -28,7 +28,7 @@ class TimeLaw:
 
     def __post_init__(self):
         if self.kind not in TIME_LAWS:
-            raise TaskFileError(f"timing.law = {self.kind!r} is not one of {', '.join(TIME_LAWS)}")
+            raise TaskFileError(f"timing.law = {excerpt(repr(self.kind))} is not one of {', '.join(TIME_LAWS)}")
         if self.kind == "trapezoidal" and not 0 < self.blend <= 0.5:
             raise TaskFileError(f"timing.blend = {self.blend} must be in (0, 0.5]")
 

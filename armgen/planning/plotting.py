@@ -22,7 +22,7 @@ from matplotlib.axes import Axes
 from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 
-from ..errors import ArmgenError
+from ..errors import ArmgenError, excerpt
 from ..fileio import atomic_open
 from ..robot import Robot, load_robot
 from .result import PlanResult
@@ -59,13 +59,13 @@ def figure_format(out_path: str | Path) -> str:
     """The matplotlib format for ``out_path``'s extension, or a clear error."""
     path = Path(out_path)
     if str(out_path) in ("", "-") or str(out_path).endswith(("/", "\\")):
-        raise FigureOutputError(f"output {str(out_path)!r} is not a file name; give e.g. -o plan.png "
+        raise FigureOutputError(f"output {excerpt(repr(str(out_path)))} is not a file name; give e.g. -o plan.png "
                                 f"(formats: {', '.join(FORMATS)})")
     if path.is_dir():  # as for every other output: an existing directory in the way is exit 4
         raise FigureWriteError(f"cannot write {path}: is a directory; choose a file name such as plan.png")
     fmt = FORMATS.get(path.suffix.lower())
     if fmt is None:
-        raise FigureOutputError(f"output {str(out_path)!r}: unknown figure format {path.suffix or '(no extension)'!r}; "
+        raise FigureOutputError(f"output {excerpt(repr(str(out_path)))}: unknown figure format {excerpt(repr(path.suffix or '(no extension)'))}; "
                                 f"use one of {', '.join(FORMATS)}")
     return fmt
 

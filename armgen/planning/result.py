@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import OutputError, PlanFileError
+from ..errors import OutputError, PlanFileError, excerpt
 from ..fileio import write_file_set
+from ..schemas import read_input_file
 
 ANGLE_UNITS = ("rad", "deg")
 
@@ -64,7 +65,7 @@ def _split_unit(column: str) -> tuple[str, str]:
 
 def convert_angle_units(columns: list[str], data: np.ndarray, units: str) -> tuple[list[str], np.ndarray]:
     if units not in ANGLE_UNITS:
-        raise ValueError(f"units must be one of {ANGLE_UNITS}, got {units!r}")
+        raise ValueError(f"units must be one of {ANGLE_UNITS}, got {excerpt(repr(units))}")
     if units == "rad":
         return list(columns), data
     data = data.copy()
@@ -132,15 +133,10 @@ def read_plan(csv_path: str | Path) -> PlanResult:
     Any malformed content is a :class:`PlanFileError` naming the file and the line."""
     csv_path = Path(csv_path)
     try:
-        size = csv_path.stat().st_size
-        if size > MAX_PLAN_FILE_BYTES:
-            raise PlanFileError(f"{csv_path}: {size} bytes is larger than the {MAX_PLAN_FILE_BYTES} bytes a plan may have")
-        text = csv_path.read_text(encoding="utf-8")
+        text = read_input_file(csv_path, MAX_PLAN_FILE_BYTES, "plan", PlanFileError).decode("utf-8")
     except UnicodeDecodeError as exc:
         raise PlanFileError(f"{csv_path}: not UTF-8 text ({exc.reason} at byte {exc.start}); give a plan CSV "
                             "written by armgen plan") from None
-    except OSError as exc:
-        raise PlanFileError(f"{csv_path}: cannot read the plan: {exc.strerror or exc}") from None
     try:
         lines = list(csv.reader(io.StringIO(text, newline="")))
     except csv.Error as exc:
@@ -149,7 +145,7 @@ def read_plan(csv_path: str | Path) -> PlanResult:
         raise PlanFileError(f"{csv_path}: empty plan file; give a plan CSV written by armgen plan")
     columns = [c.strip() for c in lines[0]]
     if "t_s" not in columns or len(set(columns)) != len(columns):
-        raise PlanFileError(f"{csv_path}: line 1: the header {columns[:6]!r}... must name distinct columns including "
+        raise PlanFileError(f"{csv_path}: line 1: the header {excerpt(repr(columns[:6]))}... must name distinct columns including "
                             "'t_s'; give a plan CSV written by armgen plan")
     rows = []
     for number, row in enumerate(lines[1:], start=2):
@@ -162,7 +158,7 @@ def read_plan(csv_path: str | Path) -> PlanResult:
             values = [float(v) for v in row]
         except ValueError:
             bad = next(v for v in row if not _is_float(v))
-            raise PlanFileError(f"{csv_path}: line {number}: {bad[:40]!r} is not a number") from None
+            raise PlanFileError(f"{csv_path}: line {number}: {excerpt(repr(bad[:40]))} is not a number") from None
         rows.append(values)
     if not rows:
         raise PlanFileError(f"{csv_path}: no samples after the header line")
@@ -201,7 +197,7 @@ def read_plan_metadata(path: Path, columns: list[str], samples: int) -> dict[str
     from .plan_schema import PlanMetadata
 
     try:
-        raw = json.loads(path.read_text(encoding="utf-8"))
+        raw = json.loads(read_input_file(path, MAX_PLAN_FILE_BYTES, "plan.json", PlanFileError).decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise PlanFileError(f"{path}: not valid JSON ({exc}); regenerate it with armgen plan") from None
     try:

@@ -10,10 +10,16 @@ matches on) and every scalar of the plan's summary under its own name. Wall time
 how fast it ran. A failing run is a row, not the end of the sweep.
 
 Runs execute in this process (``workers = 1``), in local worker processes
-(:class:`concurrent.futures.ProcessPoolExecutor`), or on a Dask distributed cluster
-(``scheduler`` = its address); workers get the runs in batches (:data:`BATCHES_PER_WORKER`),
-and an interrupted sweep keeps the rows of the batches that finished. The rows are sorted by
-run index whichever way they ran.
+(:class:`multiprocessing.pool.Pool`; the workers ignore SIGINT, so Ctrl-C reaches only this
+process, which then terminates them), or on a Dask distributed cluster (``scheduler`` = its
+address); workers get the runs in batches (:data:`BATCHES_PER_WORKER`). An interrupted or
+failed sweep writes the rows that finished and says so (:class:`~armgen.errors.Interrupted`),
+so ``--resume`` runs only the rest. The rows are sorted by run index whichever way they ran.
+
+A sweep has at most :data:`MAX_SWEEP_RUNS` runs (grid combinations × draws), checked before
+anything runs. ``--resume`` reads the output only when it is a table this command wrote
+(its fixed columns, integer run indices, JSON ``overrides``); anything else is refused, never
+replaced.
 """
 
 from __future__ import annotations
@@ -23,15 +29,17 @@ import copy
 import io
 import itertools
 import json
+import math
+import multiprocessing
 import os
-from concurrent.futures import ProcessPoolExecutor, as_completed
+import signal
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator, Sequence
 
 import numpy as np
 
-from ..errors import ArmgenError, TaskFileError, ToolchainError
+from ..errors import ArmgenError, Interrupted, TaskFileError, ToolchainError, excerpt
 from ..fileio import atomic_open
 from ..progress import progress
 from .tasks import parse_value, planner_module, run_task, set_field
@@ -40,6 +48,9 @@ FORMATS = (".csv", ".parquet")
 FIXED_COLUMNS = ("run", "status", "exit_code", "message", "overrides")
 # Summary entries that measure the machine, not the plan.
 WALL_TIME_KEYS = ("run_time_s", "plan_seconds")
+# The most runs one sweep may have (grid combinations × random draws): a table of this many
+# rows is tens of MB and a day of planning; a longer survey is several sweeps (or --resume).
+MAX_SWEEP_RUNS = 100_000
 
 
 @dataclass(frozen=True)
@@ -58,8 +69,31 @@ class SweepSpec:
     draws: int = 0
     seed: int = 0
 
+    def count(self) -> int:
+        """How many runs :meth:`runs` gives (without making them)."""
+        return math.prod(len(values) for _, values in self.grid) * (self.draws if self.ranges else 1)
+
+    def check(self) -> None:
+        """Refuse a sweep that is not one: ranges without draws (or draws without ranges),
+        nothing to vary, or more than :data:`MAX_SWEEP_RUNS` runs."""
+        if self.ranges and not self.draws:
+            raise TaskFileError("--range needs --random N (the number of draws)")
+        if self.draws and not self.ranges:
+            raise TaskFileError("--random needs at least one --range KEY=LO:HI to draw")
+        if not self.grid and not self.ranges:
+            raise TaskFileError("nothing to sweep: give --grid KEY=ARRAY and/or --random N with --range KEY=LO:HI")
+        self.check_size()
+
+    def check_size(self) -> None:
+        count = self.count()
+        if count > MAX_SWEEP_RUNS:
+            sizes = " × ".join([str(len(v)) for _, v in self.grid] + ([f"{self.draws} draws"] if self.ranges else []))
+            raise TaskFileError(f"the sweep has {count} runs ({sizes}), more than the cap of {MAX_SWEEP_RUNS}; "
+                                "split it into smaller sweeps (fewer --grid values or --random draws)")
+
     def runs(self) -> list[dict[str, Any]]:
         """The runs' field values: every grid combination, times every draw when drawing."""
+        self.check_size()
         combos = [dict(zip([k for k, _ in self.grid], values))
                   for values in itertools.product(*[v for _, v in self.grid])]
         if not self.ranges:
@@ -78,13 +112,13 @@ def parse_grid(item: str) -> tuple[str, list[Any]]:
     """``KEY=ARRAY`` (ARRAY a TOML array of the field's values)."""
     key, values = _split(item, "--grid", "KEY=ARRAY, e.g. --grid 'method.K=[0, 1, 2]'")
     if not isinstance(values, list) or not values:
-        raise TaskFileError(f"--grid {item!r}: the values must be a non-empty TOML array, e.g. {key}=[1, 2]")
+        raise TaskFileError(f"--grid {excerpt(repr(item))}: the values must be a non-empty TOML array, e.g. {key}=[1, 2]")
     return key, values
 
 
 def parse_range(item: str) -> Range:
     """``KEY=LO:HI`` (numbers, or TOML arrays of numbers for a vector field)."""
-    where = f"--range {item!r}"
+    where = f"--range {excerpt(repr(item))}"
     key, text = _split(item, "--range", "KEY=LO:HI, e.g. --range 'method.K=0:4'", parse=False)
     if text.count(":") != 1:
         raise TaskFileError(f"{where}: expected KEY=LO:HI, e.g. --range 'method.K=0:4'")
@@ -104,9 +138,9 @@ def parse_range(item: str) -> Range:
 
 def _split(item: str, option: str, usage: str, parse: bool = True) -> tuple[str, Any]:
     if "=" not in item or not item.split("=", 1)[0].strip():
-        raise TaskFileError(f"{option} {item!r}: expected {usage}")
+        raise TaskFileError(f"{option} {excerpt(repr(item))}: expected {usage}")
     key, text = item.split("=", 1)
-    return key.strip(), parse_value(text.strip(), f"{option} {item!r}") if parse else text.strip()
+    return key.strip(), parse_value(text.strip(), f"{option} {excerpt(repr(item))}") if parse else text.strip()
 
 
 def _cell(value: Any) -> Any:
@@ -123,7 +157,7 @@ def run_one(task: dict[str, Any], source: str, sha256: str, index: int, fields: 
         try:
             run = copy.deepcopy(task)
             for key, value in fields.items():
-                set_field(run, key, value, f"sweep field {key!r}")
+                set_field(run, key, value, f"sweep field {excerpt(repr(key))}")
             summary = run_task(run, source, sha256, backend).metadata.get("summary", {})
         except ArmgenError as exc:
             return {**row, "status": "error", "exit_code": exc.exit_code, "message": str(exc)}
@@ -150,17 +184,47 @@ def _quiet() -> Iterator[None]:
             os.environ["ARMGEN_NO_PROGRESS"] = before
 
 
-def read_table(path: str | Path):
+def read_table(path: str | Path) -> list[dict[str, Any]]:
+    """The rows of a sweep table this command wrote, to resume; anything else is refused."""
     import pandas as pd
 
     path = Path(path)
+    advice = "choose another -o, or drop --resume (the file is left as it is)"
     try:
         if path.suffix == ".parquet":
-            return pd.read_parquet(path)
-        return pd.read_csv(path, keep_default_na=False, na_values=[""])
+            frame = pd.read_parquet(path)
+        else:
+            frame = pd.read_csv(path, keep_default_na=False, na_values=[""])
     except Exception as exc:  # noqa: BLE001 -- any unreadable file gets the same advice
-        raise TaskFileError(f"{path}: cannot read the sweep table to resume ({exc}); remove it or drop --resume") \
+        raise TaskFileError(f"{path}: cannot read the sweep table to resume ({excerpt(str(exc))}); {advice}") \
             from None
+    missing = [c for c in FIXED_COLUMNS if c not in frame.columns]
+    if missing:
+        raise TaskFileError(f"{path}: not a table of `armgen sweep` (no column {', '.join(missing)}); {advice}")
+    rows = [{k: v for k, v in r.items() if not _missing(v)} for r in frame.to_dict("records")]
+    for number, row in enumerate(rows, start=2):
+        problem = _row_problem(row)
+        if problem:
+            raise TaskFileError(f"{path}: row {number} is not a row of `armgen sweep` ({problem}); {advice}")
+        row["run"] = int(row["run"])
+    return rows
+
+
+def _row_problem(row: dict[str, Any]) -> str | None:
+    run, status, overrides = row.get("run"), row.get("status"), row.get("overrides")
+    # (one text cell makes pandas read the whole column as text)
+    if isinstance(run, bool) or not (isinstance(run, (int, np.integer)) and run >= 0
+                                     or isinstance(run, str) and run.isascii() and run.isdigit()):
+        return f"run {excerpt(repr(run))} is not a run index"
+    if status not in ("ok", "error"):
+        return f"status {excerpt(repr(status))} is neither ok nor error"
+    try:
+        fields = json.loads(overrides) if isinstance(overrides, str) else None
+    except ValueError:
+        fields = None
+    if not isinstance(fields, dict):
+        return f"overrides {excerpt(repr(overrides))} is not a JSON table of fields"
+    return None
 
 
 def write_table(rows: list[dict[str, Any]], path: str | Path, keys: Sequence[str]) -> None:
@@ -192,26 +256,39 @@ def sweep(task: dict[str, Any], source: str, sha256: str, spec: SweepSpec, outpu
     if output.suffix not in FORMATS:
         raise TaskFileError(f"-o {output}: the table must be .csv or .parquet")
     runs = spec.runs()
+    index = {json.dumps(fields, sort_keys=True): i for i, fields in enumerate(runs)}
     keys = list(dict.fromkeys([k for k, _ in spec.grid] + [r.key for r in spec.ranges]))
     done: list[dict[str, Any]] = []
     if resume and output.exists():
-        table = read_table(output)
-        wanted = {json.dumps(fields, sort_keys=True) for fields in runs}
-        done = [{k: v for k, v in r.items() if not _missing(v)} for r in table.to_dict("records")
-                if r.get("overrides") in wanted]
+        # a finished run keeps its row, under its index in this sweep
+        done = [{**r, "run": index[r["overrides"]]} for r in read_table(output) if r["overrides"] in index]
         echo(f"resuming: {len(done)} of {len(runs)} runs already in {output}")
     finished = {r["overrides"] for r in done}
     todo = [(i, fields) for i, fields in enumerate(runs) if json.dumps(fields, sort_keys=True) not in finished]
-    rows = list(done)
+    new: list[dict[str, Any]] = []
     try:
-        with progress(len(todo), "sweep") as bar:
-            for row in _execute(task, source, sha256, todo, backend, workers, scheduler):
-                rows.append(row)
+        with contextlib.closing(_execute(task, source, sha256, todo, backend, workers, scheduler)) as results, \
+                progress(len(todo), "sweep") as bar:
+            for row in results:
+                new.append(row)
                 bar.update(1)
-    finally:  # an interrupted sweep keeps what it finished, for --resume
-        if rows:
-            write_table(rows, output, keys)
-    return sorted(rows, key=lambda r: r["run"])
+    except KeyboardInterrupt:
+        kept = _keep(done + new, new, output, keys)
+        raise Interrupted(f"interrupted after {len(new)} of {len(todo)} runs; {kept}") from None
+    except BaseException as exc:
+        if new:
+            echo(f"the sweep stopped ({type(exc).__name__}); {_keep(done + new, new, output, keys)}")
+        raise
+    write_table(done + new, output, keys)
+    return sorted(done + new, key=lambda r: r["run"])
+
+
+def _keep(rows: list[dict[str, Any]], new: list[dict[str, Any]], output: Path, keys: Sequence[str]) -> str:
+    """Write the rows of a sweep that stopped early; say what was written."""
+    if not new:
+        return f"no run finished: {output} was not written"
+    write_table(rows, output, keys)
+    return f"wrote the {len(rows)} finished runs to {output}; run the same command with --resume for the rest"
 
 
 def _missing(value: Any) -> bool:
@@ -236,6 +313,15 @@ def _batches(todo: list, workers: int) -> list[list]:
     return [todo[k:k + size] for k in range(0, len(todo), size)]
 
 
+def _ignore_sigint() -> None:
+    """In a worker: Ctrl-C is for the sweep's own process, which stops the workers."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _run_batch_args(args: tuple) -> list[dict[str, Any]]:
+    return run_batch(*args)
+
+
 def _execute(task, source, sha256, todo, backend, workers, scheduler) -> Iterator[dict[str, Any]]:
     if scheduler:
         yield from _on_dask(scheduler, task, source, sha256, todo, backend)
@@ -245,11 +331,22 @@ def _execute(task, source, sha256, todo, backend, workers, scheduler) -> Iterato
     else:
         # The planner's modules, imported once here, are inherited by forked workers.
         planner_module(task)
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = [pool.submit(run_batch, task, source, sha256, batch, backend)
-                       for batch in _batches(todo, workers)]
-            for future in as_completed(futures):
-                yield from future.result()
+        batches = _batches(todo, workers)
+        pool = multiprocessing.Pool(min(workers, len(batches)), initializer=_ignore_sigint)
+        try:
+            for rows in pool.imap_unordered(_run_batch_args, [(task, source, sha256, b, backend) for b in batches]):
+                yield from rows
+        except BaseException:
+            pool.terminate()  # Ctrl-C, an error, or the caller closing this generator: stop the workers now
+            raise
+        else:
+            pool.close()
+        finally:
+            pool.join()
+
+
+# How long connecting to --scheduler may take (a scheduler answers in milliseconds).
+SCHEDULER_TIMEOUT_S = 10
 
 
 def _on_dask(address: str, task, source, sha256, todo, backend) -> Iterator[dict[str, Any]]:
@@ -258,10 +355,11 @@ def _on_dask(address: str, task, source, sha256, todo, backend) -> Iterator[dict
     except ImportError:
         raise ToolchainError("--scheduler needs Dask distributed: pip install 'dask[distributed]'") from None
     try:
-        client = Client(address, timeout="10s")
-    except (OSError, TimeoutError) as exc:
-        raise ToolchainError(f"--scheduler {address}: cannot reach the Dask scheduler ({exc}); start one with "
-                             "`dask scheduler` and workers with `dask worker ADDRESS`") from None
+        client = Client(address, timeout=f"{SCHEDULER_TIMEOUT_S}s")
+    except Exception as exc:  # noqa: BLE001 -- whatever the address holds, it is not a usable scheduler
+        raise ToolchainError(f"--scheduler {excerpt(address)}: cannot reach a Dask scheduler there "
+                             f"({type(exc).__name__}: {excerpt(str(exc))}); start one with `dask scheduler` "
+                             "and workers with `dask worker ADDRESS`, and give its address (tcp://host:8786)") from None
     with client:
         workers = max(1, sum(client.nthreads().values()))
         futures = [client.submit(run_batch, task, source, sha256, batch, backend, pure=False)

@@ -20,7 +20,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ..errors import PlanningError, TaskFileError
+from ..errors import PlanningError, TaskFileError, excerpt
 from ..robot import Robot
 from .cartesian.planner import (_number, _table, parse_path_and_timing, parse_robot_and_start, sym_orientation_error,
                                 sym_rpy)
@@ -64,7 +64,7 @@ class PathTask:
 def _bool(table: dict, key: str, where: str, source: str, default: bool) -> bool:
     value = table.get(key, default)
     if not isinstance(value, bool):
-        raise TaskFileError(f"{source}: field '{where}.{key}' = {value!r} must be true or false")
+        raise TaskFileError(f"{source}: field '{where}.{key}' = {excerpt(repr(value))} must be true or false")
     return value
 
 
@@ -84,7 +84,7 @@ def parse_path_task(task: dict, source: str, known_top: set[str]) -> PathTask:
     integ = _table(task, "integrator", source)
     method = integ.get("method", "euler")
     if method != "euler":
-        raise TaskFileError(f"{source}: integrator.method = {method!r}: this planner integrates with explicit Euler "
+        raise TaskFileError(f"{source}: integrator.method = {excerpt(repr(method))}: this planner integrates with explicit Euler "
                             "only (its weights use the previous step's velocity); remove the field or set 'euler'")
     step = _number(integ, "step", "integrator", source, 0.02, positive=True)
     if step > duration:

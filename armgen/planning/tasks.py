@@ -15,8 +15,9 @@ import numpy as np
 from pydantic import ValidationError
 
 from .. import __version__
-from ..errors import PlanFileError, PlanningError, TaskFileError
-from ..schemas import MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, closest_key, format_validation_error, parse_toml_bounded
+from ..errors import PlanFileError, PlanningError, TaskFileError, excerpt
+from ..schemas import (MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, closest_key, format_validation_error, parse_toml_bounded,
+                       read_input_file)
 from .result import PlanResult, first_invalid_sample
 
 # planner name -> its package: ``planner.plan_task(task: dict, source: str, backend: str)`` and
@@ -51,14 +52,7 @@ class ResourceCaps:
 def load_task(path: str | Path) -> tuple[dict[str, Any], str]:
     """Read a task file (size and nesting bounded); returns the parsed dict and the file's sha256."""
     path = Path(path)
-    if not path.is_file():
-        raise TaskFileError(f"{path}: task file not found")
-    try:
-        if path.stat().st_size > MAX_INPUT_FILE_BYTES:
-            raise TaskFileError(f"{path}: larger than the {MAX_INPUT_FILE_BYTES} bytes a task file may have")
-        data = path.read_bytes()
-    except OSError as exc:
-        raise TaskFileError(f"{path}: cannot read the task file: {exc.strerror or exc}") from None
+    data = read_input_file(path, MAX_INPUT_FILE_BYTES, "task file", TaskFileError)
     return parse_toml_bounded(data, str(path), TaskFileError), hashlib.sha256(data).hexdigest()
 
 
@@ -78,7 +72,7 @@ def set_field(task: dict[str, Any], key: str, value: Any, where: str) -> None:
     the option in errors."""
     parts = [p.strip() for p in key.split(".")]
     if not all(parts):
-        raise TaskFileError(f"{where}: empty key component in {key!r}")
+        raise TaskFileError(f"{where}: empty key component in {excerpt(repr(key))}")
     if len(parts) > MAX_NESTING_DEPTH:
         raise TaskFileError(f"{where}: key nested deeper than {MAX_NESTING_DEPTH} levels")
     node = task
@@ -93,9 +87,9 @@ def set_field(task: dict[str, Any], key: str, value: Any, where: str) -> None:
 def parse_override(item: str) -> tuple[str, Any]:
     """``key=value`` as given to ``--set`` → (dotted key, value parsed as TOML)."""
     if "=" not in item:
-        raise TaskFileError(f"--set {item!r}: expected key=value (e.g. --set integrator.h=0.01)")
+        raise TaskFileError(f"--set {excerpt(repr(item))}: expected key=value (e.g. --set integrator.h=0.01)")
     key, raw = item.split("=", 1)
-    return key.strip(), parse_value(raw.strip(), f"--set {item!r}")
+    return key.strip(), parse_value(raw.strip(), f"--set {excerpt(repr(item))}")
 
 
 def apply_overrides(task: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
@@ -103,7 +97,7 @@ def apply_overrides(task: dict[str, Any], overrides: list[str]) -> dict[str, Any
     result is validated by the planner's schema like the file itself (in :func:`run_task`)."""
     for item in overrides:
         key, value = parse_override(item)
-        set_field(task, key, value, f"--set {item!r}")
+        set_field(task, key, value, f"--set {excerpt(repr(item))}")
     return task
 
 
@@ -131,7 +125,7 @@ def validate_task(task: dict[str, Any], source: str) -> Any:
     if not isinstance(planner, str) or planner not in PLANNERS:
         near = closest_key(planner, list(PLANNERS)) if isinstance(planner, str) else None
         raise TaskFileError(
-            f"{source}: field 'planner' = {planner!r} is not one of {', '.join(sorted(PLANNERS))}"
+            f"{source}: field 'planner' = {excerpt(repr(planner))} is not one of {', '.join(sorted(PLANNERS))}"
             + (f" (did you mean `{near}`?)" if near else "")
             + "; set planner = \"<name>\" at the top of the task file")
     schema = importlib.import_module(PLANNERS[planner] + ".schema")
@@ -203,7 +197,7 @@ def plot_plan(result: PlanResult, source: str):
     module; write it with :func:`armgen.planning.plotting.save_figure`."""
     planner = result.metadata.get("planner")
     if planner not in PLANNERS:
-        raise PlanFileError(f"{source}: no plot for planner {planner!r} (plan.json missing or unknown planner); "
+        raise PlanFileError(f"{source}: no plot for planner {excerpt(repr(planner))} (plan.json missing or unknown planner); "
                             "keep the plan.json that armgen plan wrote beside the CSV")
     module = importlib.import_module(PLANNERS[planner] + ".plots")
     try:

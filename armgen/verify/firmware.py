@@ -42,7 +42,7 @@ import numpy as np
 from ..codegen.generate import GENERATED_DIR, CodegenConfig, generate, write
 from ..codegen.ptp_c import generate_ptp_evaluator
 from ..codegen.toolchain import ARM_CPU_FLAGS, SANITIZER_FLAGS, STRICT_FLAGS, find_tool, host_cc, run_tool
-from ..errors import ArmgenError
+from ..errors import ArmgenError, excerpt
 from ..fileio import write_text_atomic
 from ..planning.result import PlanResult
 from ..robot import Robot, load_robot
@@ -182,6 +182,14 @@ class FirmwareTask:
         return max(MAX_SEGMENTS, self.nseg)
 
 
+def _blend(law, source: str) -> str:
+    """The time law's blend for the controller, which checks it whatever the law: [0, 0.5]."""
+    if not (math.isfinite(law.blend) and 0.0 <= law.blend <= 0.5):
+        raise FirmwareError(f"{source}: timing.blend = {law.blend!r} must be in [0, 0.5] (the fraction of the duration "
+                            "spent accelerating), also when the time law does not use it")
+    return f".blend = {_lit(law.blend)},"
+
+
 def _lit(x: float) -> str:
     x = float(x)
     if not math.isfinite(x):
@@ -238,7 +246,7 @@ def cartesian_task(task: dict[str, Any], source: str) -> FirmwareTask:
 
     parsed = parse_cartesian_task(json.loads(json.dumps(task)), source)
     if parsed.integrator != "euler":
-        raise FirmwareError(f"{source}: integrator.method = {parsed.integrator!r}: the controller integrates with "
+        raise FirmwareError(f"{source}: integrator.method = {excerpt(repr(parsed.integrator))}: the controller integrates with "
                             "explicit Euler, one step per tick; re-plan with integrator.method = \"euler\"")
     robot = parsed.robot
     mp = parsed.method
@@ -255,7 +263,7 @@ def cartesian_task(task: dict[str, Any], source: str) -> FirmwareTask:
         f".rot_angle = {_lit(angle)},",
         f".duration = {_lit(parsed.duration)},",
         f".law = {LAW_IDS[parsed.law.kind]},",
-        f".blend = {_lit(parsed.law.blend)},",
+        _blend(parsed.law, source),
         f".method = {METHOD_IDS[mp.name]},",
         f".rho_R = {_lit(mp.rho_R)}, .T_smo_R = {_lit(mp.T_smo_R)},",
         f".rho_L = {_lit(mp.rho_L)}, .theta_s = {_lit(mp.theta_s)},",
@@ -301,6 +309,9 @@ def playback_task(plan: PlanResult, source: str, robot: Robot | None = None) -> 
     robot, joints = _ptp_robot(meta, robot, source)
     knots = np.asarray(meta["knot_times_s"], dtype=float)
     nseg = len(knots) - 1
+    if knots.ndim != 1 or nseg < 1 or not np.all(np.isfinite(knots)) or not np.all(np.diff(knots) > 0):
+        raise FirmwareError(f"{source}: knot_times_s = {excerpt(knots.tolist())} must be at least two finite, strictly "
+                            "increasing times; regenerate plan.json with armgen plan")
     coeffs = meta["segments"]["coefficients"]
     t = plan.column("t_s")
     dt = float(meta.get("parameters", {}).get("step_s") or (t[1] - t[0]))
@@ -353,7 +364,7 @@ def _path_fields(path, source: str) -> list[str]:
         f".rot_angle = {_lit(angle)},",
         f".duration = {_lit(path.duration)},",
         f".law = {LAW_IDS[path.law.kind]},",
-        f".blend = {_lit(path.law.blend)},",
+        _blend(path.law, source),
         f".relative = {1 if path.relative else 0},",
         f".turns = {_lit(path.turns)},",
         f".clik_gain = {_lit(path.clik_gain if path.clik else 0.0)},",
@@ -373,7 +384,7 @@ def fault_tolerant_task(task: dict[str, Any], source: str) -> FirmwareTask:
     parsed = parse_fault_tolerant_task(json.loads(json.dumps(task)), source)
     path, m, robot = parsed.path, parsed.method, parsed.robot
     if m.index not in FT_INDEX_IDS:
-        raise FirmwareError(f"{source}: method.index = {m.index!r}: the controller computes the omega and relative "
+        raise FirmwareError(f"{source}: method.index = {excerpt(repr(m.index))}: the controller computes the omega and relative "
                             "indices on board (generated ft_index); sigma_min is a NumPy SVD with a numeric gradient "
                             "in the planner only. Re-plan with method.index = \"omega\" or \"relative\"")
     ft = [
@@ -408,7 +419,7 @@ def weighted_gpm_task(task: dict[str, Any], source: str) -> FirmwareTask:
     parsed = parse_wgpm_task(json.loads(json.dumps(task)), source)
     path, m, robot = parsed.path, parsed.method, parsed.path.robot
     if m.name != "wgpm":
-        raise FirmwareError(f"{source}: method.name = {m.name!r} is the planner's comparison baseline; the controller "
+        raise FirmwareError(f"{source}: method.name = {excerpt(repr(m.name))} is the planner's comparison baseline; the controller "
                             "runs method.name = \"wgpm\" (step_wgpm)")
     h_lo, h_hi, k_hi, k_lo, u_th, u_band = m.vectors()
     wg = [
@@ -439,7 +450,7 @@ def schedule_lock(task: FirmwareTask, spec: str, source: str = "--lock") -> Firm
     except ValueError:
         t_lock = math.nan
     if not sep or not math.isfinite(t_lock) or t_lock < 0:
-        raise FirmwareError(f"{source} {spec!r}: give JOINTS@TIME, e.g. 5@1.38 (joint 5 locks at t = 1.38 s)")
+        raise FirmwareError(f"{source} {excerpt(repr(spec))}: give JOINTS@TIME, e.g. 5@1.38 (joint 5 locks at t = 1.38 s)")
     mask = 0
     for item in joints_text.split("+"):
         item = item.strip()
@@ -448,7 +459,7 @@ def schedule_lock(task: FirmwareTask, spec: str, source: str = "--lock") -> Firm
         elif item.isdigit() and 1 <= int(item) <= task.robot.n:
             mask |= 1 << (int(item) - 1)
         else:
-            raise FirmwareError(f"{source} {spec!r}: {item!r} is not a joint of robot '{task.robot.name}': give a "
+            raise FirmwareError(f"{source} {excerpt(repr(spec))}: {excerpt(repr(item))} is not a joint of robot '{task.robot.name}': give a "
                                 f"number 1..{task.robot.n} or a name ({', '.join(names)})")
     tick = int(math.ceil(t_lock / task.dt - 1e-9))
     header = re.sub(r"const uint32_t fw_lock_mask = \d+u;", f"const uint32_t fw_lock_mask = {mask}u;", task.header)
@@ -470,7 +481,7 @@ def task_from_plan(plan: PlanResult, source: str, robot: Robot | None = None) ->
     if planner == "ptp":
         return playback_task(plan, source, robot)
     raise FirmwareError(f"{source}: the controller runs cartesian, ptp, fault_tolerant and wgpm plans, not planner "
-                        f"{planner!r}")
+                        f"{excerpt(repr(planner))}")
 
 
 def task_from_dict(task: dict[str, Any], source: str, robot: Robot | None = None) -> FirmwareTask:
@@ -483,7 +494,7 @@ def task_from_dict(task: dict[str, Any], source: str, robot: Robot | None = None
 
         return playback_task(run_task(task, source), source, robot)
     raise FirmwareError(f"{source}: the controller runs cartesian, ptp, fault_tolerant and wgpm tasks, not planner "
-                        f"{planner!r}")
+                        f"{excerpt(repr(planner))}")
 
 
 # ------------------------------------------------------------------------------------------

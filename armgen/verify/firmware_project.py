@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import os
 import shutil
 import tempfile
@@ -28,7 +29,7 @@ import numpy as np
 
 from .. import __version__
 from ..codegen.generate import CodegenConfig, generate
-from ..errors import ArmgenError, OutputError, PlanningError
+from ..errors import ArmgenError, OutputError, PlanningError, excerpt
 from ..planning.result import write_plan
 from ..planning.tasks import run_task
 from ..robot import Robot, load_robot, resolve_robot_path
@@ -40,7 +41,7 @@ DEMO_STEP_S = 0.01  # the controller's tick: 100 ticks, a short demo and a small
 DEMO_DISTANCES_M = (0.05, 0.02)
 DEMO_DIRECTIONS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
 PROJECT_ROBOT_FILE = "robot.toml"  # the project's copy of the robot file; tasks name it so
-MARKER = ".armgen-firmware"  # marks a folder this command wrote (it may replace it)
+MANIFEST = ".armgen-firmware"  # the files this command wrote there, with their SHA-256 (JSON)
 
 # The stub's files the project needs, by their place in the project.
 STUB_FILES = {
@@ -117,12 +118,41 @@ def _fill(template: str, values: dict[str, str]) -> str:
     return template
 
 
-def _check_out(out: Path) -> None:
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _owned_files(out: Path) -> dict[str, str]:
+    """The files (relative path → SHA-256) the manifest of an earlier project lists; {} for a
+    new or empty folder. A folder without a readable manifest is refused."""
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out}: is a file; give a folder for the firmware project (nothing was written)")
-    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file():
-        raise OutputError(f"--out {out}: the folder exists and was not written by `armgen firmware`; give a new or "
-                          "empty folder (nothing was written)")
+    if not out.is_dir() or not any(out.iterdir()):
+        return {}
+    try:
+        manifest = json.loads((out / MANIFEST).read_text(encoding="utf-8"))
+        files = manifest["files"]
+        if not isinstance(files, dict) or not all(isinstance(v, str) for v in files.values()):
+            raise ValueError
+    except (OSError, ValueError, KeyError, TypeError):
+        raise OutputError(f"--out {out}: the folder exists and was not written by `armgen firmware` (no readable "
+                          f"{MANIFEST} manifest); give a new or empty folder (nothing was written)") from None
+    for name in files:
+        if Path(name).is_absolute() or ".." in Path(name).parts:
+            raise OutputError(f"--out {out}: {MANIFEST} lists {excerpt(name)!r}, not a file of the project; "
+                              "give a new or empty folder (nothing was written)")
+    return files
+
+
+def _conflicts(out: Path, owned: dict[str, str], new: list[str]) -> list[str]:
+    """The user's files the update would overwrite or remove: owned files edited since they
+    were written, and files it would write that it does not own."""
+    edited = [name for name, sha in owned.items() if (out / name).is_file() and _digest(out / name) != sha]
+    foreign = [name for name in new if name not in owned and (out / name).exists()]
+    return sorted(edited + foreign)
+
+
+def _check_writable(out: Path) -> None:
     parent = out.resolve().parent
     if not os.access(parent if parent.exists() else Path.cwd(), os.W_OK):
         raise OutputError(f"--out {out}: cannot write in {parent}; choose a writable folder (nothing was written)")
@@ -171,14 +201,14 @@ def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, robot_ref: str) -> 
     (stage / "cmake").mkdir()
     (stage / "cmake" / "arm-none-eabi-cortex-m4.cmake").write_bytes(
         (project / "cmake" / "arm-none-eabi-cortex-m4.cmake").read_bytes())
-    (stage / MARKER).write_text(f"armgen {__version__} firmware project of robot {robot.name}\n", encoding="utf-8")
 
 
 def write_firmware_project(robot_ref: str, out: str | Path) -> tuple[Robot, list[Path]]:
-    """Write the project into ``out`` (new, empty, or a project this command wrote earlier,
-    which is replaced as a whole). Returns the robot and the files written."""
+    """Write the project into ``out`` (new, empty, or a project this command wrote earlier:
+    its own files are updated, the user's left alone). Returns the robot and the files written."""
     out = Path(out)
-    _check_out(out)
+    owned = _owned_files(out)
+    _check_writable(out)
     robot_path = resolve_robot_path(robot_ref)
     robot = load_robot(robot_ref)
     robot_bytes = robot_path.read_bytes()
@@ -189,22 +219,56 @@ def write_firmware_project(robot_ref: str, out: str | Path) -> tuple[Robot, list
     except OSError as exc:
         raise OutputError(f"--out {out}: cannot write in {parent}: {exc.strerror or exc}; choose a writable "
                           "folder (nothing was written)") from None
-    old = None
     try:
         _assemble(stage, robot, robot_bytes, robot_ref)
         _apply_umask(stage)
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=".armgen-firmware-old-", dir=parent))
-            os.replace(out, old / "project")
-        os.replace(stage, out)
+        new = sorted(p.relative_to(stage).as_posix() for p in stage.rglob("*") if p.is_file())
+        conflicts = _conflicts(out, owned, new)
+        if conflicts:
+            raise OutputError(f"--out {out}: these files were changed or added by hand and the new project would "
+                              f"replace them: {', '.join(excerpt(c) for c in conflicts[:20])}"
+                              f"{' …' if len(conflicts) > 20 else ''}; move your changes elsewhere (or delete the "
+                              "files) and run again (nothing was written)")
+        manifest = {"armgen": __version__, "robot": robot.name,
+                    "files": {name: _digest(stage / name) for name in new}}
+        (stage / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
+        _apply_umask(stage)
+        _move_in(stage, out, new + [MANIFEST], [name for name in owned if name not in new])
     except OSError as exc:
-        if old is not None and not out.exists():
-            os.replace(old / "project", out)
         raise OutputError(f"--out {out}: cannot write the project: {exc.strerror or exc} ({exc.filename}); "
                           "choose a writable folder with free space (nothing was written)") from None
     finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    return robot, [out / name for name in new + [MANIFEST]]
+
+
+def _move_in(stage: Path, out: Path, names: list[str], dropped: list[str]) -> None:
+    """Move the staged ``names`` into ``out`` and remove its ``dropped`` files (both owned by
+    this command); the old versions wait in the staging folder until every file is in, and go
+    back on any failure."""
+    aside = stage / ".old"
+    done: list[tuple[str, bool]] = []  # (name, an old version was set aside)
+    try:
+        for name in names + dropped:
+            target = out / name
+            kept = aside / name
+            had_old = target.is_file()
+            if had_old:
+                kept.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(target, kept)
+            done.append((name, had_old))
+            if name in names:
+                target.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(stage / name, target)
+    except OSError:
+        for name, had_old in reversed(done):
+            with contextlib.suppress(OSError):
+                if name in names and (out / name).is_file():
+                    os.replace(out / name, stage / name)
+                if had_old:
+                    os.replace(aside / name, out / name)
+        raise
+    for name in dropped:  # folders this command made and that are empty now
         with contextlib.suppress(OSError):
-            shutil.rmtree(stage)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    return robot, sorted(p for p in out.rglob("*") if p.is_file())
+            for folder in Path(name).parents[:-1]:
+                (out / folder).rmdir()

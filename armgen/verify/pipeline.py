@@ -43,7 +43,7 @@ import numpy as np
 
 from ..codegen.generate import GENERATED_DIR, CodegenConfig, generate
 from ..codegen.toolchain import host_cc
-from ..errors import ArmgenError, OptionError, PlanFileError
+from ..errors import ArmgenError, OptionError, PlanFileError, excerpt
 from ..fileio import write_text_atomic
 from ..planning.result import PlanResult, read_plan
 from ..planning.tasks import run_task
@@ -351,7 +351,7 @@ def stage_target(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder |
     label = f"{config.target} (QEMU mps2-an386), float"
     if config.target != "cortex-m4":
         return Stage("target", False, columns, [[config.target, "target", "unknown", "cortex-m4", False]],
-                     f"unknown target {config.target!r}")
+                     f"unknown target {excerpt(repr(config.target))}")
     try:
         fw.arm_tools()
     except ArmgenError as exc:

@@ -26,32 +26,22 @@ extern "C" {
 #ifndef IIWA14_USE_FLOAT
 #define IIWA14_USE_FLOAT 0
 #endif
-#if IIWA14_USE_FLOAT
-typedef float iiwa14_real;
-#define IIWA14_LIT(x) x##f
-#define IIWA14_TAN tanf
-#define IIWA14_ASIN asinf
-#define IIWA14_ACOS acosf
-#define IIWA14_ATAN atanf
-#define IIWA14_ATAN2 atan2f
-#define IIWA14_SQRT iiwa14_sqrt
-#define IIWA14_HYPOT hypotf
-#define IIWA14_POW powf
-#define IIWA14_EXP expf
-#define IIWA14_LOG logf
-#define IIWA14_FABS fabsf
-#define IIWA14_FLOOR floorf
-#define IIWA14_CEIL ceilf
-#define IIWA14_FMIN iiwa14_fmin
-#define IIWA14_FMAX iiwa14_fmax
-#define IIWA14_FMOD fmodf
-#define IIWA14_COPYSIGN copysignf
 /* IIWA14_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
  * (iiwa14_sin_bounded/iiwa14_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
  * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
 #ifndef IIWA14_BOUNDED_TRIG
 #define IIWA14_BOUNDED_TRIG 0
 #endif
+#if IIWA14_USE_FLOAT
+typedef float iiwa14_real;
+#define IIWA14_LIT(x) x##f
+#define IIWA14_SQRT iiwa14_sqrt
+#define IIWA14_EXP expf
+#define IIWA14_LOG logf
+#define IIWA14_FABS fabsf
+#define IIWA14_FMIN iiwa14_fmin
+#define IIWA14_FMAX iiwa14_fmax
+#define IIWA14_COPYSIGN copysignf
 #if IIWA14_BOUNDED_TRIG
 #define IIWA14_SIN iiwa14_sin_bounded
 #define IIWA14_COS iiwa14_cos_bounded
@@ -64,22 +54,12 @@ typedef double iiwa14_real;
 #define IIWA14_LIT(x) x
 #define IIWA14_SIN sin
 #define IIWA14_COS cos
-#define IIWA14_TAN tan
-#define IIWA14_ASIN asin
-#define IIWA14_ACOS acos
-#define IIWA14_ATAN atan
-#define IIWA14_ATAN2 atan2
 #define IIWA14_SQRT iiwa14_sqrt
-#define IIWA14_HYPOT hypot
-#define IIWA14_POW pow
 #define IIWA14_EXP exp
 #define IIWA14_LOG log
 #define IIWA14_FABS fabs
-#define IIWA14_FLOOR floor
-#define IIWA14_CEIL ceil
 #define IIWA14_FMIN iiwa14_fmin
 #define IIWA14_FMAX iiwa14_fmax
-#define IIWA14_FMOD fmod
 #define IIWA14_COPYSIGN copysign
 #endif
 

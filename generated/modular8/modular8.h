@@ -26,32 +26,22 @@ extern "C" {
 #ifndef MODULAR8_USE_FLOAT
 #define MODULAR8_USE_FLOAT 0
 #endif
-#if MODULAR8_USE_FLOAT
-typedef float modular8_real;
-#define MODULAR8_LIT(x) x##f
-#define MODULAR8_TAN tanf
-#define MODULAR8_ASIN asinf
-#define MODULAR8_ACOS acosf
-#define MODULAR8_ATAN atanf
-#define MODULAR8_ATAN2 atan2f
-#define MODULAR8_SQRT modular8_sqrt
-#define MODULAR8_HYPOT hypotf
-#define MODULAR8_POW powf
-#define MODULAR8_EXP expf
-#define MODULAR8_LOG logf
-#define MODULAR8_FABS fabsf
-#define MODULAR8_FLOOR floorf
-#define MODULAR8_CEIL ceilf
-#define MODULAR8_FMIN modular8_fmin
-#define MODULAR8_FMAX modular8_fmax
-#define MODULAR8_FMOD fmodf
-#define MODULAR8_COPYSIGN copysignf
 /* MODULAR8_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
  * (modular8_sin_bounded/modular8_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
  * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
 #ifndef MODULAR8_BOUNDED_TRIG
 #define MODULAR8_BOUNDED_TRIG 0
 #endif
+#if MODULAR8_USE_FLOAT
+typedef float modular8_real;
+#define MODULAR8_LIT(x) x##f
+#define MODULAR8_SQRT modular8_sqrt
+#define MODULAR8_EXP expf
+#define MODULAR8_LOG logf
+#define MODULAR8_FABS fabsf
+#define MODULAR8_FMIN modular8_fmin
+#define MODULAR8_FMAX modular8_fmax
+#define MODULAR8_COPYSIGN copysignf
 #if MODULAR8_BOUNDED_TRIG
 #define MODULAR8_SIN modular8_sin_bounded
 #define MODULAR8_COS modular8_cos_bounded
@@ -64,22 +54,12 @@ typedef double modular8_real;
 #define MODULAR8_LIT(x) x
 #define MODULAR8_SIN sin
 #define MODULAR8_COS cos
-#define MODULAR8_TAN tan
-#define MODULAR8_ASIN asin
-#define MODULAR8_ACOS acos
-#define MODULAR8_ATAN atan
-#define MODULAR8_ATAN2 atan2
 #define MODULAR8_SQRT modular8_sqrt
-#define MODULAR8_HYPOT hypot
-#define MODULAR8_POW pow
 #define MODULAR8_EXP exp
 #define MODULAR8_LOG log
 #define MODULAR8_FABS fabs
-#define MODULAR8_FLOOR floor
-#define MODULAR8_CEIL ceil
 #define MODULAR8_FMIN modular8_fmin
 #define MODULAR8_FMAX modular8_fmax
-#define MODULAR8_FMOD fmod
 #define MODULAR8_COPYSIGN copysign
 #endif
 

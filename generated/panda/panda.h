@@ -26,32 +26,22 @@ extern "C" {
 #ifndef PANDA_USE_FLOAT
 #define PANDA_USE_FLOAT 0
 #endif
-#if PANDA_USE_FLOAT
-typedef float panda_real;
-#define PANDA_LIT(x) x##f
-#define PANDA_TAN tanf
-#define PANDA_ASIN asinf
-#define PANDA_ACOS acosf
-#define PANDA_ATAN atanf
-#define PANDA_ATAN2 atan2f
-#define PANDA_SQRT panda_sqrt
-#define PANDA_HYPOT hypotf
-#define PANDA_POW powf
-#define PANDA_EXP expf
-#define PANDA_LOG logf
-#define PANDA_FABS fabsf
-#define PANDA_FLOOR floorf
-#define PANDA_CEIL ceilf
-#define PANDA_FMIN panda_fmin
-#define PANDA_FMAX panda_fmax
-#define PANDA_FMOD fmodf
-#define PANDA_COPYSIGN copysignf
 /* PANDA_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
  * (panda_sin_bounded/panda_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
  * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
 #ifndef PANDA_BOUNDED_TRIG
 #define PANDA_BOUNDED_TRIG 0
 #endif
+#if PANDA_USE_FLOAT
+typedef float panda_real;
+#define PANDA_LIT(x) x##f
+#define PANDA_SQRT panda_sqrt
+#define PANDA_EXP expf
+#define PANDA_LOG logf
+#define PANDA_FABS fabsf
+#define PANDA_FMIN panda_fmin
+#define PANDA_FMAX panda_fmax
+#define PANDA_COPYSIGN copysignf
 #if PANDA_BOUNDED_TRIG
 #define PANDA_SIN panda_sin_bounded
 #define PANDA_COS panda_cos_bounded
@@ -64,22 +54,12 @@ typedef double panda_real;
 #define PANDA_LIT(x) x
 #define PANDA_SIN sin
 #define PANDA_COS cos
-#define PANDA_TAN tan
-#define PANDA_ASIN asin
-#define PANDA_ACOS acos
-#define PANDA_ATAN atan
-#define PANDA_ATAN2 atan2
 #define PANDA_SQRT panda_sqrt
-#define PANDA_HYPOT hypot
-#define PANDA_POW pow
 #define PANDA_EXP exp
 #define PANDA_LOG log
 #define PANDA_FABS fabs
-#define PANDA_FLOOR floor
-#define PANDA_CEIL ceil
 #define PANDA_FMIN panda_fmin
 #define PANDA_FMAX panda_fmax
-#define PANDA_FMOD fmod
 #define PANDA_COPYSIGN copysign
 #endif
 

@@ -17,16 +17,13 @@ void planar3_fk(const planar3_real q[PLANAR3_NDOF], planar3_real T[16]) {
   planar3_real trig_sin[3], trig_cos[3];
   planar3_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   planar3_sincos_table(q, trig_sin, trig_cos, 3);
-  w0 = q[0];
   w1 = trig_cos[0];
-  w2 = q[1];
   w3 = trig_cos[1];
   w4 = w1 * w3;
   w0 = trig_sin[0];
   w2 = trig_sin[1];
   w5 = w0 * w2;
   w4 = w4 - w5;
-  w5 = q[2];
   w6 = trig_cos[2];
   w7 = w4 * w6;
   w8 = w1 * w2;
@@ -91,16 +88,13 @@ void planar3_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real J[18]) {
   planar3_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   planar3_sincos_table(q, trig_sin, trig_cos, 3);
   w0 = PLANAR3_LIT(0.3);
-  w1 = q[0];
   w2 = trig_sin[0];
-  w3 = q[1];
   w4 = trig_cos[1];
   w5 = w2 * w4;
   w1 = trig_cos[0];
   w3 = trig_sin[1];
   w6 = w1 * w3;
   w5 = w5 + w6;
-  w6 = q[2];
   w7 = trig_cos[2];
   w8 = w5 * w7;
   w9 = w1 * w4;
@@ -162,16 +156,13 @@ void planar3_fk_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real T[16],
   planar3_real trig_sin[3], trig_cos[3];
   planar3_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   planar3_sincos_table(q, trig_sin, trig_cos, 3);
-  w0 = q[0];
   w1 = trig_cos[0];
-  w2 = q[1];
   w3 = trig_cos[1];
   w4 = w1 * w3;
   w0 = trig_sin[0];
   w2 = trig_sin[1];
   w5 = w0 * w2;
   w4 = w4 - w5;
-  w5 = q[2];
   w6 = trig_cos[2];
   w7 = w4 * w6;
   w8 = w1 * w2;
@@ -293,9 +284,9 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
   w9 = PLANAR3_FMAX(w1, w8);
   w9 = PLANAR3_SQRT(w9);
   w13 = -w9;
-  w13 = (w7 != PLANAR3_LIT(0.0) ? w13 : PLANAR3_LIT(0.0));
+  w13 = ((w7 != PLANAR3_LIT(0.0)) ? w13 : PLANAR3_LIT(0.0));
   w7 = (planar3_real)(w7 == PLANAR3_LIT(0.0));
-  w7 = (w7 != PLANAR3_LIT(0.0) ? w9 : PLANAR3_LIT(0.0));
+  w7 = ((w7 != PLANAR3_LIT(0.0)) ? w9 : PLANAR3_LIT(0.0));
   w13 = w13 + w7;
   w7 = w0 + w13;
   w9 = w7 * w7;
@@ -327,9 +318,9 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
   w16 = PLANAR3_FMAX(w16, w8);
   w16 = PLANAR3_SQRT(w16);
   w21 = -w16;
-  w21 = (w20 != PLANAR3_LIT(0.0) ? w21 : PLANAR3_LIT(0.0));
+  w21 = ((w20 != PLANAR3_LIT(0.0)) ? w21 : PLANAR3_LIT(0.0));
   w20 = (planar3_real)(w20 == PLANAR3_LIT(0.0));
-  w20 = (w20 != PLANAR3_LIT(0.0) ? w16 : PLANAR3_LIT(0.0));
+  w20 = ((w20 != PLANAR3_LIT(0.0)) ? w16 : PLANAR3_LIT(0.0));
   w21 = w21 + w20;
   w15 = w15 + w21;
   w20 = w15 * w15;
@@ -359,9 +350,9 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
   w23 = PLANAR3_FMAX(w23, w8);
   w23 = PLANAR3_SQRT(w23);
   w8 = -w23;
-  w8 = (w6 != PLANAR3_LIT(0.0) ? w8 : PLANAR3_LIT(0.0));
+  w8 = ((w6 != PLANAR3_LIT(0.0)) ? w8 : PLANAR3_LIT(0.0));
   w6 = (planar3_real)(w6 == PLANAR3_LIT(0.0));
-  w6 = (w6 != PLANAR3_LIT(0.0) ? w23 : PLANAR3_LIT(0.0));
+  w6 = ((w6 != PLANAR3_LIT(0.0)) ? w23 : PLANAR3_LIT(0.0));
   w8 = w8 + w6;
   w6 = w8 * w8;
   w25 = w25 * w6;
@@ -581,9 +572,9 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
   w17 = PLANAR3_FMAX(w7, w16);
   w17 = PLANAR3_SQRT(w17);
   w22 = -w17;
-  w22 = (w15 != PLANAR3_LIT(0.0) ? w22 : PLANAR3_LIT(0.0));
+  w22 = ((w15 != PLANAR3_LIT(0.0)) ? w22 : PLANAR3_LIT(0.0));
   w15 = (planar3_real)(w15 == PLANAR3_LIT(0.0));
-  w15 = (w15 != PLANAR3_LIT(0.0) ? w17 : PLANAR3_LIT(0.0));
+  w15 = ((w15 != PLANAR3_LIT(0.0)) ? w17 : PLANAR3_LIT(0.0));
   w22 = w22 + w15;
   w3 = w3 + w22;
   w15 = w3 * w3;
@@ -618,9 +609,9 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
   w23 = PLANAR3_FMAX(w23, w16);
   w23 = PLANAR3_SQRT(w23);
   w27 = -w23;
-  w27 = (w26 != PLANAR3_LIT(0.0) ? w27 : PLANAR3_LIT(0.0));
+  w27 = ((w26 != PLANAR3_LIT(0.0)) ? w27 : PLANAR3_LIT(0.0));
   w26 = (planar3_real)(w26 == PLANAR3_LIT(0.0));
-  w26 = (w26 != PLANAR3_LIT(0.0) ? w23 : PLANAR3_LIT(0.0));
+  w26 = ((w26 != PLANAR3_LIT(0.0)) ? w23 : PLANAR3_LIT(0.0));
   w27 = w27 + w26;
   w13 = w13 + w27;
   w26 = w13 * w13;
@@ -647,9 +638,9 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
   w29 = PLANAR3_FMAX(w29, w16);
   w29 = PLANAR3_SQRT(w29);
   w16 = -w29;
-  w16 = (w5 != PLANAR3_LIT(0.0) ? w16 : PLANAR3_LIT(0.0));
+  w16 = ((w5 != PLANAR3_LIT(0.0)) ? w16 : PLANAR3_LIT(0.0));
   w5 = (planar3_real)(w5 == PLANAR3_LIT(0.0));
-  w5 = (w5 != PLANAR3_LIT(0.0) ? w29 : PLANAR3_LIT(0.0));
+  w5 = ((w5 != PLANAR3_LIT(0.0)) ? w29 : PLANAR3_LIT(0.0));
   w16 = w16 + w5;
   w5 = w16 * w16;
   w30 = w30 * w5;
@@ -889,10 +880,10 @@ planar3_status planar3_step_gpm_from_jacobian(const planar3_real J[18], const pl
   qdot[2] = w7;
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + damping * PLANAR3_LIT(0.0);
-  probe = probe + qdot[0] * PLANAR3_LIT(0.0);
-  probe = probe + qdot[1] * PLANAR3_LIT(0.0);
-  probe = probe + qdot[2] * PLANAR3_LIT(0.0);
+  probe = probe + (damping * PLANAR3_LIT(0.0));
+  probe = probe + (qdot[0] * PLANAR3_LIT(0.0));
+  probe = probe + (qdot[1] * PLANAR3_LIT(0.0));
+  probe = probe + (qdot[2] * PLANAR3_LIT(0.0));
   return (probe == probe) ? PLANAR3_OK : PLANAR3_NONFINITE;
   }
 }
@@ -1014,13 +1005,13 @@ planar3_status planar3_step_wln_from_jacobian(const planar3_real J[18], const pl
   qdot[2] = w9;
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + W[0] * PLANAR3_LIT(0.0);
-  probe = probe + W[1] * PLANAR3_LIT(0.0);
-  probe = probe + W[2] * PLANAR3_LIT(0.0);
-  probe = probe + damping * PLANAR3_LIT(0.0);
-  probe = probe + qdot[0] * PLANAR3_LIT(0.0);
-  probe = probe + qdot[1] * PLANAR3_LIT(0.0);
-  probe = probe + qdot[2] * PLANAR3_LIT(0.0);
+  probe = probe + (W[0] * PLANAR3_LIT(0.0));
+  probe = probe + (W[1] * PLANAR3_LIT(0.0));
+  probe = probe + (W[2] * PLANAR3_LIT(0.0));
+  probe = probe + (damping * PLANAR3_LIT(0.0));
+  probe = probe + (qdot[0] * PLANAR3_LIT(0.0));
+  probe = probe + (qdot[1] * PLANAR3_LIT(0.0));
+  probe = probe + (qdot[2] * PLANAR3_LIT(0.0));
   return (probe == probe) ? PLANAR3_OK : PLANAR3_NONFINITE;
   }
 }
@@ -1290,15 +1281,15 @@ planar3_status planar3_step_fault_from_jacobian(const planar3_real J[18], const 
   *sigma_min = w25;
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + W[0] * PLANAR3_LIT(0.0);
-  probe = probe + W[1] * PLANAR3_LIT(0.0);
-  probe = probe + W[2] * PLANAR3_LIT(0.0);
-  probe = probe + epsilon * PLANAR3_LIT(0.0);
-  probe = probe + qdot[0] * PLANAR3_LIT(0.0);
-  probe = probe + qdot[1] * PLANAR3_LIT(0.0);
-  probe = probe + qdot[2] * PLANAR3_LIT(0.0);
-  probe = probe + *damping * PLANAR3_LIT(0.0);
-  probe = probe + *sigma_min * PLANAR3_LIT(0.0);
+  probe = probe + (W[0] * PLANAR3_LIT(0.0));
+  probe = probe + (W[1] * PLANAR3_LIT(0.0));
+  probe = probe + (W[2] * PLANAR3_LIT(0.0));
+  probe = probe + (epsilon * PLANAR3_LIT(0.0));
+  probe = probe + (qdot[0] * PLANAR3_LIT(0.0));
+  probe = probe + (qdot[1] * PLANAR3_LIT(0.0));
+  probe = probe + (qdot[2] * PLANAR3_LIT(0.0));
+  probe = probe + (*damping * PLANAR3_LIT(0.0));
+  probe = probe + (*sigma_min * PLANAR3_LIT(0.0));
   return (probe == probe) ? PLANAR3_OK : PLANAR3_NONFINITE;
   }
 }
@@ -1384,9 +1375,9 @@ planar3_status planar3_step_wgpm_from_jacobian(const planar3_real J[18], const p
   w27 = PLANAR3_FMAX(w18, w23);
   w27 = PLANAR3_SQRT(w27);
   w28 = -w27;
-  w28 = (w22 != PLANAR3_LIT(0.0) ? w28 : PLANAR3_LIT(0.0));
+  w28 = ((w22 != PLANAR3_LIT(0.0)) ? w28 : PLANAR3_LIT(0.0));
   w22 = (planar3_real)(w22 == PLANAR3_LIT(0.0));
-  w22 = (w22 != PLANAR3_LIT(0.0) ? w27 : PLANAR3_LIT(0.0));
+  w22 = ((w22 != PLANAR3_LIT(0.0)) ? w27 : PLANAR3_LIT(0.0));
   w28 = w28 + w22;
   w22 = w17 + w28;
   w27 = w22 * w22;
@@ -1418,9 +1409,9 @@ planar3_status planar3_step_wgpm_from_jacobian(const planar3_real J[18], const p
   w31 = PLANAR3_FMAX(w31, w23);
   w31 = PLANAR3_SQRT(w31);
   w36 = -w31;
-  w36 = (w35 != PLANAR3_LIT(0.0) ? w36 : PLANAR3_LIT(0.0));
+  w36 = ((w35 != PLANAR3_LIT(0.0)) ? w36 : PLANAR3_LIT(0.0));
   w35 = (planar3_real)(w35 == PLANAR3_LIT(0.0));
-  w35 = (w35 != PLANAR3_LIT(0.0) ? w31 : PLANAR3_LIT(0.0));
+  w35 = ((w35 != PLANAR3_LIT(0.0)) ? w31 : PLANAR3_LIT(0.0));
   w36 = w36 + w35;
   w30 = w30 + w36;
   w35 = w30 * w30;
@@ -1527,9 +1518,9 @@ planar3_status planar3_step_wgpm_from_jacobian(const planar3_real J[18], const p
   w38 = PLANAR3_FMAX(w38, w23);
   w38 = PLANAR3_SQRT(w38);
   w23 = -w38;
-  w23 = (w45 != PLANAR3_LIT(0.0) ? w23 : PLANAR3_LIT(0.0));
+  w23 = ((w45 != PLANAR3_LIT(0.0)) ? w23 : PLANAR3_LIT(0.0));
   w45 = (planar3_real)(w45 == PLANAR3_LIT(0.0));
-  w45 = (w45 != PLANAR3_LIT(0.0) ? w38 : PLANAR3_LIT(0.0));
+  w45 = ((w45 != PLANAR3_LIT(0.0)) ? w38 : PLANAR3_LIT(0.0));
   w23 = w23 + w45;
   w45 = w23 * w23;
   w18 = w18 * w45;
@@ -2083,41 +2074,41 @@ planar3_status planar3_step_wgpm_from_jacobian(const planar3_real J[18], const p
   H[3] = w47;
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + band * PLANAR3_LIT(0.0);
-  probe = probe + epsilon * PLANAR3_LIT(0.0);
-  probe = probe + delta * PLANAR3_LIT(0.0);
-  probe = probe + H_lo[0] * PLANAR3_LIT(0.0);
-  probe = probe + H_lo[1] * PLANAR3_LIT(0.0);
-  probe = probe + H_lo[2] * PLANAR3_LIT(0.0);
-  probe = probe + H_lo[3] * PLANAR3_LIT(0.0);
-  probe = probe + H_hi[0] * PLANAR3_LIT(0.0);
-  probe = probe + H_hi[1] * PLANAR3_LIT(0.0);
-  probe = probe + H_hi[2] * PLANAR3_LIT(0.0);
-  probe = probe + H_hi[3] * PLANAR3_LIT(0.0);
-  probe = probe + u_th[0] * PLANAR3_LIT(0.0);
-  probe = probe + u_th[1] * PLANAR3_LIT(0.0);
-  probe = probe + u_th[2] * PLANAR3_LIT(0.0);
-  probe = probe + u_th[3] * PLANAR3_LIT(0.0);
-  probe = probe + u_band[0] * PLANAR3_LIT(0.0);
-  probe = probe + u_band[1] * PLANAR3_LIT(0.0);
-  probe = probe + u_band[2] * PLANAR3_LIT(0.0);
-  probe = probe + u_band[3] * PLANAR3_LIT(0.0);
-  probe = probe + qdot[0] * PLANAR3_LIT(0.0);
-  probe = probe + qdot[1] * PLANAR3_LIT(0.0);
-  probe = probe + qdot[2] * PLANAR3_LIT(0.0);
-  probe = probe + w_c[0] * PLANAR3_LIT(0.0);
-  probe = probe + w_c[1] * PLANAR3_LIT(0.0);
-  probe = probe + w_c[2] * PLANAR3_LIT(0.0);
-  probe = probe + *rho * PLANAR3_LIT(0.0);
-  probe = probe + *sigma_min * PLANAR3_LIT(0.0);
-  probe = probe + gains[0] * PLANAR3_LIT(0.0);
-  probe = probe + gains[1] * PLANAR3_LIT(0.0);
-  probe = probe + gains[2] * PLANAR3_LIT(0.0);
-  probe = probe + gains[3] * PLANAR3_LIT(0.0);
-  probe = probe + H[0] * PLANAR3_LIT(0.0);
-  probe = probe + H[1] * PLANAR3_LIT(0.0);
-  probe = probe + H[2] * PLANAR3_LIT(0.0);
-  probe = probe + H[3] * PLANAR3_LIT(0.0);
+  probe = probe + (band * PLANAR3_LIT(0.0));
+  probe = probe + (epsilon * PLANAR3_LIT(0.0));
+  probe = probe + (delta * PLANAR3_LIT(0.0));
+  probe = probe + (H_lo[0] * PLANAR3_LIT(0.0));
+  probe = probe + (H_lo[1] * PLANAR3_LIT(0.0));
+  probe = probe + (H_lo[2] * PLANAR3_LIT(0.0));
+  probe = probe + (H_lo[3] * PLANAR3_LIT(0.0));
+  probe = probe + (H_hi[0] * PLANAR3_LIT(0.0));
+  probe = probe + (H_hi[1] * PLANAR3_LIT(0.0));
+  probe = probe + (H_hi[2] * PLANAR3_LIT(0.0));
+  probe = probe + (H_hi[3] * PLANAR3_LIT(0.0));
+  probe = probe + (u_th[0] * PLANAR3_LIT(0.0));
+  probe = probe + (u_th[1] * PLANAR3_LIT(0.0));
+  probe = probe + (u_th[2] * PLANAR3_LIT(0.0));
+  probe = probe + (u_th[3] * PLANAR3_LIT(0.0));
+  probe = probe + (u_band[0] * PLANAR3_LIT(0.0));
+  probe = probe + (u_band[1] * PLANAR3_LIT(0.0));
+  probe = probe + (u_band[2] * PLANAR3_LIT(0.0));
+  probe = probe + (u_band[3] * PLANAR3_LIT(0.0));
+  probe = probe + (qdot[0] * PLANAR3_LIT(0.0));
+  probe = probe + (qdot[1] * PLANAR3_LIT(0.0));
+  probe = probe + (qdot[2] * PLANAR3_LIT(0.0));
+  probe = probe + (w_c[0] * PLANAR3_LIT(0.0));
+  probe = probe + (w_c[1] * PLANAR3_LIT(0.0));
+  probe = probe + (w_c[2] * PLANAR3_LIT(0.0));
+  probe = probe + (*rho * PLANAR3_LIT(0.0));
+  probe = probe + (*sigma_min * PLANAR3_LIT(0.0));
+  probe = probe + (gains[0] * PLANAR3_LIT(0.0));
+  probe = probe + (gains[1] * PLANAR3_LIT(0.0));
+  probe = probe + (gains[2] * PLANAR3_LIT(0.0));
+  probe = probe + (gains[3] * PLANAR3_LIT(0.0));
+  probe = probe + (H[0] * PLANAR3_LIT(0.0));
+  probe = probe + (H[1] * PLANAR3_LIT(0.0));
+  probe = probe + (H[2] * PLANAR3_LIT(0.0));
+  probe = probe + (H[3] * PLANAR3_LIT(0.0));
   return (probe == probe) ? PLANAR3_OK : PLANAR3_NONFINITE;
   }
 }
@@ -2335,7 +2326,7 @@ void planar3_wln_weights(const planar3_real grad_H[PLANAR3_NDOF], const planar3_
   w5 = PLANAR3_LIT(0.0);
   w7 = v_band;
   w8 = (planar3_real)(w5 < w7);
-  w9 = (w4 > PLANAR3_LIT(0.0) ? PLANAR3_LIT(1.0) : (w4 < PLANAR3_LIT(0.0) ? PLANAR3_LIT(-1.0) : w4));
+  w9 = ((w4 > PLANAR3_LIT(0.0)) ? PLANAR3_LIT(1.0) : ((w4 < PLANAR3_LIT(0.0)) ? PLANAR3_LIT(-1.0) : w4));
   w10 = qdot_prev[0];
   w9 = w9 * w10;
   w11 = PLANAR3_LIT(1.0e-09);
@@ -2349,11 +2340,11 @@ void planar3_wln_weights(const planar3_real grad_H[PLANAR3_NDOF], const planar3_
   w9 = w9 + w9;
   w9 = w12 - w9;
   w11 = w11 * w9;
-  w11 = (w8 != PLANAR3_LIT(0.0) ? w11 : PLANAR3_LIT(0.0));
+  w11 = ((w8 != PLANAR3_LIT(0.0)) ? w11 : PLANAR3_LIT(0.0));
   w9 = (planar3_real)(w8 == PLANAR3_LIT(0.0));
   w4 = w4 * w10;
   w4 = (planar3_real)(w4 < w5);
-  w4 = (w9 != PLANAR3_LIT(0.0) ? w4 : PLANAR3_LIT(0.0));
+  w4 = ((w9 != PLANAR3_LIT(0.0)) ? w4 : PLANAR3_LIT(0.0));
   w11 = w11 + w4;
   w3 = w3 * w11;
   w3 = w0 + w3;
@@ -2366,7 +2357,7 @@ void planar3_wln_weights(const planar3_real grad_H[PLANAR3_NDOF], const planar3_
   w13 = omega[1];
   w13 = PLANAR3_FMAX(w13, w6);
   w4 = w4 / w13;
-  w13 = (w10 > PLANAR3_LIT(0.0) ? PLANAR3_LIT(1.0) : (w10 < PLANAR3_LIT(0.0) ? PLANAR3_LIT(-1.0) : w10));
+  w13 = ((w10 > PLANAR3_LIT(0.0)) ? PLANAR3_LIT(1.0) : ((w10 < PLANAR3_LIT(0.0)) ? PLANAR3_LIT(-1.0) : w10));
   w14 = qdot_prev[1];
   w13 = w13 * w14;
   w13 = w13 / w7;
@@ -2377,10 +2368,10 @@ void planar3_wln_weights(const planar3_real grad_H[PLANAR3_NDOF], const planar3_
   w13 = w13 + w13;
   w13 = w12 - w13;
   w15 = w15 * w13;
-  w15 = (w8 != PLANAR3_LIT(0.0) ? w15 : PLANAR3_LIT(0.0));
+  w15 = ((w8 != PLANAR3_LIT(0.0)) ? w15 : PLANAR3_LIT(0.0));
   w10 = w10 * w14;
   w10 = (planar3_real)(w10 < w5);
-  w10 = (w9 != PLANAR3_LIT(0.0) ? w10 : PLANAR3_LIT(0.0));
+  w10 = ((w9 != PLANAR3_LIT(0.0)) ? w10 : PLANAR3_LIT(0.0));
   w15 = w15 + w10;
   w4 = w4 * w15;
   w4 = w0 + w4;
@@ -2393,7 +2384,7 @@ void planar3_wln_weights(const planar3_real grad_H[PLANAR3_NDOF], const planar3_
   w14 = omega[2];
   w14 = PLANAR3_FMAX(w14, w6);
   w2 = w2 / w14;
-  w14 = (w10 > PLANAR3_LIT(0.0) ? PLANAR3_LIT(1.0) : (w10 < PLANAR3_LIT(0.0) ? PLANAR3_LIT(-1.0) : w10));
+  w14 = ((w10 > PLANAR3_LIT(0.0)) ? PLANAR3_LIT(1.0) : ((w10 < PLANAR3_LIT(0.0)) ? PLANAR3_LIT(-1.0) : w10));
   w6 = qdot_prev[2];
   w14 = w14 * w6;
   w14 = w14 / w7;
@@ -2404,10 +2395,10 @@ void planar3_wln_weights(const planar3_real grad_H[PLANAR3_NDOF], const planar3_
   w14 = w14 + w14;
   w12 = w12 - w14;
   w7 = w7 * w12;
-  w8 = (w8 != PLANAR3_LIT(0.0) ? w7 : PLANAR3_LIT(0.0));
+  w8 = ((w8 != PLANAR3_LIT(0.0)) ? w7 : PLANAR3_LIT(0.0));
   w10 = w10 * w6;
   w10 = (planar3_real)(w10 < w5);
-  w9 = (w9 != PLANAR3_LIT(0.0) ? w10 : PLANAR3_LIT(0.0));
+  w9 = ((w9 != PLANAR3_LIT(0.0)) ? w10 : PLANAR3_LIT(0.0));
   w8 = w8 + w9;
   w2 = w2 * w8;
   w0 = w0 + w2;
@@ -2428,9 +2419,9 @@ planar3_status planar3_step_gpm(const planar3_real q[PLANAR3_NDOF], const planar
   status = planar3_step_gpm_from_jacobian(J, xdot, alpha, damping, qdot);
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + q[0] * PLANAR3_LIT(0.0);
-  probe = probe + q[1] * PLANAR3_LIT(0.0);
-  probe = probe + q[2] * PLANAR3_LIT(0.0);
+  probe = probe + (q[0] * PLANAR3_LIT(0.0));
+  probe = probe + (q[1] * PLANAR3_LIT(0.0));
+  probe = probe + (q[2] * PLANAR3_LIT(0.0));
   return (probe == probe) ? status : PLANAR3_NONFINITE;
   }
 }
@@ -2443,9 +2434,9 @@ planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar
   status = planar3_step_wln_from_jacobian(J, xdot, W, damping, qdot);
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + q[0] * PLANAR3_LIT(0.0);
-  probe = probe + q[1] * PLANAR3_LIT(0.0);
-  probe = probe + q[2] * PLANAR3_LIT(0.0);
+  probe = probe + (q[0] * PLANAR3_LIT(0.0));
+  probe = probe + (q[1] * PLANAR3_LIT(0.0));
+  probe = probe + (q[2] * PLANAR3_LIT(0.0));
   return (probe == probe) ? status : PLANAR3_NONFINITE;
   }
 }
@@ -2458,9 +2449,9 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
   status = planar3_step_fault_from_jacobian(J, xdot, mask, W, alpha, epsilon, lambda_max, qdot, damping, sigma_min);
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + q[0] * PLANAR3_LIT(0.0);
-  probe = probe + q[1] * PLANAR3_LIT(0.0);
-  probe = probe + q[2] * PLANAR3_LIT(0.0);
+  probe = probe + (q[0] * PLANAR3_LIT(0.0));
+  probe = probe + (q[1] * PLANAR3_LIT(0.0));
+  probe = probe + (q[2] * PLANAR3_LIT(0.0));
   return (probe == probe) ? status : PLANAR3_NONFINITE;
   }
 }
@@ -2473,9 +2464,9 @@ planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const plana
   status = planar3_step_wgpm_from_jacobian(J, q, xdot, band, t_rmax, epsilon, rho_max, delta, ramp, H_lo, H_hi, k_hi, k_lo, u_th, u_band, qdot, w_c, rho, sigma_min, gains, H);
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + q[0] * PLANAR3_LIT(0.0);
-  probe = probe + q[1] * PLANAR3_LIT(0.0);
-  probe = probe + q[2] * PLANAR3_LIT(0.0);
+  probe = probe + (q[0] * PLANAR3_LIT(0.0));
+  probe = probe + (q[1] * PLANAR3_LIT(0.0));
+  probe = probe + (q[2] * PLANAR3_LIT(0.0));
   return (probe == probe) ? status : PLANAR3_NONFINITE;
   }
 }

@@ -26,32 +26,22 @@ extern "C" {
 #ifndef PLANAR3_USE_FLOAT
 #define PLANAR3_USE_FLOAT 0
 #endif
-#if PLANAR3_USE_FLOAT
-typedef float planar3_real;
-#define PLANAR3_LIT(x) x##f
-#define PLANAR3_TAN tanf
-#define PLANAR3_ASIN asinf
-#define PLANAR3_ACOS acosf
-#define PLANAR3_ATAN atanf
-#define PLANAR3_ATAN2 atan2f
-#define PLANAR3_SQRT planar3_sqrt
-#define PLANAR3_HYPOT hypotf
-#define PLANAR3_POW powf
-#define PLANAR3_EXP expf
-#define PLANAR3_LOG logf
-#define PLANAR3_FABS fabsf
-#define PLANAR3_FLOOR floorf
-#define PLANAR3_CEIL ceilf
-#define PLANAR3_FMIN planar3_fmin
-#define PLANAR3_FMAX planar3_fmax
-#define PLANAR3_FMOD fmodf
-#define PLANAR3_COPYSIGN copysignf
 /* PLANAR3_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
  * (planar3_sin_bounded/planar3_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
  * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
 #ifndef PLANAR3_BOUNDED_TRIG
 #define PLANAR3_BOUNDED_TRIG 0
 #endif
+#if PLANAR3_USE_FLOAT
+typedef float planar3_real;
+#define PLANAR3_LIT(x) x##f
+#define PLANAR3_SQRT planar3_sqrt
+#define PLANAR3_EXP expf
+#define PLANAR3_LOG logf
+#define PLANAR3_FABS fabsf
+#define PLANAR3_FMIN planar3_fmin
+#define PLANAR3_FMAX planar3_fmax
+#define PLANAR3_COPYSIGN copysignf
 #if PLANAR3_BOUNDED_TRIG
 #define PLANAR3_SIN planar3_sin_bounded
 #define PLANAR3_COS planar3_cos_bounded
@@ -64,22 +54,12 @@ typedef double planar3_real;
 #define PLANAR3_LIT(x) x
 #define PLANAR3_SIN sin
 #define PLANAR3_COS cos
-#define PLANAR3_TAN tan
-#define PLANAR3_ASIN asin
-#define PLANAR3_ACOS acos
-#define PLANAR3_ATAN atan
-#define PLANAR3_ATAN2 atan2
 #define PLANAR3_SQRT planar3_sqrt
-#define PLANAR3_HYPOT hypot
-#define PLANAR3_POW pow
 #define PLANAR3_EXP exp
 #define PLANAR3_LOG log
 #define PLANAR3_FABS fabs
-#define PLANAR3_FLOOR floor
-#define PLANAR3_CEIL ceil
 #define PLANAR3_FMIN planar3_fmin
 #define PLANAR3_FMAX planar3_fmax
-#define PLANAR3_FMOD fmod
 #define PLANAR3_COPYSIGN copysign
 #endif
 

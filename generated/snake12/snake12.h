@@ -26,32 +26,22 @@ extern "C" {
 #ifndef SNAKE12_USE_FLOAT
 #define SNAKE12_USE_FLOAT 0
 #endif
-#if SNAKE12_USE_FLOAT
-typedef float snake12_real;
-#define SNAKE12_LIT(x) x##f
-#define SNAKE12_TAN tanf
-#define SNAKE12_ASIN asinf
-#define SNAKE12_ACOS acosf
-#define SNAKE12_ATAN atanf
-#define SNAKE12_ATAN2 atan2f
-#define SNAKE12_SQRT snake12_sqrt
-#define SNAKE12_HYPOT hypotf
-#define SNAKE12_POW powf
-#define SNAKE12_EXP expf
-#define SNAKE12_LOG logf
-#define SNAKE12_FABS fabsf
-#define SNAKE12_FLOOR floorf
-#define SNAKE12_CEIL ceilf
-#define SNAKE12_FMIN snake12_fmin
-#define SNAKE12_FMAX snake12_fmax
-#define SNAKE12_FMOD fmodf
-#define SNAKE12_COPYSIGN copysignf
 /* SNAKE12_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
  * (snake12_sin_bounded/snake12_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
  * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
 #ifndef SNAKE12_BOUNDED_TRIG
 #define SNAKE12_BOUNDED_TRIG 0
 #endif
+#if SNAKE12_USE_FLOAT
+typedef float snake12_real;
+#define SNAKE12_LIT(x) x##f
+#define SNAKE12_SQRT snake12_sqrt
+#define SNAKE12_EXP expf
+#define SNAKE12_LOG logf
+#define SNAKE12_FABS fabsf
+#define SNAKE12_FMIN snake12_fmin
+#define SNAKE12_FMAX snake12_fmax
+#define SNAKE12_COPYSIGN copysignf
 #if SNAKE12_BOUNDED_TRIG
 #define SNAKE12_SIN snake12_sin_bounded
 #define SNAKE12_COS snake12_cos_bounded
@@ -64,22 +54,12 @@ typedef double snake12_real;
 #define SNAKE12_LIT(x) x
 #define SNAKE12_SIN sin
 #define SNAKE12_COS cos
-#define SNAKE12_TAN tan
-#define SNAKE12_ASIN asin
-#define SNAKE12_ACOS acos
-#define SNAKE12_ATAN atan
-#define SNAKE12_ATAN2 atan2
 #define SNAKE12_SQRT snake12_sqrt
-#define SNAKE12_HYPOT hypot
-#define SNAKE12_POW pow
 #define SNAKE12_EXP exp
 #define SNAKE12_LOG log
 #define SNAKE12_FABS fabs
-#define SNAKE12_FLOOR floor
-#define SNAKE12_CEIL ceil
 #define SNAKE12_FMIN snake12_fmin
 #define SNAKE12_FMAX snake12_fmax
-#define SNAKE12_FMOD fmod
 #define SNAKE12_COPYSIGN copysign
 #endif
 

@@ -31,6 +31,13 @@ typedef char ctrl_check_ptp_ncoef[(FW_PTP_NCOEF == CTRL_NCOEF) ? 1 : -1];
 #define DURATION_RTOL CTRL_LIT(1e-4)
 /* The circle's three points are collinear below this (|a x b| / (|a| |b|)), as the planner. */
 #define COLLINEAR_TOL CTRL_LIT(1e-6)
+/* The largest guards ctrl_init accepts: a guard beyond these guards nothing (and
+ * qdot_max * dt stays far from overflow). qdot_max in rad/s (m/s), residual_abs in the task's
+ * units per second, pos_err_max in m; residual_rel is a fraction of the command. */
+#define QDOT_MAX_LIMIT CTRL_LIT(1.0e3)
+#define RESIDUAL_REL_LIMIT CTRL_LIT(1.0)
+#define RESIDUAL_ABS_LIMIT CTRL_LIT(1.0)
+#define POS_ERR_MAX_LIMIT CTRL_LIT(1.0)
 /* A playback plan must start where the arm is: |theta(t0) - q_start| below this, rad. */
 #define PLAYBACK_START_TOL CTRL_LIT(1e-5)
 /* Playback: one tick may move a joint by qdot_max * dt times (1 + this): the chord of a
@@ -333,6 +340,7 @@ static void null_space_alpha(const ctrl *c, ctrl_real t, const ctrl_real *q, ctr
 
 static int positive(ctrl_real x) { return finite_r(x) && x > CTRL_LIT(0.0); }
 static int nonneg(ctrl_real x) { return finite_r(x) && x >= CTRL_LIT(0.0); }
+static int at_most(ctrl_real x, ctrl_real limit) { return nonneg(x) && x <= limit; }
 
 static int method_valid(ctrl_method m) {
   switch (m) { /* the enum may be stored in a byte (-fshort-enums on bare-metal ARM) */
@@ -361,7 +369,8 @@ static int init_path(ctrl *c) {
   c->n_ticks = (uint32_t)ticks;
   if (CTRL_FABS((ctrl_real)c->n_ticks * cfg->dt - rr->duration) > DURATION_RTOL * rr->duration) return 0;
   if (rr->law != CTRL_LAW_CUBIC && rr->law != CTRL_LAW_CONSTANT && rr->law != CTRL_LAW_TRAPEZOIDAL) return 0;
-  if (rr->law == CTRL_LAW_TRAPEZOIDAL && !(positive(rr->blend) && rr->blend <= CTRL_LIT(0.5))) return 0;
+  /* blend is checked whatever the law: a NaN in the configuration is a broken configuration */
+  if (!at_most(rr->blend, CTRL_LIT(0.5)) || (rr->law == CTRL_LAW_TRAPEZOIDAL && !positive(rr->blend))) return 0;
   if (!nonneg(rr->clik_gain) || !positive(rr->turns) || (rr->relative != 0 && rr->relative != 1)) return 0;
   for (r = 0; r < CTRL_NTASK; ++r) {
     if (rr->task_rows[r] < 0 || rr->task_rows[r] > 5 || (r > 0 && rr->task_rows[r] <= rr->task_rows[r - 1])) return 0;
@@ -503,8 +512,9 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
   }
   c->cfg = *config; /* validated once, here; the ticks use only this copy */
   config = &c->cfg;
-  ok = positive(config->dt) && positive(config->qdot_max) && nonneg(config->residual_rel) &&
-       nonneg(config->residual_abs) && nonneg(config->pos_err_max);
+  ok = positive(config->dt) && positive(config->qdot_max) && config->qdot_max <= QDOT_MAX_LIMIT &&
+       at_most(config->residual_rel, RESIDUAL_REL_LIMIT) && at_most(config->residual_abs, RESIDUAL_ABS_LIMIT) &&
+       at_most(config->pos_err_max, POS_ERR_MAX_LIMIT);
   for (i = 0; i < N; ++i) {
     ctrl_real q = config->q_start[i], lo = config->q_min[i], hi = config->q_max[i];
     int limits = finite_r(lo) && finite_r(hi) && lo < hi;

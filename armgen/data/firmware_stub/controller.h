@@ -126,7 +126,7 @@ typedef struct {
   ctrl_real rot_angle;   /* line: total orientation change about rot_axis, rad (0: hold) */
   ctrl_real duration;    /* T, s; a multiple of dt */
   ctrl_time_law law;
-  ctrl_real blend;       /* trapezoidal law: fraction of T spent accelerating, (0, 0.5] */
+  ctrl_real blend;       /* trapezoidal law: fraction of T spent accelerating, (0, 0.5]; [0, 0.5] for the others */
   ctrl_method method;
   ctrl_real rho_R, T_smo_R;          /* repetitive operator gain and lambda_R ramp, s */
   ctrl_real rho_L, theta_s;          /* Zghal gain, window band from a limit (rad) */
@@ -180,10 +180,10 @@ typedef struct {
   ctrl_real q_start[CTRL_NDOF]; /* start configuration (and the repetitive target) */
   ctrl_real q_min[CTRL_NDOF];   /* joint limits */
   ctrl_real q_max[CTRL_NDOF];
-  ctrl_real qdot_max;           /* singular-pose guard: max |q_dot_i|, rad/s */
+  ctrl_real qdot_max;           /* singular-pose guard: max |q_dot_i|, rad/s, (0, 1e3] */
   ctrl_real residual_rel;       /* singular-pose guard: |J q_dot - x_dot|_inf may reach */
-  ctrl_real residual_abs;       /*   residual_rel * |x_dot|_inf + residual_abs */
-  ctrl_real pos_err_max;        /* tracking guard, m; 0 disables */
+  ctrl_real residual_abs;       /*   residual_rel * |x_dot|_inf + residual_abs; each in [0, 1] */
+  ctrl_real pos_err_max;        /* tracking guard, m, [0, 1]; 0 disables */
   ctrl_rr_config rr;            /* the path: RESOLVED_RATE, FAULT_TOLERANT, WEIGHTED_GPM */
   ctrl_pb_config pb;            /* CTRL_MODE_PLAYBACK */
   ctrl_ft_config ft;            /* CTRL_MODE_FAULT_TOLERANT */

@@ -16,7 +16,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ...errors import PlanningError, TaskFileError
+from ...errors import PlanningError, TaskFileError, excerpt
 from ...progress import progress
 from ...robot import Robot, load_robot, rpy_matrix
 from ...symbolic.steps import min_eigenvalue
@@ -83,7 +83,7 @@ def _number(table: dict, key: str, where: str, source: str, default: float | Non
         return default
     value = table[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise TaskFileError(f"{source}: field '{where}.{key}' = {value!r} must be a finite number")
+        raise TaskFileError(f"{source}: field '{where}.{key}' = {excerpt(repr(value))} must be a finite number")
     if positive and value <= 0:
         raise TaskFileError(f"{source}: field '{where}.{key}' = {value} must be > 0")
     if nonneg and value < 0:
@@ -95,7 +95,7 @@ def _vector(table: dict, key: str, where: str, source: str, length: int, scale: 
     value = table.get(key)
     if not isinstance(value, list) or len(value) != length or \
             not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
-        raise TaskFileError(f"{source}: field '{where}.{key}' must be a list of {length} finite numbers, got {value!r}")
+        raise TaskFileError(f"{source}: field '{where}.{key}' must be a list of {length} finite numbers, got {excerpt(repr(value))}")
     return np.array(value, dtype=float) * scale
 
 
@@ -109,7 +109,7 @@ def parse_robot_and_start(task: dict, source: str) -> tuple[Robot, np.ndarray, s
     units = _table(task, "units", source)
     lunit, aunit = units.get("length", "m"), units.get("angle", "rad")
     if lunit not in LENGTH_SCALE or aunit not in ANGLE_SCALE:
-        raise TaskFileError(f"{source}: [units] length must be m|mm and angle rad|deg, got {lunit!r}, {aunit!r}")
+        raise TaskFileError(f"{source}: [units] length must be m|mm and angle rad|deg, got {excerpt(repr(lunit))}, {excerpt(repr(aunit))}")
     ls, as_ = LENGTH_SCALE[lunit], ANGLE_SCALE[aunit]
 
     start = task.get("start", "q0")
@@ -127,12 +127,12 @@ def parse_path_and_timing(task: dict, source: str, ls: float, as_: float):
     path = _table(task, "path", source)
     path_type = path.get("type", "circle")
     if path_type not in PATH_TYPES:
-        raise TaskFileError(f"{source}: field 'path.type' = {path_type!r} is not one of {', '.join(PATH_TYPES)}")
+        raise TaskFileError(f"{source}: field 'path.type' = {excerpt(repr(path_type))} is not one of {', '.join(PATH_TYPES)}")
     via = _vector(path, "via", "path", source, 3, ls) if path_type == "circle" else None
     end = _vector(path, "end", "path", source, 3, ls)
     orientation = path.get("orientation", "hold")
     if orientation not in ("hold", "interpolate"):
-        raise TaskFileError(f"{source}: field 'path.orientation' = {orientation!r} must be 'hold' or 'interpolate'")
+        raise TaskFileError(f"{source}: field 'path.orientation' = {excerpt(repr(orientation))} must be 'hold' or 'interpolate'")
     end_rotation = None
     if orientation == "interpolate":
         if path_type != "line":
@@ -152,7 +152,7 @@ def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
     m = _table(task, "method", source)
     name = m.get("name", "pinv")
     if name not in METHODS:
-        raise TaskFileError(f"{source}: field 'method.name' = {name!r} is not one of {', '.join(METHODS)}")
+        raise TaskFileError(f"{source}: field 'method.name' = {excerpt(repr(name))} is not one of {', '.join(METHODS)}")
     defaults = MethodParams(name)
     if name == "combined":
         defaults = MethodParams(name, rho_L=1e-4, T_smo_L=20.0, T_sum_L=40.0)
@@ -174,7 +174,7 @@ def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
     integ = _table(task, "integrator", source)
     integrator = integ.get("method", "euler")
     if integrator not in INTEGRATORS:
-        raise TaskFileError(f"{source}: field 'integrator.method' = {integrator!r} is not one of {', '.join(INTEGRATORS)}")
+        raise TaskFileError(f"{source}: field 'integrator.method' = {excerpt(repr(integrator))} is not one of {', '.join(INTEGRATORS)}")
     step = _number(integ, "step", "integrator", source, 0.02, positive=True)
     if step > duration:
         raise TaskFileError(f"{source}: integrator.step = {step} is longer than timing.duration = {duration}")

@@ -37,7 +37,7 @@ from typing import Any, Sequence
 import casadi as ca
 import numpy as np
 
-from ...errors import PlanningError, TaskFileError
+from ...errors import PlanningError, TaskFileError, excerpt
 from ...progress import progress
 from ...robot import Robot
 from ..backends import Backend, make_backend
@@ -136,7 +136,7 @@ class FaultTolerantTask:
 def _choice(table: dict, key: str, where: str, source: str, choices: Sequence[str], default: str) -> str:
     value = table.get(key, default)
     if value not in choices:
-        raise TaskFileError(f"{source}: field '{where}.{key}' = {value!r} is not one of {', '.join(choices)}")
+        raise TaskFileError(f"{source}: field '{where}.{key}' = {excerpt(repr(value))} is not one of {', '.join(choices)}")
     return value
 
 
@@ -145,7 +145,7 @@ def _number_list(table: dict, key: str, where: str, source: str, default: Sequen
     value = table.get(key, list(default))
     if not isinstance(value, list) or not value or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
-        raise TaskFileError(f"{source}: field '{where}.{key}' must be a non-empty list of finite numbers, got {value!r}")
+        raise TaskFileError(f"{source}: field '{where}.{key}' must be a non-empty list of finite numbers, got {excerpt(repr(value))}")
     if nonneg and any(v < 0 for v in value):
         raise TaskFileError(f"{source}: field '{where}.{key}' = {value} has a negative entry; gains must be ≥ 0 "
                             "(the index is maximised; a negative gain would minimise it)")
@@ -156,7 +156,7 @@ def parse_joints(value: Any, robot: Robot, where: str, source: str) -> tuple[int
     """Joint numbers (1-based) or names → sorted 0-based indices; errors name the bad entry."""
     if not isinstance(value, list):
         raise TaskFileError(f"{source}: field '{where}' must be a list of joint numbers (1..{robot.n}) or names, "
-                            f"got {value!r}")
+                            f"got {excerpt(repr(value))}")
     names = [j.name for j in robot.joints]
     out: list[int] = []
     for k, item in enumerate(value):
@@ -166,7 +166,7 @@ def parse_joints(value: Any, robot: Robot, where: str, source: str) -> tuple[int
             idx = item - 1
         else:
             raise TaskFileError(
-                f"{source}: field '{where}'[{k}] = {item!r} is not a joint of robot '{robot.name}': give a number "
+                f"{source}: field '{where}'[{k}] = {excerpt(repr(item))} is not a joint of robot '{robot.name}': give a number "
                 f"1..{robot.n} or a name ({', '.join(names)})")
         if idx in out:
             raise TaskFileError(f"{source}: field '{where}' names joint {names[idx]} twice")
@@ -227,7 +227,7 @@ def parse_fault_tolerant_task(task: dict, source: str) -> FaultTolerantTask:
     s = _table(task, "sweep", source)
     rules = s.get("rules", list(WEIGHT_RULES))
     if not isinstance(rules, list) or not rules or any(r not in WEIGHT_RULES for r in rules):
-        raise TaskFileError(f"{source}: field 'sweep.rules' = {rules!r} must list some of {', '.join(WEIGHT_RULES)}")
+        raise TaskFileError(f"{source}: field 'sweep.rules' = {excerpt(repr(rules))} must list some of {', '.join(WEIGHT_RULES)}")
     sweep_joints = s.get("joints", "all")
     sweep = SweepSpec(
         K=_number_list(s, "K", "sweep", source, DEFAULT_SWEEP_K),

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import PlanningError, RobotFileError, TaskFileError
+from ...errors import PlanningError, RobotFileError, TaskFileError, excerpt
 from ...robot import Robot, load_robot
 from ..result import PlanResult
 from .dynamics import EXPLICIT_METHODS, METHODS as INTEGRATORS, BarModel, DenoisedDynamics, DynamicsRun
@@ -179,7 +179,7 @@ class SnakeArm:
 def snake_arm(robot: Robot, source: str) -> SnakeArm:
     """Check that ``robot`` has the snake structure and extract its data (errors name the fix)."""
     def fail(msg: str) -> TaskFileError:
-        return TaskFileError(f"{source}: field 'robot' = {robot.name!r} is not a snake arm of spec 50 ({msg}); "
+        return TaskFileError(f"{source}: field 'robot' = {excerpt(repr(robot.name))} is not a snake arm of spec 50 ({msg}); "
                              "use robot = \"snake12\" or a file of the same form (prismatic feed, then α/β pairs)")
 
     n = robot.n
@@ -329,7 +329,7 @@ class _Fields:
             return default
         value = table[key]
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.fail(name, f"= {value!r} must be a finite number")
+            raise self.fail(name, f"= {excerpt(repr(value))} must be a finite number")
         if positive and value <= 0:
             raise self.fail(name, f"= {value} must be > 0{'; ' + fix if fix else ''}")
         if nonneg and value < 0:
@@ -339,13 +339,13 @@ class _Fields:
     def choice(self, table: dict, key: str, where: str, choices: tuple[str, ...], default: str) -> str:
         value = table.get(key, default)
         if value not in choices:
-            raise self.fail(f"{where}.{key}", f"= {value!r} is not one of {', '.join(choices)}")
+            raise self.fail(f"{where}.{key}", f"= {excerpt(repr(value))} is not one of {', '.join(choices)}")
         return value
 
     def point(self, value: Any, name: str, scale: float) -> np.ndarray:
         if (not isinstance(value, list) or len(value) != 3
                 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)):
-            raise self.fail(name, f"must be [x, y, z] (three finite numbers), got {value!r}")
+            raise self.fail(name, f"must be [x, y, z] (three finite numbers), got {excerpt(repr(value))}")
         return np.array(value, dtype=float) * scale
 
     def direction(self, value: Any, name: str) -> np.ndarray | None:
@@ -377,7 +377,7 @@ def _parse_obstacle(f: _Fields, raw: Any, k: int) -> Obstacle:
         if kind == "tank":
             faces_raw = raw.get("faces", list(FACES))
             if not isinstance(faces_raw, list) or any(x not in FACES for x in faces_raw):
-                raise f.fail(f"{where}.faces", f"= {faces_raw!r} must list faces from {', '.join(FACES)}")
+                raise f.fail(f"{where}.faces", f"= {excerpt(repr(faces_raw))} must list faces from {', '.join(FACES)}")
             faces = tuple(faces_raw)
         return Obstacle(name, kind, lo, hi, faces=faces)
     if kind == "cylinder":

@@ -31,7 +31,7 @@ from typing import Any, Sequence
 import casadi as ca
 import numpy as np
 
-from ...errors import ArmgenError, PlanningError, TaskFileError
+from ...errors import ArmgenError, PlanningError, TaskFileError, excerpt
 from ...progress import progress
 from ...symbolic.steps import WGPM_CRITERIA, WGPM_SENSE
 from ..backends import Backend, make_backend
@@ -99,7 +99,7 @@ def parse_wgpm_task(task: dict, source: str) -> WgpmTask:
                             "band, t_rmax, delta, ramp_time, ramp_out, criteria")
     name = m.get("name", "wgpm")
     if name not in METHODS:
-        raise TaskFileError(f"{source}: field 'method.name' = {name!r} is not one of {', '.join(METHODS)}")
+        raise TaskFileError(f"{source}: field 'method.name' = {excerpt(repr(name))} is not one of {', '.join(METHODS)}")
     band = _number(m, "band", "method", source, 0.1, positive=True)
     if band >= 0.5:
         raise TaskFileError(f"{source}: method.band = {band} must be < 0.5 (two damping bands and a free band share "
@@ -110,7 +110,7 @@ def parse_wgpm_task(task: dict, source: str) -> WgpmTask:
                             "joints back into the free band)")
     ramp_out = m.get("ramp_out", True)
     if not isinstance(ramp_out, bool):
-        raise TaskFileError(f"{source}: method.ramp_out = {ramp_out!r} must be true or false")
+        raise TaskFileError(f"{source}: method.ramp_out = {excerpt(repr(ramp_out))} must be true or false")
     crit_table = m.get("criteria", {})
     if not isinstance(crit_table, dict):
         raise TaskFileError(f"{source}: method.criteria must be a table of criteria ({', '.join(WGPM_CRITERIA)})")
