@@ -160,6 +160,28 @@ def test_cli_failure_writes_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_leaving_the_joint_limits_is_exit_3_unless_the_task_reports_it(tmp_path):
+    """The minimum-norm circle takes j6 past +140° (spec 20). By default that plan is infeasible
+    (exit 3, the joint, time and value named, nothing written); its example file asks to report."""
+    example = EXAMPLES / "modular8_circle_pinv.toml"
+    reported = tmp_path / "reported.csv"
+    ok = CliRunner().invoke(cli, ["plan", str(example), "-o", str(reported)])
+    assert ok.exit_code == 0, ok.output
+    data = np.genfromtxt(reported, delimiter=",", names=True)
+    beyond = np.abs(data["q6_rad"]) > math.radians(LIMIT_DEG)  # the CSV read back: where j6 is outside
+    first_t, worst = data["t_s"][np.argmax(beyond)], math.degrees(np.max(np.abs(data["q6_rad"])))
+
+    out = tmp_path / "failed" / "plan.csv"
+    failed = CliRunner().invoke(cli, ["plan", str(example), "-o", str(out), "--set", "check.limits=error"])
+    assert failed.exit_code == 3, failed.output
+    assert f"joint 'j6' passes its limit {LIMIT_DEG:.2f} deg at t = {first_t:.3f} s" in failed.output
+    assert f"reaches {worst:.2f} deg" in failed.output and "also beyond: j8" in failed.output
+    assert 'limits = "report"' in failed.output
+    assert not out.parent.exists()
+    with pytest.raises(TaskFileError, match="check.limits"):
+        plan("modular8_circle_pinv", "check.limits=ignore")
+
+
 def test_cli_plan_and_plot(tmp_path):
     out = tmp_path / "plan.csv"
     result = CliRunner().invoke(cli, ["plan", str(EXAMPLES / "modular8_circle_repetitive.toml"), "-o", str(out),

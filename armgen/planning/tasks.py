@@ -17,6 +17,7 @@ from pydantic import ValidationError
 from .. import __version__
 from ..errors import PlanFileError, PlanningError, TaskFileError
 from ..schemas import MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, closest_key, format_validation_error, parse_toml_bounded
+from .limits import enforce_limits
 from .result import PlanResult, first_invalid_sample
 
 # planner name -> its package: ``planner.plan_task(task: dict, source: str, backend: str)`` and
@@ -184,6 +185,9 @@ def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: 
         raise PlanningError(f"{source}: the plan is not feasible: column '{result.columns[col]}' is "
                             f"{result.data[row, col]} at sample {row}; nothing was written (check the timing "
                             "and the numbers of the task)")
+    check = getattr(model, "check", None)  # the resolved-rate planners; ptp and snake refuse such plans themselves
+    if check is not None:
+        enforce_limits(result.metadata.get("summary", {}).get("limit_violations", []), check.limits, source)
     meta = {
         "armgen_version": __version__,
         "task_file": source,

@@ -21,6 +21,7 @@ from ...progress import progress
 from ...robot import Robot, load_robot, rpy_matrix
 from ...symbolic.steps import min_eigenvalue
 from ..backends import make_backend
+from ..limits import limit_report
 from ..paths import CirclePath, LinePath, TimeLaw
 from ..result import PlanResult
 from .windows import JointWindows
@@ -421,13 +422,7 @@ class CartesianPlanner:
         t = result.column("t_s")
         q = result.data[:, 1:1 + n]
         qd = result.data[:, 1 + n:1 + 2 * n]
-        violations = []
-        for i, j in enumerate(self.robot.joints):
-            bad = (q[:, i] > j.qlim[1]) | (q[:, i] < j.qlim[0])
-            if bad.any():
-                violations.append({"joint": j.name, "first_t_s": float(t[np.argmax(bad)]),
-                                   "last_t_s": float(t[len(bad) - 1 - np.argmax(bad[::-1])]),
-                                   "max_abs_deg": float(np.degrees(np.max(np.abs(q[:, i]))))})
+        violations, _ = limit_report(self.robot, t, q)
         travel = np.sum(np.abs(np.diff(q, axis=0)), axis=0)
         return {
             "method": task.method.name,

@@ -36,13 +36,14 @@ from ...progress import progress
 from ...symbolic.steps import WGPM_CRITERIA, WGPM_SENSE
 from ..backends import Backend, make_backend
 from ..cartesian.planner import _number, _table
+from ..limits import limit_report
 from ..result import PlanResult
-from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, limit_report, parse_path_task, path_metadata,
+from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, parse_path_task, path_metadata,
                        smoothness, sym_base_row, sym_tracking)
 
 METHODS = ("wgpm", "pinv", "clamp")
 TOP_FIELDS = {"planner", "robot", "start", "units", "path", "timing", "integrator", "damping", "method", "tracking",
-              "description"}
+              "check", "description"}
 CRITERION_FIELDS = {"k_hi", "k_lo", "H_lo", "H_hi", "u_th", "u_band"}
 SHORT = {"manipulability": "w", "joint_manipulability": "M", "zghal": "L", "condition": "kappa"}
 # A plan "tracks" when its tool stays within these of the path (spec 35 asks whether the method
