@@ -1,6 +1,7 @@
 """Cartesian redundancy planner (spec 20): paths, time laws, windows, the paper's
 claims on the bundled examples, backend equivalence, and bad input."""
 
+import json
 import math
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from armgen.planning.cartesian.windows import JointWindows
 from armgen.robot import rpy_matrix
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+ROBOTS = Path(__file__).resolve().parent.parent / "robots"
 # The spec's bars (spec 20, "What the examples must show").
 DRIFT_FREE_DEG = 0.1
 RETURN_EXACT_DEG = 1e-6
@@ -180,6 +182,26 @@ def test_leaving_the_joint_limits_is_exit_3_unless_the_task_reports_it(tmp_path)
     assert not out.parent.exists()
     with pytest.raises(TaskFileError, match="check.limits"):
         plan("modular8_circle_pinv", "check.limits=ignore")
+
+
+def test_a_robot_file_in_a_task_is_found_beside_the_task_file(tmp_path, monkeypatch):
+    """`robot = "my_arm.toml"` is relative to the task file, not to the current folder."""
+    tasks = tmp_path / "tasks"
+    tasks.mkdir()
+    (tasks / "my_arm.toml").write_bytes((ROBOTS / "modular8.toml").read_bytes())
+    text = (EXAMPLES / "modular8_circle_combined.toml").read_text().replace('robot = "modular8"',
+                                                                            'robot = "my_arm.toml"')
+    (tasks / "job.toml").write_text(text)
+    monkeypatch.chdir(tmp_path)  # the parent folder: no my_arm.toml here
+    short = ["--set", "path.type=line", "--set", "path.end=[-450, 400, 900]", "--set", "timing.duration=2"]
+    result = CliRunner().invoke(cli, ["plan", "tasks/job.toml", "-o", "job.csv", *short])
+    assert result.exit_code == 0, result.output
+    assert json.loads(Path("job.json").read_text())["robot"]["file"] == str(Path("tasks") / "my_arm.toml")
+    # a bundled name stays a name, and a value given with --set is relative to the current folder
+    assert load_task(tasks / "job.toml")[0]["robot"] == str(Path(tasks) / "my_arm.toml")
+    assert load_task(EXAMPLES / "modular8_circle_combined.toml")[0]["robot"] == "modular8"
+    result = CliRunner().invoke(cli, ["plan", "tasks/job.toml", "-o", "job.csv", *short, "--set", "robot=my_arm.toml"])
+    assert result.exit_code == 2 and "my_arm.toml: robot file not found" in result.output
 
 
 def test_cli_plan_and_plot(tmp_path):
