@@ -48,3 +48,30 @@ def test_errors_have_exit_codes_and_write_nothing(tmp_path):
     out = run("gen", str(bad), "--out", str(target))
     assert out.exit_code == 2 and "qlim" in out.output and "reversed" in out.output
     assert not target.exists()
+
+
+# Every command that writes something (or, for verify, reads what gen wrote) and the
+# spellings it had before -o/--out, which must keep working but stay out of --help.
+OUTPUT_COMMANDS = {"plan": ("--output",), "plot": ("--output",), "sweep": ("--output",), "animate": ("--output",),
+                   "gen": (), "gen-ptp": (), "firmware": (), "verify": ("--generated",)}
+
+
+def test_one_output_option_everywhere_old_spellings_hidden():
+    for name, old in OUTPUT_COMMANDS.items():
+        command = cli.commands[name]
+        (option,) = [p for p in command.params if "--out" in getattr(p, "opts", ())]
+        assert option.opts[:2] == ["-o", "--out"] and set(option.opts[2:]) == set(old), name
+        text = run(name, "--help").output
+        assert "-o, --out" in text, name
+        assert not any(spelling in text for spelling in old), name
+
+
+def test_old_output_spellings_still_work(tmp_path):
+    for spelling in ("-o", "--out", "--output"):
+        # the option parses (a missing CSV is the error, not the option); nothing is written
+        out = run("plot", str(tmp_path / "missing.csv"), spelling, str(tmp_path / "p.png"))
+        assert out.exit_code == 2 and "no such option" not in out.output.lower(), spelling
+    for spelling in ("-o", "--out"):
+        target = tmp_path / spelling.strip("-")
+        out = run("gen-ptp", spelling, str(target))
+        assert out.exit_code == 0 and (target / "armgen_ptp.h").is_file(), out.output

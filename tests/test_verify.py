@@ -78,7 +78,7 @@ def test_stale_code_is_reported_and_never_compiled(planar3_copy, monkeypatch, pr
     compiled = []
     monkeypatch.setattr(pipeline, "build_library", lambda *a, **k: compiled.append(a))
     monkeypatch.setattr(pipeline, "run_sanitized", lambda *a, **k: compiled.append(a))
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--samples", "20"])
+    out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(planar3_copy), "--samples", "20"])
     assert out.exit_code == 5, out.output
     assert compiled == []
     assert "== fresh: FAIL" in out.output
@@ -105,7 +105,7 @@ def test_no_manifest_is_bad_input_and_writes_nothing(tmp_path, planar3_copy):
     (planar3_copy / "manifest.json").unlink()
     before = _tree(tmp_path)
     report = tmp_path / "report.json"
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--report", str(report)])
+    out = CliRunner().invoke(cli, ["verify", "planar3", "--out", str(planar3_copy), "--report", str(report)])
     assert out.exit_code == 2, out.output
     assert str(planar3_copy) in out.output and "no manifest.json" in out.output
     assert f"armgen gen planar3 --out {planar3_copy}" in out.output
@@ -125,7 +125,7 @@ def test_manifest_of_another_robot_file_is_bad_input(tmp_path, planar3_copy):
 
 def test_missing_compiler_is_exit_4(planar3_copy, monkeypatch):
     monkeypatch.setenv("PATH", str(planar3_copy))  # no gcc on it
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--samples", "20"])
+    out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(planar3_copy), "--samples", "20"])
     assert out.exit_code == 4, out.output
     assert "'gcc' not found" in out.output
 
@@ -134,7 +134,7 @@ def test_missing_compiler_is_exit_4(planar3_copy, monkeypatch):
 def test_garbage_plan_is_exit_2(tmp_path, planar3_copy, garbage):
     plan = tmp_path / "plan.csv"
     plan.write_bytes(garbage.encode("latin-1"))
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--plan", str(plan),
+    out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(planar3_copy), "--plan", str(plan),
                                    "--samples", "20", "--precision", "double"])
     assert out.exit_code == 2, out.output
     assert str(plan) in out.output and "Traceback" not in out.output
@@ -144,14 +144,14 @@ def test_garbage_plan_is_exit_2(tmp_path, planar3_copy, garbage):
 def test_garbage_plan_names_the_line(tmp_path, planar3_copy):
     plan = tmp_path / "plan.csv"
     plan.write_text("t_s,q1_rad\n0.0,0.1\n0.1,banana\n")
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--plan", str(plan)])
+    out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(planar3_copy), "--plan", str(plan)])
     assert out.exit_code == 2 and "line 3" in out.output, out.output
 
 
 def test_run_needs_a_plan(tmp_path, planar3_copy):
     run = tmp_path / "run.csv"
     run.write_text("tick,t_s\n")
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--run", str(run)])
+    out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(planar3_copy), "--run", str(run)])
     assert out.exit_code == 2 and "--run needs --plan" in out.output, out.output
 
 

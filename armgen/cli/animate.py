@@ -7,12 +7,13 @@ from pathlib import Path
 import click
 
 from .handling import handle_errors
+from .options import out_option
 
 
 @click.command("animate")
 @click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", default=None,
-              help="video to write: .gif (Pillow) or .mp4 (needs ffmpeg); default: the CSV's name with .gif")
+@out_option("output", "video to write: .gif (Pillow) or .mp4 (needs ffmpeg); default: the CSV's name with .gif",
+            default=None)
 @click.option("--fps", type=float, default=20.0, show_default=True, help="frames per second")
 @click.option("--duration", type=float, default=None,
               help="video length in seconds (default: the plan's duration, at most 10 s)")

@@ -12,6 +12,7 @@ import numpy as np
 
 from .. import __version__
 from .handling import handle_errors
+from .options import out_option
 
 
 @click.group()
@@ -99,8 +100,8 @@ def show_cmd(robot: str, as_json: bool) -> None:
 
 @cli.command("gen")
 @click.argument("robot")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="output directory (default: ./generated/<robot>/ under the current directory)")
+@out_option("out_dir", "output directory (default: ./generated/<robot>/ under the current directory)", old=(),
+            type=click.Path(file_okay=False), default=None)
 @click.option("--precision", type=click.Choice(["double", "float"]), default="double", show_default=True,
               help="the header's default real type (one switch; -D<PREFIX>_USE_FLOAT overrides)")
 @click.option("--prefix", default="", help="C identifier prefix (default: the robot name)")
@@ -118,8 +119,8 @@ def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functi
 
 
 @cli.command("gen-ptp")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="output directory (default: ./generated/ptp/ under the current directory)")
+@out_option("out_dir", "output directory (default: ./generated/ptp/ under the current directory)", old=(),
+            type=click.Path(file_okay=False), default=None)
 @click.option("--precision", type=click.Choice(["double", "float"]), default="double", show_default=True)
 @click.option("--prefix", default="armgen", show_default=True, help="C identifier prefix")
 @handle_errors
@@ -134,8 +135,8 @@ def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
 
 @cli.command("plan")
 @click.argument("task_file", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", type=click.Path(), default=None,
-              help="CSV to write (default: <task name>.csv in the current directory); plan.json goes beside it")
+@out_option("output", "CSV to write (default: <task name>.csv in the current directory); plan.json goes beside it",
+            type=click.Path(), default=None)
 @click.option("--backend", type=click.Choice(["symbolic", "c"]), default="symbolic", show_default=True)
 @click.option("--set", "overrides", multiple=True, help="override a task field: key=value (dotted keys, TOML values)")
 @click.option("--units", type=click.Choice(["rad", "deg"]), default="rad", show_default=True,
@@ -169,8 +170,8 @@ def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[
 @click.option("--precision", type=click.Choice(["double", "float"]), default=None, help="only this precision (default: both)")
 @click.option("--target", type=click.Choice(["cortex-m4"]), default=None, help="also run on an emulated target")
 @click.option("--report", type=click.Path(dir_okay=False), default=None, help="write the JSON report here")
-@click.option("--generated", "generated", type=click.Path(), default=None,
-              help="the folder `armgen gen` wrote (default: ./generated/<robot>/)")
+@out_option("generated", "the folder `armgen gen -o` wrote, to verify (default: ./generated/<robot>/)",
+            old=("--generated",), type=click.Path(), default=None)
 @click.option("--run", "run_csv", type=click.Path(exists=True, dir_okay=False), default=None,
               help="what a firmware run printed (e.g. the demo of `armgen firmware`), compared with --plan")
 @handle_errors
@@ -190,8 +191,8 @@ def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | 
 
 @cli.command("plot")
 @click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", default=None,
-              help="figure to write: .png, .svg or .pdf (default: the CSV's name with .png, beside it)")
+@out_option("output", "figure to write: .png, .svg or .pdf (default: the CSV's name with .png, beside it)",
+            default=None)
 @handle_errors
 def plot_cmd(plan_csv: str, output: str | None) -> None:
     """Draw a plan: joint angles with limits, velocities with bounds, criteria, task error, tool path."""

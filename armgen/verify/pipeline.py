@@ -1,7 +1,7 @@
 """``armgen verify``: the plan-and-verify pipeline of spec 60.
 
 The code verified is a folder written by ``armgen gen`` (default ``./generated/<robot>/``,
-``--generated DIR`` elsewhere). Before anything is compiled, its ``manifest.json`` must name
+``-o DIR`` elsewhere). Before anything is compiled, its ``manifest.json`` must name
 the given robot file (sha256); a folder without a manifest, or generated from another robot
 file, is an input error (exit 2) that names the folder and the ``armgen gen`` command to fix it.
 
@@ -143,7 +143,7 @@ def read_manifest(config: VerifyConfig) -> GeneratedCode:
     """The folder's manifest, checked against the robot file; GeneratedDirError otherwise."""
     folder = config.gen_dir
     manifest_path = folder / "manifest.json"
-    fix = f"generate it with `{config.regenerate_command}`, or point --generated at a folder written by `armgen gen`"
+    fix = f"generate it with `{config.regenerate_command}`, or point -o at a folder written by `armgen gen`"
     if not manifest_path.is_file():
         what = "does not exist" if not folder.exists() else "has no manifest.json (not written by `armgen gen`)"
         raise GeneratedDirError(f"{folder}: {what}; {fix}")
