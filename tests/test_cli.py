@@ -2,6 +2,7 @@
 
 import json
 
+import numpy as np
 from click.testing import CliRunner
 
 from armgen.cli.main import cli
@@ -75,3 +76,16 @@ def test_old_output_spellings_still_work(tmp_path):
         target = tmp_path / spelling.strip("-")
         out = run("gen-ptp", spelling, str(target))
         assert out.exit_code == 0 and (target / "armgen_ptp.h").is_file(), out.output
+
+
+def test_robot_repr_is_one_line_and_show_prints_the_table(capsys):
+    from armgen import load_robot
+
+    assert repr(load_robot("panda")) == "Robot('panda', 7 revolute, modified DH)"
+    assert str(load_robot("snake12")) == "Robot('snake12', 24 revolute + 1 prismatic, standard DH)"
+    robot = load_robot("modular8")
+    robot.show()
+    printed = capsys.readouterr().out
+    assert printed == run("show", "modular8").output  # one text, two doors
+    assert len(printed.splitlines()) == 3 + robot.n + len(robot.configurations) + \
+        sum(not (T == np.eye(4)).all() for T in (robot.base, robot.tool))

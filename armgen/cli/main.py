@@ -4,11 +4,9 @@ maps an :class:`ArmgenError` to its exit code and a one-paragraph message on std
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import click
-import numpy as np
 
 from .. import __version__
 from .handling import handle_errors
@@ -63,39 +61,13 @@ def _show_data(r) -> dict:
 @handle_errors
 def show_cmd(robot: str, as_json: bool) -> None:
     """Print a robot's joints (DH table or URDF origin/axis), limits, base/tool and configurations (mm, deg)."""
-    from ..robot import load_robot, matrix_rpy
+    from ..robot import load_robot
 
     r = load_robot(robot)
     if as_json:
         click.echo(json.dumps(_show_data(r), indent=2))
         return
-    click.echo(f"{r.name}: {r.description}")
-    kind = "URDF chain" if r.convention == "urdf" else f"{r.convention} DH"
-    click.echo(f"file {r.source} (sha256 {r.sha256[:16]}…), {kind}, {r.n} joints")
-    if r.convention == "urdf":
-        click.echo(f"links {r.urdf['base_link']} -> {r.urdf['tip_link']}; columns: joint, type, origin xyz [mm], "
-                   "origin rpy [deg], axis, qlim")
-    else:
-        prefix = "a_{i-1}, alpha_{i-1}" if r.convention == "modified" else "a_i, alpha_i"
-        click.echo(f"columns: joint, type, offset/theta, d [mm], a [mm], alpha [deg] ({prefix}), qlim")
-    for j in r.joints:
-        lim = (f"[{math.degrees(j.qlim[0]):8.3f}, {math.degrees(j.qlim[1]):8.3f}] deg" if j.revolute
-               else f"[{j.qlim[0] * 1e3:8.3f}, {j.qlim[1] * 1e3:8.3f}] mm")
-        if j.origin is not None:
-            xyz = np.round(j.origin[:3, 3] * 1e3, 4).tolist()
-            rpy = (np.round(np.degrees(matrix_rpy(j.origin[:3, :3])), 4) + 0.0).tolist()  # + 0.0: no -0.0
-            click.echo(f"  {j.name:8s} {j.type:9s} xyz={xyz}  rpy={rpy}  axis={[round(float(v), 6) + 0.0 for v in j.axis]}  qlim={lim}")
-            continue
-        fixed = f"theta={math.degrees(j.theta):8.3f}" if not j.revolute else f"offset={math.degrees(j.offset):7.3f}"
-        click.echo(f"  {j.name:8s} {j.type:9s} {fixed}  d={j.d * 1e3:9.3f}  a={j.a * 1e3:9.3f}  "
-                   f"alpha={math.degrees(j.alpha):8.3f}  qlim={lim}")
-    for name, T in (("base", r.base), ("tool", r.tool)):
-        if not np.allclose(T, np.eye(4)):
-            click.echo(f"{name}: xyz = {np.round(T[:3, 3] * 1e3, 4).tolist()} mm, "
-                       f"rpy = {(np.round(np.degrees(matrix_rpy(T[:3, :3])), 4) + 0.0).tolist()} deg")
-    units = np.array([180 / math.pi if j.revolute else 1e3 for j in r.joints])
-    for name, q in r.configurations.items():
-        click.echo(f"configuration {name}: {np.round(q * units, 4).tolist()} (deg / mm)")
+    click.echo(r.show_text())
 
 
 @cli.command("gen")
