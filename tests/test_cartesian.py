@@ -204,6 +204,24 @@ def test_a_robot_file_in_a_task_is_found_beside_the_task_file(tmp_path, monkeypa
     assert result.exit_code == 2 and "my_arm.toml: robot file not found" in result.output
 
 
+@pytest.mark.parametrize("start, joint, side", [("[-57, -45, 71, -45, 32, 140, 34, -28]", "j6", "upper"),
+                                               ("[-140, -45, 71, -45, 32, 80, 34, -28]", "j1", "lower")])
+def test_a_start_on_a_limit_with_a_joint_limit_criterion_names_the_joint(start, joint, side):
+    """H_L is infinite on a limit: the error names the joint instead of "the tool left the path"."""
+    for name in ("zghal", "zghal_improved", "combined"):
+        with pytest.raises(PlanningError, match=f"joint '{joint}' sitting on its {side} limit"):
+            plan("modular8_circle_combined", f"start={start}", f'method.name="{name}"')
+    with pytest.raises(PlanningError, match=f"joint '{joint}' sitting on its {side} limit") as info:
+        run_task(load_task(EXAMPLES / "modular8_wgpm_demo.toml")[0] | {"start": json.loads(start)}, "wgpm")
+    assert "method.criteria.zghal" in str(info.value)
+    # without a joint-limit criterion the start is legal (inside the closed range): not this error
+    short = ("path.type=line", "path.end=[-450, 400, 900]", "timing.duration=2", "check.limits=report")
+    try:
+        plan("modular8_circle_combined", f"start={start}", 'method.name="pinv"', *short)
+    except PlanningError as exc:
+        assert "sitting on" not in str(exc)
+
+
 def test_cli_plan_and_plot(tmp_path):
     out = tmp_path / "plan.csv"
     result = CliRunner().invoke(cli, ["plan", str(EXAMPLES / "modular8_circle_repetitive.toml"), "-o", str(out),

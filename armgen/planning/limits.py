@@ -43,6 +43,19 @@ def limit_report(robot: Robot, t: np.ndarray, q: np.ndarray) -> tuple[list[dict[
     return violations, float(np.min(margin))
 
 
+def check_start_off_limits(robot: Robot, q_start: np.ndarray, criterion: str, source: str) -> None:
+    """A joint-limit criterion (Zghal's H_L) is infinite on a limit, so a start exactly there
+    sends the arm off the path at once; name the joint instead."""
+    for j, value in zip(robot.joints, q_start):
+        if value <= j.qlim[0] or value >= j.qlim[1]:
+            side, limit = ("lower", j.qlim[0]) if value <= j.qlim[0] else ("upper", j.qlim[1])
+            shown = f"{math.degrees(limit):.3f} deg" if j.revolute else f"{limit * 1e3:.3f} mm"
+            raise PlanningError(
+                f"{source}: the start has joint '{j.name}' sitting on its {side} limit ({shown}), where the "
+                f"joint-limit criterion of {criterion} is infinite: start the joint inside its limits (e.g. a degree away), "
+                "widen its limits in the robot file, or use a method without a joint-limit criterion")
+
+
 def enforce_limits(violations: list[dict[str, Any]], policy: str, source: str) -> None:
     """Raise the infeasible-plan error for ``violations`` unless ``policy`` is ``"report"``."""
     if not violations or policy == "report":

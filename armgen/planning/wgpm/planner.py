@@ -36,7 +36,7 @@ from ...progress import progress
 from ...symbolic.steps import WGPM_CRITERIA, WGPM_SENSE
 from ..backends import Backend, make_backend
 from ..cartesian.planner import _number, _table
-from ..limits import limit_report
+from ..limits import check_start_off_limits, limit_report
 from ..result import PlanResult
 from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, parse_path_task, path_metadata,
                        smoothness, sym_base_row, sym_tracking)
@@ -157,6 +157,9 @@ def parse_wgpm_task(task: dict, source: str) -> WgpmTask:
         ramp_time=_number(m, "ramp_time", "method", source, 2.0, nonneg=True),
         ramp_out=ramp_out, criteria=tuple(criteria),
     )
+    zghal = method.criteria[WGPM_CRITERIA.index("zghal")]
+    if name == "wgpm" and zghal.k_hi > 0:
+        check_start_off_limits(path.robot, path.q_start, "method.criteria.zghal", source)
     if 2 * method.ramp_time > path.duration and method.ramp_out:
         raise TaskFileError(f"{source}: method.ramp_time = {method.ramp_time} s is more than half of timing.duration = "
                             f"{path.duration} s; shorten it or set method.ramp_out = false")
