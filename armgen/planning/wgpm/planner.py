@@ -15,23 +15,21 @@ planner runs ``method.name = "pinv"`` (the damped pseudo-inverse, nothing else) 
 column removed through the generated ``step_fault`` mask — and released as soon as the
 unclamped solution moves it back inside).
 
-``python -m armgen.planning.wgpm.planner TASK.toml --compare`` prints the spec's comparison table;
-the survey over random tasks is an ``armgen sweep`` run (docs/wgpm.md).
+The spec's comparison (pinv vs clamp vs wgpm on one task) and the survey over random tasks are
+``armgen sweep`` runs over ``method.name`` (docs/wgpm.md).
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 import time
-from dataclasses import dataclass, field, replace
-from typing import Any, Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 import casadi as ca
 import numpy as np
 
-from ...errors import ArmgenError, PlanningError, TaskFileError
+from ...errors import PlanningError, TaskFileError
 from ...progress import progress
 from ...symbolic.steps import WGPM_CRITERIA, WGPM_SENSE
 from ..backends import Backend, make_backend
@@ -317,73 +315,3 @@ class WgpmPlanner:
 
 def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
     return WgpmPlanner(parse_wgpm_task(task, source), backend).run()
-
-
-# -- comparison and survey -------------------------------------------------------------------
-
-COMPARE_KEYS = (("max abs(q) deg", "max_abs_q_overall_deg", "{:.1f}"), ("margin to limit deg", "min_limit_margin_deg",
-                                                                      "{:.2f}"),
-                ("max pos err mm", "max_pos_error_mm", "{:.3f}"), ("max ori err deg", "max_ori_error_deg", "{:.3f}"),
-                ("peak abs(ddq) deg/s^2", "peak_ddq_deg_s2", "{:.1f}"), ("damped steps", "damped_steps", "{}"))
-
-
-def compare(task: WgpmTask, backend_kind: str = "symbolic") -> dict[str, dict[str, Any]]:
-    """The spec's comparison: the same task by plain pseudo-inverse, binary clamp and wgpm."""
-    planner = WgpmPlanner(task, backend_kind)
-    return {name: planner.run(replace(task.method, name=name)).metadata["summary"] for name in ("pinv", "clamp", "wgpm")}
-
-
-def format_compare(summaries: dict[str, dict[str, Any]], title: str) -> str:
-    lines = [f"## {title}", "", "| method | within limits | tracks | " + " | ".join(k for k, _, _ in COMPARE_KEYS) + " |",
-             "|---" * (3 + len(COMPARE_KEYS)) + "|"]
-    for name, s in summaries.items():
-        cells = [fmt.format(s[key]) for _, key, fmt in COMPARE_KEYS]
-        lines.append(f"| {name} | {'yes' if s['within_limits'] else 'NO'} | {'yes' if s['tracks'] else 'NO'} | "
-                     + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m armgen.planning.wgpm.planner TASK.toml --compare``."""
-    from ..tasks import apply_overrides, load_task, validate_task
-
-    parser = argparse.ArgumentParser(prog="python -m armgen.planning.wgpm.planner",
-                                     description="Spec 35: pinv vs binary clamp vs weighted GPM on one task.")
-    parser.add_argument("task", help="a wgpm task file")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], help="key=value override")
-    parser.add_argument("--compare", action="store_true", help="plan the task by pinv, clamp and wgpm; print the table")
-    parser.add_argument("--backend", choices=("symbolic", "c"), default="symbolic")
-    parser.add_argument("--json", default=None, metavar="FILE", help="also write the comparison as JSON")
-    args = parser.parse_args(argv)
-    results: dict[str, Any] = {}
-    try:
-        raw, _ = load_task(args.task)
-        apply_overrides(raw, list(args.overrides))
-        validate_task(raw, args.task)
-        task = parse_wgpm_task(raw, args.task)
-        if args.compare:
-            started = time.perf_counter()
-            results["compare"] = compare(task, args.backend)
-            print(format_compare(results["compare"], f"{args.task}: {task.path.robot.name}, "
-                                 f"T = {task.path.duration:g} s, h = {task.path.step:g} s"))
-            print(f"\n({time.perf_counter() - started:.1f} s)\n")
-        if args.json:
-            _write_json(args.json, results)
-    except ArmgenError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    return 0
-
-
-def _write_json(path: str, data: Any) -> None:
-    import json
-
-    from ...fileio import write_text_atomic
-    from ..result import _finite_json, _json_default
-
-    write_text_atomic(path, json.dumps(_finite_json(json.loads(json.dumps(data, default=_json_default))), indent=2)
-                      + "\n")
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
