@@ -183,3 +183,36 @@ def test_replay_detects_a_tampered_plan(tmp_path):
     plan.write_text("\n".join(lines) + "\n")
     stage = stage_replay(VerifyConfig(load_robot("modular8"), plan))
     assert not stage.passed
+
+
+def test_callbacks_batched_entry_is_the_per_sample_call_and_catches_a_wrong_function(tmp_path):
+    """The callbacks stage evaluates every sample through the library's batched C entry: it gives
+    what one call per sample gives, bit for bit, and a C function that differs from its reference
+    (here: a reference from a robot 1 mm longer) fails."""
+    import numpy as np
+
+    from armgen.codegen.compiled import CompiledModel, build_library
+    from armgen.symbolic.model import SymbolicModel
+    from armgen.verify.compare import DOUBLE_REL_BOUND, _per_sample, compare_model
+    from armgen.verify.samples import batch_inputs, joint_samples
+
+    robot = load_robot("planar3")
+    functions = SymbolicModel(robot).functions()
+    compiled = CompiledModel(build_library(REPO_GENERATED_DIR / "planar3", "planar3", "double", tmp_path,
+                                           batch=functions), "planar3", functions, "double")
+    q, _ = joint_samples(robot, 50, 7)
+    for name in ("fk_jacobian", "step_wgpm", "ft_index"):
+        func = functions[name]
+        inputs = batch_inputs(func, robot, q, np.random.default_rng(7))
+        batched = compiled.raw[name].batch([_per_sample(a, func.sparsity_in(k).shape) for k, a in enumerate(inputs)])
+        for s in range(len(q)):
+            single = compiled.raw[name](*[a[s] for a in inputs])
+            for b, one in zip(batched, single):
+                assert np.array_equal(b[s], one, equal_nan=True), name
+    longer = tmp_path / "planar3_longer.toml"
+    longer.write_text((REPO / "robots" / "planar3.toml").read_text().replace("a = 0.3", "a = 0.301", 1))
+    wrong = {"fk": SymbolicModel(load_robot(longer)).function("fk")}
+    (report,) = compare_model(compiled, wrong, robot, 200, 1)
+    assert not report.passed and report.max_error > 1e3 * DOUBLE_REL_BOUND
+    (report,) = compare_model(compiled, {"fk": functions["fk"]}, robot, 200, 1)
+    assert report.passed and report.samples == 200
