@@ -144,7 +144,7 @@ document.body.setAttribute('data-width', document.documentElement.scrollWidth);
 document.body.setAttribute('data-clipped', Array.from(document.querySelectorAll(
   '.md-content pre > code, .md-content .md-typeset__table, .md-content table'))
   .filter(e => e.scrollWidth > e.clientWidth + 1)
-  .map(e => e.tagName + ':' + e.textContent.slice(0, 40).replace(/["<>&\\s]+/g, ' ')).join(' | '));
+  .map(e => e.tagName + ':' + e.textContent.slice(0, 40).replace(/[^A-Za-z0-9_.:=-]+/g, ' ')).join(' | '));
 </script>"""
 
 
