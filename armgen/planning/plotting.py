@@ -292,8 +292,8 @@ def principal_views(points: np.ndarray) -> tuple[PathView, PathView]:
         normal = axes[2] if axes.shape[0] > 2 else np.cross(axes[0], axes[1])
         normal_axis = int(np.argmax(np.abs(normal)))
         if abs(normal[normal_axis]) < np.cos(np.radians(AXIS_ALIGNED_DEG)):  # oblique: its own axes
-            u, v = axes[0], axes[1]
-            u, v, normal = (w * (1.0 if w[np.argmax(np.abs(w))] > 0 else -1.0) for w in (u, v, normal))
+            # each direction's sign: its first clearly non-zero component positive
+            u, v, normal = (w * np.sign(w[np.flatnonzero(np.abs(w) > 1e-6)[0]]) for w in (axes[0], axes[1], normal))
             fmt = lambda w: "(" + ", ".join(f"{c:.2f}" for c in w) + ")"  # noqa: E731
             return (PathView(u, v, f"along {fmt(u)}", f"along {fmt(v)}", f"its own plane, normal {fmt(normal)}"),
                     PathView(u, normal, f"along {fmt(u)}", f"along the normal {fmt(normal)}", "edge-on"))
