@@ -216,3 +216,24 @@ def test_callbacks_batched_entry_is_the_per_sample_call_and_catches_a_wrong_func
     assert not report.passed and report.max_error > 1e3 * DOUBLE_REL_BOUND
     (report,) = compare_model(compiled, {"fk": functions["fk"]}, robot, 200, 1)
     assert report.passed and report.samples == 200
+
+
+def test_every_long_stage_shows_a_progress_bar(planar3_copy, monkeypatch):
+    """fresh, compile (with the reference samples drawn meanwhile) and callbacks each have a bar
+    that is driven to its total."""
+    import contextlib
+
+    bars = {}
+
+    @contextlib.contextmanager
+    def recording(total, label):
+        bar = type("Bar", (), {"count": 0, "update": lambda self, n: setattr(self, "count", self.count + n)})()
+        yield bar
+        bars[label] = (bar.count, total)
+
+    monkeypatch.setattr(pipeline, "progress", recording)
+    config = VerifyConfig(load_robot("planar3"), samples=20, generated=planar3_copy)
+    assert pipeline.passed(pipeline.run_pipeline(config, echo=lambda text: None))
+    labels = list(bars)
+    assert [label.split()[0].rstrip(",") for label in labels] == ["fresh", "compile", "callbacks"], labels
+    assert all(count == total > 0 for count, total in bars.values()), bars
