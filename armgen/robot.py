@@ -138,7 +138,8 @@ class Robot:
     sha256: str  # of the file's bytes
     description: str = ""
     units: dict[str, str] = field(default_factory=dict)
-    urdf: dict[str, str] = field(default_factory=dict)  # file, base_link, tip_link of a URDF robot
+    # file, base_link, tip_link of a URDF robot; continuous: its continuous joints given ±π
+    urdf: dict[str, Any] = field(default_factory=dict)
     _cache: dict[str, Any] = field(default_factory=dict, init=False, compare=False, repr=False)
 
     @classmethod
@@ -192,6 +193,55 @@ class Robot:
             return self.configurations[name].copy()
         raise AttributeError(f"robot '{self.name}' has no attribute or configuration '{name}' "
                              f"(configurations: {', '.join(sorted(self.configurations)) or 'none'})")
+
+    def __repr__(self) -> str:
+        """One line, e.g. ``Robot('gen3', 7 revolute, standard DH)``; :meth:`show` prints everything."""
+        counts = {kind: sum(j.type == kind for j in self.joints) for kind in JOINT_TYPES}
+        joints = " + ".join(f"{count} {kind}" for kind, count in counts.items() if count) or "0 joints"
+        kind = "URDF chain" if self.convention == "urdf" else f"{self.convention} DH"
+        return f"Robot({self.name!r}, {joints}, {kind})"
+
+    def show_text(self) -> str:
+        """The joints (DH table or URDF origin/axis), limits, base/tool and named
+        configurations in mm and deg: what :meth:`show` and ``armgen show`` print."""
+        lines = [f"{self.name}: {self.description}"]
+        kind = "URDF chain" if self.convention == "urdf" else f"{self.convention} DH"
+        lines.append(f"file {self.source} (sha256 {self.sha256[:16]}…), {kind}, {self.n} joints")
+        if self.convention == "urdf":
+            lines.append(f"links {self.urdf['base_link']} -> {self.urdf['tip_link']}; columns: joint, type, "
+                         "origin xyz [mm], origin rpy [deg], axis, qlim")
+        else:
+            prefix = "a_{i-1}, alpha_{i-1}" if self.convention == "modified" else "a_i, alpha_i"
+            lines.append(f"columns: joint, type, offset/theta, d [mm], a [mm], alpha [deg] ({prefix}), qlim")
+        for j in self.joints:
+            lim = (f"[{math.degrees(j.qlim[0]):8.3f}, {math.degrees(j.qlim[1]):8.3f}] deg" if j.revolute
+                   else f"[{j.qlim[0] * 1e3:8.3f}, {j.qlim[1] * 1e3:8.3f}] mm")
+            if j.origin is not None:
+                xyz = np.round(j.origin[:3, 3] * 1e3, 4).tolist()
+                rpy = (np.round(np.degrees(matrix_rpy(j.origin[:3, :3])), 4) + 0.0).tolist()  # + 0.0: no -0.0
+                axis = [round(float(v), 6) + 0.0 for v in j.axis]
+                lines.append(f"  {j.name:8s} {j.type:9s} xyz={xyz}  rpy={rpy}  axis={axis}  qlim={lim}")
+                continue
+            fixed = f"theta={math.degrees(j.theta):8.3f}" if not j.revolute else f"offset={math.degrees(j.offset):7.3f}"
+            lines.append(f"  {j.name:8s} {j.type:9s} {fixed}  d={j.d * 1e3:9.3f}  a={j.a * 1e3:9.3f}  "
+                         f"alpha={math.degrees(j.alpha):8.3f}  qlim={lim}")
+        continuous = self.urdf.get("continuous", [])
+        if continuous:
+            lines.append(f"note: continuous in the URDF, given ±180 deg here: {', '.join(continuous)}; a start or "
+                         "home pose at ±180 deg sits on that limit: move the range with [limits] <joint> = [lo, hi] in "
+                         "a robot file that references the URDF (docs/urdf.md)")
+        for name, T in (("base", self.base), ("tool", self.tool)):
+            if not np.allclose(T, np.eye(4)):
+                lines.append(f"{name}: xyz = {np.round(T[:3, 3] * 1e3, 4).tolist()} mm, "
+                             f"rpy = {(np.round(np.degrees(matrix_rpy(T[:3, :3])), 4) + 0.0).tolist()} deg")
+        units = np.array([180 / math.pi if j.revolute else 1e3 for j in self.joints])
+        for name, q in self.configurations.items():
+            lines.append(f"configuration {name}: {np.round(q * units, 4).tolist()} (deg / mm)")
+        return "\n".join(lines)
+
+    def show(self) -> None:
+        """Print :meth:`show_text` (the whole description; ``repr`` is one line)."""
+        print(self.show_text())
 
     def __dir__(self) -> list[str]:
         return sorted(set(super().__dir__()) | set(self.configurations))
@@ -709,7 +759,8 @@ def _urdf_robot(path: Path, data: bytes, base_link: str | None, tip_link: str | 
         sha256=sha256,
         description=reader.string(doc, "description", "file", default=f"URDF {path.name}: {chain.base_link} -> {chain.tip_link}"),
         units={"length": length_unit, "angle": angle_unit},
-        urdf={"file": str(path), "base_link": chain.base_link, "tip_link": chain.tip_link},
+        urdf={"file": str(path), "base_link": chain.base_link, "tip_link": chain.tip_link,
+              "continuous": [j.name for j in chain.joints if j.type == "continuous" and j.name not in limits]},
     )
     for cname, vec in configurations.items():
         robot.check_within_limits(vec, f"{reader.source}: [configurations] {cname}")

@@ -15,7 +15,9 @@ Rules (see ``docs/urdf.md``):
   continuous joint gets ``[-CONTINUOUS_LIMIT, CONTINUOUS_LIMIT]`` unless a robot file
   bounds it under ``[limits]``.
 - The base link defaults to the tree's root, the tip link to the end of the chain when the
-  tree does not branch below the base; otherwise the error names the branching link.
+  tree does not branch below the base. Branches that lead only through fixed joints to leaf
+  frames (a camera or sensor frame beside the arm) are ignored where another branch moves;
+  any other branching is an error naming the branching link and the leaf links below it.
 - DOCTYPE and entity declarations are refused before parsing (no entity expansion).
 
 Every failure is one :class:`~armgen.errors.RobotFileError` naming the file and element.
@@ -210,17 +212,7 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
         raise p.fail("base_link", f"link '{base_link}' is not defined in the file")
 
     if tip_link is None:
-        tip_link = base_link
-        visited = {base_link}
-        while children.get(tip_link):
-            below = children[tip_link]
-            if len(below) > 1:
-                names = ", ".join(j.name for j in below)
-                raise p.fail(f"link '{tip_link}'", f"branches into joints {names}; choose the chain's end with tip_link")
-            tip_link = below[0].child
-            if tip_link in visited:
-                raise p.fail(f"link '{tip_link}'", "the joints form a loop")
-            visited.add(tip_link)
+        tip_link = _infer_tip(p, base_link, children)
     elif tip_link not in links:
         raise p.fail("tip_link", f"link '{tip_link}' is not defined in the file")
 
@@ -267,6 +259,44 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
     if not chain:
         raise p.fail("tip_link", f"no revolute, continuous or prismatic joint between '{base_link}' and '{tip_link}'")
     return UrdfChain(robot_name, base_link, tip_link, tuple(chain), pending)
+
+
+def _subtree(link: str, children: dict[str, list[_RawJoint]]) -> tuple[list[str], bool]:
+    """(the leaf links below ``link``, whether a moving joint is below it)."""
+    leaves, moving, stack, seen = [], False, [link], {link}
+    while stack:
+        current = stack.pop()
+        below = children.get(current, [])
+        if not below:
+            leaves.append(current)
+        for joint in below:
+            moving = moving or joint.type != "fixed"
+            if joint.child not in seen:  # a tree, but never loop on a malformed one
+                seen.add(joint.child)
+                stack.append(joint.child)
+    return sorted(leaves), moving
+
+
+def _infer_tip(p: _Parser, base_link: str, children: dict[str, list[_RawJoint]]) -> str:
+    """The end of the chain below ``base_link``: follow the one branch at each link. A branch
+    that leads only through fixed joints to leaf frames (a sensor or camera frame beside the
+    arm) is ignored where another branch moves; a real choice is an error listing the leaves."""
+    tip, visited = base_link, {base_link}
+    while children.get(tip):
+        below = children[tip]
+        if len(below) > 1:
+            moving = [j for j in below if j.type != "fixed" or _subtree(j.child, children)[1]]
+            if len(moving) != 1:
+                leaves = _subtree(tip, children)[0]
+                raise p.fail(f"link '{tip}'", f"branches into joints {', '.join(j.name for j in below)}, leading to "
+                                              f"the leaf links {', '.join(leaves)}; choose the chain's end with "
+                                              f"tip_link (e.g. tip_link = \"{leaves[0]}\")")
+            below = moving
+        tip = below[0].child
+        if tip in visited:
+            raise p.fail(f"link '{tip}'", "the joints form a loop")
+        visited.add(tip)
+    return tip
 
 
 def _origin(p: _Parser, element: ET.Element, where: str) -> np.ndarray:

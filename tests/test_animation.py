@@ -65,7 +65,8 @@ def test_mp4_without_ffmpeg_is_a_clear_error(short_plan, tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("args", [["-o", "-"], ["-o", "arm.avi"], ["-o", "arm.gif", "--fps", "0"],
-                                  ["-o", "arm.gif", "--duration", "-1"], ["-o", "arm.gif", "--fps", "1e6"]])
+                                  ["-o", "arm.gif", "--duration", "-1"], ["-o", "arm.gif", "--fps", "1e6"],
+                                  ["--size", "960"], ["--size", "961x720"], ["--size", "8x8"], ["--size", "axb"]])
 def test_bad_options_exit_2_and_write_nothing(short_plan, tmp_path, monkeypatch, args):
     monkeypatch.chdir(tmp_path)
     run = CliRunner().invoke(cli, ["animate", str(short_plan[1]), *args])
@@ -81,3 +82,14 @@ def test_frames_are_evenly_spaced_plan_samples():
     np.testing.assert_allclose(np.diff(t[idx]), 10.0 / 9, atol=0.011)  # one sample step
     idx, duration = frame_samples(t, fps=20, duration=None)  # default: plan length capped at 10 s
     assert duration == 10.0 and idx.size == 200
+
+
+def test_size_option_sets_the_frame_size_default_laptop_readable(short_plan, tmp_path):
+    """--size WxH gives frames of exactly that size; the default is 960×720 (was 512×384)."""
+    _, csv = short_plan
+    for args, expected in (([], (960, 720)), (["--size", "640x360"], (640, 360))):
+        out = tmp_path / f"arm{len(args)}.gif"
+        run = CliRunner().invoke(cli, ["animate", str(csv), "-o", str(out), "--fps", "2", "--duration", "1", *args])
+        assert run.exit_code == 0, run.output
+        with Image.open(out) as gif:
+            assert gif.size == expected

@@ -1,6 +1,7 @@
 """Cartesian redundancy planner (spec 20): paths, time laws, windows, the paper's
 claims on the bundled examples, backend equivalence, and bad input."""
 
+import json
 import math
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from armgen.planning.cartesian.windows import JointWindows
 from armgen.robot import rpy_matrix
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+ROBOTS = Path(__file__).resolve().parent.parent / "robots"
 # The spec's bars (spec 20, "What the examples must show").
 DRIFT_FREE_DEG = 0.1
 RETURN_EXACT_DEG = 1e-6
@@ -158,6 +160,66 @@ def test_cli_failure_writes_nothing(tmp_path):
                                       "--set", "path.via=[-3000, 424, 1080]"])
     assert result.exit_code == 3 and "unreachable" in result.output
     assert list(tmp_path.iterdir()) == []
+
+
+def test_leaving_the_joint_limits_is_exit_3_unless_the_task_reports_it(tmp_path):
+    """The minimum-norm circle takes j6 past +140° (spec 20). By default that plan is infeasible
+    (exit 3, the joint, time and value named, nothing written); its example file asks to report."""
+    example = EXAMPLES / "modular8_circle_pinv.toml"
+    reported = tmp_path / "reported.csv"
+    ok = CliRunner().invoke(cli, ["plan", str(example), "-o", str(reported)])
+    assert ok.exit_code == 0, ok.output
+    data = np.genfromtxt(reported, delimiter=",", names=True)
+    beyond = np.abs(data["q6_rad"]) > math.radians(LIMIT_DEG)  # the CSV read back: where j6 is outside
+    first_t, worst = data["t_s"][np.argmax(beyond)], math.degrees(np.max(np.abs(data["q6_rad"])))
+
+    out = tmp_path / "failed" / "plan.csv"
+    failed = CliRunner().invoke(cli, ["plan", str(example), "-o", str(out), "--set", "check.limits=error"])
+    assert failed.exit_code == 3, failed.output
+    assert f"joint 'j6' passes its limit {LIMIT_DEG:.2f} deg at t = {first_t:.3f} s" in failed.output
+    assert f"reaches {worst:.2f} deg" in failed.output and "also beyond: j8" in failed.output
+    assert 'limits = "report"' in failed.output
+    assert not out.parent.exists()
+    with pytest.raises(TaskFileError, match="check.limits"):
+        plan("modular8_circle_pinv", "check.limits=ignore")
+
+
+def test_a_robot_file_in_a_task_is_found_beside_the_task_file(tmp_path, monkeypatch):
+    """`robot = "my_arm.toml"` is relative to the task file, not to the current folder."""
+    tasks = tmp_path / "tasks"
+    tasks.mkdir()
+    (tasks / "my_arm.toml").write_bytes((ROBOTS / "modular8.toml").read_bytes())
+    text = (EXAMPLES / "modular8_circle_combined.toml").read_text().replace('robot = "modular8"',
+                                                                            'robot = "my_arm.toml"')
+    (tasks / "job.toml").write_text(text)
+    monkeypatch.chdir(tmp_path)  # the parent folder: no my_arm.toml here
+    short = ["--set", "path.type=line", "--set", "path.end=[-450, 400, 900]", "--set", "timing.duration=2"]
+    result = CliRunner().invoke(cli, ["plan", "tasks/job.toml", "-o", "job.csv", *short])
+    assert result.exit_code == 0, result.output
+    assert json.loads(Path("job.json").read_text())["robot"]["file"] == str(Path("tasks") / "my_arm.toml")
+    # a bundled name stays a name, and a value given with --set is relative to the current folder
+    assert load_task(tasks / "job.toml")[0]["robot"] == str(Path(tasks) / "my_arm.toml")
+    assert load_task(EXAMPLES / "modular8_circle_combined.toml")[0]["robot"] == "modular8"
+    result = CliRunner().invoke(cli, ["plan", "tasks/job.toml", "-o", "job.csv", *short, "--set", "robot=my_arm.toml"])
+    assert result.exit_code == 2 and "my_arm.toml: robot file not found" in result.output
+
+
+@pytest.mark.parametrize("start, joint, side", [("[-57, -45, 71, -45, 32, 140, 34, -28]", "j6", "upper"),
+                                               ("[-140, -45, 71, -45, 32, 80, 34, -28]", "j1", "lower")])
+def test_a_start_on_a_limit_with_a_joint_limit_criterion_names_the_joint(start, joint, side):
+    """H_L is infinite on a limit: the error names the joint instead of "the tool left the path"."""
+    for name in ("zghal", "zghal_improved", "combined"):
+        with pytest.raises(PlanningError, match=f"joint '{joint}' sitting on its {side} limit"):
+            plan("modular8_circle_combined", f"start={start}", f'method.name="{name}"')
+    with pytest.raises(PlanningError, match=f"joint '{joint}' sitting on its {side} limit") as info:
+        run_task(load_task(EXAMPLES / "modular8_wgpm_demo.toml")[0] | {"start": json.loads(start)}, "wgpm")
+    assert "method.criteria.zghal" in str(info.value)
+    # without a joint-limit criterion the start is legal (inside the closed range): not this error
+    short = ("path.type=line", "path.end=[-450, 400, 900]", "timing.duration=2", "check.limits=report")
+    try:
+        plan("modular8_circle_combined", f"start={start}", 'method.name="pinv"', *short)
+    except PlanningError as exc:
+        assert "sitting on" not in str(exc)
 
 
 def test_cli_plan_and_plot(tmp_path):

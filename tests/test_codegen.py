@@ -106,7 +106,7 @@ def test_sanitizers_clean(name, precision):
 def test_compiled_matches_interpreter(name, precision, tmp_path):
     robot = load_robot(name)
     functions = SymbolicModel(robot).functions()
-    lib = build_library(REPO_GENERATED_DIR / name, name, precision, tmp_path)
+    lib = build_library(REPO_GENERATED_DIR / name, name, precision, tmp_path, batch=functions)
     compiled = CompiledModel(lib, name, functions, precision)
     report = compare_model(compiled, functions, robot, SAMPLES, seed=20261122)
     assert {r.name for r in report} == set(functions)
@@ -141,3 +141,21 @@ def test_checked_in_ptp_evaluator_is_fresh(tmp_path):
         checked_in = REPO_GENERATED_DIR / "ptp" / path.name
         assert checked_in.is_file() and checked_in.read_bytes() == path.read_bytes(), \
             f"{checked_in} is stale or missing: run `armgen gen-ptp`"
+
+
+def test_sanitizer_driver_catches_an_out_of_bounds_write_and_names_the_line(tmp_path):
+    """The driver is built without debug information (it changes nothing the sanitizers
+    check); a failing run is rebuilt with -g, so the error names the source line."""
+    import shutil
+
+    from armgen.errors import ToolchainError
+
+    copy = tmp_path / "planar3"
+    shutil.copytree(REPO_GENERATED_DIR / "planar3", copy)
+    source = (copy / "planar3.c").read_text()
+    head = "void planar3_fk(const planar3_real q[PLANAR3_NDOF], planar3_real T[16]) {"
+    assert head in source
+    (copy / "planar3.c").write_text(source.replace(head, head + " { volatile int k = 16; T[k] = T[0]; }", 1))
+    functions = SymbolicModel(load_robot("planar3")).functions()
+    with pytest.raises(ToolchainError, match=r"(?s)stack-buffer-overflow.*planar3\.c:\d+"):
+        run_sanitized(copy, "planar3", functions, "double")

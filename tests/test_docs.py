@@ -82,16 +82,22 @@ def test_code_block_runs(page, index, lang, code, tmp_path_factory):
     done.append(index)
 
 
-@pytest.mark.slow
-def test_mkdocs_build_strict(tmp_path):
+@pytest.fixture(scope="module")
+def site(tmp_path_factory) -> Path:
+    """The site built once with ``mkdocs build --strict``."""
     missing = [name for name in DOCS_PACKAGES if importlib.util.find_spec(name) is None]
     if missing:
         pytest.skip(f"{', '.join(missing)} not installed: {DOCS_HINT}")
-    site = tmp_path / "site"
+    site = tmp_path_factory.mktemp("docs") / "site"
     env = dict(os.environ, PYTHONPATH=str(ROOT), ARMGEN_NO_PROGRESS="1", MPLBACKEND="Agg", NO_MKDOCS_2_WARNING="1")
     run = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(ROOT / "mkdocs.yml"),
                           "-d", str(site)], cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
     assert run.returncode == 0, run.stdout + run.stderr
+    return site
+
+
+@pytest.mark.slow
+def test_mkdocs_build_strict(site):
     from PIL import Image
 
     for name in ("modular8_circle_combined", "iiwa14_fault_circle_gpm", "iiwa14_fault_circle_wln",
@@ -99,12 +105,57 @@ def test_mkdocs_build_strict(tmp_path):
         assert (site / "figures" / f"{name}.png").read_bytes().startswith(b"\x89PNG")
     with Image.open(site / "figures" / "arm.gif") as gif:
         assert gif.n_frames == 40
-    # each method page shows its figures; the references and results are generated, not placeholders
-    assert 'src="../figures/modular8_circle_combined.png"' in (site / "cartesian" / "index.html").read_text()
-    assert 'src="../figures/snake_tank.png"' in (site / "snake" / "index.html").read_text()
-    cli_page = (site / "cli" / "index.html").read_text()
-    for command in ("plan", "plot", "animate", "gen", "verify"):
-        assert f"armgen {command}" in cli_page
-    results = (site / "results" / "index.html").read_text()
-    assert "armgen:" not in results and results.count("<table>") == 2
-    assert "ptp_single_joint.toml" in (site / "task-files" / "index.html").read_text()
+
+
+@pytest.mark.slow
+def test_rendered_pages_hide_ci_markers_and_show_figures_early(site):
+    pages = sorted(site.rglob("*.html"))
+    assert pages
+    for page in pages:
+        assert "docs-test" not in page.read_text(encoding="utf-8"), page.relative_to(site)
+    wgpm = (site / "wgpm" / "index.html").read_text(encoding="utf-8")
+    body = wgpm[wgpm.index('<article'):]
+    # the demo's figure comes before the page's first section heading: in its first screen
+    assert body.index("figures/modular8_wgpm_demo.png") < body.index("<h2")
+    assert wgpm.count("figures/modular8_wgpm_demo.png") == 1
+    api = (site / "api" / "index.html").read_text(encoding="utf-8")
+    toc = re.search(r'<nav class="md-nav md-nav--secondary".*?</nav>\s*</div>', api, re.S).group(0)
+    entries = re.findall(r'<a href="#[^"]+" class="md-nav__link">\s*<span class="md-ellipsis">\s*(.*?)\s*</span>',
+                         toc, re.S)
+    twice = sorted({entry for entry in entries if entries.count(entry) > 1})
+    assert entries and not twice, f"the API page's table of contents lists these twice: {twice}"
+
+
+# Page width of the layout check (a laptop screen).
+SCREEN_WIDTH_PX = 1280
+# Run in the page: its layout width, and the code blocks and tables whose content is wider
+# than their box (cut off at the right edge, or only visible by scrolling inside the box).
+PROBE = """<script>
+document.body.setAttribute('data-width', document.documentElement.scrollWidth);
+document.body.setAttribute('data-clipped', Array.from(document.querySelectorAll(
+  '.md-content pre > code, .md-content .md-typeset__table, .md-content table'))
+  .filter(e => e.scrollWidth > e.clientWidth + 1)
+  .map(e => e.tagName + ':' + e.textContent.slice(0, 40).replace(/[^A-Za-z0-9_.:=-]+/g, ' ')).join(' | '));
+</script>"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("page", ["getting-started", "api", "cartesian", "results", "wgpm", "fault_tolerance"])
+def test_pages_fit_a_1280_px_screen(site, page, tmp_path):
+    """Headless Chromium lays the page out 1280 px wide: nothing (code, tables) may widen it."""
+    import shutil
+
+    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    if browser is None:
+        pytest.skip("chromium not installed (apt-get install -y chromium)")
+    html = site / page / "index.html"
+    probe = html.with_name("probe.html")  # beside it, so the relative assets resolve
+    probe.write_text(html.read_text(encoding="utf-8").replace("</body>", PROBE + "</body>"), encoding="utf-8")
+    run = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                          f"--window-size={SCREEN_WIDTH_PX},900", "--virtual-time-budget=3000", "--dump-dom",
+                          probe.as_uri()], capture_output=True, text=True, timeout=120)
+    width = re.search(r'data-width="(\d+)"', run.stdout)
+    assert width, run.stderr[-2000:]
+    assert int(width.group(1)) <= SCREEN_WIDTH_PX, f"{page}: the page is {width.group(1)} px wide"
+    clipped = re.search(r'data-clipped="([^"]*)"', run.stdout).group(1)
+    assert not clipped, f"{page}: content wider than its box (scrolls or is cut off): {clipped}"

@@ -95,7 +95,7 @@ def test_host_float_within_its_bound(builder, short_plan):
     ("combined windows", ["method.theta_s=75", "method.T_smo_L=0.5", "method.T_sum_L=1", "method.rho_L=0.01",
                           "method.gamma_R_ramp=1", "method.T_smo_R=1"]),
     ("circle, constant law", ["timing.duration=25", "timing.law=constant", "method.name=pinv",
-                              "integrator.output_every=5"]),
+                              "integrator.output_every=5", "check.limits=report"]),
 ])
 def test_every_method_replays_in_double(builder, name, overrides):
     task = example("modular8_circle_combined", [*SHORT, *overrides] if "circle" not in name else overrides)

@@ -345,14 +345,18 @@ def test_firmware_project_cortex_m4_under_qemu(tmp_path, monkeypatch):
     assert configure.returncode == 0, configure.stdout[-3000:] + configure.stderr[-3000:]
     build = subprocess.run(["cmake", "--build", str(fw / "build-m4")], capture_output=True, text=True, timeout=600)
     assert build.returncode == 0, build.stdout[-3000:] + build.stderr[-3000:]
-    # the README's `cmake --build build-m4 --target qemu > run-m4.csv 2>&1`
-    run = subprocess.run(["cmake", "--build", str(fw / "build-m4"), "--target", "qemu"], stdout=subprocess.PIPE,
-                         stderr=subprocess.STDOUT, text=True, timeout=600)
-    assert run.returncode == 0 and "# state DONE" in run.stdout, run.stdout[-3000:]
-    (fw / "run-m4.csv").write_text(run.stdout)
+    # the README's `cmake --build build-m4 --target qemu`: the CSV goes to a file of its own, and
+    # holds nothing but the run (its first line is the header, no build or emulator lines)
+    run = subprocess.run(["cmake", "--build", str(fw / "build-m4"), "--target", "qemu"], capture_output=True,
+                         text=True, timeout=600)
+    csv = fw / "build-m4" / "run-m4.csv"
+    assert run.returncode == 0 and f"wrote {csv}" in run.stdout, run.stdout[-3000:] + run.stderr[-3000:]
+    lines = csv.read_text().splitlines()
+    assert lines[0].startswith("tick,t_s,q1_rad") and "# state DONE" in lines
+    assert all(line[0].isdigit() or line.startswith("# ") for line in lines[1:]), "only rows and summary lines"
     monkeypatch.chdir(fw)
-    out = CliRunner().invoke(cli, ["verify", "robot.toml", "--generated", "generated", "--plan", "demo/plan.csv",
-                                   "--run", "run-m4.csv", "--samples", "50", "--precision", "float"])
+    out = CliRunner().invoke(cli, ["verify", "robot.toml", "-o", "generated", "--plan", "demo/plan.csv",
+                                   "--run", "build-m4/run-m4.csv", "--samples", "50", "--precision", "float"])
     assert out.exit_code == 0, out.output
     assert "run-m4.csv (float)" in out.output and "== run: PASS" in out.output
 

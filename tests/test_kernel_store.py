@@ -30,7 +30,8 @@ def _store(tmp_path, monkeypatch):
 
 def plan(method="wgpm", backend="symbolic"):
     task, sha = load_task(EXAMPLES / "modular8_wgpm_demo.toml")
-    apply_overrides(task, SHORT + [f"method.name={method!r}".replace("'", '"')])
+    # pinv leaves the limits on the demo circle: plan it anyway (by default that is exit 3)
+    apply_overrides(task, SHORT + [f"method.name={method!r}".replace("'", '"'), "check.limits=report"])
     return run_task(task, "demo", sha, backend)
 
 

@@ -8,6 +8,7 @@ from importlib.resources import files
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 from armgen.cli.main import cli
 from armgen.planning.plotting import (JOINT_COLOURS, FigureWriteError, dh_frames,
@@ -59,7 +60,8 @@ def test_figure_has_the_promised_panels_none_empty(plans, name):
     fig = plot_plan(result, name)
     assert len(fig.axes) == EXPECTED_AXES[name]
     for ax in fig.axes:
-        assert ax.get_lines() or ax.collections or ax.patches, f"empty panel {ax.get_title()!r}"
+        # a panel may state its content in words (the snake's "exact to rounding")
+        assert ax.get_lines() or ax.collections or ax.patches or ax.texts, f"empty panel {ax.get_title()!r}"
     if result.metadata["planner"] in ("cartesian", "fault_tolerant", "wgpm"):
         n = len(result.metadata["robot"]["qlim_rad"])
         angles = next(ax for ax in fig.axes if ax.get_title().startswith("joint angles"))
@@ -144,3 +146,90 @@ def test_ptp_bounds_drawn_and_violations_marked(plans):
 
 def test_joint_colours_distinct_for_25_joints():
     assert len(set(JOINT_COLOURS[:25])) == 25
+
+
+# -- the 2-D views come from the path's own plane; readable insets and labels (issue 29) --------
+
+def _circle(centre, e1, e2, radius=0.1, samples=200):
+    angle = np.linspace(0, 2 * np.pi, samples, endpoint=False)  # the mean is the centre
+    return np.asarray(centre) + radius * (np.outer(np.cos(angle), e1) + np.outer(np.sin(angle), e2))
+
+
+def test_views_of_a_circle_are_face_on_to_its_plane():
+    from armgen.planning.plotting import principal_views
+
+    # a y–z circle at constant x (the iiwa14 fault circle's plane): drawn in y–z, as a circle
+    face, edge = principal_views(_circle([0.4, 0.1, 0.9], [0, 1, 0], [0, 0, 1]))
+    assert face.name == "y–z plane" and (face.u_label, face.v_label) == ("y", "z")
+    assert edge.name.endswith("edge-on") and "x" in (edge.u_label, edge.v_label)
+    u, v = face.project(_circle([0.4, 0.1, 0.9], [0, 1, 0], [0, 0, 1]))
+    np.testing.assert_allclose(np.hypot(u - 0.1, v - 0.9), 0.1, rtol=1e-12)
+    # an oblique plane: its own axes, named by its normal; still a circle of the true radius
+    e1, e2 = np.array([1, 1, 0]) / np.sqrt(2), np.array([-1, 1, 2]) / np.sqrt(6)
+    points = _circle([0.2, 0.0, 0.5], e1, e2)
+    face, _ = principal_views(points)
+    normal = np.cross(e1, e2)
+    assert face.name == "its own plane, normal (" + ", ".join(f"{c:.2f}" for c in normal) + ")"
+    u, v = face.project(points - points.mean(axis=0))
+    np.testing.assert_allclose(np.hypot(u, v), 0.1, rtol=1e-9)
+    # a straight line along x: the top view (x–y), where it shows its length
+    face, _ = principal_views(np.outer(np.linspace(0, 1, 20), [1, 0, 0]))
+    assert face.name == "x–y plane"
+
+
+def _overlap(a, b) -> bool:
+    return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
+
+
+def test_fault_circle_figure_views_inset_ticks_and_labels(plans):
+    result, _ = plans["iiwa14_fault_circle_gpm"]
+    fig = plot_plan(result, "iiwa14")
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.canvas.draw()
+    titles = [ax.get_title() for ax in fig.axes if ax.get_title().startswith("tool path")]
+    assert titles == ["tool path, 3-D", "tool path, y–z plane", "tool path, x–z, edge-on"]
+    inset = next(ax for ax in fig.axes if ax.get_title() == "tool path, 3-D")
+    for axis in (inset.xaxis, inset.yaxis, inset.zaxis):  # x is constant along the circle
+        shown = [t.get_text() for t in axis.get_ticklabels() if t.get_text()]
+        assert len(shown) >= 2 and len(set(shown)) == len(shown), shown
+    figure_box = fig.bbox
+    label = inset.xaxis.label.get_window_extent(renderer)
+    assert figure_box.x0 <= label.x0 and label.x1 <= figure_box.x1 and figure_box.y0 <= label.y0, "x label clipped"
+    angles = next(ax for ax in fig.axes if ax.get_title().startswith("joint angles"))
+    boxes = [t.get_window_extent(renderer) for t in angles.texts if "limit" in t.get_text()]
+    assert len(boxes) >= 2
+    assert not any(_overlap(a, b) for k, a in enumerate(boxes) for b in boxes[k + 1:])
+
+
+def test_close_joint_limit_labels_do_not_overlap():
+    """The Kinova Gen3's limits (deg): ±128.9 (j2), ±147.8 (j4), ±120.3 (j6), the continuous
+    joints ±180: labels 8.6° apart on a 360° axis used to sit on each other."""
+    from armgen.planning.plotting import limit_lines, new_figure
+
+    gen3 = [(-180, 180), (-128.9, 128.9), (-180, 180), (-147.8, 147.8), (-180, 180), (-120.3, 120.3), (-180, 180)]
+    fig = new_figure(7, 4.2)
+    ax = fig.add_subplot()
+    t = np.linspace(0, 10, 50)
+    ax.plot(t, 100 * np.sin(t))
+    limit_lines(ax, gen3, [f"θ{i + 1}" for i in range(7)], t[-1])
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.canvas.draw()
+    boxes = [text.get_window_extent(renderer) for text in ax.texts]
+    assert not any(_overlap(a, b) for k, a in enumerate(boxes) for b in boxes[k + 1:])
+    shown = "\n".join(text.get_text() for text in ax.texts)
+    for value in (180, 128.9, 147.8, 120.3, -180, -128.9, -147.8, -120.3):
+        assert f"limit {value:g}°" in shown  # every limit keeps its label
+
+
+def test_snake_accuracy_panel_says_exact_instead_of_drawing_rounding(plans):
+    result, _ = plans["snake_planar"]
+    fig = plot_plan(result, "snake")
+    accuracy = next(ax for ax in fig.axes if ax.get_title().startswith("accuracy"))
+    tip_mm = np.max(result.column("tip_dev_m")) * 1e3
+    assert tip_mm < 1e-9  # the exact solver: rounding only
+    assert accuracy.get_title().endswith("mm") and "exact to" in accuracy.get_title()
+    assert not accuracy.get_lines()  # no noise drawn on the left axis
+    assert any(f"≤ {tip_mm:.1e} mm" in text.get_text() for text in accuracy.texts)
+    legend = accuracy.get_legend()
+    colours = [handle.get_color() for handle in legend.legend_handles]
+    assert len(set(colours)) == len(colours)

@@ -422,3 +422,43 @@ def test_show_and_robots_cli_text_and_json(tmp_path):
     assert {"panda", "planar3"} <= {r["name"] for r in listing}
     bad = runner.invoke(cli, ["show", str(tmp_path / "missing.urdf")])
     assert bad.exit_code == 2 and "not found" in bad.output
+
+
+# A flange with two tool frames on fixed joints, and a camera frame hung off link b.
+_FLANGE = ("<link name='a'/><link name='b'/><link name='c'/><link name='tool0'/><link name='ee_link'/>"
+           "<link name='camera'/>")
+_TOOLS = ("<joint name='to_tool0' type='fixed'><parent link='c'/><child link='tool0'/></joint>"
+          "<joint name='to_ee' type='fixed'><parent link='c'/><child link='ee_link'/></joint>")
+_CAMERA = "<joint name='to_camera' type='fixed'><parent link='b'/><child link='camera'/></joint>"
+
+
+def test_branch_error_lists_the_leaf_links_and_fixed_only_branches_are_ignored(tmp_path):
+    path = tmp_path / "tools.urdf"
+    path.write_text(_chain(_J1 + _CAMERA + _J2 + _TOOLS, links=_FLANGE))
+    # the camera branch at b leads only through a fixed joint to a leaf frame: ignored; the two
+    # tool frames on c are a real choice, named in the error
+    with pytest.raises(RobotFileError, match="link 'c': branches into joints to_tool0, to_ee, leading to the "
+                                             "leaf links ee_link, tool0; choose the chain's end with tip_link"):
+        Robot.from_urdf(path)
+    robot = Robot.from_urdf(path, tip_link="tool0")
+    assert [j.name for j in robot.joints] == ["j1", "j2"] and robot.urdf["tip_link"] == "tool0"
+    path.write_text(_chain(_J1 + _CAMERA + _J2, links=_FLANGE.replace("<link name='tool0'/><link name='ee_link'/>",
+                                                                      "")))
+    assert Robot.from_urdf(path).urdf["tip_link"] == "c"
+    # a moving branch at a (two arms) is a choice too, with every leaf below it listed
+    path.write_text(_chain(_J1 + _J2 + _J1.replace("j1", "k1").replace("'b'", "'camera'"),
+                           links=_FLANGE.replace("<link name='tool0'/><link name='ee_link'/>", "")))
+    with pytest.raises(RobotFileError, match="link 'a': branches into joints j1, k1, leading to the leaf links "
+                                             "c, camera"):
+        Robot.from_urdf(path)
+
+
+def test_show_names_continuous_joints_given_half_turn_limits(tmp_path):
+    path = tmp_path / "oblique.urdf"
+    path.write_text(OBLIQUE_URDF)
+    robot = Robot.from_urdf(path, tip_link="tcp")
+    assert robot.joints[2].qlim == (-math.pi, math.pi)
+    assert "continuous in the URDF, given ±180 deg here: j3" in robot.show_text()
+    (tmp_path / "oblique.toml").write_text('urdf = "oblique.urdf"\ntip_link = "tcp"\n[limits]\nj3 = [0, 6.283]\n')
+    bounded = load_robot(tmp_path / "oblique.toml")
+    assert bounded.joints[2].qlim == (0.0, 6.283) and "given ±180 deg" not in bounded.show_text()

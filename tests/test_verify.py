@@ -78,7 +78,7 @@ def test_stale_code_is_reported_and_never_compiled(planar3_copy, monkeypatch, pr
     compiled = []
     monkeypatch.setattr(pipeline, "build_library", lambda *a, **k: compiled.append(a))
     monkeypatch.setattr(pipeline, "run_sanitized", lambda *a, **k: compiled.append(a))
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--samples", "20"])
+    out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(planar3_copy), "--samples", "20"])
     assert out.exit_code == 5, out.output
     assert compiled == []
     assert "== fresh: FAIL" in out.output
@@ -105,7 +105,7 @@ def test_no_manifest_is_bad_input_and_writes_nothing(tmp_path, planar3_copy):
     (planar3_copy / "manifest.json").unlink()
     before = _tree(tmp_path)
     report = tmp_path / "report.json"
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--report", str(report)])
+    out = CliRunner().invoke(cli, ["verify", "planar3", "--out", str(planar3_copy), "--report", str(report)])
     assert out.exit_code == 2, out.output
     assert str(planar3_copy) in out.output and "no manifest.json" in out.output
     assert f"armgen gen planar3 --out {planar3_copy}" in out.output
@@ -125,7 +125,7 @@ def test_manifest_of_another_robot_file_is_bad_input(tmp_path, planar3_copy):
 
 def test_missing_compiler_is_exit_4(planar3_copy, monkeypatch):
     monkeypatch.setenv("PATH", str(planar3_copy))  # no gcc on it
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--samples", "20"])
+    out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(planar3_copy), "--samples", "20"])
     assert out.exit_code == 4, out.output
     assert "'gcc' not found" in out.output
 
@@ -134,7 +134,7 @@ def test_missing_compiler_is_exit_4(planar3_copy, monkeypatch):
 def test_garbage_plan_is_exit_2(tmp_path, planar3_copy, garbage):
     plan = tmp_path / "plan.csv"
     plan.write_bytes(garbage.encode("latin-1"))
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--plan", str(plan),
+    out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(planar3_copy), "--plan", str(plan),
                                    "--samples", "20", "--precision", "double"])
     assert out.exit_code == 2, out.output
     assert str(plan) in out.output and "Traceback" not in out.output
@@ -144,14 +144,14 @@ def test_garbage_plan_is_exit_2(tmp_path, planar3_copy, garbage):
 def test_garbage_plan_names_the_line(tmp_path, planar3_copy):
     plan = tmp_path / "plan.csv"
     plan.write_text("t_s,q1_rad\n0.0,0.1\n0.1,banana\n")
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--plan", str(plan)])
+    out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(planar3_copy), "--plan", str(plan)])
     assert out.exit_code == 2 and "line 3" in out.output, out.output
 
 
 def test_run_needs_a_plan(tmp_path, planar3_copy):
     run = tmp_path / "run.csv"
     run.write_text("tick,t_s\n")
-    out = CliRunner().invoke(cli, ["verify", "planar3", "--generated", str(planar3_copy), "--run", str(run)])
+    out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(planar3_copy), "--run", str(run)])
     assert out.exit_code == 2 and "--run needs --plan" in out.output, out.output
 
 
@@ -183,3 +183,57 @@ def test_replay_detects_a_tampered_plan(tmp_path):
     plan.write_text("\n".join(lines) + "\n")
     stage = stage_replay(VerifyConfig(load_robot("modular8"), plan))
     assert not stage.passed
+
+
+def test_callbacks_batched_entry_is_the_per_sample_call_and_catches_a_wrong_function(tmp_path):
+    """The callbacks stage evaluates every sample through the library's batched C entry: it gives
+    what one call per sample gives, bit for bit, and a C function that differs from its reference
+    (here: a reference from a robot 1 mm longer) fails."""
+    import numpy as np
+
+    from armgen.codegen.compiled import CompiledModel, build_library
+    from armgen.symbolic.model import SymbolicModel
+    from armgen.verify.compare import DOUBLE_REL_BOUND, _per_sample, compare_model
+    from armgen.verify.samples import batch_inputs, joint_samples
+
+    robot = load_robot("planar3")
+    functions = SymbolicModel(robot).functions()
+    compiled = CompiledModel(build_library(REPO_GENERATED_DIR / "planar3", "planar3", "double", tmp_path,
+                                           batch=functions), "planar3", functions, "double")
+    q, _ = joint_samples(robot, 50, 7)
+    for name in ("fk_jacobian", "step_wgpm", "ft_index"):
+        func = functions[name]
+        inputs = batch_inputs(func, robot, q, np.random.default_rng(7))
+        batched = compiled.raw[name].batch([_per_sample(a, func.sparsity_in(k).shape) for k, a in enumerate(inputs)])
+        for s in range(len(q)):
+            single = compiled.raw[name](*[a[s] for a in inputs])
+            for b, one in zip(batched, single):
+                assert np.array_equal(b[s], one, equal_nan=True), name
+    longer = tmp_path / "planar3_longer.toml"
+    longer.write_text((REPO / "robots" / "planar3.toml").read_text().replace("a = 0.3", "a = 0.301", 1))
+    wrong = {"fk": SymbolicModel(load_robot(longer)).function("fk")}
+    (report,) = compare_model(compiled, wrong, robot, 200, 1)
+    assert not report.passed and report.max_error > 1e3 * DOUBLE_REL_BOUND
+    (report,) = compare_model(compiled, {"fk": functions["fk"]}, robot, 200, 1)
+    assert report.passed and report.samples == 200
+
+
+def test_every_long_stage_shows_a_progress_bar(planar3_copy, monkeypatch):
+    """fresh, compile (with the reference samples drawn meanwhile) and callbacks each have a bar
+    that is driven to its total."""
+    import contextlib
+
+    bars = {}
+
+    @contextlib.contextmanager
+    def recording(total, label):
+        bar = type("Bar", (), {"count": 0, "update": lambda self, n: setattr(self, "count", self.count + n)})()
+        yield bar
+        bars[label] = (bar.count, total)
+
+    monkeypatch.setattr(pipeline, "progress", recording)
+    config = VerifyConfig(load_robot("planar3"), samples=20, generated=planar3_copy)
+    assert pipeline.passed(pipeline.run_pipeline(config, echo=lambda text: None))
+    labels = list(bars)
+    assert [label.split()[0].rstrip(",") for label in labels] == ["fresh", "compile", "callbacks"], labels
+    assert all(count == total > 0 for count, total in bars.values()), bars

@@ -7,22 +7,26 @@ from pathlib import Path
 import click
 
 from .handling import handle_errors
+from .options import out_option
 
 
 @click.command("animate")
 @click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", default=None,
-              help="video to write: .gif (Pillow) or .mp4 (needs ffmpeg); default: the CSV's name with .gif")
+@out_option("output", "video to write: .gif (Pillow) or .mp4 (needs ffmpeg); default: the CSV's name with .gif",
+            default=None)
 @click.option("--fps", type=float, default=20.0, show_default=True, help="frames per second")
 @click.option("--duration", type=float, default=None,
               help="video length in seconds (default: the plan's duration, at most 10 s)")
+@click.option("--size", default="960x720", show_default=True, metavar="WxH",
+              help="frame size in pixels (text and lines scale with it)")
 @handle_errors
-def animate_cmd(plan_csv: str, output: str | None, fps: float, duration: float | None) -> None:
+def animate_cmd(plan_csv: str, output: str | None, fps: float, duration: float | None, size: str) -> None:
     """Draw the arm moving through a plan: links between the joint frames (forward kinematics),
     the tool frame, the planned path, snake obstacles, and a time stamp."""
-    from ..planning.animation import animate_plan
+    from ..planning.animation import animate_plan, parse_size
     from ..planning.result import read_plan
 
+    pixels = parse_size(size)  # a bad --size fails before any work
     out = Path(output) if output is not None else Path(plan_csv).with_suffix(".gif")
-    animate_plan(read_plan(plan_csv), output if output is not None else out, fps, duration)
+    animate_plan(read_plan(plan_csv), output if output is not None else out, fps, duration, pixels)
     click.echo(f"wrote {out}")

@@ -6,12 +6,13 @@ from __future__ import annotations
 import click
 
 from .handling import handle_errors
+from .options import out_option
 
 
 @click.command("firmware")
 @click.argument("robot")
-@click.option("--out", "out_dir", type=click.Path(), required=True,
-              help="the project folder (new, empty, or one this command wrote earlier)")
+@out_option("out_dir", "the project folder (new, empty, or one this command wrote earlier)", old=(),
+            type=click.Path(), required=True)
 @handle_errors
 def firmware_cmd(robot: str, out_dir: str) -> None:
     """Write a firmware project for ROBOT (a bundled name or a robot file) into --out.

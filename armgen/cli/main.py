@@ -4,14 +4,13 @@ maps an :class:`ArmgenError` to its exit code and a one-paragraph message on std
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import click
-import numpy as np
 
 from .. import __version__
 from .handling import handle_errors
+from .options import out_option
 
 
 @click.group()
@@ -62,45 +61,19 @@ def _show_data(r) -> dict:
 @handle_errors
 def show_cmd(robot: str, as_json: bool) -> None:
     """Print a robot's joints (DH table or URDF origin/axis), limits, base/tool and configurations (mm, deg)."""
-    from ..robot import load_robot, matrix_rpy
+    from ..robot import load_robot
 
     r = load_robot(robot)
     if as_json:
         click.echo(json.dumps(_show_data(r), indent=2))
         return
-    click.echo(f"{r.name}: {r.description}")
-    kind = "URDF chain" if r.convention == "urdf" else f"{r.convention} DH"
-    click.echo(f"file {r.source} (sha256 {r.sha256[:16]}…), {kind}, {r.n} joints")
-    if r.convention == "urdf":
-        click.echo(f"links {r.urdf['base_link']} -> {r.urdf['tip_link']}; columns: joint, type, origin xyz [mm], "
-                   "origin rpy [deg], axis, qlim")
-    else:
-        prefix = "a_{i-1}, alpha_{i-1}" if r.convention == "modified" else "a_i, alpha_i"
-        click.echo(f"columns: joint, type, offset/theta, d [mm], a [mm], alpha [deg] ({prefix}), qlim")
-    for j in r.joints:
-        lim = (f"[{math.degrees(j.qlim[0]):8.3f}, {math.degrees(j.qlim[1]):8.3f}] deg" if j.revolute
-               else f"[{j.qlim[0] * 1e3:8.3f}, {j.qlim[1] * 1e3:8.3f}] mm")
-        if j.origin is not None:
-            xyz = np.round(j.origin[:3, 3] * 1e3, 4).tolist()
-            rpy = (np.round(np.degrees(matrix_rpy(j.origin[:3, :3])), 4) + 0.0).tolist()  # + 0.0: no -0.0
-            click.echo(f"  {j.name:8s} {j.type:9s} xyz={xyz}  rpy={rpy}  axis={[round(float(v), 6) + 0.0 for v in j.axis]}  qlim={lim}")
-            continue
-        fixed = f"theta={math.degrees(j.theta):8.3f}" if not j.revolute else f"offset={math.degrees(j.offset):7.3f}"
-        click.echo(f"  {j.name:8s} {j.type:9s} {fixed}  d={j.d * 1e3:9.3f}  a={j.a * 1e3:9.3f}  "
-                   f"alpha={math.degrees(j.alpha):8.3f}  qlim={lim}")
-    for name, T in (("base", r.base), ("tool", r.tool)):
-        if not np.allclose(T, np.eye(4)):
-            click.echo(f"{name}: xyz = {np.round(T[:3, 3] * 1e3, 4).tolist()} mm, "
-                       f"rpy = {(np.round(np.degrees(matrix_rpy(T[:3, :3])), 4) + 0.0).tolist()} deg")
-    units = np.array([180 / math.pi if j.revolute else 1e3 for j in r.joints])
-    for name, q in r.configurations.items():
-        click.echo(f"configuration {name}: {np.round(q * units, 4).tolist()} (deg / mm)")
+    click.echo(r.show_text())
 
 
 @cli.command("gen")
 @click.argument("robot")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="output directory (default: ./generated/<robot>/ under the current directory)")
+@out_option("out_dir", "output directory (default: ./generated/<robot>/ under the current directory)", old=(),
+            type=click.Path(file_okay=False), default=None)
 @click.option("--precision", type=click.Choice(["double", "float"]), default="double", show_default=True,
               help="the header's default real type (one switch; -D<PREFIX>_USE_FLOAT overrides)")
 @click.option("--prefix", default="", help="C identifier prefix (default: the robot name)")
@@ -118,8 +91,8 @@ def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functi
 
 
 @cli.command("gen-ptp")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="output directory (default: ./generated/ptp/ under the current directory)")
+@out_option("out_dir", "output directory (default: ./generated/ptp/ under the current directory)", old=(),
+            type=click.Path(file_okay=False), default=None)
 @click.option("--precision", type=click.Choice(["double", "float"]), default="double", show_default=True)
 @click.option("--prefix", default="armgen", show_default=True, help="C identifier prefix")
 @handle_errors
@@ -134,8 +107,8 @@ def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
 
 @cli.command("plan")
 @click.argument("task_file", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", type=click.Path(), default=None,
-              help="CSV to write (default: <task name>.csv in the current directory); plan.json goes beside it")
+@out_option("output", "CSV to write (default: <task name>.csv in the current directory); plan.json goes beside it",
+            type=click.Path(), default=None)
 @click.option("--backend", type=click.Choice(["symbolic", "c"]), default="symbolic", show_default=True)
 @click.option("--set", "overrides", multiple=True, help="override a task field: key=value (dotted keys, TOML values)")
 @click.option("--units", type=click.Choice(["rad", "deg"]), default="rad", show_default=True,
@@ -169,8 +142,8 @@ def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[
 @click.option("--precision", type=click.Choice(["double", "float"]), default=None, help="only this precision (default: both)")
 @click.option("--target", type=click.Choice(["cortex-m4"]), default=None, help="also run on an emulated target")
 @click.option("--report", type=click.Path(dir_okay=False), default=None, help="write the JSON report here")
-@click.option("--generated", "generated", type=click.Path(), default=None,
-              help="the folder `armgen gen` wrote (default: ./generated/<robot>/)")
+@out_option("generated", "the folder `armgen gen -o` wrote, to verify (default: ./generated/<robot>/)",
+            old=("--generated",), type=click.Path(), default=None)
 @click.option("--run", "run_csv", type=click.Path(exists=True, dir_okay=False), default=None,
               help="what a firmware run printed (e.g. the demo of `armgen firmware`), compared with --plan")
 @handle_errors
@@ -190,8 +163,8 @@ def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | 
 
 @cli.command("plot")
 @click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", default=None,
-              help="figure to write: .png, .svg or .pdf (default: the CSV's name with .png, beside it)")
+@out_option("output", "figure to write: .png, .svg or .pdf (default: the CSV's name with .png, beside it)",
+            default=None)
 @handle_errors
 def plot_cmd(plan_csv: str, output: str | None) -> None:
     """Draw a plan: joint angles with limits, velocities with bounds, criteria, task error, tool path."""

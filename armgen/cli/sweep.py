@@ -9,6 +9,7 @@ from pathlib import Path
 import click
 
 from .handling import handle_errors
+from .options import out_option
 
 
 @click.command("sweep")
@@ -21,8 +22,8 @@ from .handling import handle_errors
               help="a task field drawn uniformly in [LO, HI] (numbers, or TOML arrays for a vector field)")
 @click.option("--seed", type=int, default=0, show_default=True, help="seed of the random draws")
 @click.option("--set", "overrides", multiple=True, help="override a task field for every run: key=value")
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
-              help="the table: .csv or .parquet (default: <task name>_sweep.csv)")
+@out_option("output", "the table: .csv or .parquet (default: <task name>_sweep.csv)",
+            type=click.Path(dir_okay=False), default=None)
 @click.option("--backend", type=click.Choice(["symbolic", "c"]), default="symbolic", show_default=True)
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="local worker processes (default: the number of CPUs)")

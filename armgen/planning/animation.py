@@ -29,9 +29,26 @@ VIDEO_FORMATS = (".gif", ".mp4")
 DEFAULT_FPS = 20.0
 MAX_DEFAULT_DURATION = 10.0  # s: without --duration a long plan is sped up to this, a short one plays in real time
 MAX_FRAMES = 3000  # a larger request is a typo, not a video (150 s at 20 fps)
-DPI = 80  # 6.4 × 4.8 in → 512 × 384 px: small GIFs that still show the arm
+# The scene is laid out on a figure FIGURE_HEIGHT_IN tall (its width follows the aspect) and
+# rendered at the DPI that gives the requested pixel size, so a larger video scales text and
+# lines with it. 960 × 720 px fills half a laptop screen with 8-pt labels about 10 px tall.
+DEFAULT_SIZE = (960, 720)
+FIGURE_HEIGHT_IN = 4.8
+SIZE_RANGE = (160, 3840)  # px per side: below, nothing reads; above, a typo (and a huge GIF)
 TOOL_AXIS_FRACTION = 0.08  # tool-frame axes drawn this long, as a fraction of the scene size
 SCENE_MARGIN = 0.05  # of the scene size, around the arm's sweep
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``WIDTHxHEIGHT`` in pixels (even numbers: video encoders need them), e.g. ``960x720``."""
+    parts = text.lower().split("x")
+    lo, hi = SIZE_RANGE
+    if len(parts) == 2 and all(p.strip().isdigit() for p in parts):
+        width, height = (int(p) for p in parts)
+        if all(lo <= v <= hi and v % 2 == 0 for v in (width, height)):
+            return width, height
+    raise TaskFileError(f"--size {text!r}: give WIDTHxHEIGHT in pixels, even numbers from {lo} to {hi} "
+                        f"(e.g. {DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]})")
 
 
 def frame_samples(t: np.ndarray, fps: float, duration: float | None) -> tuple[np.ndarray, float]:
@@ -151,18 +168,19 @@ def _snake_scene(fig, result: PlanResult, frames: np.ndarray):
 
 
 def animate_plan(result: PlanResult, out_path: str | Path, fps: float = DEFAULT_FPS,
-                 duration: float | None = None) -> Path:
+                 duration: float | None = None, size: tuple[int, int] = DEFAULT_SIZE) -> Path:
     """Render the arm moving through ``result`` to ``out_path`` (.gif or .mp4), atomically.
 
     ``fps`` frames per second, ``duration`` seconds of video (default: the plan's duration, at
-    most 10 s); the plan's samples are subsampled (or repeated) to ``fps × duration`` frames.
-    Returns the path written.
+    most 10 s); the plan's samples are subsampled (or repeated) to ``fps × duration`` frames;
+    ``size`` the frames' (width, height) in pixels. Returns the path written.
     """
     out = _check_output(out_path)
     t = result.column("t_s")
     frames, duration = frame_samples(t, fps, duration)
     writer = _writer(out, fps)
-    fig = new_figure(6.4, 4.8)
+    dpi = size[1] / FIGURE_HEIGHT_IN
+    fig = new_figure(size[0] / dpi, FIGURE_HEIGHT_IN)
     FigureCanvasAgg(fig)
     planner = result.metadata.get("planner")
     if planner == "snake":
@@ -176,7 +194,7 @@ def animate_plan(result: PlanResult, out_path: str | Path, fps: float = DEFAULT_
     with tempfile.TemporaryDirectory(prefix="armgen-animate-") as scratch:
         scratch_file = Path(scratch) / f"video{out.suffix.lower()}"
         with progress(len(frames), f"animating {len(frames)} frames") as bar:
-            with writer.saving(fig, str(scratch_file), DPI):
+            with writer.saving(fig, str(scratch_file), dpi):
                 for f, k in enumerate(frames):
                     draw(f)
                     stamp.set_text(f"{name} — {planner} — t = {t[k]:7.2f} s of {t[-1]:.2f} s")

@@ -10,10 +10,13 @@ joint's own limits dashed in the joint's colour and labelled, joint velocities i
 their bounds when the plan has any, the task error, and the tool path in 3-D, top and side
 view — planned (the task's geometric path rebuilt from ``plan.json``) against executed (forward
 kinematics of the plan's joint angles, NumPy DH chain of the robot named in ``plan.json``).
+The 2-D views are chosen from the path itself (:func:`principal_views`): face-on to the plane
+the path lies in, and edge-on to it, so a circle in the y–z plane is drawn as a circle.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +24,7 @@ from matplotlib import colormaps
 from matplotlib.axes import Axes
 from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from ..errors import ArmgenError, excerpt
 from ..fileio import atomic_open
@@ -36,6 +40,18 @@ JOINT_COLOURS = ([to_hex(c) for c in colormaps["tab10"].colors]
                  + [to_hex(colormaps["tab20b"].colors[k]) for k in (0, 4, 8, 12, 16, 2, 6, 10, 14, 18)]
                  + [to_hex(colormaps["tab20c"].colors[k]) for k in (0, 4, 8, 12, 16)])
 JOINT_LINESTYLES = ("-", "--", "-.")
+# A path whose plane normal lies within this angle of a coordinate axis is drawn in that
+# coordinate plane (axes x, y, z as labelled); otherwise in its own principal axes.
+AXIS_ALIGNED_DEG = 10.0
+# Below this ratio of the second to the first principal spread a path is a straight line (or a
+# point): every plane through it shows it, and the coordinate plane it is longest in is used.
+STRAIGHT_RATIO = 1e-6
+# Joint-limit labels: the height of one 7-pt label line as a fraction of the angle panel's
+# y span (an angle panel is ~3 in = 216 pt high: 9 pt per line is ~4 %, 5 % leaves a gap).
+# Limits closer than that share one label of several lines.
+LIMIT_LABEL_LINE_FRACTION = 0.05
+# Ticks per axis of the 3-D inset: more crowd the small panel.
+INSET_TICKS = 4
 
 
 class FigureOutputError(ArmgenError):
@@ -119,7 +135,9 @@ def dh_frames(robot: Robot, q: np.ndarray) -> np.ndarray:
 
 def limit_lines(ax: Axes, limits: list[tuple[float, float]], labels: list[str], x_end: float) -> None:
     """Each joint's lower/upper limit as a dashed line in the joint's colour; joints sharing a
-    value share the line, their colours interleaved along it, labelled once at its right end."""
+    value share the line, their colours interleaved along it, labelled once at its right end.
+    Lines closer than a label's height share one label of several lines (highest on top), so
+    no two labels overlap (a Kinova Gen3's 120.3° and 128.9° limits)."""
     groups: dict[float, list[int]] = {}
     for i, (lo, hi) in enumerate(limits):
         for value in (lo, hi):
@@ -130,9 +148,24 @@ def limit_lines(ax: Axes, limits: list[tuple[float, float]], labels: list[str], 
             period = dash * len(members)
             ax.axhline(value, color=joint_style(i)["color"], lw=1.0,
                        ls=(rank * dash, (dash, period - dash)))
-        names = labels[members[0]] if len(members) == 1 else f"{labels[members[0]]}…{labels[members[-1]]}"
-        ax.annotate(f"{names} limit {value:g}°", (x_end, value), xytext=(-2, 2), textcoords="offset points",
-                    ha="right", va="bottom", fontsize=7, color=joint_style(members[0])["color"])
+    ax.autoscale_view()
+    y0, y1 = ax.get_ylim()
+    line = LIMIT_LABEL_LINE_FRACTION * abs(y1 - y0)
+    clusters: list[list[float]] = []
+    for value in sorted(groups):  # bottom up: a cluster's label grows upwards from its top line
+        if clusters and value - clusters[-1][-1] < line * len(clusters[-1]):
+            clusters[-1].append(value)
+        else:
+            clusters.append([value])
+    for cluster in clusters:
+        texts = []
+        for value in reversed(cluster):
+            members = groups[value]
+            names = labels[members[0]] if len(members) == 1 else f"{labels[members[0]]}…{labels[members[-1]]}"
+            texts.append(f"{names} limit {value:g}°")
+        # one colour per label: the cluster's top joint (each line is dashed in its own colours)
+        ax.annotate("\n".join(texts), (x_end, cluster[-1]), xytext=(-2, 2), textcoords="offset points",
+                    ha="right", va="bottom", fontsize=7, color=joint_style(groups[cluster[-1]][0])["color"])
 
 
 def angles_panel(ax: Axes, result: PlanResult, n: int, t: np.ndarray) -> None:
@@ -222,8 +255,71 @@ def executed_tool_path(result: PlanResult, robot: Robot) -> np.ndarray:
     return dh_frames(robot, q)[:, -1, :3, 3]
 
 
+@dataclass(frozen=True)
+class PathView:
+    """A 2-D view of 3-D points: the coordinates along ``u`` (horizontal) and ``v`` (vertical)."""
+
+    u: np.ndarray
+    v: np.ndarray
+    u_label: str
+    v_label: str
+    name: str  # for a title: "y–z plane", "x–z, edge-on", "its own plane, normal (0.71, 0, 0.71)"
+
+    def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        points = np.asarray(points, dtype=float)
+        return points @ self.u, points @ self.v
+
+
+def _axis_view(i: int, j: int, name: str) -> PathView:
+    eye = np.eye(3)
+    return PathView(eye[i], eye[j], "xyz"[i], "xyz"[j], name)
+
+
+def principal_views(points: np.ndarray) -> tuple[PathView, PathView]:
+    """The two 2-D views that show a path best: face-on to its principal plane (the plane of
+    the two largest principal axes of the points), and edge-on to it (its largest axis against
+    the normal, showing how far the path leaves the plane). A plane within
+    :data:`AXIS_ALIGNED_DEG` of a coordinate plane is that coordinate plane (e.g. a circle at
+    constant x: "y–z plane" and "x–y, edge-on"); a straight path uses the coordinate plane it
+    is longest in; any other plane its own axes, named by its normal."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    centred = points - points.mean(axis=0)
+    _, spread, axes = np.linalg.svd(centred, full_matrices=False) if len(points) > 1 else (None, np.zeros(1), np.eye(3))
+    extent = np.ptp(points, axis=0)
+    if spread.size < 2 or spread[0] == 0 or spread[1] <= STRAIGHT_RATIO * spread[0]:
+        normal_axis = min((2, 1, 0), key=lambda k: extent[k])  # ties prefer the top view
+    else:
+        normal = axes[2] if axes.shape[0] > 2 else np.cross(axes[0], axes[1])
+        normal_axis = int(np.argmax(np.abs(normal)))
+        if abs(normal[normal_axis]) < np.cos(np.radians(AXIS_ALIGNED_DEG)):  # oblique: its own axes
+            # each direction's sign: its first clearly non-zero component positive
+            u, v, normal = (w * np.sign(w[np.flatnonzero(np.abs(w) > 1e-6)[0]]) for w in (axes[0], axes[1], normal))
+            fmt = lambda w: "(" + ", ".join(f"{c:.2f}" for c in w) + ")"  # noqa: E731
+            return (PathView(u, v, f"along {fmt(u)}", f"along {fmt(v)}", f"its own plane, normal {fmt(normal)}"),
+                    PathView(u, normal, f"along {fmt(u)}", f"along the normal {fmt(normal)}", "edge-on"))
+    i, j = (k for k in range(3) if k != normal_axis)
+    wide = i if extent[i] >= extent[j] else j
+    a, b = sorted((wide, normal_axis))
+    return (_axis_view(i, j, f"{'xyz'[i]}–{'xyz'[j]} plane"),
+            _axis_view(a, b, f"{'xyz'[a]}–{'xyz'[b]}, edge-on"))
+
+
+def equal_3d_axes(ax, points: np.ndarray) -> None:
+    """Equal scales on a 3-D axes: one cube around ``points``, so an axis along which the path
+    is constant spans the same range as the others (distinct tick labels, not one repeated)."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    half = max(0.5 * float(np.max(np.ptp(points, axis=0))), 1e-9)
+    ax.set(xlim=(centre[0] - half, centre[0] + half), ylim=(centre[1] - half, centre[1] + half),
+           zlim=(centre[2] - half, centre[2] + half))
+    ax.set_box_aspect((1, 1, 1), zoom=0.8)  # zoom < 1: room for the axis labels inside the panel
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(MaxNLocator(INSET_TICKS))
+
+
 def tool_path_views(fig_or_subfig, result: PlanResult) -> list[Axes]:
-    """Three panels in one row: the tool path in 3-D, top view (x–y) and side view (x–z), in mm."""
+    """Three panels in one row: the tool path in 3-D, then face-on and edge-on to the path's own
+    plane (:func:`principal_views`), in mm."""
     robot = plan_robot(result)
     executed = executed_tool_path(result, robot) * 1e3
     planned = planned_tool_path(result, robot)
@@ -237,15 +333,16 @@ def tool_path_views(fig_or_subfig, result: PlanResult) -> list[Axes]:
         ax.plot(*planned.T, "k--", lw=1.0, label="planned path")
     ax.scatter(*executed[0], color="tab:green", s=20, label="start")
     ax.set(xlabel="x [mm]", ylabel="y [mm]", zlabel="z [mm]", title="tool path, 3-D")
-    ax.set_aspect("equal")
+    everything = executed if planned is None else np.vstack([executed, planned])
+    equal_3d_axes(ax, everything)
     ax.tick_params(labelsize=6)
     ax.legend(fontsize=7, loc="upper left")
-    for ax, (i, j), name in ((axes[1], (0, 1), "top view (x–y)"), (axes[2], (0, 2), "side view (x–z)")):
-        ax.plot(executed[:, i], executed[:, j], color="tab:red", lw=1.3, label="executed")
+    for ax, view in zip(axes[1:], principal_views(planned if planned is not None else executed)):
+        ax.plot(*view.project(executed), color="tab:red", lw=1.3, label="executed")
         if planned is not None:
-            ax.plot(planned[:, i], planned[:, j], "k--", lw=1.0, label="planned")
-        ax.plot(executed[0, i], executed[0, j], "o", color="tab:green", ms=4, label="start")
-        ax.set(xlabel=f"{'xyz'[i]} [mm]", ylabel=f"{'xyz'[j]} [mm]", title=f"tool path, {name}")
+            ax.plot(*view.project(planned), "k--", lw=1.0, label="planned")
+        ax.plot(*view.project(executed[:1]), "o", color="tab:green", ms=4, label="start")
+        ax.set(xlabel=f"{view.u_label} [mm]", ylabel=f"{view.v_label} [mm]", title=f"tool path, {view.name}")
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)

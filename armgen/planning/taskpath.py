@@ -188,18 +188,6 @@ def smoothness(qd: np.ndarray, h: float, skip: tuple[int, ...] = ()) -> dict[str
     return {"peak_ddq_rad_s2": peak, "total_variation_dq_rad_s": float(np.sum(diff))}
 
 
-def limit_report(robot: Robot, t: np.ndarray, q: np.ndarray) -> tuple[list[dict], float]:
-    """(violations per joint, smallest margin to a limit over the plan in rad; < 0 = beyond)."""
-    violations = []
-    for i, j in enumerate(robot.joints):
-        bad = (q[:, i] > j.qlim[1]) | (q[:, i] < j.qlim[0])
-        if bad.any():
-            violations.append({"joint": j.name, "first_t_s": float(t[np.argmax(bad)]),
-                               "max_abs_deg": float(np.degrees(np.max(np.abs(q[:, i]))))})
-    margin = np.minimum(q - robot.qmin, robot.qmax - q)
-    return violations, float(np.min(margin))
-
-
 def path_metadata(task: PathTask) -> dict[str, Any]:
     return {
         "robot": {"name": task.robot.name, "file": task.robot.source, "sha256": task.robot.sha256,

@@ -16,8 +16,10 @@ from pydantic import ValidationError
 
 from .. import __version__
 from ..errors import PlanFileError, PlanningError, TaskFileError, excerpt
+from ..robot import bundled_robots
 from ..schemas import (MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, closest_key, format_validation_error, parse_toml_bounded,
                        read_input_file)
+from .limits import enforce_limits
 from .result import PlanResult, first_invalid_sample
 
 # planner name -> its package: ``planner.plan_task(task: dict, source: str, backend: str)`` and
@@ -49,11 +51,28 @@ class ResourceCaps:
     max_samples: int = MAX_OUTPUT_SAMPLES
 
 
+# Task fields that name a file. A relative path there is relative to the task file's folder
+# (as in CMake, Cargo, pyproject), so `armgen plan tasks/job.toml` works from any folder; a
+# bundled robot name stays a name. Values given with --set are relative to the current folder.
+FILE_FIELDS = ("robot",)
+
+
+def resolve_file_fields(task: dict[str, Any], folder: Path) -> None:
+    """Rewrite the task's relative file references (:data:`FILE_FIELDS`) to paths from ``folder``."""
+    for key in FILE_FIELDS:
+        value = task.get(key)
+        if isinstance(value, str) and value not in bundled_robots() and not Path(value).is_absolute():
+            task[key] = str(folder / value)
+
+
 def load_task(path: str | Path) -> tuple[dict[str, Any], str]:
-    """Read a task file (size and nesting bounded); returns the parsed dict and the file's sha256."""
+    """Read a task file (size and nesting bounded); returns the parsed dict, its file references
+    resolved from the file's folder, and the file's sha256."""
     path = Path(path)
     data = read_input_file(path, MAX_INPUT_FILE_BYTES, "task file", TaskFileError)
-    return parse_toml_bounded(data, str(path), TaskFileError), hashlib.sha256(data).hexdigest()
+    task = parse_toml_bounded(data, str(path), TaskFileError)
+    resolve_file_fields(task, path.parent)
+    return task, hashlib.sha256(data).hexdigest()
 
 
 def parse_value(text: str, where: str) -> Any:
@@ -178,6 +197,9 @@ def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: 
         raise PlanningError(f"{source}: the plan is not feasible: column '{result.columns[col]}' is "
                             f"{result.data[row, col]} at sample {row}; nothing was written (check the timing "
                             "and the numbers of the task)")
+    check = getattr(model, "check", None)  # the resolved-rate planners; ptp and snake refuse such plans themselves
+    if check is not None:
+        enforce_limits(result.metadata.get("summary", {}).get("limit_violations", []), check.limits, source)
     meta = {
         "armgen_version": __version__,
         "task_file": source,

@@ -11,6 +11,7 @@ Zghal barrier's value depends on digits that float does not hold).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import casadi as ca
 import numpy as np
@@ -18,7 +19,7 @@ import numpy as np
 from ..robot import Robot
 from ..symbolic.model import FROM_JACOBIAN
 from ..codegen.compiled import CompiledModel
-from .samples import function_inputs, joint_samples
+from .samples import batch_inputs, joint_samples
 
 # double: the generated code is the SX algorithm op for op; only libm may differ (≤ 1 ulp
 # per call), which the chain of products amplifies by far less than 1e4.
@@ -66,31 +67,42 @@ class FunctionComparison:
         return bool(self.max_error <= self.bound)
 
 
-def _round_to_float(args: list) -> list:
-    return [float(np.float32(a)) if np.ndim(a) == 0 else np.asarray(a, dtype=np.float32).astype(float) for a in args]
+def _per_sample(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """One input for all samples, each flattened column-major: (samples, rows·cols)."""
+    n = len(values)
+    return values.reshape(n, 1) if values.ndim == 1 else values.reshape(n, *shape).transpose(0, 2, 1).reshape(n, -1)
 
 
-def _batched_reference(func: ca.Function, calls: list[list]) -> list[np.ndarray]:
-    """Evaluate ``func`` on all calls at once with ``Function.map``; outputs per call stacked."""
-    n = len(calls)
-    mapped = func.map(n)
-    stacked = []
-    for k in range(func.n_in()):
-        shape = func.sparsity_in(k).shape  # map() takes the calls' matrices side by side
-        stacked.append(np.hstack([np.reshape(np.asarray(c[k], dtype=float), shape, order="F") for c in calls]))
-    outs = mapped(*stacked)
+def _batched_reference(func: ca.Function, inputs: list[np.ndarray]) -> list[np.ndarray]:
+    """Evaluate ``func`` on all samples at once with ``Function.map``; outputs (samples, rows, cols)."""
+    n = len(inputs[0])
+    stacked = []  # map() takes the samples' matrices side by side: (rows, samples·cols)
+    for k, values in enumerate(inputs):
+        rows, cols = func.sparsity_in(k).shape
+        stacked.append(_per_sample(values, (rows, cols)).reshape(n, cols, rows).transpose(2, 0, 1)
+                       .reshape(rows, n * cols))
+    outs = func.map(n)(*stacked)
     outs = outs if isinstance(outs, tuple) else (outs,)
     result = []
     for k, out in enumerate(outs):
         rows, cols = func.sparsity_out(k).shape
-        arr = np.array(out).reshape(rows, n, cols)  # map() concatenates the calls horizontally
-        result.append(arr)
+        result.append(np.array(out).reshape(rows, n, cols).transpose(1, 0, 2))
     return result
 
 
-def compare_model(compiled: CompiledModel, references: dict[str, ca.Function], robot: Robot, samples: int,
-                  seed: int) -> list[FunctionComparison]:
-    precision = compiled.precision
+@dataclass
+class ReferenceSamples:
+    """One function's seeded inputs (as :func:`~armgen.verify.samples.batch_inputs` gives
+    them; float-rounded for float) and the interpreter's outputs there (samples, rows, cols)."""
+
+    inputs: list[np.ndarray]
+    outputs: list[np.ndarray]
+
+
+def reference_samples(references: dict[str, ca.Function], robot: Robot, samples: int, seed: int, precision: str,
+                      on_function: Callable[[], None] = lambda: None) -> dict[str, ReferenceSamples]:
+    """The inputs and reference outputs :func:`compare_model` compares with, per function. It
+    needs no compiled code, so the verifier computes it while the compilers run."""
     if precision == "float":
         # draw extra so that `samples` remain after dropping the too-near-limit ones
         q_all, _ = joint_samples(robot, 2 * samples, seed)
@@ -98,25 +110,40 @@ def compare_model(compiled: CompiledModel, references: dict[str, ca.Function], r
         q_all = q_all[dist >= FLOAT_MIN_LIMIT_DISTANCE][:samples]
     else:
         q_all, _ = joint_samples(robot, samples, seed)
-    report = []
+    prepared = {}
     for index, (name, func) in enumerate(references.items()):
-        rng = np.random.default_rng([seed, index])
-        calls = [function_inputs(func, robot, q, rng, precision) for q in q_all]
-        if precision == "float":
-            calls = [_round_to_float(c) for c in calls]
-        refs = _batched_reference(func, calls)
-        floor = FLOAT_FLOOR if precision == "float" else DOUBLE_FLOOR
-        worst, worst_at = 0.0, -1
-        c_fn = compiled.raw[name]
-        for s, call in enumerate(calls):
-            got = c_fn(*call)
-            err = 0.0
-            for k, out in enumerate(got):
-                ref = refs[k][:, s, :]
-                scale = max(float(np.max(np.abs(ref))), floor)
-                err = max(err, float(np.max(np.abs(out - ref))) / scale)
-            if not err <= worst:  # NaN counts as the worst
-                worst, worst_at = err, s
+        inputs = batch_inputs(func, robot, q_all, np.random.default_rng([seed, index]), precision)
+        if precision == "float":  # the float code never sees anything else
+            inputs = [a.astype(np.float32).astype(float) for a in inputs]
+        prepared[name] = ReferenceSamples(inputs, _batched_reference(func, inputs))
+        on_function()
+    return prepared
+
+
+def compare_model(compiled: CompiledModel, references: dict[str, ca.Function], robot: Robot, samples: int,
+                  seed: int, on_function: Callable[[], None] = lambda: None,
+                  prepared: dict[str, ReferenceSamples] | None = None) -> list[FunctionComparison]:
+    """Each compiled function against the interpreter at ``samples`` seeded inputs (``prepared``
+    by :func:`reference_samples`, or drawn here), every sample through the library's batched
+    entry: one C call per function. ``on_function`` is called after each function (a progress bar)."""
+    precision = compiled.precision
+    if prepared is None:
+        prepared = reference_samples(references, robot, samples, seed, precision)
+    floor = FLOAT_FLOOR if precision == "float" else DOUBLE_FLOOR
+    report = []
+    for name, func in references.items():
+        inputs, refs = prepared[name].inputs, prepared[name].outputs
+        got = compiled.raw[name].batch([_per_sample(a, func.sparsity_in(k).shape) for k, a in enumerate(inputs)])
+        err = np.zeros(len(inputs[0]))
+        for out, ref in zip(got, refs):
+            # entries that agree exactly (also NaN with NaN, inf with inf) differ by 0; a NaN on
+            # one side only is an infinite error
+            same = (out == ref) | (np.isnan(out) & np.isnan(ref))
+            diff = np.nan_to_num(np.where(same, 0.0, np.abs(out - ref)), nan=np.inf)
+            scale = np.maximum(np.abs(np.where(np.isfinite(ref), ref, 0.0)).max(axis=(1, 2)), floor)
+            err = np.maximum(err, diff.max(axis=(1, 2)) / scale)
+        worst_at = int(np.argmax(err))
         bound = DOUBLE_REL_BOUND if precision == "double" else FLOAT_BOUNDS[name.removesuffix(FROM_JACOBIAN)]
-        report.append(FunctionComparison(name, precision, len(calls), worst, worst_at, bound))
+        report.append(FunctionComparison(name, precision, len(err), float(err[worst_at]), worst_at, bound))
+        on_function()
     return report

@@ -1,16 +1,20 @@
 """``armgen verify``: the plan-and-verify pipeline of spec 60.
 
 The code verified is a folder written by ``armgen gen`` (default ``./generated/<robot>/``,
-``--generated DIR`` elsewhere). Before anything is compiled, its ``manifest.json`` must name
+``-o DIR`` elsewhere). Before anything is compiled, its ``manifest.json`` must name
 the given robot file (sha256); a folder without a manifest, or generated from another robot
 file, is an input error (exit 2) that names the folder and the ``armgen gen`` command to fix it.
 
 Stages (each a function returning a :class:`Stage` with a table of rows):
 1. fresh    — regenerate (with the manifest's options) into a temp dir; every file must match.
    Stale code is reported and never compiled or run: the later stages are shown as not run;
-2. compile  — strict gcc flags, float and double, plus an ASan/UBSan driver run;
-3. callbacks — each compiled function as a ``casadi.Callback`` against the interpreter at N
-   seeded samples (near-singular and near-limit included), per-precision bounds;
+2. compile  — strict gcc flags, float and double, plus an ASan/UBSan driver run (the four
+   builds in parallel, while this process draws the callbacks stage's samples and evaluates
+   the interpreter on them);
+3. callbacks — each compiled function against the interpreter at N seeded samples
+   (near-singular and near-limit included), per-precision bounds: the samples go through a
+   batched C entry compiled into the library (one call per function) and through the
+   interpreter's ``Function.map``;
 4. replay   — rerun the plan's task with the C backend (the same planner code) and compare
    with the plan CSV sample by sample; then run the firmware stub (``firmware_stub/``) on the
    same task on the host — double with ASan/UBSan, and float — and compare it the same way;
@@ -34,7 +38,9 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import os
 import tempfile
+from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -47,9 +53,10 @@ from ..errors import ArmgenError, OptionError, PlanFileError, excerpt
 from ..fileio import write_text_atomic
 from ..planning.result import PlanResult, read_plan
 from ..planning.tasks import run_task
+from ..progress import progress
 from ..robot import Robot, load_robot
 from ..symbolic.model import ModelOptions, SymbolicModel
-from .compare import compare_model
+from .compare import ReferenceSamples, compare_model, reference_samples
 from . import firmware as fw
 from ..codegen.compiled import CompiledModel, build_library
 from .harness import run_sanitized
@@ -143,7 +150,7 @@ def read_manifest(config: VerifyConfig) -> GeneratedCode:
     """The folder's manifest, checked against the robot file; GeneratedDirError otherwise."""
     folder = config.gen_dir
     manifest_path = folder / "manifest.json"
-    fix = f"generate it with `{config.regenerate_command}`, or point --generated at a folder written by `armgen gen`"
+    fix = f"generate it with `{config.regenerate_command}`, or point -o at a folder written by `armgen gen`"
     if not manifest_path.is_file():
         what = "does not exist" if not folder.exists() else "has no manifest.json (not written by `armgen gen`)"
         raise GeneratedDirError(f"{folder}: {what}; {fix}")
@@ -179,34 +186,67 @@ def stage_fresh(config: VerifyConfig, work: Path, found: GeneratedCode | None = 
     return Stage("fresh", passed, ["file", "state", "ok"], rows, msg)
 
 
-def stage_compile(config: VerifyConfig, work: Path, functions,
-                  found: GeneratedCode | None = None) -> tuple[Stage, dict[str, Path]]:
+Build = tuple[str, str, Callable[[], Any]]  # (precision, what, action)
+
+
+def compile_builds(config: VerifyConfig, work: Path, functions, found: GeneratedCode | None = None) -> list[Build]:
+    """The compile stage's builds per precision: the strict shared library (with the batched
+    entries the callbacks stage calls) and the ASan/UBSan driver run."""
     gen_dir = config.gen_dir
     prefix = (found or read_manifest(config)).prefix
     host_cc()  # a missing compiler is a missing tool (exit 4), not a verification failure
+    return [(precision, what, action) for precision in config.precisions for what, action in (
+        ("strict -O2 shared library", lambda p=precision: build_library(gen_dir, prefix, p, work, batch=functions)),
+        ("ASan/UBSan driver", lambda p=precision: run_sanitized(gen_dir, prefix, functions, p)))]
+
+
+def compile_stage(builds: list[Build], futures: list[Future]) -> tuple[Stage, dict[str, Path]]:
+    """The compile stage's verdict from its finished builds (rows in the builds' order)."""
     rows, libraries = [], {}
     passed = True
-    for precision in config.precisions:
-        for what, action in (("strict -O2 shared library", lambda p=precision: build_library(gen_dir, prefix, p, work)),
-                             ("ASan/UBSan driver", lambda p=precision: run_sanitized(gen_dir, prefix, functions, p))):
-            try:
-                out = action()
-                if isinstance(out, Path):
-                    libraries[precision] = out
-                rows.append([precision, what, True, ""])
-            except ArmgenError as exc:
-                passed = False
-                rows.append([precision, what, False, str(exc).splitlines()[0]])
+    for (precision, what, _), future in zip(builds, futures):
+        try:
+            out = future.result()
+        except ArmgenError as exc:
+            passed = False
+            rows.append([precision, what, False, str(exc).splitlines()[0]])
+            continue
+        if isinstance(out, Path):
+            libraries[precision] = out
+        rows.append([precision, what, True, ""])
     return Stage("compile", passed, ["precision", "build", "ok", "detail"], rows), libraries
 
 
-def stage_callbacks(config: VerifyConfig, libraries: dict[str, Path], functions, prefix: str = "") -> Stage:
+def compile_and_prepare(config: VerifyConfig, work: Path, functions, found: GeneratedCode | None = None
+                        ) -> tuple[Stage, dict[str, Path], dict[str, dict[str, ReferenceSamples]]]:
+    """The compile stage, its builds in parallel (compilers are processes), and meanwhile, on
+    this thread, the callbacks stage's seeded inputs and interpreter outputs per precision."""
+    builds = compile_builds(config, work, functions, found)
+    total = len(builds) + len(config.precisions) * len(functions)
+    with progress(total, "compile, and reference samples meanwhile") as bar, \
+            ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        futures = [pool.submit(action) for _, _, action in builds]
+        prepared = {precision: reference_samples(functions, config.robot, config.samples, config.seed, precision,
+                                                 lambda: bar.update(1)) for precision in config.precisions}
+        for _ in as_completed(futures):
+            bar.update(1)
+    stage, libraries = compile_stage(builds, futures)
+    return stage, libraries, prepared
+
+
+def stage_callbacks(config: VerifyConfig, libraries: dict[str, Path], functions, prefix: str = "",
+                    prepared: dict[str, dict[str, ReferenceSamples]] | None = None) -> Stage:
+    """Every compiled function against the symbolic one at ``config.samples`` seeded inputs,
+    per precision, evaluated in batches (one C call per function); ``prepared`` are the
+    reference samples of :func:`compile_and_prepare` (else drawn here)."""
     rows, passed = [], True
-    for precision, library in libraries.items():
-        compiled = CompiledModel(library, prefix or fw.robot_prefix(config.robot), functions, precision)
-        for r in compare_model(compiled, functions, config.robot, config.samples, config.seed):
-            rows.append([r.name, precision, r.samples, r.max_error, r.bound, r.passed])
-            passed &= r.passed
+    with progress(len(libraries) * len(functions), "callbacks") as bar:
+        for precision, library in libraries.items():
+            compiled = CompiledModel(library, prefix or fw.robot_prefix(config.robot), functions, precision)
+            for r in compare_model(compiled, functions, config.robot, config.samples, config.seed,
+                                   lambda: bar.update(1), (prepared or {}).get(precision)):
+                rows.append([r.name, precision, r.samples, r.max_error, r.bound, r.passed])
+                passed &= r.passed
     return Stage("callbacks", passed, ["function", "precision", "samples", "max error", "bound", "ok"], rows,
                  "" if rows else "nothing compared: no library was built")
 
@@ -439,14 +479,17 @@ def run_pipeline(config: VerifyConfig, report_path: Path | None = None,
 
     with tempfile.TemporaryDirectory(prefix="armgen-verify-") as tmp:
         work = Path(tmp)
-        if not add(stage_fresh(config, work, found)).passed:
+        with progress(1, "fresh (regenerating)") as bar:
+            fresh = stage_fresh(config, work, found)
+            bar.update(1)
+        if not add(fresh).passed:
             stale = f"the code in {config.gen_dir} is stale; stale code is never compiled or run"
             for name in STAGES[1:] + (("target",) if config.target else ()) + (("run",) if config.run else ()):
                 add(_not_run(name, stale))
         else:
-            compile_stage, libraries = stage_compile(config, work, functions, found)
-            add(compile_stage)
-            add(stage_callbacks(config, libraries, functions, found.prefix))
+            compiled, libraries, prepared = compile_and_prepare(config, work, functions, found)
+            add(compiled)
+            add(stage_callbacks(config, libraries, functions, found.prefix, prepared))
             builder = (fw.FirmwareBuilder(config.robot, work / "firmware", _firmware_gen_dir(config))
                        if (config.plan or config.target) else None)
             add(stage_replay(config, work, builder))

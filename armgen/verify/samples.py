@@ -7,7 +7,7 @@ axes of DH chains built from 0/±90° twists). The other inputs are drawn per fu
 task velocities and null-space vectors ~N(0, 1), damping in {0, 1e-4, 1e-2, 0.1},
 ``δ`` and the band fraction in sensible ranges, WLN weights in [1, 11]; lock masks with up to
 two zeros, variable-damping thresholds, criterion ranges and gains of the spec 30/35 functions
-in their documented ranges (see ``function_inputs``).
+in their documented ranges (see ``batch_inputs``).
 """
 
 from __future__ import annotations
@@ -62,65 +62,76 @@ def joint_samples(robot: Robot, count: int, seed: int) -> tuple[np.ndarray, np.n
     return q, kind
 
 
-def function_inputs(func: ca.Function, robot: Robot, q: np.ndarray, rng: np.random.Generator,
-                    precision: str = "double") -> list[np.ndarray | float]:
-    """Inputs for one call of ``func`` at configuration ``q``."""
-    args: list[np.ndarray | float] = []
+def batch_inputs(func: ca.Function, robot: Robot, q: np.ndarray, rng: np.random.Generator,
+                 precision: str = "double") -> list[np.ndarray]:
+    """Inputs of ``func`` for every configuration in ``q`` (samples×n), drawn together:
+    entry k has shape ``(samples,)`` for a scalar input, ``(samples, rows)`` for a vector and
+    ``(samples, rows, cols)`` for a matrix (the J input of the *_from_jacobian twins)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    count = len(q)
+    args: list[np.ndarray] = []
     damping = DAMPING_CHOICES if precision == "double" else FLOAT_DAMPING_CHOICES
-    for k in range(func.n_in()):
-        name = func.name_in(k)
-        shape = func.sparsity_in(k).shape
+    criterion_scales = np.array(CRITERION_SCALES) * np.where(np.arange(4) == 2, robot.n, 1)
+    names = func.name_in()
+    for k, name in enumerate(names):
+        rows = func.sparsity_in(k).shape[0]
+        vector = (count, rows)
         if name == "q":
             args.append(q)
-        elif name == "J":  # the J input of the *_from_jacobian twins: the robot's Jacobian at q
-            args.append(robot.jacobian(q))
+        elif name == "J":  # the robot's Jacobian at q
+            args.append(robot.jacobian(q).reshape(count, 6, robot.n))
         elif name == "q_init":
-            args.append(rng.uniform(robot.qmin, robot.qmax))
+            args.append(rng.uniform(robot.qmin, robot.qmax, size=(count, robot.n)))
         elif name == "damping":
-            args.append(float(rng.choice(damping)))
+            args.append(rng.choice(damping, size=count))
         elif name == "delta":
             lo = FLOAT_WGPM_MIN_LOG_DELTA if (precision == "float" and func.name().removesuffix(FROM_JACOBIAN) == "step_wgpm") else -4
-            args.append(float(10 ** rng.uniform(lo, -1)))
+            args.append(10 ** rng.uniform(lo, -1, size=count))
         elif name == "band":
-            args.append(float(rng.uniform(0.02, 0.3)))
+            args.append(rng.uniform(0.02, 0.3, size=count))
         elif name == "a":
-            args.append(rng.uniform(0.5, 2.0, size=shape[0]))
+            args.append(rng.uniform(0.5, 2.0, size=vector))
         elif name == "W":
-            args.append(1 + rng.uniform(0, 10, size=shape[0]))
+            args.append(1 + rng.uniform(0, 10, size=vector))
         elif name == "mask":  # 0 = locked; up to two locked joints, at least m healthy when possible
-            mask = np.ones(shape[0])
-            mask[rng.choice(shape[0], size=int(rng.integers(0, min(3, shape[0]))), replace=False)] = 0.0
-            args.append(mask)
+            locked = rng.integers(0, min(3, rows), size=count)
+            rank = np.argsort(rng.random(vector), axis=1).argsort(axis=1)  # a random order of the joints
+            args.append(np.where(rank < locked[:, None], 0.0, 1.0))
         elif name == "epsilon":
-            args.append(float(rng.uniform(*EPSILON_RANGE[precision])))
+            args.append(rng.uniform(*EPSILON_RANGE[precision], size=count))
         elif name in ("lambda_max", "rho_max"):
-            args.append(float(rng.uniform(*LAMBDA_MAX_RANGE[precision])))
+            args.append(rng.uniform(*LAMBDA_MAX_RANGE[precision], size=count))
         elif name == "t_rmax":
-            args.append(float(rng.uniform(0, 0.5)))
-        elif name == "ramp":
-            args.append(float(rng.choice([0.0, 1.0, rng.uniform(0, 1)])))
+            args.append(rng.uniform(0, 0.5, size=count))
+        elif name == "ramp":  # off, full, or in between: a third each
+            args.append(np.choose(rng.integers(0, 3, size=count), [np.zeros(count), np.ones(count),
+                                                                    rng.uniform(0, 1, size=count)]))
         elif name == "H_lo":
-            scales = np.array(CRITERION_SCALES) * np.where(np.arange(4) == 2, robot.n, 1)
-            args.append(rng.uniform(0, 1, size=shape[0]) * scales)
+            args.append(rng.uniform(0, 1, size=vector) * criterion_scales)
         elif name == "H_hi":
-            scales = np.array(CRITERION_SCALES) * np.where(np.arange(4) == 2, robot.n, 1)
-            args.append(args[func.name_in().index("H_lo")] + rng.uniform(0.5, 2, size=shape[0]) * scales)
+            args.append(args[names.index("H_lo")] + rng.uniform(0.5, 2, size=vector) * criterion_scales)
         elif name == "k_hi":
-            args.append(rng.uniform(0, 1, size=shape[0]))
+            args.append(rng.uniform(0, 1, size=vector))
         elif name == "k_lo":
-            args.append(args[func.name_in().index("k_hi")] * rng.uniform(0, 1, size=shape[0]))
+            args.append(args[names.index("k_hi")] * rng.uniform(0, 1, size=vector))
         elif name == "u_th":
-            args.append(rng.uniform(0, 0.6, size=shape[0]))
+            args.append(rng.uniform(0, 0.6, size=vector))
         elif name == "u_band":
-            args.append(rng.uniform(0.1, 0.5, size=shape[0]))
+            args.append(rng.uniform(0.1, 0.5, size=vector))
         elif name == "omega":
-            args.append(rng.uniform(0, 0.3, size=shape[0]))
+            args.append(rng.uniform(0, 0.3, size=vector))
         elif name == "b":
-            args.append(float(rng.uniform(0, 5)))
+            args.append(rng.uniform(0, 5, size=count))
         elif name == "omega_floor":
-            args.append(float(10 ** rng.uniform(-4, -2)))
-        elif name == "v_band":  # 0 selects the plain on/off rule
-            args.append(float(rng.choice([0.0, rng.uniform(0.05, 0.5)])))
+            args.append(10 ** rng.uniform(-4, -2, size=count))
+        elif name == "v_band":  # half of them 0, which selects the plain on/off rule
+            args.append(np.where(rng.random(count) < 0.5, 0.0, rng.uniform(0.05, 0.5, size=count)))
         else:
-            args.append(rng.normal(size=shape[0]))
+            args.append(rng.normal(size=vector))
     return args
+
+
+def function_inputs(func: ca.Function, robot: Robot, q: np.ndarray, rng: np.random.Generator,
+                    precision: str = "double") -> list[np.ndarray | float]:
+    """Inputs for one call of ``func`` at configuration ``q`` (one sample of :func:`batch_inputs`)."""
+    return [float(a[0]) if a.ndim == 1 else a[0] for a in batch_inputs(func, robot, np.asarray(q)[None], rng, precision)]

@@ -7,6 +7,11 @@
   examples at build time and appended to the planner's method page (a "Figures" section);
 - the tables of ``results.md`` (markers ``<!-- armgen:NAME -->``), measured on the example plans.
 
+Two edits to every page: the ``# docs-test: skip (…)`` first lines of code blocks (for
+tests/test_docs.py, not for readers) are left out of the rendered page, and a page's figures go
+where ``<!-- armgen:figures -->`` stands (in the first screen of the weighted-GPM page), else
+at its end.
+
 Nothing here is checked in as an image: a stale figure cannot survive a build.
 """
 
@@ -15,6 +20,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import re
 import tempfile
 import time
 from importlib.resources import files as package_files
@@ -38,6 +44,9 @@ FAULT_EXAMPLES = [("iiwa14", "iiwa14_fault_circle_gpm", "iiwa14_fault_circle_wln
                   ("modular8", "modular8_fault_circle_gpm", "modular8_fault_circle_wln")]
 ANIMATION = ("modular8_circle_combined", 10.0, 4.0)  # example, fps, seconds: 40 frames on the home page
 
+# The first line of a code block that tests/test_docs.py skips (its SKIP pattern, as a line).
+DOCS_TEST_MARKER = re.compile(r"^[ \t]*#\s*docs-test:\s*skip\b.*\n", re.M)
+FIGURES_MARKER = "<!-- armgen:figures -->"
 SAME_AT_DISPLAY_PRECISION = 0.05  # deg/s or deg/s²: the tables print one decimal
 _plans: dict = {}
 _generated: dict[str, bytes] = {}
@@ -213,6 +222,7 @@ def on_files(files, config, **kwargs):
 
 
 def on_page_markdown(markdown: str, page, config, files, **kwargs) -> str:
+    markdown = DOCS_TEST_MARKER.sub("", markdown)
     for marker, render in MARKERS.items():
         tag = f"<!-- armgen:{marker} -->"
         if tag in markdown:
@@ -221,9 +231,13 @@ def on_page_markdown(markdown: str, page, config, files, **kwargs) -> str:
     if figures:
         depth = page.file.src_uri.count("/")
         prefix = "../" * depth
-        section = ["", "## Figures", "",
-                   "Drawn by `armgen plot` from the bundled examples during this documentation build.", ""]
+        images = []
         for name, caption in figures:
-            section += [f"![{caption}]({prefix}figures/{name}.png)", "", f"*`examples/{name}.toml`: {caption}.*", ""]
-        markdown += "\n".join(section)
+            images += [f"![{caption}]({prefix}figures/{name}.png)", "", f"*`examples/{name}.toml`: {caption}.*", ""]
+        if FIGURES_MARKER in markdown:  # where the page wants them (e.g. in its first screen)
+            markdown = markdown.replace(FIGURES_MARKER, "\n".join(images))
+        else:
+            markdown += "\n".join(["", "## Figures", "",
+                                   "Drawn by `armgen plot` from the bundled examples during this documentation build.",
+                                   "", *images])
     return markdown

@@ -21,11 +21,14 @@ from ...progress import progress
 from ...robot import Robot, load_robot, rpy_matrix
 from ...symbolic.steps import min_eigenvalue
 from ..backends import make_backend
+from ..limits import check_start_off_limits, limit_report
 from ..paths import CirclePath, LinePath, TimeLaw
 from ..result import PlanResult
 from .windows import JointWindows
 
 METHODS = ("pinv", "repetitive", "zghal", "zghal_improved", "combined")
+# The methods that descend Zghal's joint-limit criterion H_L (with gain rho_L).
+JOINT_LIMIT_METHODS = ("zghal", "zghal_improved", "combined")
 INTEGRATORS = ("euler", "rk4")
 PATH_TYPES = ("circle", "line")
 LENGTH_SCALE = {"m": 1.0, "mm": 1e-3}
@@ -168,6 +171,8 @@ def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
         T_sum_L=_number(m, "T_sum_L", "method", source, defaults.T_sum_L, positive=True),
         gamma_R_ramp=_number(m, "gamma_R_ramp", "method", source, defaults.gamma_R_ramp, positive=True),
     )
+    if name in JOINT_LIMIT_METHODS and params.rho_L > 0:
+        check_start_off_limits(robot, q_start, f"method '{name}'", source)
     if params.T_sum_L < params.T_smo_L:
         raise TaskFileError(f"{source}: method.T_sum_L = {params.T_sum_L} must be ≥ method.T_smo_L = {params.T_smo_L}")
 
@@ -421,13 +426,7 @@ class CartesianPlanner:
         t = result.column("t_s")
         q = result.data[:, 1:1 + n]
         qd = result.data[:, 1 + n:1 + 2 * n]
-        violations = []
-        for i, j in enumerate(self.robot.joints):
-            bad = (q[:, i] > j.qlim[1]) | (q[:, i] < j.qlim[0])
-            if bad.any():
-                violations.append({"joint": j.name, "first_t_s": float(t[np.argmax(bad)]),
-                                   "last_t_s": float(t[len(bad) - 1 - np.argmax(bad[::-1])]),
-                                   "max_abs_deg": float(np.degrees(np.max(np.abs(q[:, i]))))})
+        violations, _ = limit_report(self.robot, t, q)
         travel = np.sum(np.abs(np.diff(q, axis=0)), axis=0)
         return {
             "method": task.method.name,

@@ -64,6 +64,12 @@ class Method(StrictModel):
     gamma_R_ramp: Positive = 20.0
 
 
+class Check(StrictModel):
+    limits: Literal["error", "report"] = Field(
+        "error", description="a plan that leaves a joint's limits: 'error' (exit 3, nothing written) or 'report' "
+                             "(written; listed in the summary's limit_violations)")
+
+
 class CartesianTaskFile(StrictModel):
     """A Cartesian path task (spec 20)."""
 
@@ -77,6 +83,7 @@ class CartesianTaskFile(StrictModel):
     integrator: Integrator = Field(default_factory=Integrator)
     damping: Damping = Field(default_factory=Damping)
     method: Method = Field(default_factory=Method)
+    check: Check = Field(default_factory=Check)
 
 
 def workload(task: CartesianTaskFile) -> tuple[float, float]:

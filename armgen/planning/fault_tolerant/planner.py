@@ -42,8 +42,9 @@ from ...progress import progress
 from ...robot import Robot
 from ..backends import Backend, make_backend
 from ..cartesian.planner import _number, _table
+from ..limits import limit_report
 from ..result import PlanResult
-from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, limit_report, parse_path_task, path_metadata,
+from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, parse_path_task, path_metadata,
                        smoothness, sym_base_row, sym_tracking)
 
 METHODS = ("gpm", "wln", "pinv")

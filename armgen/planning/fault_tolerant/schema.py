@@ -61,7 +61,7 @@ class Sweep(StrictModel):
     fine_step: Positive = 0.005
 
 
-class Check(StrictModel):
+class Check(cartesian_schema.Check):
     reach: Literal["error", "report"] = "error"
 
 

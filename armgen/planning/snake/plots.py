@@ -24,6 +24,12 @@ from .spline import HermiteSpline
 INSTANTS = 6  # arm poses drawn, evenly spaced over the motion
 PLANAR_TOL = 1e-9  # m: a path whose z spread is below this is drawn in one (top) view
 FLOOR = 1e-14  # mm, floor of the log-scale accuracy traces (exact solver: ~1e-13 mm; below is rounding)
+# mm: an accuracy trace that stays below this is rounding (the exact solver reaches ~1e-13 mm;
+# 1 pm is far below any physical tolerance and far above double rounding of metre-sized
+# chains): the panel says "exact to <its maximum>" instead of drawing the noise.
+ROUNDING_MM = 1e-9
+# The accuracy traces' colours: distinct from each other and from the arm (tab:blue).
+ACCURACY_COLOURS = {"tip": "tab:purple", "chord": "tab:brown", "clearance": "tab:green"}
 VIEW_MARGIN = 0.06  # of the largest extent: room around the arm and path in each snapshot
 
 
@@ -73,6 +79,39 @@ def _view_limits(points: np.ndarray, i: int, j: int) -> tuple[tuple[float, float
     lo, hi = points[:, [i, j]].min(axis=0), points[:, [i, j]].max(axis=0)
     pad = VIEW_MARGIN * max(float(np.max(hi - lo)), 1.0)
     return (lo[0] - pad, hi[0] + pad), (lo[1] - pad, hi[1] + pad)
+
+
+def accuracy_panel(ax, result: PlanResult, t: np.ndarray) -> None:
+    """Tip deviation and worst chord error (log scale), or "exact to …" when they are rounding
+    only, and the smallest clearance on a twin axis; one legend, one colour per trace."""
+    exact: dict[str, float] = {}  # label -> its maximum [mm], for the traces that are rounding only
+    for key, column, label in (("tip", "tip_dev_m", "tip deviation from the path"),
+                               ("chord", "chord_err_max_m", "worst chord error")):
+        values = np.nan_to_num(result.column(column) * 1e3, nan=np.inf)
+        if np.max(values) < ROUNDING_MM:
+            exact[label] = float(np.max(values))
+        else:
+            ax.semilogy(t, np.maximum(values, FLOOR), color=ACCURACY_COLOURS[key], lw=1.0, label=f"{label} [mm]")
+    title = "accuracy (forward kinematics on the recovered angles)"
+    if exact:
+        bound = max(exact.values())
+        ax.text(0.5, 0.55, "exact to rounding:\n" + "\n".join(f"{label} ≤ {value:.1e} mm" for label, value in exact.items()),
+                transform=ax.transAxes, ha="center", va="center", fontsize=10, bbox={"fc": "white", "ec": "0.7"})
+        title += f": exact to {bound:.0e} mm"
+    handles, labels = ax.get_legend_handles_labels()
+    clear = result.column("clearance_min_m")
+    if np.all(np.isfinite(clear)):
+        ax2 = ax.twinx()
+        (line,) = ax2.plot(t, clear * 1e3, color=ACCURACY_COLOURS["clearance"], lw=1.0)
+        ax2.set_ylabel("smallest clearance [mm]")
+        handles, labels = handles + [line], labels + ["smallest clearance [mm] (right axis)"]
+    if handles:
+        ax.legend(handles, labels, fontsize=8, loc="upper left")
+    if len(exact) == 2:  # nothing on the left axis: no ticks that would suggest a scale
+        ax.set_yticks([])
+    else:
+        ax.grid(alpha=0.3)
+    ax.set(xlabel="t [s]", title=title)
 
 
 def plot_snake(result: PlanResult) -> Figure:
@@ -133,16 +172,7 @@ def plot_snake(result: PlanResult) -> Figure:
                   title="universal-joint angles (α solid, β dotted; limits dashed in each joint's colour)")
     ax_angles.legend(fontsize=6, ncol=6, loc="lower left")
     ax_angles.grid(alpha=0.3)
-    ax_acc.semilogy(t, np.maximum(result.column("tip_dev_m") * 1e3, FLOOR), label="tip deviation from the path [mm]")
-    ax_acc.semilogy(t, np.maximum(result.column("chord_err_max_m") * 1e3, FLOOR), label="worst chord error [mm]")
-    clear = result.column("clearance_min_m")
-    if np.all(np.isfinite(clear)):
-        ax2 = ax_acc.twinx()
-        ax2.plot(t, clear * 1e3, color="tab:green", lw=1.0)
-        ax2.set_ylabel("smallest clearance [mm] (green)")
-    ax_acc.set(xlabel="t [s]", title="accuracy (forward kinematics on the recovered angles)")
-    ax_acc.legend(fontsize=8, loc="upper left")
-    ax_acc.grid(alpha=0.3)
+    accuracy_panel(ax_acc, result, t)
     summary = meta.get("summary", {})
     fig.suptitle(f"{meta.get('robot', {}).get('name', '')} — {summary.get('solver', '')} solver, {summary.get('driven', '')} "
                  f"driven — max tip deviation {summary.get('max_tip_deviation_mm', float('nan')):.3g} mm — max |angle| "

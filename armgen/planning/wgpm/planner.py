@@ -15,34 +15,33 @@ planner runs ``method.name = "pinv"`` (the damped pseudo-inverse, nothing else) 
 column removed through the generated ``step_fault`` mask — and released as soon as the
 unclamped solution moves it back inside).
 
-``python -m armgen.planning.wgpm.planner TASK.toml --compare`` prints the spec's comparison table;
-the survey over random tasks is an ``armgen sweep`` run (docs/wgpm.md).
+The spec's comparison (pinv vs clamp vs wgpm on one task) and the survey over random tasks are
+``armgen sweep`` runs over ``method.name`` (docs/wgpm.md).
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 import time
-from dataclasses import dataclass, field, replace
-from typing import Any, Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 import casadi as ca
 import numpy as np
 
-from ...errors import ArmgenError, PlanningError, TaskFileError, excerpt
+from ...errors import PlanningError, TaskFileError, excerpt
 from ...progress import progress
 from ...symbolic.steps import WGPM_CRITERIA, WGPM_SENSE
 from ..backends import Backend, make_backend
 from ..cartesian.planner import _number, _table
+from ..limits import check_start_off_limits, limit_report
 from ..result import PlanResult
-from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, limit_report, parse_path_task, path_metadata,
+from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, parse_path_task, path_metadata,
                        smoothness, sym_base_row, sym_tracking)
 
 METHODS = ("wgpm", "pinv", "clamp")
 TOP_FIELDS = {"planner", "robot", "start", "units", "path", "timing", "integrator", "damping", "method", "tracking",
-              "description"}
+              "check", "description"}
 CRITERION_FIELDS = {"k_hi", "k_lo", "H_lo", "H_hi", "u_th", "u_band"}
 SHORT = {"manipulability": "w", "joint_manipulability": "M", "zghal": "L", "condition": "kappa"}
 # A plan "tracks" when its tool stays within these of the path (spec 35 asks whether the method
@@ -156,6 +155,9 @@ def parse_wgpm_task(task: dict, source: str) -> WgpmTask:
         ramp_time=_number(m, "ramp_time", "method", source, 2.0, nonneg=True),
         ramp_out=ramp_out, criteria=tuple(criteria),
     )
+    zghal = method.criteria[WGPM_CRITERIA.index("zghal")]
+    if name == "wgpm" and zghal.k_hi > 0:
+        check_start_off_limits(path.robot, path.q_start, "method.criteria.zghal", source)
     if 2 * method.ramp_time > path.duration and method.ramp_out:
         raise TaskFileError(f"{source}: method.ramp_time = {method.ramp_time} s is more than half of timing.duration = "
                             f"{path.duration} s; shorten it or set method.ramp_out = false")
@@ -313,73 +315,3 @@ class WgpmPlanner:
 
 def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
     return WgpmPlanner(parse_wgpm_task(task, source), backend).run()
-
-
-# -- comparison and survey -------------------------------------------------------------------
-
-COMPARE_KEYS = (("max abs(q) deg", "max_abs_q_overall_deg", "{:.1f}"), ("margin to limit deg", "min_limit_margin_deg",
-                                                                      "{:.2f}"),
-                ("max pos err mm", "max_pos_error_mm", "{:.3f}"), ("max ori err deg", "max_ori_error_deg", "{:.3f}"),
-                ("peak abs(ddq) deg/s^2", "peak_ddq_deg_s2", "{:.1f}"), ("damped steps", "damped_steps", "{}"))
-
-
-def compare(task: WgpmTask, backend_kind: str = "symbolic") -> dict[str, dict[str, Any]]:
-    """The spec's comparison: the same task by plain pseudo-inverse, binary clamp and wgpm."""
-    planner = WgpmPlanner(task, backend_kind)
-    return {name: planner.run(replace(task.method, name=name)).metadata["summary"] for name in ("pinv", "clamp", "wgpm")}
-
-
-def format_compare(summaries: dict[str, dict[str, Any]], title: str) -> str:
-    lines = [f"## {title}", "", "| method | within limits | tracks | " + " | ".join(k for k, _, _ in COMPARE_KEYS) + " |",
-             "|---" * (3 + len(COMPARE_KEYS)) + "|"]
-    for name, s in summaries.items():
-        cells = [fmt.format(s[key]) for _, key, fmt in COMPARE_KEYS]
-        lines.append(f"| {name} | {'yes' if s['within_limits'] else 'NO'} | {'yes' if s['tracks'] else 'NO'} | "
-                     + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m armgen.planning.wgpm.planner TASK.toml --compare``."""
-    from ..tasks import apply_overrides, load_task, validate_task
-
-    parser = argparse.ArgumentParser(prog="python -m armgen.planning.wgpm.planner",
-                                     description="Spec 35: pinv vs binary clamp vs weighted GPM on one task.")
-    parser.add_argument("task", help="a wgpm task file")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], help="key=value override")
-    parser.add_argument("--compare", action="store_true", help="plan the task by pinv, clamp and wgpm; print the table")
-    parser.add_argument("--backend", choices=("symbolic", "c"), default="symbolic")
-    parser.add_argument("--json", default=None, metavar="FILE", help="also write the comparison as JSON")
-    args = parser.parse_args(argv)
-    results: dict[str, Any] = {}
-    try:
-        raw, _ = load_task(args.task)
-        apply_overrides(raw, list(args.overrides))
-        validate_task(raw, args.task)
-        task = parse_wgpm_task(raw, args.task)
-        if args.compare:
-            started = time.perf_counter()
-            results["compare"] = compare(task, args.backend)
-            print(format_compare(results["compare"], f"{args.task}: {task.path.robot.name}, "
-                                 f"T = {task.path.duration:g} s, h = {task.path.step:g} s"))
-            print(f"\n({time.perf_counter() - started:.1f} s)\n")
-        if args.json:
-            _write_json(args.json, results)
-    except ArmgenError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    return 0
-
-
-def _write_json(path: str, data: Any) -> None:
-    import json
-
-    from ...fileio import write_text_atomic
-    from ..result import _finite_json, _json_default
-
-    write_text_atomic(path, json.dumps(_finite_json(json.loads(json.dumps(data, default=_json_default))), indent=2)
-                      + "\n")
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -8,7 +8,7 @@ from pydantic import Field
 
 from ...schemas import StrictModel
 from ..cartesian import schema as cartesian_schema
-from ..cartesian.schema import Damping, Description, NonNegative, Positive, RobotReference, Start, Timing, Units
+from ..cartesian.schema import Check, Damping, Description, NonNegative, Positive, RobotReference, Start, Timing, Units
 from ..fault_tolerant.schema import EulerIntegrator, RelativePath
 
 
@@ -57,6 +57,7 @@ class WgpmTaskFile(StrictModel):
     damping: Damping = Field(default_factory=Damping)
     method: Method = Field(default_factory=Method)
     tracking: Tracking = Field(default_factory=Tracking)
+    check: Check = Field(default_factory=Check)
 
 
 # (integration steps, CSV samples): the same timing and integrator fields as a Cartesian task

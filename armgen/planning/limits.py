@@ -1,0 +1,71 @@
+"""Joint-limit violations of a planned motion, and the policy for them.
+
+The resolved-rate planners (``cartesian``, ``fault_tolerant``, ``wgpm``) follow the path
+whatever the joints do, so a plan may leave a joint's limits. By default such a plan is
+infeasible (exit 3, nothing written): ``armgen plan … && armgen firmware …`` must not ship
+it. A task that studies a method which leaves the limits on purpose (the papers'
+pseudo-inverse baselines) sets ``[check] limits = "report"``: the plan is written and the
+violations are listed in the summary's ``limit_violations``. (The ``ptp`` and ``snake``
+planners never leave the limits: they refuse such a plan themselves.)
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..errors import PlanningError
+from ..robot import Robot
+
+# The values of a task's ``check.limits`` field.
+LIMIT_POLICIES = ("error", "report")
+
+
+def limit_report(robot: Robot, t: np.ndarray, q: np.ndarray) -> tuple[list[dict[str, Any]], float]:
+    """(one entry per joint that leaves its limits, smallest margin to a limit over the plan
+    in rad; < 0 = beyond). An entry names the joint, when it first and last is beyond, and its
+    farthest excursion (``worst_deg`` at ``worst_t_s`` past ``limit_deg``)."""
+    violations = []
+    for i, j in enumerate(robot.joints):
+        beyond = np.maximum(q[:, i] - j.qlim[1], j.qlim[0] - q[:, i])  # > 0 outside
+        bad = beyond > 0
+        if bad.any():
+            k = int(np.argmax(beyond))
+            limit = j.qlim[1] if q[k, i] > j.qlim[1] else j.qlim[0]
+            violations.append({"joint": j.name, "first_t_s": float(t[np.argmax(bad)]),
+                               "last_t_s": float(t[len(bad) - 1 - np.argmax(bad[::-1])]),
+                               "worst_t_s": float(t[k]), "worst_deg": math.degrees(q[k, i]),
+                               "limit_deg": math.degrees(limit),
+                               "max_abs_deg": float(np.degrees(np.max(np.abs(q[:, i]))))})
+    margin = np.minimum(q - robot.qmin, robot.qmax - q)
+    return violations, float(np.min(margin))
+
+
+def check_start_off_limits(robot: Robot, q_start: np.ndarray, criterion: str, source: str) -> None:
+    """A joint-limit criterion (Zghal's H_L) is infinite on a limit, so a start exactly there
+    sends the arm off the path at once; name the joint instead."""
+    for j, value in zip(robot.joints, q_start):
+        if value <= j.qlim[0] or value >= j.qlim[1]:
+            side, limit = ("lower", j.qlim[0]) if value <= j.qlim[0] else ("upper", j.qlim[1])
+            shown = f"{math.degrees(limit):.3f} deg" if j.revolute else f"{limit * 1e3:.3f} mm"
+            raise PlanningError(
+                f"{source}: the start has joint '{j.name}' sitting on its {side} limit ({shown}), where the "
+                f"joint-limit criterion of {criterion} is infinite: start the joint inside its limits (e.g. a degree away), "
+                "widen its limits in the robot file, or use a method without a joint-limit criterion")
+
+
+def enforce_limits(violations: list[dict[str, Any]], policy: str, source: str) -> None:
+    """Raise the infeasible-plan error for ``violations`` unless ``policy`` is ``"report"``."""
+    if not violations or policy == "report":
+        return
+    first = min(violations, key=lambda v: v["first_t_s"])
+    others = [v["joint"] for v in violations if v is not first]
+    raise PlanningError(
+        f"{source}: the plan leaves the joint limits: joint '{first['joint']}' passes its limit "
+        f"{first['limit_deg']:.2f} deg at t = {first['first_t_s']:.3f} s and reaches {first['worst_deg']:.2f} deg "
+        f"at t = {first['worst_t_s']:.3f} s" + (f" (also beyond: {', '.join(others)})" if others else "")
+        + "; nothing was written. Change the start, the path or the method; or, to write the plan and inspect "
+        "it (a baseline that leaves the limits on purpose), set [check] limits = \"report\" in the task "
+        "(or --set check.limits=report)")
