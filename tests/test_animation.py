@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import shutil
 from importlib.resources import files
 
 import numpy as np
@@ -15,6 +14,7 @@ from armgen.planning import animation
 from armgen.planning.animation import animate_plan, frame_samples
 from armgen.planning.result import write_plan
 from armgen.planning.tasks import load_task, run_task
+from conftest import require_tool
 
 
 def _plan(tmp_path_factory, name):
@@ -51,8 +51,7 @@ def test_cli_animate_gif_and_snake(tmp_path_factory, tmp_path):
 
 
 def test_mp4_with_ffmpeg(short_plan, tmp_path):
-    if shutil.which("ffmpeg") is None:
-        pytest.skip("ffmpeg not installed (apt-get install -y ffmpeg)")
+    require_tool("ffmpeg")
     out = animate_plan(short_plan[0], tmp_path / "arm.mp4", fps=5, duration=1)
     assert out.read_bytes()[4:8] == b"ftyp"  # ISO base media file
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -20,6 +21,7 @@ from pathlib import Path
 import pytest
 
 from doc_blocks import blocks, skip_reason
+from conftest import require_tool
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
@@ -145,9 +147,7 @@ def test_pages_fit_a_1280_px_screen(site, page, tmp_path):
     """Headless Chromium lays the page out 1280 px wide: nothing (code, tables) may widen it."""
     import shutil
 
-    browser = shutil.which("chromium") or shutil.which("chromium-browser")
-    if browser is None:
-        pytest.skip("chromium not installed (apt-get install -y chromium)")
+    browser = require_tool("chromium")
     html = site / page / "index.html"
     probe = html.with_name("probe.html")  # beside it, so the relative assets resolve
     probe.write_text(html.read_text(encoding="utf-8").replace("</body>", PROBE + "</body>"), encoding="utf-8")

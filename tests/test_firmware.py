@@ -8,7 +8,6 @@ import json
 import math
 import os
 import re
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -293,8 +292,7 @@ int main(void) {
 
 
 def test_makefile_host_arm_qemu_size(tmp_path):
-    if shutil.which("make") is None:
-        pytest.skip("make not installed (apt-get install -y make)")
+    require_tool("make")
     build = tmp_path / "build"
     args = ["make", "-C", str(REPO / "firmware_stub"), f"BUILD={build}", f"PYTHON={sys.executable}",
             "SET=--set path.type=line --set path.end=[-450,400,900] --set timing.duration=2"]

@@ -18,6 +18,7 @@ import pytest
 from click.testing import CliRunner
 
 from armgen.cli.main import cli
+from conftest import require_tool
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -540,11 +541,8 @@ def generated_code_deviations() -> list[tuple[set[str], set[str]]]:
 
 def test_generated_code_misra_findings_are_documented():
     import re
-    import shutil
 
-    cppcheck = shutil.which("cppcheck")
-    if cppcheck is None:
-        pytest.skip("cppcheck is not installed (apt-get install -y cppcheck)")
+    cppcheck = require_tool("cppcheck")
     rows = generated_code_deviations()
     assert rows, "the generated code's deviation table is missing from docs/firmware.md"
     folder = REPO / "generated" / "modular8"
