@@ -145,7 +145,6 @@ document.body.setAttribute('data-clipped', Array.from(document.querySelectorAll(
 @pytest.mark.parametrize("page", ["getting-started", "api", "cartesian", "results", "wgpm", "fault_tolerance"])
 def test_pages_fit_a_1280_px_screen(site, page, tmp_path):
     """Headless Chromium lays the page out 1280 px wide: nothing (code, tables) may widen it."""
-    import shutil
 
     browser = require_tool("chromium")
     html = site / page / "index.html"
