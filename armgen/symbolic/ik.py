@@ -14,7 +14,10 @@ The step (damped least squares, Levenberg–Marquardt with Sugihara's damping):
 - ``Δq = α + Jᵀ (J Jᵀ + λ I)⁻¹ (e − J α)``: the self-motion ``α`` is a descent step of a
   criterion — the Zghal joint-limit index (``use_rest = 0``) or ``½‖q − q_rest‖²``
   (``use_rest = 1``) — of length at most NULL_STEP;
-- ``q ← clamp(q + Δq, q_min, q_max)``: every iterate is inside the limits.
+- ``q ← clamp(q + Δq, q_min, q_max)``: every iterate is inside the limits; the joints that
+  the step drives past a limit stop there and the others re-solve (with those columns of J
+  removed) for the error that leaves — one active-set pass, without which an attempt stalls
+  against a limit (panda: 96.5 % → 99.6 % of random poses reached).
 
 An attempt has ITERATIONS evaluations; when it misses, the next attempt starts from a
 deterministic seed (a Kronecker sequence over the joint ranges), up to ATTEMPTS attempts.
@@ -37,8 +40,8 @@ import numpy as np
 
 from . import criteria
 from .kinematics import chain, geometric_jacobian
-from .loops import fixed_loop, find_loop
-from .steps import spd_solve, weighted_gram
+from .loops import fixed_loop
+from .steps import scaled_step, spd_solve, weighted_gram
 
 # Evaluations per attempt and attempts (the first from the caller's seed): the worst case is
 # ITERATIONS × ATTEMPTS steps. LM from a seed converges in ~5–15 steps when it converges at
@@ -46,11 +49,15 @@ from .steps import spd_solve, weighted_gram
 # local minimum, where a fresh start is cheaper than more steps.
 ITERATIONS = 15
 ATTEMPTS = 10
-# λ = ½‖e‖² + DAMPING_FLOOR: the floor (m² / rad²) keeps JJᵀ + λI regular at a singular pose;
-# at 1e-9 it leaves a Gauss–Newton step near the target (the residual after a step is
-# ~ λ/σ² of the error, σ² ≥ 1e-4 away from singularities).
+# Restart seeds keep this fraction of each joint range from either limit: an attempt that
+# starts near a limit often stalls against it (the clamped joint cannot help).
+SEED_MARGIN = 0.1
+# λ = DAMPING_SCALE·½‖e‖² + DAMPING_FLOOR (Sugihara's E + w̄, with E scaled: 0.03 converged
+# on more poses of the bundled arms than 1, 0.3 or 0.1 in the same iterations, 5000 poses).
+# The floor (m² / rad²) keeps JJᵀ + λI regular at a singular pose; at 1e-9 it leaves a
+# Gauss–Newton step near the target (the residual after a step is ~ λ/σ² of the error).
 DAMPING_FLOOR = 1e-9
-DAMPING_SCALE = 0.1
+DAMPING_SCALE = 0.03
 # Longest self-motion step (rad): a gentle pull toward the middle of the limits (or q_rest)
 # that the task correction dominates while the error is large.
 NULL_STEP = 0.1
@@ -159,12 +166,12 @@ class IKDefinition:
 
     @cached_property
     def step(self) -> ca.Function:
-        """(state, T_target, q_seed, q_rest, use_rest, tol_position, tol_orientation) → next state."""
+        """(state, T_target, q_rest, use_rest, tol_position, tol_orientation) → next state."""
         robot, n, lay = self.robot, self.n, self.layout
         qmin, qmax = robot.qmin, robot.qmax
         state = ca.SX.sym("state", lay.size)
         target = ca.SX.sym("T_target", 4, 4)
-        q_seed, q_rest = ca.SX.sym("q_seed", n), ca.SX.sym("q_rest", n)
+        q_rest = ca.SX.sym("q_rest", n)
         use_rest, tol_p, tol_o = ca.SX.sym("use_rest"), ca.SX.sym("tol_position"), ca.SX.sym("tol_orientation")
         q = state[lay.q]
         axis_frames, _, tool = chain(robot, q)
@@ -178,14 +185,21 @@ class IKDefinition:
         grad = ((1 - use_rest) * ca.gradient(criteria.zghal_safe(q, qmin.tolist(), qmax.tolist()), q)
                 + use_rest * (q - q_rest))
         alpha = -NULL_STEP * ca.fmin(ca.sqrt(2 * energy), 1) * grad / ca.fmax(ca.norm_2(grad), 1)
-        gram = weighted_gram(jac) + (DAMPING_SCALE * energy + DAMPING_FLOOR) * ca.SX.eye(len(self.rows))
-        dq = alpha + ca.mtimes(jac.T, spd_solve(gram, e - ca.mtimes(jac, alpha)))
-        stepped = ca.fmin(ca.fmax(q + dq, qmin), qmax)
+        damping = DAMPING_SCALE * energy + DAMPING_FLOOR
+        trial = q + alpha + ca.mtimes(jac.T, spd_solve(weighted_gram(jac) + damping * ca.SX.eye(len(self.rows)),
+                                                       e - ca.mtimes(jac, alpha)))
+        stepped = ca.fmin(ca.fmax(trial, qmin), qmax)
+        # the joints the trial step drives past a limit stop there; the others re-solve for the
+        # error that leaves (one active-set pass: a clamped joint no longer stalls the step)
+        free = ca.logic_and(trial >= qmin, trial <= qmax)
+        fixed_move = (1 - free) * (stepped - q)
+        stepped = ca.fmin(ca.fmax(q + scaled_step(jac, e, free, fixed_move + free * alpha, damping,
+                                                  weighted_gram(jac, free)), qmin), qmax)
         # a new attempt after ITERATIONS evaluations, from the next point of the sequence
         restart = state[lay.k] >= ITERATIONS - 1
         attempt = state[lay.attempt] + 1
         frac = attempt * ca.DM(_irrational_steps(n)) + 0.5
-        seed = qmin + (qmax - qmin) * (frac - ca.floor(frac))
+        seed = qmin + (qmax - qmin) * (SEED_MARGIN + (1 - 2 * SEED_MARGIN) * (frac - ca.floor(frac)))
         new = ca.vertcat(
             ca.if_else(converged, q, ca.if_else(restart, seed, stepped)),
             ca.if_else(closer, q, state[lay.best_q]),
@@ -197,9 +211,8 @@ class IKDefinition:
             state[lay.iterations] + 1,
             converged)
         nxt = ca.if_else(state[lay.done], state, new)
-        return ca.Function(self._tag, [state, target, q_seed, q_rest, use_rest, tol_p, tol_o], [nxt],
-                           ["state", "T_target", "q_seed", "q_rest", "use_rest", "tol_position", "tol_orientation"],
-                           ["next"])
+        return ca.Function(self._tag, [state, target, q_rest, use_rest, tol_p, tol_o], [nxt],
+                           ["state", *STEP_CONSTANTS], ["next"])
 
     def initial_state(self, q_seed: ca.SX) -> ca.SX:
         lay, robot = self.layout, self.robot
@@ -213,40 +226,25 @@ class IKDefinition:
                 state[lay.done]]
 
     @cached_property
-    def finish(self) -> ca.Function:
-        state = ca.SX.sym("state", self.layout.size)
-        return ca.Function("ik_finish", [state], self.outputs(state), ["state"], OUTPUT_NAMES)
-
-    @cached_property
-    def start(self) -> ca.Function:
-        q_seed = ca.SX.sym("q_seed", self.n)
-        return ca.Function("ik_start", [q_seed], [self.initial_state(q_seed)], ["q_seed"], ["state"])
-
-    @cached_property
     def function(self) -> ca.Function:
         """``ik``: the step ITERATIONS × ATTEMPTS times (a fixed loop) from the clamped seed."""
         step = self.step
-        inputs = [ca.SX.sym(step.name_in(k), step.sparsity_in(k).shape) for k in range(1, step.n_in())]
+        constants = [ca.SX.sym(step.name_in(k), step.sparsity_in(k).shape) for k in range(1, step.n_in())]
+        q_seed = ca.SX.sym("q_seed", self.n)
         loop = fixed_loop(step, ITERATIONS * ATTEMPTS, stop=self.layout.done)
-        final = loop(self.initial_state(inputs[1]), *inputs)
-        return ca.Function("ik", inputs, [ca.densify(x) for x in self.outputs(final)], step.name_in()[1:],
-                           OUTPUT_NAMES)
+        final = loop(self.initial_state(q_seed), *constants)
+        return ca.Function("ik", [constants[0], q_seed, *constants[1:]], [ca.densify(x) for x in self.outputs(final)],
+                           INPUT_NAMES, OUTPUT_NAMES)
 
-    def batch(self, function: ca.Function):
-        """The NumPy replay of one of the functions above (cached)."""
+    @cached_property
+    def batch(self):
+        """The NumPy replay of ``function`` (numeric.BatchFunction)."""
         from .numeric import BatchFunction
 
-        cache = self.__dict__.setdefault("_batch", {})
-        if function.name() not in cache:
-            cache[function.name()] = BatchFunction(function)
-        return cache[function.name()]
-
-    @property
-    def loop(self):
-        self.function  # noqa: B018 (registers the loop)
-        return find_loop(f"{self._tag}_loop")
+        return BatchFunction(self.function)
 
 
+STEP_CONSTANTS = ["T_target", "q_rest", "use_rest", "tol_position", "tol_orientation"]
 OUTPUT_NAMES = ["q", "position_error", "orientation_error", "iterations", "success"]
 INPUT_NAMES = ["T_target", "q_seed", "q_rest", "use_rest", "tol_position", "tol_orientation"]
 
@@ -288,36 +286,14 @@ class IKResult:
 
 def solve(robot, targets: np.ndarray, seeds: np.ndarray, q_rest: np.ndarray, use_rest: float,
           tol_position: float, tol_orientation: float) -> list[np.ndarray]:
-    """Run the IK of ``targets`` (B, 4, 4) from ``seeds`` (B, n), ``q_rest`` (B, n): the outputs
-    (OUTPUT_NAMES), each (B, …). The same operations as the ``ik`` function: its step, repeated
-    until every sample has finished or the cap is reached (finished samples are not stepped
-    again, the step being the identity for them). One pose goes through CasADi's evaluator
-    (fast for one sample), a batch through the NumPy replay of the same SX step."""
+    """Evaluate ``ik`` for ``targets`` (B, 4, 4) from ``seeds`` (B, n) with ``q_rest`` (B, n):
+    the outputs (OUTPUT_NAMES), each (rows, B). One pose goes through CasADi's evaluator, a
+    batch through the NumPy replay of the same SX (which stops stepping finished samples)."""
     ik = definition(robot)
-    lay, batch = ik.layout, targets.shape[0]
-    count = ITERATIONS * ATTEMPTS
-    constants = [targets.transpose(0, 2, 1).reshape(batch, 16).T, seeds.T, q_rest.T,
-                 np.full((1, batch), float(use_rest)), np.full((1, batch), float(tol_position)),
-                 np.full((1, batch), float(tol_orientation))]
+    batch = targets.shape[0]
+    scalars = [float(use_rest), float(tol_position), float(tol_orientation)]
     if batch == 1:
-        step = ik.step
-        state = ik.start(seeds[0]).full()
-        args = [targets[0], seeds[0], q_rest[0], use_rest, tol_position, tol_orientation]
-        for _ in range(count):
-            if state[lay.done, 0] != 0:
-                break
-            state = step(state, *args).full()
-    else:
-        step = ik.batch(ik.step)
-        state = ik.batch(ik.start)([np.ascontiguousarray(seeds.T)], batch)[0]
-        active = np.arange(batch)
-        for _ in range(count):
-            active = active[state[lay.done, active] == 0]
-            if active.size == 0:
-                break
-            state[:, active] = step([state[:, active], *[np.ascontiguousarray(c[:, active]) for c in constants]],
-                                    active.size)[0]
-    finish = ik.finish
-    if batch == 1:
-        return [np.asarray(x.full()).reshape(-1, 1) for x in finish(state)]
-    return ik.batch(finish)([state], batch)
+        return [np.asarray(x.full()).reshape(-1, 1) for x in ik.function(targets[0], seeds[0], q_rest[0], *scalars)]
+    inputs = [targets.transpose(0, 2, 1).reshape(batch, 16).T, seeds.T, q_rest.T,
+              *[np.full((1, batch), x) for x in scalars]]
+    return ik.batch([np.ascontiguousarray(x) for x in inputs], batch)

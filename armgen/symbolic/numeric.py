@@ -118,12 +118,19 @@ class _Call:
             start += nnz
         if self.count == 1:
             outputs = self.body(inputs, size)
-        else:  # a loop feeds its state (the first input) back
+        elif self.stop is None:  # a loop feeds its state (the first input) back
             for _ in range(self.count):
-                if self.stop is not None and np.all(inputs[0][self.stop] != 0):
-                    break  # every sample finished: the remaining steps are the identity
                 inputs = [self.body(inputs, size)[0], *inputs[1:]]
             outputs = [inputs[0]]
+        else:  # the finished samples are not stepped again: the remaining steps are the identity
+            state, active = inputs[0], np.arange(size)
+            for _ in range(self.count):
+                active = active[state[self.stop, active] == 0]
+                if active.size == 0:
+                    break
+                state[:, active] = self.body([x[:, active] for x in inputs], active.size)[0]
+                inputs[0] = state
+            outputs = [state]
         flat = np.concatenate(outputs) if len(outputs) > 1 else outputs[0]
         for j, target in enumerate(res):
             if target >= 0:
