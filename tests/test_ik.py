@@ -151,3 +151,101 @@ def test_bad_seed_is_rejected():
         robot.ik(np.eye(4), seed=[0.0, 1.0])
     result = robot.ik(robot.fk(robot.q0), seed="q0")
     assert result.success and result.iterations == 1
+
+
+# -- the generated C against its Python twin ---------------------------------------------------
+
+# The float C solves to the float tolerances below (what single precision resolves on a
+# ~1 m arm: 6e-8 relative per rounding, a chain of ~10 products); its solution, checked by the
+# double FK, may miss them by the float FK's own error (≤ 2e-6, FLOAT_BOUNDS["fk"]).
+FLOAT_TOL = 1e-4
+FLOAT_FK_SLACK = 2e-6
+# The float solver reaches that many of the poses the double one does (the benchmark measures it).
+FLOAT_MIN_SUCCESS = 0.9
+
+
+@pytest.fixture(scope="module")
+def compiled_ik(tmp_path_factory):
+    """name -> {precision: (ctypes function, reference)} of an ik-only build."""
+    import ctypes
+
+    from armgen.codegen.compiled import build_library
+    from armgen.codegen.generate import CodegenConfig, generate, write
+
+    built = {}
+
+    def get(name):
+        if name not in built:
+            robot = load_robot(name)
+            out = tmp_path_factory.mktemp(name)
+            write(generate(CodegenConfig(robot, functions=("ik",))), out)
+            built[name] = {}
+            for precision, real in (("double", ctypes.c_double), ("float", ctypes.c_float)):
+                lib = ctypes.CDLL(str(build_library(out, name, precision, out)))
+                fn = lib[f"{name}_ik"]
+                fn.restype = ctypes.c_int
+                built[name][precision] = (fn, real)
+        return built[name]
+    return get
+
+
+def call_c(entry, robot, pose, seed, rest, use_rest, tol):
+    import ctypes
+
+    fn, real = entry
+    dtype = np.float64 if real is ctypes.c_double else np.float32
+    buffers = [np.ascontiguousarray(pose.T.reshape(16), dtype=dtype), np.asarray(seed, dtype=dtype),
+               np.asarray(rest, dtype=dtype)]
+    q = np.zeros(robot.n, dtype=dtype)
+    scalars = [real() for _ in range(4)]
+    pointer = ctypes.POINTER(real)
+    status = fn(*[b.ctypes.data_as(pointer) for b in buffers], real(use_rest), real(tol), real(tol),
+                q.ctypes.data_as(pointer), *[ctypes.byref(s) for s in scalars])
+    return status, q.astype(float), [s.value for s in scalars]
+
+
+@pytest.mark.parametrize("name", ["planar3", "iiwa14"])
+def test_double_c_is_bit_identical_to_python(name, compiled_ik):
+    robot = load_robot(name)
+    entry = compiled_ik(name)["double"]
+    q_true = random_configurations(robot, 25, seed=13)
+    poses = robot.fk(q_true)
+    for k, pose in enumerate(poses):
+        use_rest = k % 2
+        rest = q_true[(k + 1) % 25]
+        py = robot.ik(pose, rest if use_rest else None, seed=robot.qmid)
+        status, q, (pos, ori, iterations, success) = call_c(entry, robot, pose, robot.qmid, rest if use_rest else robot.qmid,
+                                                           use_rest, ik.TOL_POSITION)
+        np.testing.assert_array_equal(q, py.q)
+        assert (pos, ori, iterations, success) == (py.position_error, py.orientation_error, py.iterations, py.success)
+        assert status == (0 if py.success else 2)
+
+
+@pytest.mark.parametrize("name", ["planar3", "iiwa14"])
+def test_float_c_reaches_the_float_tolerance(name, compiled_ik):
+    robot = load_robot(name)
+    entry = compiled_ik(name)["float"]
+    poses = robot.fk(random_configurations(robot, 40, seed=17))
+    reached = 0
+    for pose in poses:
+        status, q, (pos, ori, iterations, success) = call_c(entry, robot, pose, robot.qmid, robot.qmid, 0, FLOAT_TOL)
+        assert robot.within_limits(q)
+        assert status == (0 if success else 2)
+        if success:
+            reached += 1
+            true_pos, true_ori = independent_errors(robot, q, pose)
+            assert true_pos <= FLOAT_TOL + FLOAT_FK_SLACK and true_ori <= FLOAT_TOL + FLOAT_FK_SLACK
+    assert reached >= FLOAT_MIN_SUCCESS * len(poses)
+
+
+def test_c_status_for_misses_and_nonfinite_input(compiled_ik):
+    robot = load_robot("planar3")
+    entry = compiled_ik("planar3")["double"]
+    far = np.eye(4)
+    far[0, 3] = 10.0
+    status, q, (pos, ori, iterations, success) = call_c(entry, robot, far, robot.qmid, robot.qmid, 0, 1e-6)
+    assert status == 2 and success == 0 and iterations == ik.ITERATIONS * ik.ATTEMPTS and robot.within_limits(q)
+    bad = robot.fk(robot.qmid)
+    bad[1, 3] = np.nan
+    assert call_c(entry, robot, bad, robot.qmid, robot.qmid, 0, 1e-6)[0] == 1
+    assert call_c(entry, robot, robot.fk(robot.qmid), [np.inf, 0, 0], robot.qmid, 0, 1e-6)[0] == 1
