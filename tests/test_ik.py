@@ -249,3 +249,35 @@ def test_c_status_for_misses_and_nonfinite_input(compiled_ik):
     bad[1, 3] = np.nan
     assert call_c(entry, robot, bad, robot.qmid, robot.qmid, 0, 1e-6)[0] == 1
     assert call_c(entry, robot, robot.fk(robot.qmid), [np.inf, 0, 0], robot.qmid, 0, 1e-6)[0] == 1
+
+
+# -- command line ----------------------------------------------------------------------------------
+
+def test_cli_prints_the_solution_and_exits_0():
+    from click.testing import CliRunner
+
+    from armgen.cli.main import cli
+    from armgen.robot import matrix_rpy
+
+    robot = load_robot("panda")
+    pose = robot.fk(robot.qr + 0.1)
+    roll, pitch, yaw = np.degrees(matrix_rpy(pose[:3, :3]))
+    numbers = [repr(float(v)) for v in (*pose[:3, 3], roll, pitch, yaw)]
+    result = CliRunner().invoke(cli, ["ik", "panda", "--xyz", *numbers[:3], "--rpy", *numbers[3:],
+                                      "--units", "deg", "--seed", "qr"])
+    assert result.exit_code == 0, result.output
+    printed = np.radians([float(line.split()[1]) for line in result.output.splitlines()[1:]])
+    pos, ori = independent_errors(robot, printed, pose)
+    assert pos <= 1e-6 and ori <= 1e-6  # printed to 9 digits: ~1e-9 rad per joint
+
+
+def test_cli_exit_3_prints_the_closest_and_exit_2_for_a_bad_seed():
+    from click.testing import CliRunner
+
+    from armgen.cli.main import cli
+
+    miss = CliRunner().invoke(cli, ["ik", "iiwa14", "--xyz", "3", "0", "0.5"])
+    assert miss.exit_code == 3 and "closest reached" in miss.output and "no configuration" in miss.output
+    assert len(miss.output.splitlines()) >= 8  # the 7 joints of the closest configuration
+    bad = CliRunner().invoke(cli, ["ik", "iiwa14", "--xyz", "0.5", "0", "0.5", "--seed", "1,2"])
+    assert bad.exit_code == 2 and "--seed" in bad.output
