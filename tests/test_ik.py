@@ -281,3 +281,57 @@ def test_cli_exit_3_prints_the_closest_and_exit_2_for_a_bad_seed():
     assert len(miss.output.splitlines()) >= 8  # the 7 joints of the closest configuration
     bad = CliRunner().invoke(cli, ["ik", "iiwa14", "--xyz", "0.5", "0", "0.5", "--seed", "1,2"])
     assert bad.exit_code == 2 and "--seed" in bad.output
+
+
+# -- PTP through tool poses --------------------------------------------------------------------------
+
+def ptp_pose_task(robot, configurations, **waypoints):
+    from armgen.robot import matrix_rpy
+
+    poses = robot.fk(configurations)
+    return {"planner": "ptp", "robot": robot.name, "units": {"angle": "deg"},
+            "waypoints": {"xyz": poses[:, :3, 3].tolist(),
+                          "rpy": [np.degrees(matrix_rpy(p[:3, :3])).tolist() for p in poses],
+                          "t": [2.0 * k for k in range(len(poses))], **waypoints}}, poses
+
+
+def test_ptp_waypoints_as_poses_are_solved_nearest_and_recorded():
+    import armgen
+
+    robot = load_robot("panda")
+    # a short walk: each waypoint a small joint move from the one before (the branch to keep)
+    walk = robot.qr + np.cumsum(np.tile([0.15, -0.1, 0.1, 0.2, -0.1, 0.15, 0.1], (4, 1)), axis=0)
+    task, poses = ptp_pose_task(robot, walk, seed="qr")
+    plan = armgen.plan(task)
+    record = plan.metadata["ik"]
+    solved = np.array(record["waypoints"])
+    assert solved.shape == (4, robot.n) and robot.within_limits(solved).all()
+    pos, ori = independent_errors(robot, solved, poses)
+    assert np.all(pos <= ik.TOL_POSITION * 1.001) and np.all(ori <= ik.TOL_ORIENTATION * 1.001)
+    # nearest in joint space: each solution is no farther from the one before than the walk's
+    # own configuration of that pose (another solution of it); a branch flip would be radians
+    previous = np.vstack([robot.qr, solved[:-1]])
+    assert np.all(np.linalg.norm(solved - previous, axis=1) <= np.linalg.norm(walk - previous, axis=1))
+    # the joint splines pass through the solved configurations at the knots, at rest there
+    knots = plan.metadata["knot_times_s"]
+    data = plan.to_pandas()
+    for k, t in enumerate(knots):
+        row = data.iloc[int(np.argmin(np.abs(data["t_s"] - t)))]
+        got = [row[f"theta_{j.name}_rad"] for j in robot.joints]
+        np.testing.assert_allclose(got, solved[k], atol=1e-9)
+        assert max(abs(row[f"omega_{j.name}_rad_s"]) for j in robot.joints) < 1e-9
+
+
+def test_ptp_unreachable_pose_is_infeasible_and_bad_fields_are_named():
+    import armgen
+    from armgen.errors import PlanningError, TaskFileError
+
+    robot = load_robot("panda")
+    task, _ = ptp_pose_task(robot, np.array([robot.qr, robot.qr + 0.2]))
+    task["waypoints"]["xyz"][1] = [3.0, 0.0, 0.5]
+    with pytest.raises(PlanningError, match="waypoint 1"):
+        armgen.plan(task)
+    task, _ = ptp_pose_task(robot, np.array([robot.qr, robot.qr + 0.2]))
+    task["waypoints"]["theta"] = {j.name: [0.0, 0.0] for j in robot.joints}
+    with pytest.raises(TaskFileError, match="either theta"):
+        armgen.plan(task)
