@@ -352,7 +352,7 @@ class Robot:
 
 
     def ik(self, pose: ArrayLike, q0: ArrayLike | None = None, *, seed: str | ArrayLike | None = None,
-           tol_position: float | None = None, tol_orientation: float | None = None):
+           tol_position: float | None = None, tol_orientation: float | None = None, max_iterations: int | None = None):
         """Joint values that put the tool at ``pose`` (inverse kinematics, ``docs/ik.md``).
 
         Damped least squares (Levenberg–Marquardt) on the pose error over the robot's task
@@ -372,6 +372,9 @@ class Robot:
             else the middle of the limits).
         tol_position, tol_orientation
             Success thresholds (m, rad; default 1e-6 each).
+        max_iterations
+            Stop after this many steps (1 to the default, ``armgen.symbolic.ik.MAX_ITERATIONS``):
+            a bound on the time a solve takes, at the price of more misses.
 
         Returns
         -------
@@ -403,6 +406,9 @@ class Robot:
                                  f"(shape ({self.n},) or (..., {self.n})), got shape {value.shape}")
             return np.broadcast_to(value, batch_shape + (self.n,)).reshape(size, self.n)
 
+        cap = ik.MAX_ITERATIONS if max_iterations is None else max_iterations
+        if not isinstance(cap, (int, np.integer)) or not 1 <= cap <= ik.MAX_ITERATIONS:
+            raise ValueError(f"max_iterations must be an integer from 1 to {ik.MAX_ITERATIONS}, got {max_iterations!r}")
         rest = joints(q0, "q0") if q0 is not None else np.broadcast_to(self.qmid, (size, self.n))
         if isinstance(seed, str):
             start = joints(self.configuration(seed), f"seed '{seed}'")
@@ -413,7 +419,7 @@ class Robot:
         outputs = ik.solve(self, targets, np.ascontiguousarray(start), np.ascontiguousarray(rest),
                            0.0 if q0 is None else 1.0,
                            ik.TOL_POSITION if tol_position is None else tol_position,
-                           ik.TOL_ORIENTATION if tol_orientation is None else tol_orientation)
+                           ik.TOL_ORIENTATION if tol_orientation is None else tol_orientation, int(cap))
         q, pos, ori, iterations, success = outputs
         q = q.T.reshape(batch_shape + (self.n,))
         return ik.IKResult(q, success.reshape(batch_shape) != 0, pos.reshape(batch_shape), ori.reshape(batch_shape),

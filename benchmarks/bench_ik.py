@@ -14,7 +14,7 @@ middle of the limits) by:
 - the float C on a Cortex-M4F under QEMU (-icount shift=0, SysTick on the processor clock,
   calibrated in the run as in benchmarks/bench_kinematics.py): executed instructions per
   solve, mean and max (on the first --m4-poses poses, default all), -O2 with the bounded-range
-  sin/cos (<P>_BOUNDED_TRIG=1);
+  sin/cos (<P>_BOUNDED_TRIG=1), with the full cap and with max_iterations = 45 (the 1 ms budget);
 - Robotics Toolbox's ``ikine_LM`` (C++ solver; its defaults: 30 iterations × up to 100
   random searches, joint limits on; tol 1e-13 on ½‖e‖², i.e. ‖e‖ ≤ 4.5e-7);
 - a Pinocchio CLIK loop (the damped Gauss–Newton loop of Pinocchio's documentation, full step,
@@ -59,6 +59,8 @@ FLOAT_SUCCESS_TOL = ik.FLOAT_TOL
 SEED = 2025
 FIRMWARE = REPO / "armgen" / "data" / "firmware_stub" / "arm"
 RTB_TOL = 1e-13  # on ½‖e‖²
+# max_iterations for the M4's 170 000-instruction (1 ms at 168 MHz) budget: ~3.7k instructions a step
+M4_CAP = 45
 PIN_ITERATIONS = 1000
 PIN_DAMPING = 1e-12
 PIN_EPS = 1e-7  # on ‖log6‖, below the 1e-6 bar
@@ -143,7 +145,8 @@ int main(int argc, char **argv) {{
     for (k = 0; k < 16; ++k) T[k] = ({p}_real)poses[16 * i + k];
     for (k = 0; k < {P}_NDOF; ++k) seed[k] = ({p}_real)seed_d[k];
     clock_gettime(CLOCK_MONOTONIC, &t0);
-    status = {p}_ik(T, seed, seed, ({p}_real)0, ({p}_real)tol, ({p}_real)tol, q, &pos, &ori, &iterations, &success);
+    status = {p}_ik(T, seed, seed, ({p}_real)0, ({p}_real)tol, ({p}_real)tol, ({p}_real){cap}, q, &pos, &ori, &iterations,
+                    &success);
     clock_gettime(CLOCK_MONOTONIC, &t1);
     for (k = 0; k < {P}_NDOF; ++k) out[({P}_NDOF + 5) * i + k] = (double)q[k];
     out[({P}_NDOF + 5) * i + {P}_NDOF] = (double)pos;
@@ -170,7 +173,7 @@ def generated_ik(robot, work: Path) -> tuple[Path, str]:
 def host_c(robot, poses: np.ndarray, work: Path, precision: str) -> tuple[dict, np.ndarray]:
     gen_dir, p = generated_ik(robot, work)
     driver = work / f"driver_{p}.c"
-    driver.write_text(HOST_DRIVER.format(p=p, P=p.upper()))
+    driver.write_text(HOST_DRIVER.format(p=p, P=p.upper(), cap=ik.MAX_ITERATIONS))
     exe = work / f"ik_{p}_{precision}"
     subprocess.run(["gcc", "-std=c99", "-O2", f"-D{p.upper()}_USE_FLOAT={int(precision == 'float')}", "-I", str(gen_dir),
                     str(driver), str(gen_dir / f"{p}.c"), "-lm", "-o", str(exe)], check=True)
@@ -203,7 +206,7 @@ M4_DRIVER = r"""
 #define SYST_MASK 0xFFFFFFu
 
 typedef {p}_status (*ik_fn)(const {p}_real *, const {p}_real *, const {p}_real *, {p}_real, {p}_real, {p}_real,
-                            {p}_real *, {p}_real *, {p}_real *, {p}_real *, {p}_real *);
+                            {p}_real, {p}_real *, {p}_real *, {p}_real *, {p}_real *, {p}_real *);
 static ik_fn volatile selected = {p}_ik;
 
 __attribute__((noinline)) static uint32_t timed_calib(uint32_t iterations) {{
@@ -227,7 +230,8 @@ int main(void) {{
   for (i = 0; i < POSES; ++i) {{
     ik_fn fn = selected;
     t0 = SYST_CVR;
-    if (fn(pose[i], seed, seed, {P}_LIT(0.0), {P}_LIT(1e-4), {P}_LIT(1e-4), q, &pos, &ori, &iterations, &success) == {P}_OK) {{
+    if (fn(pose[i], seed, seed, {P}_LIT(0.0), {P}_LIT(1e-4), {P}_LIT(1e-4), ({p}_real){cap}, q, &pos, &ori, &iterations,
+           &success) == {P}_OK) {{
       ++ok;
     }}
     t1 = SYST_CVR;
@@ -247,7 +251,7 @@ int main(void) {{
 """
 
 
-def m4(robot, poses: np.ndarray, work: Path) -> dict:
+def m4(robot, poses: np.ndarray, work: Path, cap: int = ik.MAX_ITERATIONS) -> dict:
     gcc, qemu = shutil.which("arm-none-eabi-gcc"), shutil.which("qemu-system-arm")
     if not gcc or not qemu:
         return {"solver": "armgen C Cortex-M4F float (QEMU)", "note": "skipped: arm-none-eabi-gcc/qemu-system-arm missing"}
@@ -258,7 +262,7 @@ def m4(robot, poses: np.ndarray, work: Path) -> dict:
     (m4_dir / "poses.h").write_text(f"#define POSES {len(poses)}u\nstatic const {p}_real pose[POSES][16] = {{\n{table}\n}};\n"
                                     f"static const {p}_real seed[{p.upper()}_NDOF] = "
                                     f"{{{', '.join(f'{float(v)!r}f' for v in robot.qmid)}}};\n")
-    (m4_dir / "main.c").write_text(M4_DRIVER.format(p=p, P=p.upper()))
+    (m4_dir / "main.c").write_text(M4_DRIVER.format(p=p, P=p.upper(), cap=cap))
     elf = m4_dir / "ik.elf"
     flags = ["-std=c99", "-O2", *ARM_CPU_FLAGS, "-ffunction-sections", "-fdata-sections", f"-D{p.upper()}_USE_FLOAT=1",
              f"-D{p.upper()}_BOUNDED_TRIG=1"]
@@ -277,7 +281,7 @@ def m4(robot, poses: np.ndarray, work: Path) -> dict:
     total_ticks = values["ticks_sum_millions"] * 1_000_000 + values["ticks_sum_rest"]
     mean = total_ticks * per_tick / values["poses"]
     worst = values["ticks_max"] * per_tick
-    return {"solver": "armgen C Cortex-M4F float -O2, bounded trig (QEMU)", "poses": values["poses"],
+    return {"solver": f"armgen C Cortex-M4F float -O2, bounded trig (QEMU), max_iterations {cap}", "poses": values["poses"],
             "success": values["ok"] / values["poses"], "mean_instructions": mean, "max_instructions": worst,
             "mean_us_at_168MHz": mean / 168.0, "max_us_at_168MHz": worst / 168.0,
             "note": f"success = status OK (the float C's own errors <= 1e-4); ±{per_tick:.0f} instructions"}
@@ -423,7 +427,8 @@ def main(argv=None) -> int:
             rows.append(host_c(robot, poses, work, "double")[0])
             rows.append(host_c(robot, poses, work, "float")[0])
             if not args.no_qemu:
-                rows.append(m4(robot, poses[:args.m4_poses or count], work))
+                for cap in (ik.MAX_ITERATIONS, M4_CAP):
+                    rows.append(m4(robot, poses[:args.m4_poses or count], work, cap))
         if not args.no_peers:
             rows.append(rtb_peer(robot, poses))
             rows.append(pin_peer(robot, poses))

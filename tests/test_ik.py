@@ -191,7 +191,7 @@ def compiled_ik(tmp_path_factory):
     return get
 
 
-def call_c(entry, robot, pose, seed, rest, use_rest, tol):
+def call_c(entry, robot, pose, seed, rest, use_rest, tol, cap=ik.MAX_ITERATIONS):
     import ctypes
 
     fn, real = entry
@@ -201,7 +201,7 @@ def call_c(entry, robot, pose, seed, rest, use_rest, tol):
     q = np.zeros(robot.n, dtype=dtype)
     scalars = [real() for _ in range(4)]
     pointer = ctypes.POINTER(real)
-    status = fn(*[b.ctypes.data_as(pointer) for b in buffers], real(use_rest), real(tol), real(tol),
+    status = fn(*[b.ctypes.data_as(pointer) for b in buffers], real(use_rest), real(tol), real(tol), real(cap),
                 q.ctypes.data_as(pointer), *[ctypes.byref(s) for s in scalars])
     return status, q.astype(float), [s.value for s in scalars]
 
@@ -215,9 +215,10 @@ def test_double_c_is_bit_identical_to_python(name, compiled_ik):
     for k, pose in enumerate(poses):
         use_rest = k % 2
         rest = q_true[(k + 1) % 25]
-        py = robot.ik(pose, rest if use_rest else None, seed=robot.qmid)
+        cap = [ik.MAX_ITERATIONS, 3, 1, 20][k % 4]  # also the early stop
+        py = robot.ik(pose, rest if use_rest else None, seed=robot.qmid, max_iterations=cap)
         status, q, (pos, ori, iterations, success) = call_c(entry, robot, pose, robot.qmid, rest if use_rest else robot.qmid,
-                                                           use_rest, ik.TOL_POSITION)
+                                                           use_rest, ik.TOL_POSITION, cap)
         np.testing.assert_array_equal(q, py.q)
         assert (pos, ori, iterations, success) == (py.position_error, py.orientation_error, py.iterations, py.success)
         assert status == (0 if py.success else 2)
@@ -337,3 +338,18 @@ def test_ptp_unreachable_pose_is_infeasible_and_bad_fields_are_named():
     task["waypoints"]["theta"] = {j.name: [0.0, 0.0] for j in robot.joints}
     with pytest.raises(TaskFileError, match="either theta"):
         armgen.plan(task)
+
+
+def test_max_iterations_bounds_the_steps():
+    robot = load_robot("panda")
+    poses = robot.fk(random_configurations(robot, 30, seed=21))
+    full = robot.ik(poses)
+    for cap in (1, 4, 40):
+        capped = robot.ik(poses, max_iterations=cap)
+        assert np.all(capped.iterations <= cap)
+        # the same steps up to the cap: a pose solved within it is solved identically
+        early = full.iterations <= cap
+        np.testing.assert_array_equal(capped.q[early], full.q[early])
+        assert np.all(capped.success[early]) and not np.any(capped.success[~early & ~full.success])
+    with pytest.raises(ValueError, match="max_iterations"):
+        robot.ik(poses[0], max_iterations=0)

@@ -38,14 +38,17 @@ def _joints(robot, text: str, option: str, angle_scale: float) -> np.ndarray:
                                            "else the middle of the limits)")
 @click.option("--q0", default=None, help="stay near this configuration (name or values; default: away from the "
                                          "joint limits)")
+@click.option("--max-iterations", type=click.IntRange(1, None), default=None,
+              help="stop after this many steps (default: the solver's cap, 150)")
 @click.option("--units", type=click.Choice(["rad", "deg"]), default="rad", show_default=True,
               help="angle unit of --rpy, --seed, --q0 and the printed joint angles")
 @handle_errors
 def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float, float], seed: str | None,
-           q0: str | None, units: str) -> None:
+           q0: str | None, max_iterations: int | None, units: str) -> None:
     """Inverse kinematics: joint values that put the tool at a pose (exit 3 when none is found)."""
     from ..errors import OptionError, PlanningError
     from ..robot import load_robot_any, rpy_matrix
+    from ..symbolic import ik
 
     r = load_robot_any(robot)
     scale = math.pi / 180 if units == "deg" else 1.0
@@ -55,7 +58,8 @@ def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float,
     pose[:3, :3] = rpy_matrix(*(v * scale for v in rpy))
     pose[:3, 3] = xyz
     result = r.ik(pose, None if q0 is None else _joints(r, q0, "--q0", scale),
-                  seed=None if seed is None else _joints(r, seed, "--seed", scale))
+                  seed=None if seed is None else _joints(r, seed, "--seed", scale),
+                  max_iterations=None if max_iterations is None else min(max_iterations, ik.MAX_ITERATIONS))
     rows = ", ".join(f"{'vx vy vz wx wy wz'.split()[k]}" for k in r.task_rows)
     click.echo(f"{'solved' if result.success else 'closest reached'} in {int(result.iterations)} iterations "
                f"(task rows {rows}): position error {float(result.position_error):.3g} m, "

@@ -22,7 +22,8 @@ The step (damped least squares, Levenberg–Marquardt with Sugihara's damping):
 An attempt has ITERATIONS evaluations; when it misses, the next attempt starts from a
 deterministic seed (a Kronecker sequence over the joint ranges), up to ATTEMPTS attempts.
 The state carries the closest configuration seen (smallest ``½‖e‖²``), so a miss returns
-the closest one reached. Once converged (position error ≤ ``tol_position`` and orientation
+the closest one reached. ``max_iterations`` (≤ MAX_ITERATIONS) stops earlier: a bound on the
+time a call may take (on a Cortex-M4, ~3.7k instructions per step of a 7-DOF arm). Once converged (position error ≤ ``tol_position`` and orientation
 error ≤ ``tol_orientation``) the step is the identity: the generated C leaves its loop there
 (``Loop.stop``) and the NumPy evaluation stops the converged samples, with the same result as
 running the remaining iterations.
@@ -49,6 +50,8 @@ from .steps import scaled_step, spd_solve, weighted_gram
 # local minimum, where a fresh start is cheaper than more steps.
 ITERATIONS = 15
 ATTEMPTS = 10
+# The loop's count: a caller's max_iterations below it stops earlier (a bound on the time).
+MAX_ITERATIONS = ITERATIONS * ATTEMPTS
 # Restart seeds keep this fraction of each joint range from either limit: an attempt that
 # starts near a limit often stalls against it (the clamped joint cannot help).
 SEED_MARGIN = 0.1
@@ -124,12 +127,16 @@ class _Layout:
         return 2 * self.n + 5
 
     @property
-    def done(self) -> int:
+    def done(self) -> int:  # converged
         return 2 * self.n + 6
 
     @property
-    def size(self) -> int:
+    def stopped(self) -> int:  # converged or out of iterations: the loop's stop entry
         return 2 * self.n + 7
+
+    @property
+    def size(self) -> int:
+        return 2 * self.n + 8
 
 
 def pose_error(tool: ca.SX, target: ca.SX) -> ca.SX:
@@ -177,6 +184,7 @@ class IKDefinition:
         target = ca.SX.sym("T_target", 4, 4)
         q_rest = ca.SX.sym("q_rest", n)
         use_rest, tol_p, tol_o = ca.SX.sym("use_rest"), ca.SX.sym("tol_position"), ca.SX.sym("tol_orientation")
+        max_iterations = ca.SX.sym("max_iterations")
         q = state[lay.q]
         axis_frames, _, tool = chain(robot, q)
         jac = geometric_jacobian(robot, axis_frames, tool)[self.rows, :]
@@ -213,15 +221,16 @@ class IKDefinition:
             ca.if_else(restart, 0, state[lay.k] + 1),
             ca.if_else(restart, attempt, state[lay.attempt]),
             state[lay.iterations] + 1,
-            converged)
-        nxt = ca.if_else(state[lay.done], state, new)
-        return ca.Function(self._tag, [state, target, q_rest, use_rest, tol_p, tol_o], [nxt],
+            converged,
+            ca.logic_or(converged, state[lay.iterations] + 1 >= max_iterations))
+        nxt = ca.if_else(state[lay.stopped], state, new)
+        return ca.Function(self._tag, [state, target, q_rest, use_rest, tol_p, tol_o, max_iterations], [nxt],
                            ["state", *STEP_CONSTANTS], ["next"])
 
     def initial_state(self, q_seed: ca.SX) -> ca.SX:
         lay, robot = self.layout, self.robot
         q = ca.fmin(ca.fmax(q_seed, robot.qmin), robot.qmax)
-        return ca.vertcat(q, q, ERROR_START, ERROR_START, ERROR_START, 0, 0, 0, 0)
+        return ca.vertcat(q, q, ERROR_START, ERROR_START, ERROR_START, 0, 0, 0, 0, 0)
 
     def outputs(self, state: ca.SX) -> list[ca.SX]:
         """q, position_error, orientation_error, iterations, success of a final state."""
@@ -235,7 +244,7 @@ class IKDefinition:
         step = self.step
         constants = [ca.SX.sym(step.name_in(k), step.sparsity_in(k).shape) for k in range(1, step.n_in())]
         q_seed = ca.SX.sym("q_seed", self.n)
-        loop = fixed_loop(step, ITERATIONS * ATTEMPTS, stop=self.layout.done)
+        loop = fixed_loop(step, MAX_ITERATIONS, stop=self.layout.stopped)
         final = loop(self.initial_state(q_seed), *constants)
         return ca.Function("ik", [constants[0], q_seed, *constants[1:]], [ca.densify(x) for x in self.outputs(final)],
                            INPUT_NAMES, OUTPUT_NAMES)
@@ -259,9 +268,9 @@ class IKDefinition:
         return BatchFunction(self.function)
 
 
-STEP_CONSTANTS = ["T_target", "q_rest", "use_rest", "tol_position", "tol_orientation"]
+STEP_CONSTANTS = ["T_target", "q_rest", "use_rest", "tol_position", "tol_orientation", "max_iterations"]
 OUTPUT_NAMES = ["q", "position_error", "orientation_error", "iterations", "success"]
-INPUT_NAMES = ["T_target", "q_seed", "q_rest", "use_rest", "tol_position", "tol_orientation"]
+INPUT_NAMES = ["T_target", "q_seed", "q_rest", "use_rest", "tol_position", "tol_orientation", "max_iterations"]
 
 
 def definition(robot) -> IKDefinition:
@@ -300,13 +309,13 @@ class IKResult:
 
 
 def solve(robot, targets: np.ndarray, seeds: np.ndarray, q_rest: np.ndarray, use_rest: float,
-          tol_position: float, tol_orientation: float) -> list[np.ndarray]:
+          tol_position: float, tol_orientation: float, max_iterations: int = MAX_ITERATIONS) -> list[np.ndarray]:
     """Evaluate ``ik`` for ``targets`` (B, 4, 4) from ``seeds`` (B, n) with ``q_rest`` (B, n):
     the outputs (OUTPUT_NAMES), each (rows, B). One pose goes through CasADi's evaluator, a
     batch through the NumPy replay of the same SX (which stops stepping finished samples)."""
     ik = definition(robot)
     batch = targets.shape[0]
-    scalars = [float(use_rest), float(tol_position), float(tol_orientation)]
+    scalars = [float(use_rest), float(tol_position), float(tol_orientation), float(max_iterations)]
     if batch == 1:
         return [np.asarray(x.full()).reshape(-1, 1) for x in ik.function(targets[0], seeds[0], q_rest[0], *scalars)]
     inputs = [targets.transpose(0, 2, 1).reshape(batch, 16).T, seeds.T, q_rest.T,

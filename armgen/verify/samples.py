@@ -89,6 +89,9 @@ def function_inputs(func: ca.Function, robot: Robot, q: np.ndarray, rng: np.rand
             args.append(float(rng.integers(0, 2)))
         elif name in ("tol_position", "tol_orientation"):
             args.append(ik.TOL_POSITION if precision == "double" else ik.FLOAT_TOL)
+        elif name == "max_iterations":  # double also checks the early stop (float is judged by its pose)
+            capped = precision == "double" and rng.random() < 0.5
+            args.append(float(rng.integers(1, ik.MAX_ITERATIONS + 1)) if capped else float(ik.MAX_ITERATIONS))
         elif name == "q_init":
             args.append(rng.uniform(robot.qmin, robot.qmax))
         elif name == "damping":

@@ -14146,8 +14146,9 @@ iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_re
   }
 }
 
-/* ik: 116250 add, 134700 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 7500 compare, 13950 select */
-iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed[IIWA14_NDOF], const iiwa14_real q_rest[IIWA14_NDOF], iiwa14_real use_rest, iiwa14_real tol_position, iiwa14_real tol_orientation, iiwa14_real q[IIWA14_NDOF], iiwa14_real *position_error, iiwa14_real *orientation_error, iiwa14_real *iterations, iiwa14_real *success) {
+/* ik: 116550 add, 134700 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 7800 compare, 14250 select */
+iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed[IIWA14_NDOF], const iiwa14_real q_rest[IIWA14_NDOF], iiwa14_real use_rest, iiwa14_real tol_position, iiwa14_real tol_orientation, iiwa14_real max_iterations, iiwa14_real q[IIWA14_NDOF], iiwa14_real *position_error, iiwa14_real *orientation_error, iiwa14_real *iterations, iiwa14_real *success) {
+  iiwa14_real w36;
   iiwa14_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
   iiwa14_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   iiwa14_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
@@ -14206,15 +14207,17 @@ iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed
   w33 = use_rest;
   w34 = tol_position;
   w35 = tol_orientation;
+  w36 = max_iterations;
   {
-    iiwa14_real call_in0[21] = {w2, w4, w7, w8, w9, w3, w6, w2, w4, w7, w8, w9, w3, w6, w5, w5, w5, w1, w1, w1, w1};
+    iiwa14_real call_in0[22] = {w2, w4, w7, w8, w9, w3, w6, w2, w4, w7, w8, w9, w3, w6, w5, w5, w5, w1, w1, w1, w1, w1};
     iiwa14_real call_in1[16] = {w10, w11, w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23, w24, w25};
     iiwa14_real call_in2[7] = {w26, w27, w28, w29, w30, w31, w32};
     iiwa14_real call_in3[1] = {w33};
     iiwa14_real call_in4[1] = {w34};
     iiwa14_real call_in5[1] = {w35};
-    iiwa14_real call_out[21];
-    iiwa14_ik_step_8d38b3e4_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_out);
+    iiwa14_real call_in6[1] = {w36};
+    iiwa14_real call_out[22];
+    iiwa14_ik_step_8d38b3e4_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
     w2 = call_out[7];
     w4 = call_out[8];
     w7 = call_out[9];
@@ -14273,6 +14276,7 @@ iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed
   probe = probe + use_rest * IIWA14_LIT(0.0);
   probe = probe + tol_position * IIWA14_LIT(0.0);
   probe = probe + tol_orientation * IIWA14_LIT(0.0);
+  probe = probe + max_iterations * IIWA14_LIT(0.0);
   probe = probe + q[0] * IIWA14_LIT(0.0);
   probe = probe + q[1] * IIWA14_LIT(0.0);
   probe = probe + q[2] * IIWA14_LIT(0.0);
@@ -14358,15 +14362,15 @@ void iiwa14_bisection_step6_loop(const iiwa14_real state[2], const iiwa14_real d
   for (i = 0; i < 2; ++i) { final[i] = current[i]; }
 }
 
-/* ik_step_8d38b3e4_loop: ik_step_8d38b3e4 IIWA14_IK_STEP_8D38B3E4_LOOP_COUNT times (775 add, 898 mul, 71 div, 5 sqrt, 15 trig, 57 minmax, 50 compare, 93 select each) */
-void iiwa14_ik_step_8d38b3e4_loop(const iiwa14_real state[21], const iiwa14_real T_target[16], const iiwa14_real q_rest[7], const iiwa14_real use_rest[1], const iiwa14_real tol_position[1], const iiwa14_real tol_orientation[1], iiwa14_real final[21]) {
-  iiwa14_real current[21];
+/* ik_step_8d38b3e4_loop: ik_step_8d38b3e4 IIWA14_IK_STEP_8D38B3E4_LOOP_COUNT times (777 add, 898 mul, 71 div, 5 sqrt, 15 trig, 57 minmax, 52 compare, 95 select each) */
+void iiwa14_ik_step_8d38b3e4_loop(const iiwa14_real state[22], const iiwa14_real T_target[16], const iiwa14_real q_rest[7], const iiwa14_real use_rest[1], const iiwa14_real tol_position[1], const iiwa14_real tol_orientation[1], const iiwa14_real max_iterations[1], iiwa14_real final[22]) {
+  iiwa14_real current[22];
   int k;
   int i;
-  for (i = 0; i < 21; ++i) { current[i] = state[i]; }
+  for (i = 0; i < 22; ++i) { current[i] = state[i]; }
   for (k = 0; k < IIWA14_IK_STEP_8D38B3E4_LOOP_COUNT; ++k) {
-    iiwa14_real next[21];
-    if (current[20] != IIWA14_LIT(0.0)) { break; }  /* finished: the rest are the identity */
+    iiwa14_real next[22];
+    if (current[21] != IIWA14_LIT(0.0)) { break; }  /* finished: the rest are the identity */
     iiwa14_real w132, w133, w134, w135, w136, w137, w138, w139;
     iiwa14_real w120, w121, w122, w123, w124, w125, w126, w127, w128, w129, w130, w131;
     iiwa14_real w108, w109, w110, w111, w112, w113, w114, w115, w116, w117, w118, w119;
@@ -14379,7 +14383,7 @@ void iiwa14_ik_step_8d38b3e4_loop(const iiwa14_real state[21], const iiwa14_real
     iiwa14_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
     iiwa14_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
     iiwa14_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-    w0 = current[20];
+    w0 = current[21];
     w1 = current[0];
     w2 = (w0 != IIWA14_LIT(0.0) ? w1 : IIWA14_LIT(0.0));
     w3 = (iiwa14_real)(w0 == IIWA14_LIT(0.0));
@@ -16436,15 +16440,24 @@ void iiwa14_ik_step_8d38b3e4_loop(const iiwa14_real state[21], const iiwa14_real
     next[18] = w34;
     w34 = current[19];
     w53 = (w0 != IIWA14_LIT(0.0) ? w34 : IIWA14_LIT(0.0));
-    w34 = w34 + w24;
-    w34 = (w3 != IIWA14_LIT(0.0) ? w34 : IIWA14_LIT(0.0));
-    w53 = w53 + w34;
+    w61 = w34 + w24;
+    w61 = (w3 != IIWA14_LIT(0.0) ? w61 : IIWA14_LIT(0.0));
+    w53 = w53 + w61;
     next[19] = w53;
+    w53 = current[20];
+    w53 = (w0 != IIWA14_LIT(0.0) ? w53 : IIWA14_LIT(0.0));
+    w61 = (w3 != IIWA14_LIT(0.0) ? w20 : IIWA14_LIT(0.0));
+    w53 = w53 + w61;
+    next[20] = w53;
     w0 = (w0 != IIWA14_LIT(0.0) ? w0 : IIWA14_LIT(0.0));
+    w53 = max_iterations[0];
+    w34 = w34 + w24;
+    w53 = (iiwa14_real)(w53 <= w34);
+    w20 = (iiwa14_real)(w20 != IIWA14_LIT(0.0) || w53 != IIWA14_LIT(0.0));
     w3 = (w3 != IIWA14_LIT(0.0) ? w20 : IIWA14_LIT(0.0));
     w0 = w0 + w3;
-    next[20] = w0;
-    for (i = 0; i < 21; ++i) { current[i] = next[i]; }
+    next[21] = w0;
+    for (i = 0; i < 22; ++i) { current[i] = next[i]; }
   }
-  for (i = 0; i < 21; ++i) { final[i] = current[i]; }
+  for (i = 0; i < 22; ++i) { final[i] = current[i]; }
 }

@@ -440,7 +440,7 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
 #define IIWA14_STEP_WGPM_WORK_REALS 217
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 116250 add, 134700 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 7500 compare, 13950 select; work: 36 reals. */
+ * ops: 116550 add, 134700 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 7800 compare, 14250 select; work: 37 reals. */
 #define IIWA14_IK_T_TARGET_ROWS 4
 #define IIWA14_IK_T_TARGET_COLS 4
 #define IIWA14_IK_Q_SEED_ROWS 7
@@ -449,8 +449,8 @@ iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_re
 #define IIWA14_IK_Q_REST_COLS 1
 #define IIWA14_IK_Q_ROWS 7
 #define IIWA14_IK_Q_COLS 1
-#define IIWA14_IK_WORK_REALS 36
-iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed[IIWA14_NDOF], const iiwa14_real q_rest[IIWA14_NDOF], iiwa14_real use_rest, iiwa14_real tol_position, iiwa14_real tol_orientation, iiwa14_real q[IIWA14_NDOF], iiwa14_real *position_error, iiwa14_real *orientation_error, iiwa14_real *iterations, iiwa14_real *success);
+#define IIWA14_IK_WORK_REALS 37
+iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed[IIWA14_NDOF], const iiwa14_real q_rest[IIWA14_NDOF], iiwa14_real use_rest, iiwa14_real tol_position, iiwa14_real tol_orientation, iiwa14_real max_iterations, iiwa14_real q[IIWA14_NDOF], iiwa14_real *position_error, iiwa14_real *orientation_error, iiwa14_real *iterations, iiwa14_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if IIWA14_USE_FLOAT
 #define IIWA14_BISECTION_STEP6_LOOP_COUNT 24
@@ -464,7 +464,7 @@ void iiwa14_bisection_step6_loop(const iiwa14_real state[2], const iiwa14_real d
 #else
 #define IIWA14_IK_STEP_8D38B3E4_LOOP_COUNT 150
 #endif
-void iiwa14_ik_step_8d38b3e4_loop(const iiwa14_real state[21], const iiwa14_real T_target[16], const iiwa14_real q_rest[7], const iiwa14_real use_rest[1], const iiwa14_real tol_position[1], const iiwa14_real tol_orientation[1], iiwa14_real final[21]);
+void iiwa14_ik_step_8d38b3e4_loop(const iiwa14_real state[22], const iiwa14_real T_target[16], const iiwa14_real q_rest[7], const iiwa14_real use_rest[1], const iiwa14_real tol_position[1], const iiwa14_real tol_orientation[1], const iiwa14_real max_iterations[1], iiwa14_real final[22]);
 
 #ifdef __cplusplus
 }

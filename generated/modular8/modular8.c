@@ -16975,9 +16975,9 @@ modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const m
   }
 }
 
-/* ik: 132750 add, 151050 mul, 11250 div, 750 sqrt, 2550 trig, 9466 minmax, 8250 compare, 15450 select */
-modular8_status modular8_ik(const modular8_real T_target[16], const modular8_real q_seed[MODULAR8_NDOF], const modular8_real q_rest[MODULAR8_NDOF], modular8_real use_rest, modular8_real tol_position, modular8_real tol_orientation, modular8_real q[MODULAR8_NDOF], modular8_real *position_error, modular8_real *orientation_error, modular8_real *iterations, modular8_real *success) {
-  modular8_real w36, w37;
+/* ik: 133050 add, 151050 mul, 11250 div, 750 sqrt, 2550 trig, 9466 minmax, 8550 compare, 15750 select */
+modular8_status modular8_ik(const modular8_real T_target[16], const modular8_real q_seed[MODULAR8_NDOF], const modular8_real q_rest[MODULAR8_NDOF], modular8_real use_rest, modular8_real tol_position, modular8_real tol_orientation, modular8_real max_iterations, modular8_real q[MODULAR8_NDOF], modular8_real *position_error, modular8_real *orientation_error, modular8_real *iterations, modular8_real *success) {
+  modular8_real w36, w37, w38;
   modular8_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
   modular8_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   modular8_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
@@ -17036,15 +17036,17 @@ modular8_status modular8_ik(const modular8_real T_target[16], const modular8_rea
   w35 = use_rest;
   w36 = tol_position;
   w37 = tol_orientation;
+  w38 = max_iterations;
   {
-    modular8_real call_in0[23] = {w2, w4, w5, w6, w7, w8, w9, w10, w2, w4, w5, w6, w7, w8, w9, w10, w3, w3, w3, w1, w1, w1, w1};
+    modular8_real call_in0[24] = {w2, w4, w5, w6, w7, w8, w9, w10, w2, w4, w5, w6, w7, w8, w9, w10, w3, w3, w3, w1, w1, w1, w1, w1};
     modular8_real call_in1[16] = {w11, w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23, w24, w25, w26};
     modular8_real call_in2[8] = {w27, w28, w29, w30, w31, w32, w33, w34};
     modular8_real call_in3[1] = {w35};
     modular8_real call_in4[1] = {w36};
     modular8_real call_in5[1] = {w37};
-    modular8_real call_out[23];
-    modular8_ik_step_30777874_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_out);
+    modular8_real call_in6[1] = {w38};
+    modular8_real call_out[24];
+    modular8_ik_step_30777874_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
     w2 = call_out[8];
     w4 = call_out[9];
     w5 = call_out[10];
@@ -17107,6 +17109,7 @@ modular8_status modular8_ik(const modular8_real T_target[16], const modular8_rea
   probe = probe + use_rest * MODULAR8_LIT(0.0);
   probe = probe + tol_position * MODULAR8_LIT(0.0);
   probe = probe + tol_orientation * MODULAR8_LIT(0.0);
+  probe = probe + max_iterations * MODULAR8_LIT(0.0);
   probe = probe + q[0] * MODULAR8_LIT(0.0);
   probe = probe + q[1] * MODULAR8_LIT(0.0);
   probe = probe + q[2] * MODULAR8_LIT(0.0);
@@ -17193,15 +17196,15 @@ void modular8_bisection_step6_loop(const modular8_real state[2], const modular8_
   for (i = 0; i < 2; ++i) { final[i] = current[i]; }
 }
 
-/* ik_step_30777874_loop: ik_step_30777874 MODULAR8_IK_STEP_30777874_LOOP_COUNT times (885 add, 1007 mul, 75 div, 5 sqrt, 17 trig, 63 minmax, 55 compare, 103 select each) */
-void modular8_ik_step_30777874_loop(const modular8_real state[23], const modular8_real T_target[16], const modular8_real q_rest[8], const modular8_real use_rest[1], const modular8_real tol_position[1], const modular8_real tol_orientation[1], modular8_real final[23]) {
-  modular8_real current[23];
+/* ik_step_30777874_loop: ik_step_30777874 MODULAR8_IK_STEP_30777874_LOOP_COUNT times (887 add, 1007 mul, 75 div, 5 sqrt, 17 trig, 63 minmax, 57 compare, 105 select each) */
+void modular8_ik_step_30777874_loop(const modular8_real state[24], const modular8_real T_target[16], const modular8_real q_rest[8], const modular8_real use_rest[1], const modular8_real tol_position[1], const modular8_real tol_orientation[1], const modular8_real max_iterations[1], modular8_real final[24]) {
+  modular8_real current[24];
   int k;
   int i;
-  for (i = 0; i < 23; ++i) { current[i] = state[i]; }
+  for (i = 0; i < 24; ++i) { current[i] = state[i]; }
   for (k = 0; k < MODULAR8_IK_STEP_30777874_LOOP_COUNT; ++k) {
-    modular8_real next[23];
-    if (current[22] != MODULAR8_LIT(0.0)) { break; }  /* finished: the rest are the identity */
+    modular8_real next[24];
+    if (current[23] != MODULAR8_LIT(0.0)) { break; }  /* finished: the rest are the identity */
     modular8_real w144, w145, w146;
     modular8_real w132, w133, w134, w135, w136, w137, w138, w139, w140, w141, w142, w143;
     modular8_real w120, w121, w122, w123, w124, w125, w126, w127, w128, w129, w130, w131;
@@ -17215,7 +17218,7 @@ void modular8_ik_step_30777874_loop(const modular8_real state[23], const modular
     modular8_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
     modular8_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
     modular8_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-    w0 = current[22];
+    w0 = current[23];
     w1 = current[0];
     w2 = (w0 != MODULAR8_LIT(0.0) ? w1 : MODULAR8_LIT(0.0));
     w3 = (modular8_real)(w0 == MODULAR8_LIT(0.0));
@@ -19516,15 +19519,24 @@ void modular8_ik_step_30777874_loop(const modular8_real state[23], const modular
     next[20] = w41;
     w41 = current[21];
     w59 = (w0 != MODULAR8_LIT(0.0) ? w41 : MODULAR8_LIT(0.0));
-    w41 = w41 + w67;
-    w41 = (w3 != MODULAR8_LIT(0.0) ? w41 : MODULAR8_LIT(0.0));
-    w59 = w59 + w41;
+    w37 = w41 + w67;
+    w37 = (w3 != MODULAR8_LIT(0.0) ? w37 : MODULAR8_LIT(0.0));
+    w59 = w59 + w37;
     next[21] = w59;
+    w59 = current[22];
+    w59 = (w0 != MODULAR8_LIT(0.0) ? w59 : MODULAR8_LIT(0.0));
+    w37 = (w3 != MODULAR8_LIT(0.0) ? w30 : MODULAR8_LIT(0.0));
+    w59 = w59 + w37;
+    next[22] = w59;
     w0 = (w0 != MODULAR8_LIT(0.0) ? w0 : MODULAR8_LIT(0.0));
+    w59 = max_iterations[0];
+    w41 = w41 + w67;
+    w59 = (modular8_real)(w59 <= w41);
+    w30 = (modular8_real)(w30 != MODULAR8_LIT(0.0) || w59 != MODULAR8_LIT(0.0));
     w3 = (w3 != MODULAR8_LIT(0.0) ? w30 : MODULAR8_LIT(0.0));
     w0 = w0 + w3;
-    next[22] = w0;
-    for (i = 0; i < 23; ++i) { current[i] = next[i]; }
+    next[23] = w0;
+    for (i = 0; i < 24; ++i) { current[i] = next[i]; }
   }
-  for (i = 0; i < 23; ++i) { final[i] = current[i]; }
+  for (i = 0; i < 24; ++i) { final[i] = current[i]; }
 }

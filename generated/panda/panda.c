@@ -14257,8 +14257,9 @@ panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xd
   }
 }
 
-/* ik: 118500 add, 136050 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 7500 compare, 13950 select */
-panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PANDA_NDOF], const panda_real q_rest[PANDA_NDOF], panda_real use_rest, panda_real tol_position, panda_real tol_orientation, panda_real q[PANDA_NDOF], panda_real *position_error, panda_real *orientation_error, panda_real *iterations, panda_real *success) {
+/* ik: 118800 add, 136050 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 7800 compare, 14250 select */
+panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PANDA_NDOF], const panda_real q_rest[PANDA_NDOF], panda_real use_rest, panda_real tol_position, panda_real tol_orientation, panda_real max_iterations, panda_real q[PANDA_NDOF], panda_real *position_error, panda_real *orientation_error, panda_real *iterations, panda_real *success) {
+  panda_real w36;
   panda_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
   panda_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   panda_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
@@ -14319,15 +14320,17 @@ panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PAN
   w33 = use_rest;
   w34 = tol_position;
   w35 = tol_orientation;
+  w36 = max_iterations;
   {
-    panda_real call_in0[21] = {w2, w4, w5, w6, w7, w8, w9, w2, w4, w5, w6, w7, w8, w9, w3, w3, w3, w1, w1, w1, w1};
+    panda_real call_in0[22] = {w2, w4, w5, w6, w7, w8, w9, w2, w4, w5, w6, w7, w8, w9, w3, w3, w3, w1, w1, w1, w1, w1};
     panda_real call_in1[16] = {w10, w11, w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23, w24, w25};
     panda_real call_in2[7] = {w26, w27, w28, w29, w30, w31, w32};
     panda_real call_in3[1] = {w33};
     panda_real call_in4[1] = {w34};
     panda_real call_in5[1] = {w35};
-    panda_real call_out[21];
-    panda_ik_step_69047bd9_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_out);
+    panda_real call_in6[1] = {w36};
+    panda_real call_out[22];
+    panda_ik_step_69047bd9_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
     w2 = call_out[7];
     w4 = call_out[8];
     w5 = call_out[9];
@@ -14386,6 +14389,7 @@ panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PAN
   probe = probe + use_rest * PANDA_LIT(0.0);
   probe = probe + tol_position * PANDA_LIT(0.0);
   probe = probe + tol_orientation * PANDA_LIT(0.0);
+  probe = probe + max_iterations * PANDA_LIT(0.0);
   probe = probe + q[0] * PANDA_LIT(0.0);
   probe = probe + q[1] * PANDA_LIT(0.0);
   probe = probe + q[2] * PANDA_LIT(0.0);
@@ -14471,15 +14475,15 @@ void panda_bisection_step6_loop(const panda_real state[2], const panda_real d[6]
   for (i = 0; i < 2; ++i) { final[i] = current[i]; }
 }
 
-/* ik_step_69047bd9_loop: ik_step_69047bd9 PANDA_IK_STEP_69047BD9_LOOP_COUNT times (790 add, 907 mul, 71 div, 5 sqrt, 15 trig, 57 minmax, 50 compare, 93 select each) */
-void panda_ik_step_69047bd9_loop(const panda_real state[21], const panda_real T_target[16], const panda_real q_rest[7], const panda_real use_rest[1], const panda_real tol_position[1], const panda_real tol_orientation[1], panda_real final[21]) {
-  panda_real current[21];
+/* ik_step_69047bd9_loop: ik_step_69047bd9 PANDA_IK_STEP_69047BD9_LOOP_COUNT times (792 add, 907 mul, 71 div, 5 sqrt, 15 trig, 57 minmax, 52 compare, 95 select each) */
+void panda_ik_step_69047bd9_loop(const panda_real state[22], const panda_real T_target[16], const panda_real q_rest[7], const panda_real use_rest[1], const panda_real tol_position[1], const panda_real tol_orientation[1], const panda_real max_iterations[1], panda_real final[22]) {
+  panda_real current[22];
   int k;
   int i;
-  for (i = 0; i < 21; ++i) { current[i] = state[i]; }
+  for (i = 0; i < 22; ++i) { current[i] = state[i]; }
   for (k = 0; k < PANDA_IK_STEP_69047BD9_LOOP_COUNT; ++k) {
-    panda_real next[21];
-    if (current[20] != PANDA_LIT(0.0)) { break; }  /* finished: the rest are the identity */
+    panda_real next[22];
+    if (current[21] != PANDA_LIT(0.0)) { break; }  /* finished: the rest are the identity */
     panda_real w132, w133, w134, w135, w136, w137, w138, w139, w140, w141;
     panda_real w120, w121, w122, w123, w124, w125, w126, w127, w128, w129, w130, w131;
     panda_real w108, w109, w110, w111, w112, w113, w114, w115, w116, w117, w118, w119;
@@ -14492,7 +14496,7 @@ void panda_ik_step_69047bd9_loop(const panda_real state[21], const panda_real T_
     panda_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
     panda_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
     panda_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-    w0 = current[20];
+    w0 = current[21];
     w1 = current[0];
     w2 = (w0 != PANDA_LIT(0.0) ? w1 : PANDA_LIT(0.0));
     w3 = (panda_real)(w0 == PANDA_LIT(0.0));
@@ -16581,15 +16585,24 @@ void panda_ik_step_69047bd9_loop(const panda_real state[21], const panda_real T_
     next[18] = w39;
     w39 = current[19];
     w57 = (w0 != PANDA_LIT(0.0) ? w39 : PANDA_LIT(0.0));
-    w39 = w39 + w27;
-    w39 = (w3 != PANDA_LIT(0.0) ? w39 : PANDA_LIT(0.0));
-    w57 = w57 + w39;
+    w62 = w39 + w27;
+    w62 = (w3 != PANDA_LIT(0.0) ? w62 : PANDA_LIT(0.0));
+    w57 = w57 + w62;
     next[19] = w57;
+    w57 = current[20];
+    w57 = (w0 != PANDA_LIT(0.0) ? w57 : PANDA_LIT(0.0));
+    w62 = (w3 != PANDA_LIT(0.0) ? w54 : PANDA_LIT(0.0));
+    w57 = w57 + w62;
+    next[20] = w57;
     w0 = (w0 != PANDA_LIT(0.0) ? w0 : PANDA_LIT(0.0));
+    w57 = max_iterations[0];
+    w39 = w39 + w27;
+    w57 = (panda_real)(w57 <= w39);
+    w54 = (panda_real)(w54 != PANDA_LIT(0.0) || w57 != PANDA_LIT(0.0));
     w3 = (w3 != PANDA_LIT(0.0) ? w54 : PANDA_LIT(0.0));
     w0 = w0 + w3;
-    next[20] = w0;
-    for (i = 0; i < 21; ++i) { current[i] = next[i]; }
+    next[21] = w0;
+    for (i = 0; i < 22; ++i) { current[i] = next[i]; }
   }
-  for (i = 0; i < 21; ++i) { final[i] = current[i]; }
+  for (i = 0; i < 22; ++i) { final[i] = current[i]; }
 }

@@ -2480,9 +2480,9 @@ planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const plana
   }
 }
 
-/* ik: 30150 add, 26100 mul, 3750 div, 600 sqrt, 1050 trig, 4206 minmax, 4500 compare, 7950 select */
-planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_seed[PLANAR3_NDOF], const planar3_real q_rest[PLANAR3_NDOF], planar3_real use_rest, planar3_real tol_position, planar3_real tol_orientation, planar3_real q[PLANAR3_NDOF], planar3_real *position_error, planar3_real *orientation_error, planar3_real *iterations, planar3_real *success) {
-  planar3_real w24, w25, w26, w27;
+/* ik: 30450 add, 26100 mul, 3750 div, 600 sqrt, 1050 trig, 4206 minmax, 4800 compare, 8250 select */
+planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_seed[PLANAR3_NDOF], const planar3_real q_rest[PLANAR3_NDOF], planar3_real use_rest, planar3_real tol_position, planar3_real tol_orientation, planar3_real max_iterations, planar3_real q[PLANAR3_NDOF], planar3_real *position_error, planar3_real *orientation_error, planar3_real *iterations, planar3_real *success) {
+  planar3_real w24, w25, w26, w27, w28;
   planar3_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   planar3_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   w0 = q_seed[0];
@@ -2520,15 +2520,17 @@ planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_
   w25 = use_rest;
   w26 = tol_position;
   w27 = tol_orientation;
+  w28 = max_iterations;
   {
-    planar3_real call_in0[13] = {w2, w4, w5, w2, w4, w5, w3, w3, w3, w1, w1, w1, w1};
+    planar3_real call_in0[14] = {w2, w4, w5, w2, w4, w5, w3, w3, w3, w1, w1, w1, w1, w1};
     planar3_real call_in1[16] = {w6, w7, w8, w9, w10, w11, w12, w13, w14, w15, w16, w17, w18, w19, w20, w21};
     planar3_real call_in2[3] = {w22, w23, w24};
     planar3_real call_in3[1] = {w25};
     planar3_real call_in4[1] = {w26};
     planar3_real call_in5[1] = {w27};
-    planar3_real call_out[13];
-    planar3_ik_step_28d3c7e4_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_out);
+    planar3_real call_in6[1] = {w28};
+    planar3_real call_out[14];
+    planar3_ik_step_28d3c7e4_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
     w2 = call_out[3];
     w4 = call_out[4];
     w5 = call_out[5];
@@ -2571,6 +2573,7 @@ planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_
   probe = probe + use_rest * PLANAR3_LIT(0.0);
   probe = probe + tol_position * PLANAR3_LIT(0.0);
   probe = probe + tol_orientation * PLANAR3_LIT(0.0);
+  probe = probe + max_iterations * PLANAR3_LIT(0.0);
   probe = probe + q[0] * PLANAR3_LIT(0.0);
   probe = probe + q[1] * PLANAR3_LIT(0.0);
   probe = probe + q[2] * PLANAR3_LIT(0.0);
@@ -2628,21 +2631,21 @@ void planar3_bisection_step3_loop(const planar3_real state[2], const planar3_rea
   for (i = 0; i < 2; ++i) { final[i] = current[i]; }
 }
 
-/* ik_step_28d3c7e4_loop: ik_step_28d3c7e4 PLANAR3_IK_STEP_28D3C7E4_LOOP_COUNT times (201 add, 174 mul, 25 div, 4 sqrt, 7 trig, 28 minmax, 30 compare, 53 select each) */
-void planar3_ik_step_28d3c7e4_loop(const planar3_real state[13], const planar3_real T_target[16], const planar3_real q_rest[3], const planar3_real use_rest[1], const planar3_real tol_position[1], const planar3_real tol_orientation[1], planar3_real final[13]) {
-  planar3_real current[13];
+/* ik_step_28d3c7e4_loop: ik_step_28d3c7e4 PLANAR3_IK_STEP_28D3C7E4_LOOP_COUNT times (203 add, 174 mul, 25 div, 4 sqrt, 7 trig, 28 minmax, 32 compare, 55 select each) */
+void planar3_ik_step_28d3c7e4_loop(const planar3_real state[14], const planar3_real T_target[16], const planar3_real q_rest[3], const planar3_real use_rest[1], const planar3_real tol_position[1], const planar3_real tol_orientation[1], const planar3_real max_iterations[1], planar3_real final[14]) {
+  planar3_real current[14];
   int k;
   int i;
-  for (i = 0; i < 13; ++i) { current[i] = state[i]; }
+  for (i = 0; i < 14; ++i) { current[i] = state[i]; }
   for (k = 0; k < PLANAR3_IK_STEP_28D3C7E4_LOOP_COUNT; ++k) {
-    planar3_real next[13];
-    if (current[12] != PLANAR3_LIT(0.0)) { break; }  /* finished: the rest are the identity */
+    planar3_real next[14];
+    if (current[13] != PLANAR3_LIT(0.0)) { break; }  /* finished: the rest are the identity */
     planar3_real w48, w49, w50, w51, w52;
     planar3_real w36, w37, w38, w39, w40, w41, w42, w43, w44, w45, w46, w47;
     planar3_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
     planar3_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
     planar3_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-    w0 = current[12];
+    w0 = current[13];
     w1 = current[0];
     w2 = (w0 != PLANAR3_LIT(0.0) ? w1 : PLANAR3_LIT(0.0));
     w3 = (planar3_real)(w0 == PLANAR3_LIT(0.0));
@@ -3221,15 +3224,24 @@ void planar3_ik_step_28d3c7e4_loop(const planar3_real state[13], const planar3_r
     next[10] = w22;
     w22 = current[11];
     w30 = (w0 != PLANAR3_LIT(0.0) ? w22 : PLANAR3_LIT(0.0));
-    w22 = w22 + w6;
-    w22 = (w3 != PLANAR3_LIT(0.0) ? w22 : PLANAR3_LIT(0.0));
-    w30 = w30 + w22;
+    w24 = w22 + w6;
+    w24 = (w3 != PLANAR3_LIT(0.0) ? w24 : PLANAR3_LIT(0.0));
+    w30 = w30 + w24;
     next[11] = w30;
+    w30 = current[12];
+    w30 = (w0 != PLANAR3_LIT(0.0) ? w30 : PLANAR3_LIT(0.0));
+    w24 = (w3 != PLANAR3_LIT(0.0) ? w11 : PLANAR3_LIT(0.0));
+    w30 = w30 + w24;
+    next[12] = w30;
     w0 = (w0 != PLANAR3_LIT(0.0) ? w0 : PLANAR3_LIT(0.0));
+    w30 = max_iterations[0];
+    w22 = w22 + w6;
+    w30 = (planar3_real)(w30 <= w22);
+    w11 = (planar3_real)(w11 != PLANAR3_LIT(0.0) || w30 != PLANAR3_LIT(0.0));
     w3 = (w3 != PLANAR3_LIT(0.0) ? w11 : PLANAR3_LIT(0.0));
     w0 = w0 + w3;
-    next[12] = w0;
-    for (i = 0; i < 13; ++i) { current[i] = next[i]; }
+    next[13] = w0;
+    for (i = 0; i < 14; ++i) { current[i] = next[i]; }
   }
-  for (i = 0; i < 13; ++i) { final[i] = current[i]; }
+  for (i = 0; i < 14; ++i) { final[i] = current[i]; }
 }

@@ -55761,8 +55761,9 @@ snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake
   }
 }
 
-/* ik: 376950 add, 406050 mul, 21450 div, 750 sqrt, 7350 trig, 24800 minmax, 21000 compare, 40950 select */
-snake12_status snake12_ik(const snake12_real T_target[16], const snake12_real q_seed[SNAKE12_NDOF], const snake12_real q_rest[SNAKE12_NDOF], snake12_real use_rest, snake12_real tol_position, snake12_real tol_orientation, snake12_real q[SNAKE12_NDOF], snake12_real *position_error, snake12_real *orientation_error, snake12_real *iterations, snake12_real *success) {
+/* ik: 377250 add, 406050 mul, 21450 div, 750 sqrt, 7350 trig, 24800 minmax, 21300 compare, 41250 select */
+snake12_status snake12_ik(const snake12_real T_target[16], const snake12_real q_seed[SNAKE12_NDOF], const snake12_real q_rest[SNAKE12_NDOF], snake12_real use_rest, snake12_real tol_position, snake12_real tol_orientation, snake12_real max_iterations, snake12_real q[SNAKE12_NDOF], snake12_real *position_error, snake12_real *orientation_error, snake12_real *iterations, snake12_real *success) {
+  snake12_real w72;
   snake12_real w60, w61, w62, w63, w64, w65, w66, w67, w68, w69, w70, w71;
   snake12_real w48, w49, w50, w51, w52, w53, w54, w55, w56, w57, w58, w59;
   snake12_real w36, w37, w38, w39, w40, w41, w42, w43, w44, w45, w46, w47;
@@ -55893,15 +55894,17 @@ snake12_status snake12_ik(const snake12_real T_target[16], const snake12_real q_
   w69 = use_rest;
   w70 = tol_position;
   w71 = tol_orientation;
+  w72 = max_iterations;
   {
-    snake12_real call_in0[57] = {w2, w3, w6, w7, w8, w9, w10, w11, w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23, w24, w25, w26, w27, w28, w2, w3, w6, w7, w8, w9, w10, w11, w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23, w24, w25, w26, w27, w28, w5, w5, w5, w1, w1, w1, w1};
+    snake12_real call_in0[58] = {w2, w3, w6, w7, w8, w9, w10, w11, w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23, w24, w25, w26, w27, w28, w2, w3, w6, w7, w8, w9, w10, w11, w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23, w24, w25, w26, w27, w28, w5, w5, w5, w1, w1, w1, w1, w1};
     snake12_real call_in1[16] = {w4, w29, w30, w31, w32, w33, w34, w35, w36, w37, w38, w39, w40, w41, w42, w43};
     snake12_real call_in2[25] = {w44, w45, w46, w47, w48, w49, w50, w51, w52, w53, w54, w55, w56, w57, w58, w59, w60, w61, w62, w63, w64, w65, w66, w67, w68};
     snake12_real call_in3[1] = {w69};
     snake12_real call_in4[1] = {w70};
     snake12_real call_in5[1] = {w71};
-    snake12_real call_out[57];
-    snake12_ik_step_8515a168_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_out);
+    snake12_real call_in6[1] = {w72};
+    snake12_real call_out[58];
+    snake12_ik_step_8515a168_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
     w2 = call_out[25];
     w3 = call_out[26];
     w6 = call_out[27];
@@ -56032,6 +56035,7 @@ snake12_status snake12_ik(const snake12_real T_target[16], const snake12_real q_
   probe = probe + use_rest * SNAKE12_LIT(0.0);
   probe = probe + tol_position * SNAKE12_LIT(0.0);
   probe = probe + tol_orientation * SNAKE12_LIT(0.0);
+  probe = probe + max_iterations * SNAKE12_LIT(0.0);
   probe = probe + q[0] * SNAKE12_LIT(0.0);
   probe = probe + q[1] * SNAKE12_LIT(0.0);
   probe = probe + q[2] * SNAKE12_LIT(0.0);
@@ -56135,15 +56139,15 @@ void snake12_bisection_step6_loop(const snake12_real state[2], const snake12_rea
   for (i = 0; i < 2; ++i) { final[i] = current[i]; }
 }
 
-/* ik_step_8515a168_loop: ik_step_8515a168 SNAKE12_IK_STEP_8515A168_LOOP_COUNT times (2513 add, 2707 mul, 143 div, 5 sqrt, 49 trig, 165 minmax, 140 compare, 273 select each) */
-void snake12_ik_step_8515a168_loop(const snake12_real state[57], const snake12_real T_target[16], const snake12_real q_rest[25], const snake12_real use_rest[1], const snake12_real tol_position[1], const snake12_real tol_orientation[1], snake12_real final[57]) {
-  snake12_real current[57];
+/* ik_step_8515a168_loop: ik_step_8515a168 SNAKE12_IK_STEP_8515A168_LOOP_COUNT times (2515 add, 2707 mul, 143 div, 5 sqrt, 49 trig, 165 minmax, 142 compare, 275 select each) */
+void snake12_ik_step_8515a168_loop(const snake12_real state[58], const snake12_real T_target[16], const snake12_real q_rest[25], const snake12_real use_rest[1], const snake12_real tol_position[1], const snake12_real tol_orientation[1], const snake12_real max_iterations[1], snake12_real final[58]) {
+  snake12_real current[58];
   int k;
   int i;
-  for (i = 0; i < 57; ++i) { current[i] = state[i]; }
+  for (i = 0; i < 58; ++i) { current[i] = state[i]; }
   for (k = 0; k < SNAKE12_IK_STEP_8515A168_LOOP_COUNT; ++k) {
-    snake12_real next[57];
-    if (current[56] != SNAKE12_LIT(0.0)) { break; }  /* finished: the rest are the identity */
+    snake12_real next[58];
+    if (current[57] != SNAKE12_LIT(0.0)) { break; }  /* finished: the rest are the identity */
     snake12_real w372, w373, w374, w375, w376, w377, w378;
     snake12_real w360, w361, w362, w363, w364, w365, w366, w367, w368, w369, w370, w371;
     snake12_real w348, w349, w350, w351, w352, w353, w354, w355, w356, w357, w358, w359;
@@ -56176,7 +56180,7 @@ void snake12_ik_step_8515a168_loop(const snake12_real state[57], const snake12_r
     snake12_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
     snake12_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
     snake12_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-    w0 = current[56];
+    w0 = current[57];
     w1 = current[0];
     w2 = (w0 != SNAKE12_LIT(0.0) ? w1 : SNAKE12_LIT(0.0));
     w3 = (snake12_real)(w0 == SNAKE12_LIT(0.0));
@@ -62363,15 +62367,24 @@ void snake12_ik_step_8515a168_loop(const snake12_real state[57], const snake12_r
     next[54] = w114;
     w114 = current[55];
     w98 = (w0 != SNAKE12_LIT(0.0) ? w114 : SNAKE12_LIT(0.0));
-    w114 = w114 + w105;
-    w114 = (w3 != SNAKE12_LIT(0.0) ? w114 : SNAKE12_LIT(0.0));
-    w98 = w98 + w114;
+    w48 = w114 + w105;
+    w48 = (w3 != SNAKE12_LIT(0.0) ? w48 : SNAKE12_LIT(0.0));
+    w98 = w98 + w48;
     next[55] = w98;
+    w98 = current[56];
+    w98 = (w0 != SNAKE12_LIT(0.0) ? w98 : SNAKE12_LIT(0.0));
+    w48 = (w3 != SNAKE12_LIT(0.0) ? w19 : SNAKE12_LIT(0.0));
+    w98 = w98 + w48;
+    next[56] = w98;
     w0 = (w0 != SNAKE12_LIT(0.0) ? w0 : SNAKE12_LIT(0.0));
+    w98 = max_iterations[0];
+    w114 = w114 + w105;
+    w98 = (snake12_real)(w98 <= w114);
+    w19 = (snake12_real)(w19 != SNAKE12_LIT(0.0) || w98 != SNAKE12_LIT(0.0));
     w3 = (w3 != SNAKE12_LIT(0.0) ? w19 : SNAKE12_LIT(0.0));
     w0 = w0 + w3;
-    next[56] = w0;
-    for (i = 0; i < 57; ++i) { current[i] = next[i]; }
+    next[57] = w0;
+    for (i = 0; i < 58; ++i) { current[i] = next[i]; }
   }
-  for (i = 0; i < 57; ++i) { final[i] = current[i]; }
+  for (i = 0; i < 58; ++i) { final[i] = current[i]; }
 }
