@@ -9,11 +9,12 @@ The step (damped least squares, Levenberg–Marquardt with Sugihara's damping):
 
 - pose error ``e`` (task rows of ``[p_t − p; θ u]``, ``θ u`` the axis-angle of ``R_t Rᵀ``,
   with θ from ``atan2`` so that small angles keep their digits);
-- ``λ = ½ eᵀe + DAMPING_FLOOR`` (Sugihara 2011: large far from the target, vanishing at it, so
-  the last steps are Gauss–Newton steps and converge quadratically);
+- ``λ = DAMPING_SCALE · ½ eᵀe + DAMPING_FLOOR`` (Sugihara 2011: large far from the target,
+  vanishing at it, so the last steps are Gauss–Newton steps and converge quadratically);
 - ``Δq = α + Jᵀ (J Jᵀ + λ I)⁻¹ (e − J α)``: the self-motion ``α`` is a descent step of a
   criterion — the Zghal joint-limit index (``use_rest = 0``) or ``½‖q − q_rest‖²``
-  (``use_rest = 1``) — of length at most NULL_STEP;
+  (``use_rest = 1``) — of length at most NULL_STEP · min(‖e‖, 1) (it fades with the error, so
+  the damped step's residual ~ λ‖Jα‖ cannot hold the error above the tolerance);
 - ``q ← clamp(q + Δq, q_min, q_max)``: every iterate is inside the limits; the joints that
   the step drives past a limit stop there and the others re-solve (with those columns of J
   removed) for the error that leaves — one active-set pass, without which an attempt stalls
@@ -23,18 +24,19 @@ An attempt has ITERATIONS evaluations; when it misses, the next attempt starts f
 deterministic seed (a Kronecker sequence over the joint ranges), up to ATTEMPTS attempts.
 The state carries the closest configuration seen (smallest ``½‖e‖²``), so a miss returns
 the closest one reached. ``max_iterations`` (≤ MAX_ITERATIONS) stops earlier: a bound on the
-time a call may take (on a Cortex-M4, ~3.7k instructions per step of a 7-DOF arm). Once converged (position error ≤ ``tol_position`` and orientation
-error ≤ ``tol_orientation``) the step is the identity: the generated C leaves its loop there
-(``Loop.stop``) and the NumPy evaluation stops the converged samples, with the same result as
-running the remaining iterations.
+time a call may take (on a Cortex-M4, ~3.7k instructions per step of a 7-DOF arm). Once
+converged (position error ≤ ``tol_position`` and orientation error ≤ ``tol_orientation``) or
+out of steps, the step is the identity: the generated C leaves its loop there (``Loop.stop``)
+and the NumPy evaluation stops those samples, with the same result as running the remaining
+iterations.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 from functools import cached_property
-import hashlib
 
 import casadi as ca
 import numpy as np
@@ -177,7 +179,7 @@ class IKDefinition:
 
     @cached_property
     def step(self) -> ca.Function:
-        """(state, T_target, q_rest, use_rest, tol_position, tol_orientation) → next state."""
+        """(state, T_target, q_rest, use_rest, tol_position, tol_orientation, max_iterations) → next state."""
         robot, n, lay = self.robot, self.n, self.layout
         qmin, qmax = robot.qmin, robot.qmax
         state = ca.SX.sym("state", lay.size)
