@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from armgen.robot import load_robot
@@ -353,3 +355,16 @@ def test_max_iterations_bounds_the_steps():
         assert np.all(capped.success[early]) and not np.any(capped.success[~early & ~full.success])
     with pytest.raises(ValueError, match="max_iterations"):
         robot.ik(poses[0], max_iterations=0)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(name=st.sampled_from(["planar3", "iiwa14", "modular8"]),
+       fractions=st.lists(st.floats(0.0, 1.0), min_size=8, max_size=8))
+def test_a_pose_solved_from_its_own_configuration_is_that_configuration(name, fractions):
+    """Invariant: started at a configuration that already reaches the pose, the solver stops
+    at its first step and returns that configuration unchanged (also at a limit)."""
+    robot = load_robot(name)
+    q = robot.qmin + (robot.qmax - robot.qmin) * np.array(fractions[:robot.n])
+    result = robot.ik(robot.fk(q), seed=q)
+    assert result.success and result.iterations == 1
+    np.testing.assert_array_equal(result.q, q)
