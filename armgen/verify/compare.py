@@ -17,7 +17,8 @@ import casadi as ca
 import numpy as np
 
 from ..robot import Robot
-from ..symbolic.model import FROM_JACOBIAN
+from ..symbolic import ik
+from ..symbolic.model import FROM_JACOBIAN, IK_FUNCTIONS
 from ..codegen.compiled import CompiledModel
 from .samples import batch_inputs, joint_samples
 
@@ -50,6 +51,10 @@ FLOAT_BOUNDS = {
     # [step_fault's error plus the criteria gradients (condition index ~δ^{-2(m+1)/m} at a
     # singularity, float draws δ ≥ 1e-2) and the clipped gains; seen 5.7e-3 on planar3]
     "step_wgpm": 5e-2,
+    # [ik: not the double solver's outputs (a float path may take other steps to another
+    # solution of a redundant arm) but how far the float C's q is from the target, by the double
+    # FK: its tolerance FLOAT_TOL plus the float FK's error (fk above)]
+    "ik": ik.FLOAT_TOL + 2e-6,
 }
 
 
@@ -90,6 +95,14 @@ def _batched_reference(func: ca.Function, inputs: list[np.ndarray]) -> list[np.n
     return result
 
 
+def _ik_reference(robot: Robot, func: ca.Function, inputs: list[np.ndarray]) -> list[np.ndarray]:
+    """ik's outputs at the samples, by the NumPy replay of its SX (which leaves the loop for the
+    converged samples, where CasADi's map runs every iteration), shaped as _batched_reference's."""
+    n = len(inputs[0])
+    columns = [_per_sample(values, func.sparsity_in(k).shape).T for k, values in enumerate(inputs)]
+    return [out.T[:, :, None] for out in ik.definition(robot).batch(columns, n)]
+
+
 @dataclass
 class ReferenceSamples:
     """One function's seeded inputs (as :func:`~armgen.verify.samples.batch_inputs` gives
@@ -115,7 +128,8 @@ def reference_samples(references: dict[str, ca.Function], robot: Robot, samples:
         inputs = batch_inputs(func, robot, q_all, np.random.default_rng([seed, index]), precision)
         if precision == "float":  # the float code never sees anything else
             inputs = [a.astype(np.float32).astype(float) for a in inputs]
-        prepared[name] = ReferenceSamples(inputs, _batched_reference(func, inputs))
+        reference = _ik_reference(robot, func, inputs) if name in IK_FUNCTIONS else _batched_reference(func, inputs)
+        prepared[name] = ReferenceSamples(inputs, reference)
         on_function()
     return prepared
 
@@ -125,7 +139,9 @@ def compare_model(compiled: CompiledModel, references: dict[str, ca.Function], r
                   prepared: dict[str, ReferenceSamples] | None = None) -> list[FunctionComparison]:
     """Each compiled function against the interpreter at ``samples`` seeded inputs (``prepared``
     by :func:`reference_samples`, or drawn here), every sample through the library's batched
-    entry: one C call per function. ``on_function`` is called after each function (a progress bar)."""
+    entry: one C call per function. ``on_function`` is called after each function (a progress bar).
+    The float ik is judged by the pose its answer reaches (its iterations may differ from
+    double's), the other functions output by output."""
     precision = compiled.precision
     if prepared is None:
         prepared = reference_samples(references, robot, samples, seed, precision)
@@ -135,6 +151,10 @@ def compare_model(compiled: CompiledModel, references: dict[str, ca.Function], r
         inputs, refs = prepared[name].inputs, prepared[name].outputs
         got = compiled.raw[name].batch([_per_sample(a, func.sparsity_in(k).shape) for k, a in enumerate(inputs)])
         err = np.zeros(len(inputs[0]))
+        if name in IK_FUNCTIONS and precision == "float":
+            reached = _batched_reference(ik.definition(robot).errors, [got[0][:, :, 0], inputs[0]])
+            err = np.nan_to_num(np.maximum(reached[0], reached[1]).reshape(-1), nan=np.inf)
+            got, refs = [], []
         for out, ref in zip(got, refs):
             # entries that agree exactly (also NaN with NaN, inf with inf) differ by 0; a NaN on
             # one side only is an infinite error

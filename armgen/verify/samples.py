@@ -18,6 +18,7 @@ import casadi as ca
 import numpy as np
 
 from ..robot import Robot
+from ..symbolic import ik
 from ..symbolic.model import FROM_JACOBIAN
 
 NEAR_LIMIT_FRACTION = 0.15
@@ -39,6 +40,10 @@ FLOAT_WGPM_MIN_LOG_DELTA = -2
 # Typical magnitudes of step_wgpm's criteria (w, H_M, H_L per joint, condition index): H_lo is
 # drawn in [0, 1]·scale and H_hi = H_lo + [0.5, 2]·scale.
 CRITERION_SCALES = (0.1, 0.5, 8.0, 20.0)
+# ik starts from the sample plus N(0, 0.2 rad) per joint: a few steps from the target pose, so
+# the float solver (whose path may part from the double one's) converges too; double compares
+# every output bit for bit whatever the path.
+IK_SEED_SPREAD = 0.2
 
 
 def joint_samples(robot: Robot, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -80,6 +85,22 @@ def batch_inputs(func: ca.Function, robot: Robot, q: np.ndarray, rng: np.random.
             args.append(q)
         elif name == "J":  # the robot's Jacobian at q
             args.append(robot.jacobian(q).reshape(count, 6, robot.n))
+        elif name == "T_target":  # ik: the pose at q, solved from a seed near q (IK_SEED_SPREAD)
+            args.append(robot.fk(q).reshape(count, 4, 4))
+        elif name == "q_seed":
+            args.append(np.clip(q + rng.normal(scale=IK_SEED_SPREAD, size=(count, robot.n)), robot.qmin, robot.qmax))
+        elif name == "q_rest":
+            args.append(rng.uniform(robot.qmin, robot.qmax, size=(count, robot.n)))
+        elif name == "use_rest":
+            args.append(rng.integers(0, 2, size=count).astype(float))
+        elif name == "tol_position":
+            args.append(np.full(count, ik.TOL_POSITION if precision == "double" else ik.FLOAT_TOL))
+        elif name == "tol_orientation":
+            args.append(np.full(count, ik.TOL_ORIENTATION if precision == "double" else ik.FLOAT_TOL))
+        elif name == "max_iterations":  # double also checks the early stop (float is judged by its pose)
+            capped = (rng.random(count) < 0.5) if precision == "double" else np.zeros(count, dtype=bool)
+            args.append(np.where(capped, rng.integers(1, ik.MAX_ITERATIONS + 1, size=count),
+                                 ik.MAX_ITERATIONS).astype(float))
         elif name == "q_init":
             args.append(rng.uniform(robot.qmin, robot.qmax, size=(count, robot.n)))
         elif name == "damping":
