@@ -84,6 +84,8 @@ class Joint:
     offset: float
     qlim: tuple[float, float]
     theta: float = 0.0  # fixed joint angle of a prismatic joint (revolute joints: q + offset)
+    qdlim: float = math.inf  # velocity limit (rad/s or m/s); inf: the file gives none
+    qddlim: float = math.inf  # acceleration limit (rad/s² or m/s²); inf: the file gives none
     origin: np.ndarray | None = field(default=None, compare=False)
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
 
@@ -177,6 +179,16 @@ class Robot:
     @property
     def qmax(self) -> np.ndarray:
         return np.array([j.qlim[1] for j in self.joints])
+
+    @property
+    def qdlim(self) -> np.ndarray:
+        """Joint velocity limits (rad/s, m/s); ``inf`` where the robot file gives none."""
+        return np.array([j.qdlim for j in self.joints])
+
+    @property
+    def qddlim(self) -> np.ndarray:
+        """Joint acceleration limits (rad/s², m/s²); ``inf`` where the robot file gives none."""
+        return np.array([j.qddlim for j in self.joints])
 
     @property
     def qmid(self) -> np.ndarray:
@@ -472,7 +484,7 @@ def _transform(reader: _Reader, doc: dict, key: str, length_scale: float, angle_
     return out
 
 
-_JOINT_FIELDS = {"name", "type", "a", "d", "alpha", "offset", "qlim", "theta"}
+_JOINT_FIELDS = {"name", "type", "a", "d", "alpha", "offset", "qlim", "theta", "qdlim", "qddlim"}
 
 
 def _robot_place(doc: dict[str, Any], loc: tuple) -> str:
@@ -569,6 +581,8 @@ def parse_robot(text: str, source: str, sha256: str | None = None, directory: Pa
                 reader.number(raw, "offset", where, default=0.0) * q_scale),
             qlim=(lo, hi),
             theta=snap_quarter_turn(reader.number(raw, "theta", where, default=0.0) * as_),
+            qdlim=reader.number(raw, "qdlim", where, default=math.inf) * q_scale,
+            qddlim=reader.number(raw, "qddlim", where, default=math.inf) * q_scale,
         ))
 
     q_scales = np.array([as_ if j.revolute else ls for j in joints])
@@ -691,7 +705,8 @@ def _urdf_robot(path: Path, data: bytes, base_link: str | None, tip_link: str | 
                 raise reader.fail("[limits]", f"{j.name} = {limits[j.name]} is empty or reversed; write [lower, upper]")
             qlim = (lo, hi)
         joints.append(Joint(name=j.name, type="prismatic" if j.type == "prismatic" else "revolute",
-                            a=0.0, d=0.0, alpha=0.0, offset=0.0, qlim=qlim, origin=j.origin, axis=j.axis))
+                            a=0.0, d=0.0, alpha=0.0, offset=0.0, qlim=qlim, origin=j.origin, axis=j.axis,
+                            qdlim=j.qdlim))
 
     qmin, qmax = np.array([j.qlim[0] for j in joints]), np.array([j.qlim[1] for j in joints])
     configurations: dict[str, np.ndarray] = {"qmid": 0.5 * (qmin + qmax)}

@@ -35,13 +35,24 @@ def robots_cmd(as_json: bool) -> None:
         click.echo(f"{robot.name:12s} {robot.n:3d} DOF  {robot.convention:8s}  {robot.description}")
 
 
+def _speed_limits(j) -> str:
+    """``qdlim=… qddlim=…`` of one joint in deg/s(²) or mm/s(²); 'unlimited' where the file gives none."""
+    scale, unit = (180 / math.pi, "deg") if j.revolute else (1e3, "mm")
+    vel = f"{j.qdlim * scale:.4g} {unit}/s" if math.isfinite(j.qdlim) else "unlimited"
+    acc = f"{j.qddlim * scale:.4g} {unit}/s^2" if math.isfinite(j.qddlim) else "unlimited"
+    return f"qdlim={vel}  qddlim={acc}"
+
+
 def _show_data(r) -> dict:
     """Everything `show` prints, SI units (rad, m), for --json."""
     from ..robot import describe, matrix_rpy
 
     joints = []
     for j in r.joints:
-        entry = {"name": j.name, "type": j.type, "qlim": list(j.qlim)}
+        entry = {"name": j.name, "type": j.type, "qlim": list(j.qlim),
+                 # null: the robot file gives no limit (unlimited)
+                 "qdlim": j.qdlim if math.isfinite(j.qdlim) else None,
+                 "qddlim": j.qddlim if math.isfinite(j.qddlim) else None}
         if j.origin is not None:
             entry |= {"xyz": j.origin[:3, 3].tolist(), "rpy": matrix_rpy(j.origin[:3, :3]).tolist(), "axis": list(j.axis)}
         else:
@@ -80,6 +91,7 @@ def show_cmd(robot: str, as_json: bool) -> None:
     for j in r.joints:
         lim = (f"[{math.degrees(j.qlim[0]):8.3f}, {math.degrees(j.qlim[1]):8.3f}] deg" if j.revolute
                else f"[{j.qlim[0] * 1e3:8.3f}, {j.qlim[1] * 1e3:8.3f}] mm")
+        lim += "  " + _speed_limits(j)
         if j.origin is not None:
             xyz = np.round(j.origin[:3, 3] * 1e3, 4).tolist()
             rpy = (np.round(np.degrees(matrix_rpy(j.origin[:3, :3])), 4) + 0.0).tolist()  # + 0.0: no -0.0

@@ -16,6 +16,7 @@ API conventions (stated once in the header):
 from __future__ import annotations
 
 import hashlib
+import math
 import json
 import re
 import time
@@ -318,6 +319,22 @@ static inline {p}_real {p}_sqrt({p}_real x) {{
 """
 
 
+def _speed_limit_macros(robot, P: str) -> str:
+    """``<P>_QDLIM`` / ``<P>_QDDLIM``: the joints' speed limits (SI: rad/s or m/s, per s²) as array
+    initialisers, ``static const {p}_real qdlim[{P}_NDOF] = {P}_QDLIM;``. A limit the robot file
+    does not give for every joint is left out (a comment says so) rather than stood in for by a
+    number the drive does not have."""
+    lines = []
+    for name, values, what in (("QDLIM", robot.qdlim, "velocity"), ("QDDLIM", robot.qddlim, "acceleration")):
+        if all(math.isfinite(v) for v in values):
+            items = ", ".join(f"{P}_LIT({float(v)!r})" for v in values)
+            lines.append(f"/* joint {what} limits, rad or m per s{'^2' if name == 'QDDLIM' else ''} */\n"
+                         f"#define {P}_{name} {{ {items} }}")
+        else:
+            lines.append(f"/* no {P}_{name}: the robot file gives no joint {what} limit for every joint */")
+    return "\n".join(lines)
+
+
 def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str], preamble: str) -> str:
     p, P = config.prefix, config.prefix.upper()
     guard = f"{P}_H"
@@ -372,6 +389,8 @@ typedef double {p}_real;
 #endif
 
 #include <math.h>
+
+{_speed_limit_macros(config.robot, P)}
 
 {_lean_math(p, P)}/* Result of the functions that can fail. */
 typedef enum {{
