@@ -10,7 +10,7 @@ loop (CLIK). All inputs in SI after loading; the task file may use mm/deg.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import casadi as ca
@@ -23,6 +23,9 @@ from ...symbolic.steps import min_eigenvalue
 from ..backends import make_backend
 from ..paths import CirclePath, LinePath, TimeLaw
 from ..result import PlanResult
+from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
+from ..toolpath.task import ProgramSpec, parse_program, program_motion
+from ..toolpath.timelaw import ProgramMotion
 from .windows import JointWindows
 
 METHODS = ("pinv", "repetitive", "zghal", "zghal_improved", "combined")
@@ -66,6 +69,12 @@ class CartesianTask:
     damping_max: float = 0.05
     output_every: int = 1
     raw: dict[str, Any] = field(default_factory=dict)
+    program: ProgramSpec | None = None  # path.type = "program": the moves, and
+    motion: ProgramMotion | None = None  # their geometry and time law from the start pose
+
+    def with_motion(self, motion: ProgramMotion) -> CartesianTask:
+        """This task driven by ``motion``: the duration is the motion's, rounded up to whole steps."""
+        return replace(self, motion=motion, duration=math.ceil(motion.duration / self.step - 1e-9) * self.step)
 
 
 def _table(task: dict, key: str, source: str) -> dict:
@@ -147,7 +156,17 @@ def parse_path_and_timing(task: dict, source: str, ls: float, as_: float):
 
 def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
     robot, q_start, _, ls, as_ = parse_robot_and_start(task, source)
-    path_type, via, end, end_rotation, duration, law = parse_path_and_timing(task, source, ls, as_)
+    program = motion = None
+    if _table(task, "path", source).get("type") == "program":
+        if "timing" in task:
+            raise TaskFileError(f"{source}: [timing] is not used with path.type = 'program' (time comes from "
+                                "path.speed and path.acceleration); remove [timing]")
+        program = parse_program(task["path"], source, ls, as_)
+        motion = program_motion(program, robot.fk(q_start), robot, source)
+        path_type, via, end, end_rotation, duration, law = ("program", None, np.zeros(3), None, motion.duration,
+                                                            TimeLaw("constant"))
+    else:
+        path_type, via, end, end_rotation, duration, law = parse_path_and_timing(task, source, ls, as_)
 
     m = _table(task, "method", source)
     name = m.get("name", "pinv")
@@ -176,18 +195,19 @@ def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
     if integrator not in INTEGRATORS:
         raise TaskFileError(f"{source}: field 'integrator.method' = {integrator!r} is not one of {', '.join(INTEGRATORS)}")
     step = _number(integ, "step", "integrator", source, 0.02, positive=True)
-    if step > duration:
+    if step > duration and motion is None:
         raise TaskFileError(f"{source}: integrator.step = {step} is longer than timing.duration = {duration}")
     damping = _table(task, "damping", source)
-    return CartesianTask(
+    parsed = CartesianTask(
         robot=robot, q_start=q_start, path_type=path_type, via=via, end=end, end_rotation=end_rotation,
         duration=duration, law=law, method=params, integrator=integrator, step=step,
         clik_gain=_number(integ, "clik_gain", "integrator", source, 0.0, nonneg=True),
         damping_epsilon=_number(damping, "epsilon", "damping", source, 0.01, positive=True),
         damping_max=_number(damping, "lambda_max", "damping", source, 0.05, nonneg=True),
         output_every=int(_number(integ, "output_every", "integrator", source, 1, positive=True)),
-        raw=task,
+        raw=task, program=program,
     )
+    return parsed if motion is None else parsed.with_motion(motion)
 
 
 def sym_orientation_error(r_actual: ca.SX, r_desired: ca.SX) -> ca.SX:
@@ -220,19 +240,24 @@ class CartesianPlanner:
 
     FUNCTIONS = ("fk_jacobian", "zghal", "step_gpm_from_jacobian")
 
-    def __init__(self, task: CartesianTask, backend_kind: str = "symbolic"):
+    def __init__(self, task: CartesianTask, backend_kind: str = "symbolic", backend=None):
         self.task = task
         self.robot = task.robot
-        self.backend = make_backend(self.robot, backend_kind)
+        self.backend = backend or make_backend(self.robot, backend_kind)
         self.rows = list(self.robot.task_rows)
         T0, _ = self.backend.call("fk_jacobian", task.q_start)
         self.p0, self.r0 = T0[:3, 3].copy(), T0[:3, :3].copy()
-        if task.path_type == "circle":
+        # a program's plan stays within the joint speed limits (self-motion scaled first)
+        self.limiter = SelfMotionLimiter(self.robot, self.backend, self.rows) if task.motion is not None else None
+        if task.motion is not None:  # built, and its reach checked, when parsed
+            self.path = task.motion.program
+        elif task.path_type == "circle":
             self.path = CirclePath(self.p0, task.via, task.end, self.r0)
         else:
             r_end = task.end_rotation if task.end_rotation is not None else self.r0
             self.path = LinePath(self.p0, task.end, self.r0, r_end)
-        self._check_reach()
+        if task.motion is None:
+            self._check_reach()
         mp = task.method
         shape = "linear" if mp.name == "combined" else "quadratic"
         self.windows = JointWindows(self.robot.n, mp.T_smo_L, mp.T_sum_L, shape)
@@ -258,6 +283,8 @@ class CartesianPlanner:
     # -- the pieces of the law -------------------------------------------------------
     def desired(self, t):
         """(position, rotation, task velocity [v; ω]) at time t (a number or an array of times)."""
+        if self.task.motion is not None:
+            return self.task.motion(t)
         T = self.task.duration
         t = np.asarray(t, dtype=float)
         s, ds = self.task.law(t / T)
@@ -384,8 +411,12 @@ class CartesianPlanner:
                     damped_kernel()
                     out = damped_kernel
                 data[k, 1:row_end] = out.y[out.outputs["row"]]
+                qd = data[k, 1 + n:1 + 2 * n]
+                limited = qd if self.limiter is None else self.limiter(data[k, 1:1 + n], qd)
+                if limited is not qd:  # the self-motion was scaled: an Euler step with the limited q̇
+                    data[k, 1 + n:1 + 2 * n] = limited
                 if k < steps:
-                    x[q_slot] = out.y[out.outputs["q_next"]]
+                    x[q_slot] = out.y[out.outputs["q_next"]] if limited is qd else data[k, 1:1 + n] + h * limited
                     bar.update(1)
         data[:, 0] = t
         if not uses_windows:
@@ -437,7 +468,8 @@ class CartesianPlanner:
             "integrator": {"method": task.integrator, "step_s": task.step, "clik_gain": task.clik_gain,
                            "open_loop": task.clik_gain == 0},
             "damping": {"epsilon": task.damping_epsilon, "lambda_max": task.damping_max},
-            "path": {"type": task.path_type, "duration_s": task.duration, "law": task.law.kind},
+            "path": {"type": task.path_type, "duration_s": task.duration,
+                     "law": task.law.kind if task.motion is None else "trapezoidal"},
             "summary": {
                 "final_deviation_deg": np.degrees(q[-1] - task.q_start).tolist(),
                 "max_final_deviation_deg": float(np.degrees(np.max(np.abs(q[-1] - task.q_start)))),
@@ -458,4 +490,10 @@ class CartesianPlanner:
 
 def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
     parsed = parse_cartesian_task(task, source)
-    return CartesianPlanner(parsed, backend).run()
+    shared = make_backend(parsed.robot, backend)
+
+    def run(motion):
+        return CartesianPlanner(parsed if motion is None else parsed.with_motion(motion), backend=shared).run()
+
+    return plan_with_speed_limits(run, parsed.motion, parsed.program and parsed.program.angular_speed, parsed.robot,
+                                  source)

@@ -11,6 +11,7 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import Field, StringConstraints
 
 from ...schemas import StrictModel
+from ..toolpath.schema import ProgramPath, path_union
 
 # A path or bundled name; longer text is not a file name.
 RobotReference = Annotated[str, StringConstraints(min_length=1, max_length=4096)]
@@ -72,14 +73,33 @@ class CartesianTaskFile(StrictModel):
     robot: RobotReference
     start: Start = "q0"
     units: Units = Field(default_factory=Units)
-    path: Path
-    timing: Timing
+    path: path_union(Path)
+    timing: Optional[Timing] = Field(None, description="required for a circle or line; not used by a program")
     integrator: Integrator = Field(default_factory=Integrator)
     damping: Damping = Field(default_factory=Damping)
     method: Method = Field(default_factory=Method)
 
 
+def program_duration_estimate(path: ProgramPath) -> float:
+    """A program's duration (s) before its geometry is built: the straight distances between the
+    line and arc targets at each move's speed (a poses move's file is not read yet: 0)."""
+    total, previous = 0.0, None
+    for move in path.moves:
+        if move.to is not None:
+            if previous is not None:
+                distance = sum((a - b) ** 2 for a, b in zip(move.to.xyz, previous)) ** 0.5
+                total += distance / (move.speed or path.speed)
+            previous = move.to.xyz
+    return total
+
+
 def workload(task: CartesianTaskFile) -> tuple[float, float]:
     """(integration steps, CSV samples) the task asks for, estimated before planning."""
-    steps = task.timing.duration / task.integrator.step
+    if isinstance(task.path, ProgramPath):
+        duration = program_duration_estimate(task.path)
+    elif task.timing is None:
+        return 0.0, 0.0  # the planner reports the missing [timing]
+    else:
+        duration = task.timing.duration
+    steps = duration / task.integrator.step
     return steps, steps / task.integrator.output_every + 1

@@ -39,6 +39,7 @@ from ..cartesian.planner import _number, _table
 from ..result import PlanResult
 from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, limit_report, parse_path_task, path_metadata,
                        smoothness, sym_base_row, sym_tracking)
+from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
 
 METHODS = ("wgpm", "pinv", "clamp")
 TOP_FIELDS = {"planner", "robot", "start", "units", "path", "timing", "integrator", "damping", "method", "tracking",
@@ -184,6 +185,8 @@ class WgpmPlanner:
         self.backend = backend or make_backend(self.robot, backend_kind)
         pose0, _ = self.backend.call("fk_jacobian", task.path.q_start)
         self.path = TaskPath(task.path, pose0)
+        # a program's plan stays within the joint speed limits (self-motion scaled first)
+        self.limiter = SelfMotionLimiter(self.robot, self.backend, self.rows) if task.path.motion is not None else None
 
     def ramp(self, t: np.ndarray, method: WgpmMethod) -> np.ndarray:
         if method.ramp_time <= 0:
@@ -257,9 +260,11 @@ class WgpmPlanner:
                 x[timed_slot] = timed[k]
                 kernel()
                 data[k, 1:] = kernel.y[row_out]
+                if self.limiter is not None:
+                    data[k, 1 + n:1 + 2 * n] = self.limiter(data[k, 1:1 + n], data[k, 1 + n:1 + 2 * n])
                 if k == p.steps:
                     break
-                x[q_slot] = kernel.y[q_next]
+                x[q_slot] = kernel.y[q_next] if self.limiter is None else data[k, 1:1 + n] + h * data[k, 1 + n:1 + 2 * n]
                 bar.update(1)
         q_all = data[:, 1:1 + n]
         if not np.all(np.isfinite(q_all)):
@@ -312,7 +317,15 @@ class WgpmPlanner:
 
 
 def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
-    return WgpmPlanner(parse_wgpm_task(task, source), backend).run()
+    parsed = parse_wgpm_task(task, source)
+    shared = make_backend(parsed.path.robot, backend)
+
+    def run(motion):
+        planned = parsed if motion is None else replace(parsed, path=parsed.path.with_motion(motion))
+        return WgpmPlanner(planned, backend=shared).run()
+
+    return plan_with_speed_limits(run, parsed.path.motion, parsed.path.program and parsed.path.program.angular_speed,
+                                  parsed.path.robot, source)
 
 
 # -- comparison and survey -------------------------------------------------------------------
