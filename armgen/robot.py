@@ -362,6 +362,74 @@ class Robot:
             raise ValueError(f"q must have shape (n,) or (..., n) with n = {self.n}, got {q.shape}")
         return np.all((q >= self.qmin) & (q <= self.qmax), axis=-1)
 
+
+    def ik(self, pose: ArrayLike, q0: ArrayLike | None = None, *, seed: str | ArrayLike | None = None,
+           tol_position: float | None = None, tol_orientation: float | None = None):
+        """Joint values that put the tool at ``pose`` (inverse kinematics, ``docs/ik.md``).
+
+        Damped least squares (Levenberg–Marquardt) on the pose error over the robot's task
+        rows, clamped to the joint limits, with deterministic restarts; the same operations as
+        the generated ``<p>_ik``.
+
+        Parameters
+        ----------
+        pose
+            Target tool pose(s) in the base frame: a 4×4 homogeneous matrix or ``(..., 4, 4)``.
+        q0
+            A configuration to stay near, ``(n,)`` or ``(..., n)``: the self-motion of a
+            redundant arm then minimises ``½‖q − q0‖²`` (default: the Zghal distance from the
+            limits), and the first attempt starts from it unless ``seed`` is given.
+        seed
+            The first attempt's start: a named configuration or joint values (default: ``q0``,
+            else the middle of the limits).
+        tol_position, tol_orientation
+            Success thresholds (m, rad; default 1e-6 each).
+
+        Returns
+        -------
+        armgen.symbolic.ik.IKResult
+            ``q`` (the solution, or the closest configuration reached), ``success``,
+            ``position_error``, ``orientation_error``, ``iterations``; arrays with the pose's
+            batch shape for a batch.
+
+        Raises
+        ------
+        ValueError
+            A pose that is not a finite homogeneous transform with a rotation part, or a
+            ``q0``/``seed`` of the wrong size.
+        """
+        from .symbolic import ik
+
+        pose = np.asarray(pose, dtype=float)
+        if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
+            raise ValueError(f"pose must have shape (4, 4) or (..., 4, 4), got {pose.shape}")
+        batch_shape = pose.shape[:-2]
+        targets = pose.reshape(-1, 4, 4)
+        _check_poses(targets)
+        size = targets.shape[0]
+
+        def joints(value: ArrayLike, what: str) -> np.ndarray:
+            value = np.asarray(value, dtype=float)
+            if value.ndim == 0 or value.shape[-1] != self.n or not np.all(np.isfinite(value)):
+                raise ValueError(f"{what} must hold {self.n} finite joint values for robot '{self.name}' "
+                                 f"(shape ({self.n},) or (..., {self.n})), got shape {value.shape}")
+            return np.broadcast_to(value, batch_shape + (self.n,)).reshape(size, self.n)
+
+        rest = joints(q0, "q0") if q0 is not None else np.broadcast_to(self.qmid, (size, self.n))
+        if isinstance(seed, str):
+            start = joints(self.configuration(seed), f"seed '{seed}'")
+        elif seed is not None:
+            start = joints(seed, "seed")
+        else:
+            start = rest
+        outputs = ik.solve(self, targets, np.ascontiguousarray(start), np.ascontiguousarray(rest),
+                           0.0 if q0 is None else 1.0,
+                           ik.TOL_POSITION if tol_position is None else tol_position,
+                           ik.TOL_ORIENTATION if tol_orientation is None else tol_orientation)
+        q, pos, ori, iterations, success = outputs
+        q = q.T.reshape(batch_shape + (self.n,))
+        return ik.IKResult(q, success.reshape(batch_shape) != 0, pos.reshape(batch_shape), ori.reshape(batch_shape),
+                           iterations.reshape(batch_shape).astype(int))
 def _fmt_joint(joint: Joint, value: float) -> str:
     return f"{math.degrees(value):.4g} deg" if joint.revolute else f"{value * 1e3:.4g} mm"
 
@@ -393,6 +461,25 @@ def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
     rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
     return rz @ ry @ rx
+
+
+# A target rotation may deviate from orthonormal by rounding (a pose typed or computed in
+# float): 1e-6 in ‖RᵀR − I‖_max; beyond that it is not a rotation and the error is ill-defined.
+POSE_ORTHONORMAL_TOL = 1e-6
+
+
+def _check_poses(poses: np.ndarray) -> None:
+    """Raise ValueError unless every (4, 4) of ``poses`` (B, 4, 4) is a finite homogeneous
+    transform whose rotation part is a rotation (det +1)."""
+    if not np.all(np.isfinite(poses)):
+        raise ValueError("pose holds NaN or inf; give a finite 4x4 homogeneous transform")
+    if not np.allclose(poses[:, 3, :], [0.0, 0.0, 0.0, 1.0], rtol=0, atol=0):
+        raise ValueError("pose: the last row of a homogeneous transform must be [0, 0, 0, 1]")
+    rot = poses[:, :3, :3]
+    gram = np.einsum("bki,bkj->bij", rot, rot) - np.eye(3)
+    if np.max(np.abs(gram), initial=0.0) > POSE_ORTHONORMAL_TOL or np.any(np.linalg.det(rot) < 0):
+        raise ValueError(f"pose: the 3x3 rotation part is not a rotation (R^T R = I within {POSE_ORTHONORMAL_TOL:g}, "
+                         "det R = +1); build it e.g. with scipy.spatial.transform.Rotation")
 
 
 def matrix_rpy(rot: np.ndarray) -> np.ndarray:

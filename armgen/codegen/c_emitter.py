@@ -324,7 +324,8 @@ def emit_loop_step(loop: Loop, macro_prefix: str) -> EmittedFunction:
 
 def emit_loop(loop: Loop, macro_prefix: str) -> tuple[str, str]:
     """(header lines, definition) of the loop function: the step's statements once, in a for
-    loop of <P>_<NAME>_COUNT iterations (the float build's count under <P>_USE_FLOAT)."""
+    loop of <P>_<NAME>_COUNT iterations (the float build's count under <P>_USE_FLOAT), left
+    early once the loop's ``stop`` entry is nonzero (the step is the identity from there)."""
     p = macro_prefix.lower()
     fn, step = loop.function, loop.step
     size = step.sparsity_out(0).nnz()
@@ -342,6 +343,8 @@ def emit_loop(loop: Loop, macro_prefix: str) -> tuple[str, str]:
         f"  for (i = 0; i < {size}; ++i) {{ current[i] = {first}[i]; }}",
         f"  for (k = 0; k < {count}; ++k) {{",
         f"    {p}_real next[{size}];",
+        *([f"    if (current[{loop.stop}] != {macro_prefix}_LIT(0.0)) {{ break; }}  /* finished: the rest are the identity */"]
+          if loop.stop is not None else []),
         body.body,
         f"    for (i = 0; i < {size}; ++i) {{ current[i] = next[i]; }}",
         "  }",

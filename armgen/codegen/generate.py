@@ -10,7 +10,8 @@ API conventions (stated once in the header):
   by pointer; outputs must not overlap inputs;
 - the kinematic and criterion functions cannot fail; the step functions return
   ``<P>_OK`` or ``<P>_NONFINITE`` (then the output holds a non-finite value: a non-finite
-  input, or an overflow the damping could not prevent).
+  input, or an overflow the damping could not prevent); ``<p>_ik`` returns ``<P>_OK``,
+  ``<P>_NOT_CONVERGED`` (the closest configuration reached is in the outputs) or ``<P>_NONFINITE``.
 """
 
 from __future__ import annotations
@@ -30,8 +31,8 @@ from .. import __version__
 from ..errors import OptionError
 from ..fileio import write_file_set
 from ..robot import Robot, load_robot_any
-from ..symbolic.model import (DESCRIPTIONS, FROM_JACOBIAN, JACOBIAN_FUNCTIONS, STEP_FUNCTIONS, ModelOptions,
-                              SymbolicModel)
+from ..symbolic.model import (DESCRIPTIONS, FROM_JACOBIAN, IK_FUNCTIONS, JACOBIAN_FUNCTIONS, STEP_FUNCTIONS,
+                              ModelOptions, SymbolicModel)
 from ..symbolic.loops import find_loop
 from .c_emitter import (MATH_MACROS, EmittedFunction, carried_entries, describe_counts, emit_body, emit_loop,
                         read_entries)
@@ -155,6 +156,17 @@ def _status_check(func: ca.Function, arg_names: list[str], arg_scalar: list[bool
     return "\n".join(["  {", *_finite_probe(values, p, P), f"  return (probe == probe) ? {P}_OK : {P}_NONFINITE;", "  }"])
 
 
+def _ik_status(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], res_names: list[str],
+               res_scalar: list[bool], p: str, P: str) -> str:
+    """The status of <p>_ik: <P>_NONFINITE when an input or output is non-finite (the solver
+    clamps, so a NaN target need not reach q), else <P>_OK when it converged (success = 1),
+    else <P>_NOT_CONVERGED (the outputs hold the closest configuration reached)."""
+    values = _values(arg_names, arg_scalar, [func.sparsity_in(k).numel() for k in range(func.n_in())], "")
+    values += _values(res_names, res_scalar, [func.sparsity_out(k).numel() for k in range(func.n_out())], "*")
+    return "\n".join(["  {", *_finite_probe(values, p, P), f"  if (probe != probe) {{ return {P}_NONFINITE; }}", "  }",
+                      f"  return (*success != {P}_LIT(0.0)) ? {P}_OK : {P}_NOT_CONVERGED;"])
+
+
 def _through_jacobian_body(func: ca.Function, twin: ca.Function, n: int, p: str, P: str) -> str:
     """The body of a function of J: J = <p>_jacobian(q), then the twin (same operations as the
     function's SX, which is the twin applied to jacobian(q)). A step's status also covers q: a
@@ -185,7 +197,7 @@ def generate(config: CodegenConfig) -> GeneratedCode:
         res_names = [func.name_out(k) for k in range(func.n_out())]
         in_decls = [_arg_decl(func, k, True, model, p) for k in range(func.n_in())]
         out_decls = [_arg_decl(func, k, False, model, p) for k in range(func.n_out())]
-        returns_status = name in STEP_FUNCTIONS
+        returns_status = name in STEP_FUNCTIONS or name in IK_FUNCTIONS
         ret = f"{p}_status" if returns_status else "void"
         signature = f"{ret} {p}_{name}({', '.join(d for d, _ in in_decls + out_decls)})"
         if name in JACOBIAN_FUNCTIONS:
@@ -198,9 +210,10 @@ def generate(config: CodegenConfig) -> GeneratedCode:
             em = emit_body(func, arg_names, [s for _, s in in_decls], res_names, [s for _, s in out_decls], P,
                            trig_table=True)
             calls = ""
+            status = _ik_status if name in IK_FUNCTIONS else _status_check
             if returns_status:
-                em.body += "\n" + _status_check(func, arg_names, [s for _, s in in_decls], res_names,
-                                                 [s for _, s in out_decls], p, P)
+                em.body += "\n" + status(func, arg_names, [s for _, s in in_decls], res_names,
+                                          [s for _, s in out_decls], p, P)
         emitted.append(em)
         doc = (f"/* {name}: {DESCRIPTIONS[name]}.\n"
                f" * ops: {describe_counts(em.op_counts)}{' (' + calls + ')' if calls else ''}; "
@@ -394,8 +407,9 @@ typedef double {p}_real;
 
 {_lean_math(p, P)}/* Result of the functions that can fail. */
 typedef enum {{
-  {P}_OK = 0,        /* output is finite */
-  {P}_NONFINITE = 1  /* output holds NaN/inf: a non-finite input, or an overflow */
+  {P}_OK = 0,            /* output is finite */
+  {P}_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */
+  {P}_NOT_CONVERGED = 2  /* {p}_ik only: no q within the tolerances; the outputs hold the closest reached */
 }} {p}_status;
 
 /* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].

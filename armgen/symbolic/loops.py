@@ -10,6 +10,9 @@ inside ``for (k = 0; k < count; ++k)``, in a static function the calling functio
 run the step's operations in the same order, so double results agree to the bit. A loop may
 run fewer times in the float build (``float_count``: where the iteration converges to float's
 resolution sooner); the float C is compared with the double reference within its bounds anyway.
+A loop may also name a ``stop`` entry of its state: a step whose state has a nonzero ``stop``
+entry must return that state unchanged, so leaving the loop there (the C ``break``s, the NumPy
+replay stops the finished samples) gives the result of running all ``count`` iterations.
 """
 
 from __future__ import annotations
@@ -26,21 +29,23 @@ class Loop:
     step: ca.Function  # (state, *constants) -> next state, one iteration, SX
     count: int  # iterations (the CasADi function's, and the double C's)
     float_count: int  # iterations of the float C
+    stop: int | None = None  # state entry: nonzero = finished, the step is then the identity
 
 
 _LOOPS: dict[str, Loop] = {}
 
 
-def fixed_loop(step: ca.Function, count: int, float_count: int | None = None) -> ca.Function:
+def fixed_loop(step: ca.Function, count: int, float_count: int | None = None, stop: int | None = None) -> ca.Function:
     """The function applying the SX ``step`` ``count`` times (``float_count`` times in the float
-    C), registered by the step's name, which must identify the step: one name, one loop."""
+    C), registered by the step's name, which must identify the step: one name, one loop.
+    ``stop``: the state entry after which the step is the identity (see the module text)."""
     name = f"{step.name()}_loop"
     if name not in _LOOPS:
         inputs = [ca.MX.sym(step.name_in(k), step.sparsity_in(k).shape) for k in range(step.n_in())]
         constants = [ca.repmat(x, 1, count) for x in inputs[1:]]
         final = step.fold(count)(inputs[0], *constants)
         function = ca.Function(name, inputs, [final], step.name_in(), ["final"], {"never_inline": True})
-        _LOOPS[name] = Loop(function, step, count, count if float_count is None else float_count)
+        _LOOPS[name] = Loop(function, step, count, count if float_count is None else float_count, stop)
     return _LOOPS[name].function
 
 

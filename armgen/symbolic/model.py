@@ -13,7 +13,7 @@ from functools import cached_property
 import casadi as ca
 
 from ..robot import Robot
-from . import criteria, steps
+from . import criteria, ik, steps
 from .kinematics import chain, geometric_jacobian
 
 KINEMATIC_FUNCTIONS = ("fk", "jacobian", "fk_jacobian")
@@ -30,8 +30,10 @@ FROM_JACOBIAN = "_from_jacobian"
 TWINS = tuple(name + FROM_JACOBIAN for name in JACOBIAN_FUNCTIONS)
 STEPS = ("step_gpm", "step_wln", "step_fault", "step_wgpm")
 STEP_FUNCTIONS = STEPS + tuple(name + FROM_JACOBIAN for name in STEPS)  # those that return a status
+# inverse kinematics (armgen.symbolic.ik): returns OK, NOT_CONVERGED or NONFINITE
+IK_FUNCTIONS = ("ik",)
 # twins first: the generated functions of J call them (and jacobian)
-ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + TWINS + CRITERION_FUNCTIONS + STEPS
+ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + TWINS + CRITERION_FUNCTIONS + STEPS + IK_FUNCTIONS
 
 # One-line descriptions, used in the generated header and by `armgen show`.
 DESCRIPTIONS = {
@@ -54,6 +56,10 @@ DESCRIPTIONS = {
                   "S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30)",
     "step_wgpm": "multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from "
                  "sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains",
+    "ik": "inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, "
+          "deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); "
+          "success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else "
+          "NOT_CONVERGED with the closest q reached",
 }
 DESCRIPTIONS.update({twin: f"{DESCRIPTIONS[name]}; from a given Jacobian J (jacobian's output, 6xn; "
                            "its entries that are constant for this robot are not read)"
@@ -142,6 +148,8 @@ class SymbolicModel:
         q, robot = self.q, self.robot
         qmin, qmax = robot.qmin.tolist(), robot.qmax.tolist()
         dense = ca.densify
+        if name == "ik":
+            return ik.definition(robot).function
         if name == "fk":
             return ca.Function("fk", [q], [dense(self.tool)], ["q"], ["T"])
         if name == "jacobian":

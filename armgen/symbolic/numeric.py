@@ -108,6 +108,7 @@ class _Call:
         self.callee = callee
         self.body = BatchFunction(loop.step if loop is not None else callee)
         self.count = loop.count if loop is not None else 1
+        self.stop = loop.stop if loop is not None else None
 
     def __call__(self, work: list[Any], args: tuple[int, ...], res: tuple[int, ...], size: int) -> None:
         inputs, start = [], 0
@@ -115,9 +116,21 @@ class _Call:
             nnz = self.callee.nnz_in(k)
             inputs.append(np.array([np.broadcast_to(work[i], (size,)) for i in args[start:start + nnz]]))
             start += nnz
-        for _ in range(self.count):  # a loop feeds its state (the first input) back
+        if self.count == 1:
             outputs = self.body(inputs, size)
-            inputs = [outputs[0], *inputs[1:]]
+        elif self.stop is None:  # a loop feeds its state (the first input) back
+            for _ in range(self.count):
+                inputs = [self.body(inputs, size)[0], *inputs[1:]]
+            outputs = [inputs[0]]
+        else:  # the finished samples are not stepped again: the remaining steps are the identity
+            state, active = inputs[0], np.arange(size)
+            for _ in range(self.count):
+                active = active[state[self.stop, active] == 0]
+                if active.size == 0:
+                    break
+                state[:, active] = self.body([x[:, active] for x in inputs], active.size)[0]
+                inputs[0] = state
+            outputs = [state]
         flat = np.concatenate(outputs) if len(outputs) > 1 else outputs[0]
         for j, target in enumerate(res):
             if target >= 0:

@@ -156,8 +156,9 @@ IIWA14_TRIG_INLINE void iiwa14_sincos_table(const iiwa14_real *angle, iiwa14_rea
 
 /* Result of the functions that can fail. */
 typedef enum {
-  IIWA14_OK = 0,        /* output is finite */
-  IIWA14_NONFINITE = 1  /* output holds NaN/inf: a non-finite input, or an overflow */
+  IIWA14_OK = 0,            /* output is finite */
+  IIWA14_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */
+  IIWA14_NOT_CONVERGED = 2  /* iiwa14_ik only: no q within the tolerances; the outputs hold the closest reached */
 } iiwa14_status;
 
 /* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].
@@ -442,6 +443,18 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
 #define IIWA14_STEP_WGPM_H_COLS 1
 #define IIWA14_STEP_WGPM_WORK_REALS 217
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
+/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
+ * ops: 116250 add, 134700 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 7500 compare, 13950 select; work: 36 reals. */
+#define IIWA14_IK_T_TARGET_ROWS 4
+#define IIWA14_IK_T_TARGET_COLS 4
+#define IIWA14_IK_Q_SEED_ROWS 7
+#define IIWA14_IK_Q_SEED_COLS 1
+#define IIWA14_IK_Q_REST_ROWS 7
+#define IIWA14_IK_Q_REST_COLS 1
+#define IIWA14_IK_Q_ROWS 7
+#define IIWA14_IK_Q_COLS 1
+#define IIWA14_IK_WORK_REALS 36
+iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed[IIWA14_NDOF], const iiwa14_real q_rest[IIWA14_NDOF], iiwa14_real use_rest, iiwa14_real tol_position, iiwa14_real tol_orientation, iiwa14_real q[IIWA14_NDOF], iiwa14_real *position_error, iiwa14_real *orientation_error, iiwa14_real *iterations, iiwa14_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if IIWA14_USE_FLOAT
 #define IIWA14_BISECTION_STEP6_LOOP_COUNT 24
@@ -449,6 +462,13 @@ iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_re
 #define IIWA14_BISECTION_STEP6_LOOP_COUNT 48
 #endif
 void iiwa14_bisection_step6_loop(const iiwa14_real state[2], const iiwa14_real d[6], const iiwa14_real e2[5], iiwa14_real final[2]);
+/* ik_step_35864eae_loop: a fixed-count loop the functions above call (not for direct use). */
+#if IIWA14_USE_FLOAT
+#define IIWA14_IK_STEP_35864EAE_LOOP_COUNT 150
+#else
+#define IIWA14_IK_STEP_35864EAE_LOOP_COUNT 150
+#endif
+void iiwa14_ik_step_35864eae_loop(const iiwa14_real state[21], const iiwa14_real T_target[16], const iiwa14_real q_rest[7], const iiwa14_real use_rest[1], const iiwa14_real tol_position[1], const iiwa14_real tol_orientation[1], iiwa14_real final[21]);
 
 #ifdef __cplusplus
 }

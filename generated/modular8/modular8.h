@@ -157,8 +157,9 @@ MODULAR8_TRIG_INLINE void modular8_sincos_table(const modular8_real *angle, modu
 
 /* Result of the functions that can fail. */
 typedef enum {
-  MODULAR8_OK = 0,        /* output is finite */
-  MODULAR8_NONFINITE = 1  /* output holds NaN/inf: a non-finite input, or an overflow */
+  MODULAR8_OK = 0,            /* output is finite */
+  MODULAR8_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */
+  MODULAR8_NOT_CONVERGED = 2  /* modular8_ik only: no q within the tolerances; the outputs hold the closest reached */
 } modular8_status;
 
 /* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].
@@ -443,6 +444,18 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_H_COLS 1
 #define MODULAR8_STEP_WGPM_WORK_REALS 248
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
+/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
+ * ops: 132750 add, 151050 mul, 11250 div, 750 sqrt, 2550 trig, 9466 minmax, 8250 compare, 15450 select; work: 38 reals. */
+#define MODULAR8_IK_T_TARGET_ROWS 4
+#define MODULAR8_IK_T_TARGET_COLS 4
+#define MODULAR8_IK_Q_SEED_ROWS 8
+#define MODULAR8_IK_Q_SEED_COLS 1
+#define MODULAR8_IK_Q_REST_ROWS 8
+#define MODULAR8_IK_Q_REST_COLS 1
+#define MODULAR8_IK_Q_ROWS 8
+#define MODULAR8_IK_Q_COLS 1
+#define MODULAR8_IK_WORK_REALS 38
+modular8_status modular8_ik(const modular8_real T_target[16], const modular8_real q_seed[MODULAR8_NDOF], const modular8_real q_rest[MODULAR8_NDOF], modular8_real use_rest, modular8_real tol_position, modular8_real tol_orientation, modular8_real q[MODULAR8_NDOF], modular8_real *position_error, modular8_real *orientation_error, modular8_real *iterations, modular8_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if MODULAR8_USE_FLOAT
 #define MODULAR8_BISECTION_STEP6_LOOP_COUNT 24
@@ -450,6 +463,13 @@ modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const m
 #define MODULAR8_BISECTION_STEP6_LOOP_COUNT 48
 #endif
 void modular8_bisection_step6_loop(const modular8_real state[2], const modular8_real d[6], const modular8_real e2[5], modular8_real final[2]);
+/* ik_step_95c2c3c3_loop: a fixed-count loop the functions above call (not for direct use). */
+#if MODULAR8_USE_FLOAT
+#define MODULAR8_IK_STEP_95C2C3C3_LOOP_COUNT 150
+#else
+#define MODULAR8_IK_STEP_95C2C3C3_LOOP_COUNT 150
+#endif
+void modular8_ik_step_95c2c3c3_loop(const modular8_real state[23], const modular8_real T_target[16], const modular8_real q_rest[8], const modular8_real use_rest[1], const modular8_real tol_position[1], const modular8_real tol_orientation[1], modular8_real final[23]);
 
 #ifdef __cplusplus
 }

@@ -157,8 +157,9 @@ PANDA_TRIG_INLINE void panda_sincos_table(const panda_real *angle, panda_real *s
 
 /* Result of the functions that can fail. */
 typedef enum {
-  PANDA_OK = 0,        /* output is finite */
-  PANDA_NONFINITE = 1  /* output holds NaN/inf: a non-finite input, or an overflow */
+  PANDA_OK = 0,            /* output is finite */
+  PANDA_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */
+  PANDA_NOT_CONVERGED = 2  /* panda_ik only: no q within the tolerances; the outputs hold the closest reached */
 } panda_status;
 
 /* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].
@@ -443,6 +444,18 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_H_COLS 1
 #define PANDA_STEP_WGPM_WORK_REALS 217
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
+/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
+ * ops: 118500 add, 136050 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 7500 compare, 13950 select; work: 36 reals. */
+#define PANDA_IK_T_TARGET_ROWS 4
+#define PANDA_IK_T_TARGET_COLS 4
+#define PANDA_IK_Q_SEED_ROWS 7
+#define PANDA_IK_Q_SEED_COLS 1
+#define PANDA_IK_Q_REST_ROWS 7
+#define PANDA_IK_Q_REST_COLS 1
+#define PANDA_IK_Q_ROWS 7
+#define PANDA_IK_Q_COLS 1
+#define PANDA_IK_WORK_REALS 36
+panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PANDA_NDOF], const panda_real q_rest[PANDA_NDOF], panda_real use_rest, panda_real tol_position, panda_real tol_orientation, panda_real q[PANDA_NDOF], panda_real *position_error, panda_real *orientation_error, panda_real *iterations, panda_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if PANDA_USE_FLOAT
 #define PANDA_BISECTION_STEP6_LOOP_COUNT 24
@@ -450,6 +463,13 @@ panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xd
 #define PANDA_BISECTION_STEP6_LOOP_COUNT 48
 #endif
 void panda_bisection_step6_loop(const panda_real state[2], const panda_real d[6], const panda_real e2[5], panda_real final[2]);
+/* ik_step_8a95a0f1_loop: a fixed-count loop the functions above call (not for direct use). */
+#if PANDA_USE_FLOAT
+#define PANDA_IK_STEP_8A95A0F1_LOOP_COUNT 150
+#else
+#define PANDA_IK_STEP_8A95A0F1_LOOP_COUNT 150
+#endif
+void panda_ik_step_8a95a0f1_loop(const panda_real state[21], const panda_real T_target[16], const panda_real q_rest[7], const panda_real use_rest[1], const panda_real tol_position[1], const panda_real tol_orientation[1], panda_real final[21]);
 
 #ifdef __cplusplus
 }

@@ -156,8 +156,9 @@ PLANAR3_TRIG_INLINE void planar3_sincos_table(const planar3_real *angle, planar3
 
 /* Result of the functions that can fail. */
 typedef enum {
-  PLANAR3_OK = 0,        /* output is finite */
-  PLANAR3_NONFINITE = 1  /* output holds NaN/inf: a non-finite input, or an overflow */
+  PLANAR3_OK = 0,            /* output is finite */
+  PLANAR3_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */
+  PLANAR3_NOT_CONVERGED = 2  /* planar3_ik only: no q within the tolerances; the outputs hold the closest reached */
 } planar3_status;
 
 /* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].
@@ -442,6 +443,18 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 #define PLANAR3_STEP_WGPM_H_COLS 1
 #define PLANAR3_STEP_WGPM_WORK_REALS 70
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
+/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
+ * ops: 30150 add, 26100 mul, 3750 div, 600 sqrt, 1050 trig, 4206 minmax, 4500 compare, 7950 select; work: 28 reals. */
+#define PLANAR3_IK_T_TARGET_ROWS 4
+#define PLANAR3_IK_T_TARGET_COLS 4
+#define PLANAR3_IK_Q_SEED_ROWS 3
+#define PLANAR3_IK_Q_SEED_COLS 1
+#define PLANAR3_IK_Q_REST_ROWS 3
+#define PLANAR3_IK_Q_REST_COLS 1
+#define PLANAR3_IK_Q_ROWS 3
+#define PLANAR3_IK_Q_COLS 1
+#define PLANAR3_IK_WORK_REALS 28
+planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_seed[PLANAR3_NDOF], const planar3_real q_rest[PLANAR3_NDOF], planar3_real use_rest, planar3_real tol_position, planar3_real tol_orientation, planar3_real q[PLANAR3_NDOF], planar3_real *position_error, planar3_real *orientation_error, planar3_real *iterations, planar3_real *success);
 /* bisection_step3_loop: a fixed-count loop the functions above call (not for direct use). */
 #if PLANAR3_USE_FLOAT
 #define PLANAR3_BISECTION_STEP3_LOOP_COUNT 24
@@ -449,6 +462,13 @@ planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const plana
 #define PLANAR3_BISECTION_STEP3_LOOP_COUNT 48
 #endif
 void planar3_bisection_step3_loop(const planar3_real state[2], const planar3_real d[3], const planar3_real e2[2], planar3_real final[2]);
+/* ik_step_2f36c519_loop: a fixed-count loop the functions above call (not for direct use). */
+#if PLANAR3_USE_FLOAT
+#define PLANAR3_IK_STEP_2F36C519_LOOP_COUNT 150
+#else
+#define PLANAR3_IK_STEP_2F36C519_LOOP_COUNT 150
+#endif
+void planar3_ik_step_2f36c519_loop(const planar3_real state[13], const planar3_real T_target[16], const planar3_real q_rest[3], const planar3_real use_rest[1], const planar3_real tol_position[1], const planar3_real tol_orientation[1], planar3_real final[13]);
 
 #ifdef __cplusplus
 }

@@ -156,8 +156,9 @@ SNAKE12_TRIG_INLINE void snake12_sincos_table(const snake12_real *angle, snake12
 
 /* Result of the functions that can fail. */
 typedef enum {
-  SNAKE12_OK = 0,        /* output is finite */
-  SNAKE12_NONFINITE = 1  /* output holds NaN/inf: a non-finite input, or an overflow */
+  SNAKE12_OK = 0,            /* output is finite */
+  SNAKE12_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */
+  SNAKE12_NOT_CONVERGED = 2  /* snake12_ik only: no q within the tolerances; the outputs hold the closest reached */
 } snake12_status;
 
 /* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].
@@ -442,6 +443,18 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_H_COLS 1
 #define SNAKE12_STEP_WGPM_WORK_REALS 749
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
+/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
+ * ops: 376950 add, 406050 mul, 21450 div, 750 sqrt, 7350 trig, 24800 minmax, 21000 compare, 40950 select; work: 72 reals. */
+#define SNAKE12_IK_T_TARGET_ROWS 4
+#define SNAKE12_IK_T_TARGET_COLS 4
+#define SNAKE12_IK_Q_SEED_ROWS 25
+#define SNAKE12_IK_Q_SEED_COLS 1
+#define SNAKE12_IK_Q_REST_ROWS 25
+#define SNAKE12_IK_Q_REST_COLS 1
+#define SNAKE12_IK_Q_ROWS 25
+#define SNAKE12_IK_Q_COLS 1
+#define SNAKE12_IK_WORK_REALS 72
+snake12_status snake12_ik(const snake12_real T_target[16], const snake12_real q_seed[SNAKE12_NDOF], const snake12_real q_rest[SNAKE12_NDOF], snake12_real use_rest, snake12_real tol_position, snake12_real tol_orientation, snake12_real q[SNAKE12_NDOF], snake12_real *position_error, snake12_real *orientation_error, snake12_real *iterations, snake12_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if SNAKE12_USE_FLOAT
 #define SNAKE12_BISECTION_STEP6_LOOP_COUNT 24
@@ -449,6 +462,13 @@ snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake
 #define SNAKE12_BISECTION_STEP6_LOOP_COUNT 48
 #endif
 void snake12_bisection_step6_loop(const snake12_real state[2], const snake12_real d[6], const snake12_real e2[5], snake12_real final[2]);
+/* ik_step_8e27ca69_loop: a fixed-count loop the functions above call (not for direct use). */
+#if SNAKE12_USE_FLOAT
+#define SNAKE12_IK_STEP_8E27CA69_LOOP_COUNT 150
+#else
+#define SNAKE12_IK_STEP_8E27CA69_LOOP_COUNT 150
+#endif
+void snake12_ik_step_8e27ca69_loop(const snake12_real state[57], const snake12_real T_target[16], const snake12_real q_rest[25], const snake12_real use_rest[1], const snake12_real tol_position[1], const snake12_real tol_orientation[1], snake12_real final[57]);
 
 #ifdef __cplusplus
 }

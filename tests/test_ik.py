@@ -1,0 +1,251 @@
+"""Inverse kinematics (armgen.symbolic.ik, Robot.ik): round trips, limits, batches, misses."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from armgen.robot import load_robot
+from armgen.symbolic import ik
+
+ROBOTS = ["planar3", "iiwa14", "panda", "modular8"]
+POSES = 60
+# The least success rate a test batch of random reachable poses must reach (the benchmark's
+# bar, 99.5 % over 10 000 poses, is measured in benchmarks/bench_ik.py, not asserted here): a
+# regression that breaks convergence drops far below it.
+MIN_SUCCESS = 0.9
+
+
+def random_configurations(robot, count, seed=7):
+    rng = np.random.default_rng(seed)
+    return robot.qmin + (robot.qmax - robot.qmin) * rng.random((count, robot.n))
+
+
+def independent_errors(robot, q, pose):
+    """Position and orientation errors of the tool at q against pose, over the task rows:
+    the orientation from SciPy's rotation vector of R_target R^T (not the solver's formula)."""
+    reached = robot.fk(q)
+    rows = np.array(robot.task_rows)
+    diff = pose[..., :3, 3] - reached[..., :3, 3]
+    rotvec = Rotation.from_matrix(pose[..., :3, :3] @ np.swapaxes(reached[..., :3, :3], -1, -2)).as_rotvec()
+    error = np.concatenate([diff, rotvec], axis=-1)[..., rows]
+    pos = np.linalg.norm(error[..., rows < 3], axis=-1)
+    ori = np.linalg.norm(error[..., rows >= 3], axis=-1)
+    return pos, ori
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_round_trip_of_random_reachable_poses(name):
+    robot = load_robot(name)
+    poses = robot.fk(random_configurations(robot, POSES))
+    result = robot.ik(poses)
+    assert result.q.shape == (POSES, robot.n) and result.success.shape == (POSES,)
+    assert result.success.mean() >= MIN_SUCCESS
+    assert robot.within_limits(result.q).all()  # the misses too
+    pos, ori = independent_errors(robot, result.q, poses)
+    ok = result.success
+    assert np.all(pos[ok] <= ik.TOL_POSITION * 1.001) and np.all(ori[ok] <= ik.TOL_ORIENTATION * 1.001)
+    # the reported errors are those of the returned q (SciPy's angle to ~1e-15 rad)
+    np.testing.assert_allclose(result.position_error, pos, rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(result.orientation_error, ori, rtol=1e-6, atol=1e-12)
+    assert np.all(result.iterations >= 1) and np.all(result.iterations <= ik.ITERATIONS * ik.ATTEMPTS)
+
+
+def test_snake12_round_trip():
+    robot = load_robot("snake12")
+    poses = robot.fk(random_configurations(robot, 8))
+    result = robot.ik(poses)
+    assert result.success.mean() >= MIN_SUCCESS * 0.85 and robot.within_limits(result.q).all()
+    pos, ori = independent_errors(robot, result.q[result.success], poses[result.success])
+    assert np.all(pos <= ik.TOL_POSITION * 1.001) and np.all(ori <= ik.TOL_ORIENTATION * 1.001)
+
+
+@pytest.mark.parametrize("name", ["iiwa14", "planar3"])
+def test_one_pose_equals_its_row_of_a_batch_and_is_deterministic(name):
+    robot = load_robot(name)
+    poses = robot.fk(random_configurations(robot, 5, seed=3))
+    batch = robot.ik(poses)
+    again = robot.ik(poses)
+    np.testing.assert_array_equal(batch.q, again.q)
+    for k in range(5):
+        one = robot.ik(poses[k])
+        assert one.q.shape == (robot.n,) and one.success.shape == ()
+        # CasADi's evaluator (one pose) and the NumPy replay (a batch) run the same operations
+        np.testing.assert_array_equal(one.q, batch.q[k])
+        assert one.iterations == batch.iterations[k] and one.success == batch.success[k]
+
+
+def test_batch_shape_is_kept():
+    robot = load_robot("planar3")
+    poses = robot.fk(random_configurations(robot, 6).reshape(2, 3, robot.n))
+    result = robot.ik(poses)
+    assert result.q.shape == (2, 3, 3) and result.position_error.shape == (2, 3)
+
+
+def test_a_solution_at_the_seed_is_found_in_one_step():
+    robot = load_robot("panda")
+    q = random_configurations(robot, 1, seed=11)[0]
+    result = robot.ik(robot.fk(q), seed=q)
+    assert result.success and result.iterations == 1
+    np.testing.assert_array_equal(result.q, q)
+
+
+def test_q0_pulls_the_self_motion_toward_it():
+    """From the same seed, the solution found with q0 given is nearer q0 than the one with
+    the default (joint-limit) criterion, on most poses of a redundant arm."""
+    robot = load_robot("modular8")
+    q = random_configurations(robot, 20, seed=5)
+    poses = robot.fk(q)
+    target = robot.qmid + 0.3 * (robot.qmax - robot.qmid)
+    near = robot.ik(poses, target, seed=robot.qmid)
+    free = robot.ik(poses, seed=robot.qmid)
+    both = near.success & free.success
+    assert both.sum() >= 15
+    closer = np.linalg.norm(near.q - target, axis=1) <= np.linalg.norm(free.q - target, axis=1)
+    assert closer[both].mean() >= 0.7
+
+
+def test_unreachable_pose_returns_the_closest_configuration_reached():
+    robot = load_robot("iiwa14")
+    pose = np.eye(4)
+    pose[:3, 3] = [3.0, 0.0, 0.5]  # the iiwa reaches 1.2 m from its base
+    result = robot.ik(pose)
+    assert not result.success
+    assert robot.within_limits(result.q)
+    pos, ori = independent_errors(robot, result.q, pose)
+    np.testing.assert_allclose([result.position_error, result.orientation_error], [pos, ori], rtol=1e-6)
+    # closest in ½‖e‖² (m², rad²), which trades position for orientation: nearer than the seed,
+    # and the arm stretched toward the target, within 0.2 m of the least distance (3 m − reach
+    # about the shoulder, the reach sampled from the workspace)
+    seed_pos, seed_ori = independent_errors(robot, robot.qmid, pose)
+    assert pos**2 + ori**2 < seed_pos**2 + seed_ori**2
+    reach = np.linalg.norm(robot.fk(random_configurations(robot, 20000))[:, :3, 3] - [0, 0, 0.36], axis=1).max()
+    assert result.position_error <= np.linalg.norm(np.array([3.0, 0, 0.5]) - [0, 0, 0.36]) - reach + 0.2
+
+
+def test_planar_arm_ignores_the_rows_outside_its_task():
+    robot = load_robot("planar3")
+    q = np.array([0.3, -0.5, 0.7])
+    pose = robot.fk(q)
+    pose[2, 3] += 0.25  # z is not a task row of the planar arm
+    result = robot.ik(pose)
+    assert result.success
+    reached = robot.fk(result.q)
+    np.testing.assert_allclose(reached[:2, 3], pose[:2, 3], atol=ik.TOL_POSITION)
+
+
+@pytest.mark.parametrize("pose, message", [
+    (np.eye(3), "shape"),
+    (np.full((4, 4), np.nan), "NaN"),
+    (np.diag([1.0, 1.0, 2.0, 1.0]), "rotation"),
+    (np.diag([1.0, 1.0, -1.0, 1.0]), "rotation"),
+    (np.array([[1.0, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 1, 1]]), "last row"),
+])
+def test_bad_poses_are_rejected(pose, message):
+    with pytest.raises(ValueError, match=message):
+        load_robot("planar3").ik(pose)
+
+
+def test_bad_seed_is_rejected():
+    robot = load_robot("planar3")
+    with pytest.raises(ValueError, match="3 finite joint values"):
+        robot.ik(np.eye(4), seed=[0.0, 1.0])
+    result = robot.ik(robot.fk(robot.q0), seed="q0")
+    assert result.success and result.iterations == 1
+
+
+# -- the generated C against its Python twin ---------------------------------------------------
+
+# The float C solves to the float tolerances below (what single precision resolves on a
+# ~1 m arm: 6e-8 relative per rounding, a chain of ~10 products); its solution, checked by the
+# double FK, may miss them by the float FK's own error (≤ 2e-6, FLOAT_BOUNDS["fk"]).
+FLOAT_TOL = 1e-4
+FLOAT_FK_SLACK = 2e-6
+# The float solver reaches that many of the poses the double one does (the benchmark measures it).
+FLOAT_MIN_SUCCESS = 0.9
+
+
+@pytest.fixture(scope="module")
+def compiled_ik(tmp_path_factory):
+    """name -> {precision: (ctypes function, reference)} of an ik-only build."""
+    import ctypes
+
+    from armgen.codegen.compiled import build_library
+    from armgen.codegen.generate import CodegenConfig, generate, write
+
+    built = {}
+
+    def get(name):
+        if name not in built:
+            robot = load_robot(name)
+            out = tmp_path_factory.mktemp(name)
+            write(generate(CodegenConfig(robot, functions=("ik",))), out)
+            built[name] = {}
+            for precision, real in (("double", ctypes.c_double), ("float", ctypes.c_float)):
+                lib = ctypes.CDLL(str(build_library(out, name, precision, out)))
+                fn = lib[f"{name}_ik"]
+                fn.restype = ctypes.c_int
+                built[name][precision] = (fn, real)
+        return built[name]
+    return get
+
+
+def call_c(entry, robot, pose, seed, rest, use_rest, tol):
+    import ctypes
+
+    fn, real = entry
+    dtype = np.float64 if real is ctypes.c_double else np.float32
+    buffers = [np.ascontiguousarray(pose.T.reshape(16), dtype=dtype), np.asarray(seed, dtype=dtype),
+               np.asarray(rest, dtype=dtype)]
+    q = np.zeros(robot.n, dtype=dtype)
+    scalars = [real() for _ in range(4)]
+    pointer = ctypes.POINTER(real)
+    status = fn(*[b.ctypes.data_as(pointer) for b in buffers], real(use_rest), real(tol), real(tol),
+                q.ctypes.data_as(pointer), *[ctypes.byref(s) for s in scalars])
+    return status, q.astype(float), [s.value for s in scalars]
+
+
+@pytest.mark.parametrize("name", ["planar3", "iiwa14"])
+def test_double_c_is_bit_identical_to_python(name, compiled_ik):
+    robot = load_robot(name)
+    entry = compiled_ik(name)["double"]
+    q_true = random_configurations(robot, 25, seed=13)
+    poses = robot.fk(q_true)
+    for k, pose in enumerate(poses):
+        use_rest = k % 2
+        rest = q_true[(k + 1) % 25]
+        py = robot.ik(pose, rest if use_rest else None, seed=robot.qmid)
+        status, q, (pos, ori, iterations, success) = call_c(entry, robot, pose, robot.qmid, rest if use_rest else robot.qmid,
+                                                           use_rest, ik.TOL_POSITION)
+        np.testing.assert_array_equal(q, py.q)
+        assert (pos, ori, iterations, success) == (py.position_error, py.orientation_error, py.iterations, py.success)
+        assert status == (0 if py.success else 2)
+
+
+@pytest.mark.parametrize("name", ["planar3", "iiwa14"])
+def test_float_c_reaches_the_float_tolerance(name, compiled_ik):
+    robot = load_robot(name)
+    entry = compiled_ik(name)["float"]
+    poses = robot.fk(random_configurations(robot, 40, seed=17))
+    reached = 0
+    for pose in poses:
+        status, q, (pos, ori, iterations, success) = call_c(entry, robot, pose, robot.qmid, robot.qmid, 0, FLOAT_TOL)
+        assert robot.within_limits(q)
+        assert status == (0 if success else 2)
+        if success:
+            reached += 1
+            true_pos, true_ori = independent_errors(robot, q, pose)
+            assert true_pos <= FLOAT_TOL + FLOAT_FK_SLACK and true_ori <= FLOAT_TOL + FLOAT_FK_SLACK
+    assert reached >= FLOAT_MIN_SUCCESS * len(poses)
+
+
+def test_c_status_for_misses_and_nonfinite_input(compiled_ik):
+    robot = load_robot("planar3")
+    entry = compiled_ik("planar3")["double"]
+    far = np.eye(4)
+    far[0, 3] = 10.0
+    status, q, (pos, ori, iterations, success) = call_c(entry, robot, far, robot.qmid, robot.qmid, 0, 1e-6)
+    assert status == 2 and success == 0 and iterations == ik.ITERATIONS * ik.ATTEMPTS and robot.within_limits(q)
+    bad = robot.fk(robot.qmid)
+    bad[1, 3] = np.nan
+    assert call_c(entry, robot, bad, robot.qmid, robot.qmid, 0, 1e-6)[0] == 1
+    assert call_c(entry, robot, robot.fk(robot.qmid), [np.inf, 0, 0], robot.qmid, 0, 1e-6)[0] == 1
