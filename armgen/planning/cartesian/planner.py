@@ -71,6 +71,7 @@ class CartesianTask:
     raw: dict[str, Any] = field(default_factory=dict)
     program: ProgramSpec | None = None  # path.type = "program": the moves, and
     motion: ProgramMotion | None = None  # their geometry and time law from the start pose
+    start_label: str = ""
 
     def with_motion(self, motion: ProgramMotion) -> CartesianTask:
         """This task driven by ``motion``: the duration is the motion's, rounded up to whole steps."""
@@ -122,13 +123,42 @@ def parse_robot_and_start(task: dict, source: str) -> tuple[Robot, np.ndarray, s
     ls, as_ = LENGTH_SCALE[lunit], ANGLE_SCALE[aunit]
 
     start = task.get("start", "q0")
-    if isinstance(start, str):
+    if isinstance(start, dict):
+        q_start, label = start_from_pose(robot, start, source, ls, as_)
+    elif isinstance(start, str):
         q_start, label = robot.configuration(start), start
     else:
         q_units = np.array([as_ if j.revolute else ls for j in robot.joints])
         q_start, label = _vector(task, "start", "task", source, robot.n, 1.0) * q_units, "explicit"
     robot.check_within_limits(q_start, f"{source}: field 'start'")
     return robot, q_start, label, ls, as_
+
+
+def start_from_pose(robot: Robot, start: dict, source: str, ls: float, as_: float) -> tuple[np.ndarray, str]:
+    """``start = { pose = { xyz, rpy }, seed = … }``: the joint values that reach the pose (the
+    robot's IK, inside the limits, its self-motion away from them), and a label saying which."""
+    pose = _table(start, "pose", source)
+    target = np.eye(4)
+    target[:3, 3] = _vector(pose, "xyz", "start.pose", source, 3, ls)
+    target[:3, :3] = rpy_matrix(*_vector(pose, "rpy", "start.pose", source, 3, as_))
+    seed = start.get("seed", "q0")
+    if isinstance(seed, list):
+        q_units = np.array([as_ if j.revolute else ls for j in robot.joints])
+        seed = _vector(start, "seed", "start", source, robot.n, 1.0) * q_units
+        robot.check_within_limits(seed, f"{source}: field 'start.seed'")
+    elif isinstance(seed, str):
+        robot.configuration(seed)  # a clear error for an unknown name
+    result = robot.ik(target, seed=seed)
+    seed_label = seed if isinstance(seed, str) else "given joint values"
+    if not result.success:
+        raise PlanningError(
+            f"{source}: field 'start.pose' is not reachable: the inverse kinematics from seed {seed_label!r} stopped "
+            f"{float(result.position_error) * 1e3:.3g} mm / {math.degrees(float(result.orientation_error)):.3g} deg "
+            "from it; the pose may be outside the workspace or beyond the joint limits: move it, or give a seed "
+            "(start.seed) closer to the configuration you want")
+    label = (f"pose (IK from seed {seed_label!r}: position error {float(result.position_error):.1e} m, "
+             f"orientation error {float(result.orientation_error):.1e} rad, {int(result.iterations)} iterations)")
+    return np.asarray(result.q, dtype=float), label
 
 
 def parse_path_and_timing(task: dict, source: str, ls: float, as_: float):
@@ -155,7 +185,7 @@ def parse_path_and_timing(task: dict, source: str, ls: float, as_: float):
 
 
 def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
-    robot, q_start, _, ls, as_ = parse_robot_and_start(task, source)
+    robot, q_start, start_label, ls, as_ = parse_robot_and_start(task, source)
     program = motion = None
     if _table(task, "path", source).get("type") == "program":
         if "timing" in task:
@@ -205,7 +235,7 @@ def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
         damping_epsilon=_number(damping, "epsilon", "damping", source, 0.01, positive=True),
         damping_max=_number(damping, "lambda_max", "damping", source, 0.05, nonneg=True),
         output_every=int(_number(integ, "output_every", "integrator", source, 1, positive=True)),
-        raw=task, program=program,
+        raw=task, program=program, start_label=start_label,
     )
     return parsed if motion is None else parsed.with_motion(motion)
 
@@ -464,6 +494,7 @@ class CartesianPlanner:
             "method": task.method.name,
             "robot": {"name": self.robot.name, "file": self.robot.source, "sha256": self.robot.sha256,
                       "qlim_rad": [list(j.qlim) for j in self.robot.joints]},
+            "start": {"label": task.start_label, "q_rad": task.q_start.tolist()},
             "parameters": {k: getattr(task.method, k) for k in task.method.__dataclass_fields__},
             "integrator": {"method": task.integrator, "step_s": task.step, "clik_gain": task.clik_gain,
                            "open_loop": task.clik_gain == 0},

@@ -13,14 +13,30 @@ from pydantic import Field, StringConstraints
 from ...schemas import StrictModel
 from ..toolpath.schema import ProgramPath, path_union
 
+
+class Target(StrictModel):
+    xyz: Vector3 = Field(description="position (length unit)")
+    rpy: Vector3 = Field(description="roll, pitch, yaw (angle unit): R = Rz(yaw) Ry(pitch) Rx(roll)")
+
 # A path or bundled name; longer text is not a file name.
 RobotReference = Annotated[str, StringConstraints(min_length=1, max_length=4096)]
 Description = Annotated[str, StringConstraints(max_length=2000)]
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
-Start = Union[Annotated[str, StringConstraints(min_length=1, max_length=64)],
-              Annotated[list[float], Field(min_length=1, max_length=64)]]
+JointValues = Annotated[list[float], Field(min_length=1, max_length=64)]
+ConfigurationName = Annotated[str, StringConstraints(min_length=1, max_length=64)]
+
+
+class StartPose(StrictModel):
+    """A start given as a tool pose, solved by the robot's inverse kinematics."""
+
+    pose: Target = Field(description="the start tool pose (xyz, rpy) in the file's units")
+    seed: Union[ConfigurationName, JointValues] = Field(
+        "q0", description="the configuration the IK starts from (a name or joint values)")
+
+
+Start = Union[ConfigurationName, JointValues, StartPose]
 
 
 class Units(StrictModel):
