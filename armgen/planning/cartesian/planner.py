@@ -514,6 +514,8 @@ class CartesianPlanner:
                 "joint_travel_deg": np.degrees(travel).tolist(),
                 "total_joint_travel_deg": float(np.degrees(travel.sum())),
                 "damped_steps": int(self.damped_steps),
+                # steps whose self-motion was scaled to keep the joints within their speed limits
+                **({"self_motion_limited_steps": self.limiter.limited_steps} if self.limiter else {}),
                 "window_openings": self.windows.openings.tolist(),
             },
         }

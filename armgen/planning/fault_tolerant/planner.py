@@ -617,6 +617,8 @@ class FaultTolerantPlanner:
                 "limit_violations": verdict["limit_violations"],
                 "max_abs_q_deg": np.degrees(np.max(np.abs(data[:, 1:1 + self.robot.n]), axis=0)).tolist(),
                 "damped_steps": verdict["damped_steps"],
+                # steps whose self-motion was scaled to keep the joints within their speed limits
+                **({"self_motion_limited_steps": self.limiter.limited_steps} if self.limiter else {}),
                 "plan_seconds": elapsed,
             },
         })

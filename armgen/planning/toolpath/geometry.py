@@ -305,7 +305,7 @@ class Program:
             if radius == 0:
                 continue
             for j in (k, k + 1):
-                if radius > raw[j].length / 2:
+                if radius > raw[j].length / 2 * (1 + 1e-12):  # exactly half: the corners meet
                     raise GeometryError(k, f"blend = {radius * 1e3:.6g} mm is larger than half of move {j}'s length "
                                            f"({raw[j].length * 1e3:.6g} mm): the rounded corners would overlap; "
                                            f"give blend ≤ {raw[j].length / 2 * 1e3:.6g} mm")
@@ -319,7 +319,8 @@ class Program:
         blends = dict(corners)
         for k, piece in enumerate(raw):
             u0, u1 = cut[k]
-            pieces.append(piece if (u0, u1) == (0.0, piece.length) else Trimmed(piece, u0, u1))
+            if u1 - u0 > MIN_MOVE_LENGTH * 1e-3:  # a move all taken up by its two rounded corners drops out
+                pieces.append(piece if (u0, u1) == (0.0, piece.length) else Trimmed(piece, u0, u1))
             if k in blends:
                 if blends[k] == 0:
                     stop_after.append(len(pieces) - 1)

@@ -65,9 +65,22 @@ class PathProfile:
         return np.sqrt(np.maximum(np.interp(s, self.s, self.v ** 2), 0.0))
 
 
+def _centripetal_cap(program: Program, s: np.ndarray, acc: np.ndarray) -> np.ndarray:
+    """``√(a/κ)`` at the nodes: the tool's acceleration bound holds for the normal part ``ṡ²κ``
+    too. The curvature of each cell comes from tangents a quarter cell either side of its
+    middle (one piece: cells never straddle a piece boundary, where a stop may sit)."""
+    mid, half = 0.5 * (s[1:] + s[:-1]), 0.25 * np.diff(s)
+    tangent_hi, tangent_lo = program.evaluate(mid + half)[1], program.evaluate(mid - half)[1]
+    kappa = np.linalg.norm(tangent_hi - tangent_lo, axis=-1) / (2 * half)
+    with np.errstate(divide="ignore"):
+        cell = np.where(kappa > 0, np.sqrt(acc / kappa), np.inf)
+    return np.minimum(np.concatenate([cell[:1], cell]), np.concatenate([cell, cell[-1:]]))
+
+
 def program_profile(program: Program, angular_speed: float | None, slowdown: np.ndarray | None = None,
                     acceleration_scale: np.ndarray | None = None) -> PathProfile:
-    """The program's time law: each move's speed and acceleration, the angular-speed cap, rest
+    """The program's time law: each move's speed and acceleration (also bounding the normal
+    acceleration ṡ²κ on curves), the angular-speed cap, rest
     at every corner without a blend, and, from the joint limits, ``slowdown`` (extra speed caps
     at the grid nodes) and ``acceleration_scale`` (factors ≤ 1 per cell); None: none."""
     s = program_grid(program)
@@ -84,7 +97,7 @@ def program_profile(program: Program, angular_speed: float | None, slowdown: np.
             speed[inside] = min(moves[p.move].speed, moves[nxt].speed)
             cells = (cell_piece == k)
             acc[cells] = min(moves[p.move].acceleration, moves[nxt].acceleration)
-    cap = speed.astype(float)
+    cap = np.minimum(speed.astype(float), _centripetal_cap(program, s, acc))
     if angular_speed is not None:
         omega = np.linalg.norm(program.evaluate(s)[3], axis=-1)
         with np.errstate(divide="ignore"):

@@ -310,6 +310,8 @@ class WgpmPlanner:
                 "start_joint_speed_deg_s": float(np.degrees(np.linalg.norm(qd[0]))),
                 "end_joint_speed_deg_s": float(np.degrees(np.linalg.norm(qd[-1]))),
                 "damped_steps": int(damped),
+                # steps whose self-motion was scaled to keep the joints within their speed limits
+                **({"self_motion_limited_steps": self.limiter.limited_steps} if self.limiter else {}),
                 "plan_seconds": elapsed,
             },
         })
