@@ -277,6 +277,10 @@ class Program:
                 if np.linalg.norm(points[0] - p) >= MIN_MOVE_LENGTH:  # the spline starts where the tool is
                     points = np.vstack([p, points])
                     rotations = Rotation.concatenate([r, rotations])
+                elif (r.inv() * rotations[0]).magnitude() > CORNER_ANGLE_TOL:
+                    raise GeometryError(k, "the first pose is at the current tool position but turns the tool by "
+                                           f"{math.degrees((r.inv() * rotations[0]).magnitude()):.3g} deg: the tool "
+                                           "cannot turn in place; give the current orientation or drop the row")
                 piece = pose_spline(points, rotations, k)
                 r_end = rotations[-1]
             else:
