@@ -427,3 +427,11 @@ def test_bad_programs_fail_cleanly(case, code, needles, tmp_path):
         assert needle in result.output, (needle, result.output)
     if case not in ("start", "timing"):
         assert "task.toml" in result.output
+
+
+def test_firmware_refuses_a_program_cleanly():
+    from armgen.verify.firmware import FirmwareError, task_from_dict
+
+    path = EXAMPLES / "iiwa14_weld_seam_program.toml"
+    with pytest.raises(FirmwareError, match="program"):
+        task_from_dict(tomllib.loads(path.read_text()), str(path))

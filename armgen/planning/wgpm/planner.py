@@ -158,8 +158,9 @@ def parse_wgpm_task(task: dict, source: str) -> WgpmTask:
         ramp_out=ramp_out, criteria=tuple(criteria),
     )
     if 2 * method.ramp_time > path.duration and method.ramp_out:
-        raise TaskFileError(f"{source}: method.ramp_time = {method.ramp_time} s is more than half of timing.duration = "
-                            f"{path.duration} s; shorten it or set method.ramp_out = false")
+        what = "the program's duration" if path.motion is not None else "timing.duration"
+        raise TaskFileError(f"{source}: method.ramp_time = {method.ramp_time} s is more than half of {what} = "
+                            f"{path.duration:g} s; shorten it or set method.ramp_out = false")
     tr = _table(task, "tracking", source)
     return WgpmTask(
         path=path, method=method,
