@@ -62,11 +62,11 @@ def test_snake12_round_trip():
 @pytest.mark.parametrize("name", ["iiwa14", "planar3"])
 def test_one_pose_equals_its_row_of_a_batch_and_is_deterministic(name):
     robot = load_robot(name)
-    poses = robot.fk(random_configurations(robot, 5, seed=3))
+    poses = robot.fk(random_configurations(robot, 40, seed=3))
     batch = robot.ik(poses)
     again = robot.ik(poses)
     np.testing.assert_array_equal(batch.q, again.q)
-    for k in range(5):
+    for k in range(40):
         one = robot.ik(poses[k])
         assert one.q.shape == (robot.n,) and one.success.shape == ()
         # CasADi's evaluator (one pose) and the NumPy replay (a batch) run the same operations
@@ -162,6 +162,8 @@ FLOAT_TOL = 1e-4
 FLOAT_FK_SLACK = 2e-6
 # The float solver reaches that many of the poses the double one does (the benchmark measures it).
 FLOAT_MIN_SUCCESS = 0.9
+# The float build clamps to the float-rounded limits: at most half an ulp of the limit outside.
+FLOAT_LIMIT_SLACK = 2.4e-7
 
 
 @pytest.fixture(scope="module")
@@ -229,7 +231,7 @@ def test_float_c_reaches_the_float_tolerance(name, compiled_ik):
     reached = 0
     for pose in poses:
         status, q, (pos, ori, iterations, success) = call_c(entry, robot, pose, robot.qmid, robot.qmid, 0, FLOAT_TOL)
-        assert robot.within_limits(q)
+        assert np.all((q >= robot.qmin - FLOAT_LIMIT_SLACK) & (q <= robot.qmax + FLOAT_LIMIT_SLACK))
         assert status == (0 if success else 2)
         if success:
             reached += 1
@@ -249,3 +251,89 @@ def test_c_status_for_misses_and_nonfinite_input(compiled_ik):
     bad[1, 3] = np.nan
     assert call_c(entry, robot, bad, robot.qmid, robot.qmid, 0, 1e-6)[0] == 1
     assert call_c(entry, robot, robot.fk(robot.qmid), [np.inf, 0, 0], robot.qmid, 0, 1e-6)[0] == 1
+
+
+# -- command line ----------------------------------------------------------------------------------
+
+def test_cli_prints_the_solution_and_exits_0():
+    from click.testing import CliRunner
+
+    from armgen.cli.main import cli
+    from armgen.robot import matrix_rpy
+
+    robot = load_robot("panda")
+    pose = robot.fk(robot.qr + 0.1)
+    roll, pitch, yaw = np.degrees(matrix_rpy(pose[:3, :3]))
+    numbers = [repr(float(v)) for v in (*pose[:3, 3], roll, pitch, yaw)]
+    result = CliRunner().invoke(cli, ["ik", "panda", "--xyz", *numbers[:3], "--rpy", *numbers[3:],
+                                      "--units", "deg", "--seed", "qr"])
+    assert result.exit_code == 0, result.output
+    printed = np.radians([float(line.split()[1]) for line in result.output.splitlines()[1:]])
+    pos, ori = independent_errors(robot, printed, pose)
+    assert pos <= 1e-6 and ori <= 1e-6  # printed to 9 digits: ~1e-9 rad per joint
+
+
+def test_cli_exit_3_prints_the_closest_and_exit_2_for_a_bad_seed():
+    from click.testing import CliRunner
+
+    from armgen.cli.main import cli
+
+    miss = CliRunner().invoke(cli, ["ik", "iiwa14", "--xyz", "3", "0", "0.5"])
+    assert miss.exit_code == 3 and "closest reached" in miss.output and "no configuration" in miss.output
+    assert len(miss.output.splitlines()) >= 8  # the 7 joints of the closest configuration
+    bad = CliRunner().invoke(cli, ["ik", "iiwa14", "--xyz", "0.5", "0", "0.5", "--seed", "1,2"])
+    assert bad.exit_code == 2 and "--seed" in bad.output
+
+
+# -- PTP through tool poses --------------------------------------------------------------------------
+
+def ptp_pose_task(robot, configurations, **waypoints):
+    from armgen.robot import matrix_rpy
+
+    poses = robot.fk(configurations)
+    return {"planner": "ptp", "robot": robot.name, "units": {"angle": "deg"},
+            "waypoints": {"xyz": poses[:, :3, 3].tolist(),
+                          "rpy": [np.degrees(matrix_rpy(p[:3, :3])).tolist() for p in poses],
+                          "t": [2.0 * k for k in range(len(poses))], **waypoints}}, poses
+
+
+def test_ptp_waypoints_as_poses_are_solved_nearest_and_recorded():
+    import armgen
+
+    robot = load_robot("panda")
+    # a short walk: each waypoint a small joint move from the one before (the branch to keep)
+    walk = robot.qr + np.cumsum(np.tile([0.15, -0.1, 0.1, 0.2, -0.1, 0.15, 0.1], (4, 1)), axis=0)
+    task, poses = ptp_pose_task(robot, walk, seed="qr")
+    plan = armgen.plan(task)
+    record = plan.metadata["ik"]
+    solved = np.array(record["waypoints"])
+    assert solved.shape == (4, robot.n) and robot.within_limits(solved).all()
+    pos, ori = independent_errors(robot, solved, poses)
+    assert np.all(pos <= ik.TOL_POSITION * 1.001) and np.all(ori <= ik.TOL_ORIENTATION * 1.001)
+    # nearest in joint space: each solution is no farther from the one before than the walk's
+    # own configuration of that pose (another solution of it); a branch flip would be radians
+    previous = np.vstack([robot.qr, solved[:-1]])
+    assert np.all(np.linalg.norm(solved - previous, axis=1) <= np.linalg.norm(walk - previous, axis=1))
+    # the joint splines pass through the solved configurations at the knots, at rest there
+    knots = plan.metadata["knot_times_s"]
+    data = plan.to_pandas()
+    for k, t in enumerate(knots):
+        row = data.iloc[int(np.argmin(np.abs(data["t_s"] - t)))]
+        got = [row[f"theta_{j.name}_rad"] for j in robot.joints]
+        np.testing.assert_allclose(got, solved[k], atol=1e-9)
+        assert max(abs(row[f"omega_{j.name}_rad_s"]) for j in robot.joints) < 1e-9
+
+
+def test_ptp_unreachable_pose_is_infeasible_and_bad_fields_are_named():
+    import armgen
+    from armgen.errors import PlanningError, TaskFileError
+
+    robot = load_robot("panda")
+    task, _ = ptp_pose_task(robot, np.array([robot.qr, robot.qr + 0.2]))
+    task["waypoints"]["xyz"][1] = [3.0, 0.0, 0.5]
+    with pytest.raises(PlanningError, match="waypoint 1"):
+        armgen.plan(task)
+    task, _ = ptp_pose_task(robot, np.array([robot.qr, robot.qr + 0.2]))
+    task["waypoints"]["theta"] = {j.name: [0.0, 0.0] for j in robot.joints}
+    with pytest.raises(TaskFileError, match="either theta"):
+        armgen.plan(task)

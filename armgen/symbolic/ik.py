@@ -68,6 +68,10 @@ ERROR_START = 1e30
 # Default convergence tolerances (the issue's success bar): 1 µm, 1 µrad.
 TOL_POSITION = 1e-6
 TOL_ORIENTATION = 1e-6
+# The tolerances of the float build (m, rad): single precision holds ~6e-8 relative per
+# rounding, and a chain of ~10 products of ~1 m links leaves a few 1e-6 of noise in the pose
+# error, so 1e-6 is out of reach, 1e-4 well above the noise.
+FLOAT_TOL = 1e-4
 
 
 def _irrational_steps(n: int) -> list[float]:
@@ -235,6 +239,17 @@ class IKDefinition:
         final = loop(self.initial_state(q_seed), *constants)
         return ca.Function("ik", [constants[0], q_seed, *constants[1:]], [ca.densify(x) for x in self.outputs(final)],
                            INPUT_NAMES, OUTPUT_NAMES)
+
+    @cached_property
+    def errors(self) -> ca.Function:
+        """(q, T_target) → (position_error, orientation_error): the solver's own measure of how
+        far the tool at q is from the target (task rows), for checking a solution from elsewhere
+        (the float C) in double."""
+        q, target = ca.SX.sym("q", self.n), ca.SX.sym("T_target", 4, 4)
+        axis_frames, _, tool = chain(self.robot, q)
+        pos, ori = self._errors(pose_error(tool, target)[self.rows])
+        return ca.Function("ik_errors", [q, target], [pos, ori], ["q", "T_target"],
+                           ["position_error", "orientation_error"])
 
     @cached_property
     def batch(self):

@@ -18,6 +18,7 @@ import casadi as ca
 import numpy as np
 
 from ..robot import Robot
+from ..symbolic import ik
 from ..symbolic.model import FROM_JACOBIAN
 
 NEAR_LIMIT_FRACTION = 0.15
@@ -39,6 +40,10 @@ FLOAT_WGPM_MIN_LOG_DELTA = -2
 # Typical magnitudes of step_wgpm's criteria (w, H_M, H_L per joint, condition index): H_lo is
 # drawn in [0, 1]·scale and H_hi = H_lo + [0.5, 2]·scale.
 CRITERION_SCALES = (0.1, 0.5, 8.0, 20.0)
+# ik starts from the sample plus N(0, 0.2 rad) per joint: a few steps from the target pose, so
+# the float solver (whose path may part from the double one's) converges too; double compares
+# every output bit for bit whatever the path.
+IK_SEED_SPREAD = 0.2
 
 
 def joint_samples(robot: Robot, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -74,6 +79,16 @@ def function_inputs(func: ca.Function, robot: Robot, q: np.ndarray, rng: np.rand
             args.append(q)
         elif name == "J":  # the J input of the *_from_jacobian twins: the robot's Jacobian at q
             args.append(robot.jacobian(q))
+        elif name == "T_target":  # ik: the pose at q, solved from a seed near q (IK_SEED_SPREAD)
+            args.append(robot.fk(q))
+        elif name == "q_seed":
+            args.append(np.clip(q + rng.normal(scale=IK_SEED_SPREAD, size=robot.n), robot.qmin, robot.qmax))
+        elif name == "q_rest":
+            args.append(rng.uniform(robot.qmin, robot.qmax))
+        elif name == "use_rest":
+            args.append(float(rng.integers(0, 2)))
+        elif name in ("tol_position", "tol_orientation"):
+            args.append(ik.TOL_POSITION if precision == "double" else ik.FLOAT_TOL)
         elif name == "q_init":
             args.append(rng.uniform(robot.qmin, robot.qmax))
         elif name == "damping":

@@ -39,6 +39,7 @@ from numpy.polynomial import polynomial as npp
 from ...errors import PlanningError, RobotFileError, TaskFileError
 from ...robot import load_robot
 from ..result import PlanResult
+from .poses import POSE_FIELDS, solve_pose_waypoints
 
 METHODS = ("cubic", "3-4", "3-5-3", "quintic")
 DEFAULT_METHOD = "3-4"
@@ -437,6 +438,7 @@ class PtpConfig:
     eps_max: np.ndarray | None
     grid: float | None
     robot: str | None = None
+    solved_poses: dict[str, Any] | None = None  # waypoints given as tool poses: the IK's solutions (poses.py)
 
     @property
     def n_waypoints(self) -> int:
@@ -448,7 +450,7 @@ class PtpConfig:
 
 
 _TOP_FIELDS = {"planner", "description", "robot", "method", "compare", "step", "units", "waypoints", "timing"}
-_WAYPOINT_FIELDS = {"t", "theta", "omega", "eps"}
+_WAYPOINT_FIELDS = {"t", "theta", "omega", "eps", *POSE_FIELDS}
 _TIMING_FIELDS = {"omega_max", "eps_max", "grid"}
 
 
@@ -581,6 +583,15 @@ def parse_ptp_task(task: dict[str, Any], source: str) -> PtpConfig:
     single = robot_name is None
 
     wp = fields.table(task, "waypoints", True, _WAYPOINT_FIELDS)
+    solved_poses = None
+    if "xyz" in wp:  # tool poses: joint angles by the inverse kinematics, stopping at each unless omega is given
+        if single:
+            raise fields.fail("waypoints.xyz", "needs a robot (the task names none); add robot = \"<name>\"")
+        q_solved, solved_poses = solve_pose_waypoints(robot, wp, source, scale)
+        wp = {**wp, "theta": {name: (q_solved[:, j] / scale).tolist() for j, name in enumerate(names)}}
+        wp.setdefault("omega", {name: [0.0] * len(q_solved) for name in names})
+    elif any(key in wp for key in POSE_FIELDS):
+        raise fields.fail("waypoints.rpy", "and waypoints.seed need waypoints.xyz (the tool positions); add it")
     for key in ("theta", "omega"):
         if key not in wp:
             raise fields.fail(f"waypoints.{key}", "is missing; give the waypoint angles (theta) and velocities (omega)")
@@ -633,7 +644,7 @@ def parse_ptp_task(task: dict[str, Any], source: str) -> PtpConfig:
     if "grid" in timing:
         grid = fields.positive(timing["grid"], "timing.grid", "give the duration grid in seconds (e.g. 1.0) or remove it")
     config = PtpConfig(source, method, tuple(compare_raw), step, angle_unit, tuple(joints), times, omega_max, eps_max,
-                       grid, robot_name)
+                       grid, robot_name, solved_poses)
     if omega_max is not None:
         _check_bounds_against_waypoints(config)
     for m in dict.fromkeys([method, *compare_raw]):
@@ -981,6 +992,9 @@ def _plan_metadata(config: PtpConfig, result: PtpPlan, report: list[dict[str, An
         "timing": {"segments": report, "bound_check": checks},
         "summary": summary,
     }
+    if config.solved_poses is not None:
+        meta["ik"] = {"note": "waypoints given as tool poses, solved each from the previous one (rad)",
+                      **config.solved_poses}
     if config.compare:
         plans = {m: plan_with_times(config, m, result.knots) for m in config.compare}
         meta["comparison"] = {

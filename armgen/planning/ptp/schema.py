@@ -23,11 +23,17 @@ class Units(StrictModel):
     angle: Literal["rad", "deg"] = "rad"
 
 
+Triples = Annotated[list[Annotated[list[float], Field(min_length=3, max_length=3)]], Field(max_length=MAX_WAYPOINTS)]
+
+
 class Waypoints(StrictModel):
     t: Optional[Values] = Field(None, description="knot times, s, strictly increasing")
-    theta: PerJoint
-    omega: PerJoint
+    theta: Optional[PerJoint] = Field(None, description="joint angles per waypoint (or give xyz/rpy)")
+    omega: Optional[PerJoint] = Field(None, description="joint speeds per waypoint (default 0 with xyz)")
     eps: Optional[PerJoint] = None
+    xyz: Optional[Triples] = Field(None, description="tool positions, m (solved by the inverse kinematics)")
+    rpy: Optional[Triples] = Field(None, description="tool orientations R = Rz(yaw) Ry(pitch) Rx(roll), units.angle")
+    seed: Optional[Union[str, Values]] = Field(None, description="configuration the first pose is solved from")
 
 
 class Timing(StrictModel):
