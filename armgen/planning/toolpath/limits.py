@@ -34,6 +34,9 @@ SLOWDOWN_MARGIN = 0.95
 # Rounds of "plan, measure, slow down" before the plan is declared infeasible; each round
 # at least removes the worst excess, and the bundled examples need at most three.
 MAX_SLOWDOWN_ROUNDS = 8
+# A plan whose tool leaves the program by more than this is infeasible (the Cartesian
+# planner's bound for its circle and line: closed-loop tracking stays far below it).
+MAX_PROGRAM_PATH_ERROR = 5e-3  # m
 # A ratio up to this counts as within the limit (the rounding of q̇ = J⁺ẋ at the limit).
 RATIO_TOL = 1.0 + 1e-9
 # Below this path speed (m/s) the tool is at rest: slowing it further cannot lower q̇.
@@ -102,6 +105,7 @@ def plan_within_limits(plan: Callable[[ProgramMotion], Any], motion: ProgramMoti
     acc_scale = np.ones(grid.size - 1)
     for _ in range(MAX_SLOWDOWN_ROUNDS):
         result = plan(motion)
+        check_on_path(result, motion, source)
         t, qd = samples(result)
         ratio_v = speed_ratios(robot, qd).max(axis=1)
         ratio_a = acceleration_ratios(robot, t, qd).max(axis=1)
@@ -127,6 +131,21 @@ def plan_within_limits(plan: Callable[[ProgramMotion], Any], motion: ProgramMoti
     raise PlanningError(f"{source}: the plan still exceeds a joint limit ({max(ratio_v.max(), ratio_a.max()):.2f}× "
                         f"at t = {t[worst]:.2f} s) after {MAX_SLOWDOWN_ROUNDS} rounds of slowing the tool; lower "
                         "path.speed / path.acceleration, or start from a configuration further from singularities")
+
+
+def check_on_path(result, motion: ProgramMotion, source: str) -> None:
+    """Refuse a plan whose tool left the program (an unreachable pose or a singularity on the
+    way; slowing cannot help), naming the move where it first did."""
+    error = result.column("pos_err_m")
+    if error.max() <= MAX_PROGRAM_PATH_ERROR:
+        return
+    k = int(np.argmax(error > MAX_PROGRAM_PATH_ERROR))
+    t = result.column("t_s")[k]
+    move = int(motion.program.move_at(motion.profile(t)[0])[0])
+    raise PlanningError(
+        f"{source}: path.moves[{move}] ({motion.program.moves[move].kind}) is not reachable from this start: the tool "
+        f"left the program by {error[k] * 1e3:.1f} mm (> {MAX_PROGRAM_PATH_ERROR * 1e3:g} mm) at t = {t:.2f} s; move "
+        "its target (position or orientation) into the arm's workspace, or start from another configuration")
 
 
 def _finite_or_none(values: np.ndarray) -> list[float | None]:
