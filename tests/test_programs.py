@@ -28,7 +28,6 @@ from armgen.robot import load_robot
 DATA = Path(__file__).parent / "data"
 EXAMPLES = Path(__file__).resolve().parent.parent / "armgen" / "data" / "examples"
 BAXTER = DATA / "baxter_arm.toml"
-SEED = 20261125
 
 # The bar: the tool within 0.5 mm of the program's geometry (outside the rounded
 # corners; inside them within the blend radius) and the start pose to 1e-6 m / 1e-6 rad.

@@ -24,7 +24,7 @@ from ..backends import make_backend
 from ..paths import CirclePath, LinePath, TimeLaw
 from ..result import PlanResult
 from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
-from ..toolpath.task import ProgramSpec, parse_program, program_motion
+from ..toolpath.task import ProgramSpec, parse_program, program_motion, reach_radius
 from ..toolpath.timelaw import ProgramMotion
 from .windows import JointWindows
 
@@ -297,8 +297,7 @@ class CartesianPlanner:
 
     def _check_reach(self) -> None:
         """Reject a path that leaves the sphere the arm can reach (sum of link lengths)."""
-        reach = sum(j.link_length + (j.qlim[1] if not j.revolute else 0.0) for j in self.robot.joints)
-        reach += float(np.linalg.norm(self.robot.tool[:3, 3]))
+        reach = reach_radius(self.robot)
         base = self.robot.base[:3, 3]
         points = self.path.sample_points()
         dist = np.linalg.norm(points - base, axis=1)
