@@ -197,6 +197,26 @@ def test_tight_limits_slow_the_tool_and_keep_it_on_the_path(tmp_path):
     assert np.all((off <= GEOMETRY_TOL) | (near_corner <= BAR_BLEND_MM * 1e-3 + GEOMETRY_TOL))
 
 
+def test_acceleration_limits_slow_the_ramps(tmp_path):
+    """The polishing example on a panda with 5 % of its published acceleration limits: the
+    speed ramps get gentler (time added, stretches named) and no joint's q̈ (differences of
+    the plan's q̇) exceeds its limit."""
+    import re
+
+    text = (Path(__file__).resolve().parent.parent / "armgen" / "data" / "robots" / "panda.toml").read_text()
+    slow = tmp_path / "panda_slow.toml"
+    slow.write_text(re.sub(r"qddlim = ([0-9.]+)", lambda m: f"qddlim = {float(m.group(1)) * 0.05}", text))
+    (tmp_path / "panda_polish_contour.csv").write_text((EXAMPLES / "panda_polish_contour.csv").read_text())
+    task = (EXAMPLES / "panda_polish_contour_program.toml").read_text().replace('robot = "panda"', f'robot = "{slow}"')
+    result = _plan(task, tmp_path)
+    robot = load_robot(slow)
+    _, qd = _samples(result, robot.n)
+    qdd = np.diff(qd, axis=0) / np.diff(result.column("t_s"))[:, None]
+    assert np.all(np.abs(qdd) <= robot.qddlim * (1 + 1e-9))
+    report = result.metadata["summary"]["joint_speed"]
+    assert report["time_added_s"] > 0 and report["slowed"] and report["within_speed_limits"]
+
+
 def test_self_motion_is_limited_before_the_tool_slows(tmp_path):
     """A strong null-space term (GPM gain K = 50) on a slow arm: the self-motion is scaled
     (steps counted), every joint stays within its limit and the tool on the path."""

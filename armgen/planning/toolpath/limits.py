@@ -39,6 +39,8 @@ MAX_SLOWDOWN_ROUNDS = 8
 MAX_PROGRAM_PATH_ERROR = 5e-3  # m
 # A ratio up to this counts as within the limit (the rounding of q̇ = J⁺ẋ at the limit).
 RATIO_TOL = 1.0 + 1e-9
+# A stretch counts as slowed where the final path speed is this fraction below the nominal one.
+SLOWED_FRACTION = 1e-6
 # Below this path speed (m/s) the tool is at rest: slowing it further cannot lower q̇.
 REST_SPEED = 1e-9
 
@@ -94,6 +96,30 @@ def _at_nodes(grid: np.ndarray, s: np.ndarray, values: np.ndarray) -> np.ndarray
     return np.minimum(values[k - 1], values[k])
 
 
+def _ramp_scale(profile, s: np.ndarray, ratio_a: np.ndarray) -> np.ndarray:
+    """Per grid cell, the factor on the path acceleration that an acceleration excess asks for:
+    the whole speed ramp (the run of cells accelerating, or decelerating, together) that holds
+    an excessive sample, and the stretch the gentler ramp will then take (the ramp's length
+    over the factor, either side), is scaled by ``SLOWDOWN_MARGIN / ratio``; scaling only the
+    cells at the sample would move the excess along the ramp, round after round."""
+    sign = np.sign(np.round(profile.cell_acc, 12))
+    run = np.concatenate([[0], np.cumsum(sign[1:] != sign[:-1])])
+    mid = 0.5 * (profile.s[1:] + profile.s[:-1])
+    scale = np.ones(sign.size)
+    bad = np.flatnonzero(ratio_a > RATIO_TOL)
+    cells = np.clip(np.searchsorted(profile.s, s[bad]) - 1, 0, sign.size - 1)
+    for k, c in zip(bad, cells):
+        if sign[c] == 0:  # a cruising cell's excess comes from the speed (curvature): the speed cap handles it
+            continue
+        factor = SLOWDOWN_MARGIN / ratio_a[k]
+        ramp = np.flatnonzero(run == run[c])
+        start, end = profile.s[ramp[0]], profile.s[ramp[-1] + 1]
+        reach = (end - start) / factor
+        within = (mid >= start - reach) & (mid <= end + reach)
+        scale[within] = np.minimum(scale[within], factor)
+    return scale
+
+
 def plan_within_limits(plan: Callable[[ProgramMotion], Any], motion: ProgramMotion, angular_speed: float | None,
                        robot: Robot, source: str, samples: Callable[[Any], tuple[np.ndarray, np.ndarray]]):
     """Stage 2: plan (``plan(motion)`` → result), measure (``samples(result)`` → (t, q̇)), slow the
@@ -110,7 +136,7 @@ def plan_within_limits(plan: Callable[[ProgramMotion], Any], motion: ProgramMoti
         ratio_v = speed_ratios(robot, qd).max(axis=1)
         ratio_a = acceleration_ratios(robot, t, qd).max(axis=1)
         if ratio_v.max() <= RATIO_TOL and ratio_a.max() <= RATIO_TOL:
-            return result, motion, _report(robot, t, qd, nominal, motion, cap)
+            return result, motion, _report(robot, t, qd, nominal, motion)
         s, sdot, _ = motion.profile(t)
         over = np.maximum(ratio_v, np.sqrt(ratio_a))  # ṡ² drives the centripetal part of q̈
         bad = over > RATIO_TOL
@@ -124,10 +150,9 @@ def plan_within_limits(plan: Callable[[ProgramMotion], Any], motion: ProgramMoti
                 "lower the method's gains or the closed-loop gain")
         allowed = np.where(bad, sdot / over * SLOWDOWN_MARGIN, np.inf)
         cap = np.minimum(cap, _at_nodes(grid, s, allowed))
-        acc_bad = np.where(ratio_a > RATIO_TOL, SLOWDOWN_MARGIN / ratio_a, 1.0)
-        acc_scale = np.minimum(acc_scale, _at_nodes(0.5 * (grid[1:] + grid[:-1]), s, acc_bad))
+        acc_scale = np.minimum(acc_scale, _ramp_scale(motion.profile, s, ratio_a))
         motion = ProgramMotion(program, program_profile(program, angular_speed, cap, acc_scale))
-    worst = int(np.argmax(ratio_v))
+    worst = int(np.argmax(np.maximum(ratio_v, ratio_a)))
     raise PlanningError(f"{source}: the plan still exceeds a joint limit ({max(ratio_v.max(), ratio_a.max()):.2f}× "
                         f"at t = {t[worst]:.2f} s) after {MAX_SLOWDOWN_ROUNDS} rounds of slowing the tool; lower "
                         "path.speed / path.acceleration, or start from a configuration further from singularities")
@@ -167,21 +192,20 @@ def speed_report(robot: Robot, t: np.ndarray, qd: np.ndarray) -> dict[str, Any]:
     }
 
 
-def _report(robot: Robot, t: np.ndarray, qd: np.ndarray, nominal: ProgramMotion, final: ProgramMotion,
-            cap: np.ndarray) -> dict[str, Any]:
-    """The speed report plus the time added by slowing down and where (moves, path lengths, times)."""
+def _report(robot: Robot, t: np.ndarray, qd: np.ndarray, nominal: ProgramMotion, final: ProgramMotion) -> dict[str, Any]:
+    """The speed report plus the time added by slowing down and where: the stretches where the
+    final path speed is below the nominal one (moves, path lengths, times, slowest fraction)."""
     program, profile = final.program, final.profile
-    slowed = cap < nominal.profile.cap * (1 - 1e-9)
+    v0, v1 = nominal.profile.v, profile.v
+    slowed = v1 < v0 * (1 - SLOWED_FRACTION)
     zones = []
     edges = np.flatnonzero(np.diff(np.concatenate([[0], slowed.astype(int), [0]])))
     for a, b in zip(edges[::2], edges[1::2] - 1):
         s0, s1 = profile.s[a], profile.s[b]
-        factor = np.min(cap[a:b + 1] / np.maximum(nominal.profile.v[a:b + 1], REST_SPEED))
         zones.append({"moves": sorted({int(m) for m in program.move_at(profile.s[a:b + 1])}),
                       "s_from_mm": s0 * 1e3, "s_to_mm": s1 * 1e3,
-                      "t_from_s": float(np.interp(s0, profile.s, profile.t)),
-                      "t_to_s": float(np.interp(s1, profile.s, profile.t)),
-                      "slowest_speed_fraction": float(min(factor, 1.0))})
+                      "t_from_s": float(profile.t[a]), "t_to_s": float(profile.t[b]),
+                      "slowest_speed_fraction": float(np.min(v1[a:b + 1] / v0[a:b + 1]))})
     return speed_report(robot, t, qd) | {
         "nominal_duration_s": nominal.duration, "duration_s": final.duration,
         "time_added_s": final.duration - nominal.duration, "slowed": zones}
