@@ -40,7 +40,7 @@ from armgen.robot import load_robot, rpy_matrix  # noqa: E402
 
 BAR_RATIO = 2.0
 REPEATS = 3
-START = ([550.0, 0.0, 400.0], [180.0, 0.0, 180.0])  # mm, deg
+START = ([550.0, -190.0, 400.0], [180.0, 0.0, 180.0])  # mm, deg
 
 TASK = """
 planner = "{planner}"
@@ -61,9 +61,9 @@ step = 0.01
 
 
 def wave(rows: int) -> np.ndarray:
-    """A planar wave ahead of the start: 0.2 mm between rows, 10 mm amplitude (mm)."""
-    x = START[0][0] + 0.2 * np.arange(1, rows + 1) / math.sqrt(1.2)
-    y = 10.0 * np.sin((x - START[0][0]) / 25.0)
+    """A planar wave along +y from the start: ~0.2 mm between rows, 10 mm amplitude (mm)."""
+    y = START[0][1] + 0.2 * np.arange(1, rows + 1) / math.sqrt(1.2)
+    x = START[0][0] + 10.0 * np.sin((y - START[0][1]) / 25.0)
     return np.column_stack([x, y, np.full(rows, START[0][2])])
 
 
@@ -99,7 +99,7 @@ def main() -> int:
         pose[:3, 3] = np.array(xyz) * 1e-3
         pose[:3, :3] = rpy_matrix(*np.radians(rpy))
         program = build_program(spec, pose, str(poses_path))
-        end = np.array(xyz) + [program.length * 1e3, 0.0, 0.0]
+        end = np.array(xyz) + [0.0, program.length * 1e3, 0.0]
         line_text = TASK.format(planner=args.planner, xyz=xyz, rpy=rpy,
                                 move=f'kind = "line"\nto = {{ xyz = {end.round(6).tolist()} }}')
         line_path = folder / "line.toml"

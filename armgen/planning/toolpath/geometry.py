@@ -77,6 +77,10 @@ class Piece:
         """(position, unit tangent, rotation, ω per metre) at path lengths ``u`` (1-D array)."""
         raise NotImplementedError
 
+    def tangent(self, u: np.ndarray) -> np.ndarray:
+        """The unit tangent alone (the time law's curvature needs no rotations)."""
+        return self.evaluate(u)[1]
+
     def start(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         p, t, r, _ = self.evaluate(np.array([0.0]))
         return p[0], t[0], r[0]
@@ -153,6 +157,10 @@ class Curve(Piece):
         self.length = float(u[-1])
         self.to_w = CubicHermiteSpline(u, w, 1.0 / speed)
 
+    def tangent(self, u):
+        dp = self.derivative(self.to_w(u))
+        return dp / np.linalg.norm(dp, axis=1)[:, None]
+
     def evaluate(self, u):
         w = self.to_w(u)
         dp = self.derivative(w)
@@ -217,8 +225,8 @@ def pose_spline(points: np.ndarray, rotations: Rotation, move: int) -> Curve:
         rot = rot_spline(w)
         return rot.apply(rot_spline(w, 1))  # RotationSpline's rate is in the body frame
 
-    w = np.concatenate([np.linspace(tau[i], tau[i + 1], SAMPLES_PER_KNOT, endpoint=False)
-                        for i in range(len(tau) - 1)] + [tau[-1:]])
+    within = np.arange(SAMPLES_PER_KNOT) / SAMPLES_PER_KNOT
+    w = np.concatenate([(tau[:-1, None] + np.diff(tau)[:, None] * within).ravel(), tau[-1:]])
     return Curve(spline, velocity, rotation, omega, w)
 
 
@@ -232,6 +240,9 @@ class Trimmed(Piece):
 
     def evaluate(self, u):
         return self.piece.evaluate(u + self.u0)
+
+    def tangent(self, u):
+        return self.piece.tangent(u + self.u0)
 
 
 @dataclass(frozen=True)
@@ -353,6 +364,16 @@ class Program:
             p[mask], t[mask], r[mask], w[mask] = piece.evaluate(u)
         shape = s.shape
         return p.reshape(shape + (3,)), t.reshape(shape + (3,)), r.reshape(shape + (3, 3)), w.reshape(shape + (3,))
+
+    def tangent(self, s: np.ndarray) -> np.ndarray:
+        """Unit tangents at path lengths ``s`` (1-D, clamped to the path)."""
+        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+        index = self.piece_index(s)
+        out = np.empty((s.size, 3))
+        for k in np.unique(index):
+            mask = index == k
+            out[mask] = self.pieces[k].tangent(np.clip(s[mask] - self.starts[k], 0.0, self.pieces[k].length))
+        return out
 
     def move_at(self, s) -> np.ndarray:
         """The move (0-based) each path length belongs to (a rounded corner: the move it leaves)."""

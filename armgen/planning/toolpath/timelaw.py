@@ -70,7 +70,7 @@ def _centripetal_cap(program: Program, s: np.ndarray, acc: np.ndarray) -> np.nda
     too. The curvature of each cell comes from tangents a quarter cell either side of its
     middle (one piece: cells never straddle a piece boundary, where a stop may sit)."""
     mid, half = 0.5 * (s[1:] + s[:-1]), 0.25 * np.diff(s)
-    tangent_hi, tangent_lo = program.evaluate(mid + half)[1], program.evaluate(mid - half)[1]
+    tangent_hi, tangent_lo = program.tangent(mid + half), program.tangent(mid - half)
     kappa = np.linalg.norm(tangent_hi - tangent_lo, axis=-1) / (2 * half)
     with np.errstate(divide="ignore"):
         cell = np.where(kappa > 0, np.sqrt(acc / kappa), np.inf)
