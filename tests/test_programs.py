@@ -456,3 +456,11 @@ def test_firmware_refuses_a_program_cleanly():
     path = EXAMPLES / "iiwa14_weld_seam_program.toml"
     with pytest.raises(FirmwareError, match="program"):
         task_from_dict(tomllib.loads(path.read_text()), str(path))
+
+
+def test_copied_example_brings_its_poses_file(tmp_path):
+    out = CliRunner().invoke(cli, ["examples", "panda_polish_contour_program", "--copy", str(tmp_path)])
+    assert out.exit_code == 0, out.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["panda_polish_contour.csv",
+                                                          "panda_polish_contour_program.toml"]
+    assert (tmp_path / "panda_polish_contour.csv").read_bytes() == (EXAMPLES / "panda_polish_contour.csv").read_bytes()
