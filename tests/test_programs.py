@@ -409,12 +409,12 @@ def _contour(rows: int = 10) -> list[str]:
 
 @pytest.mark.parametrize("case,code,needles", [
     ("blend", 2, ["path.moves[0]", "larger than half", "give blend ≤ 50 mm"]),
-    ("unreachable", 3, ["path.moves[0]", "unreachable"]),
+    ("unreachable", 2, ["path.moves[0]", "unreachable"]),
     ("nan", 2, ["path.moves[2]", "contour.csv", "line 3, column y", "finite"]),
     ("few", 2, ["path.moves[2]", "at least 4"]),
     ("repeated", 2, ["path.moves[2]", "coincide", "remove the repeated row"]),
     ("reversed", 2, ["path.moves[2]", "doubles back"]),
-    ("start", 3, ["start.pose", "not reachable"]),
+    ("start", 2, ["start.pose", "not reachable"]),
     ("leaves", 3, ["path.moves[2]", "not reachable from this start", "left the program"]),
     ("timing", 2, ["[timing] is not used"]),
 ])

@@ -150,8 +150,8 @@ def start_from_pose(robot: Robot, start: dict, source: str, ls: float, as_: floa
         robot.configuration(seed)  # a clear error for an unknown name
     result = robot.ik(target, seed=seed)
     seed_label = seed if isinstance(seed, str) else "given joint values"
-    if not result.success:
-        raise PlanningError(
+    if not result.success:  # a pose outside the workspace: bad input (exit 2)
+        raise TaskFileError(
             f"{source}: field 'start.pose' is not reachable: the inverse kinematics from seed {seed_label!r} stopped "
             f"{float(result.position_error) * 1e3:.3g} mm / {math.degrees(float(result.orientation_error)):.3g} deg "
             "from it; the pose may be outside the workspace or beyond the joint limits: move it, or give a seed "

@@ -319,6 +319,9 @@ class Program:
             corners.append((k, radius))
             if radius == 0:
                 continue
+            if radius < MIN_MOVE_LENGTH:
+                raise GeometryError(k, f"blend = {radius:.3g} m is below {MIN_MOVE_LENGTH * 1e6:g} µm: give 0 (stop at "
+                                       "the corner) or a radius of at least that")
             for j in (k, k + 1):
                 if radius > raw[j].length / 2 * (1 + 1e-12):  # exactly half: the corners meet
                     raise GeometryError(k, f"blend = {radius * 1e3:.6g} mm is larger than half of move {j}'s length "

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ...errors import PlanningError, TaskFileError
+from ...errors import TaskFileError
 from ...robot import Robot, rpy_matrix
 from .geometry import GeometryError, MoveSpec, Program
 from .timelaw import ProgramMotion, program_profile
@@ -152,7 +152,8 @@ def reach_radius(robot: Robot) -> float:
 
 
 def check_reach(program: Program, robot: Robot, source: str) -> None:
-    """Refuse a program that leaves the sphere the arm can reach, naming the first move that does."""
+    """Refuse a program that leaves the sphere the arm can reach, naming the first move that does
+    (a pose outside the workspace: bad input, exit 2)."""
     s = np.linspace(0.0, program.length, 2001)
     points = program.evaluate(s)[0]
     dist = np.linalg.norm(points - robot.base[:3, 3], axis=1)
@@ -160,14 +161,25 @@ def check_reach(program: Program, robot: Robot, source: str) -> None:
     if dist.max() > reach:
         k = int(np.argmax(dist > reach))
         move = int(program.move_at(s[k])[0])
-        raise PlanningError(
+        raise TaskFileError(
             f"{source}: {_where(move, program.moves[move].kind)} is unreachable: point "
             f"{np.round(points[k] * 1e3, 1).tolist()} mm is {dist[k] * 1e3:.0f} mm from the base, beyond the arm's "
             f"reach of {reach * 1e3:.0f} mm; move the program closer to the base")
 
 
-def program_motion(spec: ProgramSpec, start_pose: np.ndarray, robot: Robot, source: str,
-                   slowdown: np.ndarray | None = None) -> ProgramMotion:
+# A program longer than this (s) is a mistake of units or speeds (a day of motion).
+MAX_PROGRAM_DURATION = 86_400.0
+
+
+def program_motion(spec: ProgramSpec, start_pose: np.ndarray, robot: Robot, source: str) -> ProgramMotion:
+    """The program from the start pose and its nominal time law; a program that leaves the
+    arm's reach or would take longer than a day is a task-file error (exit 2)."""
     program = build_program(spec, start_pose, source)
     check_reach(program, robot, source)
-    return ProgramMotion(program, program_profile(program, spec.angular_speed, slowdown))
+    with np.errstate(all="ignore"):
+        motion = ProgramMotion(program, program_profile(program, spec.angular_speed))
+    if not motion.duration <= MAX_PROGRAM_DURATION:
+        raise TaskFileError(f"{source}: the program would take {motion.duration:.3g} s (more than "
+                            f"{MAX_PROGRAM_DURATION:g} s): path.speed, path.acceleration or path.angular_speed (or a "
+                            "move's) is far too small; check the values and [units]")
+    return motion
