@@ -85,6 +85,8 @@ class Joint:
     offset: float
     qlim: tuple[float, float]
     theta: float = 0.0  # fixed joint angle of a prismatic joint (revolute joints: q + offset)
+    qdlim: float = math.inf  # velocity limit (rad/s or m/s); inf: the file gives none
+    qddlim: float = math.inf  # acceleration limit (rad/s² or m/s²); inf: the file gives none
     origin: np.ndarray | None = field(default=None, compare=False)
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
 
@@ -181,6 +183,16 @@ class Robot:
         return np.array([j.qlim[1] for j in self.joints])
 
     @property
+    def qdlim(self) -> np.ndarray:
+        """Joint velocity limits (rad/s, m/s); ``inf`` where the robot file gives none."""
+        return np.array([j.qdlim for j in self.joints])
+
+    @property
+    def qddlim(self) -> np.ndarray:
+        """Joint acceleration limits (rad/s², m/s²); ``inf`` where the robot file gives none."""
+        return np.array([j.qddlim for j in self.joints])
+
+    @property
     def qmid(self) -> np.ndarray:
         """The middle of the joint ranges (also a named configuration of URDF robots)."""
         return 0.5 * (self.qmin + self.qmax)
@@ -216,6 +228,7 @@ class Robot:
         for j in self.joints:
             lim = (f"[{math.degrees(j.qlim[0]):8.3f}, {math.degrees(j.qlim[1]):8.3f}] deg" if j.revolute
                    else f"[{j.qlim[0] * 1e3:8.3f}, {j.qlim[1] * 1e3:8.3f}] mm")
+            lim += "  " + _speed_limits(j)
             if j.origin is not None:
                 xyz = np.round(j.origin[:3, 3] * 1e3, 4).tolist()
                 rpy = (np.round(np.degrees(matrix_rpy(j.origin[:3, :3])), 4) + 0.0).tolist()  # + 0.0: no -0.0
@@ -475,6 +488,14 @@ class Robot:
         q = q.T.reshape(batch_shape + (self.n,))
         return ik.IKResult(q, success.reshape(batch_shape) != 0, pos.reshape(batch_shape), ori.reshape(batch_shape),
                            iterations.reshape(batch_shape).astype(int))
+def _speed_limits(j: Joint) -> str:
+    """``qdlim=… qddlim=…`` of one joint in deg/s(²) or mm/s(²); 'unlimited' where the file gives none."""
+    scale, unit = (180 / math.pi, "deg") if j.revolute else (1e3, "mm")
+    vel = f"{j.qdlim * scale:.4g} {unit}/s" if math.isfinite(j.qdlim) else "unlimited"
+    acc = f"{j.qddlim * scale:.4g} {unit}/s^2" if math.isfinite(j.qddlim) else "unlimited"
+    return f"qdlim={vel}  qddlim={acc}"
+
+
 def _fmt_joint(joint: Joint, value: float) -> str:
     return f"{math.degrees(value):.4g} deg" if joint.revolute else f"{value * 1e3:.4g} mm"
 
@@ -616,7 +637,7 @@ def _transform(reader: _Reader, doc: dict, key: str, length_scale: float, angle_
     return out
 
 
-_JOINT_FIELDS = {"name", "type", "a", "d", "alpha", "offset", "qlim", "theta"}
+_JOINT_FIELDS = {"name", "type", "a", "d", "alpha", "offset", "qlim", "theta", "qdlim", "qddlim"}
 
 
 def _robot_place(doc: dict[str, Any], loc: tuple) -> str:
@@ -713,6 +734,8 @@ def parse_robot(text: str, source: str, sha256: str | None = None, directory: Pa
                 reader.number(raw, "offset", where, default=0.0) * q_scale),
             qlim=(lo, hi),
             theta=snap_quarter_turn(reader.number(raw, "theta", where, default=0.0) * as_),
+            qdlim=reader.number(raw, "qdlim", where, default=math.inf) * q_scale,
+            qddlim=reader.number(raw, "qddlim", where, default=math.inf) * q_scale,
         ))
 
     q_scales = np.array([as_ if j.revolute else ls for j in joints])
@@ -831,7 +854,8 @@ def _urdf_robot(path: Path, data: bytes, base_link: str | None, tip_link: str | 
                 raise reader.fail("[limits]", f"{j.name} = {limits[j.name]} is empty or reversed; write [lower, upper]")
             qlim = (lo, hi)
         joints.append(Joint(name=j.name, type="prismatic" if j.type == "prismatic" else "revolute",
-                            a=0.0, d=0.0, alpha=0.0, offset=0.0, qlim=qlim, origin=j.origin, axis=j.axis))
+                            a=0.0, d=0.0, alpha=0.0, offset=0.0, qlim=qlim, origin=j.origin, axis=j.axis,
+                            qdlim=j.qdlim))
 
     qmin, qmax = np.array([j.qlim[0] for j in joints]), np.array([j.qlim[1] for j in joints])
     configurations: dict[str, np.ndarray] = {"qmid": 0.5 * (qmin + qmax)}

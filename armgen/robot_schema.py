@@ -38,6 +38,10 @@ class JointEntry(StrictModel):
     offset: Number = 0.0
     qlim: Annotated[list[Number], Field(min_length=2, max_length=2, description="[lower, upper]")]
     theta: Number = Field(0.0, description="fixed joint angle of a prismatic joint")
+    qdlim: Optional[Annotated[Number, Field(gt=0)]] = Field(
+        None, description="velocity limit (angle or length unit per s); absent = unlimited")
+    qddlim: Optional[Annotated[Number, Field(gt=0)]] = Field(
+        None, description="acceleration limit (angle or length unit per s^2); absent = unlimited")
 
 
 class Transform(StrictModel):

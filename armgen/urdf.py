@@ -68,6 +68,7 @@ class UrdfJoint:
     origin: np.ndarray  # 4x4
     axis: tuple[float, float, float]
     qlim: tuple[float, float]
+    qdlim: float = math.inf  # <limit velocity> (rad/s, m/s); inf when absent or 0
 
 
 @dataclass(frozen=True)
@@ -254,7 +255,7 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
         if not math.isfinite(norm):
             raise p.fail(f"{where} <axis>", "xyz is so long its length overflows; give the axis as a unit vector")
         chain.append(UrdfJoint(raw.name, raw.type, pending, tuple(float(v) for v in axis / norm),
-                               _limits(p, raw, where)))
+                               _limits(p, raw, where), _velocity(p, raw, where)))
         pending = np.eye(4)
     if not chain:
         raise p.fail("tip_link", f"no revolute, continuous or prismatic joint between '{base_link}' and '{tip_link}'")
@@ -331,3 +332,15 @@ def _limits(p: _Parser, raw: _RawJoint, where: str) -> tuple[float, float]:
         raise p.fail(f"{where} <limit>", f"lower = {lower:g}, upper = {upper:g} reach beyond ±{bound:g} {unit}; "
                                          "check the values (URDF is in m and rad)")
     return (lower, upper)
+
+
+def _velocity(p: _Parser, raw: _RawJoint, where: str) -> float:
+    """``<limit velocity>``: the joint's speed limit. Absent or 0 (a common exporter placeholder)
+    means unlimited; ``effort`` is not used."""
+    limit = raw.element.find("limit")
+    if limit is None or limit.get("velocity") is None:
+        return math.inf
+    (velocity,) = p.numbers(limit, "velocity", f"{where} <limit>", 1, None)
+    if velocity < 0:
+        raise p.fail(f"{where} <limit>", f"velocity = {velocity} is negative; give the speed limit (≥ 0, 0 = none)")
+    return velocity if velocity > 0 else math.inf

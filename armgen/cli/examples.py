@@ -19,6 +19,22 @@ def bundled_examples() -> dict[str, str]:
             for entry in sorted(folder.iterdir(), key=lambda e: e.name) if entry.name.endswith(".toml")}
 
 
+def _data_files(chosen: dict[str, str]) -> dict[str, str]:
+    """The bundled files the chosen task files read (a program's ``poses`` CSVs, relative to the
+    task file), so that a copied example plans where it was copied to."""
+    import tomllib
+
+    folder = resources.files("armgen.data") / "examples"
+    out = {}
+    for text in chosen.values():
+        path = tomllib.loads(text).get("path", {})
+        for move in path.get("moves", []) if isinstance(path, dict) else []:
+            name = move.get("file") if isinstance(move, dict) else None
+            if isinstance(name, str) and (folder / name).is_file():
+                out[name] = (folder / name).read_text(encoding="utf-8")
+    return out
+
+
 def _summary(text: str) -> tuple[str, str, str]:
     """(planner, robot, first comment line) of a task file, read without planning it."""
     fields = {"planner": "?", "robot": "?"}
@@ -40,6 +56,7 @@ def copy_examples(names: tuple[str, ...], folder: Path, force: bool) -> list[Pat
     if unknown:
         raise OptionError(f"unknown example(s) {', '.join(unknown)}; `armgen examples` lists them")
     chosen = {n: t for n, t in examples.items() if not names or n in names or n[:-5] in names}
+    chosen |= _data_files(chosen)
     if folder.exists() and not folder.is_dir():
         raise OutputError(f"--copy {folder}: is a file; give a folder (it is created when missing)")
     clashes = [folder / n for n, t in chosen.items()

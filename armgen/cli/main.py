@@ -4,6 +4,7 @@ maps an :class:`ArmgenError` to its exit code and a one-paragraph message on std
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import click
@@ -40,7 +41,10 @@ def _show_data(r) -> dict:
 
     joints = []
     for j in r.joints:
-        entry = {"name": j.name, "type": j.type, "qlim": list(j.qlim)}
+        entry = {"name": j.name, "type": j.type, "qlim": list(j.qlim),
+                 # null: the robot file gives no limit (unlimited)
+                 "qdlim": j.qdlim if math.isfinite(j.qdlim) else None,
+                 "qddlim": j.qddlim if math.isfinite(j.qddlim) else None}
         if j.origin is not None:
             entry |= {"xyz": j.origin[:3, 3].tolist(), "rpy": matrix_rpy(j.origin[:3, :3]).tolist(), "axis": list(j.axis)}
         else:

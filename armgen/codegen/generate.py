@@ -17,6 +17,7 @@ API conventions (stated once in the header):
 from __future__ import annotations
 
 import hashlib
+import math
 import json
 import re
 import time
@@ -332,6 +333,22 @@ static inline {p}_real {p}_sqrt({p}_real x) {{
 """
 
 
+def _speed_limit_macros(robot, P: str) -> str:
+    """``<P>_QDLIM`` / ``<P>_QDDLIM``: the joints' speed limits (SI: rad/s or m/s, per s²) as array
+    initialisers, ``static const {p}_real qdlim[{P}_NDOF] = {P}_QDLIM;``. A limit the robot file
+    does not give for every joint is left out (a comment says so) rather than stood in for by a
+    number the drive does not have."""
+    lines = []
+    for name, values, what in (("QDLIM", robot.qdlim, "velocity"), ("QDDLIM", robot.qddlim, "acceleration")):
+        if all(math.isfinite(v) for v in values):
+            items = ", ".join(f"{P}_LIT({float(v)!r})" for v in values)
+            lines.append(f"/* joint {what} limits, rad or m per s{'^2' if name == 'QDDLIM' else ''} */\n"
+                         f"#define {P}_{name} {{ {items} }}")
+        else:
+            lines.append(f"/* no {P}_{name}: the robot file gives no joint {what} limit for every joint */")
+    return "\n".join(lines)
+
+
 # The math macros every header defines: sin and cos (the header's own sin/cos table) and what
 # the firmware stub reads through them (ctrl_robot.h: SIN, COS, SQRT, FABS). Any other is
 # defined only when the generated source calls it (MISRA 2.5: no unused macro).
@@ -393,6 +410,8 @@ typedef double {p}_real;
 #endif
 
 #include <math.h>
+
+{_speed_limit_macros(config.robot, P)}
 
 {_lean_math(p, P)}/* Result of the functions that can fail. */
 typedef enum {{

@@ -199,6 +199,9 @@ def velocities_panel(ax: Axes, result: PlanResult, n: int, t: np.ndarray, bound_
             ax.plot(t[np.any(over, axis=1)], np.max(np.abs(qd), axis=1)[np.any(over, axis=1)], "rx", ms=4,
                     label="beyond the bound")
             title += f" — beyond ±{bound:.3g}°/s from t = {t[k]:.2f} s"
+    elif result.metadata.get("summary", {}).get("joint_speed", {}).get("max_speed_ratio") is not None:
+        ratio = result.metadata["summary"]["joint_speed"]["max_speed_ratio"]
+        title += f" (peak {ratio:.0%} of a joint's speed limit)"
     else:
         title += " (the robot file gives no velocity bounds)"
     ax.set(xlabel="t [s]", ylabel="joint velocity [deg/s]", title=title)
@@ -231,6 +234,8 @@ def planned_tool_path(result: PlanResult, robot: Robot) -> np.ndarray | None:
     task = meta.get("task")
     if not isinstance(task, dict) or "path" not in task:
         return None
+    if isinstance(task["path"], dict) and task["path"].get("type") == "program":
+        return _planned_program(meta, task, robot)
     try:
         _, q_start, _, ls, as_ = parse_robot_and_start(task, "plan.json")
         path_type, via, end, end_rotation, _, _ = parse_path_and_timing(task, "plan.json", ls, as_)
@@ -246,6 +251,23 @@ def planned_tool_path(result: PlanResult, robot: Robot) -> np.ndarray | None:
     else:
         path = LinePath(p0, end + offset, r0, end_rotation if end_rotation is not None else r0)
     return path.sample_points()
+
+
+def _planned_program(meta: dict, task: dict, robot: Robot) -> np.ndarray | None:
+    """A program's geometry from the plan's task and start (a poses file relative to the task file)."""
+    from .cartesian.planner import ANGLE_SCALE, LENGTH_SCALE
+    from .toolpath.task import build_program, parse_program
+
+    q_start = np.asarray(meta.get("start", {}).get("q_rad", []), dtype=float)
+    units = task.get("units", {})
+    if q_start.shape != (robot.n,) or not isinstance(units, dict):
+        return None
+    try:
+        spec = parse_program(task["path"], str(meta.get("task_file", "plan.json")),
+                             LENGTH_SCALE[units.get("length", "m")], ANGLE_SCALE[units.get("angle", "rad")])
+        return build_program(spec, dh_frames(robot, q_start[None])[0, -1], "plan.json").sample_points(2000)
+    except (ArmgenError, KeyError, TypeError):
+        return None
 
 
 def executed_tool_path(result: PlanResult, robot: Robot) -> np.ndarray:

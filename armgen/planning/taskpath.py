@@ -14,7 +14,7 @@ speed: ``via = [0, R, −R]``, ``end = [0, 2R, 0]`` relative, ``law = "constant"
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import casadi as ca
@@ -25,6 +25,8 @@ from ..robot import Robot
 from .cartesian.planner import (_number, _table, parse_path_and_timing, parse_robot_and_start, sym_orientation_error,
                                 sym_rpy)
 from .paths import CirclePath, LinePath, TimeLaw
+from .toolpath.task import ProgramSpec, parse_program, program_motion, reach_radius
+from .toolpath.timelaw import ProgramMotion
 
 # Default closed-loop gain K_p (1/s) of ẋ + K_p e: spec 30 wants CLIK on by default. With
 # explicit Euler the error contracts by (1 − K_p h) per step, so K_p h = 0.2 at h = 0.02 s.
@@ -55,10 +57,17 @@ class PathTask:
     length_scale: float
     angle_scale: float
     raw: dict[str, Any] = field(default_factory=dict)
+    program: ProgramSpec | None = None  # path.type = "program": the moves, and
+    motion: ProgramMotion | None = None  # their geometry and time law from the start pose
 
     @property
     def steps(self) -> int:
         return int(round(self.duration / self.step))
+
+    def with_motion(self, motion: ProgramMotion) -> PathTask:
+        """This task driven by ``motion`` (a program's new time law): the plan's duration is the
+        motion's, rounded up to whole steps (the tool rests at its end for the remainder)."""
+        return replace(self, motion=motion, duration=math.ceil(motion.duration / self.step - 1e-9) * self.step)
 
 
 def _bool(table: dict, key: str, where: str, source: str, default: bool) -> bool:
@@ -74,19 +83,16 @@ def parse_path_task(task: dict, source: str, known_top: set[str]) -> PathTask:
         raise TaskFileError(f"{source}: unknown field(s) {', '.join(sorted(unknown))}; allowed: "
                             f"{', '.join(sorted(known_top))}")
     robot, q_start, label, ls, as_ = parse_robot_and_start(task, source)
-    path_type, via, end, end_rotation, duration, law = parse_path_and_timing(task, source, ls, as_)
     path = _table(task, "path", source)
+    if path.get("type") == "program":
+        return _parse_program_task(task, source, robot, q_start, label, ls, as_)
+    path_type, via, end, end_rotation, duration, law = parse_path_and_timing(task, source, ls, as_)
     relative = _bool(path, "relative", "path", source, False)
     turns = _number(path, "turns", "path", source, 1.0, positive=True)
     if path_type == "line" and turns != 1.0:
         raise TaskFileError(f"{source}: path.turns = {turns} is for circles only; remove it or set path.type = 'circle'")
 
-    integ = _table(task, "integrator", source)
-    method = integ.get("method", "euler")
-    if method != "euler":
-        raise TaskFileError(f"{source}: integrator.method = {excerpt(repr(method))}: this planner integrates with explicit Euler "
-                            "only (its weights use the previous step's velocity); remove the field or set 'euler'")
-    step = _number(integ, "step", "integrator", source, 0.02, positive=True)
+    integ, step = _euler_step(task, source)
     if step > duration:
         raise TaskFileError(f"{source}: integrator.step = {step} is longer than timing.duration = {duration}")
     if not math.isfinite(duration / step):
@@ -95,23 +101,48 @@ def parse_path_task(task: dict, source: str, known_top: set[str]) -> PathTask:
     steps = int(round(duration / step))
     if abs(steps * step - duration) > 1e-9 * duration:
         raise TaskFileError(f"{source}: timing.duration = {duration} s is not a multiple of integrator.step = {step} s")
-    damping = _table(task, "damping", source)
     return PathTask(
         robot=robot, q_start=q_start, start_label=label, path_type=path_type, via=via, end=end, relative=relative,
         turns=turns, end_rotation=end_rotation, duration=duration, law=law, step=step,
+        length_scale=ls, angle_scale=as_, raw=task, **_loop_fields(task, source, integ),
+    )
+
+
+def _euler_step(task: dict, source: str) -> tuple[dict, float]:
+    integ = _table(task, "integrator", source)
+    method = integ.get("method", "euler")
+    if method != "euler":
+        raise TaskFileError(f"{source}: integrator.method = {excerpt(repr(method))}: this planner integrates with explicit Euler "
+                            "only (its weights use the previous step's velocity); remove the field or set 'euler'")
+    return integ, _number(integ, "step", "integrator", source, 0.02, positive=True)
+
+
+def _loop_fields(task: dict, source: str, integ: dict) -> dict[str, Any]:
+    """The closed loop, damping and output fields of a PathTask."""
+    damping = _table(task, "damping", source)
+    return dict(
         clik=_bool(integ, "clik", "integrator", source, True),
         clik_gain=_number(integ, "clik_gain", "integrator", source, DEFAULT_CLIK_GAIN, nonneg=True),
         damping_epsilon=_number(damping, "epsilon", "damping", source, 0.01, positive=True),
         damping_max=_number(damping, "lambda_max", "damping", source, 0.05, nonneg=True),
         output_every=int(_number(integ, "output_every", "integrator", source, 1, positive=True)),
-        length_scale=ls, angle_scale=as_, raw=task,
     )
 
 
-def reach_radius(robot: Robot) -> float:
-    """Radius of a sphere about the base that contains every reachable tool position."""
-    reach = sum(j.link_length + (j.qlim[1] if not j.revolute else 0.0) for j in robot.joints)
-    return reach + float(np.linalg.norm(robot.tool[:3, 3]))
+def _parse_program_task(task: dict, source: str, robot: Robot, q_start: np.ndarray, label: str, ls: float,
+                        as_: float) -> PathTask:
+    """A PathTask whose path is a program: its time comes from the program (no [timing])."""
+    if "timing" in task:
+        raise TaskFileError(f"{source}: [timing] is not used with path.type = 'program' (time comes from path.speed "
+                            "and path.acceleration); remove [timing]")
+    integ, step = _euler_step(task, source)
+    spec = parse_program(task["path"], source, ls, as_)
+    motion = program_motion(spec, robot.fk(q_start), robot, source)
+    blank = PathTask(
+        robot=robot, q_start=q_start, start_label=label, path_type="program", via=None, end=np.zeros(3),
+        relative=False, turns=1.0, end_rotation=None, duration=0.0, law=TimeLaw("constant"), step=step,
+        length_scale=ls, angle_scale=as_, raw=task, program=spec, **_loop_fields(task, source, integ))
+    return blank.with_motion(motion)
 
 
 class TaskPath:
@@ -120,6 +151,9 @@ class TaskPath:
     def __init__(self, task: PathTask, start_pose: np.ndarray):
         self.task = task
         self.p0, self.r0 = start_pose[:3, 3].copy(), start_pose[:3, :3].copy()
+        if task.motion is not None:  # a program: built, and its reach checked, when parsed
+            self.path = task.motion.program
+            return
         offset = self.p0 if task.relative else np.zeros(3)
         if task.path_type == "circle":
             self.path = CirclePath(self.p0, task.via + offset, task.end + offset, self.r0)
@@ -137,6 +171,8 @@ class TaskPath:
 
     def __call__(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(position, rotation, twist [v; ω]) at time t (a number or an array of times)."""
+        if self.task.motion is not None:
+            return self.task.motion(t)
         T = self.task.duration
         t = np.asarray(t, dtype=float)
         s, ds = self.task.law(t / T)

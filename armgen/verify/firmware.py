@@ -470,6 +470,13 @@ def schedule_lock(task: FirmwareTask, spec: str, source: str = "--lock") -> Firm
 TASK_BUILDERS = {"cartesian": cartesian_task, "fault_tolerant": fault_tolerant_task, "wgpm": weighted_gpm_task}
 
 
+def _refuse_program(task: dict[str, Any], source: str) -> None:
+    path = task.get("path")
+    if isinstance(path, dict) and path.get("type") == "program":
+        raise FirmwareError(f"{source}: the controller runs circle and line paths; a program (path.type = "
+                            "'program') has no firmware task yet: plan it on the host (armgen plan)")
+
+
 def task_from_plan(plan: PlanResult, source: str, robot: Robot | None = None) -> FirmwareTask:
     """The controller task that reproduces a plan (read with :func:`read_plan`)."""
     planner = plan.metadata.get("planner")
@@ -477,6 +484,7 @@ def task_from_plan(plan: PlanResult, source: str, robot: Robot | None = None) ->
         task = plan.metadata.get("task")
         if not task:
             raise FirmwareError(f"{source}: no task in its plan.json (write plans with `armgen plan`)")
+        _refuse_program(task, source)
         return TASK_BUILDERS[planner](task, source)
     if planner == "ptp":
         return playback_task(plan, source, robot)
@@ -488,6 +496,7 @@ def task_from_dict(task: dict[str, Any], source: str, robot: Robot | None = None
     """From a task file's dict: cartesian directly; ptp through the (fast) PTP planner."""
     planner = task.get("planner")
     if planner in TASK_BUILDERS:
+        _refuse_program(task, source)
         return TASK_BUILDERS[planner](task, source)
     if planner == "ptp":
         from ..planning.tasks import run_task

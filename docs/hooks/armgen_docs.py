@@ -39,6 +39,8 @@ FIGURES = [
     ("modular8_wgpm_demo", "wgpm.md", "modular8, weighted GPM demo"),
     ("ptp_single_joint", "ptp.md", "the paper's worked example: cubic, 3-4 and 3-5-3 on the paper's knot times"),
     ("snake_tank", "snake.md", "snake12 through the tank's plate openings, tip driven, exact solver"),
+    ("iiwa14_weld_seam_program", "programs.md", "iiwa14 weld seam: lines and an arc, corners rounded (10 mm), start pose"),
+    ("panda_polish_contour_program", "programs.md", "panda polishing contour from a 181-row CSV, approach and retract"),
 ]
 FAULT_EXAMPLES = [("iiwa14", "iiwa14_fault_circle_gpm", "iiwa14_fault_circle_wln"),
                   ("modular8", "modular8_fault_circle_gpm", "modular8_fault_circle_wln")]
@@ -58,7 +60,7 @@ def _plan(name: str):
     if name not in _plans:
         path = package_files("armgen.data").joinpath("examples", f"{name}.toml")
         task, sha = load_task(path)
-        _plans[name] = run_task(task, f"examples/{name}.toml", sha)
+        _plans[name] = run_task(task, str(path), sha)  # the real path: a poses CSV is relative to it
     return _plans[name]
 
 

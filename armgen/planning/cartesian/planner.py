@@ -10,7 +10,7 @@ loop (CLIK). All inputs in SI after loading; the task file may use mm/deg.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import casadi as ca
@@ -24,6 +24,9 @@ from ..backends import make_backend
 from ..limits import check_start_off_limits, limit_report
 from ..paths import CirclePath, LinePath, TimeLaw
 from ..result import PlanResult
+from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
+from ..toolpath.task import ProgramSpec, parse_program, program_motion, reach_radius
+from ..toolpath.timelaw import ProgramMotion
 from .windows import JointWindows
 
 METHODS = ("pinv", "repetitive", "zghal", "zghal_improved", "combined")
@@ -69,6 +72,13 @@ class CartesianTask:
     damping_max: float = 0.05
     output_every: int = 1
     raw: dict[str, Any] = field(default_factory=dict)
+    program: ProgramSpec | None = None  # path.type = "program": the moves, and
+    motion: ProgramMotion | None = None  # their geometry and time law from the start pose
+    start_label: str = ""
+
+    def with_motion(self, motion: ProgramMotion) -> CartesianTask:
+        """This task driven by ``motion``: the duration is the motion's, rounded up to whole steps."""
+        return replace(self, motion=motion, duration=math.ceil(motion.duration / self.step - 1e-9) * self.step)
 
 
 def _table(task: dict, key: str, source: str) -> dict:
@@ -116,13 +126,42 @@ def parse_robot_and_start(task: dict, source: str) -> tuple[Robot, np.ndarray, s
     ls, as_ = LENGTH_SCALE[lunit], ANGLE_SCALE[aunit]
 
     start = task.get("start", "q0")
-    if isinstance(start, str):
+    if isinstance(start, dict):
+        q_start, label = start_from_pose(robot, start, source, ls, as_)
+    elif isinstance(start, str):
         q_start, label = robot.configuration(start), start
     else:
         q_units = np.array([as_ if j.revolute else ls for j in robot.joints])
         q_start, label = _vector(task, "start", "task", source, robot.n, 1.0) * q_units, "explicit"
     robot.check_within_limits(q_start, f"{source}: field 'start'")
     return robot, q_start, label, ls, as_
+
+
+def start_from_pose(robot: Robot, start: dict, source: str, ls: float, as_: float) -> tuple[np.ndarray, str]:
+    """``start = { pose = { xyz, rpy }, seed = … }``: the joint values that reach the pose (the
+    robot's IK, inside the limits, its self-motion away from them), and a label saying which."""
+    pose = _table(start, "pose", source)
+    target = np.eye(4)
+    target[:3, 3] = _vector(pose, "xyz", "start.pose", source, 3, ls)
+    target[:3, :3] = rpy_matrix(*_vector(pose, "rpy", "start.pose", source, 3, as_))
+    seed = start.get("seed", "q0")
+    if isinstance(seed, list):
+        q_units = np.array([as_ if j.revolute else ls for j in robot.joints])
+        seed = _vector(start, "seed", "start", source, robot.n, 1.0) * q_units
+        robot.check_within_limits(seed, f"{source}: field 'start.seed'")
+    elif isinstance(seed, str):
+        robot.configuration(seed)  # a clear error for an unknown name
+    result = robot.ik(target, seed=seed)
+    seed_label = seed if isinstance(seed, str) else "given joint values"
+    if not result.success:  # a pose outside the workspace: bad input (exit 2)
+        raise TaskFileError(
+            f"{source}: field 'start.pose' is not reachable: the inverse kinematics from seed {seed_label!r} stopped "
+            f"{float(result.position_error) * 1e3:.3g} mm / {math.degrees(float(result.orientation_error)):.3g} deg "
+            "from it; the pose may be outside the workspace or beyond the joint limits: move it, or give a seed "
+            "(start.seed) closer to the configuration you want")
+    label = (f"pose (IK from seed {seed_label!r}: position error {float(result.position_error):.1e} m, "
+             f"orientation error {float(result.orientation_error):.1e} rad, {int(result.iterations)} iterations)")
+    return np.asarray(result.q, dtype=float), label
 
 
 def parse_path_and_timing(task: dict, source: str, ls: float, as_: float):
@@ -149,8 +188,18 @@ def parse_path_and_timing(task: dict, source: str, ls: float, as_: float):
 
 
 def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
-    robot, q_start, _, ls, as_ = parse_robot_and_start(task, source)
-    path_type, via, end, end_rotation, duration, law = parse_path_and_timing(task, source, ls, as_)
+    robot, q_start, start_label, ls, as_ = parse_robot_and_start(task, source)
+    program = motion = None
+    if _table(task, "path", source).get("type") == "program":
+        if "timing" in task:
+            raise TaskFileError(f"{source}: [timing] is not used with path.type = 'program' (time comes from "
+                                "path.speed and path.acceleration); remove [timing]")
+        program = parse_program(task["path"], source, ls, as_)
+        motion = program_motion(program, robot.fk(q_start), robot, source)
+        path_type, via, end, end_rotation, duration, law = ("program", None, np.zeros(3), None, motion.duration,
+                                                            TimeLaw("constant"))
+    else:
+        path_type, via, end, end_rotation, duration, law = parse_path_and_timing(task, source, ls, as_)
 
     m = _table(task, "method", source)
     name = m.get("name", "pinv")
@@ -181,18 +230,19 @@ def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
     if integrator not in INTEGRATORS:
         raise TaskFileError(f"{source}: field 'integrator.method' = {excerpt(repr(integrator))} is not one of {', '.join(INTEGRATORS)}")
     step = _number(integ, "step", "integrator", source, 0.02, positive=True)
-    if step > duration:
+    if step > duration and motion is None:
         raise TaskFileError(f"{source}: integrator.step = {step} is longer than timing.duration = {duration}")
     damping = _table(task, "damping", source)
-    return CartesianTask(
+    parsed = CartesianTask(
         robot=robot, q_start=q_start, path_type=path_type, via=via, end=end, end_rotation=end_rotation,
         duration=duration, law=law, method=params, integrator=integrator, step=step,
         clik_gain=_number(integ, "clik_gain", "integrator", source, 0.0, nonneg=True),
         damping_epsilon=_number(damping, "epsilon", "damping", source, 0.01, positive=True),
         damping_max=_number(damping, "lambda_max", "damping", source, 0.05, nonneg=True),
         output_every=int(_number(integ, "output_every", "integrator", source, 1, positive=True)),
-        raw=task,
+        raw=task, program=program, start_label=start_label,
     )
+    return parsed if motion is None else parsed.with_motion(motion)
 
 
 def sym_orientation_error(r_actual: ca.SX, r_desired: ca.SX) -> ca.SX:
@@ -225,19 +275,24 @@ class CartesianPlanner:
 
     FUNCTIONS = ("fk_jacobian", "zghal", "step_gpm_from_jacobian")
 
-    def __init__(self, task: CartesianTask, backend_kind: str = "symbolic"):
+    def __init__(self, task: CartesianTask, backend_kind: str = "symbolic", backend=None):
         self.task = task
         self.robot = task.robot
-        self.backend = make_backend(self.robot, backend_kind)
+        self.backend = backend or make_backend(self.robot, backend_kind)
         self.rows = list(self.robot.task_rows)
         T0, _ = self.backend.call("fk_jacobian", task.q_start)
         self.p0, self.r0 = T0[:3, 3].copy(), T0[:3, :3].copy()
-        if task.path_type == "circle":
+        # a program's plan stays within the joint speed limits (self-motion scaled first)
+        self.limiter = SelfMotionLimiter(self.robot, self.backend, self.rows) if task.motion is not None else None
+        if task.motion is not None:  # built, and its reach checked, when parsed
+            self.path = task.motion.program
+        elif task.path_type == "circle":
             self.path = CirclePath(self.p0, task.via, task.end, self.r0)
         else:
             r_end = task.end_rotation if task.end_rotation is not None else self.r0
             self.path = LinePath(self.p0, task.end, self.r0, r_end)
-        self._check_reach()
+        if task.motion is None:
+            self._check_reach()
         mp = task.method
         shape = "linear" if mp.name == "combined" else "quadratic"
         self.windows = JointWindows(self.robot.n, mp.T_smo_L, mp.T_sum_L, shape)
@@ -247,8 +302,7 @@ class CartesianPlanner:
 
     def _check_reach(self) -> None:
         """Reject a path that leaves the sphere the arm can reach (sum of link lengths)."""
-        reach = sum(j.link_length + (j.qlim[1] if not j.revolute else 0.0) for j in self.robot.joints)
-        reach += float(np.linalg.norm(self.robot.tool[:3, 3]))
+        reach = reach_radius(self.robot)
         base = self.robot.base[:3, 3]
         points = self.path.sample_points()
         dist = np.linalg.norm(points - base, axis=1)
@@ -263,6 +317,8 @@ class CartesianPlanner:
     # -- the pieces of the law -------------------------------------------------------
     def desired(self, t):
         """(position, rotation, task velocity [v; ω]) at time t (a number or an array of times)."""
+        if self.task.motion is not None:
+            return self.task.motion(t)
         T = self.task.duration
         t = np.asarray(t, dtype=float)
         s, ds = self.task.law(t / T)
@@ -389,8 +445,12 @@ class CartesianPlanner:
                     damped_kernel()
                     out = damped_kernel
                 data[k, 1:row_end] = out.y[out.outputs["row"]]
+                qd = data[k, 1 + n:1 + 2 * n]
+                limited = qd if self.limiter is None else self.limiter(data[k, 1:1 + n], qd)
+                if limited is not qd:  # the self-motion was scaled: an Euler step with the limited q̇
+                    data[k, 1 + n:1 + 2 * n] = limited
                 if k < steps:
-                    x[q_slot] = out.y[out.outputs["q_next"]]
+                    x[q_slot] = out.y[out.outputs["q_next"]] if limited is qd else data[k, 1:1 + n] + h * limited
                     bar.update(1)
         data[:, 0] = t
         if not uses_windows:
@@ -405,7 +465,7 @@ class CartesianPlanner:
         result = PlanResult(columns, data[keep], {})
         result.metadata = self._metadata(result)
         max_err = float(np.max(result.column("pos_err_m")))
-        if max_err > MAX_PATH_ERROR:
+        if max_err > MAX_PATH_ERROR and task.motion is None:  # a program's is checked naming its move
             k = int(np.argmax(result.column("pos_err_m") > MAX_PATH_ERROR))
             raise PlanningError(
                 f"the tool left the path by {max_err * 1e3:.1f} mm (> {MAX_PATH_ERROR * 1e3:.0f} mm), first at "
@@ -432,11 +492,13 @@ class CartesianPlanner:
             "method": task.method.name,
             "robot": {"name": self.robot.name, "file": self.robot.source, "sha256": self.robot.sha256,
                       "qlim_rad": [list(j.qlim) for j in self.robot.joints]},
+            "start": {"label": task.start_label, "q_rad": task.q_start.tolist()},
             "parameters": {k: getattr(task.method, k) for k in task.method.__dataclass_fields__},
             "integrator": {"method": task.integrator, "step_s": task.step, "clik_gain": task.clik_gain,
                            "open_loop": task.clik_gain == 0},
             "damping": {"epsilon": task.damping_epsilon, "lambda_max": task.damping_max},
-            "path": {"type": task.path_type, "duration_s": task.duration, "law": task.law.kind},
+            "path": {"type": task.path_type, "duration_s": task.duration,
+                     "law": task.law.kind if task.motion is None else "trapezoidal"},
             "summary": {
                 "final_deviation_deg": np.degrees(q[-1] - task.q_start).tolist(),
                 "max_final_deviation_deg": float(np.degrees(np.max(np.abs(q[-1] - task.q_start)))),
@@ -450,6 +512,8 @@ class CartesianPlanner:
                 "joint_travel_deg": np.degrees(travel).tolist(),
                 "total_joint_travel_deg": float(np.degrees(travel.sum())),
                 "damped_steps": int(self.damped_steps),
+                # steps whose self-motion was scaled to keep the joints within their speed limits
+                **({"self_motion_limited_steps": self.limiter.limited_steps} if self.limiter else {}),
                 "window_openings": self.windows.openings.tolist(),
             },
         }
@@ -457,4 +521,10 @@ class CartesianPlanner:
 
 def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
     parsed = parse_cartesian_task(task, source)
-    return CartesianPlanner(parsed, backend).run()
+    shared = make_backend(parsed.robot, backend)
+
+    def run(motion):
+        return CartesianPlanner(parsed if motion is None else parsed.with_motion(motion), backend=shared).run()
+
+    return plan_with_speed_limits(run, parsed.motion, parsed.program and parsed.program.angular_speed, parsed.robot,
+                                  source)

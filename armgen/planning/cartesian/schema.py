@@ -11,6 +11,12 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import Field, StringConstraints
 
 from ...schemas import StrictModel
+from ..toolpath.schema import ProgramPath, path_union
+
+
+class Target(StrictModel):
+    xyz: Vector3 = Field(description="position (length unit)")
+    rpy: Vector3 = Field(description="roll, pitch, yaw (angle unit): R = Rz(yaw) Ry(pitch) Rx(roll)")
 
 # A path or bundled name; longer text is not a file name.
 RobotReference = Annotated[str, StringConstraints(min_length=1, max_length=4096)]
@@ -18,8 +24,19 @@ Description = Annotated[str, StringConstraints(max_length=2000)]
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
-Start = Union[Annotated[str, StringConstraints(min_length=1, max_length=64)],
-              Annotated[list[float], Field(min_length=1, max_length=64)]]
+JointValues = Annotated[list[float], Field(min_length=1, max_length=64)]
+ConfigurationName = Annotated[str, StringConstraints(min_length=1, max_length=64)]
+
+
+class StartPose(StrictModel):
+    """A start given as a tool pose, solved by the robot's inverse kinematics."""
+
+    pose: Target = Field(description="the start tool pose (xyz, rpy) in the file's units")
+    seed: Union[ConfigurationName, JointValues] = Field(
+        "q0", description="the configuration the IK starts from (a name or joint values)")
+
+
+Start = Union[ConfigurationName, JointValues, StartPose]
 
 
 class Units(StrictModel):
@@ -78,15 +95,34 @@ class CartesianTaskFile(StrictModel):
     robot: RobotReference
     start: Start = "q0"
     units: Units = Field(default_factory=Units)
-    path: Path
-    timing: Timing
+    path: path_union(Path)
+    timing: Optional[Timing] = Field(None, description="required for a circle or line; not used by a program")
     integrator: Integrator = Field(default_factory=Integrator)
     damping: Damping = Field(default_factory=Damping)
     method: Method = Field(default_factory=Method)
     check: Check = Field(default_factory=Check)
 
 
+def program_duration_estimate(path: ProgramPath) -> float:
+    """A program's duration (s) before its geometry is built: the straight distances between the
+    line and arc targets at each move's speed (a poses move's file is not read yet: 0)."""
+    total, previous = 0.0, None
+    for move in path.moves:
+        if move.to is not None:
+            if previous is not None:
+                distance = sum((a - b) ** 2 for a, b in zip(move.to.xyz, previous)) ** 0.5
+                total += distance / (move.speed or path.speed)
+            previous = move.to.xyz
+    return total
+
+
 def workload(task: CartesianTaskFile) -> tuple[float, float]:
     """(integration steps, CSV samples) the task asks for, estimated before planning."""
-    steps = task.timing.duration / task.integrator.step
+    if isinstance(task.path, ProgramPath):
+        duration = program_duration_estimate(task.path)
+    elif task.timing is None:
+        return 0.0, 0.0  # the planner reports the missing [timing]
+    else:
+        duration = task.timing.duration
+    steps = duration / task.integrator.step
     return steps, steps / task.integrator.output_every + 1

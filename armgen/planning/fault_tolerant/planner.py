@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
 
 import casadi as ca
@@ -46,6 +46,7 @@ from ..limits import limit_report
 from ..result import PlanResult
 from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, parse_path_task, path_metadata,
                        smoothness, sym_base_row, sym_tracking)
+from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
 
 METHODS = ("gpm", "wln", "pinv")
 INDEX_VARIANTS = ("omega", "relative", "sigma_min")
@@ -338,6 +339,8 @@ class FaultTolerantPlanner:
         self.backend = backend or make_backend(self.robot, backend_kind)
         pose0, _ = self.backend.call("fk_jacobian", task.path.q_start)
         self.path = TaskPath(task.path, pose0)
+        # a program's plan stays within the joint speed limits (self-motion scaled first)
+        self.limiter = SelfMotionLimiter(self.robot, self.backend, self.rows) if task.path.motion is not None else None
         self.reach = srs_reach_check(self.robot, self.backend, task.path.q_start, self.path)
         if self.reach is not None and not self.reach.feasible and task.check_mode == "error":
             raise PlanningError(self.infeasible_message())
@@ -451,10 +454,12 @@ class FaultTolerantPlanner:
             row = np.empty(1 + kernel.y[row_out].size)
             row[0] = k * h
             row[1:] = kernel.y[row_out]
+            if self.limiter is not None:
+                row[1 + n:1 + 2 * n] = self.limiter(row[1:1 + n], row[1 + n:1 + 2 * n], mask)
             seg.rows.append(row)
             if k == k1:
                 break
-            x[slot["q"]] = kernel.y[q_next]
+            x[slot["q"]] = kernel.y[q_next] if self.limiter is None else row[1:1 + n] + h * row[1 + n:1 + 2 * n]
             x[slot["qd_prev"]] = row[1:][qd_out]
             if not np.all(np.isfinite(x[slot["q"]])):
                 raise PlanningError(f"joint angles became non-finite at t = {(k + 1) * h:.3f} s; lower integrator.step "
@@ -613,6 +618,8 @@ class FaultTolerantPlanner:
                 "limit_violations": verdict["limit_violations"],
                 "max_abs_q_deg": np.degrees(np.max(np.abs(data[:, 1:1 + self.robot.n]), axis=0)).tolist(),
                 "damped_steps": verdict["damped_steps"],
+                # steps whose self-motion was scaled to keep the joints within their speed limits
+                **({"self_motion_limited_steps": self.limiter.limited_steps} if self.limiter else {}),
                 "plan_seconds": elapsed,
             },
         })
@@ -623,4 +630,11 @@ class FaultTolerantPlanner:
 
 def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
     parsed = parse_fault_tolerant_task(task, source)
-    return FaultTolerantPlanner(parsed, backend).run()
+    shared = make_backend(parsed.robot, backend)
+
+    def run(motion):
+        planned = parsed if motion is None else replace(parsed, path=parsed.path.with_motion(motion))
+        return FaultTolerantPlanner(planned, backend=shared).run()
+
+    return plan_with_speed_limits(run, parsed.path.motion, parsed.path.program and parsed.path.program.angular_speed,
+                                  parsed.robot, source)

@@ -7,6 +7,7 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import Field
 
 from ...schemas import StrictModel
+from ..toolpath.schema import path_union
 from ..cartesian import schema as cartesian_schema
 from ..cartesian.schema import Damping, Description, NonNegative, Path, Positive, RobotReference, Start, Timing, Units
 
@@ -73,8 +74,8 @@ class FaultTolerantTaskFile(StrictModel):
     robot: RobotReference
     start: Start = "q0"
     units: Units = Field(default_factory=Units)
-    path: RelativePath
-    timing: Timing
+    path: path_union(RelativePath)
+    timing: Optional[Timing] = Field(None, description="required for a circle or line; not used by a program")
     integrator: EulerIntegrator = Field(default_factory=EulerIntegrator)
     damping: Damping = Field(default_factory=Damping)
     method: Method = Field(default_factory=Method)

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import casadi as ca
@@ -38,6 +38,7 @@ from ..limits import check_start_off_limits, limit_report
 from ..result import PlanResult
 from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, parse_path_task, path_metadata,
                        smoothness, sym_base_row, sym_tracking)
+from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
 
 METHODS = ("wgpm", "pinv", "clamp")
 TOP_FIELDS = {"planner", "robot", "start", "units", "path", "timing", "integrator", "damping", "method", "tracking",
@@ -159,8 +160,9 @@ def parse_wgpm_task(task: dict, source: str) -> WgpmTask:
     if name == "wgpm" and zghal.k_hi > 0:
         check_start_off_limits(path.robot, path.q_start, "method.criteria.zghal", source)
     if 2 * method.ramp_time > path.duration and method.ramp_out:
-        raise TaskFileError(f"{source}: method.ramp_time = {method.ramp_time} s is more than half of timing.duration = "
-                            f"{path.duration} s; shorten it or set method.ramp_out = false")
+        what = "the program's duration" if path.motion is not None else "timing.duration"
+        raise TaskFileError(f"{source}: method.ramp_time = {method.ramp_time} s is more than half of {what} = "
+                            f"{path.duration:g} s; shorten it or set method.ramp_out = false")
     tr = _table(task, "tracking", source)
     return WgpmTask(
         path=path, method=method,
@@ -186,6 +188,8 @@ class WgpmPlanner:
         self.backend = backend or make_backend(self.robot, backend_kind)
         pose0, _ = self.backend.call("fk_jacobian", task.path.q_start)
         self.path = TaskPath(task.path, pose0)
+        # a program's plan stays within the joint speed limits (self-motion scaled first)
+        self.limiter = SelfMotionLimiter(self.robot, self.backend, self.rows) if task.path.motion is not None else None
 
     def ramp(self, t: np.ndarray, method: WgpmMethod) -> np.ndarray:
         if method.ramp_time <= 0:
@@ -259,9 +263,11 @@ class WgpmPlanner:
                 x[timed_slot] = timed[k]
                 kernel()
                 data[k, 1:] = kernel.y[row_out]
+                if self.limiter is not None:
+                    data[k, 1 + n:1 + 2 * n] = self.limiter(data[k, 1:1 + n], data[k, 1 + n:1 + 2 * n])
                 if k == p.steps:
                     break
-                x[q_slot] = kernel.y[q_next]
+                x[q_slot] = kernel.y[q_next] if self.limiter is None else data[k, 1:1 + n] + h * data[k, 1 + n:1 + 2 * n]
                 bar.update(1)
         q_all = data[:, 1:1 + n]
         if not np.all(np.isfinite(q_all)):
@@ -307,6 +313,8 @@ class WgpmPlanner:
                 "start_joint_speed_deg_s": float(np.degrees(np.linalg.norm(qd[0]))),
                 "end_joint_speed_deg_s": float(np.degrees(np.linalg.norm(qd[-1]))),
                 "damped_steps": int(damped),
+                # steps whose self-motion was scaled to keep the joints within their speed limits
+                **({"self_motion_limited_steps": self.limiter.limited_steps} if self.limiter else {}),
                 "plan_seconds": elapsed,
             },
         })
@@ -314,4 +322,13 @@ class WgpmPlanner:
 
 
 def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
-    return WgpmPlanner(parse_wgpm_task(task, source), backend).run()
+    parsed = parse_wgpm_task(task, source)
+    shared = make_backend(parsed.path.robot, backend)
+
+    def run(motion):
+        planned = parsed if motion is None else replace(parsed, path=parsed.path.with_motion(motion))
+        return WgpmPlanner(planned, backend=shared).run()
+
+    return plan_with_speed_limits(run, parsed.path.motion, parsed.path.program and parsed.path.program.angular_speed,
+                                  parsed.path.robot, source)
+

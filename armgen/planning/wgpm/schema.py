@@ -7,6 +7,7 @@ from typing import Literal, Optional
 from pydantic import Field
 
 from ...schemas import StrictModel
+from ..toolpath.schema import path_union
 from ..cartesian import schema as cartesian_schema
 from ..cartesian.schema import Check, Damping, Description, NonNegative, Positive, RobotReference, Start, Timing, Units
 from ..fault_tolerant.schema import EulerIntegrator, RelativePath
@@ -51,8 +52,8 @@ class WgpmTaskFile(StrictModel):
     robot: RobotReference
     start: Start = "q0"
     units: Units = Field(default_factory=Units)
-    path: RelativePath
-    timing: Timing
+    path: path_union(RelativePath)
+    timing: Optional[Timing] = Field(None, description="required for a circle or line; not used by a program")
     integrator: EulerIntegrator = Field(default_factory=EulerIntegrator)
     damping: Damping = Field(default_factory=Damping)
     method: Method = Field(default_factory=Method)

@@ -1,0 +1,241 @@
+"""Keeping a program's plan within the joints' speed limits (``robot.qdlim``, ``robot.qddlim``).
+
+Two stages, in this order:
+
+1. **Self-motion first.** After each step the planner's ``q̇`` is split into the part that
+   moves the tool, ``q̇_t = J⁺J q̇`` (on the task rows and the healthy columns), and the
+   self-motion ``q̇_n = q̇ − q̇_t`` (``J q̇_n = 0``). When a joint would exceed its limit,
+   the self-motion is scaled by the largest ``c ∈ [0, 1]`` that keeps every joint whose
+   tool part alone is within its limit inside it: the tool's twist is unchanged.
+2. **Then the tool slows down.** Where the tool part alone asks for more (or a joint's
+   acceleration exceeds ``qddlim``), the path speed there is capped at what the limits allow
+   and the plan is made again with the new time law, until it fits. The tool never leaves
+   the path; only its timing changes. A joint over its limit where the tool is at rest (which
+   slowing cannot help) makes the plan infeasible.
+
+Both are active only for programs (time comes from the program's speed); a circle or line
+with a fixed ``[timing]`` duration is planned as given and its peak ``|q̇|/q̇_max`` reported.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable
+
+import numpy as np
+
+from ...errors import PlanningError
+from ...robot import Robot
+from .timelaw import ProgramMotion, program_profile
+
+# The slowed speed is this fraction of what the measured ratio allows: q̇ is sampled at the
+# steps and the closed loop adds its correction, so a small margin saves a round.
+SLOWDOWN_MARGIN = 0.95
+# Rounds of "plan, measure, slow down" before the plan is declared infeasible; each round
+# at least removes the worst excess, and the bundled examples need at most three.
+MAX_SLOWDOWN_ROUNDS = 8
+# A plan whose tool leaves the program by more than this is infeasible (the Cartesian
+# planner's bound for its circle and line: closed-loop tracking stays far below it).
+MAX_PROGRAM_PATH_ERROR = 5e-3  # m
+# A ratio up to this counts as within the limit (the rounding of q̇ = J⁺ẋ at the limit).
+RATIO_TOL = 1.0 + 1e-9
+# A stretch counts as slowed where the final path speed is this fraction below the nominal one.
+SLOWED_FRACTION = 1e-6
+# Below this path speed (m/s) the tool is at rest: slowing it further cannot lower q̇.
+REST_SPEED = 1e-9
+
+
+def saturate_self_motion(qd: np.ndarray, jac: np.ndarray, qdlim: np.ndarray) -> tuple[np.ndarray, float]:
+    """(q̇ with its self-motion scaled by c, c); ``jac`` holds the task rows, locked columns zeroed."""
+    tool = np.linalg.pinv(jac) @ (jac @ qd)
+    null = qd - tool
+    fits = np.abs(tool) <= qdlim  # joints the tool part alone overdrives wait for the slowdown
+    c = 1.0
+    for i in np.flatnonzero(fits & (np.abs(null) > 0)):
+        bound = (math.copysign(qdlim[i], null[i]) - tool[i]) / null[i]  # where |tool + c null| reaches the limit
+        c = min(c, bound)
+    c = max(c, 0.0)
+    return tool + c * null, c
+
+
+class SelfMotionLimiter:
+    """Stage 1 inside a planner's step loop: ``limiter(q, q̇, mask)`` → the q̇ to integrate."""
+
+    def __init__(self, robot: Robot, backend, rows: list[int]):
+        self.qdlim = robot.qdlim
+        self.backend, self.rows = backend, rows
+        self.limited_steps = 0
+
+    def __call__(self, q: np.ndarray, qd: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+        """``qd`` itself when within the limits, else a new array with the self-motion scaled."""
+        if np.all(np.abs(qd) <= self.qdlim):
+            return qd
+        _, jac = self.backend.call("fk_jacobian", q)
+        jac = jac[self.rows] * (1.0 if mask is None else mask)
+        out, c = saturate_self_motion(qd, jac, self.qdlim)
+        if c < 1.0:
+            self.limited_steps += 1
+        return out
+
+
+def speed_ratios(robot: Robot, qd: np.ndarray) -> np.ndarray:
+    """|q̇| / q̇_max per sample and joint (0 for an unlimited joint)."""
+    return np.abs(qd) / robot.qdlim
+
+
+def acceleration_ratios(robot: Robot, t: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    """|q̈| / q̈_max per sample (differences of q̇ between samples, given at the later one)."""
+    qdd = np.zeros_like(qd)
+    qdd[1:] = np.diff(qd, axis=0) / np.diff(t)[:, None]
+    return np.abs(qdd) / robot.qddlim
+
+
+def _at_nodes(grid: np.ndarray, s: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """The smallest of ``values`` (given at path lengths ``s``) over each grid node's neighbouring samples."""
+    k = np.clip(np.searchsorted(s, grid), 1, len(s) - 1)
+    return np.minimum(values[k - 1], values[k])
+
+
+def _ramp_scale(profile, s: np.ndarray, ratio_a: np.ndarray) -> np.ndarray:
+    """Per grid cell, the factor on the path acceleration that an acceleration excess asks for:
+    the whole speed ramp (the run of cells accelerating, or decelerating, together) that holds
+    an excessive sample, and the stretch the gentler ramp will then take (the ramp's length
+    over the factor, either side), is scaled by ``SLOWDOWN_MARGIN / ratio``; scaling only the
+    cells at the sample would move the excess along the ramp, round after round."""
+    sign = np.sign(np.round(profile.cell_acc, 12))
+    run = np.concatenate([[0], np.cumsum(sign[1:] != sign[:-1])])
+    mid = 0.5 * (profile.s[1:] + profile.s[:-1])
+    scale = np.ones(sign.size)
+    bad = np.flatnonzero(ratio_a > RATIO_TOL)
+    cells = np.clip(np.searchsorted(profile.s, s[bad]) - 1, 0, sign.size - 1)
+    for k, c in zip(bad, cells):
+        if sign[c] == 0:  # a cruising cell's excess comes from the speed (curvature): the speed cap handles it
+            continue
+        factor = SLOWDOWN_MARGIN / ratio_a[k]
+        ramp = np.flatnonzero(run == run[c])
+        start, end = profile.s[ramp[0]], profile.s[ramp[-1] + 1]
+        reach = (end - start) / factor
+        within = (mid >= start - reach) & (mid <= end + reach)
+        scale[within] = np.minimum(scale[within], factor)
+    return scale
+
+
+def plan_within_limits(plan: Callable[[ProgramMotion], Any], motion: ProgramMotion, angular_speed: float | None,
+                       robot: Robot, source: str, samples: Callable[[Any], tuple[np.ndarray, np.ndarray]]):
+    """Stage 2: plan (``plan(motion)`` → result), measure (``samples(result)`` → (t, q̇)), slow the
+    tool where a joint exceeds a limit, plan again. Returns (result, final motion, report)."""
+    nominal = motion
+    program = motion.program
+    grid = motion.profile.s
+    cap = np.full(grid.shape, np.inf)
+    acc_scale = np.ones(grid.size - 1)
+    for _ in range(MAX_SLOWDOWN_ROUNDS):
+        result = plan(motion)
+        check_on_path(result, motion, source)
+        t, qd = samples(result)
+        ratio_v = speed_ratios(robot, qd).max(axis=1)
+        ratio_a = acceleration_ratios(robot, t, qd).max(axis=1)
+        if ratio_v.max() <= RATIO_TOL and ratio_a.max() <= RATIO_TOL:
+            return result, motion, _report(robot, t, qd, nominal, motion)
+        s, sdot, _ = motion.profile(t)
+        over = np.maximum(ratio_v, np.sqrt(ratio_a))  # ṡ² drives the centripetal part of q̈
+        bad = over > RATIO_TOL
+        at_rest = bad & (sdot < REST_SPEED) & (ratio_v > RATIO_TOL)
+        if at_rest.any():
+            k = int(np.argmax(at_rest))
+            joint = int(np.argmax(speed_ratios(robot, qd[k])))
+            raise PlanningError(
+                f"{source}: joint {robot.joints[joint].name} needs {ratio_v[k]:.2f}× its speed limit at t = {t[k]:.2f} s "
+                f"while the tool is at rest (move {int(program.move_at(s[k])[0])}): slowing the tool cannot help; "
+                "lower the method's gains or the closed-loop gain")
+        allowed = np.where(bad, sdot / over * SLOWDOWN_MARGIN, np.inf)
+        cap = np.minimum(cap, _at_nodes(grid, s, allowed))
+        acc_scale = np.minimum(acc_scale, _ramp_scale(motion.profile, s, ratio_a))
+        motion = ProgramMotion(program, program_profile(program, angular_speed, cap, acc_scale))
+    worst = int(np.argmax(np.maximum(ratio_v, ratio_a)))
+    raise PlanningError(f"{source}: the plan still exceeds a joint limit ({max(ratio_v.max(), ratio_a.max()):.2f}× "
+                        f"at t = {t[worst]:.2f} s) after {MAX_SLOWDOWN_ROUNDS} rounds of slowing the tool; lower "
+                        "path.speed / path.acceleration, or start from a configuration further from singularities")
+
+
+def check_on_path(result, motion: ProgramMotion, source: str) -> None:
+    """Refuse a plan whose tool left the program (an unreachable pose or a singularity on the
+    way; slowing cannot help), naming the move where it first did."""
+    error = result.column("pos_err_m")
+    if error.max() <= MAX_PROGRAM_PATH_ERROR:
+        return
+    k = int(np.argmax(error > MAX_PROGRAM_PATH_ERROR))
+    t = result.column("t_s")[k]
+    move = int(motion.program.move_at(motion.profile(t)[0])[0])
+    raise PlanningError(
+        f"{source}: path.moves[{move}] ({motion.program.moves[move].kind}) is not reachable from this start: the tool "
+        f"left the program by {error[k] * 1e3:.1f} mm (> {MAX_PROGRAM_PATH_ERROR * 1e3:g} mm) at t = {t:.2f} s; move "
+        "its target (position or orientation) into the arm's workspace, or start from another configuration")
+
+
+def _finite_or_none(values: np.ndarray) -> list[float | None]:
+    return [float(v) if math.isfinite(v) else None for v in values]
+
+
+def speed_report(robot: Robot, t: np.ndarray, qd: np.ndarray) -> dict[str, Any]:
+    """Peak |q̇|/q̇_max (and |q̈|/q̈_max) per joint; None for a joint without that limit."""
+    ratio_v = speed_ratios(robot, qd).max(axis=0)
+    ratio_a = acceleration_ratios(robot, t, qd).max(axis=0)
+    limited_v, limited_a = np.isfinite(robot.qdlim), np.isfinite(robot.qddlim)
+    return {
+        "qdlim": _finite_or_none(robot.qdlim),
+        "peak_speed_ratio": [float(r) if ok else None for r, ok in zip(ratio_v, limited_v)],
+        "max_speed_ratio": float(ratio_v[limited_v].max()) if limited_v.any() else None,
+        "qddlim": _finite_or_none(robot.qddlim),
+        "peak_acceleration_ratio": [float(r) if ok else None for r, ok in zip(ratio_a, limited_a)],
+        "within_speed_limits": bool(np.all(ratio_v[limited_v] <= RATIO_TOL) and np.all(ratio_a[limited_a] <= RATIO_TOL)),
+    }
+
+
+def _report(robot: Robot, t: np.ndarray, qd: np.ndarray, nominal: ProgramMotion, final: ProgramMotion) -> dict[str, Any]:
+    """The speed report plus the time added by slowing down and where: the stretches where the
+    final path speed is below the nominal one (moves, path lengths, times, slowest fraction)."""
+    program, profile = final.program, final.profile
+    v0, v1 = nominal.profile.v, profile.v
+    slowed = v1 < v0 * (1 - SLOWED_FRACTION)
+    zones = []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], slowed.astype(int), [0]])))
+    for a, b in zip(edges[::2], edges[1::2] - 1):
+        s0, s1 = profile.s[a], profile.s[b]
+        zones.append({"moves": sorted({int(m) for m in program.move_at(profile.s[a:b + 1])}),
+                      "s_from_mm": s0 * 1e3, "s_to_mm": s1 * 1e3,
+                      "t_from_s": float(profile.t[a]), "t_to_s": float(profile.t[b]),
+                      "slowest_speed_fraction": float(np.min(v1[a:b + 1] / v0[a:b + 1]))})
+    return speed_report(robot, t, qd) | {
+        "nominal_duration_s": nominal.duration, "duration_s": final.duration,
+        "time_added_s": final.duration - nominal.duration, "slowed": zones}
+
+
+def plan_samples(result, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(t, q̇) of a resolved-rate plan (its ``t_s`` and ``dq<i>_rad_s`` columns)."""
+    return result.column("t_s"), np.column_stack([result.column(f"dq{i + 1}_rad_s") for i in range(n)])
+
+
+def plan_with_speed_limits(run: Callable[[ProgramMotion | None], Any], motion: ProgramMotion | None,
+                           angular_speed: float | None, robot: Robot, source: str):
+    """``run(motion)`` → PlanResult, for a program within the joint limits (stage 2), with
+    ``summary.joint_speed``: the report, the time added and where, and whether it was enforced
+    (programs) or only measured (a fixed-duration circle or line: ``run(None)``)."""
+    if motion is None:
+        result = run(None)
+        report = speed_report(robot, *plan_samples(result, robot.n)) | {"enforced": False}
+    else:
+        result, final, report = plan_within_limits(run, motion, angular_speed, robot, source,
+                                                   lambda r: plan_samples(r, robot.n))
+        report |= {"enforced": True}
+        result.metadata.setdefault("path", {}).update(program_metadata(final))
+    result.metadata.setdefault("summary", {})["joint_speed"] = report
+    return result
+
+
+def program_metadata(motion: ProgramMotion) -> dict[str, Any]:
+    program = motion.program
+    return {"type": "program", "length_mm": program.length * 1e3, "moves": len(program.moves),
+            "program_duration_s": motion.duration, "law": "trapezoidal",
+            "stops_mm": (program.stops * 1e3).tolist(),
+            "blend_zones_mm": [[a * 1e3, b * 1e3] for a, b, _, _ in program.blend_zones()]}
