@@ -7,8 +7,14 @@ and bad input (exit codes, messages, nothing written)."""
 from __future__ import annotations
 
 import math
-import tomllib
+import os
+import sys
 from pathlib import Path
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # tomli is declared for Python < 3.11
+    import tomli as tomllib
 
 import numpy as np
 import pytest
@@ -417,6 +423,8 @@ def _contour(rows: int = 10) -> list[str]:
     ("start", 2, ["start.pose", "not reachable"]),
     ("leaves", 3, ["path.moves[2]", "not reachable from this start", "left the program"]),
     ("timing", 2, ["[timing] is not used"]),
+    ("missing", 2, ["path.moves[2]", "contour.csv", "not found", "relative to the task file"]),
+    ("fifo", 2, ["path.moves[2]", "contour.csv", "not a regular file"]),  # refused, not waited on
 ])
 def test_bad_programs_fail_cleanly(case, code, needles, tmp_path):
     first, blend, extra, csv = "[650, 0, 400]", 5, "", None
@@ -438,6 +446,10 @@ def test_bad_programs_fail_cleanly(case, code, needles, tmp_path):
         else:
             rows.insert(3, rows[0])
         extra, csv = POSES_MOVE, "\n".join(text_rows + rows) + "\n"
+    elif case in ("missing", "fifo"):
+        extra = POSES_MOVE
+        if case == "fifo":
+            os.mkfifo(tmp_path / "contour.csv")
     text = SQUARE.format(blend=blend, first=first, extra=extra)
     if case == "start":
         text = text.replace("xyz = [550, 0, 400], rpy", "xyz = [2500, 0, 400], rpy")

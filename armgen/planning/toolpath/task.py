@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from ...errors import TaskFileError
 from ...robot import Robot, rpy_matrix
+from ...schemas import read_input_file
 from .geometry import GeometryError, MoveSpec, Program
 from .timelaw import ProgramMotion, program_profile
 
@@ -91,14 +92,10 @@ def read_poses(file: Path, label: str, k: int, source: str, ls: float,
     roll, pitch, yaw or qw, qx, qy, qz (any order, other columns ignored), then one pose a row."""
     where = f"{source}: {_where(k, 'poses')}: {label}"
     try:
-        if file.stat().st_size > MAX_POSES_FILE_BYTES:
-            raise TaskFileError(f"{where}: larger than the {MAX_POSES_FILE_BYTES >> 20} MiB a poses file may have; "
-                                "thin the samples")
-        data = file.read_bytes()
-    except FileNotFoundError:
-        raise TaskFileError(f"{where}: file not found (a poses file is relative to the task file)") from None
-    except OSError as exc:
-        raise TaskFileError(f"{where}: cannot read it: {exc.strerror or exc}") from None
+        data = read_input_file(file, MAX_POSES_FILE_BYTES, "poses file (relative to the task file; thin the samples "
+                               "if it is too large)", TaskFileError)
+    except TaskFileError as exc:
+        raise TaskFileError(f"{source}: {_where(k, 'poses')}: {exc}") from None
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
