@@ -104,7 +104,8 @@ def _ik_reference(robot: Robot, func: ca.Function, inputs: list[np.ndarray]) -> 
     return [out.T[:, :, None] for out in ik.definition(robot).batch(columns, n)]
 
 
-def float_ik_errors(robot: Robot, inputs: list[np.ndarray], got: list[np.ndarray], refs: list[np.ndarray]) -> np.ndarray:
+def float_ik_errors(robot: Robot, inputs: list[np.ndarray], got: list[np.ndarray],
+                    refs: list[np.ndarray]) -> np.ndarray:
     """Per sample, how far the float ik's answer is from its target: the double FK's position
     and orientation errors (the larger) of its q, where the float C claims success or the double
     solver (``refs``, at the same float-rounded inputs) converged; 0 where both report a miss
