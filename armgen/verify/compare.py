@@ -113,8 +113,7 @@ def float_ik_errors(robot: Robot, inputs: list[np.ndarray], got: list[np.ndarray
 
     A miss that the double twin shares is the method's (a reachable pose that no attempt
     reached, e.g. one beside a joint limit), not a float error; a float miss where double
-    converges, and a claimed success that the double FK does not confirm, are errors. Both
-    solvers still keep every answer inside the limits (the double one bit for bit)."""
+    converges, and a claimed success that the double FK does not confirm, are errors."""
     success = ik.OUTPUT_NAMES.index("success")
     reached = _batched_reference(ik.definition(robot).errors, [got[0][:, :, 0], inputs[0]])
     err = np.nan_to_num(np.maximum(reached[0], reached[1]).reshape(-1), nan=np.inf)
