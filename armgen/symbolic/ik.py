@@ -26,7 +26,7 @@ at a limit to the next point of a deterministic sequence (a Kronecker sequence o
 ranges) and steps on with the others (all move when none was held), up to ATTEMPTS attempts.
 The state carries the closest configuration seen (smallest ``½‖e‖²``), so a miss returns the
 closest one reached. ``max_iterations`` (≤ MAX_ITERATIONS) stops earlier: a bound on the time
-a call may take (on a Cortex-M4, ~3.7k instructions per step of a 7-DOF arm). Once converged
+a call may take (on a Cortex-M4, ~3.9k instructions per step of a 7-DOF arm). Once converged
 (position error ≤ ``tol_position`` and orientation error ≤ ``tol_orientation``) or out of
 steps, the step is the identity: the generated C leaves its loop there (``Loop.stop``) and the
 NumPy evaluation stops those samples, with the same result as running the remaining iterations.
