@@ -53,7 +53,8 @@ FLOAT_BOUNDS = {
     "step_wgpm": 5e-2,
     # [ik: not the double solver's outputs (a float path may take other steps to another
     # solution of a redundant arm) but how far the float C's q is from the target, by the double
-    # FK: its tolerance FLOAT_TOL plus the float FK's error (fk above)]
+    # FK: its tolerance FLOAT_TOL plus the float FK's error (fk above); a miss the double
+    # solver shares is not counted (float_ik_errors)]
     "ik": ik.FLOAT_TOL + 2e-6,
 }
 
@@ -103,6 +104,24 @@ def _ik_reference(robot: Robot, func: ca.Function, inputs: list[np.ndarray]) -> 
     return [out.T[:, :, None] for out in ik.definition(robot).batch(columns, n)]
 
 
+def float_ik_errors(robot: Robot, inputs: list[np.ndarray], got: list[np.ndarray],
+                    refs: list[np.ndarray]) -> np.ndarray:
+    """Per sample, how far the float ik's answer is from its target: the double FK's position
+    and orientation errors (the larger) of its q, where the float C claims success or the double
+    solver (``refs``, at the same float-rounded inputs) converged; 0 where both report a miss
+    (unless the float q is not finite).
+
+    A miss that the double twin shares is the method's (a reachable pose that no attempt
+    reached, e.g. one beside a joint limit), not a float error; a float miss where double
+    converges, and a claimed success that the double FK does not confirm, are errors."""
+    success = ik.OUTPUT_NAMES.index("success")
+    reached = _batched_reference(ik.definition(robot).errors, [got[0][:, :, 0], inputs[0]])
+    err = np.nan_to_num(np.maximum(reached[0], reached[1]).reshape(-1), nan=np.inf)
+    claimed = got[success].reshape(-1) != 0
+    double_converged = refs[success].reshape(-1) != 0
+    return np.where(claimed | double_converged | ~np.isfinite(err), err, 0.0)
+
+
 @dataclass
 class ReferenceSamples:
     """One function's seeded inputs (as :func:`~armgen.verify.samples.batch_inputs` gives
@@ -141,7 +160,7 @@ def compare_model(compiled: CompiledModel, references: dict[str, ca.Function], r
     by :func:`reference_samples`, or drawn here), every sample through the library's batched
     entry: one C call per function. ``on_function`` is called after each function (a progress bar).
     The float ik is judged by the pose its answer reaches (its iterations may differ from
-    double's), the other functions output by output."""
+    double's; :func:`float_ik_errors`), the other functions output by output."""
     precision = compiled.precision
     if prepared is None:
         prepared = reference_samples(references, robot, samples, seed, precision)
@@ -152,8 +171,7 @@ def compare_model(compiled: CompiledModel, references: dict[str, ca.Function], r
         got = compiled.raw[name].batch([_per_sample(a, func.sparsity_in(k).shape) for k, a in enumerate(inputs)])
         err = np.zeros(len(inputs[0]))
         if name in IK_FUNCTIONS and precision == "float":
-            reached = _batched_reference(ik.definition(robot).errors, [got[0][:, :, 0], inputs[0]])
-            err = np.nan_to_num(np.maximum(reached[0], reached[1]).reshape(-1), nan=np.inf)
+            err = float_ik_errors(robot, inputs, got, refs)
             got, refs = [], []
         for out, ref in zip(got, refs):
             # entries that agree exactly (also NaN with NaN, inf with inf) differ by 0; a NaN on

@@ -428,7 +428,7 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
 #define IIWA14_STEP_WGPM_WORK_REALS 217
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 116550 add, 134700 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 7800 compare, 14250 select; work: 37 reals. */
+ * ops: 119850 add, 134850 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 10950 compare, 16950 select; work: 37 reals. */
 #define IIWA14_IK_T_TARGET_ROWS 4
 #define IIWA14_IK_T_TARGET_COLS 4
 #define IIWA14_IK_Q_SEED_ROWS 7
@@ -452,7 +452,7 @@ void iiwa14_bisection_step6_loop(const iiwa14_real state[2], const iiwa14_real d
 #else
 #define IIWA14_IK_STEP_35864EAE_LOOP_COUNT 150
 #endif
-void iiwa14_ik_step_35864eae_loop(const iiwa14_real state[22], const iiwa14_real T_target[16], const iiwa14_real q_rest[7], const iiwa14_real use_rest[1], const iiwa14_real tol_position[1], const iiwa14_real tol_orientation[1], const iiwa14_real max_iterations[1], iiwa14_real final[22]);
+void iiwa14_ik_step_35864eae_loop(const iiwa14_real state[23], const iiwa14_real T_target[16], const iiwa14_real q_rest[7], const iiwa14_real use_rest[1], const iiwa14_real tol_position[1], const iiwa14_real tol_orientation[1], const iiwa14_real max_iterations[1], iiwa14_real final[23]);
 
 #ifdef __cplusplus
 }

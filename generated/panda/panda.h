@@ -429,7 +429,7 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_WORK_REALS 217
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 118800 add, 136050 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 7800 compare, 14250 select; work: 37 reals. */
+ * ops: 122100 add, 136200 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 10950 compare, 16950 select; work: 37 reals. */
 #define PANDA_IK_T_TARGET_ROWS 4
 #define PANDA_IK_T_TARGET_COLS 4
 #define PANDA_IK_Q_SEED_ROWS 7
@@ -453,7 +453,7 @@ void panda_bisection_step6_loop(const panda_real state[2], const panda_real d[6]
 #else
 #define PANDA_IK_STEP_8A95A0F1_LOOP_COUNT 150
 #endif
-void panda_ik_step_8a95a0f1_loop(const panda_real state[22], const panda_real T_target[16], const panda_real q_rest[7], const panda_real use_rest[1], const panda_real tol_position[1], const panda_real tol_orientation[1], const panda_real max_iterations[1], panda_real final[22]);
+void panda_ik_step_8a95a0f1_loop(const panda_real state[23], const panda_real T_target[16], const panda_real q_rest[7], const panda_real use_rest[1], const panda_real tol_position[1], const panda_real tol_orientation[1], const panda_real max_iterations[1], panda_real final[23]);
 
 #ifdef __cplusplus
 }
