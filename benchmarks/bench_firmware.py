@@ -54,7 +54,8 @@ from bench_kinematics import Report, Skip, bar_note, finish  # noqa: E402
 
 from armgen.planning.result import write_plan  # noqa: E402
 from armgen.planning.tasks import apply_overrides, load_task, run_task  # noqa: E402
-from armgen.verify import firmware as fw  # noqa: E402
+from armgen import firmware as fw  # noqa: E402
+from armgen.verify import firmware_compare as fwcmp  # noqa: E402
 
 EXAMPLE = REPO / "examples" / "modular8_circle_combined.toml"
 PAPER_SECONDS = 0.12
@@ -399,8 +400,8 @@ def main(argv=None) -> int:
         for label, v, precision in runs:
             exe = builder.executable(v, task, "replay_" + re.sub(r"\W", "", label))
             r = fw.run_qemu(exe) if v.target == "arm" else fw.run_host(exe)
-            cmp = fw.compare_with_plan(plan, r, task, precision, label)
-            bq, bt = fw.bounds_for(precision, task.mode)
+            cmp = fwcmp.compare_with_plan(plan, r, task, precision, label)
+            bq, bt = fwcmp.bounds_for(precision, task.mode)
             replay[label] = {"max_dq_rad": cmp.max_dq, "bound_rad": bq, "max_dtask_m": cmp.max_dtask, "bound_m": bt,
                              "passed": cmp.passed, "end": f"{r.state}/{r.fault}"}
             rep.row(f"{label}: max |Δq|", cmp.max_dq, "rad", f"bound {bq:g}; {'pass' if cmp.passed else 'FAIL'}")

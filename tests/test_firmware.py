@@ -20,7 +20,8 @@ from armgen.codegen.toolchain import STRICT_FLAGS
 from armgen.planning.result import write_plan
 from armgen.planning.tasks import apply_overrides, load_task, run_task
 from armgen.robot import load_robot
-from armgen.verify import firmware as fw
+from armgen import firmware as fw
+from armgen.verify import firmware_compare as fwcmp
 from armgen.verify.pipeline import VerifyConfig, stage_replay, stage_target
 
 from conftest import require_tool
@@ -71,7 +72,7 @@ def test_host_double_with_sanitizers_reproduces_the_plan(builder, short_task, sh
     run = fw.run_host(builder.executable(HOST_SAN, task, "short_san"))
     assert run.state == "DONE" and run.fault == "NONE"
     assert_never_nan(run)
-    cmp = fw.compare_with_plan(short_plan, run, task, "double", "host")
+    cmp = fwcmp.compare_with_plan(short_plan, run, task, "double", "host")
     assert cmp.passed, cmp.rows
     assert cmp.max_dq <= 1e-12  # the same operations in the same order: rounding level at most
 
@@ -79,9 +80,9 @@ def test_host_double_with_sanitizers_reproduces_the_plan(builder, short_task, sh
 def test_host_float_within_its_bound(builder, short_plan):
     task = fw.task_from_plan(short_plan, "short")
     run = fw.run_host(builder.executable(HOST_FLOAT, task, "short_float"))
-    cmp = fw.compare_with_plan(short_plan, run, task, "float", "host float")
+    cmp = fwcmp.compare_with_plan(short_plan, run, task, "float", "host float")
     assert cmp.passed, cmp.rows
-    assert 0 < cmp.max_dq < fw.FW_FLOAT_BOUND_RAD
+    assert 0 < cmp.max_dq < fwcmp.FW_FLOAT_BOUND_RAD
 
 
 @pytest.mark.parametrize("name, overrides", [
@@ -104,7 +105,7 @@ def test_every_method_replays_in_double(builder, name, overrides):
         assert w.max() == 1.0 and (w[-1] == 0).any() and sum(result.metadata["summary"]["window_openings"]) >= 2
     ftask = fw.task_from_plan(result, name)
     run = fw.run_host(builder.executable(HOST_SAN, ftask, name.replace(" ", "_").replace(",", "").replace("+", "_")))
-    cmp = fw.compare_with_plan(result, run, ftask, "double", name)
+    cmp = fwcmp.compare_with_plan(result, run, ftask, "double", name)
     assert cmp.passed, cmp.rows
     assert cmp.max_dq <= 1e-11
     if "windows" in name:  # the controller's windows are the planner's, sample by sample
@@ -176,7 +177,7 @@ def test_target_driving_a_joint_into_its_limit_faults_there(builder):
     assert math.isclose(after[0, 1], min(v["first_t_s"] for v in violations))
     assert np.all(after[:, 2:10] <= robot.qmax) and np.all(after[:, 2:10] >= robot.qmin)
     assert np.array_equal(after[0, 2:10], before[2:10])
-    cmp = fw.compare_with_plan(result, run, task, "double", "pinv")
+    cmp = fwcmp.compare_with_plan(result, run, task, "double", "pinv")
     assert cmp.passed, cmp.rows  # the expected fault, and the plan matched up to it
 
 
@@ -212,7 +213,7 @@ def test_ptp_playback_matches_the_python_evaluation(builder, tmp_path):
     assert ftask.mode == "playback" and sorted(ftask.joints) == list(range(8))
     for variant, precision in ((HOST_SAN, "double"), (HOST_FLOAT, "float")):
         run = fw.run_host(builder.executable(variant, ftask, f"ptp_{precision}"))
-        cmp = fw.compare_with_plan(result, run, ftask, precision, precision)
+        cmp = fwcmp.compare_with_plan(result, run, ftask, precision, precision)
         assert cmp.passed, cmp.rows
         assert run.state == "DONE"
     assert cmp.max_dq < 1e-6  # float θ
@@ -224,7 +225,7 @@ def test_ptp_beyond_the_limits_stops_at_the_limit(builder):
     ftask = fw.task_from_plan(result, "ptp1", load_robot("modular8"))
     run = fw.run_host(builder.executable(HOST_SAN, ftask, "ptp1"))
     assert (run.state, run.fault) == ("FAULT", "JOINT_LIMIT")
-    cmp = fw.compare_with_plan(result, run, ftask, "double", "ptp1")
+    cmp = fwcmp.compare_with_plan(result, run, ftask, "double", "ptp1")
     assert cmp.passed, cmp.rows
     assert_never_nan(run)
     theta = result.column("theta_j1_rad")
@@ -239,7 +240,7 @@ def test_qemu_float_run_matches_the_plan(builder, short_plan, tmp_path):
     task = fw.task_from_plan(short_plan, "short")
     run = fw.run_qemu(builder.executable(fw.ARM_VARIANT, task, "short_m4"))
     assert run.summary["real_bytes"] == "4"
-    cmp = fw.compare_with_plan(short_plan, run, task, "float", "qemu")
+    cmp = fwcmp.compare_with_plan(short_plan, run, task, "float", "qemu")
     assert cmp.passed, cmp.rows
     assert_never_nan(run)
     ipt = fw.instructions_per_tick(run)
@@ -251,7 +252,7 @@ def test_qemu_float_run_matches_the_plan(builder, short_plan, tmp_path):
     result = plan(ptp_task, "ptp")
     ftask = fw.task_from_plan(result, "ptp")
     run = fw.run_qemu(builder.executable(fw.ARM_VARIANT, ftask, "ptp_m4"))
-    cmp = fw.compare_with_plan(result, run, ftask, "float", "qemu ptp")
+    cmp = fwcmp.compare_with_plan(result, run, ftask, "float", "qemu ptp")
     assert cmp.passed, cmp.rows
 
 
@@ -390,9 +391,9 @@ def test_spec30_and_spec35_examples_replay_on_the_host_firmware(builders, ft_pla
     task = fw.task_from_plan(result, name)
     assert task.mode == ("weighted_gpm" if "wgpm" in name else "fault_tolerant")
     run = fw.run_host(builders[task.robot.name].executable(HOST_SAN, task, f"{name}_san"))
-    cmp = fw.compare_with_plan(result, run, task, "double", name)
+    cmp = fwcmp.compare_with_plan(result, run, task, "double", name)
     assert cmp.passed, cmp.rows
-    assert cmp.max_dq <= fw.FW_DOUBLE_BOUND_RAD
+    assert cmp.max_dq <= fwcmp.FW_DOUBLE_BOUND_RAD
     assert_never_nan(run, task.robot.n)
     if task.lock_tick >= 0:  # the plan's lock, reported by the drive model at its tick
         by_tick = run.by_tick()
@@ -412,9 +413,9 @@ def test_spec30_and_spec35_examples_replay_under_qemu(builders, ft_plans, name):
     result = example_plan(name, ft_plans)
     task = fw.task_from_plan(result, name)
     run = fw.run_qemu(builders[task.robot.name].executable(fw.ARM_VARIANT, task, f"{name}_m4"))
-    cmp = fw.compare_with_plan(result, run, task, "float", name)
+    cmp = fwcmp.compare_with_plan(result, run, task, "float", name)
     assert cmp.passed, cmp.rows
-    assert cmp.max_dq <= fw.FW_FLOAT_BOUND_RAD
+    assert cmp.max_dq <= fwcmp.FW_FLOAT_BOUND_RAD
     ipt = fw.instructions_per_tick(run)
     assert ipt["max"] <= 1.1 * ipt["mean"]  # fixed cost per tick (no data-dependent loops)
 
@@ -448,7 +449,7 @@ def test_lock_from_the_tick_input_at_a_time_the_plan_did_not_know(builders, robo
     # an independent reference: the planner told about this lock in advance
     told = c_plan(apply_overrides(copy.deepcopy(task_doc), [f"fault.joints=[{joint}]", f"fault.time={t_lock}"]), name)
     q_told = np.column_stack([told.column(f"q{i + 1}_rad") for i in range(n)])
-    assert np.max(np.abs(q - q_told)) <= fw.FW_DOUBLE_BOUND_RAD
+    assert np.max(np.abs(q - q_told)) <= fwcmp.FW_DOUBLE_BOUND_RAD
     # velocities continuous except at the lock: per tick no larger a change than the planner's
     # own smooth motion (its peak |q̈| excludes the lock transition), the locked joint aside
     ddq_peak = math.radians(told.metadata["verdict"]["peak_ddq_deg_s2"])

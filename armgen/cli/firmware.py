@@ -1,5 +1,7 @@
-"""``armgen firmware ROBOT --out DIR``: a self-contained C project (kinematics, controller,
-CMake host demo, Cortex-M4F toolchain file, README) for a bundled robot or a robot file."""
+"""``armgen firmware ROBOT --out DIR [--task TASK.toml | --plan plan.csv]``: a self-contained C
+project (kinematics, controller, CMake host demo, Cortex-M4F toolchain file, README) for a
+bundled robot or a robot file; ``armgen firmware-task``: the task files the stub's Makefile
+compiles in."""
 
 from __future__ import annotations
 
@@ -19,9 +21,37 @@ def firmware_cmd(robot: str, out_dir: str) -> None:
 
     Exit codes: 2 bad robot file, 3 no demo task can be planned, 4 the folder cannot be
     written (a file, a foreign non-empty folder, read-only)."""
-    from ..verify.firmware_project import write_firmware_project
+    from ..firmware.project import write_firmware_project
 
     r, paths = write_firmware_project(robot, out_dir)
     click.echo(f"wrote {len(paths)} files of the firmware project of '{r.name}' into {out_dir}")
     click.echo(f"build the host demo:  cmake -S {out_dir} -B {out_dir}/build && cmake --build {out_dir}/build")
     click.echo(f"see {out_dir}/README.md for the Cortex-M4F image and the controller's API")
+
+
+@click.command("firmware-task")
+@click.argument("source", type=click.Path(exists=True, dir_okay=False))
+@out_option("out_dir", "the folder of task_params.h, fw_ptp.{h,c} and robot_fw.c", old=(), type=click.Path(),
+            required=True)
+@click.option("--robot", default=None, help="the firmware's robot (checked against the task's)")
+@click.option("--set", "overrides", multiple=True, help="override a task field (TOML value), e.g. timing.duration=5")
+@click.option("--gen-dir", type=click.Path(file_okay=False), default=None,
+              help="the robot's generated code (default generated/<robot>/)")
+@click.option("--lock", default=None, metavar="JOINTS@TIME",
+              help="the drives report these joints locked from TIME s on (e.g. 5@1.38), unknown to the plan")
+@handle_errors
+def firmware_task_cmd(source: str, out_dir: str, robot: str | None, overrides: tuple[str, ...], gen_dir: str | None,
+                      lock: str | None) -> None:
+    """Write the controller's task for SOURCE (a task file or a plan CSV): task_params.h, the PTP
+    evaluator fw_ptp.{h,c} and robot_fw.c (the generated functions the controller calls).
+
+    Used by firmware_stub/Makefile. Exit codes: 2 bad task file, 4 unwritable output, 5 a task
+    the controller cannot run."""
+    from ..firmware.configuration import schedule_lock, task_from_file, write_task_files
+    from ..robot import load_robot
+
+    task = task_from_file(source, load_robot(robot) if robot else None, overrides)
+    if lock:
+        task = schedule_lock(task, lock)
+    for path in write_task_files(task, out_dir, gen_dir):
+        click.echo(f"wrote {path}")

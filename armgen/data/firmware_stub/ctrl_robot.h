@@ -3,7 +3,7 @@
  * `generated/<robot>/<robot>.h` onto the names the controller uses, so controller.c is
  * written once for every robot.
  *
- * Select the robot at build time (the Makefile and armgen/verify/firmware.py do this):
+ * Select the robot at build time (the Makefile and armgen/firmware/builder.py do this):
  *
  *   -DCTRL_ROBOT=modular8 -DCTRL_ROBOT_UC=MODULAR8 -DCTRL_ROBOT_HEADER='"modular8.h"'
  *   -DMODULAR8_USE_FLOAT=0|1   (the generated header's one precision switch)

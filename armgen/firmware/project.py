@@ -34,7 +34,7 @@ from ..planning.result import write_plan
 from ..planning.tasks import run_task
 from ..robot import Robot, load_robot, resolve_robot_path
 from ..symbolic.model import SymbolicModel
-from . import firmware as fw
+from .configuration import MAX_SEGMENTS, refusal, task_from_dict, write_task_files
 
 DEMO_DURATION_S = 1.0
 DEMO_STEP_S = 0.01  # the controller's tick: 100 ticks, a short demo and a small CSV
@@ -83,7 +83,7 @@ def plan_demo(robot: Robot, robot_ref: str, source: str = "demo task"):
             except ArmgenError as exc:
                 reasons.append(str(exc).splitlines()[0])
                 continue
-            if fw.refusal(result) is None:
+            if refusal(result) is None:
                 axis = "xyz"[int(np.flatnonzero(direction)[0])]
                 sign = "+" if sum(direction) > 0 else "-"
                 start = task["start"] if isinstance(task["start"], str) else "mid-range of the limits"
@@ -189,9 +189,9 @@ def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, robot_ref: str) -> 
     result.metadata["task_sha256"] = hashlib.sha256(toml_text.encode()).hexdigest()
     result.metadata["task_file"] = "demo/demo.toml"
     write_plan(result, stage / "demo" / "plan.csv")
-    fw.write_task_files(fw.task_from_dict(planned, "demo/demo.toml", robot), stage / "task", stage / "generated")
+    write_task_files(task_from_dict(planned, "demo/demo.toml", robot), stage / "task", stage / "generated")
     values = {"ROBOT": robot.name, "NDOF": str(robot.n), "PREFIX": code.prefix, "PREFIX_UC": code.prefix.upper(),
-              "MAX_SEGMENTS": str(fw.MAX_SEGMENTS), "VERSION": __version__, "SHA256": robot.sha256,
+              "MAX_SEGMENTS": str(MAX_SEGMENTS), "VERSION": __version__, "SHA256": robot.sha256,
               "DEMO": description}
     project = stub / "project"
     (stage / "CMakeLists.txt").write_text(_fill((project / "CMakeLists.txt.in").read_text(encoding="utf-8"), values),
