@@ -15,15 +15,24 @@ from .options import out_option
 @click.argument("robot")
 @out_option("out_dir", "the project folder (new, empty, or one this command wrote earlier)", old=(),
             type=click.Path(), required=True)
+@click.option("--task", "task_file", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="a task file for ROBOT: planned here, and the project's demo runs it")
+@click.option("--plan", "plan_csv", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="a plan CSV (with its plan.json) made by `armgen plan`: the project's demo runs it")
 @handle_errors
-def firmware_cmd(robot: str, out_dir: str) -> None:
-    """Write a firmware project for ROBOT (a bundled name or a robot file) into --out.
+def firmware_cmd(robot: str, out_dir: str, task_file: str | None, plan_csv: str | None) -> None:
+    """Write a firmware project for ROBOT (a bundled name or a robot file) into --out; its demo
+    runs --task or --plan, else a short built-in line.
 
-    Exit codes: 2 bad robot file, 3 no demo task can be planned, 4 the folder cannot be
-    written (a file, a foreign non-empty folder, read-only)."""
+    Exit codes: 2 bad robot, task or plan file, 3 the task (or, without one, the demo) cannot
+    be planned, 4 the folder cannot be written (a file, a foreign non-empty folder, read-only),
+    5 the controller cannot run the task (e.g. another robot's, or a mode it does not have)."""
+    from ..errors import OptionError
     from ..firmware.project import write_firmware_project
 
-    r, paths = write_firmware_project(robot, out_dir)
+    if task_file is not None and plan_csv is not None:
+        raise OptionError("give --task or --plan, not both (a task is planned here; a plan was made from one)")
+    r, paths = write_firmware_project(robot, out_dir, task_file, plan_csv)
     click.echo(f"wrote {len(paths)} files of the firmware project of '{r.name}' into {out_dir}")
     click.echo(f"build the host demo:  cmake -S {out_dir} -B {out_dir}/build && cmake --build {out_dir}/build")
     click.echo(f"see {out_dir}/README.md for the Cortex-M4F image and the controller's API")
