@@ -32,7 +32,8 @@ SHORT = ["path.type=line", "path.end=[-450, 400, 900]", "timing.duration=5"]
 HOST_SAN = fw.Variant("host", "double", sanitize=True, opt="-O1")
 HOST_FLOAT = fw.Variant("host", "float")
 
-PTP_MODULAR8 = EXAMPLES / "modular8_ptp_two_segments.toml"  # eight joints, two segments, 3-4
+PTP_MODULAR8 = EXAMPLES / "modular8_ptp_two_segments.toml"
+MODULAR8_QDLIM_RAD_S = math.radians(90)  # robots/modular8.toml: qdlim = 90 (deg/s) on every joint  # eight joints, two segments, 3-4
 
 
 def example(name: str, overrides=()) -> dict:
@@ -531,7 +532,7 @@ def test_planners_the_controller_does_not_run_are_refused():
 
 def with_field(task: fw.FirmwareTask, name: str, value: str) -> fw.FirmwareTask:
     """The task with one top-level field of fw_task rewritten (a careless configuration)."""
-    header, count = re.subn(rf"\.{name} = [^,]+,", f".{name} = {value},", task.header, count=1)
+    header, count = re.subn(rf"\.{name} = (\{{[^}}]*\}}|[^,]+),", f".{name} = {value},", task.header, count=1)
     assert count == 1
     return dataclasses.replace(task, header=header)
 
@@ -557,15 +558,30 @@ def test_playback_period_that_does_not_fit_the_knots_is_refused(builder, ptp_tas
         assert np.max(np.abs(run.data[:, 2:10] - q_start)) <= 1e-15
 
 
-def test_playback_enforces_qdot_max(builder, ptp_task):
+def test_playback_enforces_each_joints_own_speed_limit(builder, ptp_task):
+    """The speed guard is per joint: one joint's limit lowered below its peak speed stops the
+    playback with SPEED at that joint's first too-fast sample, although the others are faster."""
     result, task = ptp_task
-    omega = np.column_stack([result.column(f"omega_j{i}_rad_s") for i in range(1, 9)])
-    limit = 0.5 * float(np.max(np.abs(omega)))
-    run = fw.run_host(builder.executable(HOST_SAN, with_field(task, "qdot_max", f"CTRL_LIT({limit!r})"), "ptp_slow"))
+    omega = np.abs(np.column_stack([result.column(f"omega_j{i}_rad_s") for i in range(1, 9)]))
+    slow = int(np.argmin(np.max(omega, axis=0)))  # the slowest joint: the others exceed its limit
+    limit = 0.5 * float(np.max(omega[:, slow]))
+    assert np.max(np.delete(omega, slow, axis=1)) > limit  # a shared limit would stop earlier
+    guards = [MODULAR8_QDLIM_RAD_S] * 8
+    guards[slow] = limit
+    value = "{" + ", ".join(f"CTRL_LIT({g!r})" for g in guards) + "}"
+    run = fw.run_host(builder.executable(HOST_SAN, with_field(task, "qdot_max", value), "ptp_slow"))
     assert (run.state, run.fault) == ("FAULT", "SPEED")
     first, before, after = held_rows(run)
-    assert first == int(np.argmax(np.max(np.abs(omega), axis=1) > limit))  # the first too fast sample
+    assert first == int(np.argmax(omega[:, slow] > limit))  # the slow joint's first too fast sample
     assert np.all(after[:, 2:10] == before[2:10]) and np.all(after[:, 10:18] == 0.0)
+
+
+def test_speed_guard_is_the_robot_files_qdlim(ptp_task):
+    """task_params.h carries each joint's qdlim of the robot file (modular8: 90 deg/s each)."""
+    _, task = ptp_task
+    guards = re.search(r"\.qdot_max = \{([^}]*)\}", task.header).group(1)
+    values = [float(v) for v in re.findall(r"CTRL_LIT\(([^)]*)\)", guards)]
+    assert values == [MODULAR8_QDLIM_RAD_S] * 8
 
 
 def test_host_overrun_check_measures_real_time(builder, short_plan):

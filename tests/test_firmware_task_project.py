@@ -13,6 +13,7 @@ from click.testing import CliRunner
 from armgen.cli.main import cli
 from armgen.firmware.project import task_toml
 from armgen.planning.tasks import load_task
+from armgen.robot import load_robot
 
 from conftest import require_tool
 
@@ -98,3 +99,31 @@ def test_task_toml_round_trips_a_program():
     task, _ = load_task(EXAMPLES / "iiwa14_weld_seam_program.toml")
     text = task_toml(task, "a program")
     assert tomllib.loads(text) == task
+
+
+@pytest.mark.arm
+def test_task_on_an_arm_armgen_does_not_bundle(tmp_path, monkeypatch):
+    """Baxter's arm (7 DOF, tests/data): a circle task → `armgen firmware --task` → CMake build →
+    host run → `verify --run` (double, 1e-9 rad), and `verify --target cortex-m4` builds and runs
+    the same task's firmware under QEMU (float)."""
+    for tool in ("cmake", "arm-none-eabi-gcc", "qemu-system-arm"):
+        require_tool(tool)
+    robot_file = REPO / "tests" / "data" / "baxter_arm.toml"
+    robot = load_robot(robot_file)
+    p0 = robot.fk(robot.configuration("q0"))[:3, 3] * 1000  # mm: the circle starts at the tool
+    via, end = p0 + [40.0, 40.0, 0.0], p0 + [80.0, 0.0, 0.0]
+    task = tmp_path / "circle.toml"
+    task.write_text(f'planner = "cartesian"\nrobot = "{robot_file}"\nstart = "q0"\n[units]\nlength = "mm"\n'
+                    f'[path]\ntype = "circle"\nvia = {via.tolist()}\nend = {end.tolist()}\norientation = "hold"\n'
+                    '[timing]\nduration = 4\nlaw = "cubic"\n[integrator]\nmethod = "euler"\nstep = 0.01\n'
+                    '[method]\nname = "combined"\n')
+    out = CliRunner().invoke(cli, ["firmware", str(robot_file), "--task", str(task), "--out", str(tmp_path / "fw")])
+    assert out.exit_code == 0, out.output
+    project = tmp_path / "fw"
+    _build_and_run(project)
+    output = _verify_run(project, monkeypatch)
+    assert "DONE at 400" in output
+    out = CliRunner().invoke(cli, ["verify", "robot.toml", "-o", "generated", "--plan", "demo/plan.csv",
+                                   "--target", "cortex-m4", "--samples", "50", "--precision", "float"])
+    assert out.exit_code == 0, out.output
+    assert "== target: PASS" in out.output

@@ -476,13 +476,14 @@ def rewrite(task, field: str, value: str):
     import dataclasses
     import re
 
-    header, count = re.subn(rf"\.{field} = [^,]+,", f".{field} = {value},", task.header, count=1)
+    header, count = re.subn(rf"\.{field} = (\{{[^}}]*\}}|[^,]+),", f".{field} = {value},", task.header, count=1)
     assert count == 1, field
     return dataclasses.replace(task, header="#include <math.h>\n" + header)
 
 
 @pytest.mark.parametrize("field, value", [
-    ("qdot_max", "CTRL_LIT(1e300)"), ("residual_rel", "CTRL_LIT(1e300)"), ("residual_abs", "CTRL_LIT(1e300)"),
+    ("qdot_max", "{" + ", ".join(["CTRL_LIT(3.0)"] * 7 + ["CTRL_LIT(1e300)"]) + "}"),  # one joint's guard
+    ("qdot_max", "{" + ", ".join(["CTRL_LIT(3.0)"] * 7 + ["CTRL_LIT(0.0)"]) + "}"), ("residual_rel", "CTRL_LIT(1e300)"), ("residual_abs", "CTRL_LIT(1e300)"),
     ("pos_err_max", "CTRL_LIT(1e300)"), ("blend", "CTRL_LIT(NAN)"), ("blend", "CTRL_LIT(0.75)"),
 ])
 def test_controller_refuses_guards_out_of_range(firmware_builder, line_task, field, value):

@@ -35,7 +35,9 @@ from .sources import PTP_PREFIX, extract_functions, firmware_functions, robot_pr
 MAX_SEGMENTS = 16  # CTRL_MAX_SEGMENTS default; plans with more segments get a -D
 
 # Controller guards written into every task (see controller.h and docs/firmware.md).
-DEFAULT_QDOT_MAX = 3.0  # rad/s: singular-pose guard, far above the bundled plans (< 0.5 rad/s)
+# rad/s: the speed guard of a joint whose robot file gives no qdlim (also the singular-pose
+# guard), far above the bundled plans (< 0.5 rad/s); a joint with a qdlim is guarded by it.
+DEFAULT_QDOT_MAX = 3.0
 DEFAULT_RESIDUAL_REL = 1e-3  # |J q̇ − ẋ|∞ ≤ 1e-3 |ẋ|∞ + 1e-6: float rounding stays below 1e-5
 DEFAULT_RESIDUAL_ABS = 1e-6
 DEFAULT_POS_ERR_MAX = 5e-3  # m: the planner's own MAX_PATH_ERROR
@@ -112,6 +114,11 @@ def _header(robot: Robot, source: str, body: list[str], comment: str, lock_tick:
     return "\n".join(lines)
 
 
+def speed_guard(robot: Robot) -> np.ndarray:
+    """The controller's speed limit per joint: the robot file's qdlim, else DEFAULT_QDOT_MAX."""
+    return np.where(np.isfinite(robot.qdlim), robot.qdlim, DEFAULT_QDOT_MAX)
+
+
 def _common_fields(robot: Robot, mode: str, dt: float, q_start: np.ndarray) -> list[str]:
     return [
         f".mode = {mode},",
@@ -119,7 +126,7 @@ def _common_fields(robot: Robot, mode: str, dt: float, q_start: np.ndarray) -> l
         f".q_start = {_vec(q_start)},",
         f".q_min = {_vec(robot.qmin)},",
         f".q_max = {_vec(robot.qmax)},",
-        f".qdot_max = {_lit(DEFAULT_QDOT_MAX)},",
+        f".qdot_max = {_vec(speed_guard(robot))},",
         f".residual_rel = {_lit(DEFAULT_RESIDUAL_REL)},",
         f".residual_abs = {_lit(DEFAULT_RESIDUAL_ABS)},",
         f".pos_err_max = {_lit(DEFAULT_POS_ERR_MAX)},",

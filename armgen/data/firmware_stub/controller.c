@@ -512,7 +512,7 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
   }
   c->cfg = *config; /* validated once, here; the ticks use only this copy */
   config = &c->cfg;
-  ok = positive(config->dt) && positive(config->qdot_max) && config->qdot_max <= QDOT_MAX_LIMIT &&
+  ok = positive(config->dt) &&
        at_most(config->residual_rel, RESIDUAL_REL_LIMIT) && at_most(config->residual_abs, RESIDUAL_ABS_LIMIT) &&
        at_most(config->pos_err_max, POS_ERR_MAX_LIMIT);
   for (i = 0; i < N; ++i) {
@@ -522,7 +522,7 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
     /* held after a bad configuration: q_start when valid, else mid-range (else 0: no limits) */
     c->q_hold[i] = inside ? q : (limits ? lo + CTRL_LIT(0.5) * (hi - lo) : CTRL_LIT(0.0));
     c->mask[i] = CTRL_LIT(1.0);
-    ok = ok && inside;
+    ok = ok && inside && positive(config->qdot_max[i]) && config->qdot_max[i] <= QDOT_MAX_LIMIT;
   }
   if (ok) {
     switch (config->mode) {
@@ -680,7 +680,7 @@ static ctrl_fault check_step(const ctrl *c, const ctrl_real *J, const ctrl_real 
   /* A singular pose: with lambda = 0 the step's floored pivots give a huge velocity, or one
    * that does not meet the task (damping > 0: the same once the damping is exceeded). */
   for (i = 0; i < N; ++i) {
-    if (CTRL_FABS(qd[i]) > cfg->qdot_max) return CTRL_FAULT_SINGULAR;
+    if (CTRL_FABS(qd[i]) > cfg->qdot_max[i]) return CTRL_FAULT_SINGULAR;
   }
   if (!damped) {
     ctrl_real v0 = CTRL_LIT(0.0), v1 = CTRL_LIT(0.0), v2 = CTRL_LIT(0.0);
@@ -836,8 +836,6 @@ static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, 
 static ctrl_fault tick_playback(ctrl *c, ctrl_real t, ctrl_output *out) {
   const ctrl_config *cfg = &c->cfg;
   const ctrl_pb_config *pb = &cfg->pb;
-  /* one tick may move a joint by at most qdot_max * dt (a little more for rounding) */
-  ctrl_real step_max = cfg->qdot_max * cfg->dt * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
   ctrl_real q[N], qd[N], th[3];
   ctrl_fault f;
   int i;
@@ -855,7 +853,9 @@ static ctrl_fault tick_playback(ctrl *c, ctrl_real t, ctrl_output *out) {
   if (f == CTRL_FAULT_NONE && !all_finite(qd, N)) f = CTRL_FAULT_NONFINITE_OUTPUT;
   if (f != CTRL_FAULT_NONE) return f;
   for (i = 0; i < N; ++i) {
-    if (CTRL_FABS(qd[i]) > cfg->qdot_max || CTRL_FABS(q[i] - c->q_hold[i]) > step_max) return CTRL_FAULT_SPEED;
+    /* one tick may move a joint by at most qdot_max[i] * dt (a little more for rounding) */
+    ctrl_real step_max = cfg->qdot_max[i] * cfg->dt * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
+    if (CTRL_FABS(qd[i]) > cfg->qdot_max[i] || CTRL_FABS(q[i] - c->q_hold[i]) > step_max) return CTRL_FAULT_SPEED;
   }
   accept(c, t, q, qd, out);
   if (moving(c)) {

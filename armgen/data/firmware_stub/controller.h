@@ -24,7 +24,7 @@
  *       armgen/planning/cartesian.py tick by tick.
  *   CTRL_MODE_PLAYBACK  joint-space polynomial segments (spec 40): per joint the knot times
  *       and six coefficients per segment, evaluated by the generated fw_ptp_eval; every
- *       command is checked against qdot_max (speed and the step from the previous command).
+ *       command is checked against qdot_max[i] (speed and the step from the previous command).
  *   CTRL_MODE_FAULT_TOLERANT  spec 30: the same on-board path (circle with turns, or line),
  *       closed loop, per tick the joint-manipulability index H_M and its gradient on the
  *       healthy columns (generated ft_index), then GPM (alpha = K grad H_M), WLN (generated
@@ -76,7 +76,7 @@ typedef enum {
                                       was finite: an overflow */
   CTRL_FAULT_JOINT_LIMIT = 4,      /* the next joint command lies outside [q_min, q_max] */
   CTRL_FAULT_SINGULAR = 5,         /* a singular pose beyond the damping's reach: a joint
-                                      speed above qdot_max, or |J q_dot - x_dot| above the
+                                      speed above its qdot_max[i], or |J q_dot - x_dot| above the
                                       residual bound (the step could not meet the task) */
   CTRL_FAULT_OVERRUN = 6,          /* the scheduler reported a missed period (tick overrun) */
   CTRL_FAULT_TRACKING = 7,         /* the tool left the path by more than pos_err_max */
@@ -87,7 +87,7 @@ typedef enum {
   CTRL_FAULT_REDUNDANCY = 11,      /* more joints locked than the mode can absorb (NDOF - NTASK
                                       in FAULT_TOLERANT; none in the other modes) */
   CTRL_FAULT_SPEED = 12            /* playback: a commanded speed, or the step from the previous
-                                      command, above qdot_max (e.g. a period that does not fit
+                                      command, above the joint's qdot_max[i] (e.g. a period that does not fit
                                       the plan's knots) */
 } ctrl_fault;
 
@@ -180,7 +180,8 @@ typedef struct {
   ctrl_real q_start[CTRL_NDOF]; /* start configuration (and the repetitive target) */
   ctrl_real q_min[CTRL_NDOF];   /* joint limits */
   ctrl_real q_max[CTRL_NDOF];
-  ctrl_real qdot_max;           /* singular-pose guard: max |q_dot_i|, rad/s, (0, 1e3] */
+  ctrl_real qdot_max[CTRL_NDOF]; /* speed guard per joint: max |q_dot_i|, rad/s (m/s), (0, 1e3];
+                                   the robot file's qdlim where it gives one */
   ctrl_real residual_rel;       /* singular-pose guard: |J q_dot - x_dot|_inf may reach */
   ctrl_real residual_abs;       /*   residual_rel * |x_dot|_inf + residual_abs; each in [0, 1] */
   ctrl_real pos_err_max;        /* tracking guard, m, [0, 1]; 0 disables */
