@@ -38,6 +38,9 @@ MAX_SEGMENTS = 16  # CTRL_MAX_SEGMENTS default; plans with more segments get a -
 # rad/s: the speed guard of a joint whose robot file gives no qdlim (also the singular-pose
 # guard), far above the bundled plans (< 0.5 rad/s); a joint with a qdlim is guarded by it.
 DEFAULT_QDOT_MAX = 3.0
+# rad/s²: MOVE_TO's acceleration of a joint whose robot file gives no qddlim (a moderate
+# industrial-arm figure: 0 → 3 rad/s in 0.3 s).
+DEFAULT_QDDOT_MAX = 10.0
 DEFAULT_RESIDUAL_REL = 1e-3  # |J q̇ − ẋ|∞ ≤ 1e-3 |ẋ|∞ + 1e-6: float rounding stays below 1e-5
 DEFAULT_RESIDUAL_ABS = 1e-6
 DEFAULT_POS_ERR_MAX = 5e-3  # m: the planner's own MAX_PATH_ERROR
@@ -119,6 +122,11 @@ def speed_guard(robot: Robot) -> np.ndarray:
     return np.where(np.isfinite(robot.qdlim), robot.qdlim, DEFAULT_QDOT_MAX)
 
 
+def acceleration_limit(robot: Robot) -> np.ndarray:
+    """MOVE_TO's acceleration per joint: the robot file's qddlim, else DEFAULT_QDDOT_MAX."""
+    return np.where(np.isfinite(robot.qddlim), robot.qddlim, DEFAULT_QDDOT_MAX)
+
+
 def _common_fields(robot: Robot, mode: str, dt: float, q_start: np.ndarray) -> list[str]:
     return [
         f".mode = {mode},",
@@ -127,6 +135,7 @@ def _common_fields(robot: Robot, mode: str, dt: float, q_start: np.ndarray) -> l
         f".q_min = {_vec(robot.qmin)},",
         f".q_max = {_vec(robot.qmax)},",
         f".qdot_max = {_vec(speed_guard(robot))},",
+        f".qddot_max = {_vec(acceleration_limit(robot))},",
         f".residual_rel = {_lit(DEFAULT_RESIDUAL_REL)},",
         f".residual_abs = {_lit(DEFAULT_RESIDUAL_ABS)},",
         f".pos_err_max = {_lit(DEFAULT_POS_ERR_MAX)},",

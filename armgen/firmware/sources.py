@@ -24,7 +24,8 @@ def robot_prefix(robot: Robot) -> str:
 # The steps take the J of the tick's fk_jacobian (their *_from_jacobian twins).
 FIRMWARE_FUNCTIONS = ("fk_jacobian", "zghal", "repetitive", "step_gpm_from_jacobian")
 OPTIONAL_FUNCTIONS = {"FAULT_TOLERANT": ("ft_index_from_jacobian", "wln_weights", "step_fault_from_jacobian"),
-                      "WEIGHTED_GPM": ("step_wgpm_from_jacobian",)}
+                      "WEIGHTED_GPM": ("step_wgpm_from_jacobian",),
+                      "MOVE_TO": ("ik",)}
 
 
 def available_modes(source: str, prefix: str) -> tuple[str, ...]:

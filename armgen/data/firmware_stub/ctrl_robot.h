@@ -52,5 +52,6 @@ typedef CTRL_FN(real) ctrl_real;
 #define ctrl_gen_wln_weights CTRL_FN(wln_weights)
 #define ctrl_gen_step_fault CTRL_FN(step_fault_from_jacobian)
 #define ctrl_gen_step_wgpm CTRL_FN(step_wgpm_from_jacobian)
+#define ctrl_gen_ik CTRL_FN(ik)
 
 #endif /* ARMGEN_CTRL_ROBOT_H */
