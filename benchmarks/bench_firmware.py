@@ -54,7 +54,8 @@ from bench_kinematics import Report, Skip, bar_note, finish  # noqa: E402
 
 from armgen.planning.result import write_plan  # noqa: E402
 from armgen.planning.tasks import apply_overrides, load_task, run_task  # noqa: E402
-from armgen.verify import firmware as fw  # noqa: E402
+from armgen import firmware as fw  # noqa: E402
+from armgen.verify import firmware_compare as fwcmp  # noqa: E402
 
 EXAMPLE = REPO / "examples" / "modular8_circle_combined.toml"
 PAPER_SECONDS = 0.12
@@ -243,6 +244,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(HERE / "results" / "firmware.json"))
     ap.add_argument("--keep", action="store_true", help="keep the build directory")
     ap.add_argument("--modes-only", action="store_true", help="only section 5 (every controller mode)")
+    ap.add_argument("--move-to-only", action="store_true", help="only section 6 (MOVE_TO under QEMU)")
     args = ap.parse_args(argv)
     os.environ["ARMGEN_NO_PROGRESS"] = "1"
     started = time.perf_counter()
@@ -259,6 +261,10 @@ def main(argv=None) -> int:
     print(f"armgen firmware benchmark, build dir {work}")
 
     state: dict = {}
+    if args.move_to_only:
+        rep.section("move_to", "6. MOVE_TO, modular8, Cortex-M4F float (QEMU -icount):",
+                    lambda: move_to_table(rep, work, fw.FirmwareBuilder("modular8", work / "fw")))
+        return finish(rep, args, work, started)
     if args.modes_only:
         rep.section("modes", "5. Every controller mode, modular8, Cortex-M4F float (QEMU -icount):",
                     lambda: modes_table(rep, work, fw.FirmwareBuilder("modular8", work / "fw")))
@@ -399,8 +405,8 @@ def main(argv=None) -> int:
         for label, v, precision in runs:
             exe = builder.executable(v, task, "replay_" + re.sub(r"\W", "", label))
             r = fw.run_qemu(exe) if v.target == "arm" else fw.run_host(exe)
-            cmp = fw.compare_with_plan(plan, r, task, precision, label)
-            bq, bt = fw.bounds_for(precision, task.mode)
+            cmp = fwcmp.compare_with_plan(plan, r, task, precision, label)
+            bq, bt = fwcmp.bounds_for(precision, task.mode)
             replay[label] = {"max_dq_rad": cmp.max_dq, "bound_rad": bq, "max_dtask_m": cmp.max_dtask, "bound_m": bt,
                              "passed": cmp.passed, "end": f"{r.state}/{r.fault}"}
             rep.row(f"{label}: max |Δq|", cmp.max_dq, "rad", f"bound {bq:g}; {'pass' if cmp.passed else 'FAIL'}")
@@ -465,6 +471,50 @@ def modes_table(rep: Report, work: Path, builder) -> None:
               f"{m['sizeof_ctrl']:>6} {static:>10}/{m['stack_peak_bytes']:<9} {m['end']}{note}", flush=True)
         rep.rows.append((f"mode {label}: instr/tick mean / max", f"{m['mean']:.0f} / {m['max']:.0f}", "instr/tick",
                          f"max/mean {m['max_over_mean']:.3f}; {m['us_per_tick_168MHz']:.1f} µs at 168 MHz{note}"))
+
+
+MOVE_TO_POSES = 10  # QEMU runs (each ~ a second); tests/test_move_to.py sends 100 on the host
+MOVE_TO_SEED = 26
+MOVE_TO_SPREAD_RAD = 0.5  # targets: FK of random configurations within this of q0 (reachable)
+
+
+def move_to_table(rep: Report, work: Path, builder) -> None:
+    """Section 6: MOVE_TO's worst tick (the one that solves the IK) and its mean tick, against
+    the resolved-rate tick of the same build."""
+    import numpy as np
+
+    tool("arm-none-eabi-gcc")
+    tool("qemu-system-arm")
+    robot = builder.robot
+    quiet = dataclasses.replace(fw.ARM_VARIANT, print_rows=False)
+    rr = fw.instructions_per_tick(fw.run_qemu(builder.executable(quiet, mode_task("RESOLVED_RATE", work), "mt_rr")))
+    q0 = robot.configuration("q0")
+    hold = {"planner": "ptp", "robot": robot.name, "method": "3-4", "step": 0.01,
+            "waypoints": {"t": [0.0, 1.0], "omega": {j.name: [0.0, 0.0] for j in robot.joints},
+                          "theta": {j.name: [float(q), float(q)] for j, q in zip(robot.joints, q0)}}}
+    task = fw.task_from_plan(run_task(hold, "hold"), "hold", robot)
+    rng = np.random.default_rng(MOVE_TO_SEED)
+    qs = np.clip(q0 + rng.uniform(-MOVE_TO_SPREAD_RAD, MOVE_TO_SPREAD_RAD, (MOVE_TO_POSES, robot.n)), robot.qmin,
+                 robot.qmax)
+    variant = dataclasses.replace(quiet, extra=("-DFW_MOVE_TO=1",))
+    worst, means, ends, errors = [], [], [], []
+    for k, target in enumerate(robot.fk(qs)):
+        values = ", ".join(f"CTRL_LIT({float(v)!r})" for v in target.T.ravel())
+        posed = dataclasses.replace(task, header=task.header + f"const ctrl_real fw_move_to_target[16] = {{{values}}};\n")
+        r = fw.run_qemu(builder.executable(variant, posed, f"move_to_{k}"))
+        ipt = fw.instructions_per_tick(r)
+        worst.append(ipt["max"])
+        means.append(ipt["mean"])
+        ends.append(f"{r.state}/{r.fault}")
+    data = rep.data.setdefault("move_to", {})
+    data.update({"poses": MOVE_TO_POSES, "worst_tick_max": max(worst), "worst_tick_median": float(np.median(worst)),
+                 "mean_tick": float(np.mean(means)), "resolved_rate_mean": rr["mean"], "ends": ends})
+    print(f"  {MOVE_TO_POSES} poses: ends {sorted(set(ends))}; worst tick (the IK) max {max(worst):.0f}, median "
+          f"{np.median(worst):.0f} instructions ({max(worst) / 168.0:.0f} µs at 168 MHz); mean tick "
+          f"{np.mean(means):.0f}; resolved-rate tick mean {rr['mean']:.0f} in the same build "
+          f"(worst MOVE_TO tick / RR mean = {max(worst) / rr['mean']:.1f}x)", flush=True)
+    rep.rows.append(("MOVE_TO worst tick (IK), max over poses", f"{max(worst):.0f}", "instr",
+                     f"{MOVE_TO_POSES} poses; RR tick mean {rr['mean']:.0f}"))
 
 
 if __name__ == "__main__":

@@ -118,7 +118,7 @@ def _drain(fd: int) -> None:
 
 
 def firmware_ns_per_tick(work: Path) -> float | None:
-    from armgen.verify import firmware as fw
+    from armgen import firmware as fw
 
     try:
         task, sha = load_task(COMBINED)

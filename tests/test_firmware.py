@@ -20,7 +20,8 @@ from armgen.codegen.toolchain import STRICT_FLAGS
 from armgen.planning.result import write_plan
 from armgen.planning.tasks import apply_overrides, load_task, run_task
 from armgen.robot import load_robot
-from armgen.verify import firmware as fw
+from armgen import firmware as fw
+from armgen.verify import firmware_compare as fwcmp
 from armgen.verify.pipeline import VerifyConfig, stage_replay, stage_target
 
 from conftest import require_tool
@@ -31,7 +32,8 @@ SHORT = ["path.type=line", "path.end=[-450, 400, 900]", "timing.duration=5"]
 HOST_SAN = fw.Variant("host", "double", sanitize=True, opt="-O1")
 HOST_FLOAT = fw.Variant("host", "float")
 
-PTP_MODULAR8 = EXAMPLES / "modular8_ptp_two_segments.toml"  # eight joints, two segments, 3-4
+PTP_MODULAR8 = EXAMPLES / "modular8_ptp_two_segments.toml"
+MODULAR8_QDLIM_RAD_S = math.radians(90)  # robots/modular8.toml: qdlim = 90 (deg/s) on every joint  # eight joints, two segments, 3-4
 
 
 def example(name: str, overrides=()) -> dict:
@@ -71,7 +73,7 @@ def test_host_double_with_sanitizers_reproduces_the_plan(builder, short_task, sh
     run = fw.run_host(builder.executable(HOST_SAN, task, "short_san"))
     assert run.state == "DONE" and run.fault == "NONE"
     assert_never_nan(run)
-    cmp = fw.compare_with_plan(short_plan, run, task, "double", "host")
+    cmp = fwcmp.compare_with_plan(short_plan, run, task, "double", "host")
     assert cmp.passed, cmp.rows
     assert cmp.max_dq <= 1e-12  # the same operations in the same order: rounding level at most
 
@@ -79,9 +81,9 @@ def test_host_double_with_sanitizers_reproduces_the_plan(builder, short_task, sh
 def test_host_float_within_its_bound(builder, short_plan):
     task = fw.task_from_plan(short_plan, "short")
     run = fw.run_host(builder.executable(HOST_FLOAT, task, "short_float"))
-    cmp = fw.compare_with_plan(short_plan, run, task, "float", "host float")
+    cmp = fwcmp.compare_with_plan(short_plan, run, task, "float", "host float")
     assert cmp.passed, cmp.rows
-    assert 0 < cmp.max_dq < fw.FW_FLOAT_BOUND_RAD
+    assert 0 < cmp.max_dq < fwcmp.FW_FLOAT_BOUND_RAD
 
 
 @pytest.mark.parametrize("name, overrides", [
@@ -104,7 +106,7 @@ def test_every_method_replays_in_double(builder, name, overrides):
         assert w.max() == 1.0 and (w[-1] == 0).any() and sum(result.metadata["summary"]["window_openings"]) >= 2
     ftask = fw.task_from_plan(result, name)
     run = fw.run_host(builder.executable(HOST_SAN, ftask, name.replace(" ", "_").replace(",", "").replace("+", "_")))
-    cmp = fw.compare_with_plan(result, run, ftask, "double", name)
+    cmp = fwcmp.compare_with_plan(result, run, ftask, "double", name)
     assert cmp.passed, cmp.rows
     assert cmp.max_dq <= 1e-11
     if "windows" in name:  # the controller's windows are the planner's, sample by sample
@@ -176,7 +178,7 @@ def test_target_driving_a_joint_into_its_limit_faults_there(builder):
     assert math.isclose(after[0, 1], min(v["first_t_s"] for v in violations))
     assert np.all(after[:, 2:10] <= robot.qmax) and np.all(after[:, 2:10] >= robot.qmin)
     assert np.array_equal(after[0, 2:10], before[2:10])
-    cmp = fw.compare_with_plan(result, run, task, "double", "pinv")
+    cmp = fwcmp.compare_with_plan(result, run, task, "double", "pinv")
     assert cmp.passed, cmp.rows  # the expected fault, and the plan matched up to it
 
 
@@ -212,7 +214,7 @@ def test_ptp_playback_matches_the_python_evaluation(builder, tmp_path):
     assert ftask.mode == "playback" and sorted(ftask.joints) == list(range(8))
     for variant, precision in ((HOST_SAN, "double"), (HOST_FLOAT, "float")):
         run = fw.run_host(builder.executable(variant, ftask, f"ptp_{precision}"))
-        cmp = fw.compare_with_plan(result, run, ftask, precision, precision)
+        cmp = fwcmp.compare_with_plan(result, run, ftask, precision, precision)
         assert cmp.passed, cmp.rows
         assert run.state == "DONE"
     assert cmp.max_dq < 1e-6  # float θ
@@ -224,7 +226,7 @@ def test_ptp_beyond_the_limits_stops_at_the_limit(builder):
     ftask = fw.task_from_plan(result, "ptp1", load_robot("modular8"))
     run = fw.run_host(builder.executable(HOST_SAN, ftask, "ptp1"))
     assert (run.state, run.fault) == ("FAULT", "JOINT_LIMIT")
-    cmp = fw.compare_with_plan(result, run, ftask, "double", "ptp1")
+    cmp = fwcmp.compare_with_plan(result, run, ftask, "double", "ptp1")
     assert cmp.passed, cmp.rows
     assert_never_nan(run)
     theta = result.column("theta_j1_rad")
@@ -239,7 +241,7 @@ def test_qemu_float_run_matches_the_plan(builder, short_plan, tmp_path):
     task = fw.task_from_plan(short_plan, "short")
     run = fw.run_qemu(builder.executable(fw.ARM_VARIANT, task, "short_m4"))
     assert run.summary["real_bytes"] == "4"
-    cmp = fw.compare_with_plan(short_plan, run, task, "float", "qemu")
+    cmp = fwcmp.compare_with_plan(short_plan, run, task, "float", "qemu")
     assert cmp.passed, cmp.rows
     assert_never_nan(run)
     ipt = fw.instructions_per_tick(run)
@@ -251,7 +253,7 @@ def test_qemu_float_run_matches_the_plan(builder, short_plan, tmp_path):
     result = plan(ptp_task, "ptp")
     ftask = fw.task_from_plan(result, "ptp")
     run = fw.run_qemu(builder.executable(fw.ARM_VARIANT, ftask, "ptp_m4"))
-    cmp = fw.compare_with_plan(result, run, ftask, "float", "qemu ptp")
+    cmp = fwcmp.compare_with_plan(result, run, ftask, "float", "qemu ptp")
     assert cmp.passed, cmp.rows
 
 
@@ -390,9 +392,9 @@ def test_spec30_and_spec35_examples_replay_on_the_host_firmware(builders, ft_pla
     task = fw.task_from_plan(result, name)
     assert task.mode == ("weighted_gpm" if "wgpm" in name else "fault_tolerant")
     run = fw.run_host(builders[task.robot.name].executable(HOST_SAN, task, f"{name}_san"))
-    cmp = fw.compare_with_plan(result, run, task, "double", name)
+    cmp = fwcmp.compare_with_plan(result, run, task, "double", name)
     assert cmp.passed, cmp.rows
-    assert cmp.max_dq <= fw.FW_DOUBLE_BOUND_RAD
+    assert cmp.max_dq <= fwcmp.FW_DOUBLE_BOUND_RAD
     assert_never_nan(run, task.robot.n)
     if task.lock_tick >= 0:  # the plan's lock, reported by the drive model at its tick
         by_tick = run.by_tick()
@@ -412,9 +414,9 @@ def test_spec30_and_spec35_examples_replay_under_qemu(builders, ft_plans, name):
     result = example_plan(name, ft_plans)
     task = fw.task_from_plan(result, name)
     run = fw.run_qemu(builders[task.robot.name].executable(fw.ARM_VARIANT, task, f"{name}_m4"))
-    cmp = fw.compare_with_plan(result, run, task, "float", name)
+    cmp = fwcmp.compare_with_plan(result, run, task, "float", name)
     assert cmp.passed, cmp.rows
-    assert cmp.max_dq <= fw.FW_FLOAT_BOUND_RAD
+    assert cmp.max_dq <= fwcmp.FW_FLOAT_BOUND_RAD
     ipt = fw.instructions_per_tick(run)
     assert ipt["max"] <= 1.1 * ipt["mean"]  # fixed cost per tick (no data-dependent loops)
 
@@ -448,7 +450,7 @@ def test_lock_from_the_tick_input_at_a_time_the_plan_did_not_know(builders, robo
     # an independent reference: the planner told about this lock in advance
     told = c_plan(apply_overrides(copy.deepcopy(task_doc), [f"fault.joints=[{joint}]", f"fault.time={t_lock}"]), name)
     q_told = np.column_stack([told.column(f"q{i + 1}_rad") for i in range(n)])
-    assert np.max(np.abs(q - q_told)) <= fw.FW_DOUBLE_BOUND_RAD
+    assert np.max(np.abs(q - q_told)) <= fwcmp.FW_DOUBLE_BOUND_RAD
     # velocities continuous except at the lock: per tick no larger a change than the planner's
     # own smooth motion (its peak |q̈| excludes the lock transition), the locked joint aside
     ddq_peak = math.radians(told.metadata["verdict"]["peak_ddq_deg_s2"])
@@ -530,7 +532,7 @@ def test_planners_the_controller_does_not_run_are_refused():
 
 def with_field(task: fw.FirmwareTask, name: str, value: str) -> fw.FirmwareTask:
     """The task with one top-level field of fw_task rewritten (a careless configuration)."""
-    header, count = re.subn(rf"\.{name} = [^,]+,", f".{name} = {value},", task.header, count=1)
+    header, count = re.subn(rf"\.{name} = (\{{[^}}]*\}}|[^,]+),", f".{name} = {value},", task.header, count=1)
     assert count == 1
     return dataclasses.replace(task, header=header)
 
@@ -556,15 +558,30 @@ def test_playback_period_that_does_not_fit_the_knots_is_refused(builder, ptp_tas
         assert np.max(np.abs(run.data[:, 2:10] - q_start)) <= 1e-15
 
 
-def test_playback_enforces_qdot_max(builder, ptp_task):
+def test_playback_enforces_each_joints_own_speed_limit(builder, ptp_task):
+    """The speed guard is per joint: one joint's limit lowered below its peak speed stops the
+    playback with SPEED at that joint's first too-fast sample, although the others are faster."""
     result, task = ptp_task
-    omega = np.column_stack([result.column(f"omega_j{i}_rad_s") for i in range(1, 9)])
-    limit = 0.5 * float(np.max(np.abs(omega)))
-    run = fw.run_host(builder.executable(HOST_SAN, with_field(task, "qdot_max", f"CTRL_LIT({limit!r})"), "ptp_slow"))
+    omega = np.abs(np.column_stack([result.column(f"omega_j{i}_rad_s") for i in range(1, 9)]))
+    slow = int(np.argmin(np.max(omega, axis=0)))  # the slowest joint: the others exceed its limit
+    limit = 0.5 * float(np.max(omega[:, slow]))
+    assert np.max(np.delete(omega, slow, axis=1)) > limit  # a shared limit would stop earlier
+    guards = [MODULAR8_QDLIM_RAD_S] * 8
+    guards[slow] = limit
+    value = "{" + ", ".join(f"CTRL_LIT({g!r})" for g in guards) + "}"
+    run = fw.run_host(builder.executable(HOST_SAN, with_field(task, "qdot_max", value), "ptp_slow"))
     assert (run.state, run.fault) == ("FAULT", "SPEED")
     first, before, after = held_rows(run)
-    assert first == int(np.argmax(np.max(np.abs(omega), axis=1) > limit))  # the first too fast sample
+    assert first == int(np.argmax(omega[:, slow] > limit))  # the slow joint's first too fast sample
     assert np.all(after[:, 2:10] == before[2:10]) and np.all(after[:, 10:18] == 0.0)
+
+
+def test_speed_guard_is_the_robot_files_qdlim(ptp_task):
+    """task_params.h carries each joint's qdlim of the robot file (modular8: 90 deg/s each)."""
+    _, task = ptp_task
+    guards = re.search(r"\.qdot_max = \{([^}]*)\}", task.header).group(1)
+    values = [float(v) for v in re.findall(r"CTRL_LIT\(([^)]*)\)", guards)]
+    assert values == [MODULAR8_QDLIM_RAD_S] * 8
 
 
 def test_host_overrun_check_measures_real_time(builder, short_plan):

@@ -456,7 +456,7 @@ def test_ptp_given_times_may_round_a_bound(tmp_path):
 
 @pytest.fixture(scope="module")
 def firmware_builder(tmp_path_factory):
-    from armgen.verify import firmware as fw
+    from armgen import firmware as fw
 
     return fw.FirmwareBuilder("modular8", tmp_path_factory.mktemp("firmware"))
 
@@ -465,7 +465,7 @@ def firmware_builder(tmp_path_factory):
 def line_task():
     """A 1 s line of modular8's tool (resolved rate), as firmware parameters."""
     from armgen.planning.tasks import apply_overrides, load_task
-    from armgen.verify import firmware as fw
+    from armgen import firmware as fw
 
     task, _ = load_task(EXAMPLES / "modular8_circle_combined.toml")
     apply_overrides(task, ["path.type=line", "path.end=[-450, 400, 900]", "timing.duration=1"])
@@ -476,17 +476,18 @@ def rewrite(task, field: str, value: str):
     import dataclasses
     import re
 
-    header, count = re.subn(rf"\.{field} = [^,]+,", f".{field} = {value},", task.header, count=1)
+    header, count = re.subn(rf"\.{field} = (\{{[^}}]*\}}|[^,]+),", f".{field} = {value},", task.header, count=1)
     assert count == 1, field
     return dataclasses.replace(task, header="#include <math.h>\n" + header)
 
 
 @pytest.mark.parametrize("field, value", [
-    ("qdot_max", "CTRL_LIT(1e300)"), ("residual_rel", "CTRL_LIT(1e300)"), ("residual_abs", "CTRL_LIT(1e300)"),
+    ("qdot_max", "{" + ", ".join(["CTRL_LIT(3.0)"] * 7 + ["CTRL_LIT(1e300)"]) + "}"),  # one joint's guard
+    ("qdot_max", "{" + ", ".join(["CTRL_LIT(3.0)"] * 7 + ["CTRL_LIT(0.0)"]) + "}"), ("residual_rel", "CTRL_LIT(1e300)"), ("residual_abs", "CTRL_LIT(1e300)"),
     ("pos_err_max", "CTRL_LIT(1e300)"), ("blend", "CTRL_LIT(NAN)"), ("blend", "CTRL_LIT(0.75)"),
 ])
 def test_controller_refuses_guards_out_of_range(firmware_builder, line_task, field, value):
-    from armgen.verify import firmware as fw
+    from armgen import firmware as fw
 
     variant = fw.Variant("host", "double")
     assert fw.run_host(firmware_builder.executable(variant, line_task, "line")).state == "DONE"  # as written
@@ -496,7 +497,7 @@ def test_controller_refuses_guards_out_of_range(firmware_builder, line_task, fie
 
 def test_header_generator_refuses_non_increasing_knots(tmp_path):
     from armgen.planning.result import read_plan
-    from armgen.verify import firmware as fw
+    from armgen import firmware as fw
 
     out = tmp_path / "p.csv"
     assert run("plan", str(EXAMPLES / "modular8_ptp_two_segments.toml"), "-o", str(out)).exit_code == 0
@@ -511,7 +512,7 @@ def test_header_generator_refuses_non_increasing_knots(tmp_path):
 
 def test_header_generator_names_a_bad_blend():
     from armgen.planning.tasks import apply_overrides, load_task
-    from armgen.verify import firmware as fw
+    from armgen import firmware as fw
 
     task, _ = load_task(EXAMPLES / "modular8_circle_combined.toml")
     apply_overrides(task, ["timing.law=\"cubic\"", "timing.blend=0.75"])  # unused by the cubic law

@@ -463,7 +463,7 @@ def test_bad_programs_fail_cleanly(case, code, needles, tmp_path):
 
 
 def test_firmware_refuses_a_program_cleanly():
-    from armgen.verify.firmware import FirmwareError, task_from_dict
+    from armgen.firmware import FirmwareError, task_from_dict
 
     path = EXAMPLES / "iiwa14_weld_seam_program.toml"
     with pytest.raises(FirmwareError, match="program"):

@@ -1,5 +1,7 @@
-"""``armgen firmware ROBOT --out DIR``: a self-contained C project (kinematics, controller,
-CMake host demo, Cortex-M4F toolchain file, README) for a bundled robot or a robot file."""
+"""``armgen firmware ROBOT --out DIR [--task TASK.toml | --plan plan.csv]``: a self-contained C
+project (kinematics, controller, CMake host demo, Cortex-M4F toolchain file, README) for a
+bundled robot or a robot file; ``armgen firmware-task``: the task files the stub's Makefile
+compiles in."""
 
 from __future__ import annotations
 
@@ -13,15 +15,52 @@ from .options import out_option
 @click.argument("robot")
 @out_option("out_dir", "the project folder (new, empty, or one this command wrote earlier)", old=(),
             type=click.Path(), required=True)
+@click.option("--task", "task_file", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="a task file for ROBOT: planned here, and the project's demo runs it")
+@click.option("--plan", "plan_csv", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="a plan CSV (with its plan.json) made by `armgen plan`: the project's demo runs it")
 @handle_errors
-def firmware_cmd(robot: str, out_dir: str) -> None:
-    """Write a firmware project for ROBOT (a bundled name or a robot file) into --out.
+def firmware_cmd(robot: str, out_dir: str, task_file: str | None, plan_csv: str | None) -> None:
+    """Write a firmware project for ROBOT (a bundled name or a robot file) into --out; its demo
+    runs --task or --plan, else a short built-in line.
 
-    Exit codes: 2 bad robot file, 3 no demo task can be planned, 4 the folder cannot be
-    written (a file, a foreign non-empty folder, read-only)."""
-    from ..verify.firmware_project import write_firmware_project
+    Exit codes: 2 bad robot, task or plan file, 3 the task (or, without one, the demo) cannot
+    be planned, 4 the folder cannot be written (a file, a foreign non-empty folder, read-only),
+    5 the controller cannot run the task (e.g. another robot's, or a mode it does not have)."""
+    from ..errors import OptionError
+    from ..firmware.project import write_firmware_project
 
-    r, paths = write_firmware_project(robot, out_dir)
+    if task_file is not None and plan_csv is not None:
+        raise OptionError("give --task or --plan, not both (a task is planned here; a plan was made from one)")
+    r, paths = write_firmware_project(robot, out_dir, task_file, plan_csv)
     click.echo(f"wrote {len(paths)} files of the firmware project of '{r.name}' into {out_dir}")
     click.echo(f"build the host demo:  cmake -S {out_dir} -B {out_dir}/build && cmake --build {out_dir}/build")
     click.echo(f"see {out_dir}/README.md for the Cortex-M4F image and the controller's API")
+
+
+@click.command("firmware-task")
+@click.argument("source", type=click.Path(exists=True, dir_okay=False))
+@out_option("out_dir", "the folder of task_params.h, fw_ptp.{h,c} and robot_fw.c", old=(), type=click.Path(),
+            required=True)
+@click.option("--robot", default=None, help="the firmware's robot (checked against the task's)")
+@click.option("--set", "overrides", multiple=True, help="override a task field (TOML value), e.g. timing.duration=5")
+@click.option("--gen-dir", type=click.Path(file_okay=False), default=None,
+              help="the robot's generated code (default generated/<robot>/)")
+@click.option("--lock", default=None, metavar="JOINTS@TIME",
+              help="the drives report these joints locked from TIME s on (e.g. 5@1.38), unknown to the plan")
+@handle_errors
+def firmware_task_cmd(source: str, out_dir: str, robot: str | None, overrides: tuple[str, ...], gen_dir: str | None,
+                      lock: str | None) -> None:
+    """Write the controller's task for SOURCE (a task file or a plan CSV): task_params.h, the PTP
+    evaluator fw_ptp.{h,c} and robot_fw.c (the generated functions the controller calls).
+
+    Used by firmware_stub/Makefile. Exit codes: 2 bad task file, 4 unwritable output, 5 a task
+    the controller cannot run."""
+    from ..firmware.configuration import schedule_lock, task_from_file, write_task_files
+    from ..robot import load_robot
+
+    task = task_from_file(source, load_robot(robot) if robot else None, overrides)
+    if lock:
+        task = schedule_lock(task, lock)
+    for path in write_task_files(task, out_dir, gen_dir):
+        click.echo(f"wrote {path}")

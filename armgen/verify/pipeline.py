@@ -21,7 +21,7 @@ Stages (each a function returning a :class:`Stage` with a table of rows):
 5. target   — (``--target cortex-m4``) the firmware cross-compiled for the Cortex-M4F (float),
    run under ``qemu-system-arm -M mps2-an386``, compared with the plan (and with the host
    float run); fails naming the apt packages when the toolchain or QEMU is missing. Without
-   ``--plan`` it plans the demo task of ``armgen firmware`` (:mod:`.firmware_project`);
+   ``--plan`` it plans the demo task of ``armgen firmware`` (:mod:`armgen.firmware.project`);
 6. run      — (``--run CSV``, with ``--plan``) what a firmware run printed (the host demo of an
    ``armgen firmware`` project, or its Cortex-M4F image under QEMU) compared with the plan in the
    bounds of the run's precision (``# real_bytes`` of its summary).
@@ -30,7 +30,7 @@ A stage that compared nothing is never a PASS: it is a FAIL, or SKIPPED when the
 ask for it (replay without ``--plan``); skipped stages do not fail the run. Temporary build
 folders are removed however the run ends.
 
-Bounds of the firmware comparisons and why: :mod:`armgen.verify.firmware`.
+Bounds of the firmware comparisons and why: :mod:`armgen.verify.firmware_compare`.
 """
 
 from __future__ import annotations
@@ -57,7 +57,8 @@ from ..progress import progress
 from ..robot import Robot, load_robot
 from ..symbolic.model import ModelOptions, SymbolicModel
 from .compare import ReferenceSamples, compare_model, reference_samples
-from . import firmware as fw
+from .. import firmware as fw
+from . import firmware_compare as fwcmp
 from ..codegen.compiled import CompiledModel, build_library
 from .harness import run_sanitized
 
@@ -330,7 +331,7 @@ def _host_firmware_rows(config: VerifyConfig, plan, task: fw.FirmwareTask,
             rows.append([label, "build and run", str(exc).splitlines()[0], "exit 0, clean", False])
             passed = False
             continue
-        cmp = fw.compare_with_plan(plan, run, task, precision, label)
+        cmp = fwcmp.compare_with_plan(plan, run, task, precision, label)
         rows += cmp.rows
         passed &= cmp.passed
     return rows, passed
@@ -371,7 +372,7 @@ def _default_target_plan(config: VerifyConfig, work: Path) -> Path:
     """Without --plan: the demo task of ``armgen firmware`` (a short line from the robot's q0,
     its first named configuration, or mid-range), planned with the symbolic backend."""
     from ..planning.result import write_plan
-    from .firmware_project import plan_demo
+    from ..firmware.project import plan_demo
 
     ref = config.robot_ref
     if not ref:  # a bundled robot by name, else its file
@@ -414,7 +415,7 @@ def stage_target(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder |
     except ArmgenError as exc:
         return Stage("target", False, columns, [[label, "build and run", str(exc).splitlines()[0], "exit 0", False]],
                      "the Cortex-M4F build or the QEMU run failed")
-    cmp = fw.compare_with_plan(plan, run, task, "float", label)
+    cmp = fwcmp.compare_with_plan(plan, run, task, "float", label)
     rows += cmp.rows
     passed &= cmp.passed
     try:  # the same task on the host in float: how much of the difference is the target's
@@ -423,7 +424,7 @@ def stage_target(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder |
         ticks = sorted(set(run.by_tick()) & set(host.by_tick()))
         a, b = run.by_tick(), host.by_tick()
         d = max((float(np.max(np.abs(a[k][2:2 + n] - b[k][2:2 + n]))) for k in ticks), default=0.0)
-        bound = fw.bounds_for("float", task.mode)[0]
+        bound = fwcmp.bounds_for("float", task.mode)[0]
         rows.append([f"{config.target} vs host firmware, float", "max |Δq| [rad]", d, bound, d <= bound])
         passed &= d <= bound
     except ArmgenError as exc:
@@ -455,7 +456,7 @@ def stage_run(config: VerifyConfig) -> Stage:
     task, refused = _firmware_task(config, plan, label)
     if task is None:
         return Stage("run", False, columns, [refused], "the controller cannot run this plan")
-    cmp = fw.compare_with_plan(plan, run, task, precision, label)
+    cmp = fwcmp.compare_with_plan(plan, run, task, precision, label)
     return Stage("run", cmp.passed, columns, cmp.rows, "" if cmp.passed else f"{config.run} differs from the plan")
 
 

@@ -43,11 +43,28 @@ typedef char ctrl_check_ptp_ncoef[(FW_PTP_NCOEF == CTRL_NCOEF) ? 1 : -1];
 /* Playback: one tick may move a joint by qdot_max * dt times (1 + this): the chord of a
  * polynomial whose speed stays below qdot_max is shorter, this covers the rounding. */
 #define PLAYBACK_STEP_RTOL CTRL_LIT(1e-3)
+/* MOVE_TO. The IK's tolerances: float cannot resolve 1e-6 m on a ~1 m arm (its FK carries a
+ * few 1e-7 of rounding), so 5e-5 m / rad there (half the 1e-4 the target is checked to);
+ * 1e-9 in double. Its iteration cap (the generated loop's full search). */
+#if CTRL_USE_FLOAT
+#define MOVE_TO_TOL CTRL_LIT(5e-5)
+#else
+#define MOVE_TO_TOL CTRL_LIT(1e-9)
+#endif
+#define MOVE_TO_ITERATIONS CTRL_LIT(150.0)
+/* The profile accelerates over this fraction of its duration and decelerates over as much. */
+#define MOVE_TO_BLEND CTRL_LIT(0.25)
+/* It plans with the limits times (1 - this): the guards (qdot_max) then never see rounding. */
+#define MOVE_TO_MARGIN CTRL_LIT(1e-3)
+#define QDDOT_MAX_LIMIT CTRL_LIT(1.0e4)
 
 /* The spec 30 / 35 modes need generated functions a robot may lack (e.g. without redundancy):
  * the build sets these to 0 then, and ctrl_init rejects the mode. */
 #ifndef CTRL_HAS_FAULT_TOLERANT
 #define CTRL_HAS_FAULT_TOLERANT 1
+#endif
+#ifndef CTRL_HAS_MOVE_TO
+#define CTRL_HAS_MOVE_TO 1 /* the generated <p>_ik; without it MOVE_TO is UNREACHABLE */
 #endif
 #ifndef CTRL_HAS_WEIGHTED_GPM
 #define CTRL_HAS_WEIGHTED_GPM 1
@@ -125,6 +142,7 @@ const char *ctrl_fault_name(ctrl_fault f) {
     case CTRL_FAULT_LOCK_REPORT: return "LOCK_REPORT";
     case CTRL_FAULT_REDUNDANCY: return "REDUNDANCY";
     case CTRL_FAULT_SPEED: return "SPEED";
+    case CTRL_FAULT_UNREACHABLE: return "UNREACHABLE";
     default: break;
   }
   return "?";
@@ -512,7 +530,7 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
   }
   c->cfg = *config; /* validated once, here; the ticks use only this copy */
   config = &c->cfg;
-  ok = positive(config->dt) && positive(config->qdot_max) && config->qdot_max <= QDOT_MAX_LIMIT &&
+  ok = positive(config->dt) &&
        at_most(config->residual_rel, RESIDUAL_REL_LIMIT) && at_most(config->residual_abs, RESIDUAL_ABS_LIMIT) &&
        at_most(config->pos_err_max, POS_ERR_MAX_LIMIT);
   for (i = 0; i < N; ++i) {
@@ -522,7 +540,8 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
     /* held after a bad configuration: q_start when valid, else mid-range (else 0: no limits) */
     c->q_hold[i] = inside ? q : (limits ? lo + CTRL_LIT(0.5) * (hi - lo) : CTRL_LIT(0.0));
     c->mask[i] = CTRL_LIT(1.0);
-    ok = ok && inside;
+    ok = ok && inside && positive(config->qdot_max[i]) && config->qdot_max[i] <= QDOT_MAX_LIMIT &&
+         positive(config->qddot_max[i]) && config->qddot_max[i] <= QDDOT_MAX_LIMIT;
   }
   if (ok) {
     switch (config->mode) {
@@ -555,7 +574,7 @@ static int moving(const ctrl *c) { return c->state == CTRL_STATE_RUNNING || c->s
 
 static ctrl_real tick_time(const ctrl *c) {
   const ctrl_config *cfg = &c->cfg;
-  if (cfg->mode == CTRL_MODE_PLAYBACK) {
+  if (cfg->mode == CTRL_MODE_PLAYBACK && !c->moving_to) {
     const ctrl_pb_config *pb = &cfg->pb;
     ctrl_real t_end = pb->knots[pb->nseg];
     if (c->k >= c->n_ticks) {
@@ -680,7 +699,7 @@ static ctrl_fault check_step(const ctrl *c, const ctrl_real *J, const ctrl_real 
   /* A singular pose: with lambda = 0 the step's floored pivots give a huge velocity, or one
    * that does not meet the task (damping > 0: the same once the damping is exceeded). */
   for (i = 0; i < N; ++i) {
-    if (CTRL_FABS(qd[i]) > cfg->qdot_max) return CTRL_FAULT_SINGULAR;
+    if (CTRL_FABS(qd[i]) > cfg->qdot_max[i]) return CTRL_FAULT_SINGULAR;
   }
   if (!damped) {
     ctrl_real v0 = CTRL_LIT(0.0), v1 = CTRL_LIT(0.0), v2 = CTRL_LIT(0.0);
@@ -836,8 +855,6 @@ static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, 
 static ctrl_fault tick_playback(ctrl *c, ctrl_real t, ctrl_output *out) {
   const ctrl_config *cfg = &c->cfg;
   const ctrl_pb_config *pb = &cfg->pb;
-  /* one tick may move a joint by at most qdot_max * dt (a little more for rounding) */
-  ctrl_real step_max = cfg->qdot_max * cfg->dt * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
   ctrl_real q[N], qd[N], th[3];
   ctrl_fault f;
   int i;
@@ -855,7 +872,9 @@ static ctrl_fault tick_playback(ctrl *c, ctrl_real t, ctrl_output *out) {
   if (f == CTRL_FAULT_NONE && !all_finite(qd, N)) f = CTRL_FAULT_NONFINITE_OUTPUT;
   if (f != CTRL_FAULT_NONE) return f;
   for (i = 0; i < N; ++i) {
-    if (CTRL_FABS(qd[i]) > cfg->qdot_max || CTRL_FABS(q[i] - c->q_hold[i]) > step_max) return CTRL_FAULT_SPEED;
+    /* one tick may move a joint by at most qdot_max[i] * dt (a little more for rounding) */
+    ctrl_real step_max = cfg->qdot_max[i] * cfg->dt * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
+    if (CTRL_FABS(qd[i]) > cfg->qdot_max[i] || CTRL_FABS(q[i] - c->q_hold[i]) > step_max) return CTRL_FAULT_SPEED;
   }
   accept(c, t, q, qd, out);
   if (moving(c)) {
@@ -895,7 +914,87 @@ static ctrl_fault update_locks(ctrl *c, uint32_t reported) {
   return CTRL_FAULT_NONE;
 }
 
+/* The rest-to-rest trapezoid s(tau), tau = t / T in [0, 1], and ds/dtau: accelerating over
+ * the first MOVE_TO_BLEND of the time, decelerating over the last. */
+static void move_to_profile(ctrl_real tau, ctrl_real *s, ctrl_real *ds) {
+  const ctrl_real b = MOVE_TO_BLEND;
+  const ctrl_real k = CTRL_LIT(1.0) / (b * (CTRL_LIT(1.0) - b));
+  tau = min_r(max_r(tau, CTRL_LIT(0.0)), CTRL_LIT(1.0));
+  if (tau < b) {
+    *s = CTRL_LIT(0.5) * k * tau * tau;
+    *ds = k * tau;
+  } else if (tau > CTRL_LIT(1.0) - b) {
+    ctrl_real r = CTRL_LIT(1.0) - tau;
+    *s = CTRL_LIT(1.0) - CTRL_LIT(0.5) * k * r * r;
+    *ds = k * r;
+  } else {
+    *s = (tau - CTRL_LIT(0.5) * b) / (CTRL_LIT(1.0) - b);
+    *ds = CTRL_LIT(1.0) / (CTRL_LIT(1.0) - b);
+  }
+}
+
+/* MOVE_TO: solve the IK on board from the held command, then plan the shortest common
+ * duration (whole ticks) in which every joint's peak speed |delta_i| / ((1 - b) T) and
+ * acceleration |delta_i| / (b (1 - b) T^2) stay within its limits. Returns UNREACHABLE when
+ * the IK does not converge or its answer lies outside the limits. */
+static ctrl_fault start_move_to(ctrl *c, const ctrl_real *target) {
+  const ctrl_config *cfg = &c->cfg;
+  const ctrl_real b = MOVE_TO_BLEND, keep = CTRL_LIT(1.0) - MOVE_TO_MARGIN;
+  ctrl_real q[N], T = CTRL_LIT(0.0);
+  uint32_t n;
+  int i;
+  if (!all_finite(target, 16)) return CTRL_FAULT_NONFINITE_INPUT;
+#if CTRL_HAS_MOVE_TO
+  {
+    ctrl_real pe, oe, iterations, success;
+    if (ctrl_gen_ik(target, c->q_hold, c->q_hold, CTRL_LIT(1.0), MOVE_TO_TOL, MOVE_TO_TOL, MOVE_TO_ITERATIONS, q,
+                    &pe, &oe, &iterations, &success) != CTRL_GEN_OK || !(success > CTRL_LIT(0.5))) {
+      return CTRL_FAULT_UNREACHABLE;
+    }
+  }
+#else
+  return CTRL_FAULT_UNREACHABLE;
+#endif
+  if (check_command(c, q) != CTRL_FAULT_NONE) return CTRL_FAULT_UNREACHABLE;
+  for (i = 0; i < N; ++i) {
+    ctrl_real d = CTRL_FABS(q[i] - c->q_hold[i]);
+    T = max_r(T, d / ((CTRL_LIT(1.0) - b) * keep * cfg->qdot_max[i]));
+    T = max_r(T, CTRL_SQRT(d / (b * (CTRL_LIT(1.0) - b) * keep * cfg->qddot_max[i])));
+    c->mt_q0[i] = c->q_hold[i];
+    c->mt_delta[i] = q[i] - c->q_hold[i];
+  }
+  n = (uint32_t)(T / cfg->dt) + 1u; /* whole ticks, at least one: T only grows */
+  c->mt_T = (ctrl_real)n * cfg->dt;
+  c->n_ticks = n;
+  c->moving_to = 1;
+  c->k = 0;
+  c->state = CTRL_STATE_RUNNING;
+  return CTRL_FAULT_NONE;
+}
+
+static ctrl_fault tick_move_to(ctrl *c, ctrl_real t, ctrl_output *out) {
+  ctrl_real q[N], qd[N], s, ds;
+  ctrl_fault f;
+  int i;
+  move_to_profile(t / c->mt_T, &s, &ds);
+  for (i = 0; i < N; ++i) {
+    q[i] = (c->k >= c->n_ticks) ? c->mt_q0[i] + c->mt_delta[i] : c->mt_q0[i] + s * c->mt_delta[i];
+    qd[i] = (c->k >= c->n_ticks) ? CTRL_LIT(0.0) : ds * c->mt_delta[i] / c->mt_T;
+  }
+  f = check_command(c, q);
+  if (f != CTRL_FAULT_NONE) return f;
+  for (i = 0; i < N; ++i) {
+    if (CTRL_FABS(qd[i]) > c->cfg.qdot_max[i]) return CTRL_FAULT_SPEED;
+  }
+  accept(c, t, q, qd, out);
+  if (moving(c)) {
+    ++c->k;
+  }
+  return CTRL_FAULT_NONE;
+}
+
 static ctrl_fault tick_mode(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_output *out) {
+  if (c->moving_to) return tick_move_to(c, t, out);
   switch (c->cfg.mode) {
     case CTRL_MODE_PLAYBACK: return tick_playback(c, t, out);
 #if CTRL_HAS_FAULT_TOLERANT
@@ -917,6 +1016,7 @@ ctrl_fault ctrl_tick(ctrl *c, const ctrl_input *in, ctrl_output *out) {
   if (c->state != CTRL_STATE_FAULT) {
     ctrl_real t = moving(c) ? tick_time(c) : c->t_hold;
     int starting = c->state == CTRL_STATE_IDLE && cmd == CTRL_CMD_START;
+    ctrl_fault f0;
     ctrl_fault lock = in != NULL ? update_locks(c, in->locked) : CTRL_FAULT_NONE;
     if (in != NULL && !all_finite(in->xdot_offset, 6)) {
       latch(c, CTRL_FAULT_NONFINITE_INPUT, t);
@@ -927,7 +1027,12 @@ ctrl_fault ctrl_tick(ctrl *c, const ctrl_input *in, ctrl_output *out) {
     } else if (moving(c) && cmd == CTRL_CMD_STOP) {
       c->state = CTRL_STATE_DONE;
       c->t_hold = t;
+    } else if (!moving(c) && cmd == CTRL_CMD_MOVE_TO && (f0 = start_move_to(c, in->target)) != CTRL_FAULT_NONE) {
+      latch(c, f0, t); /* the arm holds where it is */
     } else {
+      if (c->moving_to && c->k == 0u) {
+        t = tick_time(c); /* the MOVE_TO just accepted: its tick 0 */
+      }
       if (starting) {
         c->state = c->locked != 0u ? CTRL_STATE_DEGRADED : CTRL_STATE_RUNNING;
         c->k = 0;

@@ -24,7 +24,7 @@
  *       armgen/planning/cartesian.py tick by tick.
  *   CTRL_MODE_PLAYBACK  joint-space polynomial segments (spec 40): per joint the knot times
  *       and six coefficients per segment, evaluated by the generated fw_ptp_eval; every
- *       command is checked against qdot_max (speed and the step from the previous command).
+ *       command is checked against qdot_max[i] (speed and the step from the previous command).
  *   CTRL_MODE_FAULT_TOLERANT  spec 30: the same on-board path (circle with turns, or line),
  *       closed loop, per tick the joint-manipulability index H_M and its gradient on the
  *       healthy columns (generated ft_index), then GPM (alpha = K grad H_M), WLN (generated
@@ -76,7 +76,7 @@ typedef enum {
                                       was finite: an overflow */
   CTRL_FAULT_JOINT_LIMIT = 4,      /* the next joint command lies outside [q_min, q_max] */
   CTRL_FAULT_SINGULAR = 5,         /* a singular pose beyond the damping's reach: a joint
-                                      speed above qdot_max, or |J q_dot - x_dot| above the
+                                      speed above its qdot_max[i], or |J q_dot - x_dot| above the
                                       residual bound (the step could not meet the task) */
   CTRL_FAULT_OVERRUN = 6,          /* the scheduler reported a missed period (tick overrun) */
   CTRL_FAULT_TRACKING = 7,         /* the tool left the path by more than pos_err_max */
@@ -86,15 +86,20 @@ typedef enum {
                                       withdraws a lock (a locked joint cannot come back) */
   CTRL_FAULT_REDUNDANCY = 11,      /* more joints locked than the mode can absorb (NDOF - NTASK
                                       in FAULT_TOLERANT; none in the other modes) */
-  CTRL_FAULT_SPEED = 12            /* playback: a commanded speed, or the step from the previous
-                                      command, above qdot_max (e.g. a period that does not fit
+  CTRL_FAULT_SPEED = 12,           /* playback: a commanded speed, or the step from the previous
+                                      command, above the joint's qdot_max[i] (e.g. a period that does not fit
                                       the plan's knots) */
+  CTRL_FAULT_UNREACHABLE = 13      /* MOVE_TO: the on-board IK found no configuration inside the
+                                      limits within its tolerances (or the build has no IK) */
 } ctrl_fault;
 
 typedef enum {
   CTRL_CMD_NONE = 0,  /* keep going */
   CTRL_CMD_START = 1, /* IDLE -> RUNNING (this tick is tick 0 of the motion) */
-  CTRL_CMD_STOP = 2   /* RUNNING -> DONE, holding the current command */
+  CTRL_CMD_STOP = 2,  /* RUNNING -> DONE, holding the current command */
+  CTRL_CMD_MOVE_TO = 3 /* IDLE or DONE -> RUNNING: to the tool pose ctrl_input.target (on-board IK,
+                          then a joint-space profile within qdot_max and qddot_max); ignored
+                          while moving (STOP first). START is not accepted after it (ctrl_init) */
 } ctrl_command;
 
 typedef enum {
@@ -180,7 +185,10 @@ typedef struct {
   ctrl_real q_start[CTRL_NDOF]; /* start configuration (and the repetitive target) */
   ctrl_real q_min[CTRL_NDOF];   /* joint limits */
   ctrl_real q_max[CTRL_NDOF];
-  ctrl_real qdot_max;           /* singular-pose guard: max |q_dot_i|, rad/s, (0, 1e3] */
+  ctrl_real qdot_max[CTRL_NDOF]; /* speed guard per joint: max |q_dot_i|, rad/s (m/s), (0, 1e3];
+                                   the robot file's qdlim where it gives one */
+  ctrl_real qddot_max[CTRL_NDOF]; /* MOVE_TO acceleration per joint, rad/s^2 (m/s^2), (0, 1e4];
+                                   the robot file's qddlim where it gives one */
   ctrl_real residual_rel;       /* singular-pose guard: |J q_dot - x_dot|_inf may reach */
   ctrl_real residual_abs;       /*   residual_rel * |x_dot|_inf + residual_abs; each in [0, 1] */
   ctrl_real pos_err_max;        /* tracking guard, m, [0, 1]; 0 disables */
@@ -198,6 +206,7 @@ typedef struct {
   uint32_t missed_ticks;    /* periods the scheduler missed since the previous tick */
   uint32_t locked;          /* bit i: joint i is locked (as its drive reports it); a lock is
                                permanent: clearing a reported bit is a LOCK_REPORT fault */
+  ctrl_real target[16];     /* MOVE_TO: the tool pose, 4x4 homogeneous, column-major (m) */
 } ctrl_input;
 
 /* What the controller hands back every tick: always finite, always inside the limits. */
@@ -241,6 +250,9 @@ typedef struct {
   uint32_t locked;              /* bit i: joint i locked */
   ctrl_real mask[CTRL_NDOF];    /* 1 healthy, 0 locked: step_fault's column mask */
   ctrl_real qd_prev[CTRL_NDOF]; /* previous tick's command velocity (WLN plain rule) */
+  /* MOVE_TO: q = mt_q0 + s(t / mt_T) mt_delta, s the trapezoid of move_to_profile */
+  int moving_to;
+  ctrl_real mt_q0[CTRL_NDOF], mt_delta[CTRL_NDOF], mt_T;
 } ctrl;
 
 /* Validate the configuration, copy it into the controller and set up the task. Returns CTRL_FAULT_NONE (state IDLE,

@@ -3,7 +3,7 @@
  * `generated/<robot>/<robot>.h` onto the names the controller uses, so controller.c is
  * written once for every robot.
  *
- * Select the robot at build time (the Makefile and armgen/verify/firmware.py do this):
+ * Select the robot at build time (the Makefile and armgen/firmware/builder.py do this):
  *
  *   -DCTRL_ROBOT=modular8 -DCTRL_ROBOT_UC=MODULAR8 -DCTRL_ROBOT_HEADER='"modular8.h"'
  *   -DMODULAR8_USE_FLOAT=0|1   (the generated header's one precision switch)
@@ -52,5 +52,6 @@ typedef CTRL_FN(real) ctrl_real;
 #define ctrl_gen_wln_weights CTRL_FN(wln_weights)
 #define ctrl_gen_step_fault CTRL_FN(step_fault_from_jacobian)
 #define ctrl_gen_step_wgpm CTRL_FN(step_wgpm_from_jacobian)
+#define ctrl_gen_ik CTRL_FN(ik)
 
 #endif /* ARMGEN_CTRL_ROBOT_H */

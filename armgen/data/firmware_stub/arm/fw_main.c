@@ -38,6 +38,12 @@
 #ifndef FW_EXTRA_TICKS
 #define FW_EXTRA_TICKS 2
 #endif
+#ifdef FW_MOVE_TO
+extern const ctrl_real fw_move_to_target[16]; /* the tool pose, column-major (the benchmark's) */
+#endif
+#ifndef FW_MOVE_TO_MAX_TICKS
+#define FW_MOVE_TO_MAX_TICKS 100000u /* a MOVE_TO run stops here at the latest */
+#endif
 #ifndef FW_CPU_HZ
 #define FW_CPU_HZ 25000000u /* MPS2 AN386 processor clock, the SysTick source */
 #endif
@@ -132,9 +138,18 @@ int main(void) {
   if (period == 0u) {
     period = 1u;
   }
-  limit = controller.n_ticks + FW_EXTRA_TICKS + 2u;
   memset(&in, 0, sizeof(in));
+#ifdef FW_MOVE_TO
+  /* -DFW_MOVE_TO=1: a MOVE_TO to fw_move_to_target (defined beside fw_task) instead of START */
+  for (i = 0; i < 16u; ++i) {
+    in.target[i] = fw_move_to_target[i];
+  }
+  in.command = CTRL_CMD_MOVE_TO;
+  limit = FW_MOVE_TO_MAX_TICKS;
+#else
   in.command = CTRL_CMD_START;
+  limit = controller.n_ticks + FW_EXTRA_TICKS + 2u;
+#endif
   selected_tick = ctrl_tick;
   for (i = 0; i <= limit; ++i) {
     uint32_t d, cycles;

@@ -1,4 +1,5 @@
-"""``armgen firmware ROBOT --out DIR``: a self-contained C project for any robot.
+"""``armgen firmware ROBOT --out DIR [--task TASK.toml | --plan plan.csv]``: a self-contained C
+project for any robot, running the user's task or a demo.
 
 The folder holds the robot file, its generated kinematics (as ``armgen gen`` writes them), the
 controller sources of the firmware stub, a compiled-in demo task with armgen's plan of it, a
@@ -6,7 +7,8 @@ controller sources of the firmware stub, a compiled-in demo task with armgen's p
 ships, the Cortex-M4F image, and a README. The folder appears complete or not at all: it is
 assembled in a hidden staging folder beside ``DIR`` and renamed into place.
 
-The demo task (:func:`demo_task`): a straight line of the tool, orientation held, from the
+The task the project's demo runs (:class:`ProjectTask`): the user's task file (planned here) or
+plan, when given; else the built-in demo task (:func:`demo_task`): a straight line of the tool, orientation held, from the
 robot's named configuration ``q0`` (else its first named configuration, else mid-range of
 the limits), 5 cm in 1 s (cubic time law, pseudo-inverse, Euler at 10 ms). When that line
 leaves the limits or the workspace, the next candidate direction (±x, ±y, ±z), then 2 cm,
@@ -21,6 +23,7 @@ import json
 import os
 import shutil
 import tempfile
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -30,11 +33,12 @@ import numpy as np
 from .. import __version__
 from ..codegen.generate import CodegenConfig, generate
 from ..errors import ArmgenError, OutputError, PlanningError, excerpt
-from ..planning.result import write_plan
-from ..planning.tasks import run_task
+from ..planning.result import PlanResult, read_plan, write_plan
+from ..planning.tasks import load_task, run_task
 from ..robot import Robot, load_robot, resolve_robot_path
 from ..symbolic.model import SymbolicModel
-from . import firmware as fw
+from .configuration import FirmwareTask, refusal, task_from_plan, write_task_files
+from .errors import FirmwareError
 
 DEMO_DURATION_S = 1.0
 DEMO_STEP_S = 0.01  # the controller's tick: 100 ticks, a short demo and a small CSV
@@ -83,7 +87,7 @@ def plan_demo(robot: Robot, robot_ref: str, source: str = "demo task"):
             except ArmgenError as exc:
                 reasons.append(str(exc).splitlines()[0])
                 continue
-            if fw.refusal(result) is None:
+            if refusal(result) is None:
                 axis = "xyz"[int(np.flatnonzero(direction)[0])]
                 sign = "+" if sum(direction) > 0 else "-"
                 start = task["start"] if isinstance(task["start"], str) else "mid-range of the limits"
@@ -94,21 +98,89 @@ def plan_demo(robot: Robot, robot_ref: str, source: str = "demo task"):
                         f"poses to the robot file (last reason: {reasons[-1] if reasons else '?'})")
 
 
+@dataclass
+class ProjectTask:
+    """The task the project's demo runs: the task dict (None for a plan without one), its plan,
+    the controller's configuration of it, and a description for the README."""
+
+    task: dict[str, Any] | None
+    result: PlanResult
+    firmware: FirmwareTask
+    description: str
+    source: str
+
+
+def _own_robot(job: ProjectTask, robot: Robot) -> ProjectTask:
+    if job.firmware.robot.sha256 != robot.sha256:
+        raise FirmwareError(f"{job.source}: the task is for robot '{job.firmware.robot.name}' (robot file sha256 "
+                            f"{job.firmware.robot.sha256[:12]}…), the project for '{robot.name}' "
+                            f"({robot.sha256[:12]}…); give the task's robot file to armgen firmware, or a task for "
+                            "this robot")
+    return job
+
+
+def _runnable(result: PlanResult, source: str, robot: Robot) -> FirmwareTask:
+    reason = refusal(result)
+    if reason is not None:
+        raise FirmwareError(f"{source}: the controller cannot reproduce this plan: {reason}")
+    return task_from_plan(result, source, robot)
+
+
+def demo_project_task(robot: Robot, robot_ref: str) -> ProjectTask:
+    planned, result, description = plan_demo(robot, robot_ref, "demo/demo.toml")
+    return ProjectTask(planned, result, task_from_plan(result, "demo/demo.toml", robot), description, "demo task")
+
+
+def task_file_project_task(robot: Robot, task_path: str | Path) -> ProjectTask:
+    """The user's task file, planned here (``armgen plan``'s planner and checks)."""
+    task, sha = load_task(task_path)
+    source = str(task_path)
+    result = run_task(task, source, sha)
+    job = ProjectTask(task, result, _runnable(result, source, robot),
+                      f"the task of {Path(task_path).name} (planner {task.get('planner')})", source)
+    return _own_robot(job, robot)
+
+
+def plan_project_task(robot: Robot, plan_path: str | Path) -> ProjectTask:
+    """A plan made already by ``armgen plan`` (its CSV and plan.json)."""
+    source = str(plan_path)
+    result = read_plan(plan_path)
+    task = result.metadata.get("task") or None
+    job = ProjectTask(task, result, _runnable(result, source, robot),
+                      f"the plan {Path(plan_path).name} (planner {result.metadata.get('planner')})", source)
+    return _own_robot(job, robot)
+
+
 def _toml_value(value: Any) -> str:
     if isinstance(value, str):
         return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):  # a table inside an array (a program's moves): inline
+        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, bool):
+        return "true" if value else "false"
     return repr(float(value)) if isinstance(value, float) else repr(value)
 
 
+def _toml_key(key: str) -> str:
+    return key if key.replace("_", "").replace("-", "").isalnum() and key.isascii() else _toml_value(key)
+
+
+def _toml_table(table: dict[str, Any], name: str) -> list[str]:
+    """``[name]`` with its scalars and arrays, then its sub-tables as ``[name.key]``."""
+    lines = [f"[{name}]"] if name else []
+    lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in table.items() if not isinstance(v, dict)]
+    for key, sub in table.items():
+        if isinstance(sub, dict):
+            lines += ["", *_toml_table(sub, f"{name}.{_toml_key(key)}" if name else _toml_key(key))]
+    return lines
+
+
 def task_toml(task: dict[str, Any], comment: str) -> str:
-    """A task dict (top-level scalars, one level of tables) as TOML text."""
-    lines = [f"# {comment}", "# Written by `armgen firmware`; plan it with `armgen plan demo/demo.toml` in the project."]
-    lines += [f"{k} = {_toml_value(v)}" for k, v in task.items() if not isinstance(v, dict)]
-    for key, table in task.items():
-        if isinstance(table, dict):
-            lines += ["", f"[{key}]", *(f"{k} = {_toml_value(v)}" for k, v in table.items())]
+    """A task dict (as a task file parses) as TOML text."""
+    lines = [f"# {comment}", "# Written by `armgen firmware`; plan it with `armgen plan demo/demo.toml` in the project.",
+             *_toml_table(task, "")]
     return "\n".join(lines) + "\n"
 
 
@@ -168,7 +240,7 @@ def _apply_umask(root: Path) -> None:
             os.chmod(os.path.join(folder, name), 0o666 & ~mask)
 
 
-def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, robot_ref: str) -> None:
+def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, job: ProjectTask) -> None:
     stub = resources.files("armgen.data") / "firmware_stub"
     (stage / PROJECT_ROBOT_FILE).write_bytes(robot_bytes)
     code = generate(CodegenConfig(robot))
@@ -179,20 +251,21 @@ def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, robot_ref: str) -> 
         (stage / folder).mkdir(exist_ok=True)
         for name in names:
             (stage / folder / Path(name).name).write_bytes((stub / name).read_bytes())
-    planned, result, description = plan_demo(robot, robot_ref, "demo/demo.toml")
-    # The project names its own copy of the robot file, so it plans and verifies in place.
-    task = dict(planned, robot=PROJECT_ROBOT_FILE)
-    toml_text = task_toml(task, f"Demo task of robot '{robot.name}': {description}.")
+    write_task_files(job.firmware, stage / "task", stage / "generated")
     (stage / "demo").mkdir()
-    (stage / "demo" / "demo.toml").write_text(toml_text, encoding="utf-8")
-    result.metadata["task"] = task
-    result.metadata["task_sha256"] = hashlib.sha256(toml_text.encode()).hexdigest()
-    result.metadata["task_file"] = "demo/demo.toml"
+    result = job.result
+    if job.task is not None:
+        # The project names its own copy of the robot file, so it plans and verifies in place.
+        task = dict(job.task, robot=PROJECT_ROBOT_FILE)
+        toml_text = task_toml(task, f"The task of robot '{robot.name}' the demo runs: {job.description}.")
+        (stage / "demo" / "demo.toml").write_text(toml_text, encoding="utf-8")
+        result.metadata["task"] = task
+        result.metadata["task_sha256"] = hashlib.sha256(toml_text.encode()).hexdigest()
+        result.metadata["task_file"] = "demo/demo.toml"
     write_plan(result, stage / "demo" / "plan.csv")
-    fw.write_task_files(fw.task_from_dict(planned, "demo/demo.toml", robot), stage / "task", stage / "generated")
     values = {"ROBOT": robot.name, "NDOF": str(robot.n), "PREFIX": code.prefix, "PREFIX_UC": code.prefix.upper(),
-              "MAX_SEGMENTS": str(fw.MAX_SEGMENTS), "VERSION": __version__, "SHA256": robot.sha256,
-              "DEMO": description}
+              "MAX_SEGMENTS": str(job.firmware.max_segments), "VERSION": __version__, "SHA256": robot.sha256,
+              "DEMO": job.description}
     project = stub / "project"
     (stage / "CMakeLists.txt").write_text(_fill((project / "CMakeLists.txt.in").read_text(encoding="utf-8"), values),
                                           encoding="utf-8")
@@ -203,15 +276,24 @@ def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, robot_ref: str) -> 
         (project / "cmake" / "arm-none-eabi-cortex-m4.cmake").read_bytes())
 
 
-def write_firmware_project(robot_ref: str, out: str | Path) -> tuple[Robot, list[Path]]:
+def write_firmware_project(robot_ref: str, out: str | Path, task: str | Path | None = None,
+                           plan: str | Path | None = None) -> tuple[Robot, list[Path]]:
     """Write the project into ``out`` (new, empty, or a project this command wrote earlier:
-    its own files are updated, the user's left alone). Returns the robot and the files written."""
+    its own files are updated, the user's left alone), its demo running ``task`` (a task file,
+    planned here) or ``plan`` (a plan CSV), else the built-in demo task. Returns the robot and
+    the files written. Give at most one of ``task`` and ``plan``."""
     out = Path(out)
     owned = _owned_files(out)
     _check_writable(out)
     robot_path = resolve_robot_path(robot_ref)
     robot = load_robot(robot_ref)
     robot_bytes = robot_path.read_bytes()
+    if task is not None:
+        job = task_file_project_task(robot, task)
+    elif plan is not None:
+        job = plan_project_task(robot, plan)
+    else:
+        job = demo_project_task(robot, robot_ref)
     parent = out.resolve().parent
     try:
         parent.mkdir(parents=True, exist_ok=True)
@@ -220,7 +302,7 @@ def write_firmware_project(robot_ref: str, out: str | Path) -> tuple[Robot, list
         raise OutputError(f"--out {out}: cannot write in {parent}: {exc.strerror or exc}; choose a writable "
                           "folder (nothing was written)") from None
     try:
-        _assemble(stage, robot, robot_bytes, robot_ref)
+        _assemble(stage, robot, robot_bytes, job)
         _apply_umask(stage)
         new = sorted(p.relative_to(stage).as_posix() for p in stage.rglob("*") if p.is_file())
         conflicts = _conflicts(out, owned, new)

@@ -1,0 +1,186 @@
+"""Builds of the firmware for one robot: the controller, the generated kinematics and the
+generated PTP evaluator with the strict flags of spec 10, for the host (gcc, optionally with
+ASan/UBSan) or the Cortex-M4F (arm-none-eabi-gcc, float), once per variant, and one
+executable per task."""
+
+from __future__ import annotations
+
+import concurrent.futures
+import dataclasses
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..codegen.generate import GENERATED_DIR, CodegenConfig, generate, write
+from ..codegen.ptp_c import generate_ptp_evaluator
+from ..codegen.toolchain import ARM_CPU_FLAGS, SANITIZER_FLAGS, STRICT_FLAGS, find_tool, host_cc, run_tool
+from ..fileio import write_text_atomic
+from ..robot import Robot, load_robot
+from .configuration import MAX_SEGMENTS, FirmwareTask
+from .errors import FirmwareError
+from .sources import (ARM_DIR, FIRMWARE_DIR, OPTIONAL_FUNCTIONS, PTP_PREFIX, available_modes, extract_functions,
+                      firmware_functions, robot_prefix)
+
+APT_PACKAGES = "gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm"
+APT_HINT = f"install them from the distribution: apt-get install -y {APT_PACKAGES}"
+
+
+@dataclass(frozen=True)
+class Variant:
+    target: str = "host"  # "host" (gcc) | "arm" (arm-none-eabi-gcc, Cortex-M4F)
+    precision: str = "double"
+    sanitize: bool = False
+    opt: str = "-O2"
+    max_segments: int = MAX_SEGMENTS
+    print_rows: bool = True  # arm: FW_PRINT_ROWS
+    fast_trig: bool = True  # arm: <P>_BOUNDED_TRIG=1 for the generated code, sinf/cosf from arm/fw_fastmath.c
+                            # (-Wl,--wrap) for the rest; else newlib's everywhere
+    gen_opt: str | None = None  # optimisation of the generated kinematics (default: opt)
+    extra: tuple[str, ...] = ()  # more compiler flags (e.g. -fcallgraph-info=su for the benchmark)
+
+    @property
+    def name(self) -> str:
+        san = "_san" if self.sanitize else ""
+        rows = "" if self.print_rows else "_quiet"
+        trig = "" if self.fast_trig or self.target != "arm" else "_newlibtrig"
+        gen = f"_gen{self.gen_opt.replace('-', '_')}" if self.gen_opt and self.gen_opt != self.opt else ""
+        extra = "_x" + re.sub(r"[^0-9a-zA-Z]+", "_", "".join(self.extra)).strip("_") if self.extra else ""
+        return f"{self.target}_{self.precision}{san}{self.opt.replace('-', '_')}{gen}_s{self.max_segments}{rows}{trig}{extra}"
+
+
+# The Cortex-M4F build: float; the controller at -O3 (its short fixed-length loops unrolled),
+# the generated straight-line kinematics at -Os (smaller, and on the M4 also fewer executed
+# instructions than -O2, whose scheduling spills more); sinf/cosf from arm/fw_fastmath.c.
+ARM_VARIANT = Variant("arm", "float", opt="-O3", gen_opt="-Os")
+
+
+def arm_tools() -> dict[str, str]:
+    """The cross toolchain and the emulator, or a ToolchainError naming the apt packages."""
+    return {name: find_tool(name, APT_HINT) for name in
+            ("arm-none-eabi-gcc", "arm-none-eabi-size", "qemu-system-arm")}
+
+
+class FirmwareBuilder:
+    """Compiles the firmware for one robot into ``work``: objects once per variant, one
+    executable per task."""
+
+    def __init__(self, robot: Robot | str, work: str | Path, gen_dir: str | Path | None = None):
+        self.robot = load_robot(robot) if isinstance(robot, str) else robot
+        self.work = Path(work)
+        self.work.mkdir(parents=True, exist_ok=True)
+        self.prefix = robot_prefix(self.robot)
+        self.gen_dir = Path(gen_dir).resolve() if gen_dir is not None else self._generated_dir()
+        source = (self.gen_dir / f"{self.prefix}.c").read_text(encoding="utf-8")
+        self.modes = available_modes(source, self.prefix)
+        self.robot_source = self._robot_source(source)
+        self.ptp_dir = self.work / "ptp"
+        if not (self.ptp_dir / f"{PTP_PREFIX}_ptp.c").is_file():
+            generate_ptp_evaluator(self.ptp_dir, PTP_PREFIX, "double")
+        self._objects: dict[Variant, list[Path]] = {}
+        self._count = 0
+
+    def _generated_dir(self) -> Path:
+        """The checked-in generated/<robot>/ when it belongs to this robot file, else fresh code."""
+        checked_in = (GENERATED_DIR / self.robot.name).resolve()  # the compilers run in their own folders
+        header = checked_in / f"{self.prefix}.h"
+        if header.is_file() and f'ROBOT_SHA256 "{self.robot.sha256}"' in header.read_text(encoding="utf-8"):
+            return checked_in
+        fresh = self.work / "gen"
+        write(generate(CodegenConfig(self.robot)), fresh)
+        return fresh
+
+    def _robot_source(self, source: str) -> Path:
+        full = self.gen_dir / f"{self.prefix}.c"
+        reduced = extract_functions(source, self.prefix, firmware_functions(source, self.prefix))
+        if reduced is None:
+            return full
+        path = self.work / "robot" / f"{self.prefix}_fw.c"
+        write_text_atomic(path, reduced)
+        return path
+
+    def defines(self, v: Variant) -> list[str]:
+        P = self.prefix.upper()
+        flag = 1 if v.precision == "float" else 0
+        d = [f"-DCTRL_ROBOT={self.prefix}", f"-DCTRL_ROBOT_UC={P}", f'-DCTRL_ROBOT_HEADER="{self.prefix}.h"',
+             f"-D{P}_USE_FLOAT={flag}", f"-D{PTP_PREFIX.upper()}_USE_FLOAT={flag}",
+             f"-DCTRL_MAX_SEGMENTS={v.max_segments}"]
+        d += [f"-DCTRL_HAS_{mode}={1 if mode in self.modes else 0}" for mode in OPTIONAL_FUNCTIONS]
+        if v.target == "arm":
+            d += ["-DFW_CSV_HEX=1", f"-DFW_PRINT_ROWS={1 if v.print_rows else 0}"]
+            # the generated kinematics' own bounded-range sin/cos (inline, ≤ 2 ulp on the joint range)
+            d += [f"-D{P}_BOUNDED_TRIG={1 if v.fast_trig else 0}"]
+        return d
+
+    def cflags(self, v: Variant) -> list[str]:
+        flags = [*STRICT_FLAGS, v.opt, "-g"]
+        if v.target == "arm":
+            flags += [*ARM_CPU_FLAGS, "-ffunction-sections", "-fdata-sections", "-fstack-usage"]
+        else:
+            if v.sanitize:
+                flags += list(SANITIZER_FLAGS)
+        return flags + list(v.extra) + self.defines(v) + [f"-I{FIRMWARE_DIR}", f"-I{self.gen_dir}", f"-I{self.ptp_dir}", f"-I{ARM_DIR}"]
+
+    def compiler(self, v: Variant) -> str:
+        if v.target == "arm":
+            return find_tool("arm-none-eabi-gcc", APT_HINT)
+        return host_cc()
+
+    def sources(self, v: Variant) -> list[Path]:
+        common = [self.robot_source, self.ptp_dir / f"{PTP_PREFIX}_ptp.c",
+                  FIRMWARE_DIR / "controller.c", FIRMWARE_DIR / "fw_csv.c"]
+        if v.target == "arm":
+            fast = [ARM_DIR / "fw_fastmath.c"] if v.fast_trig else []
+            return common + [ARM_DIR / "startup.c", ARM_DIR / "semihost.c", ARM_DIR / "fw_main.c", *fast]
+        return common + [FIRMWARE_DIR / "host" / "main.c"]
+
+    def object_dir(self, v: Variant) -> Path:
+        return self.work / f"obj_{v.name}"
+
+    def objects(self, v: Variant) -> list[Path]:
+        """Compile every source of the variant (in parallel); cached."""
+        if v in self._objects:
+            return self._objects[v]
+        cc, flags = self.compiler(v), self.cflags(v)
+        out_dir = self.object_dir(v)
+        out_dir.mkdir(parents=True, exist_ok=True)
+
+        gen_source = self.robot_source
+
+        def compile_one(src: Path) -> Path:
+            obj = out_dir / (src.stem + ".o")
+            f = flags if src != gen_source or not v.gen_opt else [v.gen_opt if x == v.opt else x for x in flags]
+            run_tool([cc, *f, "-c", str(src), "-o", str(obj)], f"compiling {src.name} ({v.name})", cwd=out_dir)
+            return obj
+
+        with concurrent.futures.ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 2)) as pool:
+            objs = list(pool.map(compile_one, self.sources(v)))
+        self._objects[v] = objs
+        return objs
+
+    def executable(self, v: Variant, task: FirmwareTask, name: str | None = None) -> Path:
+        """Link the firmware running ``task``: compiles task_params.h via fw_task.c."""
+        if task.robot.sha256 != self.robot.sha256:
+            raise FirmwareError(f"task for robot '{task.robot.name}' given to the firmware of '{self.robot.name}'")
+        if task.max_segments > v.max_segments:
+            v = dataclasses.replace(v, max_segments=task.max_segments)
+        objs = self.objects(v)
+        self._count += 1
+        name = name or f"task{self._count}"
+        task_dir = self.work / f"{v.name}_{name}"
+        task_dir.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(task_dir / "task_params.h", task.header)
+        cc, flags = self.compiler(v), self.cflags(v)
+        task_obj = task_dir / "fw_task.o"
+        run_tool([cc, *flags, f"-I{task_dir}", "-c", str(FIRMWARE_DIR / "fw_task.c"), "-o", str(task_obj)],
+                 f"compiling the task parameters of {task.source or name}", cwd=task_dir)
+        if v.target == "arm":
+            out = task_dir / "fw_m4.elf"
+            wrap = ["-Wl,--wrap=sinf", "-Wl,--wrap=cosf"] if v.fast_trig else []
+            run_tool([cc, *flags, "-nostartfiles", "--specs=nano.specs", "-T", str(ARM_DIR / "mps2_an386.ld"), *wrap,
+                      "-Wl,--gc-sections", f"-Wl,-Map={out.with_suffix('.map')}", *map(str, objs), str(task_obj),
+                      "-lm", "-o", str(out)], "linking the Cortex-M4F firmware")
+        else:
+            out = task_dir / "fw_host"
+            run_tool([cc, *flags, *map(str, objs), str(task_obj), "-lm", "-o", str(out)], "linking the host firmware")
+        return out

@@ -1,0 +1,162 @@
+"""A firmware run compared with the plan it reproduces, sample by sample (spec 60, stages
+replay, target and run), with the bounds of each precision and why."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..firmware.configuration import DEFAULT_POS_ERR_MAX, RESOLVED_MODES, FirmwareTask
+from ..firmware.output import FAULT_STATE, FirmwareRun
+from ..planning.result import PlanResult
+
+# --- replay bounds -------------------------------------------------------------------------
+# Double: the controller evaluates the planner's formulas in the planner's order through the
+# same generated C; what differs is libm (glibc vs CPython/numpy: ≤ 1 ulp per call), BLAS
+# summation order in numpy's 3-vector norms and products, and tau**3 vs tau*tau*tau: a few
+# ulp (≈ 1e-16 relative) per step. 12 500 open-loop Euler steps integrate these at most
+# linearly (≈ 1e4 × 2e-16 × |q| ≈ 1e-12 rad), and the null-space operators only contract
+# them. 1e-9 rad (as the C-backend replay) leaves three orders of margin and still catches
+# any real divergence (one wrong operation gives ≥ 1e-6 rad). Task error: 1e-9 m likewise.
+FW_DOUBLE_BOUND_RAD = 1e-9
+FW_DOUBLE_BOUND_M = 1e-9
+# Float (Cortex-M4F; the same code built with -D<P>_USE_FLOAT=1): every tick evaluates ~1000
+# float operations of relative error ε = 6e-8, and the solve through J Jᵀ amplifies them by
+# its condition number (κ ≈ 200 at q0 of spec 20), so q̇ is off by ≲ κ ε |q̇| per tick.
+# Compensated (Kahan) summation keeps the integrator from adding one rounding of q (ulp(2.4
+# rad) = 2.4e-7) per tick, so over N ticks the q error is at most the sum of the q̇ errors,
+# N h κ ε |q̇|max = 12 500 × 0.02 s × 200 × 6e-8 × 0.13 rad/s ≈ 4e-4 rad on the combined plan
+# (rounding errors of random sign give ≈ √N times less). Measured there: 3.1e-5 rad (QEMU) and
+# 3.2e-5 rad (host float). Bound 1e-3 rad (0.057°): above the worst-case estimate, 30× the
+# measurement. The task error the controller reports (|p_d − p| in float; its task-space
+# drift is ≲ N h κ ε |ẋ|max ≈ 3e-5 m, FK rounding ≈ 1e-7 m; measured 5e-7 m) gets 1e-4 m.
+# With CLIK the task-space part is corrected every tick, so both bounds are conservative there.
+FW_FLOAT_BOUND_RAD = 1e-3
+FW_FLOAT_BOUND_M = 1e-4
+# Playback (PTP): the polynomial is evaluated afresh each tick (no integration), so the error
+# is that of one float evaluation of Σ a_j τ^j by Horner's rule, ≈ ε Σ |a_j| τ^j: a few
+# ε × |θ|max (≈ 6e-8 × 4.4 rad on spec 40's worked example; measured 4.4e-7 rad there).
+# Bound 1e-5 rad and 1e-5 rad/s: 20× the measurement, still 1000× below a wrong coefficient.
+FW_FLOAT_PLAYBACK_BOUND_RAD = 1e-5
+FW_FLOAT_PLAYBACK_BOUND_RAD_S = 1e-5
+
+
+@dataclass
+class Comparison:
+    rows: list[list[Any]]  # [run, quantity, value, bound, ok]
+    passed: bool
+    max_dq: float = float("nan")
+    max_dtask: float = float("nan")
+    fault_tick: int | None = None
+
+
+def bounds_for(precision: str, mode: str) -> tuple[float, float]:
+    if precision == "double":
+        return FW_DOUBLE_BOUND_RAD, FW_DOUBLE_BOUND_M
+    if mode == "playback":
+        return FW_FLOAT_PLAYBACK_BOUND_RAD, FW_FLOAT_PLAYBACK_BOUND_RAD_S
+    return FW_FLOAT_BOUND_RAD, FW_FLOAT_BOUND_M
+
+
+
+
+def _expected_fault_ticks(plan: PlanResult, task: FirmwareTask,
+                          plan_ticks: np.ndarray) -> tuple[int, int, str] | None:
+    """Where a guarded controller must stop, and with which fault: at the plan's first sample
+    outside the joint limits (JOINT_LIMIT; the planners do not enforce them) or, in the
+    resolved-rate modes, farther than the tracking guard from the path (TRACKING: e.g. a lock
+    that leaves the arm unable to follow) — or, when the plan keeps only every k-th sample,
+    anywhere after the last good sample and up to that one."""
+    robot = task.robot
+    if task.mode in RESOLVED_MODES:
+        idx = list(range(robot.n))
+        q = np.column_stack([plan.column(f"q{i + 1}_rad") for i in idx])
+    else:
+        idx = sorted(task.joints)
+        q = np.column_stack([plan.column(f"theta_{task.joints[i]}_rad") for i in idx])
+    bad_q = ((q > robot.qmax[idx]) | (q < robot.qmin[idx])).any(axis=1)
+    bad_e = plan.column("pos_err_m") > DEFAULT_POS_ERR_MAX if task.mode in RESOLVED_MODES else np.zeros_like(bad_q)
+    rows = np.flatnonzero(bad_q | bad_e)
+    if not rows.size:
+        return None
+    r = int(rows[0])
+    hi = int(plan_ticks[r])
+    lo = int(plan_ticks[r - 1]) + 1 if r > 0 else hi
+    return lo, hi, "JOINT_LIMIT" if bad_q[r] else "TRACKING"
+
+
+def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, precision: str, label: str,
+                      tick_slack: int | None = None) -> Comparison:
+    """Sample-by-sample comparison of a firmware run with the plan it reproduces.
+
+    Resolved rate: max |Δq| and max |Δ task error| (|p_d − p|) over the plan's samples;
+    playback: max |Δθ| and |Δω|. A plan that leaves the joint limits must make the controller
+    stop there with CTRL_FAULT_JOINT_LIMIT at that sample (± ``tick_slack``: 0 in double,
+    1 in float), holding a finite command inside the limits; otherwise the run must end DONE.
+    """
+    robot = task.robot
+    n = robot.n
+    bound_q, bound_2 = bounds_for(precision, task.mode)
+    slack = tick_slack if tick_slack is not None else (0 if precision == "double" else 1)
+    t_plan = plan.column("t_s")
+    if task.mode in RESOLVED_MODES:
+        plan_ticks = np.rint(t_plan / task.dt).astype(int)
+    else:
+        plan_ticks = np.arange(len(t_plan))
+    fw = run.by_tick()
+    expected = _expected_fault_ticks(plan, task, plan_ticks)
+    fault_ticks = [k for k, row in fw.items() if int(row[-2]) == FAULT_STATE]
+    fault_tick = min(fault_ticks) if fault_ticks else None
+    stop = fault_tick if fault_tick is not None else task.n_ticks + 1
+    use = [(r, k) for r, k in enumerate(plan_ticks) if k < stop]
+    missing = [k for _, k in use if k not in fw]
+    rows: list[list[Any]] = []
+    passed = True
+    if missing:
+        return Comparison([[label, "samples", f"{len(missing)} plan samples have no firmware tick (first {missing[0]})",
+                            "all", False]], False)
+    fw_rows = np.array([fw[k] for _, k in use]) if use else np.zeros((0, len(run.columns)))
+    plan_rows = [r for r, _ in use]
+    if task.mode in RESOLVED_MODES:
+        q_plan = np.column_stack([plan.column(f"q{i + 1}_rad")[plan_rows] for i in range(n)])
+        dq = float(np.max(np.abs(fw_rows[:, 2:2 + n] - q_plan))) if use else 0.0
+        e_plan = plan.column("pos_err_m")[plan_rows]
+        de = float(np.max(np.abs(fw_rows[:, run.columns.index("pos_err_m")] - e_plan))) if use else 0.0
+        quantities = (("max |Δq| [rad]", dq, bound_q), ("max |Δ task error| [m]", de, bound_2))
+    else:
+        idx = sorted(task.joints)
+        th = np.column_stack([plan.column(f"theta_{task.joints[i]}_rad")[plan_rows] for i in idx])
+        om = np.column_stack([plan.column(f"omega_{task.joints[i]}_rad_s")[plan_rows] for i in idx])
+        dq = float(np.max(np.abs(fw_rows[:, [2 + i for i in idx]] - th))) if use else 0.0
+        de = float(np.max(np.abs(fw_rows[:, [2 + n + i for i in idx]] - om))) if use else 0.0
+        quantities = (("max |Δθ| [rad]", dq, bound_q), ("max |Δω| [rad/s]", de, bound_2))
+    for what, value, bound in quantities:
+        ok = bool(np.isfinite(value) and value <= bound)
+        rows.append([label, what, value, bound, ok])
+        passed &= ok
+    # how the run ended
+    last = run.data[-1]
+    held_ok = bool(np.all(np.isfinite(run.data[:, 2:2 + 2 * n])))
+    if expected is None:
+        ok = run.state == "DONE" and run.fault == "NONE" and fault_tick is None
+        rows.append([label, "end", f"{run.state}/{run.fault} after {int(last[0])} ticks", f"DONE at {task.n_ticks}",
+                     ok and int(last[0]) == task.n_ticks])
+        passed &= ok and int(last[0]) == task.n_ticks
+    else:
+        lo, hi, expected_fault = expected
+        ok = run.fault == expected_fault and fault_tick is not None and lo - slack <= fault_tick <= hi + slack
+        if ok and fault_tick in fw and fault_tick - 1 in fw:
+            held = fw[fault_tick][2:2 + n]
+            prev = fw[fault_tick - 1][2:2 + n]
+            ok = bool(np.array_equal(held, prev) and np.all(held <= robot.qmax) and np.all(held >= robot.qmin))
+        where = f"tick {fault_tick}" if fault_tick is not None else "none"
+        span = f"tick {hi}" if lo == hi else f"ticks {lo}..{hi}"
+        why = "limits" if expected_fault == "JOINT_LIMIT" else "tracking guard"
+        rows.append([label, f"end (plan leaves the {why})", f"{run.state}/{run.fault} at {where}",
+                     f"{expected_fault} at {span} (t = {hi * task.dt:.4g} s)", ok])
+        passed &= ok
+    rows.append([label, "commands finite", "yes" if held_ok else "NO", "yes", held_ok])
+    passed &= held_ok
+    return Comparison(rows, passed, dq, de, fault_tick)
