@@ -251,7 +251,7 @@ class IKDefinition:
                            ["state", *STEP_CONSTANTS], ["next"])
 
     def initial_state(self, q_seed: ca.SX) -> ca.SX:
-        lay, robot = self.layout, self.robot
+        robot = self.robot
         q = ca.fmin(ca.fmax(q_seed, robot.qmin), robot.qmax)
         return ca.vertcat(q, q, ERROR_START, ERROR_START, ERROR_START, 0, 0, 0, 0, ERROR_START, 0)
 
