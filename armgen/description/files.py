@@ -335,6 +335,7 @@ def read_urdf(path: str | Path, base_link: str | None = None, tip_link: str | No
     """
     path = Path(path)
     data = _read_bounded(path)
+    return _urdf_robot(path, data, base_link, tip_link, hashlib.sha256(data).hexdigest())
 
 
 # -- URDF robots ------------------------------------------------------------------------
