@@ -173,7 +173,6 @@ class Robot(RobotDescription):
             raise ValueError(f"q must have shape (n,) or (..., n) with n = {self.n}, got {q.shape}")
         return np.all((q >= self.qmin) & (q <= self.qmax), axis=-1)
 
-
     def ik(self, pose: ArrayLike, q0: ArrayLike | None = None, *, seed: str | ArrayLike | None = None,
            tol_position: float | None = None, tol_orientation: float | None = None, max_iterations: int | None = None):
         """Joint values that put the tool at ``pose`` (inverse kinematics, ``docs/ik.md``).
@@ -266,7 +265,6 @@ def _check_poses(poses: np.ndarray) -> None:
     if np.max(np.abs(gram), initial=0.0) > POSE_ORTHONORMAL_TOL or np.any(np.linalg.det(rot) < 0):
         raise ValueError(f"pose: the 3x3 rotation part is not a rotation (R^T R = I within {POSE_ORTHONORMAL_TOL:g}, "
                          "det R = +1); build it e.g. with scipy.spatial.transform.Rotation")
-
 
 
 def parse_robot(text: str, source: str, sha256: str | None = None, directory: Path | None = None) -> Robot:
