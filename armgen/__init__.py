@@ -10,11 +10,16 @@ The public API (imported on first use, so ``import armgen`` stays fast):
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+import importlib
+import sys
+import types
+from typing import Any
 
 __version__ = "0.1.0"
 
-# public name -> module that defines it
+# public name -> module that defines it. The root package imports nothing of its own at load
+# time (the types are declared in __init__.pyi), so a module of any layer may import
+# __version__ from here without depending on the layers above it (tests/test_layers.py).
 _EXPORTS = {
     "Robot": "armgen.robot",
     "Joint": "armgen.robot",
@@ -34,21 +39,10 @@ _EXPORTS = {
 
 __all__ = ["__version__", "verify", *_EXPORTS]
 
-if TYPE_CHECKING:  # for type checkers only; __getattr__ imports these on first use
-    from .api import Generated, Plan, VerifyReport, generate, plan, verify  # noqa: F401
-    from .errors import (ArmgenError, PlanningError, RobotFileError, TaskFileError, ToolchainError,  # noqa: F401
-                         VerificationError)
-    from .robot import Joint, Robot, load_robot  # noqa: F401
-
-
 def __getattr__(name: str) -> Any:
     if name == "verify":  # the subpackage armgen.verify is callable: armgen.verify(...) = api.verify
-        import importlib
-
         return importlib.import_module("armgen.verify")
     if name in _EXPORTS:
-        import importlib
-
         value = getattr(importlib.import_module(_EXPORTS[name]), name)
         globals()[name] = value
         return value
@@ -57,3 +51,23 @@ def __getattr__(name: str) -> Any:
 
 def __dir__() -> list[str]:
     return sorted(__all__)
+
+
+class _VerifyPackage(types.ModuleType):
+    """The subpackage ``armgen.verify``, callable as the API function :func:`armgen.api.verify`."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        return importlib.import_module("armgen.api").verify(*args, **kwargs)
+
+
+class _Root(types.ModuleType):
+    def __setattr__(self, name: str, value: Any) -> None:
+        # The import system binds an imported subpackage to its name here. The verification
+        # subpackage shares its name with the API function armgen.verify(...), and binding it
+        # would hide the function, so the package itself is made callable.
+        if name == "verify" and isinstance(value, types.ModuleType):
+            value.__class__ = _VerifyPackage
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Root

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from armgen.planning.snake import arm as sn_arm, task as sn_task
 from armgen.planning.snake import planner as sn
 from armgen.planning.tasks import load_task
 
@@ -39,14 +40,14 @@ PAPER_STIFF_S = 823.88
 BARS = {"exact": (1e-6, 0.1), "denoised": (0.02, 1.0)}  # tip deviation mm, run time s
 
 
-def _task(name: str, **solver) -> sn.SnakeTask:
+def _task(name: str, **solver) -> sn_task.SnakeTask:
     raw, _ = load_task(SCENARIOS[name])
     raw = copy.deepcopy(raw)
     raw["solver"].update(solver)
-    return sn.parse_snake_task(raw, SCENARIOS[name].name)
+    return sn_task.parse_snake_task(raw, SCENARIOS[name].name)
 
 
-def _best(task: sn.SnakeTask, repeat: int) -> dict:
+def _best(task: sn_task.SnakeTask, repeat: int) -> dict:
     best = None
     for _ in range(repeat):
         result = sn.plan_snake(task)
@@ -113,7 +114,7 @@ def angle_formula_contrast() -> list[dict]:
         centres = track.joints(sol.s, 0)[0]
         place = task.rail_start - task.arm.base0
         out = {"scenario": name}
-        for label, fn in (("signed", sn.recover_angles), ("paper", sn.recover_angles_paper)):
+        for label, fn in (("signed", sn_arm.recover_angles), ("paper", sn_arm.recover_angles_paper)):
             feed, a, b = fn(task.arm, centres, task.rail_start)
             tip = task.arm.joint_centres(task.arm.q_vector(feed, a, b))[0][:, -1] + place
             out[label + "_tip_error_mm"] = float(np.max(np.linalg.norm(tip - centres[:, -1], axis=1)) * 1e3)

@@ -21,8 +21,14 @@ from hypothesis import strategies as st
 from armgen.codegen.ptp_c import generate_ptp_evaluator, render_ptp_evaluator
 from armgen.codegen.toolchain import SANITIZER_FLAGS, STRICT_FLAGS, compile_shared, host_cc, run_tool
 from armgen.errors import PlanningError, TaskFileError
+from armgen.planning.ptp.config import parse_ptp_task
+from armgen.planning.ptp.families import METHODS, segment_shape
 from armgen.planning.ptp import planner as ptp
-from armgen.planning.ptp.planner import SegmentShape, compare_methods, parse_ptp_task, plan_task, solve_segment_time
+from armgen.planning.ptp.planner import plan_task
+from armgen.planning.ptp.plans import plan_with_times
+from armgen.planning.ptp.segments import SegmentShape
+from armgen.planning.ptp.summary import compare_methods
+from armgen.planning.ptp.timing import FEAS_RTOL, choose_duration, segment_feasible, solve_segment_time
 from armgen.planning.plotting import save_figure
 from armgen.planning.ptp.plots import plot_ptp
 from armgen.planning.result import read_plan, write_plan
@@ -155,7 +161,7 @@ def test_worked_example_comparison_table():
         assert abs(r["peak_abs_acceleration_rad_s2"] / DEG - 4.0) <= 1e-9
     # dense-sampled peak velocity and velocity total variation agree with the table
     for method, r in rows.items():
-        p = ptp.plan_with_times(config, method, plan.knots)
+        p = plan_with_times(config, method, plan.knots)
         t = np.linspace(0, 35, 350001)
         w = p.evaluate(t, 1)[:, 0]
         assert abs(np.max(np.abs(w)) - r["peak_velocity_rad_s"]) <= 1e-6 * r["peak_velocity_rad_s"]
@@ -184,7 +190,7 @@ def test_segment1_root_is_closed_form():
     assert timing.feasible[0][0] == pytest.approx(5.625, abs=1e-9) and timing.feasible[0][1] == math.inf
     T = 5.0
     assert (90 - 8 * T) ** 2 / (3 * T * (60 - 8 * T)) > 8  # rounding down to 5 s breaks the bound
-    assert not ptp.segment_feasible(SegmentShape("cubic", 0, 0, 30 * DEG, 8 * DEG), 5.0, 8 * DEG, None)
+    assert not segment_feasible(SegmentShape("cubic", 0, 0, 30 * DEG, 8 * DEG), 5.0, 8 * DEG, None)
 
 
 def test_segment2_quartic_has_two_roots_and_an_interval():
@@ -204,7 +210,7 @@ def test_segment2_quartic_has_two_roots_and_an_interval():
         c = ref_coeffs("quartic", 30, 8, 90, 8, -0.8, 0, T)
         assert (dense_peak(c, T, 1) <= 8.5) == feasible
     # the paper rounds this segment to 8 s: the smallest whole second in [7.549, 133.5]
-    assert ptp.choose_duration(timing.feasible, 1.0, lambda T: ptp.segment_feasible(shape, T, 8.5 * DEG, None)) == 8.0
+    assert choose_duration(timing.feasible, 1.0, lambda T: segment_feasible(shape, T, 8.5 * DEG, None)) == 8.0
 
 
 def test_timed_example_reports_roots_and_rounds_up():
@@ -276,9 +282,9 @@ def _scan_verdict(shape: SegmentShape, T: float, omega_max: float, eps_max: floa
             continue
         peak = np.max(np.abs(d(c, tau, order)))
         curvature = np.sum(np.abs(np.polynomial.polynomial.polyder(c, order + 2)) * T ** np.arange(4 - order))
-        if peak > bound * (1 + ptp.FEAS_RTOL):
+        if peak > bound * (1 + FEAS_RTOL):
             return False
-        if peak + curvature * h * h / 8 > bound * (1 + ptp.FEAS_RTOL):
+        if peak + curvature * h * h / 8 > bound * (1 + FEAS_RTOL):
             verdict = None
     return verdict
 
@@ -348,10 +354,10 @@ def test_every_method_meets_waypoints_and_its_continuity(wps, with_eps):
     task = {"planner": "ptp", "waypoints": {"t": t.tolist(), "theta": theta.tolist(), "omega": omega.tolist()}}
     if with_eps:
         task["waypoints"]["eps"] = eps.tolist()
-    methods = [m for m in ptp.METHODS if m != "3-5-3" or len(theta) >= 4]
+    methods = [m for m in METHODS if m != "3-5-3" or len(theta) >= 4]
     config = parse_ptp_task(task, "prop")
     for method in methods:
-        plan = ptp.plan_with_times(config, method, t)
+        plan = plan_with_times(config, method, t)
         c = plan.coeffs[0]
         scale = 1.0 + np.max(np.abs(theta))
         for k in range(len(t) - 1):
@@ -393,7 +399,7 @@ def test_shared_knot_times_are_minimal_on_the_grid(steps, inner_speed, method):
     durations = np.diff(knots)
     for k, T in enumerate(durations):
         assert T / grid == pytest.approx(round(T / grid), abs=1e-9)
-        shapes = [ptp.segment_shape(method, jw, k, list(durations), _previous(method, jw, k, durations))
+        shapes = [segment_shape(method, jw, k, list(durations), _previous(method, jw, k, durations))
                   for jw in config.joints]
         assert all(_scan_verdict(s, T, 1.0, None) is not False for s in shapes)
         ends = [x for iv in report[k]["feasible_T_s"] for x in iv]
@@ -405,13 +411,13 @@ def test_shared_knot_times_are_minimal_on_the_grid(steps, inner_speed, method):
 def _previous(method, jw, k, durations):
     prev = None
     for i in range(k):
-        prev = ptp.segment_shape(method, jw, i, list(durations), prev)
+        prev = segment_shape(method, jw, i, list(durations), prev)
     return prev
 
 
 def test_3_5_3_inner_acceleration_minimises_jerk():
     config, plan = plan_of(example("ptp_single_joint.toml"))
-    p = ptp.plan_with_times(config, "3-5-3", plan.knots)
+    p = plan_with_times(config, "3-5-3", plan.knots)
     assert p.kinds == ("cubic", "quintic", "quintic", "cubic")
     jw, knots = config.joints[0], plan.knots
     eps_c = d(p.coeffs[0, 2], 0.0, 2)
@@ -435,12 +441,12 @@ def test_3_5_3_inner_acceleration_minimises_jerk():
 def test_3_5_3_with_more_waypoints_uses_preset_or_zero():
     wp = {"t": [0, 1, 2, 3, 4, 5], "theta": [0, 1, 2, 3, 4, 5], "omega": [0, 1, 1, 1, 1, 0]}
     config, _ = plan_of({"planner": "ptp", "waypoints": wp})
-    p = ptp.plan_with_times(config, "3-5-3", np.arange(6.0))
+    p = plan_with_times(config, "3-5-3", np.arange(6.0))
     assert p.kinds == ("cubic", "quintic", "quintic", "quintic", "cubic")
     assert d(p.coeffs[0, 2], 0.0, 2) == pytest.approx(0.0, abs=1e-12)  # C and D: zero
     assert d(p.coeffs[0, 3], 0.0, 2) == pytest.approx(0.0, abs=1e-12)
     config, _ = plan_of({"planner": "ptp", "waypoints": {**wp, "eps": [9, 9, 0.5, -0.25, 9, 9]}})
-    p = ptp.plan_with_times(config, "3-5-3", np.arange(6.0))
+    p = plan_with_times(config, "3-5-3", np.arange(6.0))
     assert d(p.coeffs[0, 2], 0.0, 2) == pytest.approx(0.5, abs=1e-12)
     assert d(p.coeffs[0, 3], 0.0, 2) == pytest.approx(-0.25, abs=1e-12)
 

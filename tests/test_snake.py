@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from armgen.codegen.generate import generate_robot
 from armgen.codegen.toolchain import STRICT_FLAGS
 from armgen.errors import PlanningError, TaskFileError
+from armgen.planning.snake import arm as sn_arm, task as sn_task, spline as sn_spline
 from armgen.planning.snake import planner as sn
 from armgen.planning.result import read_plan
 from armgen.planning.snake.dynamics import BarModel, DenoisedDynamics
@@ -98,7 +99,7 @@ def plans(tasks):
 def test_snake12_robot_file():
     robot = load_robot("snake12")
     assert robot.n == 25 and not robot.joints[0].revolute
-    arm = sn.snake_arm(robot, "t")  # the DH table is the universal-joint chain (checked inside)
+    arm = sn_arm.snake_arm(robot, "t")  # the DH table is the universal-joint chain (checked inside)
     assert arm.n_links == 12 and arm.link == pytest.approx(0.104) and arm.max_feed == pytest.approx(1.248)
     np.testing.assert_allclose(arm.rail_dir, [1, 0, 0], atol=1e-15)
     np.testing.assert_allclose(arm.A0, np.eye(3), atol=1e-15)
@@ -218,7 +219,7 @@ def test_spline_misprint_would_break_c2():
 # -- the velocity law ------------------------------------------------------------------------
 def test_velocity_law_is_the_papers():
     v = 0.12
-    law = sn.VelocityLaw(v, 10.0, 1.0)
+    law = sn_task.VelocityLaw(v, 10.0, 1.0)
     t = np.linspace(0, 10, 100_001)
     _, sd, sdd = law(t)
     paper = np.where(t <= 1, 0.5 * v * (1 + np.sin((t + 1.5) * np.pi)),
@@ -300,7 +301,7 @@ def test_exact_solver_is_deterministic_and_exact_on_a_random_path():
         pts.append(pts[-1] + np.array([0.05, *rng.uniform(-0.01, 0.01, 2)]))
     P = np.array(pts)
     spline = HermiteSpline(P, [1, 0, 0], None)
-    track = sn.Track(spline, P[0], [1, 0, 0], 1.3)
+    track = sn_spline.Track(spline, P[0], [1, 0, 0], 1.3)
     s = solve_exact(track, np.array([0.0, 0.2, 0.4]), "base", 12, 0.104)
     x = track.joints(s, 0)[0]
     assert np.max(np.abs(np.linalg.norm(np.diff(x, axis=1), axis=2) - 0.104)) < 1e-15
@@ -320,12 +321,12 @@ def test_exact_solver_is_deterministic_and_exact_on_a_random_path():
 @given(st.lists(st.floats(-1.0, 1.0), min_size=24, max_size=24), st.floats(0.0, 1.2))
 def test_angle_recovery_round_trip(unit_angles, feed):
     """angles → FK (the robot's DH chain) → joint centres → angles, within ±60° per axis."""
-    arm = sn.snake_arm(load_robot("snake12"), "t")
+    arm = sn_arm.snake_arm(load_robot("snake12"), "t")
     a = np.radians(60.0) * np.array(unit_angles)
     alpha, beta = a[0::2][None, :], a[1::2][None, :]
     q = arm.q_vector(np.array([feed]), alpha, beta)
     centres = arm.joint_centres(q)[0] + np.array([-1.248, 0.2, 0.1])
-    f2, a2, b2 = sn.recover_angles(arm, centres, np.array([-1.248, 0.2, 0.1]))
+    f2, a2, b2 = sn_arm.recover_angles(arm, centres, np.array([-1.248, 0.2, 0.1]))
     assert f2[0] == pytest.approx(feed, abs=1e-12)
     np.testing.assert_allclose(a2, alpha, atol=1e-12)
     np.testing.assert_allclose(b2, beta, atol=1e-12)
@@ -334,15 +335,15 @@ def test_angle_recovery_round_trip(unit_angles, feed):
 def test_paper_angle_formula_loses_the_sign(plans):
     """The paper's arccos form recovers |α|: its arm leaves the planar path by decimetres."""
     result = plans["planar", "exact"]
-    arm = sn.snake_arm(load_robot("snake12"), "t")
+    arm = sn_arm.snake_arm(load_robot("snake12"), "t")
     q = np.column_stack([result.column("feed_m")] + [result.column(c) for c in result.columns
                                                      if c[0] in "ab" and c.endswith("_rad")])
     rail = np.array(result.metadata["rail"]["start_m"])
     centres = arm.joint_centres(q)[0] + rail - arm.base0
-    feed, alpha, beta = sn.recover_angles_paper(arm, centres, rail)
+    feed, alpha, beta = sn_arm.recover_angles_paper(arm, centres, rail)
     tip = arm.joint_centres(arm.q_vector(feed, alpha, beta))[0][:, -1] + rail - arm.base0
     assert np.max(np.linalg.norm(tip - centres[:, -1], axis=1)) > 0.1
-    feed, alpha, beta = sn.recover_angles(arm, centres, rail)
+    feed, alpha, beta = sn_arm.recover_angles(arm, centres, rail)
     tip = arm.joint_centres(arm.q_vector(feed, alpha, beta))[0][:, -1] + rail - arm.base0
     assert np.max(np.linalg.norm(tip - centres[:, -1], axis=1)) < 1e-14
 
@@ -520,7 +521,7 @@ def test_collision_is_reported(tasks):
 def test_dynamics_right_hand_side_on_an_exact_state():
     """On an exact state (chords exact, rates consistent) the elastic force vanishes, M is symmetric
     positive definite on the free coordinates, and both state forms give the same accelerations."""
-    task = sn.parse_snake_task(load_task(PLANAR)[0], "t")
+    task = sn_task.parse_snake_task(load_task(PLANAR)[0], "t")
     track = sn.build_track(task)
     t = 4.2
     s_c, v_c, _ = task.law.scalar(t)

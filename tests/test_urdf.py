@@ -18,7 +18,7 @@ from armgen.errors import RobotFileError
 from armgen.robot import Robot, load_robot
 from armgen.symbolic.model import SymbolicModel
 from armgen.symbolic.sympy_reference import sympy_fk_jacobian
-from armgen.urdf import CONTINUOUS_LIMIT
+from armgen.description.urdf import CONTINUOUS_LIMIT
 
 from conftest import require_tool
 

@@ -174,7 +174,11 @@ def test_projector_properties_on_band_configurations(name):
             assert out["sigma_min"] < eps
 
     check()
-    assert stats["undamped"] >= 20 and stats["damped"] >= 5  # both branches were exercised
+    # Both branches were exercised. The mix is not fixed even with derandomize: Hypothesis seeds
+    # its draws with constants from the local modules loaded so far, so it moves with the test
+    # order and the package's module layout (18 to 32 of 80 undamped seen); 5 of each is a bar
+    # far below that spread that still shows each branch was checked several times.
+    assert stats["undamped"] >= 5 and stats["damped"] >= 5
 
 
 def test_the_tempting_projector_is_not_a_null_space_projector():

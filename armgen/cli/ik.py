@@ -47,7 +47,8 @@ def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float,
            q0: str | None, max_iterations: int | None, units: str) -> None:
     """Inverse kinematics: joint values that put the tool at a pose (exit 3 when none is found)."""
     from ..errors import OptionError, PlanningError
-    from ..robot import load_robot_any, rpy_matrix
+    from ..description import rpy_matrix
+    from ..robot import load_robot_any
     from ..symbolic import ik
 
     r = load_robot_any(robot)

@@ -25,7 +25,8 @@ def cli() -> None:
 @handle_errors
 def robots_cmd(as_json: bool) -> None:
     """List the bundled robots."""
-    from ..robot import bundled_robots, describe, load_robot
+    from ..description import bundled_robots, describe
+    from ..robot import load_robot
 
     robots = [load_robot(name) for name in bundled_robots()]
     if as_json:
@@ -37,7 +38,7 @@ def robots_cmd(as_json: bool) -> None:
 
 def _show_data(r) -> dict:
     """Everything `show` prints, SI units (rad, m), for --json."""
-    from ..robot import describe, matrix_rpy
+    from ..description import describe, matrix_rpy
 
     joints = []
     for j in r.joints:

@@ -17,7 +17,7 @@ def schema_of(kind: str, planner: str | None = None) -> dict:
     from pydantic import Field, TypeAdapter
 
     from ..planning.tasks import PLANNERS, SCHEMAS
-    from ..robot_schema import RobotFile, UrdfRobotFile
+    from ..description.schema import RobotFile, UrdfRobotFile
 
     if kind == "robot":
         schema = TypeAdapter(Union[RobotFile, UrdfRobotFile]).json_schema()

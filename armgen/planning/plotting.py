@@ -124,7 +124,7 @@ def plan_robot(result: PlanResult) -> Robot:
 def dh_frames(robot: Robot, q: np.ndarray) -> np.ndarray:
     """Frames of the base, after each joint, and of the tool: shape (samples, n + 2, 4, 4)
     for ``q`` of shape (samples, n) (NumPy DH chain, the same as the symbolic core's)."""
-    from .snake.planner import dh_frames as joint_frames
+    from .snake.arm import dh_frames as joint_frames
 
     q = np.atleast_2d(np.asarray(q, dtype=float))
     joints = joint_frames(robot, q)

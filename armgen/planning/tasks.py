@@ -16,7 +16,7 @@ from pydantic import ValidationError
 
 from .. import __version__
 from ..errors import PlanFileError, PlanningError, TaskFileError, excerpt
-from ..robot import bundled_robots
+from ..description import bundled_robots
 from ..schemas import (MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, closest_key, format_validation_error, parse_toml_bounded,
                        read_input_file)
 from .limits import enforce_limits

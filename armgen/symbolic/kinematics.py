@@ -9,7 +9,7 @@ joint's ``pre`` (or the tool), so each joint costs one constant product. The joi
 the z axis of the frame ``T_{i-1} · pre``, which gives the Jacobian columns directly
 (``z × (p_tool − o)`` for a revolute joint, ``z`` for a prismatic one) instead of
 differentiating the FK: far fewer operations than an AD Jacobian. Constant angles that are
-multiples of 90° enter as exact 0/±1 (see :func:`armgen.robot.exact_cos_sin`), and so do the
+multiples of 90° enter as exact 0/±1 (see :func:`armgen.description.frames.exact_cos_sin`), and so do the
 alignments of coordinate axes, so SX drops the products with them.
 """
 
@@ -18,7 +18,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..robot import Joint, Robot, exact_cos_sin
+from ..description import Joint, RobotDescription, exact_cos_sin
 
 
 def _const(matrix: np.ndarray) -> ca.SX:
@@ -83,7 +83,7 @@ def _mul(a: ca.SX, b: ca.SX) -> ca.SX:
     return out
 
 
-def chain(robot: Robot, q: ca.SX) -> tuple[list[ca.SX], list[ca.SX], ca.SX]:
+def chain(robot: RobotDescription, q: ca.SX) -> tuple[list[ca.SX], list[ca.SX], ca.SX]:
     """Return (axis frames, joint frames, tool transform).
 
     ``axis_frames[i]`` is the frame whose z axis is joint i's axis (through its origin);
@@ -109,7 +109,7 @@ def chain(robot: Robot, q: ca.SX) -> tuple[list[ca.SX], list[ca.SX], ca.SX]:
     return axis_frames, joint_frames, tool
 
 
-def geometric_jacobian(robot: Robot, axis_frames: list[ca.SX], tool: ca.SX) -> ca.SX:
+def geometric_jacobian(robot: RobotDescription, axis_frames: list[ca.SX], tool: ca.SX) -> ca.SX:
     """6×n geometric Jacobian, rows [v; ω] of the tool origin in the base frame."""
     p_tool = tool[:3, 3]
     columns = []
@@ -122,6 +122,6 @@ def geometric_jacobian(robot: Robot, axis_frames: list[ca.SX], tool: ca.SX) -> c
     return ca.horzcat(*columns)
 
 
-def fk_and_jacobian(robot: Robot, q: ca.SX) -> tuple[ca.SX, ca.SX]:
+def fk_and_jacobian(robot: RobotDescription, q: ca.SX) -> tuple[ca.SX, ca.SX]:
     axis_frames, _, tool = chain(robot, q)
     return tool, geometric_jacobian(robot, axis_frames, tool)

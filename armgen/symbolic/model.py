@@ -12,7 +12,7 @@ from functools import cached_property
 
 import casadi as ca
 
-from ..robot import Robot
+from ..description import RobotDescription
 from . import criteria, ik, steps
 from .kinematics import chain, geometric_jacobian
 
@@ -79,7 +79,7 @@ class ModelOptions:
 
 
 class SymbolicModel:
-    def __init__(self, robot: Robot, options: ModelOptions | None = None):
+    def __init__(self, robot: RobotDescription, options: ModelOptions | None = None):
         self.robot = robot
         self.options = options or ModelOptions()
         self.n = robot.n

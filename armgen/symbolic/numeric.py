@@ -17,7 +17,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..robot import Robot
+from ..description import RobotDescription
 from .loops import calls_in_order, find_loop
 from .model import SymbolicModel
 
@@ -169,7 +169,7 @@ def _squeezed(matrix: np.ndarray) -> np.ndarray:
 class NumericModel:
     """NumPy access to a robot's symbolic functions with leading batch axes (cached per robot)."""
 
-    def __init__(self, robot: Robot):
+    def __init__(self, robot: RobotDescription):
         self.robot = robot
         self.model = SymbolicModel(robot)
         self._batch: dict[str, BatchFunction] = {}

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from ..robot import Robot
+from ..description import RobotDescription
 
 
 def _rz(t):
@@ -44,7 +44,7 @@ def _general_motion(axis, q_i, revolute: bool) -> sp.Matrix:
     return out
 
 
-def sympy_fk(robot: Robot, q: list[sp.Symbol]) -> sp.Matrix:
+def sympy_fk(robot: RobotDescription, q: list[sp.Symbol]) -> sp.Matrix:
     """Tool transform base·A_1⋯A_n·tool with the joint products written out literally."""
     T = sp.Matrix(robot.base.tolist())
     for i, j in enumerate(robot.joints):
@@ -61,7 +61,7 @@ def sympy_fk(robot: Robot, q: list[sp.Symbol]) -> sp.Matrix:
     return T * sp.Matrix(robot.tool.tolist())
 
 
-def sympy_fk_jacobian(robot: Robot):
+def sympy_fk_jacobian(robot: RobotDescription):
     """Numeric (T(q), J(q)) from the SymPy derivation (lambdified, no simplification)."""
     q = list(sp.symbols(f"q0:{robot.n}", real=True))
     T = sympy_fk(robot, q)

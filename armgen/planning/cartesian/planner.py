@@ -18,7 +18,8 @@ import numpy as np
 
 from ...errors import PlanningError, TaskFileError, excerpt
 from ...progress import progress
-from ...robot import Robot, load_robot, rpy_matrix
+from ...description import rpy_matrix
+from ...robot import Robot, load_robot
 from ...symbolic.steps import min_eigenvalue
 from ..backends import make_backend
 from ..limits import check_start_off_limits, limit_report
@@ -253,7 +254,7 @@ def sym_orientation_error(r_actual: ca.SX, r_desired: ca.SX) -> ca.SX:
 
 
 def sym_rpy(rot: ca.SX) -> ca.SX:
-    """:func:`armgen.robot.matrix_rpy` in CasADi: [roll, pitch, yaw] of Rz(yaw) Ry(pitch) Rx(roll)."""
+    """:func:`armgen.description.frames.matrix_rpy` in CasADi: [roll, pitch, yaw] of Rz(yaw) Ry(pitch) Rx(roll)."""
     return ca.vertcat(ca.atan2(rot[2, 1], rot[2, 2]), ca.atan2(-rot[2, 0], ca.hypot(rot[0, 0], rot[1, 0])),
                       ca.atan2(rot[1, 0], rot[0, 0]))
 

@@ -21,7 +21,9 @@ from numpy.polynomial import polynomial as npp
 
 from ..plotting import joint_style, new_figure
 from ..result import PlanResult, read_plan
-from .planner import BOUND_RTOL, PtpPlan, joint_metrics
+from .config import BOUND_RTOL
+from .plans import PtpPlan
+from .summary import joint_metrics
 
 ROWS = (("theta", "θ", ""), ("omega", "ω", "/s"), ("eps", "ε", "/s²"), ("jerk", "jerk", "/s³"))
 # Values below this (in display units) are rounding noise, shown as 0 in the panel titles.

@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 
 from ...errors import PlanningError, TaskFileError
-from ...robot import Robot, rpy_matrix
+from ...description import rpy_matrix
+from ...robot import Robot
 
 POSE_FIELDS = ("xyz", "rpy", "seed")
 

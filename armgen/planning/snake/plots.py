@@ -34,7 +34,7 @@ VIEW_MARGIN = 0.06  # of the largest extent: room around the arm and path in eac
 
 
 def arm_centres(result: PlanResult, meta: dict) -> np.ndarray:
-    from .planner import snake_arm
+    from .arm import snake_arm
 
     robot_meta = meta.get("robot", {})
     try:

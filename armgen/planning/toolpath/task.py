@@ -15,7 +15,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ...errors import TaskFileError
-from ...robot import Robot, rpy_matrix
+from ...description import rpy_matrix
+from ...robot import Robot
 from ...schemas import read_input_file
 from .geometry import GeometryError, MoveSpec, Program
 from .timelaw import ProgramMotion, program_profile

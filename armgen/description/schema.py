@@ -1,5 +1,5 @@
 """The robot file's schema (pydantic): keys, types, finiteness, sizes and name rules, in the
-file's own units. :func:`armgen.robot.parse_robot` validates a file with it before converting
+file's own units. :func:`armgen.description.files.parse_description` validates a file with it before converting
 to SI; ``armgen schema robot`` prints it as JSON Schema for editors."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from typing import Annotated, Literal, Optional
 
 from pydantic import Field, StringConstraints
 
-from .schemas import IDENTIFIER_PATTERN, StrictModel
+from ..schemas import IDENTIFIER_PATTERN, StrictModel
 
 # Degrees of freedom a robot file may declare: the bundled snake has 25; the generated C
 # stores n×n matrices on the stack of a microcontroller, so 64 is far beyond any use.

@@ -32,10 +32,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import RobotFileError, excerpt
-from .robot import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, rpy_matrix, snap_quarter_turn
-from .robot_schema import MAX_DOF
-from .schemas import IDENTIFIER_PATTERN
+from ..errors import RobotFileError, excerpt
+from ..schemas import IDENTIFIER_PATTERN
+from .frames import rpy_matrix, snap_quarter_turn
+from .model import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M
+from .schema import MAX_DOF
 
 # Default range of a continuous joint (rad): one full turn about zero. Criteria and planners
 # need finite limits; bound the joint in a robot file's [limits] table to change it.

@@ -1,0 +1,22 @@
+"""The robot description, below every other layer: what a robot file or URDF says, in SI.
+
+- :mod:`~armgen.description.model`: :class:`Joint` and :class:`RobotDescription` (joints,
+  DH or URDF geometry, limits, speed limits ``qdlim``/``qddlim``, base and tool, named
+  configurations, task rows);
+- :mod:`~armgen.description.frames`: roll-pitch-yaw rotations, exact quarter-turn trigonometry;
+- :mod:`~armgen.description.files`: the robot TOML reader and the bundled robots;
+- :mod:`~armgen.description.urdf`: the URDF chain reader; :mod:`~armgen.description.schema`:
+  the robot file's pydantic schema.
+
+It imports nothing from the symbolic core, code generation, planning, firmware or
+verification (``tests/test_layers.py``). The symbolic core builds its models from a
+:class:`RobotDescription`; :class:`armgen.robot.Robot` adds the NumPy methods on top.
+"""
+
+from .files import BUNDLED_DIR, bundled_robots, load_description, parse_description, read_urdf, resolve_robot_path
+from .frames import exact_cos_sin, matrix_rpy, rpy_matrix, snap_quarter_turn
+from .model import TASK_ROWS, Joint, RobotDescription, describe
+
+__all__ = ["BUNDLED_DIR", "TASK_ROWS", "Joint", "RobotDescription", "bundled_robots", "describe", "exact_cos_sin",
+           "load_description", "matrix_rpy", "parse_description", "read_urdf", "resolve_robot_path", "rpy_matrix",
+           "snap_quarter_turn"]
