@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from armgen.cli.main import cli
 from armgen.errors import PlanningError, TaskFileError
-from armgen.planning.paths import CirclePath, LinePath, TimeLaw
+from armgen.planning.toolpath.paths import CirclePath, LinePath, TimeLaw
 from armgen.planning.tasks import apply_overrides, load_task, run_task
 from armgen.planning.cartesian.windows import JointWindows
 from armgen.robot import rpy_matrix

@@ -21,7 +21,7 @@ from click.testing import CliRunner
 from armgen import fileio
 from armgen.cli.main import cli
 from armgen.errors import OutputError, RobotFileError, TaskFileError
-from armgen.planning.paths import LinePath, _axis_angle
+from armgen.planning.toolpath.paths import LinePath, _axis_angle
 from armgen.planning.result import read_plan
 from armgen.planning.tasks import ResourceCaps, load_task, run_task
 from armgen.robot import BUNDLED_DIR, parse_robot

@@ -103,7 +103,7 @@ def _hold_turns_into_a_rotation(robot_file: Path) -> bool:
     """Issue 11's planner bug: the line path's axis-angle is acos of a trace that is ~1e-16 off,
     so "orientation = hold" plans a ~3e-8 rad rotation for some start poses (arm6's q0 among
     them) that the firmware, holding exactly, does not follow. True while the bug is present."""
-    from armgen.planning.paths import LinePath
+    from armgen.planning.toolpath.paths import LinePath
     from armgen.robot import load_robot
     from armgen.symbolic.model import SymbolicModel
 

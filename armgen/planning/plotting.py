@@ -228,7 +228,7 @@ def planned_tool_path(result: PlanResult, robot: Robot) -> np.ndarray | None:
     """The task's geometric path (m), rebuilt from the task stored in ``plan.json`` and the
     start pose by forward kinematics; ``None`` when the plan holds no resolved-rate path task."""
     from .cartesian.planner import parse_path_and_timing, parse_robot_and_start
-    from .paths import CirclePath, LinePath
+    from .toolpath.paths import CirclePath, LinePath
 
     meta = result.metadata
     task = meta.get("task")

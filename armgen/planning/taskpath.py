@@ -3,7 +3,7 @@ the task-file fields they share with the Cartesian planner (robot, start, path, 
 integrator, damping), the desired pose and twist along the path, the base CSV columns and
 the smoothness/tracking metrics.
 
-Paths are :mod:`armgen.planning.paths`' circle and line. Two additions for these planners:
+Paths are :mod:`armgen.planning.toolpath.paths`' circle and line. Two additions for these planners:
 ``path.relative = true`` gives ``via``/``end`` as offsets from the start tool position (so
 a task file can state "a circle of radius R beside the start" for any start), and
 ``path.turns`` (circle only) runs the circle that many times over the duration (spec 30's
@@ -24,7 +24,7 @@ from ..errors import PlanningError, TaskFileError, excerpt
 from ..robot import Robot
 from .cartesian.planner import (_number, _table, parse_path_and_timing, parse_robot_and_start, sym_orientation_error,
                                 sym_rpy)
-from .paths import CirclePath, LinePath, TimeLaw
+from .toolpath.paths import CirclePath, LinePath, TimeLaw
 from .toolpath.task import ProgramSpec, parse_program, program_motion, reach_radius
 from .toolpath.timelaw import ProgramMotion
 

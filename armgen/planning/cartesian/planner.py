@@ -23,7 +23,7 @@ from ...robot import Robot, load_robot
 from ...symbolic.steps import min_eigenvalue
 from ..backends import make_backend
 from ..limits import check_start_off_limits, limit_report
-from ..paths import CirclePath, LinePath, TimeLaw
+from ..toolpath.paths import CirclePath, LinePath, TimeLaw
 from ..result import PlanResult
 from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
 from ..toolpath.task import ProgramSpec, parse_program, program_motion, reach_radius

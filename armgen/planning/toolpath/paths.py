@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import TaskFileError, excerpt
+from ...errors import TaskFileError, excerpt
 
 # Three circle points closer than this to a line (relative to the chord lengths) do not
 # define a circle: the circumradius would exceed ~1e6 times the chord.
