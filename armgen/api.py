@@ -7,7 +7,7 @@ what the command line does, minus the printing::
 
     robot = armgen.load_robot("panda")            # bundled name, robot TOML or URDF
     T = robot.fk(robot.qr)                        # (4, 4)
-    plan = armgen.plan("examples/modular8_circle_pinv.toml", **{"timing.duration": 4.0})
+    plan = armgen.plan("examples/iiwa14_fault_circle_gpm.toml", **{"fault.time": 1.0})  # overrides as --set
     plan.to_pandas().plot(x="t_s", y="q1_rad")
 """
 
