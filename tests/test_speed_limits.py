@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -142,3 +143,44 @@ def test_header_constants_compile_and_hold_the_limits(tmp_path):
         values = [float(v) for v in subprocess.run([str(exe)], check=True, capture_output=True,
                                                     text=True).stdout.split()]
         assert values == pytest.approx(np.radians(IIWA14_AXIS_SPEEDS_DEG_S), rel=rel)
+
+
+# A fixed-duration circle: the iiwa14 fault example, two turns in 4 s (joint a4 at 0.56 of its
+# qdlim); squeezed into SQUEEZED_S (the lock at 2 s stays inside) it asks a4 for more than its limit.
+CIRCLE_EXAMPLE = "iiwa14_fault_circle_gpm.toml"
+EXAMPLES = Path(__file__).resolve().parent.parent / "armgen" / "data" / "examples"
+SQUEEZED_S = 2.0
+
+
+def _plan_circle(tmp_path, *extra: str):
+    from click.testing import CliRunner
+
+    from armgen.cli.main import cli
+
+    out = tmp_path / "plan.csv"
+    result = CliRunner().invoke(cli, ["plan", str(EXAMPLES / CIRCLE_EXAMPLE), "-o", str(out),
+                                      "--set", f"timing.duration={SQUEEZED_S}", *extra])
+    return result, out
+
+
+def test_a_fixed_duration_path_beyond_the_speed_limits_is_infeasible(tmp_path):
+    result, out = _plan_circle(tmp_path)
+    assert result.exit_code == 3, result.output
+    assert "times its velocity limit" in result.output and "lengthen timing.duration" in result.output
+    assert not out.exists() and not out.with_suffix(".json").exists()
+
+
+def test_report_mode_writes_it_and_names_the_joints_beyond(tmp_path):
+    result, out = _plan_circle(tmp_path, "--set", "check.limits=report")
+    assert result.exit_code == 0, result.output
+    robot = load_robot("iiwa14")
+    header = out.read_text().splitlines()[0].split(",")
+    rows = np.loadtxt(out, delimiter=",", skiprows=1)
+    qd = rows[:, [header.index(f"dq{i + 1}_rad_s") for i in range(robot.n)]]
+    ratios = np.abs(qd).max(axis=0) / robot.qdlim  # from the CSV and the robot file, not the report
+    reported = {v["joint"]: v["ratio"] for v in json.loads(out.with_suffix(".json").read_text())
+                ["summary"]["joint_speed"]["beyond_speed_limits"] if v["limit"] == "velocity"}
+    expected = {j.name: r for j, r in zip(robot.joints, ratios) if r > 1}
+    assert expected and reported.keys() == expected.keys()
+    for name, ratio in expected.items():
+        assert reported[name] == pytest.approx(ratio, rel=1e-12)

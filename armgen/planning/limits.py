@@ -69,3 +69,19 @@ def enforce_limits(violations: list[dict[str, Any]], policy: str, source: str) -
         + "; nothing was written. Change the start, the path or the method; or, to write the plan and inspect "
         "it (a baseline that leaves the limits on purpose), set [check] limits = \"report\" in the task "
         "(or --set check.limits=report)")
+
+
+def enforce_speed_limits(report: dict[str, Any] | None, policy: str, source: str) -> None:
+    """Raise the infeasible-plan error for a fixed-duration path (a circle or line with
+    ``[timing]``) that asks a joint for more than its velocity or acceleration limit, unless
+    ``policy`` is ``"report"``. A program is slowed down to stay within them instead (its report
+    is ``enforced``), so it never gets here beyond them."""
+    if not report or report.get("enforced") or policy == "report" or not report.get("beyond_speed_limits"):
+        return
+    first = min(report["beyond_speed_limits"], key=lambda v: v["t_s"])
+    raise PlanningError(
+        f"{source}: the plan asks joint '{first['joint']}' for {first['ratio']:.2f} times its {first['limit']} limit "
+        f"(the robot file's {'qdlim' if first['limit'] == 'velocity' else 'qddlim'}) at t = {first['t_s']:.3f} s; "
+        "nothing was written. A fixed-duration path is not slowed down: lengthen timing.duration, or give the path "
+        "as a program (path.type = \"program\"), which is slowed to stay within the limits; or, to write the plan "
+        "and inspect it, set [check] limits = \"report\" in the task (or --set check.limits=report)")

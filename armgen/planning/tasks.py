@@ -19,7 +19,7 @@ from ..errors import PlanFileError, PlanningError, TaskFileError, excerpt
 from ..description import bundled_robots
 from ..schemas import (MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, closest_key, format_validation_error, parse_toml_bounded,
                        read_input_file)
-from .limits import enforce_limits
+from .limits import enforce_limits, enforce_speed_limits
 from .result import PlanResult, first_invalid_sample
 
 # planner name -> its package: ``planner.plan_task(task: dict, source: str, backend: str)`` and
@@ -199,7 +199,9 @@ def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: 
                             "and the numbers of the task)")
     check = getattr(model, "check", None)  # the resolved-rate planners; ptp and snake refuse such plans themselves
     if check is not None:
-        enforce_limits(result.metadata.get("summary", {}).get("limit_violations", []), check.limits, source)
+        summary = result.metadata.get("summary", {})
+        enforce_limits(summary.get("limit_violations", []), check.limits, source)
+        enforce_speed_limits(summary.get("joint_speed"), check.limits, source)
     meta = {
         "armgen_version": __version__,
         "task_file": source,

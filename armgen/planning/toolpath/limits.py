@@ -179,16 +179,21 @@ def _finite_or_none(values: np.ndarray) -> list[float | None]:
 
 def speed_report(robot: Robot, t: np.ndarray, qd: np.ndarray) -> dict[str, Any]:
     """Peak |q̇|/q̇_max (and |q̈|/q̈_max) per joint; None for a joint without that limit."""
-    ratio_v = speed_ratios(robot, qd).max(axis=0)
-    ratio_a = acceleration_ratios(robot, t, qd).max(axis=0)
+    per_sample_v, per_sample_a = speed_ratios(robot, qd), acceleration_ratios(robot, t, qd)
+    ratio_v, ratio_a = per_sample_v.max(axis=0), per_sample_a.max(axis=0)
     limited_v, limited_a = np.isfinite(robot.qdlim), np.isfinite(robot.qddlim)
+    beyond = [{"joint": j.name, "limit": kind, "ratio": float(ratios[k, i]), "t_s": float(t[k])}
+              for kind, ratios in (("velocity", per_sample_v), ("acceleration", per_sample_a))
+              for i, j in enumerate(robot.joints)
+              for k in [int(np.argmax(ratios[:, i]))] if ratios[k, i] > RATIO_TOL]
     return {
         "qdlim": _finite_or_none(robot.qdlim),
         "peak_speed_ratio": [float(r) if ok else None for r, ok in zip(ratio_v, limited_v)],
         "max_speed_ratio": float(ratio_v[limited_v].max()) if limited_v.any() else None,
         "qddlim": _finite_or_none(robot.qddlim),
         "peak_acceleration_ratio": [float(r) if ok else None for r, ok in zip(ratio_a, limited_a)],
-        "within_speed_limits": bool(np.all(ratio_v[limited_v] <= RATIO_TOL) and np.all(ratio_a[limited_a] <= RATIO_TOL)),
+        "within_speed_limits": not beyond,
+        "beyond_speed_limits": beyond,  # per joint and limit: the worst ratio and when
     }
 
 
