@@ -240,7 +240,8 @@ def test_published_start_is_infeasible_on_the_iiwa():
     with pytest.raises(PlanningError, match=r"start 'q0' is infeasible.*820\.0 mm.*q0_feasible"):
         plan("iiwa14_fault_circle_gpm", "start=q0")
     # planned anyway: the elbow passes through full stretch and the task fails
-    r = plan("iiwa14_fault_circle_gpm", "start=q0", "check.reach=report", "fault.joints=[]")
+    # (report mode for the joint limits too: through full stretch the elbow outruns its qdlim)
+    r = plan("iiwa14_fault_circle_gpm", "start=q0", "check.reach=report", "check.limits=report", "fault.joints=[]")
     s = r.metadata["summary"]
     assert "infeasible" in s["infeasible_start"] and not s["task_completed"]
     assert r.metadata["reach_check"]["needed_distance_range_mm"][1] > 820.0
@@ -364,7 +365,8 @@ def test_sweep_reports_an_infeasible_start_per_row(tmp_path):
     import pandas as pd
 
     out = tmp_path / "sweep.csv"
-    args = ["sweep", str(EXAMPLES / "iiwa14_fault_circle_gpm.toml"), "--set", "start=q0", "--workers", "1", "-o", str(out)]
+    args = ["sweep", str(EXAMPLES / "iiwa14_fault_circle_gpm.toml"), "--set", "start=q0", "--set", "check.limits=report",
+            "--workers", "1", "-o", str(out)]
     result = CliRunner().invoke(cli, [*args, "--grid", "check.reach=['error', 'report']", "--grid", "fault.time=[2, 9]"])
     assert result.exit_code == 0, result.output
     table = pd.read_csv(out, keep_default_na=False)
