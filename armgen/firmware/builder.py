@@ -128,7 +128,7 @@ class FirmwareBuilder:
 
     def sources(self, v: Variant) -> list[Path]:
         common = [self.robot_source, self.ptp_dir / f"{PTP_PREFIX}_ptp.c",
-                  FIRMWARE_DIR / "controller.c", FIRMWARE_DIR / "fw_csv.c"]
+                  FIRMWARE_DIR / "controller.c", FIRMWARE_DIR / "fw_program.c", FIRMWARE_DIR / "fw_csv.c"]
         if v.target == "arm":
             fast = [ARM_DIR / "fw_fastmath.c"] if v.fast_trig else []
             return common + [ARM_DIR / "startup.c", ARM_DIR / "semihost.c", ARM_DIR / "fw_main.c", *fast]

@@ -4,7 +4,9 @@ knots and coefficients for playback). It is compiled in, so the host and the Cor
 run the identical task.
 
 - :func:`task_from_plan` / :func:`task_from_dict` turn a plan (its ``plan.json``) or a task
-  file into a :class:`FirmwareTask`;
+  file into a :class:`FirmwareTask`; a program path (``path.type = "program"``) becomes the
+  program table of :mod:`.program_table` (geometry and the plan's final time law, after any
+  slowing down for the joints' speed limits) beside ``fw_task``;
 - :func:`write_task_files` writes ``task_params.h``, the PTP evaluator ``fw_ptp.{h,c}`` and
   ``robot_fw.c`` (the generated functions the controller calls) for the stub's Makefile
   (``armgen firmware-task``).
@@ -16,7 +18,7 @@ import dataclasses
 import json
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -28,8 +30,10 @@ from ..errors import excerpt
 from ..fileio import write_text_atomic
 from ..planning.result import PlanResult, read_plan
 from ..planning.tasks import apply_overrides, load_task, run_task
+from ..planning.toolpath.timelaw import ProgramMotion
 from ..robot import Robot, load_robot
 from .errors import FirmwareError
+from .program_table import program_table_c
 from .sources import PTP_PREFIX, extract_functions, firmware_functions, robot_prefix
 
 MAX_SEGMENTS = 16  # CTRL_MAX_SEGMENTS default; plans with more segments get a -D
@@ -92,7 +96,12 @@ def _vec(values) -> str:
     return "{" + ", ".join(_lit(v) for v in np.asarray(values, dtype=float).ravel()) + "}"
 
 
-def _header(robot: Robot, source: str, body: list[str], comment: str, lock_tick: int = -1, lock_mask: int = 0) -> str:
+PROGRAM_TABLE = "fw_program_table"  # the program table's name in task_params.h
+
+
+def _header(robot: Robot, source: str, body: list[str], comment: str, lock_tick: int = -1, lock_mask: int = 0,
+            motion: ProgramMotion | None = None) -> str:
+    """task_params.h: ``fw_task`` (and, for a program path, the program table it points to)."""
     n = robot.n
     lines = [
         "/*",
@@ -104,6 +113,7 @@ def _header(robot: Robot, source: str, body: list[str], comment: str, lock_tick:
         f"typedef char fw_task_check_ndof[(CTRL_NDOF == {n}) ? 1 : -1]; /* built for the right robot */",
         f"typedef char fw_task_check_ntask[(CTRL_NTASK == {len(robot.task_rows)}) ? 1 : -1];",
         "",
+        *([program_table_c(motion, PROGRAM_TABLE), ""] if motion is not None else []),
         "const ctrl_config fw_task = {",
         *[f"    {line}" for line in body],
         "};",
@@ -142,11 +152,32 @@ def _common_fields(robot: Robot, mode: str, dt: float, q_start: np.ndarray) -> l
     ]
 
 
-def cartesian_task(task: dict[str, Any], source: str) -> FirmwareTask:
-    """Resolved-rate parameters from a ``planner = "cartesian"`` task dict."""
+def _program_fields(duration: float) -> list[str]:
+    """The ``rr`` path fields of a program: the table and the plan's duration (whole ticks)."""
+    return [
+        ".path = CTRL_PATH_PROGRAM,",
+        f".program = &{PROGRAM_TABLE},",
+        f".duration = {_lit(duration)},",
+        ".law = CTRL_LAW_CONSTANT, .blend = CTRL_LIT(0.0),",
+        ".relative = 0,",
+        f".turns = {_lit(1.0)},",
+    ]
+
+
+def _need_motion(motion: ProgramMotion | None, source: str) -> ProgramMotion:
+    if motion is None:  # task_from_plan / task_from_dict always pass the plan's
+        raise FirmwareError(f"{source}: a program task needs its plan's time law; plan it first (armgen plan)")
+    return motion
+
+
+def cartesian_task(task: dict[str, Any], source: str, motion: ProgramMotion | None = None) -> FirmwareTask:
+    """Resolved-rate parameters from a ``planner = "cartesian"`` task dict; a program path
+    runs ``motion`` (the plan's final time law)."""
     from ..planning.cartesian.planner import CartesianPlanner, parse_cartesian_task
 
     parsed = parse_cartesian_task(json.loads(json.dumps(task)), source)
+    if parsed.motion is not None:
+        parsed = parsed.with_motion(_need_motion(motion, source))
     if parsed.integrator != "euler":
         raise FirmwareError(f"{source}: integrator.method = {excerpt(repr(parsed.integrator))}: the controller integrates with "
                             "explicit Euler, one step per tick; re-plan with integrator.method = \"euler\"")
@@ -157,22 +188,28 @@ def cartesian_task(task: dict[str, Any], source: str) -> FirmwareTask:
         path = CartesianPlanner(parsed, "symbolic").path
         axis, angle = path.axis_local, float(path.angle)
     steps = int(round(parsed.duration / parsed.step))
+    if parsed.motion is not None:
+        path_fields = _program_fields(parsed.duration)
+    else:
+        path_fields = [
+            f".path = {'CTRL_PATH_CIRCLE' if parsed.path_type == 'circle' else 'CTRL_PATH_LINE'},",
+            f".via = {_vec(parsed.via if parsed.via is not None else np.zeros(3))},",
+            f".end = {_vec(parsed.end)},",
+            f".rot_axis = {_vec(axis)},",
+            f".rot_angle = {_lit(angle)},",
+            f".duration = {_lit(parsed.duration)},",
+            f".law = {LAW_IDS[parsed.law.kind]},",
+            _blend(parsed.law, source),
+            ".relative = 0,",
+            f".turns = {_lit(1.0)},",
+        ]
     rr = [
-        f".path = {'CTRL_PATH_CIRCLE' if parsed.path_type == 'circle' else 'CTRL_PATH_LINE'},",
-        f".via = {_vec(parsed.via if parsed.via is not None else np.zeros(3))},",
-        f".end = {_vec(parsed.end)},",
-        f".rot_axis = {_vec(axis)},",
-        f".rot_angle = {_lit(angle)},",
-        f".duration = {_lit(parsed.duration)},",
-        f".law = {LAW_IDS[parsed.law.kind]},",
-        _blend(parsed.law, source),
+        *path_fields,
         f".method = {METHOD_IDS[mp.name]},",
         f".rho_R = {_lit(mp.rho_R)}, .T_smo_R = {_lit(mp.T_smo_R)},",
         f".rho_L = {_lit(mp.rho_L)}, .theta_s = {_lit(mp.theta_s)},",
         f".T_smo_L = {_lit(mp.T_smo_L)}, .T_sum_L = {_lit(mp.T_sum_L)},",
         f".gamma_R_ramp = {_lit(mp.gamma_R_ramp)},",
-        ".relative = 0,",
-        f".turns = {_lit(1.0)},",
         f".clik_gain = {_lit(parsed.clik_gain)},",
         # λ = 0: the planner damps only below σ_min = ε, which no bundled plan reaches; plans
         # that used damping are refused by compare_with_plan (summary.damped_steps > 0).
@@ -181,10 +218,11 @@ def cartesian_task(task: dict[str, Any], source: str) -> FirmwareTask:
     ]
     body = _common_fields(robot, "CTRL_MODE_RESOLVED_RATE", parsed.step, parsed.q_start)
     body += [".rr = {", *[f"    {line}" for line in rr], "},"]
-    comment = (f"Resolved rate: {parsed.path_type}, {parsed.law.kind} law over {parsed.duration:g} s, method "
+    law = "the plan's trapezoidal" if parsed.motion is not None else parsed.law.kind
+    comment = (f"Resolved rate: {parsed.path_type}, {law} law over {parsed.duration:g} s, method "
                f"{mp.name}, Euler h = {parsed.step:g} s ({steps} steps), CLIK gain {parsed.clik_gain:g}.")
-    return FirmwareTask(robot, "resolved_rate", _header(robot, source, body, comment), parsed.step, steps, source,
-                        parsed.output_every)
+    header = _header(robot, source, body, comment, motion=parsed.motion)
+    return FirmwareTask(robot, "resolved_rate", header, parsed.step, steps, source, parsed.output_every)
 
 
 def _ptp_robot(meta: dict[str, Any], robot: Robot | None, source: str) -> tuple[Robot, dict[int, str]]:
@@ -250,6 +288,9 @@ def playback_task(plan: PlanResult, source: str, robot: Robot | None = None) -> 
 
 def _path_fields(path, source: str) -> list[str]:
     """The ``rr`` fields of a spec 30/35 path task (taskpath.PathTask): path, timing, CLIK."""
+    rows = ".task_rows = {" + ", ".join(str(r) for r in path.robot.task_rows) + "},"
+    if path.motion is not None:
+        return [*_program_fields(path.duration), f".clik_gain = {_lit(path.clik_gain if path.clik else 0.0)},", rows]
     axis, angle = np.array([0.0, 0.0, 1.0]), 0.0
     if path.path_type == "line" and path.end_rotation is not None:  # the planner's own axis/angle
         from ..planning.backends import make_backend
@@ -270,7 +311,7 @@ def _path_fields(path, source: str) -> list[str]:
         f".relative = {1 if path.relative else 0},",
         f".turns = {_lit(path.turns)},",
         f".clik_gain = {_lit(path.clik_gain if path.clik else 0.0)},",
-        ".task_rows = {" + ", ".join(str(r) for r in path.robot.task_rows) + "},",
+        rows,
     ]
 
 
@@ -278,12 +319,15 @@ FT_METHOD_IDS = {"pinv": "CTRL_FT_PINV", "gpm": "CTRL_FT_GPM", "wln": "CTRL_FT_W
 FT_INDEX_IDS = {"omega": "CTRL_FT_INDEX_OMEGA", "relative": "CTRL_FT_INDEX_RELATIVE"}
 
 
-def fault_tolerant_task(task: dict[str, Any], source: str) -> FirmwareTask:
+def fault_tolerant_task(task: dict[str, Any], source: str, motion: ProgramMotion | None = None) -> FirmwareTask:
     """FAULT_TOLERANT parameters from a ``planner = "fault_tolerant"`` task dict; the plan's
-    fault (fault.joints from fault.time) becomes the runners' lock schedule."""
+    fault (fault.joints from fault.time) becomes the runners' lock schedule; a program path
+    runs ``motion`` (the plan's final time law)."""
     from ..planning.fault_tolerant.planner import parse_fault_tolerant_task
 
     parsed = parse_fault_tolerant_task(json.loads(json.dumps(task)), source)
+    if parsed.path.motion is not None:
+        parsed = replace(parsed, path=parsed.path.with_motion(_need_motion(motion, source)))
     path, m, robot = parsed.path, parsed.method, parsed.robot
     if m.index not in FT_INDEX_IDS:
         raise FirmwareError(f"{source}: method.index = {excerpt(repr(m.index))}: the controller computes the omega and relative "
@@ -310,15 +354,18 @@ def fault_tolerant_task(task: dict[str, Any], source: str) -> FirmwareTask:
     locked = ", ".join(robot.joints[j].name for j in parsed.fault.joints) or "none"
     comment = (f"Fault tolerant: {path.path_type} x {path.turns:g}, {m.label}, index {m.index}, Euler h = "
                f"{path.step:g} s ({steps} steps); lock of {locked} reported from tick {lock_tick}.")
-    return FirmwareTask(robot, "fault_tolerant", _header(robot, source, body, comment, lock_tick, lock_mask),
+    return FirmwareTask(robot, "fault_tolerant", _header(robot, source, body, comment, lock_tick, lock_mask, path.motion),
                         path.step, steps, source, path.output_every, lock_tick=lock_tick, lock_mask=lock_mask)
 
 
-def weighted_gpm_task(task: dict[str, Any], source: str) -> FirmwareTask:
-    """WEIGHTED_GPM parameters from a ``planner = "wgpm"`` task dict (method.name = "wgpm")."""
+def weighted_gpm_task(task: dict[str, Any], source: str, motion: ProgramMotion | None = None) -> FirmwareTask:
+    """WEIGHTED_GPM parameters from a ``planner = "wgpm"`` task dict (method.name = "wgpm"); a
+    program path runs ``motion`` (the plan's final time law)."""
     from ..planning.wgpm.planner import parse_wgpm_task
 
     parsed = parse_wgpm_task(json.loads(json.dumps(task)), source)
+    if parsed.path.motion is not None:
+        parsed = replace(parsed, path=parsed.path.with_motion(_need_motion(motion, source)))
     path, m, robot = parsed.path, parsed.method, parsed.path.robot
     if m.name != "wgpm":
         raise FirmwareError(f"{source}: method.name = {excerpt(repr(m.name))} is the planner's comparison baseline; the controller "
@@ -337,8 +384,8 @@ def weighted_gpm_task(task: dict[str, Any], source: str) -> FirmwareTask:
     body += [".wg = {", *[f"    {line}" for line in wg], "},"]
     comment = (f"Weighted GPM: {path.path_type} x {path.turns:g}, band {m.band:g}, ramp {m.ramp_time:g} s, Euler h = "
                f"{path.step:g} s ({path.steps} steps).")
-    return FirmwareTask(robot, "weighted_gpm", _header(robot, source, body, comment), path.step, path.steps, source,
-                        path.output_every)
+    return FirmwareTask(robot, "weighted_gpm", _header(robot, source, body, comment, motion=path.motion), path.step,
+                        path.steps, source, path.output_every)
 
 
 def schedule_lock(task: FirmwareTask, spec: str, source: str = "--lock") -> FirmwareTask:
@@ -372,11 +419,27 @@ def schedule_lock(task: FirmwareTask, spec: str, source: str = "--lock") -> Firm
 TASK_BUILDERS = {"cartesian": cartesian_task, "fault_tolerant": fault_tolerant_task, "wgpm": weighted_gpm_task}
 
 
-def _refuse_program(task: dict[str, Any], source: str) -> None:
+def _is_program(task: dict[str, Any]) -> bool:
     path = task.get("path")
-    if isinstance(path, dict) and path.get("type") == "program":
-        raise FirmwareError(f"{source}: the controller runs circle and line paths; a program (path.type = "
-                            "'program') has no firmware task yet: plan it on the host (armgen plan)")
+    return isinstance(path, dict) and path.get("type") == "program"
+
+
+def _plan_motion(plan: PlanResult, task: dict[str, Any], source: str) -> ProgramMotion | None:
+    """A program plan's final motion (geometry and time law, after any slowing down): the one
+    the plan carries in memory, else (a plan read from disk) the task planned again, which
+    must give the plan's own duration — a plan.json from another armgen or robot file is
+    refused rather than run with another time law."""
+    if not _is_program(task):
+        return None
+    if plan.motion is not None:
+        return plan.motion
+    replanned = run_task(task, source)
+    recorded = (plan.metadata.get("path") or {}).get("program_duration_s")
+    if recorded != replanned.motion.duration:
+        raise FirmwareError(f"{source}: planning its task again gives a program of {replanned.motion.duration!r} s, "
+                            f"the plan says {recorded!r} s (made by another armgen or robot file?); plan the task "
+                            "again with this armgen and give that plan, or give the task file (--task)")
+    return replanned.motion
 
 
 def task_from_plan(plan: PlanResult, source: str, robot: Robot | None = None) -> FirmwareTask:
@@ -386,8 +449,7 @@ def task_from_plan(plan: PlanResult, source: str, robot: Robot | None = None) ->
         task = plan.metadata.get("task")
         if not task:
             raise FirmwareError(f"{source}: no task in its plan.json (write plans with `armgen plan`)")
-        _refuse_program(task, source)
-        return TASK_BUILDERS[planner](task, source)
+        return TASK_BUILDERS[planner](task, source, _plan_motion(plan, task, source))
     if planner == "ptp":
         return playback_task(plan, source, robot)
     raise FirmwareError(f"{source}: the controller runs cartesian, ptp, fault_tolerant and wgpm plans, not planner "
@@ -395,11 +457,12 @@ def task_from_plan(plan: PlanResult, source: str, robot: Robot | None = None) ->
 
 
 def task_from_dict(task: dict[str, Any], source: str, robot: Robot | None = None) -> FirmwareTask:
-    """From a task file's dict: cartesian directly; ptp through the (fast) PTP planner."""
+    """From a task file's dict: circle and line tasks directly; programs (whose time law is the
+    plan's) and ptp through their planner."""
     planner = task.get("planner")
     if planner in TASK_BUILDERS:
-        _refuse_program(task, source)
-        return TASK_BUILDERS[planner](task, source)
+        motion = run_task(task, source).motion if _is_program(task) else None
+        return TASK_BUILDERS[planner](task, source, motion)
     if planner == "ptp":
         return playback_task(run_task(task, source), source, robot)
     raise FirmwareError(f"{source}: the controller runs cartesian, ptp, fault_tolerant and wgpm tasks, not planner "

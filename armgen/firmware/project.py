@@ -49,7 +49,8 @@ MANIFEST = ".armgen-firmware"  # the files this command wrote there, with their 
 
 # The stub's files the project needs, by their place in the project.
 STUB_FILES = {
-    "controller": ("controller.c", "controller.h", "ctrl_robot.h", "fw_csv.c", "fw_csv.h", "fw_task.c", "fw_task.h"),
+    "controller": ("controller.c", "controller.h", "ctrl_robot.h", "fw_program.c", "fw_program.h", "fw_csv.c", "fw_csv.h",
+                   "fw_task.c", "fw_task.h"),
     "host": ("host/main.c",),
     "arm": ("arm/fw_main.c", "arm/startup.c", "arm/semihost.c", "arm/semihost.h", "arm/fw_fastmath.c",
             "arm/mps2_an386.ld"),

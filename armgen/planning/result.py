@@ -29,6 +29,10 @@ class PlanResult:
     columns: list[str]
     data: np.ndarray  # shape (samples, len(columns))
     metadata: dict[str, Any] = field(default_factory=dict)
+    # A program plan's final motion (toolpath.timelaw.ProgramMotion: its geometry and the time
+    # law after any slowing down), in memory only: the controller's program table is made
+    # from it. Not written to the CSV or plan.json; None for every other plan.
+    motion: Any = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.data = np.asarray(self.data, dtype=float)

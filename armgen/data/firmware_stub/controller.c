@@ -51,6 +51,10 @@ typedef char ctrl_check_ptp_ncoef[(FW_PTP_NCOEF == CTRL_NCOEF) ? 1 : -1];
 #else
 #define MOVE_TO_TOL CTRL_LIT(1e-9)
 #endif
+/* m: a program table's first point and FK(q_start) agree to rounding (the planner built the
+ * table from FK(q_start) in double: ~1e-16 m; the float FK on the M4: ~1e-7 m per metre of
+ * reach); 1e-5 m is far above both and far below any other start (a table for another task). */
+#define PROGRAM_START_TOL CTRL_LIT(1e-5)
 #define MOVE_TO_ITERATIONS CTRL_LIT(150.0)
 /* The profile accelerates over this fraction of its duration and decelerates over as much. */
 #define MOVE_TO_BLEND CTRL_LIT(0.25)
@@ -186,6 +190,10 @@ static void desired(const ctrl *c, ctrl_real t, ctrl_real *p, ctrl_real *R, ctrl
   ctrl_real dp[3], dw[3];
   /* (the cartesian planner has turns = 1: 1 * s is s exactly, so its replay is unchanged) */
   int i;
+  if (rr->path == CTRL_PATH_PROGRAM) { /* timelaw.py ProgramMotion: at rest before 0 and after its end */
+    fw_program_desired(rr->program, t, p, R, xdot);
+    return;
+  }
   time_law(rr, t / T, &s, &ds);
   s = rr->turns * s; /* taskpath.py: path(turns * s), s_dot = turns * ds / T */
   ds = rr->turns * ds;
@@ -374,6 +382,23 @@ static int method_valid(ctrl_method m) {
   return 0;
 }
 
+/* A program path: a well-formed table (fw_program_check), absolute (relative = 0), whose
+ * time law ends within the task's duration (the planner rounds it up to whole ticks) and
+ * whose first pose is FK(q_start) (start pose tp, column-major 4x4), to PROGRAM_START_TOL:
+ * a table planned from another start is refused, not tracked. */
+static int init_program(const ctrl *c, const ctrl_real *Tp) {
+  const ctrl_rr_config *rr = &c->cfg.rr;
+  ctrl_real p[3], R[9], xdot[6], d[3];
+  int i;
+  if (rr->program == NULL || !fw_program_check(rr->program) || rr->relative != 0) return 0;
+  if (!(fw_program_duration(rr->program) <= rr->duration * (CTRL_LIT(1.0) + DURATION_RTOL))) return 0;
+  fw_program_desired(rr->program, CTRL_LIT(0.0), p, R, xdot);
+  for (i = 0; i < 3; ++i) {
+    d[i] = p[i] - Tp[12 + i];
+  }
+  return norm3(d) <= PROGRAM_START_TOL;
+}
+
 /* The path and time law shared by the resolved-rate modes: duration a whole number of ticks,
  * path built from FK(q_start) (paths.py CirclePath / LinePath, taskpath.py's relative points). */
 static int init_path(ctrl *c) {
@@ -396,11 +421,12 @@ static int init_path(ctrl *c) {
   if (!all_finite(rr->via, 3) || !all_finite(rr->end, 3) || !all_finite(rr->rot_axis, 3) || !finite_r(rr->rot_angle)) {
     return 0;
   }
-  if (rr->path != CTRL_PATH_CIRCLE && rr->path != CTRL_PATH_LINE) return 0;
-  if (rr->path == CTRL_PATH_LINE && rr->turns != CTRL_LIT(1.0)) return 0;
+  if (rr->path != CTRL_PATH_CIRCLE && rr->path != CTRL_PATH_LINE && rr->path != CTRL_PATH_PROGRAM) return 0;
+  if (rr->path != CTRL_PATH_CIRCLE && rr->turns != CTRL_LIT(1.0)) return 0;
 
   ctrl_gen_fk_jacobian(cfg->q_start, Tp, J);
   if (!all_finite(Tp, 16)) return 0;
+  if (rr->path == CTRL_PATH_PROGRAM) return init_program(c, Tp);
   for (i = 0; i < 3; ++i) {
     c->p0[i] = Tp[12 + i];
     for (r = 0; r < 3; ++r) {
@@ -687,6 +713,52 @@ static void task_command(ctrl *c, const ctrl_input *in, ctrl_real t, const ctrl_
   }
 }
 
+/* Stage 1 of planning/toolpath/limits.py for programs: when a joint's q_dot exceeds its
+ * qdot_max, the self-motion q_n = q_dot - J+ J q_dot (J on the task rows and the healthy
+ * columns) is scaled by the largest s in [0, 1] that keeps inside its limit every joint
+ * whose tool part alone fits; the tool's twist J q_dot is unchanged. (A joint whose tool part
+ * alone is too fast is left to the speed guard: the planner slowed the tool there.) */
+static ctrl_fault limit_self_motion(const ctrl *c, const ctrl_real *J, ctrl_real *qd) {
+  const ctrl_config *cfg = &c->cfg;
+  ctrl_real Jm[6 * N], v[CTRL_NTASK], zero[N], tool[N], scale = CTRL_LIT(1.0);
+  int i, r, over = 0;
+  for (i = 0; i < N; ++i) {
+    over |= CTRL_FABS(qd[i]) > cfg->qdot_max[i];
+  }
+  if (!over) return CTRL_FAULT_NONE;
+  for (i = 0; i < N; ++i) {
+    for (r = 0; r < 6; ++r) {
+      Jm[r + 6 * i] = J[r + 6 * i] * c->mask[i];
+    }
+    zero[i] = CTRL_LIT(0.0);
+  }
+  for (r = 0; r < CTRL_NTASK; ++r) {
+    ctrl_real sum = CTRL_LIT(0.0);
+    for (i = 0; i < N; ++i) {
+      sum = sum + Jm[cfg->rr.task_rows[r] + 6 * i] * qd[i];
+    }
+    v[r] = sum;
+  }
+  if (ctrl_gen_step_gpm(Jm, v, zero, CTRL_LIT(0.0), tool) != CTRL_GEN_OK) return CTRL_FAULT_NONFINITE_OUTPUT;
+  for (i = 0; i < N; ++i) {
+    ctrl_real null_i = qd[i] - tool[i];
+    if (CTRL_FABS(tool[i]) <= cfg->qdot_max[i] && null_i != CTRL_LIT(0.0)) {
+      ctrl_real limit = null_i > CTRL_LIT(0.0) ? cfg->qdot_max[i] : -cfg->qdot_max[i];
+      scale = min_r(scale, (limit - tool[i]) / null_i);
+    }
+  }
+  scale = max_r(scale, CTRL_LIT(0.0));
+  for (i = 0; i < N; ++i) {
+    qd[i] = tool[i] + scale * (qd[i] - tool[i]);
+  }
+  return CTRL_FAULT_NONE;
+}
+
+/* The step's q_dot within the speed limits the way the planner keeps it (programs only). */
+static ctrl_fault limit_speed(const ctrl *c, const ctrl_real *J, ctrl_real *qd) {
+  return c->cfg.rr.path == CTRL_PATH_PROGRAM ? limit_self_motion(c, J, qd) : CTRL_FAULT_NONE;
+}
+
 /* The guards every resolved-rate step passes before its command is accepted: speed
  * (qdot_max), task residual |J q_dot - cmd| (only for undamped steps: damping trades the
  * residual for a bounded speed by design) and tracking. */
@@ -744,6 +816,8 @@ static ctrl_fault tick_resolved_rate(ctrl *c, const ctrl_input *in, ctrl_real t,
   null_space_alpha(c, t, q, alpha);
   /* the step's status covers its inputs (cmd, alpha) and q_dot: NaN/inf in any is a fault */
   if (ctrl_gen_step_gpm(J, cmd, alpha, rr->damping, qd) != CTRL_GEN_OK) return CTRL_FAULT_NONFINITE_OUTPUT;
+  f = limit_speed(c, J, qd);
+  if (f != CTRL_FAULT_NONE) return f;
   f = check_step(c, J, cmd, cmd_max, qd, 0);
   if (f != CTRL_FAULT_NONE) return f;
   accept(c, t, q, qd, out);
@@ -799,6 +873,8 @@ static ctrl_fault tick_fault_tolerant(ctrl *c, const ctrl_input *in, ctrl_real t
   }
   /* a locked joint's q_dot is exactly 0: step_fault scales its column by mask/W = 0 and adds
    * mask * alpha = 0 (finite, as the status says) */
+  f = limit_speed(c, J, qd);
+  if (f != CTRL_FAULT_NONE) return f;
   f = check_step(c, J, cmd, cmd_max, qd, lam > CTRL_LIT(0.0));
   if (f != CTRL_FAULT_NONE) return f;
   accept(c, t, q, qd, out);
@@ -842,6 +918,8 @@ static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, 
   for (i = 0; i < N; ++i) {
     c->win_value[i] = w_c[i]; /* reported in out.window: the joint-limit weights W_c */
   }
+  f = limit_speed(c, J, qd);
+  if (f != CTRL_FAULT_NONE) return f;
   f = check_step(c, J, cmd, cmd_max, qd, rho > CTRL_LIT(0.0));
   if (f != CTRL_FAULT_NONE) return f;
   accept(c, t, q, qd, out);

@@ -21,7 +21,11 @@
  *       q_dot = J+ x_dot + (I - J+ J) alpha through the generated step_gpm, alpha the
  *       null-space operator of spec 20 (minimum norm, repetitive, Zghal, windowed Zghal,
  *       combined), explicit Euler, optional closed loop (CLIK). This reproduces
- *       armgen/planning/cartesian.py tick by tick.
+ *       armgen/planning/cartesian.py tick by tick. The path may instead be a program
+ *       (CTRL_PATH_PROGRAM): lines, arcs, rounded corners and sampled poses with the
+ *       planner's trapezoidal time law, evaluated from a const table in flash (fw_program.h);
+ *       then, as the planner does, a step whose q_dot exceeds a joint's qdot_max first has
+ *       its self-motion scaled (the tool's twist unchanged). Every resolved-rate mode runs it.
  *   CTRL_MODE_PLAYBACK  joint-space polynomial segments (spec 40): per joint the knot times
  *       and six coefficients per segment, evaluated by the generated fw_ptp_eval; every
  *       command is checked against qdot_max[i] (speed and the step from the previous command).
@@ -46,6 +50,7 @@
 #include <stdint.h>
 
 #include "ctrl_robot.h"
+#include "fw_program.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -112,7 +117,7 @@ typedef enum { CTRL_FT_PINV = 0, CTRL_FT_GPM = 1, CTRL_FT_WLN = 2 } ctrl_ft_meth
 typedef enum { CTRL_FT_INDEX_OMEGA = 0, CTRL_FT_INDEX_RELATIVE = 1 } ctrl_ft_index;
 typedef enum { CTRL_WLN_PLAIN = 0, CTRL_WLN_SMOOTH = 1 } ctrl_wln_rule;
 #define CTRL_WGPM_NCRIT 4 /* criteria of step_wgpm: manipulability, joint manipulability, Zghal, condition */
-typedef enum { CTRL_PATH_LINE = 0, CTRL_PATH_CIRCLE = 1 } ctrl_path_type;
+typedef enum { CTRL_PATH_LINE = 0, CTRL_PATH_CIRCLE = 1, CTRL_PATH_PROGRAM = 2 } ctrl_path_type;
 typedef enum { CTRL_LAW_CUBIC = 0, CTRL_LAW_TRAPEZOIDAL = 1, CTRL_LAW_CONSTANT = 2 } ctrl_time_law;
 typedef enum {
   CTRL_METHOD_PINV = 0,           /* alpha = 0 (minimum norm) */
@@ -122,9 +127,12 @@ typedef enum {
   CTRL_METHOD_COMBINED = 4        /* gamma_R alpha_R + windows * alpha_L, linear window ramps */
 } ctrl_method;
 
-/* Resolved-rate task: the path is built on board from FK(q_start) and these points. */
+/* Resolved-rate task: the path is built on board from FK(q_start) and these points, or
+ * read from a program table. */
 typedef struct {
   ctrl_path_type path;
+  const fw_program *program; /* CTRL_PATH_PROGRAM: the program and its time law, a const table
+                            (in flash; ctrl_init checks it and keeps only this pointer); else NULL */
   ctrl_real via[3];      /* circle: the second point, m (base frame) */
   ctrl_real end[3];      /* circle: the third point; line: the end point, m */
   ctrl_real rot_axis[3]; /* line: unit axis of the orientation change, in the start tool frame */

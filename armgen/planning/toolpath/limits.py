@@ -234,6 +234,7 @@ def plan_with_speed_limits(run: Callable[[ProgramMotion | None], Any], motion: P
                                                    lambda r: plan_samples(r, robot.n))
         report |= {"enforced": True}
         result.metadata.setdefault("path", {}).update(program_metadata(final))
+        result.motion = final
     result.metadata.setdefault("summary", {})["joint_speed"] = report
     return result
 
