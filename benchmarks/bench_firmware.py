@@ -25,6 +25,13 @@ For the joint controller of firmware_stub/ running spec 20's combined plan on mo
    (controller.o + the generated functions the mode calls), RAM (sizeof(ctrl)), stack
    (-fstack-usage worst static chain of the mode's tick, and the peak measured under QEMU);
    ratios against RESOLVED_RATE measured in the same run. ``--modes-only`` runs just this.
+6. MOVE_TO (``--move-to-only``).
+7. A program on board (issue 26, ``--program-only``): the seam program of
+   tests/test_programs.py (4 lines, 2 arcs, 8 mm blends, the torch turning) on Baxter's arm
+   (tests/data, not bundled), cartesian with CLIK: instructions per tick (mean, max) against a
+   line task on the same robot from the same start with the same method and gain (today's
+   resolved-rate tick) in the same build, flash of the program table and of fw_program.o, RAM
+   (sizeof(ctrl)), and the replay error of the QEMU run against the plan.
 
 Bars (reported, not asserted): BARS. A missing tool skips its rows. About a minute on 2 cores.
 """
@@ -245,6 +252,7 @@ def main(argv=None) -> int:
     ap.add_argument("--keep", action="store_true", help="keep the build directory")
     ap.add_argument("--modes-only", action="store_true", help="only section 5 (every controller mode)")
     ap.add_argument("--move-to-only", action="store_true", help="only section 6 (MOVE_TO under QEMU)")
+    ap.add_argument("--program-only", action="store_true", help="only section 7 (a program on board)")
     args = ap.parse_args(argv)
     os.environ["ARMGEN_NO_PROGRESS"] = "1"
     started = time.perf_counter()
@@ -261,6 +269,10 @@ def main(argv=None) -> int:
     print(f"armgen firmware benchmark, build dir {work}")
 
     state: dict = {}
+    if args.program_only:
+        rep.section("program", "7. A program on board, Baxter's arm, Cortex-M4F float (QEMU -icount):",
+                    lambda: program_section(rep, work))
+        return finish(rep, args, work, started)
     if args.move_to_only:
         rep.section("move_to", "6. MOVE_TO, modular8, Cortex-M4F float (QEMU -icount):",
                     lambda: move_to_table(rep, work, fw.FirmwareBuilder("modular8", work / "fw")))
@@ -515,6 +527,72 @@ def move_to_table(rep: Report, work: Path, builder) -> None:
           f"(worst MOVE_TO tick / RR mean = {max(worst) / rr['mean']:.1f}x)", flush=True)
     rep.rows.append(("MOVE_TO worst tick (IK), max over poses", f"{max(worst):.0f}", "instr",
                      f"{MOVE_TO_POSES} poses; RR tick mean {rr['mean']:.0f}"))
+
+
+# The reference tick for section 7: a line from the seam's start to its first corner, the same
+# method (the cartesian default) and CLIK gain, at the seam's speed (40 mm in 0.5 s).
+REFERENCE_LINE = """
+planner = "cartesian"
+robot = "{robot}"
+start = {{ pose = {{ xyz = {xyz}, rpy = {rpy} }}, seed = "q0" }}
+[units]
+length = "mm"
+angle = "deg"
+[path]
+type = "line"
+end = {end}
+orientation = "hold"
+[timing]
+duration = 0.5
+law = "trapezoidal"
+[integrator]
+method = "euler"
+step = 0.01
+clik_gain = 20
+"""
+
+
+def program_section(rep: Report, work: Path) -> None:
+    """Section 7: the seam program's tick against the resolved-rate line tick, same build."""
+    import tomllib
+
+    sys.path.insert(0, str(REPO / "tests"))
+    from test_programs import BAR_MOVES, BAR_START, BAXTER, bar_task
+
+    tool("arm-none-eabi-gcc")
+    tool("qemu-system-arm")
+    builder = fw.FirmwareBuilder(str(BAXTER), work / "baxter")
+    quiet = dataclasses.replace(fw.ARM_VARIANT, print_rows=False)
+    xyz, rpy = BAR_START
+    tasks = {"program (seam)": bar_task("cartesian"),
+             "line (reference)": REFERENCE_LINE.format(robot=BAXTER, xyz=xyz, rpy=rpy, end=BAR_MOVES[0][1])}
+    data = rep.data.setdefault("program", {})
+    for label, text in tasks.items():
+        path = work / (re.sub(r"\W", "", label) + ".toml")
+        path.write_text(text)
+        plan = run_task(tomllib.loads(text), str(path))
+        task = fw.task_from_plan(plan, str(path), builder.robot)
+        name = re.sub(r"\W", "", label)
+        ipt = fw.instructions_per_tick(fw.run_qemu(builder.executable(quiet, task, name)))
+        run = fw.run_qemu(builder.executable(fw.ARM_VARIANT, task, name + "_rows"))
+        cmp = fwcmp.compare_with_plan(plan, run, task, "float", label)
+        data[label] = {"mean": ipt["mean"], "max": ipt["max"], "ticks": ipt["ticks"], "max_dq_rad": cmp.max_dq,
+                       "end": f"{run.state}/{run.fault}", "sizeof_ctrl": int(run.summary["sizeof_ctrl"])}
+    prog, line = data["program (seam)"], data["line (reference)"]
+    ratio_mean, ratio_max = prog["mean"] / line["mean"], prog["max"] / line["max"]
+    syms = linked_symbols(builder.work / f"{quiet.name}_programseam" / "fw_m4.elf")
+    table = sum(size for sym, size in syms.items() if sym.startswith("fw_program_table"))
+    evaluator = flash_ram(builder.object_dir(quiet) / "fw_program.o")["flash"]
+    data.update({"ratio_mean": ratio_mean, "ratio_max": ratio_max, "table_flash_bytes": table,
+                 "fw_program_flash_bytes": evaluator})
+    for label, m in data.items():
+        if isinstance(m, dict):
+            print(f"  {label:<18} instr/tick mean {m['mean']:>7.0f}  max {m['max']:>7.0f}  ({m['ticks']} ticks, "
+                  f"{m['end']}); QEMU max |dq| vs plan {m['max_dq_rad']:.2e} rad; sizeof(ctrl) {m['sizeof_ctrl']} B")
+    print(f"  program / line: mean {ratio_mean:.3f}x, max {ratio_max:.3f}x (goal <= 1.2x); program table "
+          f"{table} B flash, fw_program.o {evaluator} B", flush=True)
+    rep.rows.append(("program tick / resolved-rate tick (mean, max)", f"{ratio_mean:.3f} / {ratio_max:.3f}", "x",
+                     f"goal <= 1.2; table {table} B, evaluator {evaluator} B"))
 
 
 if __name__ == "__main__":
