@@ -424,6 +424,13 @@ def _is_program(task: dict[str, Any]) -> bool:
     return isinstance(path, dict) and path.get("type") == "program"
 
 
+def task_source(plan: PlanResult, source: str) -> str:
+    """Where a plan's task was read from (its ``task_file``, when that file is still there),
+    else the plan itself: a program's poses files are relative to it."""
+    task_file = plan.metadata.get("task_file")
+    return task_file if isinstance(task_file, str) and Path(task_file).is_file() else source
+
+
 def _plan_motion(plan: PlanResult, task: dict[str, Any], source: str) -> ProgramMotion | None:
     """A program plan's final motion (geometry and time law, after any slowing down): the one
     the plan carries in memory, else (a plan read from disk) the task planned again, which
@@ -433,7 +440,7 @@ def _plan_motion(plan: PlanResult, task: dict[str, Any], source: str) -> Program
         return None
     if plan.motion is not None:
         return plan.motion
-    replanned = run_task(task, source)
+    replanned = run_task(task, task_source(plan, source))
     recorded = (plan.metadata.get("path") or {}).get("program_duration_s")
     if recorded != replanned.motion.duration:
         raise FirmwareError(f"{source}: planning its task again gives a program of {replanned.motion.duration!r} s, "

@@ -37,7 +37,7 @@ from ..planning.result import PlanResult, read_plan, write_plan
 from ..planning.tasks import load_task, run_task
 from ..robot import Robot, load_robot, resolve_robot_path
 from ..symbolic.model import SymbolicModel
-from .configuration import FirmwareTask, refusal, task_from_plan, write_task_files
+from .configuration import FirmwareTask, refusal, task_from_plan, task_source, write_task_files
 from .errors import FirmwareError
 
 DEMO_DURATION_S = 1.0
@@ -109,6 +109,7 @@ class ProjectTask:
     firmware: FirmwareTask
     description: str
     source: str
+    folder: Path | None = None  # the folder the task's own files (a program's poses) are relative to
 
 
 def _own_robot(job: ProjectTask, robot: Robot) -> ProjectTask:
@@ -138,7 +139,8 @@ def task_file_project_task(robot: Robot, task_path: str | Path) -> ProjectTask:
     source = str(task_path)
     result = run_task(task, source, sha)
     job = ProjectTask(task, result, _runnable(result, source, robot),
-                      f"the task of {Path(task_path).name} (planner {task.get('planner')})", source)
+                      f"the task of {Path(task_path).name} (planner {task.get('planner')})", source,
+                      Path(task_path).parent)
     return _own_robot(job, robot)
 
 
@@ -148,7 +150,8 @@ def plan_project_task(robot: Robot, plan_path: str | Path) -> ProjectTask:
     result = read_plan(plan_path)
     task = result.metadata.get("task") or None
     job = ProjectTask(task, result, _runnable(result, source, robot),
-                      f"the plan {Path(plan_path).name} (planner {result.metadata.get('planner')})", source)
+                      f"the plan {Path(plan_path).name} (planner {result.metadata.get('planner')})", source,
+                      Path(task_source(result, source)).parent)
     return _own_robot(job, robot)
 
 
@@ -241,6 +244,24 @@ def _apply_umask(root: Path) -> None:
             os.chmod(os.path.join(folder, name), 0o666 & ~mask)
 
 
+def _copy_poses_files(task: dict[str, Any], folder: Path | None, demo: Path) -> dict[str, Any]:
+    """The task with each program ``poses`` file copied beside the project's demo.toml (as
+    ``poses_<move>.csv``: the project plans in place; the user's file name never becomes a
+    path of the project) and the move naming that copy."""
+    path = task.get("path")
+    if not (isinstance(path, dict) and isinstance(path.get("moves"), list)):
+        return task
+    moves = []
+    for k, move in enumerate(path["moves"], start=1):
+        if isinstance(move, dict) and isinstance(move.get("file"), str):
+            source = Path(move["file"]) if folder is None else folder / move["file"]
+            name = f"poses_{k}.csv"
+            (demo / name).write_bytes(source.read_bytes())
+            move = dict(move, file=name)
+        moves.append(move)
+    return dict(task, path=dict(path, moves=moves))
+
+
 def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, job: ProjectTask) -> None:
     stub = resources.files("armgen.data") / "firmware_stub"
     (stage / PROJECT_ROBOT_FILE).write_bytes(robot_bytes)
@@ -257,7 +278,7 @@ def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, job: ProjectTask) -
     result = job.result
     if job.task is not None:
         # The project names its own copy of the robot file, so it plans and verifies in place.
-        task = dict(job.task, robot=PROJECT_ROBOT_FILE)
+        task = _copy_poses_files(dict(job.task, robot=PROJECT_ROBOT_FILE), job.folder, stage / "demo")
         toml_text = task_toml(task, f"The task of robot '{robot.name}' the demo runs: {job.description}.")
         (stage / "demo" / "demo.toml").write_text(toml_text, encoding="utf-8")
         result.metadata["task"] = task
