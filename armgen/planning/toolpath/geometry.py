@@ -179,6 +179,7 @@ class Corner(Curve):
         c2 = pb - 2 / 3 * np.linalg.norm(pb - corner) * tb
         ctrl = np.array([pa, c1, c2, pb])
         orientation = _Slerp(Rotation.from_matrix(ra), Rotation.from_matrix(rb))
+        self.control, self.orientation = ctrl, orientation  # the on-board program table encodes both
 
         def position(w):
             m = 1 - w
@@ -196,9 +197,9 @@ class Corner(Curve):
         self.move = move
 
 
-def pose_spline(points: np.ndarray, rotations: Rotation, move: int) -> Curve:
-    """The C² cubic spline through ``points`` (not-a-knot ends) on the chord length, with the
-    rotations interpolated by :class:`RotationSpline` on the same parameter."""
+def pose_spline(points: np.ndarray, rotations: Rotation, move: int) -> PoseSpline:
+    """The pose spline through ``points`` and ``rotations`` (see :class:`PoseSpline`), after
+    checking that the rows define one."""
     if len(points) < MIN_POSE_ROWS:
         raise GeometryError(move, f"{len(points)} poses: a poses move needs at least {MIN_POSE_ROWS} (with the "
                                   "current pose) to define a cubic spline; add rows or use a line")
@@ -213,21 +214,28 @@ def pose_spline(points: np.ndarray, rotations: Rotation, move: int) -> Curve:
         k = int(np.argmax(back)) + 1
         raise GeometryError(move, f"the path doubles back at pose {k} (it turns by more than 90° between samples): "
                                   "the rows must be ordered along the path; sort them or split the move")
-    tau = np.concatenate([[0.0], np.cumsum(chords)])
-    spline = CubicSpline(tau, points, bc_type="not-a-knot")
-    velocity = spline.derivative()
-    rot_spline = RotationSpline(tau, rotations)
+    return PoseSpline(np.concatenate([[0.0], np.cumsum(chords)]), points, rotations)
 
-    def rotation(w):
-        return rot_spline(w).as_matrix().reshape(w.shape + (3, 3))
 
-    def omega(w):
-        rot = rot_spline(w)
-        return rot.apply(rot_spline(w, 1))  # RotationSpline's rate is in the body frame
+class PoseSpline(Curve):
+    """The C² cubic spline through ``points`` (not-a-knot ends) on the chord length ``tau``, with
+    the rotations interpolated by :class:`RotationSpline` on the same parameter (both kept as
+    ``spline`` and ``rotation_spline`` for the on-board program table)."""
 
-    within = np.arange(SAMPLES_PER_KNOT) / SAMPLES_PER_KNOT
-    w = np.concatenate([(tau[:-1, None] + np.diff(tau)[:, None] * within).ravel(), tau[-1:]])
-    return Curve(spline, velocity, rotation, omega, w)
+    def __init__(self, tau: np.ndarray, points: np.ndarray, rotations: Rotation):
+        self.spline = CubicSpline(tau, points, bc_type="not-a-knot")
+        self.rotation_spline = rot_spline = RotationSpline(tau, rotations)
+
+        def rotation(w):
+            return rot_spline(w).as_matrix().reshape(w.shape + (3, 3))
+
+        def omega(w):
+            rot = rot_spline(w)
+            return rot.apply(rot_spline(w, 1))  # RotationSpline's rate is in the body frame
+
+        within = np.arange(SAMPLES_PER_KNOT) / SAMPLES_PER_KNOT
+        w = np.concatenate([(tau[:-1, None] + np.diff(tau)[:, None] * within).ravel(), tau[-1:]])
+        super().__init__(self.spline, self.spline.derivative(), rotation, omega, w)
 
 
 class Trimmed(Piece):
