@@ -576,7 +576,10 @@ def program_section(rep: Report, work: Path) -> None:
         ipt = fw.instructions_per_tick(fw.run_qemu(builder.executable(quiet, task, name)))
         run = fw.run_qemu(builder.executable(fw.ARM_VARIANT, task, name + "_rows"))
         cmp = fwcmp.compare_with_plan(plan, run, task, "float", label)
+        host = fw.run_host(builder.executable(fw.Variant("host", "double"), task, name + "_host"))
+        host_dq = fwcmp.compare_with_plan(plan, host, task, "double", label).max_dq
         data[label] = {"mean": ipt["mean"], "max": ipt["max"], "ticks": ipt["ticks"], "max_dq_rad": cmp.max_dq,
+                       "host_double_max_dq_rad": host_dq,
                        "end": f"{run.state}/{run.fault}", "sizeof_ctrl": int(run.summary["sizeof_ctrl"])}
     prog, line = data["program (seam)"], data["line (reference)"]
     ratio_mean, ratio_max = prog["mean"] / line["mean"], prog["max"] / line["max"]
@@ -588,7 +591,8 @@ def program_section(rep: Report, work: Path) -> None:
     for label, m in data.items():
         if isinstance(m, dict):
             print(f"  {label:<18} instr/tick mean {m['mean']:>7.0f}  max {m['max']:>7.0f}  ({m['ticks']} ticks, "
-                  f"{m['end']}); QEMU max |dq| vs plan {m['max_dq_rad']:.2e} rad; sizeof(ctrl) {m['sizeof_ctrl']} B")
+                  f"{m['end']}); max |dq| vs plan: QEMU float {m['max_dq_rad']:.2e}, host double "
+                  f"{m['host_double_max_dq_rad']:.2e} rad; sizeof(ctrl) {m['sizeof_ctrl']} B")
     print(f"  program / line: mean {ratio_mean:.3f}x, max {ratio_max:.3f}x (goal <= 1.2x); program table "
           f"{table} B flash, fw_program.o {evaluator} B", flush=True)
     rep.rows.append(("program tick / resolved-rate tick (mean, max)", f"{ratio_mean:.3f} / {ratio_max:.3f}", "x",
