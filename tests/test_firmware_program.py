@@ -23,7 +23,7 @@ from armgen.robot import load_robot
 from armgen.verify.firmware_compare import FW_DOUBLE_BOUND_RAD, compare_with_plan
 from conftest import require_tool
 from test_firmware_task_project import _build_and_run, _verify_run
-from test_programs import BAXTER, bar_task
+from test_programs import BAXTER, EXAMPLES, bar_task
 
 # The issue's bar for the M4 (float) run of the program: max |Δq| against the plan. It is
 # tighter than verify's general float bound (1e-3 rad, sized for 12 500 open-loop ticks): the
@@ -117,3 +117,28 @@ def test_bar_program_project_host_and_m4(tmp_path, monkeypatch):
     comparison = compare_with_plan(plan, run, fw_task, "float", "m4")
     assert comparison.passed, comparison.rows
     assert comparison.max_dq <= ISSUE_FLOAT_BAR_RAD, comparison.rows
+
+
+def test_poses_program_project_plans_in_place(tmp_path, monkeypatch):
+    """A program with a sampled `poses` move (the bundled panda polishing contour, its CSV
+    beside the task): `armgen firmware` copies the CSV into the project, whose demo.toml then
+    plans in place to the same plan, and the host controller (double) replays it to 1e-9 rad."""
+    out = CliRunner().invoke(cli, ["examples", "panda_polish_contour_program", "--copy", str(tmp_path / "ex")])
+    assert out.exit_code == 0, out.output
+    task = next((tmp_path / "ex").glob("panda_polish_contour_program.toml"))
+    out = CliRunner().invoke(cli, ["firmware", "panda", "--task", str(task), "--out", str(tmp_path / "fw")])
+    assert out.exit_code == 0, out.output
+    project = tmp_path / "fw"
+    demo = tomllib.loads((project / "demo" / "demo.toml").read_text())
+    files = [m["file"] for m in demo["path"]["moves"] if "file" in m]
+    assert files and all((project / "demo" / f).is_file() for f in files)
+    monkeypatch.chdir(project)  # the plan names the project's robot.toml
+    replanned = CliRunner().invoke(cli, ["plan", "demo/demo.toml", "-o", "again.csv"])  # as its comment says
+    assert replanned.exit_code == 0, replanned.output
+    assert np.array_equal(read_plan(project / "again.csv").data, read_plan(project / "demo" / "plan.csv").data)
+    plan = read_plan(project / "demo" / "plan.csv")
+    task_fw = fw.task_from_plan(plan, "demo/plan.csv")  # planned again from the copies
+    builder = fw.FirmwareBuilder(task_fw.robot, tmp_path / "build")
+    run = fw.run_host(builder.executable(fw.Variant("host", "double"), task_fw))
+    comparison = compare_with_plan(plan, run, task_fw, "double", "poses")
+    assert comparison.passed, comparison.rows

@@ -59,7 +59,7 @@ def test_task_file_runs_in_the_project(tmp_path, monkeypatch):
     # the project's copy of the task names the project's robot file and is the user's task otherwise
     copied = tomllib.loads((project / "demo" / "demo.toml").read_text())
     original, _ = load_task(task)
-    assert copied["robot"] == "robot.toml"
+    assert copied["robot"] == "../robot.toml"  # relative to demo.toml, as every task file
     assert {k: v for k, v in copied.items() if k != "robot"} == {k: v for k, v in original.items() if k != "robot"}
     _build_and_run(project)
     output = _verify_run(project, monkeypatch)

@@ -462,14 +462,6 @@ def test_bad_programs_fail_cleanly(case, code, needles, tmp_path):
     assert "task.toml" in result.output
 
 
-def test_firmware_refuses_a_program_cleanly():
-    from armgen.firmware import FirmwareError, task_from_dict
-
-    path = EXAMPLES / "iiwa14_weld_seam_program.toml"
-    with pytest.raises(FirmwareError, match="program"):
-        task_from_dict(tomllib.loads(path.read_text()), str(path))
-
-
 def test_copied_example_brings_its_poses_file(tmp_path):
     out = CliRunner().invoke(cli, ["examples", "panda_polish_contour_program", "--copy", str(tmp_path)])
     assert out.exit_code == 0, out.output

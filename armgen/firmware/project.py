@@ -277,9 +277,11 @@ def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, job: ProjectTask) -
     (stage / "demo").mkdir()
     result = job.result
     if job.task is not None:
-        # The project names its own copy of the robot file, so it plans and verifies in place.
+        # The project names its own copy of the robot file, so it plans and verifies in place:
+        # demo.toml relative to itself (as every task file), the plan's task from the project.
         task = _copy_poses_files(dict(job.task, robot=PROJECT_ROBOT_FILE), job.folder, stage / "demo")
-        toml_text = task_toml(task, f"The task of robot '{robot.name}' the demo runs: {job.description}.")
+        toml_text = task_toml(dict(task, robot=f"../{PROJECT_ROBOT_FILE}"),
+                              f"The task of robot '{robot.name}' the demo runs: {job.description}.")
         (stage / "demo" / "demo.toml").write_text(toml_text, encoding="utf-8")
         result.metadata["task"] = task
         result.metadata["task_sha256"] = hashlib.sha256(toml_text.encode()).hexdigest()
