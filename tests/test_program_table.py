@@ -202,10 +202,12 @@ def test_turning_program_with_stops_matches_the_planner(tmp_path):
     compare(motion, sample_times(motion, t), tmp_path)
 
 
-def test_sanitizers_and_nan_time(bar, tmp_path):
-    """ASan/UBSan over the bar program's ticks (double and float); a NaN time is the start."""
-    table = program_table_c(bar.motion)
-    times = np.concatenate([ticks_of(bar)[::7], [np.nan, -np.inf, np.inf]])
+def test_sanitizers_and_nan_time(tmp_path):
+    """ASan/UBSan over the turning program (every piece kind), double and float; a NaN time is
+    the start, +inf the end at rest."""
+    motion = turning_program()
+    table = program_table_c(motion)
+    times = np.concatenate([np.arange(0.0, motion.duration + 0.05, 0.05), [np.nan, -np.inf, np.inf]])
     for use_float in (False, True):
         _, got = run(build(table, tmp_path / f"san{use_float}", use_float, sanitize=True), times)
         np.testing.assert_array_equal(got[-3], got[0])  # NaN: at rest at the start (t = 0)
@@ -228,6 +230,20 @@ def test_bad_name_is_refused(bar):
     for name in ("1table", "a-b", "x; int y", ""):
         with pytest.raises(FirmwareError, match="not a C identifier"):
             program_table_c(bar.motion, name)
+
+
+def test_pieces_below_float_resolution_are_refused():
+    """A move left 10 nm long between two rounded corners, 1 m along the path (where a float
+    resolves 1.2e-7 m): the table would not be increasing in single precision."""
+    length_b = 0.1
+    blend = length_b / 2 - 5e-9
+    moves = [MoveSpec("line", 0.1, 0.5, blend, position=np.array([1.0, 0.0, 0.0])),
+             MoveSpec("line", 0.1, 0.5, blend, position=np.array([1.0, length_b, 0.0])),
+             MoveSpec("line", 0.1, 0.5, 0.0, position=np.array([1.1, length_b, 0.0]))]
+    program = Program(np.zeros(3), np.eye(3), moves)
+    assert min(p.length for p in program.pieces) < 2e-8
+    with pytest.raises(FirmwareError, match="single precision"):
+        program_table_c(ProgramMotion(program, program_profile(program, None)))
 
 
 # ------------------------------------------------------------------ corrupted tables
@@ -277,7 +293,10 @@ def _rows(table: str, array: str) -> int:
 
 
 # The key (sorted number) of each array's rows: its literal index in the row.
-SORTED_KEYS = {"fw_program_table_segments": 0, "fw_program_table_pieces": 0, "fw_program_table_maps": 0}
+SORTED_KEYS = {"fw_program_table_segments": 0, "fw_program_table_pieces": 0, "fw_program_table_maps": 0,
+               "fw_program_table_knots": 0}
+# Non-finite numbers put at this many seeded places of the table.
+NONFINITE_PLACES = 24
 
 
 def corruptions(table: str, rng: np.random.Generator) -> list[tuple[str, str]]:
@@ -286,7 +305,7 @@ def corruptions(table: str, rng: np.random.Generator) -> list[tuple[str, str]]:
     bad piece kind or index, a non-unit quaternion."""
     out = []
     count = len(LITERAL.findall(table))
-    for index in rng.choice(count, 12, replace=False):
+    for index in rng.choice(count, NONFINITE_PLACES, replace=False):
         bad = str(rng.choice(["((ctrl_real)NAN)", "((ctrl_real)INFINITY)", "(-(ctrl_real)INFINITY)"]))
         out.append((f"literal {index} = {bad}", _replace_literal(table, int(index), bad)))
     for array, key in SORTED_KEYS.items():
@@ -310,8 +329,9 @@ def corruptions(table: str, rng: np.random.Generator) -> list[tuple[str, str]]:
 
 
 @pytest.mark.parametrize("use_float", [False, True])
-def test_check_refuses_corrupted_tables(bar, tmp_path, use_float):
-    table = "#include <math.h>\n" + program_table_c(bar.motion)
+def test_check_refuses_corrupted_tables(tmp_path, use_float):
+    """On the turning program (every piece kind): the table is accepted, each corruption refused."""
+    table = "#include <math.h>\n" + program_table_c(turning_program())
     assert check_exit(table, tmp_path / "good", use_float) == 0
     rng = np.random.default_rng(SEED + use_float)
     for k, (label, bad) in enumerate(corruptions(table, rng)):

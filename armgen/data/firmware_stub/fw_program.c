@@ -29,17 +29,15 @@
 #define HALF CTRL_LIT(0.5)
 
 /* The largest index i in [0, n) with key(a[i]) <= x, 0 when there is none (or x is NaN):
- * SciPy's interval search (searchsorted(side="right") - 1, clamped). */
+ * SciPy's interval search (searchsorted(side="right") - 1, clamped). Branch-free halving (the
+ * answer stays in [lo, lo + n)): a conditional select per step on the M4. */
 #define DEFINE_SEARCH(name, type, key)                                                           \
   static int name(const type *a, int n, ctrl_real x) {                                          \
-    int lo = 0, hi = n - 1;                                                                      \
-    while (lo < hi) {                                                                            \
-      int mid = lo + (hi - lo + 1) / 2;                                                          \
-      if (a[mid].key <= x) {                                                                     \
-        lo = mid;                                                                                \
-      } else {                                                                                   \
-        hi = mid - 1;                                                                            \
-      }                                                                                          \
+    int lo = 0;                                                                                  \
+    while (n > 1) {                                                                              \
+      int half = n / 2;                                                                          \
+      lo = a[lo + half].key <= x ? lo + half : lo;                                               \
+      n -= half;                                                                                 \
     }                                                                                            \
     return lo;                                                                                   \
   }
@@ -104,53 +102,51 @@ static ctrl_real map_w(const fw_program_map *map, int rows, ctrl_real u) {
   return ((m->c[0] * x + m->c[1]) * x + m->c[2]) * x + m->c[3];
 }
 
-/* Position, unit tangent, rotation and angular velocity per metre of each kind, at u on the
- * (untrimmed) move. */
-typedef struct {
-  ctrl_real p[3], tangent[3], R[9], omega[3];
-} point;
+/* Each kind at u on its (untrimmed) move: position p, rotation R, and in rate[6] the unit
+ * tangent and the angular velocity per metre (the twist per m/s of path speed). */
 
-static void eval_line(const fw_program_line *l, ctrl_real u, point *out) {
+static void eval_line(const fw_program_line *l, ctrl_real u, ctrl_real *p, ctrl_real *R, ctrl_real *rate) {
   ctrl_real x = u / l->length, v[3];
   int i;
   for (i = 0; i < 3; ++i) {
-    out->p[i] = l->p0[i] + u * l->direction[i];
-    out->tangent[i] = l->direction[i];
-    out->omega[i] = l->omega[i];
+    p[i] = l->p0[i] + u * l->direction[i];
+    rate[i] = l->direction[i];
+    rate[i + 3] = l->omega[i];
     v[i] = x * l->rotvec[i];
   }
-  rotate(l->q0, v, out->R);
+  rotate(l->q0, v, R);
 }
 
-static void eval_arc(const fw_program_arc *a, ctrl_real u, point *out) {
+static void eval_arc(const fw_program_arc *a, ctrl_real u, ctrl_real *p, ctrl_real *R, ctrl_real *rate) {
   ctrl_real phi = u / a->radius, x = u / a->length, v[3];
   ctrl_real c = CTRL_COS(phi), s = CTRL_SIN(phi);
   int i;
   for (i = 0; i < 3; ++i) {
-    out->p[i] = a->centre[i] + a->radius * (c * a->e1[i] + s * a->e2[i]);
-    out->tangent[i] = -s * a->e1[i] + c * a->e2[i];
-    out->omega[i] = a->omega[i];
+    p[i] = a->centre[i] + a->radius * (c * a->e1[i] + s * a->e2[i]);
+    rate[i] = -s * a->e1[i] + c * a->e2[i];
+    rate[i + 3] = a->omega[i];
     v[i] = x * a->rotvec[i];
   }
-  rotate(a->q0, v, out->R);
+  rotate(a->q0, v, R);
 }
 
-static void eval_corner(const fw_program *prog, const fw_program_corner *k, ctrl_real u, point *out) {
+static void eval_corner(const fw_program *prog, const fw_program_corner *k, ctrl_real u, ctrl_real *p, ctrl_real *R,
+                        ctrl_real *rate) {
   ctrl_real w = map_w(prog->map + k->map, k->maps, u), m = ONE - w;
   ctrl_real b0 = m * m * m, b1 = THREE * m * m * w, b2 = THREE * m * w * w, b3 = w * w * w;
   ctrl_real d0 = m * m, d1 = TWO * m * w, d2 = w * w, d[3], speed, v[3];
   int i;
   for (i = 0; i < 3; ++i) {
-    out->p[i] = b0 * k->control[0][i] + b1 * k->control[1][i] + b2 * k->control[2][i] + b3 * k->control[3][i];
+    p[i] = b0 * k->control[0][i] + b1 * k->control[1][i] + b2 * k->control[2][i] + b3 * k->control[3][i];
     d[i] = THREE * (d0 * k->chord[0][i] + d1 * k->chord[1][i] + d2 * k->chord[2][i]);
     v[i] = w * k->rotvec[i];
   }
   speed = CTRL_SQRT(dot3(d, d));
   for (i = 0; i < 3; ++i) {
-    out->tangent[i] = d[i] / speed;
-    out->omega[i] = k->omega[i] / speed;
+    rate[i] = d[i] / speed;
+    rate[i + 3] = k->omega[i] / speed;
   }
-  rotate(k->q0, v, out->R);
+  rotate(k->q0, v, R);
 }
 
 /* k1, k2 of RotationSpline's rotation-vector rate to angular rate, I - k1 [r]x + k2 [r]x^2. */
@@ -179,7 +175,8 @@ static void rate_factors(ctrl_real n, ctrl_real *k1, ctrl_real *k2) {
   }
 }
 
-static void eval_spline(const fw_program *prog, const fw_program_spline *sp, ctrl_real u, point *out) {
+static void eval_spline(const fw_program *prog, const fw_program_spline *sp, ctrl_real u, ctrl_real *p, ctrl_real *R,
+                        ctrl_real *rate) {
   ctrl_real w = map_w(prog->map + sp->map, sp->maps, u);
   const fw_program_knot *k = prog->knot + sp->knot;
   ctrl_real x, d[3], r[3], rdot[3], c1[3], c2[3], body[3], k1, k2, speed;
@@ -187,13 +184,13 @@ static void eval_spline(const fw_program *prog, const fw_program_spline *sp, ctr
   k += search_knot(k, sp->knots, w);
   x = w - k->tau;
   for (i = 0; i < 3; ++i) {
-    out->p[i] = ((k->position[0][i] * x + k->position[1][i]) * x + k->position[2][i]) * x + k->position[3][i];
+    p[i] = ((k->position[0][i] * x + k->position[1][i]) * x + k->position[2][i]) * x + k->position[3][i];
     d[i] = (THREE * k->position[0][i] * x + TWO * k->position[1][i]) * x + k->position[2][i];
     r[i] = ((k->rotvec[0][i] * x + k->rotvec[1][i]) * x + k->rotvec[2][i]) * x;
     rdot[i] = (THREE * k->rotvec[0][i] * x + TWO * k->rotvec[1][i]) * x + k->rotvec[2][i];
   }
   speed = CTRL_SQRT(dot3(d, d));
-  rotate(k->q, r, out->R);
+  rotate(k->q, r, R);
   rate_factors(CTRL_SQRT(dot3(r, r)), &k1, &k2);
   cross3(r, rdot, c1);
   cross3(r, c1, c2);
@@ -201,8 +198,8 @@ static void eval_spline(const fw_program *prog, const fw_program_spline *sp, ctr
     body[i] = rdot[i] - k1 * c1[i] + k2 * c2[i];
   }
   for (i = 0; i < 3; ++i) { /* body to base frame, per metre of path */
-    out->tangent[i] = d[i] / speed;
-    out->omega[i] = (out->R[i] * body[0] + out->R[i + 3] * body[1] + out->R[i + 6] * body[2]) / speed;
+    rate[i] = d[i] / speed;
+    rate[i + 3] = (R[i] * body[0] + R[i + 3] * body[1] + R[i + 6] * body[2]) / speed;
   }
 }
 
@@ -212,7 +209,6 @@ void fw_program_desired(const fw_program *prog, ctrl_real t, ctrl_real *p, ctrl_
   const fw_program_segment *seg;
   const fw_program_piece *piece;
   ctrl_real tau, s, sdot, u;
-  point at;
   int i, at_end;
   if (!(t > CTRL_LIT(0.0))) {
     t = CTRL_LIT(0.0);
@@ -242,25 +238,20 @@ void fw_program_desired(const fw_program *prog, ctrl_real t, ctrl_real *p, ctrl_
   u += piece->u0;
   switch (piece->kind) {
     case FW_PROGRAM_LINE:
-      eval_line(prog->line + piece->index, u, &at);
+      eval_line(prog->line + piece->index, u, p, R, xdot);
       break;
     case FW_PROGRAM_ARC:
-      eval_arc(prog->arc + piece->index, u, &at);
+      eval_arc(prog->arc + piece->index, u, p, R, xdot);
       break;
     case FW_PROGRAM_CORNER:
-      eval_corner(prog, prog->corner + piece->index, u, &at);
+      eval_corner(prog, prog->corner + piece->index, u, p, R, xdot);
       break;
     default: /* FW_PROGRAM_SPLINE (fw_program_check admits no other kind) */
-      eval_spline(prog, prog->spline + piece->index, u, &at);
+      eval_spline(prog, prog->spline + piece->index, u, p, R, xdot);
       break;
   }
-  for (i = 0; i < 3; ++i) {
-    p[i] = at.p[i];
-    xdot[i] = at.tangent[i] * sdot;
-    xdot[i + 3] = at.omega[i] * sdot;
-  }
-  for (i = 0; i < 9; ++i) {
-    R[i] = at.R[i];
+  for (i = 0; i < 6; ++i) {
+    xdot[i] *= sdot;
   }
 }
 
