@@ -42,13 +42,17 @@ class Segments:
     a: np.ndarray
 
 
-def merge_segments(profile: PathProfile, tol: float = MERGE_TOL) -> Segments:
+def merge_segments(profile: PathProfile, breaks: np.ndarray, tol: float = MERGE_TOL) -> Segments:
     """Greedy merge of the profile's cells: a segment starting at node k keeps the cell's
     acceleration a_k and grows while ``s_k + v_k τ + a_k τ²/2`` and ``v_k + a_k τ`` stay within
     ``tol`` of the planner's values at every node and cell midpoint it covers (the planner's
     s(t) is quadratic per cell, so between those points the two differ by at most
-    ``|Δa| τ²/8`` more, which the midpoint check bounds)."""
+    ``|Δa| τ²/8`` more, which the midpoint check bounds). A segment starts at each node of
+    ``breaks`` (the piece boundaries): there the evaluator's s is the planner's exactly, so it
+    picks the same piece where the angular velocity jumps."""
     s, v, t, acc = profile.s, profile.v, profile.t, profile.cell_acc
+    must_start = np.zeros(len(s), dtype=bool)
+    must_start[breaks] = True
     starts = [0]
     k = 0
     for i in range(1, len(s) - 1):  # can the segment from node k also cover cell i?
@@ -59,7 +63,7 @@ def merge_segments(profile: PathProfile, tol: float = MERGE_TOL) -> Segments:
         fits = all(abs(s[k] + v[k] * tau + 0.5 * acc[k] * tau * tau - rs) <= tol
                    and abs(v[k] + acc[k] * tau - rv) <= tol
                    for tau, (rs, rv) in ((tau_mid, ref_mid), (tau_end, ref_end)))
-        if not fits:
+        if must_start[i] or not fits:
             k = i
             starts.append(k)
     idx = np.array(starts)
@@ -186,7 +190,7 @@ def program_table_c(motion: ProgramMotion, name: str = "fw_program_table") -> st
     program, profile = motion.program, motion.profile
     if program.length != profile.s[-1]:
         raise FirmwareError("the time law does not end where the path does; cannot encode the motion")
-    seg = merge_segments(profile)
+    seg = merge_segments(profile, np.flatnonzero(np.isin(profile.s, program.starts)))
     table = _Table()
     for piece, start in zip(program.pieces, program.starts):
         table.add(piece, start)
