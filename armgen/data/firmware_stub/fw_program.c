@@ -97,7 +97,7 @@ static void rotate(const ctrl_real *q0, const ctrl_real *v, ctrl_real *R) {
 
 /* A curve's parameter w at path length u: its row of the Hermite map (SciPy's PPoly). */
 static ctrl_real map_w(const fw_program_map *map, int rows, ctrl_real u) {
-  const fw_program_map *m = map + search_map(map, rows, u);
+  const fw_program_map *m = &map[search_map(map, rows, u)];
   ctrl_real x = u - m->u;
   return ((m->c[0] * x + m->c[1]) * x + m->c[2]) * x + m->c[3];
 }
@@ -132,7 +132,7 @@ static void eval_arc(const fw_program_arc *a, ctrl_real u, ctrl_real *p, ctrl_re
 
 static void eval_corner(const fw_program *prog, const fw_program_corner *k, ctrl_real u, ctrl_real *p, ctrl_real *R,
                         ctrl_real *rate) {
-  ctrl_real w = map_w(prog->map + k->map, k->maps, u), m = ONE - w;
+  ctrl_real w = map_w(&prog->map[k->map], k->maps, u), m = ONE - w;
   ctrl_real b0 = m * m * m, b1 = THREE * m * m * w, b2 = THREE * m * w * w, b3 = w * w * w;
   ctrl_real d0 = m * m, d1 = TWO * m * w, d2 = w * w, d[3], speed, v[3];
   int i;
@@ -177,12 +177,10 @@ static void rate_factors(ctrl_real n, ctrl_real *k1, ctrl_real *k2) {
 
 static void eval_spline(const fw_program *prog, const fw_program_spline *sp, ctrl_real u, ctrl_real *p, ctrl_real *R,
                         ctrl_real *rate) {
-  ctrl_real w = map_w(prog->map + sp->map, sp->maps, u);
-  const fw_program_knot *k = prog->knot + sp->knot;
-  ctrl_real x, d[3], r[3], rdot[3], c1[3], c2[3], body[3], k1, k2, speed;
+  ctrl_real w = map_w(&prog->map[sp->map], sp->maps, u);
+  const fw_program_knot *k = &prog->knot[sp->knot + search_knot(&prog->knot[sp->knot], sp->knots, w)];
+  ctrl_real x = w - k->tau, d[3], r[3], rdot[3], c1[3], c2[3], body[3], k1, k2, speed;
   int i;
-  k += search_knot(k, sp->knots, w);
-  x = w - k->tau;
   for (i = 0; i < 3; ++i) {
     p[i] = ((k->position[0][i] * x + k->position[1][i]) * x + k->position[2][i]) * x + k->position[3][i];
     d[i] = (THREE * k->position[0][i] * x + TWO * k->position[1][i]) * x + k->position[2][i];
@@ -208,18 +206,19 @@ ctrl_real fw_program_duration(const fw_program *prog) { return prog->duration; }
 void fw_program_desired(const fw_program *prog, ctrl_real t, ctrl_real *p, ctrl_real *R, ctrl_real *xdot) {
   const fw_program_segment *seg;
   const fw_program_piece *piece;
-  ctrl_real tau, s, sdot, u;
-  int i, at_end;
-  if (!(t > CTRL_LIT(0.0))) {
-    t = CTRL_LIT(0.0);
+  ctrl_real time = CTRL_LIT(0.0), moving = ONE, tau, s, sdot, u; /* moving: 0 from the end on */
+  int i;
+  if (t >= prog->duration) {
+    time = prog->duration;
+    moving = CTRL_LIT(0.0);
+  } else if (t > CTRL_LIT(0.0)) {
+    time = t;
+  } else {
+    /* before the start, or NaN: at rest at the start */
   }
-  at_end = t >= prog->duration;
-  if (at_end) {
-    t = prog->duration;
-  }
-  seg = prog->segment + search_segment(prog->segment, prog->segments, t);
-  tau = t - seg->t;
-  sdot = at_end ? CTRL_LIT(0.0) : seg->v + seg->a * tau;
+  seg = &prog->segment[search_segment(prog->segment, prog->segments, time)];
+  tau = time - seg->t;
+  sdot = (seg->v + seg->a * tau) * moving;
   s = seg->s + seg->v * tau + HALF * seg->a * tau * tau;
   if (s > prog->length) {
     s = prog->length;
@@ -227,7 +226,7 @@ void fw_program_desired(const fw_program *prog, ctrl_real t, ctrl_real *p, ctrl_
   if (s < CTRL_LIT(0.0)) {
     s = CTRL_LIT(0.0);
   }
-  piece = prog->piece + search_piece(prog->piece, prog->pieces, s);
+  piece = &prog->piece[search_piece(prog->piece, prog->pieces, s)];
   u = s - piece->start;
   if (u < CTRL_LIT(0.0)) {
     u = CTRL_LIT(0.0);
@@ -238,16 +237,16 @@ void fw_program_desired(const fw_program *prog, ctrl_real t, ctrl_real *p, ctrl_
   u += piece->u0;
   switch (piece->kind) {
     case FW_PROGRAM_LINE:
-      eval_line(prog->line + piece->index, u, p, R, xdot);
+      eval_line(&prog->line[piece->index], u, p, R, xdot);
       break;
     case FW_PROGRAM_ARC:
-      eval_arc(prog->arc + piece->index, u, p, R, xdot);
+      eval_arc(&prog->arc[piece->index], u, p, R, xdot);
       break;
     case FW_PROGRAM_CORNER:
-      eval_corner(prog, prog->corner + piece->index, u, p, R, xdot);
+      eval_corner(prog, &prog->corner[piece->index], u, p, R, xdot);
       break;
     default: /* FW_PROGRAM_SPLINE (fw_program_check admits no other kind) */
-      eval_spline(prog, prog->spline + piece->index, u, p, R, xdot);
+      eval_spline(prog, &prog->spline[piece->index], u, p, R, xdot);
       break;
   }
   for (i = 0; i < 6; ++i) {
@@ -296,7 +295,8 @@ static int map_ok(const fw_program *prog, int first, int rows) {
     return 0;
   }
   for (i = first; i < first + rows; ++i) {
-    if (!finite(prog->map[i].u) || !all_finite(prog->map[i].c, 4) || (i > first && !(prog->map[i].u > prog->map[i - 1].u))) {
+    if (!finite(prog->map[i].u) || !all_finite(prog->map[i].c, 4) ||
+        (i > first && !(prog->map[i].u > prog->map[i - 1].u))) {
       return 0;
     }
   }
@@ -309,44 +309,55 @@ static int spline_ok(const fw_program *prog, const fw_program_spline *sp) {
     return 0;
   }
   for (i = sp->knot; i < sp->knot + sp->knots; ++i) {
-    const fw_program_knot *k = prog->knot + i;
+    const fw_program_knot *k = &prog->knot[i];
     if (!finite(k->tau) || !all_finite(k->q, 4) || !unit(k->q, 4) || !all_finite(&k->position[0][0], 12) ||
-        !all_finite(&k->rotvec[0][0], 9) || (i > sp->knot && !(k->tau > k[-1].tau))) {
+        !all_finite(&k->rotvec[0][0], 9) || (i > sp->knot && !(k->tau > prog->knot[i - 1].tau))) {
       return 0;
     }
   }
   return 1;
 }
 
+static int line_ok(const fw_program_line *l) {
+  return all_finite(l->p0, 3) && all_finite(l->direction, 3) && unit(l->direction, 3) && finite(l->length) &&
+         l->length > CTRL_LIT(0.0) && turn_ok(l->q0, l->rotvec, l->omega);
+}
+
+static int arc_ok(const fw_program_arc *a) {
+  return all_finite(a->centre, 3) && finite(a->radius) && a->radius > CTRL_LIT(0.0) && all_finite(a->e1, 3) &&
+         all_finite(a->e2, 3) && unit(a->e1, 3) && unit(a->e2, 3) &&
+         CTRL_FABS(dot3(a->e1, a->e2)) <= FW_PROGRAM_UNIT_TOL && finite(a->length) && a->length > CTRL_LIT(0.0) &&
+         turn_ok(a->q0, a->rotvec, a->omega);
+}
+
+static int corner_ok(const fw_program *prog, const fw_program_corner *k) {
+  return all_finite(&k->control[0][0], 12) && all_finite(&k->chord[0][0], 9) && turn_ok(k->q0, k->rotvec, k->omega) &&
+         map_ok(prog, k->map, k->maps);
+}
+
+/* A piece: its numbers, and its kind's entry (the index checked before it is used). */
 static int piece_ok(const fw_program *prog, const fw_program_piece *pc) {
-  int i = pc->index;
-  if (!finite(pc->start) || !finite(pc->u0) || !finite(pc->length) || !(pc->u0 >= CTRL_LIT(0.0)) ||
-      !(pc->length > CTRL_LIT(0.0)) || i < 0) {
-    return 0;
+  int i = pc->index, ok = 0;
+  if (finite(pc->start) && finite(pc->u0) && finite(pc->length) && pc->u0 >= CTRL_LIT(0.0) &&
+      pc->length > CTRL_LIT(0.0) && i >= 0) {
+    switch (pc->kind) {
+      case FW_PROGRAM_LINE:
+        ok = i < prog->lines && line_ok(&prog->line[i]);
+        break;
+      case FW_PROGRAM_ARC:
+        ok = i < prog->arcs && arc_ok(&prog->arc[i]);
+        break;
+      case FW_PROGRAM_CORNER:
+        ok = i < prog->corners && corner_ok(prog, &prog->corner[i]);
+        break;
+      case FW_PROGRAM_SPLINE:
+        ok = i < prog->splines && spline_ok(prog, &prog->spline[i]);
+        break;
+      default:
+        break;
+    }
   }
-  switch (pc->kind) {
-    case FW_PROGRAM_LINE: {
-      const fw_program_line *l = prog->line + i;
-      return i < prog->lines && all_finite(l->p0, 3) && all_finite(l->direction, 3) && unit(l->direction, 3) &&
-             finite(l->length) && l->length > CTRL_LIT(0.0) && turn_ok(l->q0, l->rotvec, l->omega);
-    }
-    case FW_PROGRAM_ARC: {
-      const fw_program_arc *a = prog->arc + i;
-      return i < prog->arcs && all_finite(a->centre, 3) && finite(a->radius) && a->radius > CTRL_LIT(0.0) &&
-             all_finite(a->e1, 3) && all_finite(a->e2, 3) && unit(a->e1, 3) && unit(a->e2, 3) &&
-             CTRL_FABS(dot3(a->e1, a->e2)) <= FW_PROGRAM_UNIT_TOL && finite(a->length) &&
-             a->length > CTRL_LIT(0.0) && turn_ok(a->q0, a->rotvec, a->omega);
-    }
-    case FW_PROGRAM_CORNER: {
-      const fw_program_corner *k = prog->corner + i;
-      return i < prog->corners && all_finite(&k->control[0][0], 12) && all_finite(&k->chord[0][0], 9) &&
-             turn_ok(k->q0, k->rotvec, k->omega) && map_ok(prog, k->map, k->maps);
-    }
-    case FW_PROGRAM_SPLINE:
-      return i < prog->splines && spline_ok(prog, prog->spline + i);
-    default:
-      return 0;
-  }
+  return ok;
 }
 
 int fw_program_check(const fw_program *prog) {
@@ -363,18 +374,18 @@ int fw_program_check(const fw_program *prog) {
   }
   /* the time law: from rest at 0, times and path lengths increasing, speeds >= 0 */
   for (k = 0; k < prog->segments; ++k) {
-    const fw_program_segment *g = prog->segment + k;
+    const fw_program_segment *g = &prog->segment[k];
     if (!finite(g->t) || !finite(g->s) || !finite(g->v) || !finite(g->a) || !(g->v >= CTRL_LIT(0.0)) ||
         !(g->t < prog->duration) || !(g->s < prog->length)) {
       return 0;
     }
     if (k == 0 ? (g->t != CTRL_LIT(0.0) || g->s != CTRL_LIT(0.0) || g->v != CTRL_LIT(0.0))
-               : !(g->t > g[-1].t && g->s > g[-1].s)) {
+               : !(g->t > prog->segment[k - 1].t && g->s > prog->segment[k - 1].s)) {
       return 0;
     }
     top = g->v > top ? g->v : top;
   }
-  last = prog->segment + prog->segments - 1;
+  last = &prog->segment[prog->segments - 1];
   tau = prog->duration - last->t; /* ... to rest where the path ends */
   if (CTRL_FABS(last->s + last->v * tau + HALF * last->a * tau * tau - prog->length) >
           FW_PROGRAM_END_RTOL * prog->length ||
@@ -383,8 +394,8 @@ int fw_program_check(const fw_program *prog) {
   }
   /* the pieces: from 0, end to end, up to the path's length */
   for (k = 0; k < prog->pieces; ++k) {
-    const fw_program_piece *pc = prog->piece + k;
-    ctrl_real end = k + 1 < prog->pieces ? pc[1].start : prog->length;
+    const fw_program_piece *pc = &prog->piece[k];
+    ctrl_real end = k + 1 < prog->pieces ? prog->piece[k + 1].start : prog->length;
     if (!piece_ok(prog, pc) || (k == 0 && pc->start != CTRL_LIT(0.0)) || !(end > pc->start) ||
         CTRL_FABS(pc->start + pc->length - end) > FW_PROGRAM_END_RTOL * prog->length) {
       return 0;
