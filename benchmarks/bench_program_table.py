@@ -4,7 +4,9 @@
     python benchmarks/bench_program_table.py [--out benchmarks/results/program_table.json]
 
 For the issue's bar program (tests/test_programs.py ``bar_task("cartesian")`` on Baxter: 4 lines,
-2 arcs, 8 mm blends, the tool turning), its table from ``program_table_c``:
+2 arcs, 8 mm blends, the tool turning) and the bundled poses example
+(examples/panda_polish_contour_program.toml: a line, a 182-row contour, a line), each table from
+``program_table_c``:
 
 1. Flash: bytes of the table (.rodata of an object holding it, arm-none-eabi-gcc, double and
    float) and of fw_program.o's code (float, -O3), against the time-law cells before merging.
@@ -40,7 +42,8 @@ from armgen.codegen.toolchain import ARM_CPU_FLAGS, STRICT_FLAGS  # noqa: E402
 from armgen.firmware.program_table import program_table_c  # noqa: E402
 from armgen.planning.cartesian.planner import parse_cartesian_task  # noqa: E402
 from armgen.planning.toolpath.geometry import Trimmed  # noqa: E402
-from test_programs import bar_task  # noqa: E402
+from armgen.planning.tasks import load_task  # noqa: E402
+from test_programs import EXAMPLES, bar_task  # noqa: E402
 
 STUB = REPO / "armgen" / "data" / "firmware_stub"
 ARM = STUB / "arm"
@@ -63,7 +66,8 @@ def arm_flags(use_float: bool, work: Path) -> list[str]:
 def rodata_bytes(work: Path, use_float: bool) -> int:
     """Bytes of the table: an object that keeps it (a non-static pointer to it)."""
     src = work / "keep.c"
-    src.write_text('#include "fw_program.h"\n#include "table.h"\nconst fw_program *fw_bench_keep = &fw_program_table;\n')
+    src.write_text('#include "fw_program.h"\n#include "table.h"\n'
+                   'const fw_program *fw_bench_keep = &fw_program_table;\n')
     obj = work / f"keep_{int(use_float)}.o"
     run(["arm-none-eabi-gcc", *arm_flags(use_float, work), "-c", str(src), "-o", str(obj)])
     sizes = run(["arm-none-eabi-size", "-A", str(obj)]).stdout
@@ -99,50 +103,62 @@ def instructions(work: Path, ticks: int, dt: float, fast_trig: bool) -> np.ndarr
     return (calls - stub) * per_count
 
 
+def programs() -> dict:
+    """The measured programs: the issue's bar program and the bundled poses example (a sampled
+    polishing contour on the panda), each as the planner parses it."""
+    polish = EXAMPLES / "panda_polish_contour_program.toml"
+    task, _ = load_task(polish)
+    return {"bar": parse_cartesian_task(tomllib.loads(bar_task("cartesian")), "bar.toml"),
+            "polish (poses)": parse_cartesian_task(task, str(polish))}
+
+
+def measure(label: str, task, work: Path) -> dict:
+    """Flash and instructions per call of one program (``task``: the planner's parsed task)."""
+    motion = task.motion
+    table = program_table_c(motion)
+    ticks = int(round(task.duration / task.step)) + 1
+    s = motion.profile(np.arange(ticks) * task.step)[0]
+    pieces = motion.program.pieces
+    kind = [type(p.piece if isinstance(p, Trimmed) else p).__name__ for p in pieces]
+    tick_kind = np.array([kind[k] for k in motion.program.piece_index(s)])
+    macros = {k: int(v) for k, v in re.findall(r"^#define FW_PROGRAM_(\w+) (\d+)", table, re.M)}
+    figures: dict = {"pieces": len(pieces), "cells": len(motion.profile.s) - 1, "sizes": macros, "ticks": ticks,
+                     "duration_s": motion.duration}
+    print(f"{label}: {len(pieces)} pieces, {figures['cells']} time-law cells -> {macros['SEGMENTS']} segments, "
+          f"{macros['MAPS']} map rows, {macros['KNOTS']} spline intervals, {ticks} ticks")
+    work.mkdir()
+    (work / "table.h").write_text(table)
+    try:
+        flash = {"table_double_bytes": rodata_bytes(work, False), "table_float_bytes": rodata_bytes(work, True),
+                 "fw_program_text_bytes": text_bytes(work)}
+    except FileNotFoundError:
+        print("  arm-none-eabi-gcc not found: flash rows skipped")
+        return figures
+    figures["flash"] = flash
+    for key, value in flash.items():
+        print(f"  flash {key:24s} {value:8d} B")
+    for fast in (True, False):
+        trig = "fast sinf/cosf" if fast else "newlib sinf/cosf"
+        try:
+            insns = instructions(work, ticks, task.step, fast)
+        except FileNotFoundError:
+            print("  qemu-system-arm not found: instruction rows skipped")
+            break
+        rows = {"all": insns} | {k: insns[tick_kind == k] for k in sorted(set(tick_kind))}
+        figures[trig] = {k: {"mean": float(v.mean()), "max": float(v.max()), "calls": int(v.size)}
+                         for k, v in rows.items()}
+        print(f"  M4F instructions per fw_program_desired call ({trig}, {OPT}, ±40 per call):")
+        for k, v in rows.items():
+            print(f"    {k:10s} mean {v.mean():7.0f}  max {v.max():7.0f}  ({v.size} ticks)")
+    return figures
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="write the figures as JSON")
     args = parser.parse_args()
-    task = parse_cartesian_task(tomllib.loads(bar_task("cartesian")), "bar.toml")
-    motion = task.motion
-    table = program_table_c(motion)
-    ticks = int(round(task.duration / task.step)) + 1
-    t = np.arange(ticks) * task.step
-    s = motion.profile(t)[0]
-    pieces = motion.program.pieces
-    kind = [type(p.piece if isinstance(p, Trimmed) else p).__name__ for p in pieces]
-    tick_kind = np.array([kind[k] for k in motion.program.piece_index(s)])
-    macros = dict(re.findall(r"^#define (FW_PROGRAM_\w+) (\d+)", table, re.M))
-    figures: dict = {"program": {"pieces": len(pieces), "cells": len(motion.profile.s) - 1,
-                                 "segments": int(macros["FW_PROGRAM_SEGMENTS"]), "maps": int(macros["FW_PROGRAM_MAPS"]),
-                                 "ticks": ticks, "duration_s": motion.duration}}
-    print(f"bar program: {len(pieces)} pieces, {figures['program']['cells']} time-law cells -> "
-          f"{figures['program']['segments']} segments, {figures['program']['maps']} map rows, {ticks} ticks")
     with tempfile.TemporaryDirectory() as tmp:
-        work = Path(tmp)
-        (work / "table.h").write_text(table)
-        try:
-            flash = {"table_double_bytes": rodata_bytes(work, False), "table_float_bytes": rodata_bytes(work, True),
-                     "fw_program_text_bytes": text_bytes(work)}
-        except FileNotFoundError:
-            print("arm-none-eabi-gcc not found: flash rows skipped")
-            flash = {}
-        figures["flash"] = flash
-        for key, value in flash.items():
-            print(f"  flash {key:24s} {value:8d} B")
-        for fast in (True, False):
-            label = "fast sinf/cosf" if fast else "newlib sinf/cosf"
-            try:
-                insns = instructions(work, ticks, task.step, fast)
-            except FileNotFoundError:
-                print("arm-none-eabi-gcc or qemu-system-arm not found: instruction rows skipped")
-                break
-            rows = {"all": insns} | {k: insns[tick_kind == k] for k in sorted(set(tick_kind))}
-            figures[label] = {k: {"mean": float(v.mean()), "max": float(v.max()), "calls": int(v.size)}
-                              for k, v in rows.items()}
-            print(f"  M4F instructions per fw_program_desired call ({label}, {OPT}, ±40 per call):")
-            for k, v in rows.items():
-                print(f"    {k:8s} mean {v.mean():7.0f}  max {v.max():7.0f}  ({v.size} ticks)")
+        figures = {label: measure(label, task, Path(tmp) / f"p{k}") for k, (label, task) in enumerate(programs().items())}
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(figures, indent=2))

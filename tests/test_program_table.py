@@ -102,7 +102,8 @@ def reference(motion: ProgramMotion, times: np.ndarray) -> np.ndarray:
     return np.hstack([p, np.swapaxes(rot, -1, -2).reshape(-1, 9), xdot])
 
 
-GROUPS = {"position": slice(0, 3), "rotation": slice(3, 12), "velocity": slice(12, 15), "angular velocity": slice(15, 18)}
+GROUPS = {"position": slice(0, 3), "rotation": slice(3, 12), "velocity": slice(12, 15),
+          "angular velocity": slice(15, 18)}
 
 
 def float_tolerances(motion: ProgramMotion) -> dict[str, float]:

@@ -89,11 +89,6 @@ def _nested(values: np.ndarray) -> str:
     return "{" + ", ".join(_nested(row) for row in values) + "}"
 
 
-def _quat(rotation) -> np.ndarray:
-    """SciPy's quaternion (x, y, z, w) of a rotation, as the planner's rotations compose it."""
-    return rotation.as_quat()
-
-
 class _Table:
     """The arrays of one program, built piece by piece."""
 
@@ -122,19 +117,19 @@ class _Table:
         if isinstance(raw, Line):
             kind, index = "line", len(self.lines)
             o = raw.orientation
-            self.lines.append(f"{{{_lits(raw.p0)}, {_lits(raw.direction)}, {_lit(raw.length)}, {_lits(_quat(o.r0))}, "
-                              f"{_lits(o.rotvec)}, {_lits(o.omega / raw.length)}}}")
+            self.lines.append(f"{{{_lits(raw.p0)}, {_lits(raw.direction)}, {_lit(raw.length)}, "
+                              f"{_lits(o.r0.as_quat())}, {_lits(o.rotvec)}, {_lits(o.omega / raw.length)}}}")
         elif isinstance(raw, Arc):
             kind, index = "arc", len(self.arcs)
             o = raw.orientation
             self.arcs.append(f"{{{_lits(raw.centre)}, {_lit(raw.radius)}, {_lits(raw.e1)}, {_lits(raw.e2)}, "
-                             f"{_lit(raw.length)}, {_lits(_quat(o.r0))}, {_lits(o.rotvec)}, "
+                             f"{_lit(raw.length)}, {_lits(o.r0.as_quat())}, {_lits(o.rotvec)}, "
                              f"{_lits(o.omega / raw.length)}}}")
         elif isinstance(raw, Corner):
             kind, index = "corner", len(self.corners)
             o, ctrl = raw.orientation, raw.control
             first, count = self._map(raw)
-            self.corners.append(f"{{{_nested(ctrl)}, {_nested(np.diff(ctrl, axis=0))}, {_lits(_quat(o.r0))}, "
+            self.corners.append(f"{{{_nested(ctrl)}, {_nested(np.diff(ctrl, axis=0))}, {_lits(o.r0.as_quat())}, "
                                 f"{_lits(o.rotvec)}, {_lits(o.omega)}, {first}, {count}}}")
         elif isinstance(raw, PoseSpline):
             kind, index = "spline", len(self.splines)
