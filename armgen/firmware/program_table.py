@@ -104,12 +104,12 @@ class _Table:
         self.increasing: list[tuple[str, np.ndarray]] = []
 
     def _map(self, curve) -> tuple[int, int]:
-        """The Hermite map w(u) of a curve: one (u_i, c) row per interval (SciPy's PPoly)."""
-        to_w = curve.to_w
+        """The Hermite map w(u) of a curve: one (u, w, dw/du) row per node, the numbers the
+        planner's CubicHermiteSpline is built from."""
+        u, w, slope = curve.map_nodes
         first = len(self.maps)
-        self.increasing.append((f"the path-length map of piece {len(self.pieces)}: rows", to_w.x[:-1]))
-        for i in range(len(to_w.x) - 1):
-            self.maps.append(f"{{{_lit(to_w.x[i])}, {_lits(to_w.c[:, i])}}}")
+        self.increasing.append((f"the path-length map of piece {len(self.pieces)}: rows", u))
+        self.maps += [f"{{{_lit(a)}, {_lit(b)}, {_lit(c)}}}" for a, b, c in zip(u, w, slope)]
         return first, len(self.maps) - first
 
     def add(self, piece: Piece, start: float) -> None:

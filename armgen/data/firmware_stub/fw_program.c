@@ -95,11 +95,17 @@ static void rotate(const ctrl_real *q0, const ctrl_real *v, ctrl_real *R) {
   }
 }
 
-/* A curve's parameter w at path length u: its row of the Hermite map (SciPy's PPoly). */
+/* A curve's parameter w at path length u: SciPy's CubicHermiteSpline through the map's nodes,
+ * its interval's coefficients computed as SciPy computes them (the same operations: the double
+ * build gets its very numbers), beyond the ends the end intervals extrapolated. */
 static ctrl_real map_w(const fw_program_map *map, int rows, ctrl_real u) {
-  const fw_program_map *m = &map[search_map(map, rows, u)];
-  ctrl_real x = u - m->u;
-  return ((m->c[0] * x + m->c[1]) * x + m->c[2]) * x + m->c[3];
+  const fw_program_map *m0 = &map[search_map(map, rows - 1, u)];
+  const fw_program_map *m1 = &m0[1];
+  ctrl_real dx = m1->u - m0->u, x = u - m0->u;
+  ctrl_real slope = (m1->w - m0->w) / dx;
+  ctrl_real t = (m0->slope + m1->slope - TWO * slope) / dx;
+  ctrl_real c0 = t / dx, c1 = (slope - m0->slope) / dx - t;
+  return ((c0 * x + c1) * x + m0->slope) * x + m0->w;
 }
 
 /* Each kind at u on its (untrimmed) move: position p, rotation R, and in rate[6] the unit
@@ -291,11 +297,12 @@ static int turn_ok(const ctrl_real *q0, const ctrl_real *rotvec, const ctrl_real
 
 static int map_ok(const fw_program *prog, int first, int rows) {
   int i;
-  if (!range_ok(first, rows, prog->maps)) {
+  if (rows < 2 || !range_ok(first, rows, prog->maps)) {
     return 0;
   }
   for (i = first; i < first + rows; ++i) {
-    if (!finite(prog->map[i].u) || !all_finite(prog->map[i].c, 4) ||
+    const fw_program_map *m = &prog->map[i];
+    if (!finite(m->u) || !finite(m->w) || !finite(m->slope) ||
         (i > first && !(prog->map[i].u > prog->map[i - 1].u))) {
       return 0;
     }

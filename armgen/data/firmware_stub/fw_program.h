@@ -31,10 +31,10 @@
  *                         rotation vector, angular velocity in rad per unit w), and its map.
  *   spline[SPLINES]       a poses move: its map (first, count) and its knot intervals (first,
  *                         count).
- *   map[MAPS]             the maps w(u) from path length to a curve's parameter: one row per
- *                         interval, its left end u_i (m) and SciPy's CubicHermiteSpline
- *                         coefficients c (w = c0 x^3 + c1 x^2 + c2 x + c3, x = u - u_i);
- *                         beyond the last interval the last one extrapolates, as SciPy's.
+ *   map[MAPS]             the maps w(u) from path length to a curve's parameter, the nodes of
+ *                         the planner's CubicHermiteSpline: u (m), w and dw/du at each (the
+ *                         cubic Hermite interpolant between nodes; beyond the ends the end
+ *                         intervals extrapolate, as SciPy's). A curve's map has >= 2 rows.
  *   knot[KNOTS]           a poses move's spline intervals: left end tau_i (chord length, m),
  *                         the rotation at it (quaternion), the position spline's coefficients
  *                         (SciPy's CubicSpline, c[j][axis] of x^(3-j)) and the RotationSpline's
@@ -113,8 +113,9 @@ typedef struct {
 } fw_program_spline;
 
 typedef struct {
-  ctrl_real u;    /* left end of the interval, m */
-  ctrl_real c[4]; /* w(u) = ((c0 x + c1) x + c2) x + c3, x = u - this u */
+  ctrl_real u;     /* path length on the move, m */
+  ctrl_real w;     /* the curve's parameter there */
+  ctrl_real slope; /* dw/du there, 1/m (1 / |dp/dw|) */
 } fw_program_map;
 
 typedef struct {
