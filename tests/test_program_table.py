@@ -26,7 +26,7 @@ from armgen.firmware.errors import FirmwareError
 from armgen.firmware.program_table import MERGE_TOL, merge_segments, program_table_c
 from armgen.planning.cartesian.planner import parse_cartesian_task
 from armgen.planning.tasks import load_task
-from armgen.planning.toolpath.geometry import MoveSpec, Program
+from armgen.planning.toolpath.geometry import GeometryError, MoveSpec, Program
 from armgen.planning.toolpath.timelaw import ProgramMotion, program_profile
 
 from test_programs import EXAMPLES, bar_task
@@ -218,6 +218,56 @@ def test_turning_program_with_stops_matches_the_planner(tmp_path):
     assert np.max(np.linalg.norm(spline.piece.rotation_spline.interpolator.c[2], axis=-1)) > 0.5  # the tool turns
     t = np.arange(0.0, motion.duration + 0.5, 0.01)
     compare(motion, sample_times(motion, t), tmp_path)
+
+
+# Seeded random programs (lines, arcs up to ~300° of sweep, pose splines, random blends, tool
+# rotations and angular-speed caps) beyond the hand-made ones.
+RANDOM_PROGRAMS = 6
+
+
+def random_motion(rng: np.random.Generator) -> ProgramMotion:
+    """A random valid program from a random pose (drawn again while the geometry refuses it)."""
+    while True:
+        start_p = np.array([0.5, 0.0, 0.3]) + rng.uniform(-0.1, 0.1, 3)
+        start_r = Rotation.random(random_state=rng)
+        p, moves = start_p, []
+        for _ in range(int(rng.integers(2, 6))):
+            kind = str(rng.choice(["line", "arc", "poses"], p=[0.45, 0.35, 0.2]))
+            direction = rng.normal(size=3)
+            direction /= np.linalg.norm(direction)
+            length = rng.uniform(0.05, 0.2)
+            rotation = Rotation.random(random_state=rng) if rng.random() < 0.6 else None
+            common = dict(speed=rng.uniform(0.02, 0.2), acceleration=rng.uniform(0.1, 1.0),
+                          blend=0.0 if rng.random() < 0.3 else rng.uniform(1e-3, 0.02))
+            if kind == "poses":
+                side = np.cross(direction, rng.normal(size=3))
+                side /= np.linalg.norm(side)
+                i = np.arange(1, int(rng.integers(4, 12)))
+                points = p + np.outer(i * length / i[-1], direction) + np.outer(0.01 * np.sin(0.7 * i), side)
+                rots = Rotation.random(random_state=rng) * Rotation.from_rotvec(np.outer(i * 0.15, rng.normal(size=3)))
+                moves.append(MoveSpec("poses", points=points, rotations=rots, **common))
+                p = points[-1]
+                continue
+            end = p + length * direction
+            via = None
+            if kind == "arc":
+                side = np.cross(direction, rng.normal(size=3))
+                via = 0.5 * (p + end) + side / np.linalg.norm(side) * length * rng.uniform(0.1, 1.5)
+            moves.append(MoveSpec(kind, position=end, via=via, rotation=rotation, **common))
+            p = end
+        try:
+            program = Program(start_p, start_r.as_matrix(), moves)
+        except GeometryError:
+            continue
+        angular = None if rng.random() < 0.5 else rng.uniform(0.5, 3.0)
+        return ProgramMotion(program, program_profile(program, angular))
+
+
+def test_random_programs_match_the_planner(tmp_path):
+    rng = np.random.default_rng(SEED)
+    for k in range(RANDOM_PROGRAMS):
+        motion = random_motion(rng)
+        compare(motion, sample_times(motion, np.arange(0.0, motion.duration + 0.1, 0.01)), tmp_path / f"p{k}")
 
 
 def test_sanitizers_and_nan_time(tmp_path):
