@@ -326,15 +326,20 @@ int main(void) { return fw_program_check(&fw_program_table) ? 0 : 3; }
 LITERAL = re.compile(r"CTRL_LIT\(([^()]*)\)")
 
 
-def check_exit(table: str, folder: Path, use_float: bool) -> int:
-    """fw_program_check's verdict on ``table``: 0 accepted, 3 refused."""
+def check_flags(folder: Path, use_float: bool) -> list[str]:
+    return [*STRICT_FLAGS, "-O1", *SANITIZER_FLAGS, "-I", str(STUB), "-I", str(ROBOT_INCLUDE), "-I", str(folder),
+            f"-DMODULAR8_USE_FLOAT={int(use_float)}"]
+
+
+def check_exit(table: str, folder: Path, evaluator: Path, use_float: bool) -> int:
+    """fw_program_check's verdict on ``table``: 0 accepted, 3 refused (under ASan/UBSan, which
+    abort with another code on any undefined behaviour). ``evaluator``: fw_program.o."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "table.h").write_text(table)
     (folder / "check.c").write_text(CHECK_HARNESS)
     exe = folder / "check"
-    subprocess.run([host_cc(), *STRICT_FLAGS, "-O1", "-I", str(STUB), "-I", str(ROBOT_INCLUDE), "-I", str(folder),
-                    f"-DMODULAR8_USE_FLOAT={int(use_float)}", str(folder / "check.c"), str(STUB / "fw_program.c"),
-                    "-o", str(exe), "-lm"], check=True, capture_output=True, text=True)
+    subprocess.run([host_cc(), *check_flags(folder, use_float), str(folder / "check.c"), str(evaluator), "-o", str(exe),
+                    "-lm"], check=True, capture_output=True, text=True)
     return subprocess.run([str(exe)]).returncode
 
 
@@ -371,8 +376,8 @@ NONFINITE_PLACES = 24
 
 def corruptions(table: str, rng: np.random.Generator) -> list[tuple[str, str]]:
     """(label, corrupted table): non-finite numbers at seeded places, a sorted key repeating
-    its predecessor (segment time, piece start, map interval end), zero or too large counts, a
-    bad piece kind or index, a non-unit quaternion."""
+    its predecessor (segment time, piece start, map node, spline knot), counts of 0 or one
+    short, a bad piece kind or index, a non-unit quaternion."""
     out = []
     count = len(LITERAL.findall(table))
     for index in rng.choice(count, NONFINITE_PLACES, replace=False):
@@ -385,8 +390,10 @@ def corruptions(table: str, rng: np.random.Generator) -> list[tuple[str, str]]:
     for macro, array in (("FW_PROGRAM_SEGMENTS", "segments"), ("FW_PROGRAM_PIECES", "pieces")):
         out.append((f"{array}: count 0", table.replace(f"  {macro}, fw_program_table_{array}",
                                                        f"  0, fw_program_table_{array}")))
-        out.append((f"{array}: count too large", table.replace(f"  {macro}, fw_program_table_{array}",
-                                                               f"  {macro} + 1, fw_program_table_{array}")))
+        # one short: the time law no longer ends at rest where the path does / the pieces stop short
+        # (a count beyond the array cannot be detected: the sizes are the generated header's)
+        out.append((f"{array}: count one short", table.replace(f"  {macro}, fw_program_table_{array}",
+                                                               f"  {macro} - 1, fw_program_table_{array}")))
     out.append(("piece kind 7", _edit_row(table, "fw_program_table_pieces", 0,
                                           lambda row, _: re.sub(r"^  \{\d+,", "  {7,", row))))
     out.append(("piece index 99", _edit_row(table, "fw_program_table_pieces", 0,
@@ -402,7 +409,10 @@ def corruptions(table: str, rng: np.random.Generator) -> list[tuple[str, str]]:
 def test_check_refuses_corrupted_tables(tmp_path, use_float):
     """On the turning program (every piece kind): the table is accepted, each corruption refused."""
     table = "#include <math.h>\n" + program_table_c(turning_program())
-    assert check_exit(table, tmp_path / "good", use_float) == 0
+    evaluator = tmp_path / "fw_program.o"
+    subprocess.run([host_cc(), *check_flags(tmp_path, use_float), "-c", str(STUB / "fw_program.c"), "-o",
+                    str(evaluator)], check=True, capture_output=True, text=True)
+    assert check_exit(table, tmp_path / "good", evaluator, use_float) == 0
     rng = np.random.default_rng(SEED + use_float)
     for k, (label, bad) in enumerate(corruptions(table, rng)):
-        assert check_exit(bad, tmp_path / f"bad{k}", use_float) == 3, label
+        assert check_exit(bad, tmp_path / f"bad{k}", evaluator, use_float) == 3, label
