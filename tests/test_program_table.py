@@ -1,9 +1,9 @@
 """The on-board program evaluator (firmware_stub/fw_program.c) and its table
 (armgen/firmware/program_table.py) against the planner's ProgramMotion (SciPy's splines and
 rotations: an independent implementation of the same formulas), compiled on the host in double
-and float with the strict flags (and once under ASan/UBSan): the issue's bar program at every
-tick of its plan and at random times, a poses program, programs with stops and a turning tool;
-fw_program_check refuses corrupted tables."""
+and float with the strict flags (and under ASan/UBSan): the issue's bar program at every tick
+of its plan, every time-law node and random times, a poses program, programs with stops and a
+turning tool, seeded random programs; fw_program_check refuses corrupted tables."""
 
 from __future__ import annotations
 
