@@ -14,7 +14,9 @@ For the issue's bar program (tests/test_programs.py ``bar_task("cartesian")`` on
    firmware_stub/arm/fw_fastmath.c as the verify build links them, and newlib's), at each tick of
    the plan, under qemu-system-arm -M mps2-an386 -icount shift=0 (SysTick, 40 instructions per
    count, calibrated in the run; benchmarks/c/bench_program_arm.c): mean and max over the ticks,
-   per piece kind, net of the timing harness (a stub call timed the same way).
+   per piece kind, net of the timing harness (a stub call timed the same way); and the largest
+   difference of the M4's outputs (read back bit-exactly) from the planner's ProgramMotion at
+   the same float tick times.
 
 A missing tool skips its rows. About ten seconds.
 """
@@ -81,8 +83,9 @@ def text_bytes(work: Path) -> int:
     return sum(int(m.group(1)) for m in re.finditer(r"^\.text\S*\s+(\d+)", sizes, re.M))
 
 
-def instructions(work: Path, ticks: int, dt: float, fast_trig: bool) -> np.ndarray:
-    """Executed instructions per call at ticks 0 .. ticks-1, net of the harness."""
+def run_m4(work: Path, ticks: int, dt: float, fast_trig: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(executed instructions per call net of the harness, the outputs [p, R, xdot] per tick)
+    at ticks 0 .. ticks-1 on the Cortex-M4F under QEMU."""
     elf = work / f"bench_{int(fast_trig)}.elf"
     sources = [DRIVER, STUB / "fw_program.c", ARM / "startup.c", ARM / "semihost.c"]
     wrap = []
@@ -99,8 +102,10 @@ def instructions(work: Path, ticks: int, dt: float, fast_trig: bool) -> np.ndarr
         raise SystemExit(f"fw_program_check refused the table on the M4:\n{text[-2000:]}")
     per_count = int(kv["calib_insns"]) / int(kv["calib_ticks"])
     calls = np.array([int(c) for _, c in sorted((int(k), c) for k, c in re.findall(r"^call (\d+) (\d+)$", text, re.M))])
+    words = sorted((int(m.group(1)), m.group(2).split()) for m in re.finditer(r"^out (\d+) (.*)$", text, re.M))
+    outputs = np.array([[int(w) for w in row] for _, row in words], dtype=np.uint32).view(np.float32)
     stub = int(kv["stub_sum"]) / ticks
-    return (calls - stub) * per_count
+    return (calls - stub) * per_count, outputs.astype(float)
 
 
 def programs() -> dict:
@@ -137,19 +142,28 @@ def measure(label: str, task, work: Path) -> dict:
     figures["flash"] = flash
     for key, value in flash.items():
         print(f"  flash {key:24s} {value:8d} B")
+    # the M4's tick times, k * dt in float, and the planner's motion there
+    t32 = (np.arange(ticks, dtype=np.float32) * np.float32(task.step)).astype(float)
+    p, rot, xdot = motion(t32)
+    reference = np.hstack([p, np.swapaxes(rot, -1, -2).reshape(-1, 9), xdot])
     for fast in (True, False):
         trig = "fast sinf/cosf" if fast else "newlib sinf/cosf"
         try:
-            insns = instructions(work, ticks, task.step, fast)
+            insns, outputs = run_m4(work, ticks, task.step, fast)
         except FileNotFoundError:
             print("  qemu-system-arm not found: instruction rows skipped")
             break
         rows = {"all": insns} | {k: insns[tick_kind == k] for k in sorted(set(tick_kind))}
+        err = np.abs(outputs - reference)
+        errors = {g: float(err[:, sl].max()) for g, sl in
+                  (("position_m", slice(0, 3)), ("rotation", slice(3, 12)), ("velocity_m_s", slice(12, 15)),
+                   ("angular_velocity_rad_s", slice(15, 18)))}
         figures[trig] = {k: {"mean": float(v.mean()), "max": float(v.max()), "calls": int(v.size)}
-                         for k, v in rows.items()}
+                         for k, v in rows.items()} | {"max_error_vs_planner": errors}
         print(f"  M4F instructions per fw_program_desired call ({trig}, {OPT}, ±40 per call):")
         for k, v in rows.items():
             print(f"    {k:10s} mean {v.mean():7.0f}  max {v.max():7.0f}  ({v.size} ticks)")
+        print("    max |M4 float - planner| at the ticks: " + ", ".join(f"{k} {v:.2e}" for k, v in errors.items()))
     return figures
 
 

@@ -11,9 +11,11 @@
  *   check 1|0                  fw_program_check's verdict
  *   calib_insns / calib_ticks  a loop of known length: instructions per SysTick count
  *   call <k> <systicks>        one line per tick
+ *   out <k> <18 words>         its p, R (column-major), xdot as the bits of each float (exact)
  *   stub_sum <systicks>        the harness around a stub, BENCH_TICKS calls
  */
 #include <stdint.h>
+#include <string.h>
 
 #include "fw_program.h"
 #include "semihost.h"
@@ -54,6 +56,17 @@ __attribute__((noinline)) static uint32_t timed_calib(uint32_t iterations) {
   return (t0 - t1) & SYST_MASK;
 }
 
+/* " <bits>" per value: the float's representation, read back exactly by the benchmark. */
+static void put_bits(const ctrl_real *x, int n) {
+  int i;
+  for (i = 0; i < n; ++i) {
+    uint32_t bits;
+    memcpy(&bits, &x[i], sizeof(bits));
+    sh_puts(" ");
+    sh_put_u32(bits);
+  }
+}
+
 int main(void) {
   uint32_t k, stub = 0u, calib;
   SYST_RVR = SYST_MASK;
@@ -70,6 +83,11 @@ int main(void) {
     sh_put_u32(k);
     sh_puts(" ");
     sh_put_u32(d);
+    sh_puts("\nout ");
+    sh_put_u32(k);
+    put_bits(p_out, 3);
+    put_bits(R_out, 9);
+    put_bits(xdot_out, 6);
     sh_puts("\n");
   }
   selected_fn = stub_fn;
