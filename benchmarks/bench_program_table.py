@@ -101,7 +101,8 @@ def run_m4(work: Path, ticks: int, dt: float, fast_trig: bool) -> tuple[np.ndarr
     if kv.get("check") != "1":
         raise SystemExit(f"fw_program_check refused the table on the M4:\n{text[-2000:]}")
     per_count = int(kv["calib_insns"]) / int(kv["calib_ticks"])
-    calls = np.array([int(c) for _, c in sorted((int(k), c) for k, c in re.findall(r"^call (\d+) (\d+)$", text, re.M))])
+    timed = sorted((int(k), int(c)) for k, c in re.findall(r"^call (\d+) (\d+)$", text, re.M))
+    calls = np.array([c for _, c in timed])
     words = sorted((int(m.group(1)), m.group(2).split()) for m in re.finditer(r"^out (\d+) (.*)$", text, re.M))
     outputs = np.array([[int(w) for w in row] for _, row in words], dtype=np.uint32).view(np.float32)
     stub = int(kv["stub_sum"]) / ticks
