@@ -173,7 +173,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, help="write the figures as JSON")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        figures = {label: measure(label, task, Path(tmp) / f"p{k}") for k, (label, task) in enumerate(programs().items())}
+        figures = {label: measure(label, task, Path(tmp) / f"p{k}")
+                   for k, (label, task) in enumerate(programs().items())}
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(figures, indent=2))
