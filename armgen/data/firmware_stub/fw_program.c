@@ -29,17 +29,15 @@
 #define HALF CTRL_LIT(0.5)
 
 /* The largest index i in [0, n) with key(a[i]) <= x, 0 when there is none (or x is NaN):
- * SciPy's interval search (searchsorted(side="right") - 1, clamped). */
+ * SciPy's interval search (searchsorted(side="right") - 1, clamped). Branch-free halving (the
+ * answer stays in [lo, lo + n)): a conditional select per step on the M4. */
 #define DEFINE_SEARCH(name, type, key)                                                           \
   static int name(const type *a, int n, ctrl_real x) {                                          \
-    int lo = 0, hi = n - 1;                                                                      \
-    while (lo < hi) {                                                                            \
-      int mid = lo + (hi - lo + 1) / 2;                                                          \
-      if (a[mid].key <= x) {                                                                     \
-        lo = mid;                                                                                \
-      } else {                                                                                   \
-        hi = mid - 1;                                                                            \
-      }                                                                                          \
+    int lo = 0;                                                                                  \
+    while (n > 1) {                                                                              \
+      int half = n / 2;                                                                          \
+      lo = a[lo + half].key <= x ? lo + half : lo;                                               \
+      n -= half;                                                                                 \
     }                                                                                            \
     return lo;                                                                                   \
   }
@@ -97,60 +95,64 @@ static void rotate(const ctrl_real *q0, const ctrl_real *v, ctrl_real *R) {
   }
 }
 
-/* A curve's parameter w at path length u: its row of the Hermite map (SciPy's PPoly). */
+/* A curve's parameter w at path length u: SciPy's CubicHermiteSpline through the map's nodes,
+ * its interval's coefficients computed as SciPy computes them (the same operations: the double
+ * build gets its very numbers), beyond the ends the end intervals extrapolated. */
 static ctrl_real map_w(const fw_program_map *map, int rows, ctrl_real u) {
-  const fw_program_map *m = map + search_map(map, rows, u);
-  ctrl_real x = u - m->u;
-  return ((m->c[0] * x + m->c[1]) * x + m->c[2]) * x + m->c[3];
+  const fw_program_map *m0 = &map[search_map(map, rows - 1, u)];
+  const fw_program_map *m1 = &m0[1];
+  ctrl_real dx = m1->u - m0->u, x = u - m0->u;
+  ctrl_real slope = (m1->w - m0->w) / dx;
+  ctrl_real t = (m0->slope + m1->slope - TWO * slope) / dx;
+  ctrl_real c0 = t / dx, c1 = (slope - m0->slope) / dx - t;
+  return ((c0 * x + c1) * x + m0->slope) * x + m0->w;
 }
 
-/* Position, unit tangent, rotation and angular velocity per metre of each kind, at u on the
- * (untrimmed) move. */
-typedef struct {
-  ctrl_real p[3], tangent[3], R[9], omega[3];
-} point;
+/* Each kind at u on its (untrimmed) move: position p, rotation R, and in rate[6] the unit
+ * tangent and the angular velocity per metre (the twist per m/s of path speed). */
 
-static void eval_line(const fw_program_line *l, ctrl_real u, point *out) {
+static void eval_line(const fw_program_line *l, ctrl_real u, ctrl_real *p, ctrl_real *R, ctrl_real *rate) {
   ctrl_real x = u / l->length, v[3];
   int i;
   for (i = 0; i < 3; ++i) {
-    out->p[i] = l->p0[i] + u * l->direction[i];
-    out->tangent[i] = l->direction[i];
-    out->omega[i] = l->omega[i];
+    p[i] = l->p0[i] + u * l->direction[i];
+    rate[i] = l->direction[i];
+    rate[i + 3] = l->omega[i];
     v[i] = x * l->rotvec[i];
   }
-  rotate(l->q0, v, out->R);
+  rotate(l->q0, v, R);
 }
 
-static void eval_arc(const fw_program_arc *a, ctrl_real u, point *out) {
+static void eval_arc(const fw_program_arc *a, ctrl_real u, ctrl_real *p, ctrl_real *R, ctrl_real *rate) {
   ctrl_real phi = u / a->radius, x = u / a->length, v[3];
   ctrl_real c = CTRL_COS(phi), s = CTRL_SIN(phi);
   int i;
   for (i = 0; i < 3; ++i) {
-    out->p[i] = a->centre[i] + a->radius * (c * a->e1[i] + s * a->e2[i]);
-    out->tangent[i] = -s * a->e1[i] + c * a->e2[i];
-    out->omega[i] = a->omega[i];
+    p[i] = a->centre[i] + a->radius * (c * a->e1[i] + s * a->e2[i]);
+    rate[i] = -s * a->e1[i] + c * a->e2[i];
+    rate[i + 3] = a->omega[i];
     v[i] = x * a->rotvec[i];
   }
-  rotate(a->q0, v, out->R);
+  rotate(a->q0, v, R);
 }
 
-static void eval_corner(const fw_program *prog, const fw_program_corner *k, ctrl_real u, point *out) {
-  ctrl_real w = map_w(prog->map + k->map, k->maps, u), m = ONE - w;
+static void eval_corner(const fw_program *prog, const fw_program_corner *k, ctrl_real u, ctrl_real *p, ctrl_real *R,
+                        ctrl_real *rate) {
+  ctrl_real w = map_w(&prog->map[k->map], k->maps, u), m = ONE - w;
   ctrl_real b0 = m * m * m, b1 = THREE * m * m * w, b2 = THREE * m * w * w, b3 = w * w * w;
   ctrl_real d0 = m * m, d1 = TWO * m * w, d2 = w * w, d[3], speed, v[3];
   int i;
   for (i = 0; i < 3; ++i) {
-    out->p[i] = b0 * k->control[0][i] + b1 * k->control[1][i] + b2 * k->control[2][i] + b3 * k->control[3][i];
+    p[i] = b0 * k->control[0][i] + b1 * k->control[1][i] + b2 * k->control[2][i] + b3 * k->control[3][i];
     d[i] = THREE * (d0 * k->chord[0][i] + d1 * k->chord[1][i] + d2 * k->chord[2][i]);
     v[i] = w * k->rotvec[i];
   }
   speed = CTRL_SQRT(dot3(d, d));
   for (i = 0; i < 3; ++i) {
-    out->tangent[i] = d[i] / speed;
-    out->omega[i] = k->omega[i] / speed;
+    rate[i] = d[i] / speed;
+    rate[i + 3] = k->omega[i] / speed;
   }
-  rotate(k->q0, v, out->R);
+  rotate(k->q0, v, R);
 }
 
 /* k1, k2 of RotationSpline's rotation-vector rate to angular rate, I - k1 [r]x + k2 [r]x^2. */
@@ -179,21 +181,20 @@ static void rate_factors(ctrl_real n, ctrl_real *k1, ctrl_real *k2) {
   }
 }
 
-static void eval_spline(const fw_program *prog, const fw_program_spline *sp, ctrl_real u, point *out) {
-  ctrl_real w = map_w(prog->map + sp->map, sp->maps, u);
-  const fw_program_knot *k = prog->knot + sp->knot;
-  ctrl_real x, d[3], r[3], rdot[3], c1[3], c2[3], body[3], k1, k2, speed;
+static void eval_spline(const fw_program *prog, const fw_program_spline *sp, ctrl_real u, ctrl_real *p, ctrl_real *R,
+                        ctrl_real *rate) {
+  ctrl_real w = map_w(&prog->map[sp->map], sp->maps, u);
+  const fw_program_knot *k = &prog->knot[sp->knot + search_knot(&prog->knot[sp->knot], sp->knots, w)];
+  ctrl_real x = w - k->tau, d[3], r[3], rdot[3], c1[3], c2[3], body[3], k1, k2, speed;
   int i;
-  k += search_knot(k, sp->knots, w);
-  x = w - k->tau;
   for (i = 0; i < 3; ++i) {
-    out->p[i] = ((k->position[0][i] * x + k->position[1][i]) * x + k->position[2][i]) * x + k->position[3][i];
+    p[i] = ((k->position[0][i] * x + k->position[1][i]) * x + k->position[2][i]) * x + k->position[3][i];
     d[i] = (THREE * k->position[0][i] * x + TWO * k->position[1][i]) * x + k->position[2][i];
     r[i] = ((k->rotvec[0][i] * x + k->rotvec[1][i]) * x + k->rotvec[2][i]) * x;
     rdot[i] = (THREE * k->rotvec[0][i] * x + TWO * k->rotvec[1][i]) * x + k->rotvec[2][i];
   }
   speed = CTRL_SQRT(dot3(d, d));
-  rotate(k->q, r, out->R);
+  rotate(k->q, r, R);
   rate_factors(CTRL_SQRT(dot3(r, r)), &k1, &k2);
   cross3(r, rdot, c1);
   cross3(r, c1, c2);
@@ -201,8 +202,8 @@ static void eval_spline(const fw_program *prog, const fw_program_spline *sp, ctr
     body[i] = rdot[i] - k1 * c1[i] + k2 * c2[i];
   }
   for (i = 0; i < 3; ++i) { /* body to base frame, per metre of path */
-    out->tangent[i] = d[i] / speed;
-    out->omega[i] = (out->R[i] * body[0] + out->R[i + 3] * body[1] + out->R[i + 6] * body[2]) / speed;
+    rate[i] = d[i] / speed;
+    rate[i + 3] = (R[i] * body[0] + R[i + 3] * body[1] + R[i + 6] * body[2]) / speed;
   }
 }
 
@@ -211,19 +212,19 @@ ctrl_real fw_program_duration(const fw_program *prog) { return prog->duration; }
 void fw_program_desired(const fw_program *prog, ctrl_real t, ctrl_real *p, ctrl_real *R, ctrl_real *xdot) {
   const fw_program_segment *seg;
   const fw_program_piece *piece;
-  ctrl_real tau, s, sdot, u;
-  point at;
-  int i, at_end;
-  if (!(t > CTRL_LIT(0.0))) {
-    t = CTRL_LIT(0.0);
+  ctrl_real time = CTRL_LIT(0.0), moving = ONE, tau, s, sdot, u; /* moving: 0 from the end on */
+  int i;
+  if (t >= prog->duration) {
+    time = prog->duration;
+    moving = CTRL_LIT(0.0);
+  } else if (t > CTRL_LIT(0.0)) {
+    time = t;
+  } else {
+    /* before the start, or NaN: at rest at the start */
   }
-  at_end = t >= prog->duration;
-  if (at_end) {
-    t = prog->duration;
-  }
-  seg = prog->segment + search_segment(prog->segment, prog->segments, t);
-  tau = t - seg->t;
-  sdot = at_end ? CTRL_LIT(0.0) : seg->v + seg->a * tau;
+  seg = &prog->segment[search_segment(prog->segment, prog->segments, time)];
+  tau = time - seg->t;
+  sdot = (seg->v + seg->a * tau) * moving;
   s = seg->s + seg->v * tau + HALF * seg->a * tau * tau;
   if (s > prog->length) {
     s = prog->length;
@@ -231,7 +232,7 @@ void fw_program_desired(const fw_program *prog, ctrl_real t, ctrl_real *p, ctrl_
   if (s < CTRL_LIT(0.0)) {
     s = CTRL_LIT(0.0);
   }
-  piece = prog->piece + search_piece(prog->piece, prog->pieces, s);
+  piece = &prog->piece[search_piece(prog->piece, prog->pieces, s)];
   u = s - piece->start;
   if (u < CTRL_LIT(0.0)) {
     u = CTRL_LIT(0.0);
@@ -242,25 +243,20 @@ void fw_program_desired(const fw_program *prog, ctrl_real t, ctrl_real *p, ctrl_
   u += piece->u0;
   switch (piece->kind) {
     case FW_PROGRAM_LINE:
-      eval_line(prog->line + piece->index, u, &at);
+      eval_line(&prog->line[piece->index], u, p, R, xdot);
       break;
     case FW_PROGRAM_ARC:
-      eval_arc(prog->arc + piece->index, u, &at);
+      eval_arc(&prog->arc[piece->index], u, p, R, xdot);
       break;
     case FW_PROGRAM_CORNER:
-      eval_corner(prog, prog->corner + piece->index, u, &at);
+      eval_corner(prog, &prog->corner[piece->index], u, p, R, xdot);
       break;
     default: /* FW_PROGRAM_SPLINE (fw_program_check admits no other kind) */
-      eval_spline(prog, prog->spline + piece->index, u, &at);
+      eval_spline(prog, &prog->spline[piece->index], u, p, R, xdot);
       break;
   }
-  for (i = 0; i < 3; ++i) {
-    p[i] = at.p[i];
-    xdot[i] = at.tangent[i] * sdot;
-    xdot[i + 3] = at.omega[i] * sdot;
-  }
-  for (i = 0; i < 9; ++i) {
-    R[i] = at.R[i];
+  for (i = 0; i < 6; ++i) {
+    xdot[i] *= sdot;
   }
 }
 
@@ -301,11 +297,13 @@ static int turn_ok(const ctrl_real *q0, const ctrl_real *rotvec, const ctrl_real
 
 static int map_ok(const fw_program *prog, int first, int rows) {
   int i;
-  if (!range_ok(first, rows, prog->maps)) {
+  if (rows < 2 || !range_ok(first, rows, prog->maps)) {
     return 0;
   }
   for (i = first; i < first + rows; ++i) {
-    if (!finite(prog->map[i].u) || !all_finite(prog->map[i].c, 4) || (i > first && !(prog->map[i].u > prog->map[i - 1].u))) {
+    const fw_program_map *m = &prog->map[i];
+    if (!finite(m->u) || !finite(m->w) || !finite(m->slope) ||
+        (i > first && !(prog->map[i].u > prog->map[i - 1].u))) {
       return 0;
     }
   }
@@ -318,44 +316,55 @@ static int spline_ok(const fw_program *prog, const fw_program_spline *sp) {
     return 0;
   }
   for (i = sp->knot; i < sp->knot + sp->knots; ++i) {
-    const fw_program_knot *k = prog->knot + i;
+    const fw_program_knot *k = &prog->knot[i];
     if (!finite(k->tau) || !all_finite(k->q, 4) || !unit(k->q, 4) || !all_finite(&k->position[0][0], 12) ||
-        !all_finite(&k->rotvec[0][0], 9) || (i > sp->knot && !(k->tau > k[-1].tau))) {
+        !all_finite(&k->rotvec[0][0], 9) || (i > sp->knot && !(k->tau > prog->knot[i - 1].tau))) {
       return 0;
     }
   }
   return 1;
 }
 
+static int line_ok(const fw_program_line *l) {
+  return all_finite(l->p0, 3) && all_finite(l->direction, 3) && unit(l->direction, 3) && finite(l->length) &&
+         l->length > CTRL_LIT(0.0) && turn_ok(l->q0, l->rotvec, l->omega);
+}
+
+static int arc_ok(const fw_program_arc *a) {
+  return all_finite(a->centre, 3) && finite(a->radius) && a->radius > CTRL_LIT(0.0) && all_finite(a->e1, 3) &&
+         all_finite(a->e2, 3) && unit(a->e1, 3) && unit(a->e2, 3) &&
+         CTRL_FABS(dot3(a->e1, a->e2)) <= FW_PROGRAM_UNIT_TOL && finite(a->length) && a->length > CTRL_LIT(0.0) &&
+         turn_ok(a->q0, a->rotvec, a->omega);
+}
+
+static int corner_ok(const fw_program *prog, const fw_program_corner *k) {
+  return all_finite(&k->control[0][0], 12) && all_finite(&k->chord[0][0], 9) && turn_ok(k->q0, k->rotvec, k->omega) &&
+         map_ok(prog, k->map, k->maps);
+}
+
+/* A piece: its numbers, and its kind's entry (the index checked before it is used). */
 static int piece_ok(const fw_program *prog, const fw_program_piece *pc) {
-  int i = pc->index;
-  if (!finite(pc->start) || !finite(pc->u0) || !finite(pc->length) || !(pc->u0 >= CTRL_LIT(0.0)) ||
-      !(pc->length > CTRL_LIT(0.0)) || i < 0) {
-    return 0;
+  int i = pc->index, ok = 0;
+  if (finite(pc->start) && finite(pc->u0) && finite(pc->length) && pc->u0 >= CTRL_LIT(0.0) &&
+      pc->length > CTRL_LIT(0.0) && i >= 0) {
+    switch (pc->kind) {
+      case FW_PROGRAM_LINE:
+        ok = i < prog->lines && line_ok(&prog->line[i]);
+        break;
+      case FW_PROGRAM_ARC:
+        ok = i < prog->arcs && arc_ok(&prog->arc[i]);
+        break;
+      case FW_PROGRAM_CORNER:
+        ok = i < prog->corners && corner_ok(prog, &prog->corner[i]);
+        break;
+      case FW_PROGRAM_SPLINE:
+        ok = i < prog->splines && spline_ok(prog, &prog->spline[i]);
+        break;
+      default:
+        break;
+    }
   }
-  switch (pc->kind) {
-    case FW_PROGRAM_LINE: {
-      const fw_program_line *l = prog->line + i;
-      return i < prog->lines && all_finite(l->p0, 3) && all_finite(l->direction, 3) && unit(l->direction, 3) &&
-             finite(l->length) && l->length > CTRL_LIT(0.0) && turn_ok(l->q0, l->rotvec, l->omega);
-    }
-    case FW_PROGRAM_ARC: {
-      const fw_program_arc *a = prog->arc + i;
-      return i < prog->arcs && all_finite(a->centre, 3) && finite(a->radius) && a->radius > CTRL_LIT(0.0) &&
-             all_finite(a->e1, 3) && all_finite(a->e2, 3) && unit(a->e1, 3) && unit(a->e2, 3) &&
-             CTRL_FABS(dot3(a->e1, a->e2)) <= FW_PROGRAM_UNIT_TOL && finite(a->length) &&
-             a->length > CTRL_LIT(0.0) && turn_ok(a->q0, a->rotvec, a->omega);
-    }
-    case FW_PROGRAM_CORNER: {
-      const fw_program_corner *k = prog->corner + i;
-      return i < prog->corners && all_finite(&k->control[0][0], 12) && all_finite(&k->chord[0][0], 9) &&
-             turn_ok(k->q0, k->rotvec, k->omega) && map_ok(prog, k->map, k->maps);
-    }
-    case FW_PROGRAM_SPLINE:
-      return i < prog->splines && spline_ok(prog, prog->spline + i);
-    default:
-      return 0;
-  }
+  return ok;
 }
 
 int fw_program_check(const fw_program *prog) {
@@ -372,18 +381,18 @@ int fw_program_check(const fw_program *prog) {
   }
   /* the time law: from rest at 0, times and path lengths increasing, speeds >= 0 */
   for (k = 0; k < prog->segments; ++k) {
-    const fw_program_segment *g = prog->segment + k;
+    const fw_program_segment *g = &prog->segment[k];
     if (!finite(g->t) || !finite(g->s) || !finite(g->v) || !finite(g->a) || !(g->v >= CTRL_LIT(0.0)) ||
         !(g->t < prog->duration) || !(g->s < prog->length)) {
       return 0;
     }
     if (k == 0 ? (g->t != CTRL_LIT(0.0) || g->s != CTRL_LIT(0.0) || g->v != CTRL_LIT(0.0))
-               : !(g->t > g[-1].t && g->s > g[-1].s)) {
+               : !(g->t > prog->segment[k - 1].t && g->s > prog->segment[k - 1].s)) {
       return 0;
     }
     top = g->v > top ? g->v : top;
   }
-  last = prog->segment + prog->segments - 1;
+  last = &prog->segment[prog->segments - 1];
   tau = prog->duration - last->t; /* ... to rest where the path ends */
   if (CTRL_FABS(last->s + last->v * tau + HALF * last->a * tau * tau - prog->length) >
           FW_PROGRAM_END_RTOL * prog->length ||
@@ -392,8 +401,8 @@ int fw_program_check(const fw_program *prog) {
   }
   /* the pieces: from 0, end to end, up to the path's length */
   for (k = 0; k < prog->pieces; ++k) {
-    const fw_program_piece *pc = prog->piece + k;
-    ctrl_real end = k + 1 < prog->pieces ? pc[1].start : prog->length;
+    const fw_program_piece *pc = &prog->piece[k];
+    ctrl_real end = k + 1 < prog->pieces ? prog->piece[k + 1].start : prog->length;
     if (!piece_ok(prog, pc) || (k == 0 && pc->start != CTRL_LIT(0.0)) || !(end > pc->start) ||
         CTRL_FABS(pc->start + pc->length - end) > FW_PROGRAM_END_RTOL * prog->length) {
       return 0;

@@ -155,7 +155,8 @@ class Curve(Piece):
         du = np.diff(w) / 6 * (speed[1:] + 4 * mid + speed[:-1])
         u = np.concatenate([[0.0], np.cumsum(du)])
         self.length = float(u[-1])
-        self.to_w = CubicHermiteSpline(u, w, 1.0 / speed)
+        self.map_nodes = (u, w, 1.0 / speed)  # kept for the on-board program table
+        self.to_w = CubicHermiteSpline(*self.map_nodes)
 
     def tangent(self, u):
         dp = self.derivative(self.to_w(u))
