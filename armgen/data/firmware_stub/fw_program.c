@@ -46,9 +46,9 @@ DEFINE_SEARCH(search_piece, fw_program_piece, start)
 DEFINE_SEARCH(search_map, fw_program_map, u)
 DEFINE_SEARCH(search_knot, fw_program_knot, tau)
 
-static ctrl_real dot3(const ctrl_real *a, const ctrl_real *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static ctrl_real vec_dot(const ctrl_real *a, const ctrl_real *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
-static void cross3(const ctrl_real *a, const ctrl_real *b, ctrl_real *out) {
+static void vec_cross(const ctrl_real *a, const ctrl_real *b, ctrl_real *out) {
   out[0] = a[1] * b[2] - a[2] * b[1];
   out[1] = a[2] * b[0] - a[0] * b[2];
   out[2] = a[0] * b[1] - a[1] * b[0];
@@ -63,7 +63,7 @@ static void rotate(const ctrl_real *q0, const ctrl_real *v, ctrl_real *R) {
     q[2] = q0[2];
     q[3] = q0[3];
   } else {
-    ctrl_real angle = CTRL_SQRT(dot3(v, v));
+    ctrl_real angle = CTRL_SQRT(vec_dot(v, v));
     ctrl_real angle2 = angle * angle;
     ctrl_real scale = angle <= ROTVEC_SERIES_ANGLE
                           ? HALF - angle2 / CTRL_LIT(48.0) + angle2 * angle2 / CTRL_LIT(3840.0)
@@ -73,7 +73,7 @@ static void rotate(const ctrl_real *q0, const ctrl_real *v, ctrl_real *R) {
     r[1] = v[1] * scale;
     r[2] = v[2] * scale;
     r[3] = CTRL_COS(angle / TWO);
-    cross3(q0, r, c);
+    vec_cross(q0, r, c);
     q[0] = q0[3] * r[0] + r[3] * q0[0] + c[0];
     q[1] = q0[3] * r[1] + r[3] * q0[1] + c[1];
     q[2] = q0[3] * r[2] + r[3] * q0[2] + c[2];
@@ -147,7 +147,7 @@ static void eval_corner(const fw_program *prog, const fw_program_corner *k, ctrl
     d[i] = THREE * (d0 * k->chord[0][i] + d1 * k->chord[1][i] + d2 * k->chord[2][i]);
     v[i] = w * k->rotvec[i];
   }
-  speed = CTRL_SQRT(dot3(d, d));
+  speed = CTRL_SQRT(vec_dot(d, d));
   for (i = 0; i < 3; ++i) {
     rate[i] = d[i] / speed;
     rate[i + 3] = k->omega[i] / speed;
@@ -193,11 +193,11 @@ static void eval_spline(const fw_program *prog, const fw_program_spline *sp, ctr
     r[i] = ((k->rotvec[0][i] * x + k->rotvec[1][i]) * x + k->rotvec[2][i]) * x;
     rdot[i] = (THREE * k->rotvec[0][i] * x + TWO * k->rotvec[1][i]) * x + k->rotvec[2][i];
   }
-  speed = CTRL_SQRT(dot3(d, d));
+  speed = CTRL_SQRT(vec_dot(d, d));
   rotate(k->q, r, R);
-  rate_factors(CTRL_SQRT(dot3(r, r)), &k1, &k2);
-  cross3(r, rdot, c1);
-  cross3(r, c1, c2);
+  rate_factors(CTRL_SQRT(vec_dot(r, r)), &k1, &k2);
+  vec_cross(r, rdot, c1);
+  vec_cross(r, c1, c2);
   for (i = 0; i < 3; ++i) {
     body[i] = rdot[i] - k1 * c1[i] + k2 * c2[i];
   }
@@ -267,7 +267,7 @@ static int finite(ctrl_real x) {
   return d == d;
 }
 
-static int all_finite(const ctrl_real *x, int n) {
+static int finite_n(const ctrl_real *x, int n) {
   int i;
   for (i = 0; i < n; ++i) {
     if (!finite(x[i])) {
@@ -292,7 +292,7 @@ static int range_ok(int first, int count, int total) { return first >= 0 && coun
 static int array_ok(int count, const void *array) { return count >= 0 && ((count == 0) == (array == NULL)); }
 
 static int turn_ok(const ctrl_real *q0, const ctrl_real *rotvec, const ctrl_real *omega) {
-  return all_finite(q0, 4) && unit(q0, 4) && all_finite(rotvec, 3) && all_finite(omega, 3);
+  return finite_n(q0, 4) && unit(q0, 4) && finite_n(rotvec, 3) && finite_n(omega, 3);
 }
 
 static int map_ok(const fw_program *prog, int first, int rows) {
@@ -317,8 +317,8 @@ static int spline_ok(const fw_program *prog, const fw_program_spline *sp) {
   }
   for (i = sp->knot; i < sp->knot + sp->knots; ++i) {
     const fw_program_knot *k = &prog->knot[i];
-    if (!finite(k->tau) || !all_finite(k->q, 4) || !unit(k->q, 4) || !all_finite(&k->position[0][0], 12) ||
-        !all_finite(&k->rotvec[0][0], 9) || (i > sp->knot && !(k->tau > prog->knot[i - 1].tau))) {
+    if (!finite(k->tau) || !finite_n(k->q, 4) || !unit(k->q, 4) || !finite_n(&k->position[0][0], 12) ||
+        !finite_n(&k->rotvec[0][0], 9) || (i > sp->knot && !(k->tau > prog->knot[i - 1].tau))) {
       return 0;
     }
   }
@@ -326,19 +326,19 @@ static int spline_ok(const fw_program *prog, const fw_program_spline *sp) {
 }
 
 static int line_ok(const fw_program_line *l) {
-  return all_finite(l->p0, 3) && all_finite(l->direction, 3) && unit(l->direction, 3) && finite(l->length) &&
+  return finite_n(l->p0, 3) && finite_n(l->direction, 3) && unit(l->direction, 3) && finite(l->length) &&
          l->length > CTRL_LIT(0.0) && turn_ok(l->q0, l->rotvec, l->omega);
 }
 
 static int arc_ok(const fw_program_arc *a) {
-  return all_finite(a->centre, 3) && finite(a->radius) && a->radius > CTRL_LIT(0.0) && all_finite(a->e1, 3) &&
-         all_finite(a->e2, 3) && unit(a->e1, 3) && unit(a->e2, 3) &&
-         CTRL_FABS(dot3(a->e1, a->e2)) <= FW_PROGRAM_UNIT_TOL && finite(a->length) && a->length > CTRL_LIT(0.0) &&
+  return finite_n(a->centre, 3) && finite(a->radius) && a->radius > CTRL_LIT(0.0) && finite_n(a->e1, 3) &&
+         finite_n(a->e2, 3) && unit(a->e1, 3) && unit(a->e2, 3) &&
+         CTRL_FABS(vec_dot(a->e1, a->e2)) <= FW_PROGRAM_UNIT_TOL && finite(a->length) && a->length > CTRL_LIT(0.0) &&
          turn_ok(a->q0, a->rotvec, a->omega);
 }
 
 static int corner_ok(const fw_program *prog, const fw_program_corner *k) {
-  return all_finite(&k->control[0][0], 12) && all_finite(&k->chord[0][0], 9) && turn_ok(k->q0, k->rotvec, k->omega) &&
+  return finite_n(&k->control[0][0], 12) && finite_n(&k->chord[0][0], 9) && turn_ok(k->q0, k->rotvec, k->omega) &&
          map_ok(prog, k->map, k->maps);
 }
 
