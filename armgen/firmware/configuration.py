@@ -4,7 +4,8 @@ knots and coefficients for playback). It is compiled in, so the host and the Cor
 run the identical task.
 
 - :func:`task_from_plan` / :func:`task_from_dict` turn a plan (its ``plan.json``) or a task
-  file into a :class:`FirmwareTask`;
+  file into a :class:`FirmwareTask`; a snake plan becomes a sampled joint table
+  (:func:`sampled_task`, ``CTRL_MODE_SAMPLED``);
 - :func:`write_task_files` writes ``task_params.h``, the PTP evaluator ``fw_ptp.{h,c}`` and
   ``robot_fw.c`` (the generated functions the controller calls) for the stub's Makefile
   (``armgen firmware-task``).
@@ -33,6 +34,10 @@ from .errors import FirmwareError
 from .sources import PTP_PREFIX, extract_functions, firmware_functions, robot_prefix
 
 MAX_SEGMENTS = 16  # CTRL_MAX_SEGMENTS default; plans with more segments get a -D
+MAX_SAMPLES = 65536  # CTRL_MAX_SAMPLES default (controller.h): the most rows of a sampled table
+# s: a sampled plan's times must be t_0 + k·step (the controller ticks at the plan's output
+# step); the planners write k·step in double, so 1e-9 s only rejects a grid that is not uniform.
+SAMPLE_TIME_TOL_S = 1e-9
 
 # Controller guards written into every task (see controller.h and docs/firmware.md).
 # rad/s: the speed guard of a joint whose robot file gives no qdlim (also the singular-pose
@@ -57,13 +62,14 @@ class FirmwareTask:
     """What the controller runs: the text of ``task_params.h`` plus what the comparison needs."""
 
     robot: Robot
-    mode: str  # "resolved_rate" | "playback" | "fault_tolerant" | "weighted_gpm"
+    mode: str  # "resolved_rate" | "playback" | "fault_tolerant" | "weighted_gpm" | "sampled"
     header: str
     dt: float
     n_ticks: int  # index of the last tick
     source: str = ""
     output_every: int = 1
-    joints: dict[int, str] = field(default_factory=dict)  # playback: robot joint -> plan joint name
+    joints: dict[int, str] = field(default_factory=dict)  # playback: robot joint -> plan joint name;
+                                                           # sampled: robot joint -> plan column
     nseg: int = 0
     lock_tick: int = -1  # the runners report the joints of lock_mask locked from this tick (-1: never)
     lock_mask: int = 0
@@ -92,7 +98,9 @@ def _vec(values) -> str:
     return "{" + ", ".join(_lit(v) for v in np.asarray(values, dtype=float).ravel()) + "}"
 
 
-def _header(robot: Robot, source: str, body: list[str], comment: str, lock_tick: int = -1, lock_mask: int = 0) -> str:
+def _header(robot: Robot, source: str, body: list[str], comment: str, lock_tick: int = -1, lock_mask: int = 0,
+            tables: Sequence[str] = ()) -> str:
+    """The text of task_params.h; ``tables``: lines defining const data fw_task points to."""
     n = robot.n
     lines = [
         "/*",
@@ -104,6 +112,7 @@ def _header(robot: Robot, source: str, body: list[str], comment: str, lock_tick:
         f"typedef char fw_task_check_ndof[(CTRL_NDOF == {n}) ? 1 : -1]; /* built for the right robot */",
         f"typedef char fw_task_check_ntask[(CTRL_NTASK == {len(robot.task_rows)}) ? 1 : -1];",
         "",
+        *tables,
         "const ctrl_config fw_task = {",
         *[f"    {line}" for line in body],
         "};",
@@ -248,6 +257,73 @@ def playback_task(plan: PlanResult, source: str, robot: Robot | None = None) -> 
     return FirmwareTask(robot, "playback", header, dt, len(t) - 1, source, 1, joints, nseg)
 
 
+def sample_column(joint) -> str:
+    """The plan column of a joint's samples (the snake planner's naming): <name>_m for a
+    prismatic joint, <name>_rad for a revolute one."""
+    return f"{joint.name}_{'m' if joint.type == 'prismatic' else 'rad'}"
+
+
+def _sampled_robot(plan: PlanResult, robot: Robot | None, source: str) -> Robot:
+    """The robot the plan was made for (robot file SHA-256 in plan.json), or a FirmwareError."""
+    meta_robot = plan.metadata.get("robot")
+    planned = meta_robot.get("sha256") if isinstance(meta_robot, dict) else None
+    name = meta_robot.get("name", "?") if isinstance(meta_robot, dict) else "?"
+    if robot is None:
+        ref = (plan.metadata.get("task") or {}).get("robot")
+        if not isinstance(ref, str):
+            raise FirmwareError(f"{source}: plan.json names no robot file (task.robot); give the robot to play it on")
+        robot = load_robot(ref)
+    if planned != robot.sha256:
+        raise FirmwareError(f"{source}: the plan is for robot '{name}' (robot file sha256 {str(planned)[:12]}…), not "
+                            f"'{robot.name}' ({robot.sha256[:12]}…); give the plan's robot file, or re-plan for this robot")
+    return robot
+
+
+def sampled_task(plan: PlanResult, source: str, robot: Robot | None = None) -> FirmwareTask:
+    """CTRL_MODE_SAMPLED from a sampled plan (a snake plan): every robot joint's column (by
+    name, :func:`sample_column`) as a const table in flash, one row per tick of the plan's
+    output step; the controller commands row k at tick k."""
+    robot = _sampled_robot(plan, robot, source)
+    columns = [sample_column(j) for j in robot.joints]
+    missing = [c for c in columns if c not in plan.columns]
+    if missing:
+        raise FirmwareError(f"{source}: the plan has no column {', '.join(missing)} for robot '{robot.name}''s joints "
+                            "(a sampled plan gives every joint's samples by name)")
+    t = plan.column("t_s")
+    dt = float((plan.metadata.get("motion") or {}).get("output_step_s") or 0.0)
+    if len(t) < 2 or not dt > 0.0:
+        raise FirmwareError(f"{source}: a sampled plan needs at least two samples and motion.output_step_s > 0 in "
+                            "plan.json; regenerate it with armgen plan")
+    k = np.arange(len(t))
+    if not np.all(np.abs(t - (t[0] + k * dt)) <= SAMPLE_TIME_TOL_S):
+        raise FirmwareError(f"{source}: t_s is not t_0 + k·{dt:g} s: the controller ticks once per output step; "
+                            "regenerate the plan with armgen plan")
+    if len(t) > MAX_SAMPLES:
+        raise FirmwareError(f"{source}: {len(t)} samples, more than the controller's table takes "
+                            f"(CTRL_MAX_SAMPLES = {MAX_SAMPLES}); re-plan with a larger motion.output_step")
+    q = np.column_stack([plan.column(c) for c in columns])
+    if not np.all(np.isfinite(q)):
+        raise FirmwareError(f"{source}: the plan has non-finite joint samples; regenerate it with armgen plan")
+    n_rows = len(t)
+    tables = [
+        f"#define FW_TASK_SAMPLES {n_rows}",
+        "typedef char fw_task_check_nsamples[(CTRL_MAX_SAMPLES >= FW_TASK_SAMPLES) ? 1 : -1];",
+        "/* The plan's joint samples, row k = tick k (robot joint order; m for the prismatic joints, rad",
+        " * for the revolute ones). const: it stays in flash and never changes; fw_task points to it. */",
+        "static const ctrl_real fw_task_samples[FW_TASK_SAMPLES][CTRL_NDOF] = {",
+        *[f"    {_vec(row)}," for row in q],
+        "};",
+        "",
+    ]
+    sp = [".table = &fw_task_samples[0][0],", ".n_samples = FW_TASK_SAMPLES,"]
+    body = _common_fields(robot, "CTRL_MODE_SAMPLED", dt, q[0])
+    body += [".sp = {", *[f"    {line}" for line in sp], "},"]
+    comment = (f"Sampled playback of a {plan.metadata.get('planner', '?')} plan: {n_rows} rows x {robot.n} joints, "
+               f"tick {dt:g} s; table {n_rows * robot.n * 4} B in float, {n_rows * robot.n * 8} B in double.")
+    header = _header(robot, source, body, comment, tables=tables)
+    return FirmwareTask(robot, "sampled", header, dt, n_rows - 1, source, 1, dict(enumerate(columns)))
+
+
 def _path_fields(path, source: str) -> list[str]:
     """The ``rr`` fields of a spec 30/35 path task (taskpath.PathTask): path, timing, CLIK."""
     axis, angle = np.array([0.0, 0.0, 1.0]), 0.0
@@ -390,19 +466,24 @@ def task_from_plan(plan: PlanResult, source: str, robot: Robot | None = None) ->
         return TASK_BUILDERS[planner](task, source)
     if planner == "ptp":
         return playback_task(plan, source, robot)
-    raise FirmwareError(f"{source}: the controller runs cartesian, ptp, fault_tolerant and wgpm plans, not planner "
+    if planner == "snake":
+        return sampled_task(plan, source, robot)
+    raise FirmwareError(f"{source}: the controller runs cartesian, ptp, snake, fault_tolerant and wgpm plans, not planner "
                         f"{excerpt(repr(planner))}")
 
 
 def task_from_dict(task: dict[str, Any], source: str, robot: Robot | None = None) -> FirmwareTask:
-    """From a task file's dict: cartesian directly; ptp through the (fast) PTP planner."""
+    """From a task file's dict: the resolved-rate planners directly; ptp and snake through their
+    (fast) planners."""
     planner = task.get("planner")
     if planner in TASK_BUILDERS:
         _refuse_program(task, source)
         return TASK_BUILDERS[planner](task, source)
     if planner == "ptp":
         return playback_task(run_task(task, source), source, robot)
-    raise FirmwareError(f"{source}: the controller runs cartesian, ptp, fault_tolerant and wgpm tasks, not planner "
+    if planner == "snake":
+        return sampled_task(run_task(task, source), source, robot)
+    raise FirmwareError(f"{source}: the controller runs cartesian, ptp, snake, fault_tolerant and wgpm tasks, not planner "
                         f"{excerpt(repr(planner))}")
 
 
