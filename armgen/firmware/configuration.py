@@ -309,9 +309,11 @@ def sampled_task(plan: PlanResult, source: str, robot: Robot | None = None) -> F
         f"#define FW_TASK_SAMPLES {n_rows}",
         "typedef char fw_task_check_nsamples[(CTRL_MAX_SAMPLES >= FW_TASK_SAMPLES) ? 1 : -1];",
         "/* The plan's joint samples, row k = tick k (robot joint order; m for the prismatic joints, rad",
-        " * for the revolute ones). const: it stays in flash and never changes; fw_task points to it. */",
+        " * for the revolute ones). const: it stays in flash and never changes; fw_task points to it.",
+        " * Each value is the plan's double, cast: exact in double, rounded once in float (where a",
+        " * planner's 1e-80 would be a float literal that underflows and warns). */",
         "static const ctrl_real fw_task_samples[FW_TASK_SAMPLES][CTRL_NDOF] = {",
-        *[f"    {_vec(row)}," for row in q],
+        *[f"    {{{', '.join(f'(ctrl_real){float(x)!r}' for x in row)}}}," for row in q],
         "};",
         "",
     ]
