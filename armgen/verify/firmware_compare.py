@@ -59,13 +59,15 @@ class Comparison:
     fault_tick: int | None = None
 
 
-def bounds_for(precision: str, mode: str) -> tuple[float, float]:
+def bounds_for(precision: str, mode: str, dt: float | None = None) -> tuple[float, float]:
+    """The bounds of (q or θ, the second quantity) for a run; sampled playback's velocity bound
+    depends on the tick period ``dt`` (NaN without it: a NaN bound passes nothing)."""
     if precision == "double":
         return FW_DOUBLE_BOUND_RAD, FW_DOUBLE_BOUND_M
     if mode == "playback":
         return FW_FLOAT_PLAYBACK_BOUND_RAD, FW_FLOAT_PLAYBACK_BOUND_RAD_S
-    if mode == "sampled":  # the velocity bound of the tick period dt is 2 × this / dt
-        return FW_FLOAT_SAMPLED_BOUND_RAD, 2.0 * FW_FLOAT_SAMPLED_BOUND_RAD
+    if mode == "sampled":
+        return FW_FLOAT_SAMPLED_BOUND_RAD, 2.0 * FW_FLOAT_SAMPLED_BOUND_RAD / dt if dt else float("nan")
     return FW_FLOAT_BOUND_RAD, FW_FLOAT_BOUND_M
 
 
@@ -122,13 +124,15 @@ def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, pr
 
     Resolved rate: max |Δq| and max |Δ task error| (|p_d − p|) over the plan's samples;
     playback: max |Δθ| and |Δω|; sampled playback: max |Δq| and |Δq̇| (q̇ by the controller's
-    forward-difference rule on the plan's samples). A plan that leaves the joint limits must make the controller
-    stop there with CTRL_FAULT_JOINT_LIMIT at that sample (± ``tick_slack``: 0 in double,
-    1 in float), holding a finite command inside the limits; otherwise the run must end DONE.
+    forward-difference rule on the plan's samples). A plan that leaves the joint limits must
+    make the controller stop there with CTRL_FAULT_JOINT_LIMIT at that sample (± ``tick_slack``:
+    0 in double, 1 in float; likewise TRACKING and sampled playback's SPEED, see
+    :func:`_expected_fault_ticks`), holding a finite command inside the limits; otherwise the
+    run must end DONE.
     """
     robot = task.robot
     n = robot.n
-    bound_q, bound_2 = bounds_for(precision, task.mode)
+    bound_q, bound_2 = bounds_for(precision, task.mode, task.dt)
     slack = tick_slack if tick_slack is not None else (0 if precision == "double" else 1)
     t_plan = plan.column("t_s")
     if task.mode in RESOLVED_MODES:
@@ -159,8 +163,7 @@ def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, pr
         q_plan, qd_plan = _sampled(plan, task)
         dq = float(np.max(np.abs(fw_rows[:, 2:2 + n] - q_plan[plan_rows]))) if use else 0.0
         de = float(np.max(np.abs(fw_rows[:, 2 + n:2 + 2 * n] - qd_plan[plan_rows]))) if use else 0.0
-        bound_qd = bound_2 if precision == "double" else bound_2 / task.dt
-        quantities = (("max |Δq| [rad, m]", dq, bound_q), ("max |Δq̇| [rad/s, m/s]", de, bound_qd))
+        quantities = (("max |Δq| [rad, m]", dq, bound_q), ("max |Δq̇| [rad/s, m/s]", de, bound_2))
     else:
         idx = sorted(task.joints)
         th = np.column_stack([plan.column(f"theta_{task.joints[i]}_rad")[plan_rows] for i in idx])
