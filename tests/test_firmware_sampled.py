@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
 
 import armgen.firmware as fw
 from armgen.cli.main import cli
@@ -128,6 +130,38 @@ def test_sample_outside_the_limits_stops_there(builder, plans):
     assert run.fault == "JOINT_LIMIT" and len(rows) == first + 1 and rows[first, -2] == 3
     assert np.array_equal(rows[first, 2:27], q[first - 1])
     assert fwcmp.compare_with_plan(with_q(plan, q), run, task, "double", "limit").passed
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(joint=st.integers(1, 24), scale=st.floats(0.5, 3.0), offset=st.floats(-0.9, 0.9))
+@example(joint=9, scale=1.0, offset=0.0)  # DONE (the plan as it is)
+@example(joint=9, scale=3.0, offset=0.0)  # SPEED (three times as fast)
+@example(joint=9, scale=1.0, offset=0.9)  # JOINT_LIMIT (row 0 of the tank plan is 0: 0.9 rad is inside)
+def test_stop_is_where_the_plan_first_breaks_a_limit(builder, plans, joint, scale, offset):
+    """One universal joint of snake_tank stretched about its start (its speeds × scale) and
+    shifted (its start stays inside the limits: the plan's row 0 is 0 on every joint): the run equals the samples exactly up to the first sample outside the limits
+    (JOINT_LIMIT) or whose step to the next outruns the joint (SPEED), as the robot file's
+    limits say, and stops there — or ends DONE when there is none."""
+    plan = plans["snake_tank"]
+    q = plan_q(plan)
+    q[:, joint] = q[0, joint] + scale * (q[:, joint] - q[0, joint]) + offset
+    dt = plan.metadata["motion"]["output_step_s"]
+    outside = (np.abs(q[:, 1:]) > SNAKE12_QMAX_RAD).any(axis=1) | (q[:, 0] < 0.0) | (q[:, 0] > 1.248)
+    too_fast = np.append((np.abs(np.diff(q, axis=0)) > SNAKE12_QDLIM * dt).any(axis=1), False)
+    bad = np.flatnonzero(outside | too_fast)
+    _, run = run_plan(builder, with_q(plan, q), "stretched")
+    rows = ticks(run)
+    if not bad.size:
+        assert (run.state, len(rows)) == ("DONE", len(q))
+        assert np.array_equal(rows[:, 2:27], q)
+        return
+    first = int(bad[0])
+    assert run.fault == ("JOINT_LIMIT" if outside[first] else "SPEED"), (first, run.fault)
+    assert len(rows) == first + 1 and rows[first, -2] == 3
+    assert np.array_equal(rows[:first, 2:27], q[:first])
+    if first > 0:
+        assert np.array_equal(rows[first, 2:27], q[first - 1])
 
 
 def _table_row(header: str, row: int, value: str) -> str:
