@@ -526,8 +526,9 @@ def test_planners_the_controller_does_not_run_are_refused():
             fw.task_from_dict(example("modular8_wgpm_demo", overrides), "wg")
     with pytest.raises(fw.FirmwareError, match="sigma_min"):
         fw.task_from_dict(example("modular8_fault_circle_wln", ["method.index=sigma_min"]), "ft")
-    with pytest.raises(fw.FirmwareError, match="not planner 'snake'"):
-        fw.task_from_plan(type("P", (), {"metadata": {"planner": "snake"}})(), "snake.csv", robot)
+    # every armgen planner runs now (snake plans by sampled playback): a plan of another planner
+    with pytest.raises(fw.FirmwareError, match="not planner 'rrt'"):
+        fw.task_from_plan(type("P", (), {"metadata": {"planner": "rrt"}})(), "rrt.csv", robot)
 
 
 # --------------------------------------------------------------------------- hardening (issue 11)

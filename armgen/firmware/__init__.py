@@ -11,8 +11,8 @@ concept per module —
 """
 
 from .builder import APT_PACKAGES, ARM_VARIANT, FirmwareBuilder, Variant, arm_tools
-from .configuration import (MAX_SEGMENTS, FirmwareTask, cartesian_task, refusal, schedule_lock, task_from_dict,
-                            task_from_plan, write_task_files)
+from .configuration import (MAX_SEGMENTS, FirmwareTask, cartesian_task, refusal, sample_column, sampled_task,
+                            schedule_lock, task_from_dict, task_from_plan, write_task_files)
 from .errors import FirmwareError
 from .output import FAULT_NAMES, FAULT_STATE, STATE_NAMES, FirmwareRun, instructions_per_tick, parse_output
 from .runners import QEMU_ICOUNT, QEMU_MACHINE, run_host, run_qemu
@@ -21,5 +21,5 @@ from .sources import FIRMWARE_DIR, FIRMWARE_FUNCTIONS, OPTIONAL_FUNCTIONS, robot
 __all__ = ["APT_PACKAGES", "ARM_VARIANT", "FAULT_NAMES", "FAULT_STATE", "FIRMWARE_DIR", "FIRMWARE_FUNCTIONS",
            "MAX_SEGMENTS", "OPTIONAL_FUNCTIONS", "QEMU_ICOUNT", "QEMU_MACHINE", "STATE_NAMES", "FirmwareBuilder",
            "FirmwareError", "FirmwareRun", "FirmwareTask", "Variant", "arm_tools", "cartesian_task",
-           "instructions_per_tick", "parse_output", "refusal", "robot_prefix", "run_host", "run_qemu",
-           "schedule_lock", "task_from_dict", "task_from_plan", "write_task_files"]
+           "instructions_per_tick", "parse_output", "refusal", "robot_prefix", "run_host", "run_qemu", "sample_column",
+           "sampled_task", "schedule_lock", "task_from_dict", "task_from_plan", "write_task_files"]

@@ -6,7 +6,8 @@ run the identical task.
 - :func:`task_from_plan` / :func:`task_from_dict` turn a plan (its ``plan.json``) or a task
   file into a :class:`FirmwareTask`; a program path (``path.type = "program"``) becomes the
   program table of :mod:`.program_table` (geometry and the plan's final time law, after any
-  slowing down for the joints' speed limits) beside ``fw_task``;
+  slowing down for the joints' speed limits) beside ``fw_task``; a snake plan becomes a
+  sampled joint table (:func:`sampled_task`, ``CTRL_MODE_SAMPLED``);
 - :func:`write_task_files` writes ``task_params.h``, the PTP evaluator ``fw_ptp.{h,c}`` and
   ``robot_fw.c`` (the generated functions the controller calls) for the stub's Makefile
   (``armgen firmware-task``).
@@ -37,6 +38,10 @@ from .program_table import program_table_c
 from .sources import PTP_PREFIX, extract_functions, firmware_functions, robot_prefix
 
 MAX_SEGMENTS = 16  # CTRL_MAX_SEGMENTS default; plans with more segments get a -D
+MAX_SAMPLES = 65536  # CTRL_MAX_SAMPLES default (controller.h): the most rows of a sampled table
+# s: a sampled plan's times must be t_0 + k·step (the controller ticks at the plan's output
+# step); the planners write k·step in double, so 1e-9 s only rejects a grid that is not uniform.
+SAMPLE_TIME_TOL_S = 1e-9
 
 # Controller guards written into every task (see controller.h and docs/firmware.md).
 # rad/s: the speed guard of a joint whose robot file gives no qdlim (also the singular-pose
@@ -61,13 +66,14 @@ class FirmwareTask:
     """What the controller runs: the text of ``task_params.h`` plus what the comparison needs."""
 
     robot: Robot
-    mode: str  # "resolved_rate" | "playback" | "fault_tolerant" | "weighted_gpm"
+    mode: str  # "resolved_rate" | "playback" | "fault_tolerant" | "weighted_gpm" | "sampled"
     header: str
     dt: float
     n_ticks: int  # index of the last tick
     source: str = ""
     output_every: int = 1
-    joints: dict[int, str] = field(default_factory=dict)  # playback: robot joint -> plan joint name
+    joints: dict[int, str] = field(default_factory=dict)  # playback: robot joint -> plan joint name;
+                                                           # sampled: robot joint -> plan column
     nseg: int = 0
     lock_tick: int = -1  # the runners report the joints of lock_mask locked from this tick (-1: never)
     lock_mask: int = 0
@@ -100,8 +106,8 @@ PROGRAM_TABLE = "fw_program_table"  # the program table's name in task_params.h
 
 
 def _header(robot: Robot, source: str, body: list[str], comment: str, lock_tick: int = -1, lock_mask: int = 0,
-            motion: ProgramMotion | None = None) -> str:
-    """task_params.h: ``fw_task`` (and, for a program path, the program table it points to)."""
+            tables: Sequence[str] = ()) -> str:
+    """The text of task_params.h; ``tables``: lines defining const data fw_task points to."""
     n = robot.n
     lines = [
         "/*",
@@ -113,7 +119,7 @@ def _header(robot: Robot, source: str, body: list[str], comment: str, lock_tick:
         f"typedef char fw_task_check_ndof[(CTRL_NDOF == {n}) ? 1 : -1]; /* built for the right robot */",
         f"typedef char fw_task_check_ntask[(CTRL_NTASK == {len(robot.task_rows)}) ? 1 : -1];",
         "",
-        *([program_table_c(motion, PROGRAM_TABLE), ""] if motion is not None else []),
+        *tables,
         "const ctrl_config fw_task = {",
         *[f"    {line}" for line in body],
         "};",
@@ -162,6 +168,11 @@ def _program_fields(duration: float) -> list[str]:
         ".relative = 0,",
         f".turns = {_lit(1.0)},",
     ]
+
+
+def _program_table(motion: ProgramMotion | None) -> list[str]:
+    """The lines of the program table ``fw_task.rr.program`` points to (none for a circle or line)."""
+    return [] if motion is None else [program_table_c(motion, PROGRAM_TABLE), ""]
 
 
 def _need_motion(motion: ProgramMotion | None, source: str) -> ProgramMotion:
@@ -221,7 +232,7 @@ def cartesian_task(task: dict[str, Any], source: str, motion: ProgramMotion | No
     law = "the plan's trapezoidal" if parsed.motion is not None else parsed.law.kind
     comment = (f"Resolved rate: {parsed.path_type}, {law} law over {parsed.duration:g} s, method "
                f"{mp.name}, Euler h = {parsed.step:g} s ({steps} steps), CLIK gain {parsed.clik_gain:g}.")
-    header = _header(robot, source, body, comment, motion=parsed.motion)
+    header = _header(robot, source, body, comment, tables=_program_table(parsed.motion))
     return FirmwareTask(robot, "resolved_rate", header, parsed.step, steps, source, parsed.output_every)
 
 
@@ -284,6 +295,75 @@ def playback_task(plan: PlanResult, source: str, robot: Robot | None = None) -> 
         header = header.replace("const ctrl_config fw_task", f"typedef char fw_task_check_nseg[(CTRL_MAX_SEGMENTS >= {nseg}) ? 1 : -1];\n"
                                 "const ctrl_config fw_task", 1)
     return FirmwareTask(robot, "playback", header, dt, len(t) - 1, source, 1, joints, nseg)
+
+
+def sample_column(joint) -> str:
+    """The plan column of a joint's samples (the snake planner's naming): <name>_m for a
+    prismatic joint, <name>_rad for a revolute one."""
+    return f"{joint.name}_{'m' if joint.type == 'prismatic' else 'rad'}"
+
+
+def _sampled_robot(plan: PlanResult, robot: Robot | None, source: str) -> Robot:
+    """The robot the plan was made for (robot file SHA-256 in plan.json), or a FirmwareError."""
+    meta_robot = plan.metadata.get("robot")
+    planned = meta_robot.get("sha256") if isinstance(meta_robot, dict) else None
+    name = meta_robot.get("name", "?") if isinstance(meta_robot, dict) else "?"
+    if robot is None:
+        ref = (plan.metadata.get("task") or {}).get("robot")
+        if not isinstance(ref, str):
+            raise FirmwareError(f"{source}: plan.json names no robot file (task.robot); give the robot to play it on")
+        robot = load_robot(ref)
+    if planned != robot.sha256:
+        raise FirmwareError(f"{source}: the plan is for robot '{name}' (robot file sha256 {str(planned)[:12]}…), not "
+                            f"'{robot.name}' ({robot.sha256[:12]}…); give the plan's robot file, or re-plan for this robot")
+    return robot
+
+
+def sampled_task(plan: PlanResult, source: str, robot: Robot | None = None) -> FirmwareTask:
+    """CTRL_MODE_SAMPLED from a sampled plan (a snake plan): every robot joint's column (by
+    name, :func:`sample_column`) as a const table in flash, one row per tick of the plan's
+    output step; the controller commands row k at tick k."""
+    robot = _sampled_robot(plan, robot, source)
+    columns = [sample_column(j) for j in robot.joints]
+    missing = [c for c in columns if c not in plan.columns]
+    if missing:
+        raise FirmwareError(f"{source}: the plan has no column {', '.join(missing)} for robot '{robot.name}''s joints "
+                            "(a sampled plan gives every joint's samples by name)")
+    t = plan.column("t_s")
+    dt = float((plan.metadata.get("motion") or {}).get("output_step_s") or 0.0)
+    if len(t) < 2 or not dt > 0.0:
+        raise FirmwareError(f"{source}: a sampled plan needs at least two samples and motion.output_step_s > 0 in "
+                            "plan.json; regenerate it with armgen plan")
+    k = np.arange(len(t))
+    if not np.all(np.abs(t - (t[0] + k * dt)) <= SAMPLE_TIME_TOL_S):
+        raise FirmwareError(f"{source}: t_s is not t_0 + k·{dt:g} s: the controller ticks once per output step; "
+                            "regenerate the plan with armgen plan")
+    if len(t) > MAX_SAMPLES:
+        raise FirmwareError(f"{source}: {len(t)} samples, more than the controller's table takes "
+                            f"(CTRL_MAX_SAMPLES = {MAX_SAMPLES}); re-plan with a larger motion.output_step")
+    q = np.column_stack([plan.column(c) for c in columns])
+    if not np.all(np.isfinite(q)):
+        raise FirmwareError(f"{source}: the plan has non-finite joint samples; regenerate it with armgen plan")
+    n_rows = len(t)
+    tables = [
+        f"#define FW_TASK_SAMPLES {n_rows}",
+        "typedef char fw_task_check_nsamples[(CTRL_MAX_SAMPLES >= FW_TASK_SAMPLES) ? 1 : -1];",
+        "/* The plan's joint samples, row k = tick k (robot joint order; m for the prismatic joints, rad",
+        " * for the revolute ones). const: it stays in flash and never changes; fw_task points to it.",
+        " * Each value is the plan's double, cast: exact in double, rounded once in float (where a",
+        " * planner's 1e-80 would be a float literal that underflows and warns). */",
+        "static const ctrl_real fw_task_samples[FW_TASK_SAMPLES][CTRL_NDOF] = {",
+        *[f"    {{{', '.join(f'(ctrl_real){float(x)!r}' for x in row)}}}," for row in q],
+        "};",
+        "",
+    ]
+    sp = [".table = &fw_task_samples[0][0],", ".n_samples = FW_TASK_SAMPLES,"]
+    body = _common_fields(robot, "CTRL_MODE_SAMPLED", dt, q[0])
+    body += [".sp = {", *[f"    {line}" for line in sp], "},"]
+    comment = (f"Sampled playback of a {plan.metadata.get('planner', '?')} plan: {n_rows} rows x {robot.n} joints, "
+               f"tick {dt:g} s; table {n_rows * robot.n * 4} B in float, {n_rows * robot.n * 8} B in double.")
+    header = _header(robot, source, body, comment, tables=tables)
+    return FirmwareTask(robot, "sampled", header, dt, n_rows - 1, source, 1, dict(enumerate(columns)))
 
 
 def _path_fields(path, source: str) -> list[str]:
@@ -354,8 +434,9 @@ def fault_tolerant_task(task: dict[str, Any], source: str, motion: ProgramMotion
     locked = ", ".join(robot.joints[j].name for j in parsed.fault.joints) or "none"
     comment = (f"Fault tolerant: {path.path_type} x {path.turns:g}, {m.label}, index {m.index}, Euler h = "
                f"{path.step:g} s ({steps} steps); lock of {locked} reported from tick {lock_tick}.")
-    return FirmwareTask(robot, "fault_tolerant", _header(robot, source, body, comment, lock_tick, lock_mask, path.motion),
-                        path.step, steps, source, path.output_every, lock_tick=lock_tick, lock_mask=lock_mask)
+    header = _header(robot, source, body, comment, lock_tick, lock_mask, _program_table(path.motion))
+    return FirmwareTask(robot, "fault_tolerant", header, path.step, steps, source, path.output_every,
+                        lock_tick=lock_tick, lock_mask=lock_mask)
 
 
 def weighted_gpm_task(task: dict[str, Any], source: str, motion: ProgramMotion | None = None) -> FirmwareTask:
@@ -384,8 +465,8 @@ def weighted_gpm_task(task: dict[str, Any], source: str, motion: ProgramMotion |
     body += [".wg = {", *[f"    {line}" for line in wg], "},"]
     comment = (f"Weighted GPM: {path.path_type} x {path.turns:g}, band {m.band:g}, ramp {m.ramp_time:g} s, Euler h = "
                f"{path.step:g} s ({path.steps} steps).")
-    return FirmwareTask(robot, "weighted_gpm", _header(robot, source, body, comment, motion=path.motion), path.step,
-                        path.steps, source, path.output_every)
+    header = _header(robot, source, body, comment, tables=_program_table(path.motion))
+    return FirmwareTask(robot, "weighted_gpm", header, path.step, path.steps, source, path.output_every)
 
 
 def schedule_lock(task: FirmwareTask, spec: str, source: str = "--lock") -> FirmwareTask:
@@ -459,20 +540,24 @@ def task_from_plan(plan: PlanResult, source: str, robot: Robot | None = None) ->
         return TASK_BUILDERS[planner](task, source, _plan_motion(plan, task, source))
     if planner == "ptp":
         return playback_task(plan, source, robot)
-    raise FirmwareError(f"{source}: the controller runs cartesian, ptp, fault_tolerant and wgpm plans, not planner "
+    if planner == "snake":
+        return sampled_task(plan, source, robot)
+    raise FirmwareError(f"{source}: the controller runs cartesian, ptp, snake, fault_tolerant and wgpm plans, not planner "
                         f"{excerpt(repr(planner))}")
 
 
 def task_from_dict(task: dict[str, Any], source: str, robot: Robot | None = None) -> FirmwareTask:
     """From a task file's dict: circle and line tasks directly; programs (whose time law is the
-    plan's) and ptp through their planner."""
+    plan's), ptp and snake through their planner."""
     planner = task.get("planner")
     if planner in TASK_BUILDERS:
         motion = run_task(task, source).motion if _is_program(task) else None
         return TASK_BUILDERS[planner](task, source, motion)
     if planner == "ptp":
         return playback_task(run_task(task, source), source, robot)
-    raise FirmwareError(f"{source}: the controller runs cartesian, ptp, fault_tolerant and wgpm tasks, not planner "
+    if planner == "snake":
+        return sampled_task(run_task(task, source), source, robot)
+    raise FirmwareError(f"{source}: the controller runs cartesian, ptp, snake, fault_tolerant and wgpm tasks, not planner "
                         f"{excerpt(repr(planner))}")
 
 

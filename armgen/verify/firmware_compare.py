@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ..firmware.configuration import DEFAULT_POS_ERR_MAX, RESOLVED_MODES, FirmwareTask
+from ..firmware.configuration import DEFAULT_POS_ERR_MAX, RESOLVED_MODES, FirmwareTask, speed_guard
 from ..firmware.output import FAULT_STATE, FirmwareRun
 from ..planning.result import PlanResult
 
@@ -41,6 +41,13 @@ FW_FLOAT_BOUND_M = 1e-4
 # Bound 1e-5 rad and 1e-5 rad/s: 20× the measurement, still 1000× below a wrong coefficient.
 FW_FLOAT_PLAYBACK_BOUND_RAD = 1e-5
 FW_FLOAT_PLAYBACK_BOUND_RAD_S = 1e-5
+# Sampled playback: the command is the table's row, so in double it is the plan's sample
+# exactly (the table holds each double by repr) and q̇ = (q_k+1 − q_k)/dt the same IEEE
+# operations as numpy's: both 0, under the double bound above. In float each sample is
+# rounded once: ≤ 2⁻²⁴ |q| ≤ 3.7e-7 rad for |q| ≤ 2π (snake12: ≤ 1.25 m, 1.05 rad). Bound
+# 1e-6 rad (m for a prismatic joint); q̇ then differs by at most twice that over dt (plus one
+# rounding of the quotient), so its bound is 2 × 1e-6 / dt — e.g. 2e-4 rad/s at 10 ms.
+FW_FLOAT_SAMPLED_BOUND_RAD = 1e-6
 
 
 @dataclass
@@ -52,12 +59,25 @@ class Comparison:
     fault_tick: int | None = None
 
 
-def bounds_for(precision: str, mode: str) -> tuple[float, float]:
+def bounds_for(precision: str, mode: str, dt: float | None = None) -> tuple[float, float]:
+    """The bounds of (q or θ, the second quantity) for a run; sampled playback's velocity bound
+    depends on the tick period ``dt`` (NaN without it: a NaN bound passes nothing)."""
     if precision == "double":
         return FW_DOUBLE_BOUND_RAD, FW_DOUBLE_BOUND_M
     if mode == "playback":
         return FW_FLOAT_PLAYBACK_BOUND_RAD, FW_FLOAT_PLAYBACK_BOUND_RAD_S
+    if mode == "sampled":
+        return FW_FLOAT_SAMPLED_BOUND_RAD, 2.0 * FW_FLOAT_SAMPLED_BOUND_RAD / dt if dt else float("nan")
     return FW_FLOAT_BOUND_RAD, FW_FLOAT_BOUND_M
+
+
+def _sampled(plan: PlanResult, task: FirmwareTask) -> tuple[np.ndarray, np.ndarray]:
+    """A sampled plan's q (robot joint order) and the controller's q̇ rule on it: the forward
+    difference (q_k+1 − q_k)/dt, 0 at the last sample."""
+    q = np.column_stack([plan.column(task.joints[i]) for i in range(task.robot.n)])
+    qd = np.zeros_like(q)
+    qd[:-1] = (q[1:] - q[:-1]) / task.dt
+    return q, qd
 
 
 
@@ -67,9 +87,20 @@ def _expected_fault_ticks(plan: PlanResult, task: FirmwareTask,
     """Where a guarded controller must stop, and with which fault: at the plan's first sample
     outside the joint limits (JOINT_LIMIT; the planners do not enforce them) or, in the
     resolved-rate modes, farther than the tracking guard from the path (TRACKING: e.g. a lock
-    that leaves the arm unable to follow) — or, when the plan keeps only every k-th sample,
-    anywhere after the last good sample and up to that one."""
+    that leaves the arm unable to follow), or in sampled playback at the first sample whose
+    step to the next is faster than the joint's speed limit (SPEED: its q̇ is that step / dt)
+    — or, when the plan keeps only every k-th sample, anywhere after the last good sample and
+    up to that one."""
     robot = task.robot
+    if task.mode == "sampled":
+        q, qd = _sampled(plan, task)
+        bad_q = ((q > robot.qmax) | (q < robot.qmin)).any(axis=1)
+        bad_s = (np.abs(qd) > speed_guard(robot)).any(axis=1)
+        rows = np.flatnonzero(bad_q | bad_s)
+        if not rows.size:
+            return None
+        r = int(rows[0])  # the limit check comes first on a tick
+        return r, r, "JOINT_LIMIT" if bad_q[r] else "SPEED"
     if task.mode in RESOLVED_MODES:
         idx = list(range(robot.n))
         q = np.column_stack([plan.column(f"q{i + 1}_rad") for i in idx])
@@ -92,13 +123,16 @@ def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, pr
     """Sample-by-sample comparison of a firmware run with the plan it reproduces.
 
     Resolved rate: max |Δq| and max |Δ task error| (|p_d − p|) over the plan's samples;
-    playback: max |Δθ| and |Δω|. A plan that leaves the joint limits must make the controller
-    stop there with CTRL_FAULT_JOINT_LIMIT at that sample (± ``tick_slack``: 0 in double,
-    1 in float), holding a finite command inside the limits; otherwise the run must end DONE.
+    playback: max |Δθ| and |Δω|; sampled playback: max |Δq| and |Δq̇| (q̇ by the controller's
+    forward-difference rule on the plan's samples). A plan that leaves the joint limits must
+    make the controller stop there with CTRL_FAULT_JOINT_LIMIT at that sample (± ``tick_slack``:
+    0 in double, 1 in float; likewise TRACKING and sampled playback's SPEED, see
+    :func:`_expected_fault_ticks`), holding a finite command inside the limits; otherwise the
+    run must end DONE.
     """
     robot = task.robot
     n = robot.n
-    bound_q, bound_2 = bounds_for(precision, task.mode)
+    bound_q, bound_2 = bounds_for(precision, task.mode, task.dt)
     slack = tick_slack if tick_slack is not None else (0 if precision == "double" else 1)
     t_plan = plan.column("t_s")
     if task.mode in RESOLVED_MODES:
@@ -125,6 +159,11 @@ def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, pr
         e_plan = plan.column("pos_err_m")[plan_rows]
         de = float(np.max(np.abs(fw_rows[:, run.columns.index("pos_err_m")] - e_plan))) if use else 0.0
         quantities = (("max |Δq| [rad]", dq, bound_q), ("max |Δ task error| [m]", de, bound_2))
+    elif task.mode == "sampled":
+        q_plan, qd_plan = _sampled(plan, task)
+        dq = float(np.max(np.abs(fw_rows[:, 2:2 + n] - q_plan[plan_rows]))) if use else 0.0
+        de = float(np.max(np.abs(fw_rows[:, 2 + n:2 + 2 * n] - qd_plan[plan_rows]))) if use else 0.0
+        quantities = (("max |Δq| [rad, m]", dq, bound_q), ("max |Δq̇| [rad/s, m/s]", de, bound_2))
     else:
         idx = sorted(task.joints)
         th = np.column_stack([plan.column(f"theta_{task.joints[i]}_rad")[plan_rows] for i in idx])
@@ -153,7 +192,7 @@ def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, pr
             ok = bool(np.array_equal(held, prev) and np.all(held <= robot.qmax) and np.all(held >= robot.qmin))
         where = f"tick {fault_tick}" if fault_tick is not None else "none"
         span = f"tick {hi}" if lo == hi else f"ticks {lo}..{hi}"
-        why = "limits" if expected_fault == "JOINT_LIMIT" else "tracking guard"
+        why = {"JOINT_LIMIT": "limits", "SPEED": "speed limits"}.get(expected_fault, "tracking guard")
         rows.append([label, f"end (plan leaves the {why})", f"{run.state}/{run.fault} at {where}",
                      f"{expected_fault} at {span} (t = {hi * task.dt:.4g} s)", ok])
         passed &= ok

@@ -252,8 +252,11 @@ def stage_callbacks(config: VerifyConfig, libraries: dict[str, Path], functions,
                  "" if rows else "nothing compared: no library was built")
 
 
-def _angle_columns(plan) -> list[str]:
-    """Joint-angle columns: q<i>_rad (resolved rate) or theta_<joint>_rad (ptp)."""
+def _angle_columns(plan, robot: Robot) -> list[str]:
+    """Joint columns: q<i>_rad (resolved rate), theta_<joint>_rad (ptp), or each joint's by name
+    (snake: feed_m, a1_rad, …)."""
+    if plan.metadata.get("planner") == "snake":
+        return [c for c in map(fw.sample_column, robot.joints) if c in plan.columns]
     return [c for c in plan.columns if (c.startswith("q") or c.startswith("theta_")) and c.endswith("_rad")]
 
 
@@ -347,7 +350,7 @@ def stage_replay(config: VerifyConfig, work: Path | None = None,
         raise ArmgenError(f"{config.plan}: no task in its plan.json; replay needs the JSON sidecar written by `armgen plan`")
     columns = ["run", "quantity", "value", "bound", "ok"]
     replay = run_task(json.loads(json.dumps(task)), str(config.plan), plan.metadata.get("task_sha256", ""), "c")
-    q_cols = _angle_columns(plan)
+    q_cols = _angle_columns(plan, config.robot)
     rows, passed = [], True
     if replay.data.shape != plan.data.shape:
         return Stage("replay", False, ["source"], [], f"sample count differs: plan {plan.data.shape}, replay {replay.data.shape}")

@@ -543,6 +543,24 @@ static int init_playback(ctrl *c) {
   return 1;
 }
 
+/* The sampled table, once: present, a row count within CTRL_MAX_SAMPLES, every value finite,
+ * row 0 at q_start. The ticks read it through the copied pointer (the table is const data). */
+static int init_sampled(ctrl *c) {
+  const ctrl_config *cfg = &c->cfg;
+  const ctrl_sp_config *sp = &cfg->sp;
+  int32_t k;
+  int i;
+  if (sp->table == NULL || sp->n_samples < 2 || sp->n_samples > CTRL_MAX_SAMPLES) return 0;
+  for (k = 0; k < sp->n_samples; ++k) {
+    if (!all_finite(sp->table + (size_t)k * N, N)) return 0;
+  }
+  for (i = 0; i < N; ++i) {
+    if (CTRL_FABS(sp->table[i] - cfg->q_start[i]) > PLAYBACK_START_TOL) return 0;
+  }
+  c->n_ticks = (uint32_t)(sp->n_samples - 1);
+  return 1;
+}
+
 ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
   int i, ok;
   if (c == NULL) {
@@ -573,6 +591,7 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
     switch (config->mode) {
       case CTRL_MODE_RESOLVED_RATE: ok = init_resolved_rate(c); break;
       case CTRL_MODE_PLAYBACK: ok = init_playback(c); break;
+      case CTRL_MODE_SAMPLED: ok = init_sampled(c); break;
 #if CTRL_HAS_FAULT_TOLERANT
       case CTRL_MODE_FAULT_TOLERANT: ok = init_fault_tolerant(c); break;
 #endif
@@ -961,6 +980,35 @@ static ctrl_fault tick_playback(ctrl *c, ctrl_real t, ctrl_output *out) {
   return CTRL_FAULT_NONE;
 }
 
+/* Sampled playback, tick k: q = row k exactly; q_dot = (row k+1 - row k) / dt, the velocity
+ * that reaches the next command in one period (0 at the last row: the plan ends there). So
+ * the speed guard on q_dot checks the step to the next row one tick ahead, and the step guard
+ * the step from the previous command (the start, on tick 0). */
+static ctrl_fault tick_sampled(ctrl *c, ctrl_real t, ctrl_output *out) {
+  const ctrl_config *cfg = &c->cfg;
+  const ctrl_real *row = cfg->sp.table + (size_t)c->k * N;
+  const ctrl_real *next = c->k < c->n_ticks ? row + N : row;
+  ctrl_real q[N], qd[N];
+  ctrl_fault f;
+  int i;
+  for (i = 0; i < N; ++i) {
+    q[i] = row[i];
+    qd[i] = (next[i] - row[i]) / cfg->dt;
+  }
+  f = check_command(c, q);
+  if (f == CTRL_FAULT_NONE && !all_finite(qd, N)) f = CTRL_FAULT_NONFINITE_OUTPUT;
+  if (f != CTRL_FAULT_NONE) return f;
+  for (i = 0; i < N; ++i) {
+    ctrl_real step_max = cfg->qdot_max[i] * cfg->dt * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
+    if (CTRL_FABS(qd[i]) > cfg->qdot_max[i] || CTRL_FABS(q[i] - c->q_hold[i]) > step_max) return CTRL_FAULT_SPEED;
+  }
+  accept(c, t, q, qd, out);
+  if (moving(c)) {
+    ++c->k;
+  }
+  return CTRL_FAULT_NONE;
+}
+
 static void latch(ctrl *c, ctrl_fault f, ctrl_real t) {
   c->state = CTRL_STATE_FAULT;
   c->fault = f;
@@ -1075,6 +1123,7 @@ static ctrl_fault tick_mode(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_out
   if (c->moving_to) return tick_move_to(c, t, out);
   switch (c->cfg.mode) {
     case CTRL_MODE_PLAYBACK: return tick_playback(c, t, out);
+    case CTRL_MODE_SAMPLED: return tick_sampled(c, t, out);
 #if CTRL_HAS_FAULT_TOLERANT
     case CTRL_MODE_FAULT_TOLERANT: return tick_fault_tolerant(c, in, t, out);
 #endif

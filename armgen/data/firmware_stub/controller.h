@@ -29,6 +29,9 @@
  *   CTRL_MODE_PLAYBACK  joint-space polynomial segments (spec 40): per joint the knot times
  *       and six coefficients per segment, evaluated by the generated fw_ptp_eval; every
  *       command is checked against qdot_max[i] (speed and the step from the previous command).
+ *   CTRL_MODE_SAMPLED  a sampled joint table (e.g. a snake plan): the command of tick k is row k
+ *       of a const table in flash, exactly; q_dot the forward difference to the next row / dt.
+ *       The same limit and speed checks as CTRL_MODE_PLAYBACK.
  *   CTRL_MODE_FAULT_TOLERANT  spec 30: the same on-board path (circle with turns, or line),
  *       closed loop, per tick the joint-manipulability index H_M and its gradient on the
  *       healthy columns (generated ft_index), then GPM (alpha = K grad H_M), WLN (generated
@@ -61,6 +64,11 @@ extern "C" {
 #define CTRL_MAX_SEGMENTS 16
 #endif
 #define CTRL_NCOEF 6 /* a0..a5 of theta(tau) = sum_j a_j tau^j, tau = t - knot[k] */
+/* Sampled playback: the most table rows ctrl_init accepts (-DCTRL_MAX_SAMPLES=n). The generated
+ * task_params.h checks at compile time that its table fits. */
+#ifndef CTRL_MAX_SAMPLES
+#define CTRL_MAX_SAMPLES 65536
+#endif
 
 typedef enum {
   CTRL_STATE_IDLE = 0,    /* initialised, holding the start configuration, waiting for START */
@@ -111,7 +119,8 @@ typedef enum {
   CTRL_MODE_RESOLVED_RATE = 0,
   CTRL_MODE_PLAYBACK = 1,
   CTRL_MODE_FAULT_TOLERANT = 2,
-  CTRL_MODE_WEIGHTED_GPM = 3
+  CTRL_MODE_WEIGHTED_GPM = 3,
+  CTRL_MODE_SAMPLED = 4
 } ctrl_mode;
 typedef enum { CTRL_FT_PINV = 0, CTRL_FT_GPM = 1, CTRL_FT_WLN = 2 } ctrl_ft_method;
 typedef enum { CTRL_FT_INDEX_OMEGA = 0, CTRL_FT_INDEX_RELATIVE = 1 } ctrl_ft_index;
@@ -187,6 +196,15 @@ typedef struct {
   ctrl_real coeffs[CTRL_NDOF][CTRL_MAX_SEGMENTS * CTRL_NCOEF]; /* rad, s */
 } ctrl_pb_config;
 
+/* Sampled playback: one table row per tick. The controller keeps the pointer, not a copy (the
+ * table is large: rows x NDOF reals): the table must be const data in flash (or read-only
+ * memory) that never changes while the controller lives. ctrl_init validates it once (not
+ * NULL, 2 .. CTRL_MAX_SAMPLES rows, every value finite, row 0 at q_start). */
+typedef struct {
+  const ctrl_real *table;    /* n_samples rows of CTRL_NDOF, row-major: q_i of tick k = table[k * CTRL_NDOF + i] */
+  int32_t n_samples;         /* rows; ticks 0 .. n_samples - 1, one per period dt */
+} ctrl_sp_config;
+
 typedef struct {
   ctrl_mode mode;
   ctrl_real dt;                 /* tick period, s */
@@ -204,6 +222,7 @@ typedef struct {
   ctrl_pb_config pb;            /* CTRL_MODE_PLAYBACK */
   ctrl_ft_config ft;            /* CTRL_MODE_FAULT_TOLERANT */
   ctrl_wg_config wg;            /* CTRL_MODE_WEIGHTED_GPM */
+  ctrl_sp_config sp;            /* CTRL_MODE_SAMPLED (points to a const table: not copied) */
 } ctrl_config;
 
 /* What the platform hands the controller every tick. */
