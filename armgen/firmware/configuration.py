@@ -34,6 +34,7 @@ from ..planning.tasks import apply_overrides, load_task, run_task
 from ..planning.toolpath.timelaw import ProgramMotion
 from ..robot import Robot, load_robot
 from .errors import FirmwareError
+from .literals import c_real, c_reals
 from .program_table import program_table_c
 from .sources import PTP_PREFIX, extract_functions, firmware_functions, robot_prefix
 
@@ -88,18 +89,7 @@ def _blend(law, source: str) -> str:
     if not (math.isfinite(law.blend) and 0.0 <= law.blend <= 0.5):
         raise FirmwareError(f"{source}: timing.blend = {law.blend!r} must be in [0, 0.5] (the fraction of the duration "
                             "spent accelerating), also when the time law does not use it")
-    return f".blend = {_lit(law.blend)},"
-
-
-def _lit(x: float) -> str:
-    x = float(x)
-    if not math.isfinite(x):
-        raise FirmwareError(f"task parameter {x} is not finite")
-    return f"CTRL_LIT({x!r})"
-
-
-def _vec(values) -> str:
-    return "{" + ", ".join(_lit(v) for v in np.asarray(values, dtype=float).ravel()) + "}"
+    return f".blend = {c_real(law.blend)},"
 
 
 PROGRAM_TABLE = "fw_program_table"  # the program table's name in task_params.h
@@ -146,15 +136,15 @@ def acceleration_limit(robot: Robot) -> np.ndarray:
 def _common_fields(robot: Robot, mode: str, dt: float, q_start: np.ndarray) -> list[str]:
     return [
         f".mode = {mode},",
-        f".dt = {_lit(dt)},",
-        f".q_start = {_vec(q_start)},",
-        f".q_min = {_vec(robot.qmin)},",
-        f".q_max = {_vec(robot.qmax)},",
-        f".qdot_max = {_vec(speed_guard(robot))},",
-        f".qddot_max = {_vec(acceleration_limit(robot))},",
-        f".residual_rel = {_lit(DEFAULT_RESIDUAL_REL)},",
-        f".residual_abs = {_lit(DEFAULT_RESIDUAL_ABS)},",
-        f".pos_err_max = {_lit(DEFAULT_POS_ERR_MAX)},",
+        f".dt = {c_real(dt)},",
+        f".q_start = {c_reals(q_start)},",
+        f".q_min = {c_reals(robot.qmin)},",
+        f".q_max = {c_reals(robot.qmax)},",
+        f".qdot_max = {c_reals(speed_guard(robot))},",
+        f".qddot_max = {c_reals(acceleration_limit(robot))},",
+        f".residual_rel = {c_real(DEFAULT_RESIDUAL_REL)},",
+        f".residual_abs = {c_real(DEFAULT_RESIDUAL_ABS)},",
+        f".pos_err_max = {c_real(DEFAULT_POS_ERR_MAX)},",
     ]
 
 
@@ -163,10 +153,10 @@ def _program_fields(duration: float) -> list[str]:
     return [
         ".path = CTRL_PATH_PROGRAM,",
         f".program = &{PROGRAM_TABLE},",
-        f".duration = {_lit(duration)},",
+        f".duration = {c_real(duration)},",
         ".law = CTRL_LAW_CONSTANT, .blend = CTRL_LIT(0.0),",
         ".relative = 0,",
-        f".turns = {_lit(1.0)},",
+        f".turns = {c_real(1.0)},",
     ]
 
 
@@ -204,27 +194,27 @@ def cartesian_task(task: dict[str, Any], source: str, motion: ProgramMotion | No
     else:
         path_fields = [
             f".path = {'CTRL_PATH_CIRCLE' if parsed.path_type == 'circle' else 'CTRL_PATH_LINE'},",
-            f".via = {_vec(parsed.via if parsed.via is not None else np.zeros(3))},",
-            f".end = {_vec(parsed.end)},",
-            f".rot_axis = {_vec(axis)},",
-            f".rot_angle = {_lit(angle)},",
-            f".duration = {_lit(parsed.duration)},",
+            f".via = {c_reals(parsed.via if parsed.via is not None else np.zeros(3))},",
+            f".end = {c_reals(parsed.end)},",
+            f".rot_axis = {c_reals(axis)},",
+            f".rot_angle = {c_real(angle)},",
+            f".duration = {c_real(parsed.duration)},",
             f".law = {LAW_IDS[parsed.law.kind]},",
             _blend(parsed.law, source),
             ".relative = 0,",
-            f".turns = {_lit(1.0)},",
+            f".turns = {c_real(1.0)},",
         ]
     rr = [
         *path_fields,
         f".method = {METHOD_IDS[mp.name]},",
-        f".rho_R = {_lit(mp.rho_R)}, .T_smo_R = {_lit(mp.T_smo_R)},",
-        f".rho_L = {_lit(mp.rho_L)}, .theta_s = {_lit(mp.theta_s)},",
-        f".T_smo_L = {_lit(mp.T_smo_L)}, .T_sum_L = {_lit(mp.T_sum_L)},",
-        f".gamma_R_ramp = {_lit(mp.gamma_R_ramp)},",
-        f".clik_gain = {_lit(parsed.clik_gain)},",
+        f".rho_R = {c_real(mp.rho_R)}, .T_smo_R = {c_real(mp.T_smo_R)},",
+        f".rho_L = {c_real(mp.rho_L)}, .theta_s = {c_real(mp.theta_s)},",
+        f".T_smo_L = {c_real(mp.T_smo_L)}, .T_sum_L = {c_real(mp.T_sum_L)},",
+        f".gamma_R_ramp = {c_real(mp.gamma_R_ramp)},",
+        f".clik_gain = {c_real(parsed.clik_gain)},",
         # λ = 0: the planner damps only below σ_min = ε, which no bundled plan reaches; plans
         # that used damping are refused by compare_with_plan (summary.damped_steps > 0).
-        f".damping = {_lit(0.0)},",
+        f".damping = {c_real(0.0)},",
         ".task_rows = {" + ", ".join(str(r) for r in robot.task_rows) + "},",
     ]
     body = _common_fields(robot, "CTRL_MODE_RESOLVED_RATE", parsed.step, parsed.q_start)
@@ -278,11 +268,11 @@ def playback_task(plan: PlanResult, source: str, robot: Robot | None = None) -> 
             raise FirmwareError(f"{source}: joint {name}: expected {nseg} x 6 coefficients, got {c.shape}")
         active[i] = 1
         q_start[i] = c[0, 0]
-        rows.append(f"[{i}] = {_vec(c)},")
+        rows.append(f"[{i}] = {c_reals(c)},")
     pb = [
         f".nseg = {nseg},",
         f".n_ticks = {len(t) - 1},",
-        f".knots = {_vec(knots)},",
+        f".knots = {c_reals(knots)},",
         ".active = {" + ", ".join(map(str, active)) + "},",
         ".coeffs = {", *[f"    {r}" for r in rows], "},",
     ]
@@ -370,7 +360,7 @@ def _path_fields(path, source: str) -> list[str]:
     """The ``rr`` fields of a spec 30/35 path task (taskpath.PathTask): path, timing, CLIK."""
     rows = ".task_rows = {" + ", ".join(str(r) for r in path.robot.task_rows) + "},"
     if path.motion is not None:
-        return [*_program_fields(path.duration), f".clik_gain = {_lit(path.clik_gain if path.clik else 0.0)},", rows]
+        return [*_program_fields(path.duration), f".clik_gain = {c_real(path.clik_gain if path.clik else 0.0)},", rows]
     axis, angle = np.array([0.0, 0.0, 1.0]), 0.0
     if path.path_type == "line" and path.end_rotation is not None:  # the planner's own axis/angle
         from ..planning.backends import make_backend
@@ -381,16 +371,16 @@ def _path_fields(path, source: str) -> list[str]:
         axis, angle = line.axis_local, float(line.angle)
     return [
         f".path = {'CTRL_PATH_CIRCLE' if path.path_type == 'circle' else 'CTRL_PATH_LINE'},",
-        f".via = {_vec(path.via if path.via is not None else np.zeros(3))},",
-        f".end = {_vec(path.end)},",
-        f".rot_axis = {_vec(axis)},",
-        f".rot_angle = {_lit(angle)},",
-        f".duration = {_lit(path.duration)},",
+        f".via = {c_reals(path.via if path.via is not None else np.zeros(3))},",
+        f".end = {c_reals(path.end)},",
+        f".rot_axis = {c_reals(axis)},",
+        f".rot_angle = {c_real(angle)},",
+        f".duration = {c_real(path.duration)},",
         f".law = {LAW_IDS[path.law.kind]},",
         _blend(path.law, source),
         f".relative = {1 if path.relative else 0},",
-        f".turns = {_lit(path.turns)},",
-        f".clik_gain = {_lit(path.clik_gain if path.clik else 0.0)},",
+        f".turns = {c_real(path.turns)},",
+        f".clik_gain = {c_real(path.clik_gain if path.clik else 0.0)},",
         rows,
     ]
 
@@ -416,11 +406,11 @@ def fault_tolerant_task(task: dict[str, Any], source: str, motion: ProgramMotion
     ft = [
         f".method = {FT_METHOD_IDS[m.name]},",
         f".index = {FT_INDEX_IDS[m.index]},",
-        f".K = {_lit(m.K)}, .b = {_lit(m.b)},",
+        f".K = {c_real(m.K)}, .b = {c_real(m.b)},",
         f".rule = {'CTRL_WLN_SMOOTH' if m.weight_rule == 'smooth' else 'CTRL_WLN_PLAIN'},",
-        f".v_band = {_lit(m.v_band)}, .omega_floor = {_lit(m.omega_floor)}, .delta = {_lit(m.delta)},",
-        f".a = {_vec(m.a or (1.0,) * robot.n)},",
-        f".epsilon = {_lit(path.damping_epsilon)}, .lambda_max = {_lit(path.damping_max)},",
+        f".v_band = {c_real(m.v_band)}, .omega_floor = {c_real(m.omega_floor)}, .delta = {c_real(m.delta)},",
+        f".a = {c_reals(m.a or (1.0,) * robot.n)},",
+        f".epsilon = {c_real(path.damping_epsilon)}, .lambda_max = {c_real(path.damping_max)},",
     ]
     steps = path.steps
     lock_tick, lock_mask = -1, 0
@@ -453,12 +443,12 @@ def weighted_gpm_task(task: dict[str, Any], source: str, motion: ProgramMotion |
                             "runs method.name = \"wgpm\" (step_wgpm)")
     h_lo, h_hi, k_hi, k_lo, u_th, u_band = m.vectors()
     wg = [
-        f".band = {_lit(m.band)}, .t_rmax = {_lit(m.t_rmax)}, .delta = {_lit(m.delta)},",
-        f".epsilon = {_lit(path.damping_epsilon)}, .rho_max = {_lit(path.damping_max)},",
-        f".ramp_time = {_lit(m.ramp_time)}, .ramp_out = {1 if m.ramp_out else 0},",
-        f".H_lo = {_vec(h_lo)}, .H_hi = {_vec(h_hi)},",
-        f".k_hi = {_vec(k_hi)}, .k_lo = {_vec(k_lo)},",
-        f".u_th = {_vec(u_th)}, .u_band = {_vec(u_band)},",
+        f".band = {c_real(m.band)}, .t_rmax = {c_real(m.t_rmax)}, .delta = {c_real(m.delta)},",
+        f".epsilon = {c_real(path.damping_epsilon)}, .rho_max = {c_real(path.damping_max)},",
+        f".ramp_time = {c_real(m.ramp_time)}, .ramp_out = {1 if m.ramp_out else 0},",
+        f".H_lo = {c_reals(h_lo)}, .H_hi = {c_reals(h_hi)},",
+        f".k_hi = {c_reals(k_hi)}, .k_lo = {c_reals(k_lo)},",
+        f".u_th = {c_reals(u_th)}, .u_band = {c_reals(u_band)},",
     ]
     body = _common_fields(robot, "CTRL_MODE_WEIGHTED_GPM", path.step, path.q_start)
     body += [".rr = {", *[f"    {line}" for line in _path_fields(path, source)], "},"]

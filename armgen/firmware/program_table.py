@@ -12,7 +12,6 @@ segment is checked against the cells it replaces (:data:`MERGE_TOL`).
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass
 
@@ -21,6 +20,7 @@ import numpy as np
 from ..planning.toolpath.geometry import Arc, Corner, Line, Piece, PoseSpline, Trimmed
 from ..planning.toolpath.timelaw import PathProfile, ProgramMotion
 from .errors import FirmwareError
+from .literals import c_real, c_reals
 
 # A merged time-law segment reproduces the planner's s(t) and ṡ(t) at every node and cell
 # midpoint it replaces to this (m, m/s): a hundredth of the 1e-12 the double build is tested
@@ -71,14 +71,11 @@ def merge_segments(profile: PathProfile, breaks: np.ndarray, tol: float = MERGE_
 
 
 def _lit(x: float) -> str:
-    x = float(x)
-    if not math.isfinite(x):
-        raise FirmwareError(f"the program table holds a non-finite number ({x}); the motion cannot run on board")
-    return f"CTRL_LIT({x!r})"
+    return c_real(x, "the program table's number")
 
 
 def _lits(values) -> str:
-    return "{" + ", ".join(_lit(x) for x in np.ravel(values)) + "}"
+    return c_reals(values, "the program table's number")
 
 
 def _nested(values: np.ndarray) -> str:

@@ -949,11 +949,30 @@ static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, 
 }
 #endif
 
+/* A played-back command (PLAYBACK, SAMPLED) through the checks of playback: the limits, finite
+ * velocities, and each joint's speed: |q_dot_i| <= qdot_max[i] and one tick's step at most
+ * qdot_max[i] * dt (a little more for rounding); then emitted, and the next tick due. */
+static ctrl_fault emit_played(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd, ctrl_output *out) {
+  const ctrl_config *cfg = &c->cfg;
+  ctrl_fault f = check_command(c, q);
+  int i;
+  if (f == CTRL_FAULT_NONE && !all_finite(qd, N)) f = CTRL_FAULT_NONFINITE_OUTPUT;
+  if (f != CTRL_FAULT_NONE) return f;
+  for (i = 0; i < N; ++i) {
+    ctrl_real step_max = cfg->qdot_max[i] * cfg->dt * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
+    if (CTRL_FABS(qd[i]) > cfg->qdot_max[i] || CTRL_FABS(q[i] - c->q_hold[i]) > step_max) return CTRL_FAULT_SPEED;
+  }
+  accept(c, t, q, qd, out);
+  if (moving(c)) {
+    ++c->k;
+  }
+  return CTRL_FAULT_NONE;
+}
+
 static ctrl_fault tick_playback(ctrl *c, ctrl_real t, ctrl_output *out) {
   const ctrl_config *cfg = &c->cfg;
   const ctrl_pb_config *pb = &cfg->pb;
   ctrl_real q[N], qd[N], th[3];
-  ctrl_fault f;
   int i;
   for (i = 0; i < N; ++i) {
     if (pb->active[i]) {
@@ -965,19 +984,7 @@ static ctrl_fault tick_playback(ctrl *c, ctrl_real t, ctrl_output *out) {
       qd[i] = CTRL_LIT(0.0);
     }
   }
-  f = check_command(c, q);
-  if (f == CTRL_FAULT_NONE && !all_finite(qd, N)) f = CTRL_FAULT_NONFINITE_OUTPUT;
-  if (f != CTRL_FAULT_NONE) return f;
-  for (i = 0; i < N; ++i) {
-    /* one tick may move a joint by at most qdot_max[i] * dt (a little more for rounding) */
-    ctrl_real step_max = cfg->qdot_max[i] * cfg->dt * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
-    if (CTRL_FABS(qd[i]) > cfg->qdot_max[i] || CTRL_FABS(q[i] - c->q_hold[i]) > step_max) return CTRL_FAULT_SPEED;
-  }
-  accept(c, t, q, qd, out);
-  if (moving(c)) {
-    ++c->k;
-  }
-  return CTRL_FAULT_NONE;
+  return emit_played(c, t, q, qd, out);
 }
 
 /* Sampled playback, tick k: q = row k exactly; q_dot = (row k+1 - row k) / dt, the velocity
@@ -989,24 +996,12 @@ static ctrl_fault tick_sampled(ctrl *c, ctrl_real t, ctrl_output *out) {
   const ctrl_real *row = cfg->sp.table + (size_t)c->k * N;
   const ctrl_real *next = c->k < c->n_ticks ? row + N : row;
   ctrl_real q[N], qd[N];
-  ctrl_fault f;
   int i;
   for (i = 0; i < N; ++i) {
     q[i] = row[i];
     qd[i] = (next[i] - row[i]) / cfg->dt;
   }
-  f = check_command(c, q);
-  if (f == CTRL_FAULT_NONE && !all_finite(qd, N)) f = CTRL_FAULT_NONFINITE_OUTPUT;
-  if (f != CTRL_FAULT_NONE) return f;
-  for (i = 0; i < N; ++i) {
-    ctrl_real step_max = cfg->qdot_max[i] * cfg->dt * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
-    if (CTRL_FABS(qd[i]) > cfg->qdot_max[i] || CTRL_FABS(q[i] - c->q_hold[i]) > step_max) return CTRL_FAULT_SPEED;
-  }
-  accept(c, t, q, qd, out);
-  if (moving(c)) {
-    ++c->k;
-  }
-  return CTRL_FAULT_NONE;
+  return emit_played(c, t, q, qd, out);
 }
 
 static void latch(ctrl *c, ctrl_fault f, ctrl_real t) {
