@@ -43,7 +43,6 @@ typedef float modular8_real;
 #define MODULAR8_FLOOR floorf
 #define MODULAR8_FMIN modular8_fmin
 #define MODULAR8_FMAX modular8_fmax
-#define MODULAR8_FMOD fmodf
 #define MODULAR8_COPYSIGN copysignf
 #if MODULAR8_BOUNDED_TRIG
 #define MODULAR8_SIN modular8_sin_bounded
@@ -65,7 +64,6 @@ typedef double modular8_real;
 #define MODULAR8_FLOOR floor
 #define MODULAR8_FMIN modular8_fmin
 #define MODULAR8_FMAX modular8_fmax
-#define MODULAR8_FMOD fmod
 #define MODULAR8_COPYSIGN copysign
 #endif
 
@@ -431,7 +429,7 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_WORK_REALS 248
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 136800 add, 151200 mul, 11400 div, 750 sqrt, 2550 trig, 9466 minmax, 12300 compare, 18750 select; work: 39 reals. */
+ * ops: 136800 add, 151350 mul, 11400 div, 750 sqrt, 2550 trig, 9616 minmax, 12300 compare, 18750 select; work: 39 reals. */
 #define MODULAR8_IK_T_TARGET_ROWS 4
 #define MODULAR8_IK_T_TARGET_COLS 4
 #define MODULAR8_IK_Q_SEED_ROWS 8

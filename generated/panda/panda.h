@@ -43,7 +43,6 @@ typedef float panda_real;
 #define PANDA_FLOOR floorf
 #define PANDA_FMIN panda_fmin
 #define PANDA_FMAX panda_fmax
-#define PANDA_FMOD fmodf
 #define PANDA_COPYSIGN copysignf
 #if PANDA_BOUNDED_TRIG
 #define PANDA_SIN panda_sin_bounded
@@ -65,7 +64,6 @@ typedef double panda_real;
 #define PANDA_FLOOR floor
 #define PANDA_FMIN panda_fmin
 #define PANDA_FMAX panda_fmax
-#define PANDA_FMOD fmod
 #define PANDA_COPYSIGN copysign
 #endif
 
@@ -431,7 +429,7 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_WORK_REALS 217
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 122100 add, 136200 mul, 10800 div, 750 sqrt, 2250 trig, 8564 minmax, 11250 compare, 16950 select; work: 37 reals. */
+ * ops: 122100 add, 136350 mul, 10800 div, 750 sqrt, 2250 trig, 8714 minmax, 11250 compare, 16950 select; work: 37 reals. */
 #define PANDA_IK_T_TARGET_ROWS 4
 #define PANDA_IK_T_TARGET_COLS 4
 #define PANDA_IK_Q_SEED_ROWS 7

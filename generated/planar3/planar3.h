@@ -43,7 +43,6 @@ typedef float planar3_real;
 #define PLANAR3_FLOOR floorf
 #define PLANAR3_FMIN planar3_fmin
 #define PLANAR3_FMAX planar3_fmax
-#define PLANAR3_FMOD fmodf
 #define PLANAR3_COPYSIGN copysignf
 #if PLANAR3_BOUNDED_TRIG
 #define PLANAR3_SIN planar3_sin_bounded
@@ -65,7 +64,6 @@ typedef double planar3_real;
 #define PLANAR3_FLOOR floor
 #define PLANAR3_FMIN planar3_fmin
 #define PLANAR3_FMAX planar3_fmax
-#define PLANAR3_FMOD fmod
 #define PLANAR3_COPYSIGN copysign
 #endif
 
@@ -430,7 +428,7 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 #define PLANAR3_STEP_WGPM_WORK_REALS 70
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 31950 add, 26250 mul, 3900 div, 600 sqrt, 1050 trig, 4206 minmax, 7050 compare, 9750 select; work: 29 reals. */
+ * ops: 31950 add, 26400 mul, 3900 div, 600 sqrt, 1050 trig, 4356 minmax, 7050 compare, 9750 select; work: 29 reals. */
 #define PLANAR3_IK_T_TARGET_ROWS 4
 #define PLANAR3_IK_T_TARGET_COLS 4
 #define PLANAR3_IK_Q_SEED_ROWS 3

@@ -55689,7 +55689,7 @@ snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake
   }
 }
 
-/* ik: 388650 add, 406200 mul, 21600 div, 750 sqrt, 7350 trig, 24800 minmax, 30150 compare, 49350 select */
+/* ik: 388650 add, 406350 mul, 21600 div, 750 sqrt, 7350 trig, 24950 minmax, 30150 compare, 49350 select */
 snake12_status snake12_ik(const snake12_real T_target[16], const snake12_real q_seed[SNAKE12_NDOF], const snake12_real q_rest[SNAKE12_NDOF], snake12_real use_rest, snake12_real tol_position, snake12_real tol_orientation, snake12_real max_iterations, snake12_real q[SNAKE12_NDOF], snake12_real *position_error, snake12_real *orientation_error, snake12_real *iterations, snake12_real *success) {
   snake12_real w72;
   snake12_real w60, w61, w62, w63, w64, w65, w66, w67, w68, w69, w70, w71;
@@ -56067,7 +56067,11 @@ void snake12_bisection_step6_loop(const snake12_real state[2], const snake12_rea
   for (i = 0; i < 2; ++i) { final[i] = current[i]; }
 }
 
-/* ik_step_8e27ca69_loop: ik_step_8e27ca69 SNAKE12_IK_STEP_8E27CA69_LOOP_COUNT times (2591 add, 2708 mul, 144 div, 5 sqrt, 49 trig, 165 minmax, 201 compare, 329 select each) */
+#if SNAKE12_USE_FLOAT && defined(__GNUC__) && !defined(__clang__)  /* fused multiply-adds in this loop (float: one rounding instead of two) */
+#pragma GCC push_options
+#pragma GCC optimize("fp-contract=fast")
+#endif
+/* ik_step_8e27ca69_loop: ik_step_8e27ca69 SNAKE12_IK_STEP_8E27CA69_LOOP_COUNT times (2591 add, 2709 mul, 144 div, 5 sqrt, 49 trig, 166 minmax, 201 compare, 329 select each) */
 void snake12_ik_step_8e27ca69_loop(const snake12_real state[59], const snake12_real T_target[16], const snake12_real q_rest[25], const snake12_real use_rest[1], const snake12_real tol_position[1], const snake12_real tol_orientation[1], const snake12_real max_iterations[1], snake12_real final[59]) {
   snake12_real current[59];
   int k;
@@ -59082,8 +59086,10 @@ void snake12_ik_step_8e27ca69_loop(const snake12_real state[59], const snake12_r
     w23 = current[54];
     w53 = w23 + w105;
     w112 = SNAKE12_LIT(3.0);
-    w112 = SNAKE12_FMOD(w53, w112);
-    w112 = (snake12_real)(w112 == w146);
+    w232 = w53 / w112;
+    w232 = SNAKE12_FLOOR(w232);
+    w112 = w112 * w232;
+    w112 = (snake12_real)(w53 == w112);
     w232 = w6 + w107;
     w247 = w231 * w244;
     w155 = w151 * w228;
@@ -62514,3 +62520,6 @@ void snake12_ik_step_8e27ca69_loop(const snake12_real state[59], const snake12_r
   }
   for (i = 0; i < 59; ++i) { final[i] = current[i]; }
 }
+#if SNAKE12_USE_FLOAT && defined(__GNUC__) && !defined(__clang__)
+#pragma GCC pop_options
+#endif
