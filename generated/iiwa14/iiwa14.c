@@ -15398,7 +15398,7 @@ void iiwa14_ik_step_35864eae_loop(const iiwa14_real state[23], const iiwa14_real
     w62 = w24 - w90;
     w108 = current[18];
     w101 = w108 + w24;
-    w95 = IIWA14_LIT(3.0);
+    w95 = IIWA14_LIT(5.0);
     w29 = w101 / w95;
     w29 = IIWA14_FLOOR(w29);
     w95 = w95 * w29;

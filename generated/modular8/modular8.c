@@ -18349,7 +18349,7 @@ void modular8_ik_step_95c2c3c3_loop(const modular8_real state[25], const modular
     w68 = w67 - w95;
     w109 = current[20];
     w102 = w109 + w67;
-    w96 = MODULAR8_LIT(3.0);
+    w96 = MODULAR8_LIT(5.0);
     w31 = w102 / w96;
     w31 = MODULAR8_FLOOR(w31);
     w96 = w96 * w31;

@@ -15542,7 +15542,7 @@ void panda_ik_step_8a95a0f1_loop(const panda_real state[23], const panda_real T_
     w66 = w27 - w94;
     w110 = current[18];
     w103 = w110 + w27;
-    w97 = PANDA_LIT(3.0);
+    w97 = PANDA_LIT(5.0);
     w48 = w103 / w97;
     w48 = PANDA_FLOOR(w48);
     w97 = w97 * w48;

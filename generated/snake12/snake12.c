@@ -59085,7 +59085,7 @@ void snake12_ik_step_8e27ca69_loop(const snake12_real state[59], const snake12_r
     w10 = w105 - w230;
     w23 = current[54];
     w53 = w23 + w105;
-    w112 = SNAKE12_LIT(3.0);
+    w112 = SNAKE12_LIT(5.0);
     w232 = w53 / w112;
     w232 = SNAKE12_FLOOR(w232);
     w112 = w112 * w232;
