@@ -92,6 +92,32 @@ def test_cortex_m4f_object_has_no_soft_double(name, tmp_path):
     assert not (symbols & FORBIDDEN_SYMBOLS)
 
 
+FUSED_OPS = ("vfma.f32", "vfms.f32", "vfnma.f32", "vfnms.f32")
+
+
+def test_only_the_float_ik_loop_fuses_multiply_adds(tmp_path):
+    """The IK loop (Loop.fused_float) lets gcc contract a·b + c in the float build: on the
+    Cortex-M4F its disassembly holds fused multiply-adds, no other function's does (ISO C keeps
+    -ffp-contract=off), and the double build never asks for contraction."""
+    arm_gcc = require_tool("arm-none-eabi-gcc")
+    objdump = require_tool("arm-none-eabi-objdump")
+    src = REPO_GENERATED_DIR / "panda" / "panda.c"
+    obj = _compile_object(src, tmp_path / "m4.o", "PANDA_USE_FLOAT=1", cc=arm_gcc,
+                          extra=(*ARM_CPU_FLAGS, "-ffunction-sections"))
+    listing = subprocess.run([objdump, "-d", str(obj)], check=True, capture_output=True, text=True).stdout
+    fused = {}
+    for block in listing.split("\n\n"):
+        header = re.search(r"<(\w+)>:", block)
+        if header:
+            fused[header.group(1)] = sum(block.count(op) for op in FUSED_OPS)
+    ik_loop = [name for name in fused if name.startswith("panda_ik_step_") and name.endswith("_loop")]
+    assert len(ik_loop) == 1 and fused[ik_loop[0]] > 0, fused
+    assert sum(count for name, count in fused.items() if name != ik_loop[0]) == 0, fused
+    double = subprocess.run(["gcc", "-E", "-DPANDA_USE_FLOAT=0", "-I", str(src.parent), str(src)], check=True,
+                            capture_output=True, text=True).stdout
+    assert "fp-contract" not in double
+
+
 @pytest.mark.parametrize("precision", ["double", "float"])
 @pytest.mark.parametrize("name", ["planar3", "modular8"])
 def test_sanitizers_clean(name, precision):

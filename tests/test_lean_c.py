@@ -7,7 +7,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from armgen.codegen.generate import BOUNDED_TRIG_RANGE, BOUNDED_TRIG_ULP, CodegenConfig, generate, write
+from armgen.codegen.generate import (BOUNDED_ATAN2_ULP, BOUNDED_TRIG_RANGE, BOUNDED_TRIG_ULP, CodegenConfig, generate,
+                                    write)
 from armgen.codegen.stamp import comment_safe
 from armgen.codegen.toolchain import STRICT_FLAGS
 from armgen.errors import ArmgenError
@@ -60,6 +61,55 @@ def test_bounded_trig_error_in_ulp(tmp_path):
         ref = ref_fun(a[:, 0])
         ulp = np.spacing(np.maximum(np.abs(ref), 0.5).astype(np.float32)).astype(float)
         assert (np.abs(a[:, k] - ref) / ulp).max() <= BOUNDED_TRIG_ULP
+
+
+ATAN2_HARNESS = r"""
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include "{p}.c"
+/* argv: n; stdin: n (y, x) float pairs; stdout: n atan2_bounded results */
+int main(int argc, char **argv) {{
+  long n = atol(argv[1]), i;
+  for (i = 0; i < n; ++i) {{
+    float yx[2], r;
+    if (fread(yx, sizeof yx, 1, stdin) != 1) return 3;
+    r = {p}_atan2_bounded(yx[0], yx[1]);
+    (void)fwrite(&r, sizeof r, 1, stdout);
+  }}
+  return 0;
+}}
+"""
+# (y, x) pairs per quadrant draw; the angles below this are measured in its ulp (absolute 1e-10).
+ATAN2_SAMPLES = 400_000
+ATAN2_SMALL = 2.0 ** -10
+
+
+def test_bounded_atan2_error_in_ulp(tmp_path):
+    """|atan2_bounded(y, x) − atan2(y, x)| ≤ BOUNDED_ATAN2_ULP ulp of the float result (the float
+    inputs, atan2 in double, NumPy's) over angles all around the circle and magnitudes from 1e-6
+    to 1e6; (0, 0) gives 0 and NaN or inf in give NaN."""
+    require_tool("gcc")
+    code = generate(CodegenConfig(load_robot("planar3"), precision="float"))
+    write(code, tmp_path)
+    (tmp_path / "h.c").write_text(ATAN2_HARNESS.format(p="planar3"))
+    exe = tmp_path / "h"
+    subprocess.run(["gcc", "-std=c99", "-O2", "-DPLANAR3_BOUNDED_TRIG=1", f"-I{tmp_path}", str(tmp_path / "h.c"),
+                    "-o", str(exe), "-lm"], check=True)
+    rng = np.random.default_rng(3)
+    angle = rng.uniform(-np.pi, np.pi, ATAN2_SAMPLES)
+    radius = 10.0 ** rng.uniform(-6, 6, ATAN2_SAMPLES)
+    special = [(0.0, 0.0), (np.nan, 1.0), (1.0, np.nan), (np.inf, 1.0), (1.0, -np.inf), (0.0, -1.0), (1.0, 0.0),
+               (-1.0, 0.0), (1e-30, 1.0)]
+    yx = np.concatenate([np.stack([radius * np.sin(angle), radius * np.cos(angle)], axis=1),
+                         np.array(special)]).astype(np.float32)
+    raw = subprocess.run([str(exe), str(len(yx))], input=yx.tobytes(), check=True, capture_output=True).stdout
+    got = np.frombuffer(raw, dtype=np.float32).astype(float)
+    ref = np.arctan2(yx[:, 0].astype(float), yx[:, 1].astype(float))
+    finite = np.all(np.isfinite(yx), axis=1)
+    ulp = np.spacing(np.maximum(np.abs(ref), ATAN2_SMALL).astype(np.float32)).astype(float)
+    assert (np.abs(got - ref)[finite] / ulp[finite]).max() <= BOUNDED_ATAN2_ULP
+    assert got[len(radius)] == 0.0 and np.all(np.isnan(got[~finite]))
 
 
 # draw()'s kind of an input: 1 a joint angle (near its limits), 2 a lock mask (0/1 by its

@@ -375,6 +375,14 @@ def emit_loop(loop: Loop, macro_prefix: str) -> tuple[str, str]:
         f"  for (i = 0; i < {size}; ++i) {{ final[i] = current[i]; }}",
         "}",
         ""])
+    if loop.fused_float:
+        # GCC contracts a·b + c across statements only when told to (ISO C modes default to
+        # -ffp-contract=off); the float build only, so the double C keeps Python's roundings
+        guard = f"#if {macro_prefix}_USE_FLOAT && defined(__GNUC__) && !defined(__clang__)"
+        definition = "\n".join([
+            f"{guard}  /* fused multiply-adds in this loop (float: one rounding instead of two) */",
+            "#pragma GCC push_options", '#pragma GCC optimize("fp-contract=fast")', "#endif",
+            definition.rstrip("\n"), guard, "#pragma GCC pop_options", "#endif", ""])
     prototype = "\n".join([f"#if {macro_prefix}_USE_FLOAT", f"#define {count} {loop.float_count}", "#else",
                            f"#define {count} {loop.count}", "#endif", signature + ";"])
     return prototype, definition

@@ -257,6 +257,11 @@ def generate(config: CodegenConfig) -> GeneratedCode:
 # [−π/4, π/4]. Documented (and tested in tests/test_lean_c.py) error bound and range:
 BOUNDED_TRIG_ULP = 2
 BOUNDED_TRIG_RANGE = 100
+# The bounded atan2 of the same switch (one division, Cephes' atanf polynomial on |u| ≤ tan π/8,
+# octant and quadrant by selects): its documented (and tested) error bound, for any finite
+# (y, x); results below 2⁻¹⁰ rad in ulp(2⁻¹⁰). Cephes gives its polynomial a peak relative error
+# of 1.9e-7; 3.03 ulp is the largest seen (near atan2 = 0.5, where the reduction by tan π/8 starts).
+BOUNDED_ATAN2_ULP = 4
 
 
 def _lean_math(p: str, P: str) -> str:
@@ -315,6 +320,25 @@ static inline {p}_real {p}_sqrt({p}_real x) {{
   {p}_sincos_bounded(x, &s, &c);
   return c;
 }}
+/* atan2(y, x) without a library call (newlib's atan2f costs a call and its branches in a step
+ * with a time budget, the IK's): t = min(|x|, |y|)/max(|x|, |y|) in [0, 1], reduced above
+ * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
+ * and the quadrant by selects. Error <= {BOUNDED_ATAN2_ULP} ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
+ * or +-pi); NaN or inf in give NaN. */
+{P}_TRIG_INLINE float {p}_atan2_bounded(float y, float x) {{
+  float ax = fabsf(x), ay = fabsf(y);
+  float hi = (ay > ax) ? ay : ax;
+  float lo = (ay > ax) ? ax : ay;
+  float t = lo / ((hi > 0.0f) ? hi : 1.0f);
+  float u = (t > 0.41421356237f) ? ((t - 1.0f) / (t + 1.0f)) : t;
+  float z = u * u;
+  float r = ((((8.05374449538e-2f * z) - 1.38776856032e-1f) * z + 1.99777106478e-1f) * z - 3.33329491539e-1f) * z * u + u;
+  r = (t > 0.41421356237f) ? (r + 0.785398163397f) : r;
+  r = (ay > ax) ? (1.57079632679f - r) : r;
+  r = (x < 0.0f) ? (3.14159265359f - r) : r;
+  r = (y < 0.0f) ? (-r) : r;
+  return r + 0.0f * (x + y); /* x + y is NaN or inf for a NaN or inf input: the product NaN */
+}}
 #endif
 /* The sin and cos of a function's n angles, in one loop before its straight-line code (the
  * generated kinematics call it): branch-free bodies, so the loop vectorises where it can. */
@@ -361,7 +385,10 @@ def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str
     guard = f"{P}_H"
     float_default = 1 if config.precision == "float" else 0
     lean = {"FMIN": f"{p}_fmin", "FMAX": f"{p}_fmax", "SQRT": f"{p}_sqrt"}
-    macros_f = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower() + 'f')}" for m in math if m not in ("SIN", "COS"))
+    macros_f = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower() + 'f')}" for m in math
+                         if m not in ("SIN", "COS", "ATAN2"))
+    atan2_bounded, atan2_libm = (f"\n#define {P}_ATAN2 {p}_atan2_bounded", f"\n#define {P}_ATAN2 atan2f") \
+        if "ATAN2" in math else ("", "")
     macros_d = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower())}" for m in math)
     return f"""{preamble}
 #ifndef {guard}
@@ -388,7 +415,8 @@ extern "C" {{
 #endif
 /* {P}_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
  * ({p}_sin_bounded/{p}_cos_bounded below: error <= {BOUNDED_TRIG_ULP} ulp for |x| <= {BOUNDED_TRIG_RANGE} rad,
- * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf, and atan2 by {p}_atan2_bounded
+ * (<= {BOUNDED_ATAN2_ULP} ulp) instead of atan2f. Default 0. */
 #ifndef {P}_BOUNDED_TRIG
 #define {P}_BOUNDED_TRIG 0
 #endif
@@ -398,10 +426,10 @@ typedef float {p}_real;
 {macros_f}
 #if {P}_BOUNDED_TRIG
 #define {P}_SIN {p}_sin_bounded
-#define {P}_COS {p}_cos_bounded
+#define {P}_COS {p}_cos_bounded{atan2_bounded}
 #else
 #define {P}_SIN sinf
-#define {P}_COS cosf
+#define {P}_COS cosf{atan2_libm}
 #endif
 #else
 typedef double {p}_real;

@@ -13,6 +13,10 @@ resolution sooner); the float C is compared with the double reference within its
 A loop may also name a ``stop`` entry of its state: a step whose state has a nonzero ``stop``
 entry must return that state unchanged, so leaving the loop there (the C ``break``s, the NumPy
 replay stops the finished samples) gives the result of running all ``count`` iterations.
+A loop may also let the float C fuse its multiply–adds (``fused_float``): the step is emitted
+where the compiler may contract ``a·b + c`` into one fused multiply–add (one rounding instead
+of two: a Cortex-M4F's VFMA), for a loop with a time budget on the target; the double build
+never does (the C and Python must run the same roundings there).
 """
 
 from __future__ import annotations
@@ -30,22 +34,25 @@ class Loop:
     count: int  # iterations (the CasADi function's, and the double C's)
     float_count: int  # iterations of the float C
     stop: int | None = None  # state entry: nonzero = finished, the step is then the identity
+    fused_float: bool = False  # the float C may contract a·b + c into fused multiply–adds
 
 
 _LOOPS: dict[str, Loop] = {}
 
 
-def fixed_loop(step: ca.Function, count: int, float_count: int | None = None, stop: int | None = None) -> ca.Function:
+def fixed_loop(step: ca.Function, count: int, float_count: int | None = None, stop: int | None = None,
+               fused_float: bool = False) -> ca.Function:
     """The function applying the SX ``step`` ``count`` times (``float_count`` times in the float
     C), registered by the step's name, which must identify the step: one name, one loop.
-    ``stop``: the state entry after which the step is the identity (see the module text)."""
+    ``stop``: the state entry after which the step is the identity; ``fused_float``: the float C
+    may fuse multiply–adds (see the module text)."""
     name = f"{step.name()}_loop"
     if name not in _LOOPS:
         inputs = [ca.MX.sym(step.name_in(k), step.sparsity_in(k).shape) for k in range(step.n_in())]
         constants = [ca.repmat(x, 1, count) for x in inputs[1:]]
         final = step.fold(count)(inputs[0], *constants)
         function = ca.Function(name, inputs, [final], step.name_in(), ["final"], {"never_inline": True})
-        _LOOPS[name] = Loop(function, step, count, count if float_count is None else float_count, stop)
+        _LOOPS[name] = Loop(function, step, count, count if float_count is None else float_count, stop, fused_float)
     return _LOOPS[name].function
 
 

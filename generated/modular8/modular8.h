@@ -28,14 +28,14 @@ extern "C" {
 #endif
 /* MODULAR8_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
  * (modular8_sin_bounded/modular8_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
- * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf, and atan2 by modular8_atan2_bounded
+ * (<= 4 ulp) instead of atan2f. Default 0. */
 #ifndef MODULAR8_BOUNDED_TRIG
 #define MODULAR8_BOUNDED_TRIG 0
 #endif
 #if MODULAR8_USE_FLOAT
 typedef float modular8_real;
 #define MODULAR8_LIT(x) x##f
-#define MODULAR8_ATAN2 atan2f
 #define MODULAR8_SQRT modular8_sqrt
 #define MODULAR8_EXP expf
 #define MODULAR8_LOG logf
@@ -47,9 +47,11 @@ typedef float modular8_real;
 #if MODULAR8_BOUNDED_TRIG
 #define MODULAR8_SIN modular8_sin_bounded
 #define MODULAR8_COS modular8_cos_bounded
+#define MODULAR8_ATAN2 modular8_atan2_bounded
 #else
 #define MODULAR8_SIN sinf
 #define MODULAR8_COS cosf
+#define MODULAR8_ATAN2 atan2f
 #endif
 #else
 typedef double modular8_real;
@@ -123,6 +125,25 @@ MODULAR8_TRIG_INLINE float modular8_cos_bounded(float x) {
   float s, c;
   modular8_sincos_bounded(x, &s, &c);
   return c;
+}
+/* atan2(y, x) without a library call (newlib's atan2f costs a call and its branches in a step
+ * with a time budget, the IK's): t = min(|x|, |y|)/max(|x|, |y|) in [0, 1], reduced above
+ * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
+ * and the quadrant by selects. Error <= 4 ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
+ * or +-pi); NaN or inf in give NaN. */
+MODULAR8_TRIG_INLINE float modular8_atan2_bounded(float y, float x) {
+  float ax = fabsf(x), ay = fabsf(y);
+  float hi = (ay > ax) ? ay : ax;
+  float lo = (ay > ax) ? ax : ay;
+  float t = lo / ((hi > 0.0f) ? hi : 1.0f);
+  float u = (t > 0.41421356237f) ? ((t - 1.0f) / (t + 1.0f)) : t;
+  float z = u * u;
+  float r = ((((8.05374449538e-2f * z) - 1.38776856032e-1f) * z + 1.99777106478e-1f) * z - 3.33329491539e-1f) * z * u + u;
+  r = (t > 0.41421356237f) ? (r + 0.785398163397f) : r;
+  r = (ay > ax) ? (1.57079632679f - r) : r;
+  r = (x < 0.0f) ? (3.14159265359f - r) : r;
+  r = (y < 0.0f) ? (-r) : r;
+  return r + 0.0f * (x + y); /* x + y is NaN or inf for a NaN or inf input: the product NaN */
 }
 #endif
 /* The sin and cos of a function's n angles, in one loop before its straight-line code (the
@@ -429,7 +450,7 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_WORK_REALS 248
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 136800 add, 151200 mul, 11250 div, 750 sqrt, 2550 trig, 9466 minmax, 12000 compare, 18750 select; work: 39 reals. */
+ * ops: 136800 add, 151350 mul, 11400 div, 750 sqrt, 2550 trig, 9616 minmax, 12300 compare, 18750 select; work: 39 reals. */
 #define MODULAR8_IK_T_TARGET_ROWS 4
 #define MODULAR8_IK_T_TARGET_COLS 4
 #define MODULAR8_IK_Q_SEED_ROWS 8

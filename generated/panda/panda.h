@@ -28,14 +28,14 @@ extern "C" {
 #endif
 /* PANDA_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
  * (panda_sin_bounded/panda_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
- * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf, and atan2 by panda_atan2_bounded
+ * (<= 4 ulp) instead of atan2f. Default 0. */
 #ifndef PANDA_BOUNDED_TRIG
 #define PANDA_BOUNDED_TRIG 0
 #endif
 #if PANDA_USE_FLOAT
 typedef float panda_real;
 #define PANDA_LIT(x) x##f
-#define PANDA_ATAN2 atan2f
 #define PANDA_SQRT panda_sqrt
 #define PANDA_EXP expf
 #define PANDA_LOG logf
@@ -47,9 +47,11 @@ typedef float panda_real;
 #if PANDA_BOUNDED_TRIG
 #define PANDA_SIN panda_sin_bounded
 #define PANDA_COS panda_cos_bounded
+#define PANDA_ATAN2 panda_atan2_bounded
 #else
 #define PANDA_SIN sinf
 #define PANDA_COS cosf
+#define PANDA_ATAN2 atan2f
 #endif
 #else
 typedef double panda_real;
@@ -123,6 +125,25 @@ PANDA_TRIG_INLINE float panda_cos_bounded(float x) {
   float s, c;
   panda_sincos_bounded(x, &s, &c);
   return c;
+}
+/* atan2(y, x) without a library call (newlib's atan2f costs a call and its branches in a step
+ * with a time budget, the IK's): t = min(|x|, |y|)/max(|x|, |y|) in [0, 1], reduced above
+ * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
+ * and the quadrant by selects. Error <= 4 ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
+ * or +-pi); NaN or inf in give NaN. */
+PANDA_TRIG_INLINE float panda_atan2_bounded(float y, float x) {
+  float ax = fabsf(x), ay = fabsf(y);
+  float hi = (ay > ax) ? ay : ax;
+  float lo = (ay > ax) ? ax : ay;
+  float t = lo / ((hi > 0.0f) ? hi : 1.0f);
+  float u = (t > 0.41421356237f) ? ((t - 1.0f) / (t + 1.0f)) : t;
+  float z = u * u;
+  float r = ((((8.05374449538e-2f * z) - 1.38776856032e-1f) * z + 1.99777106478e-1f) * z - 3.33329491539e-1f) * z * u + u;
+  r = (t > 0.41421356237f) ? (r + 0.785398163397f) : r;
+  r = (ay > ax) ? (1.57079632679f - r) : r;
+  r = (x < 0.0f) ? (3.14159265359f - r) : r;
+  r = (y < 0.0f) ? (-r) : r;
+  return r + 0.0f * (x + y); /* x + y is NaN or inf for a NaN or inf input: the product NaN */
 }
 #endif
 /* The sin and cos of a function's n angles, in one loop before its straight-line code (the
@@ -429,7 +450,7 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_WORK_REALS 217
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 122100 add, 136200 mul, 10650 div, 750 sqrt, 2250 trig, 8564 minmax, 10950 compare, 16950 select; work: 37 reals. */
+ * ops: 122100 add, 136350 mul, 10800 div, 750 sqrt, 2250 trig, 8714 minmax, 11250 compare, 16950 select; work: 37 reals. */
 #define PANDA_IK_T_TARGET_ROWS 4
 #define PANDA_IK_T_TARGET_COLS 4
 #define PANDA_IK_Q_SEED_ROWS 7

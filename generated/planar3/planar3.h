@@ -28,14 +28,14 @@ extern "C" {
 #endif
 /* PLANAR3_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
  * (planar3_sin_bounded/planar3_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
- * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf, and atan2 by planar3_atan2_bounded
+ * (<= 4 ulp) instead of atan2f. Default 0. */
 #ifndef PLANAR3_BOUNDED_TRIG
 #define PLANAR3_BOUNDED_TRIG 0
 #endif
 #if PLANAR3_USE_FLOAT
 typedef float planar3_real;
 #define PLANAR3_LIT(x) x##f
-#define PLANAR3_ATAN2 atan2f
 #define PLANAR3_SQRT planar3_sqrt
 #define PLANAR3_EXP expf
 #define PLANAR3_LOG logf
@@ -47,9 +47,11 @@ typedef float planar3_real;
 #if PLANAR3_BOUNDED_TRIG
 #define PLANAR3_SIN planar3_sin_bounded
 #define PLANAR3_COS planar3_cos_bounded
+#define PLANAR3_ATAN2 planar3_atan2_bounded
 #else
 #define PLANAR3_SIN sinf
 #define PLANAR3_COS cosf
+#define PLANAR3_ATAN2 atan2f
 #endif
 #else
 typedef double planar3_real;
@@ -122,6 +124,25 @@ PLANAR3_TRIG_INLINE float planar3_cos_bounded(float x) {
   float s, c;
   planar3_sincos_bounded(x, &s, &c);
   return c;
+}
+/* atan2(y, x) without a library call (newlib's atan2f costs a call and its branches in a step
+ * with a time budget, the IK's): t = min(|x|, |y|)/max(|x|, |y|) in [0, 1], reduced above
+ * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
+ * and the quadrant by selects. Error <= 4 ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
+ * or +-pi); NaN or inf in give NaN. */
+PLANAR3_TRIG_INLINE float planar3_atan2_bounded(float y, float x) {
+  float ax = fabsf(x), ay = fabsf(y);
+  float hi = (ay > ax) ? ay : ax;
+  float lo = (ay > ax) ? ax : ay;
+  float t = lo / ((hi > 0.0f) ? hi : 1.0f);
+  float u = (t > 0.41421356237f) ? ((t - 1.0f) / (t + 1.0f)) : t;
+  float z = u * u;
+  float r = ((((8.05374449538e-2f * z) - 1.38776856032e-1f) * z + 1.99777106478e-1f) * z - 3.33329491539e-1f) * z * u + u;
+  r = (t > 0.41421356237f) ? (r + 0.785398163397f) : r;
+  r = (ay > ax) ? (1.57079632679f - r) : r;
+  r = (x < 0.0f) ? (3.14159265359f - r) : r;
+  r = (y < 0.0f) ? (-r) : r;
+  return r + 0.0f * (x + y); /* x + y is NaN or inf for a NaN or inf input: the product NaN */
 }
 #endif
 /* The sin and cos of a function's n angles, in one loop before its straight-line code (the
@@ -428,7 +449,7 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 #define PLANAR3_STEP_WGPM_WORK_REALS 70
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 31950 add, 26250 mul, 3750 div, 600 sqrt, 1050 trig, 4206 minmax, 6750 compare, 9750 select; work: 29 reals. */
+ * ops: 31950 add, 26400 mul, 3900 div, 600 sqrt, 1050 trig, 4356 minmax, 7050 compare, 9750 select; work: 29 reals. */
 #define PLANAR3_IK_T_TARGET_ROWS 4
 #define PLANAR3_IK_T_TARGET_COLS 4
 #define PLANAR3_IK_Q_SEED_ROWS 3

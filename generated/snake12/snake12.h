@@ -28,14 +28,14 @@ extern "C" {
 #endif
 /* SNAKE12_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
  * (snake12_sin_bounded/snake12_cos_bounded below: error <= 2 ulp for |x| <= 100 rad,
- * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf. Default 0. */
+ * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf, and atan2 by snake12_atan2_bounded
+ * (<= 4 ulp) instead of atan2f. Default 0. */
 #ifndef SNAKE12_BOUNDED_TRIG
 #define SNAKE12_BOUNDED_TRIG 0
 #endif
 #if SNAKE12_USE_FLOAT
 typedef float snake12_real;
 #define SNAKE12_LIT(x) x##f
-#define SNAKE12_ATAN2 atan2f
 #define SNAKE12_SQRT snake12_sqrt
 #define SNAKE12_EXP expf
 #define SNAKE12_LOG logf
@@ -47,9 +47,11 @@ typedef float snake12_real;
 #if SNAKE12_BOUNDED_TRIG
 #define SNAKE12_SIN snake12_sin_bounded
 #define SNAKE12_COS snake12_cos_bounded
+#define SNAKE12_ATAN2 snake12_atan2_bounded
 #else
 #define SNAKE12_SIN sinf
 #define SNAKE12_COS cosf
+#define SNAKE12_ATAN2 atan2f
 #endif
 #else
 typedef double snake12_real;
@@ -122,6 +124,25 @@ SNAKE12_TRIG_INLINE float snake12_cos_bounded(float x) {
   float s, c;
   snake12_sincos_bounded(x, &s, &c);
   return c;
+}
+/* atan2(y, x) without a library call (newlib's atan2f costs a call and its branches in a step
+ * with a time budget, the IK's): t = min(|x|, |y|)/max(|x|, |y|) in [0, 1], reduced above
+ * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
+ * and the quadrant by selects. Error <= 4 ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
+ * or +-pi); NaN or inf in give NaN. */
+SNAKE12_TRIG_INLINE float snake12_atan2_bounded(float y, float x) {
+  float ax = fabsf(x), ay = fabsf(y);
+  float hi = (ay > ax) ? ay : ax;
+  float lo = (ay > ax) ? ax : ay;
+  float t = lo / ((hi > 0.0f) ? hi : 1.0f);
+  float u = (t > 0.41421356237f) ? ((t - 1.0f) / (t + 1.0f)) : t;
+  float z = u * u;
+  float r = ((((8.05374449538e-2f * z) - 1.38776856032e-1f) * z + 1.99777106478e-1f) * z - 3.33329491539e-1f) * z * u + u;
+  r = (t > 0.41421356237f) ? (r + 0.785398163397f) : r;
+  r = (ay > ax) ? (1.57079632679f - r) : r;
+  r = (x < 0.0f) ? (3.14159265359f - r) : r;
+  r = (y < 0.0f) ? (-r) : r;
+  return r + 0.0f * (x + y); /* x + y is NaN or inf for a NaN or inf input: the product NaN */
 }
 #endif
 /* The sin and cos of a function's n angles, in one loop before its straight-line code (the
@@ -428,7 +449,7 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_WORK_REALS 749
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 388650 add, 406200 mul, 21450 div, 750 sqrt, 7350 trig, 24800 minmax, 29850 compare, 49350 select; work: 73 reals. */
+ * ops: 388650 add, 406350 mul, 21600 div, 750 sqrt, 7350 trig, 24950 minmax, 30150 compare, 49350 select; work: 73 reals. */
 #define SNAKE12_IK_T_TARGET_ROWS 4
 #define SNAKE12_IK_T_TARGET_COLS 4
 #define SNAKE12_IK_Q_SEED_ROWS 25
