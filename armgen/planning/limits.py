@@ -74,6 +74,20 @@ def enforce_limits(violations: list[dict[str, Any]], policy: str, source: str) -
         "(or --set check.limits=report)")
 
 
+PLAYBACK_RATE_RULE = "forward difference of the samples, (q[k+1] - q[k]) / output_step; 0 at the last sample"
+
+
+def playback_rates(q: np.ndarray, dt: float) -> np.ndarray:
+    """The joint rates the controller's sampled playback commands (and its speed guard checks) at
+    each sample of a plan sampled every ``dt``: the forward difference to the next sample, the
+    rate that reaches it in one tick (docs/firmware.md, "Sampled playback"); 0 at the last
+    sample, where the plan ends at rest. A plan within the limits by this rule is one the
+    controller plays back without a speed fault."""
+    qd = np.zeros_like(q)
+    qd[:-1] = np.diff(q, axis=0) / dt
+    return qd
+
+
 # What to change when a plan asks a joint for more than its speed limits, per planner (the
 # resolved-rate planners' fixed-duration circle or line otherwise).
 SPEED_LIMIT_FIXES = {

@@ -5,7 +5,7 @@ joints) → path spline and rail (:mod:`.spline`) → joint-centre coordinates o
 (:mod:`.exact`) or the paper's denoised multi-link dynamics (:mod:`.dynamics`) →
 universal-joint angles (signed form) → forward kinematics on those angles → tip deviation,
 chord errors, obstacle clearance (:mod:`.obstacles`), speeds, the joints' speeds against the
-robot file's ``qdlim``/``qddlim`` (:func:`playback_rates`) → CSV + metadata.
+robot file's ``qdlim``/``qddlim`` (:func:`~armgen.planning.limits.playback_rates`) → CSV + metadata.
 
 The task file may use mm/deg (``[units]``); everything is SI inside. See ``docs/snake.md``.
 """
@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import PlanningError, TaskFileError
+from ..limits import PLAYBACK_RATE_RULE, playback_rates
 from ..result import PlanResult
 from ..toolpath.limits import speed_report
 from .arm import SnakeArm, recover_angles
@@ -198,19 +199,6 @@ def plan_snake(task: SnakeTask, backend: str = "symbolic") -> PlanResult:
     result.metadata["summary"]["joint_speed"] = speed_report(arm.robot, t, playback_rates(q, task.output_step)) | {
         "enforced": False, "rate_rule": PLAYBACK_RATE_RULE}
     return result
-
-
-PLAYBACK_RATE_RULE = "forward difference of the samples, (q[k+1] - q[k]) / output_step; 0 at the last sample"
-
-
-def playback_rates(q: np.ndarray, dt: float) -> np.ndarray:
-    """The joint rates the controller's sampled playback commands (and its speed guard checks) at
-    each sample: the forward difference to the next sample, the rate that reaches it in one tick
-    (docs/firmware.md, "Sampled playback"); 0 at the last sample, where the plan ends at rest.
-    Not the solver's own rates: a plan within the limits by this rule is one the controller runs."""
-    qd = np.zeros_like(q)
-    qd[:-1] = np.diff(q, axis=0) / dt
-    return qd
 
 
 def _fk_cross_check(arm: SnakeArm, q: np.ndarray, tip_base: np.ndarray, backend: str) -> dict[str, Any]:
