@@ -6,7 +6,10 @@ infeasible (exit 3, nothing written): ``armgen plan … && armgen firmware …``
 it. A task that studies a method which leaves the limits on purpose (the papers'
 pseudo-inverse baselines) sets ``[check] limits = "report"``: the plan is written and the
 violations are listed in the summary's ``limit_violations``. (The ``ptp`` and ``snake``
-planners never leave the limits: they refuse such a plan themselves.)
+planners never leave the position limits: they refuse such a plan themselves.)
+
+The joints' speed limits (``qdlim``, ``qddlim``) follow the same policy in every planner: a plan
+that asks a joint for more is infeasible unless the task sets ``[check] limits = "report"``.
 """
 
 from __future__ import annotations
@@ -71,17 +74,43 @@ def enforce_limits(violations: list[dict[str, Any]], policy: str, source: str) -
         "(or --set check.limits=report)")
 
 
-def enforce_speed_limits(report: dict[str, Any] | None, policy: str, source: str) -> None:
-    """Raise the infeasible-plan error for a fixed-duration path (a circle or line with
-    ``[timing]``) that asks a joint for more than its velocity or acceleration limit, unless
-    ``policy`` is ``"report"``. A program is slowed down to stay within them instead (its report
-    is ``enforced``), so it never gets here beyond them."""
+PLAYBACK_RATE_RULE = "forward difference of the samples, (q[k+1] - q[k]) / output_step; 0 at the last sample"
+
+
+def playback_rates(q: np.ndarray, dt: float) -> np.ndarray:
+    """The joint rates the controller's sampled playback commands (and its speed guard checks) at
+    each sample of a plan sampled every ``dt``: the forward difference to the next sample, the
+    rate that reaches it in one tick (docs/firmware.md, "Sampled playback"); 0 at the last
+    sample, where the plan ends at rest. A plan within the limits by this rule is one the
+    controller plays back without a speed fault."""
+    qd = np.zeros_like(q)
+    qd[:-1] = np.diff(q, axis=0) / dt
+    return qd
+
+
+# What to change when a plan asks a joint for more than its speed limits, per planner (the
+# resolved-rate planners' fixed-duration circle or line otherwise).
+SPEED_LIMIT_FIXES = {
+    "snake": "The joints turn in proportion to the driven end's speed and the path's curvature: lower motion.v "
+             "(raise motion.duration to keep the travel v·(duration − ramp)), lengthen motion.ramp, or widen the "
+             "bends (move or add waypoints)",
+    "ptp": "Space the knot times further apart (waypoints.t), or, with computed times, lower timing.omega_max "
+           "(timing.eps_max) to at most the robot's qdlim (qddlim)",
+}
+FIXED_DURATION_FIX = ("A fixed-duration path is not slowed down: lengthen timing.duration, or give the path as a program "
+                      "(path.type = \"program\"), which is slowed to stay within the limits")
+
+
+def enforce_speed_limits(report: dict[str, Any] | None, policy: str, source: str, planner: str = "") -> None:
+    """Raise the infeasible-plan error for a plan that asks a joint for more than its velocity or
+    acceleration limit, unless ``policy`` is ``"report"``: a fixed-duration path (a circle or line
+    with ``[timing]``), a snake plan, a ptp plan on a robot. A program is slowed down to stay within
+    them instead (its report is ``enforced``), so it never gets here beyond them."""
     if not report or report.get("enforced") or policy == "report" or not report.get("beyond_speed_limits"):
         return
     first = min(report["beyond_speed_limits"], key=lambda v: v["t_s"])
     raise PlanningError(
         f"{source}: the plan asks joint '{first['joint']}' for {first['ratio']:.2f} times its {first['limit']} limit "
         f"(the robot file's {'qdlim' if first['limit'] == 'velocity' else 'qddlim'}) at t = {first['t_s']:.3f} s; "
-        "nothing was written. A fixed-duration path is not slowed down: lengthen timing.duration, or give the path "
-        "as a program (path.type = \"program\"), which is slowed to stay within the limits; or, to write the plan "
+        f"nothing was written. {SPEED_LIMIT_FIXES.get(planner, FIXED_DURATION_FIX)}; or, to write the plan "
         "and inspect it, set [check] limits = \"report\" in the task (or --set check.limits=report)")

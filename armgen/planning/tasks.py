@@ -197,11 +197,9 @@ def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: 
         raise PlanningError(f"{source}: the plan is not feasible: column '{result.columns[col]}' is "
                             f"{result.data[row, col]} at sample {row}; nothing was written (check the timing "
                             "and the numbers of the task)")
-    check = getattr(model, "check", None)  # the resolved-rate planners; ptp and snake refuse such plans themselves
-    if check is not None:
-        summary = result.metadata.get("summary", {})
-        enforce_limits(summary.get("limit_violations", []), check.limits, source)
-        enforce_speed_limits(summary.get("joint_speed"), check.limits, source)
+    summary = result.metadata.get("summary", {})  # every planner's task has [check] limits
+    enforce_limits(summary.get("limit_violations", []), model.check.limits, source)
+    enforce_speed_limits(summary.get("joint_speed"), model.check.limits, source, planner)
     meta = {
         "armgen_version": __version__,
         "task_file": source,

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..firmware.configuration import DEFAULT_POS_ERR_MAX, RESOLVED_MODES, FirmwareTask, speed_guard
 from ..firmware.output import FAULT_STATE, FirmwareRun
+from ..planning.limits import playback_rates
 from ..planning.result import PlanResult
 
 # --- replay bounds -------------------------------------------------------------------------
@@ -75,9 +76,7 @@ def _sampled(plan: PlanResult, task: FirmwareTask) -> tuple[np.ndarray, np.ndarr
     """A sampled plan's q (robot joint order) and the controller's q̇ rule on it: the forward
     difference (q_k+1 − q_k)/dt, 0 at the last sample."""
     q = np.column_stack([plan.column(task.joints[i]) for i in range(task.robot.n)])
-    qd = np.zeros_like(q)
-    qd[:-1] = (q[1:] - q[:-1]) / task.dt
-    return q, qd
+    return q, playback_rates(q, task.dt)
 
 
 

@@ -87,6 +87,15 @@ class Check(StrictModel):
                              "(written; listed in the summary's limit_violations)")
 
 
+class SpeedCheck(StrictModel):
+    """``[check]`` of the planners that never leave the position limits (ptp, snake): only the
+    joints' speed limits are left to the policy."""
+
+    limits: Literal["error", "report"] = Field(
+        "error", description="a plan beyond a joint's speed limit (the robot file's qdlim or qddlim): 'error' (exit 3, "
+                             "nothing written) or 'report' (written; listed in summary.joint_speed.beyond_speed_limits)")
+
+
 class CartesianTaskFile(StrictModel):
     """A Cartesian path task (spec 20)."""
 

@@ -9,7 +9,8 @@ from typing import Any
 import numpy as np
 
 from ...errors import RobotFileError, TaskFileError, excerpt
-from ...robot import load_robot
+from ...robot import Robot, load_robot
+from ..limits import LIMIT_POLICIES
 from .families import DEFAULT_METHOD, METHODS, JointWaypoints, preset_accel
 from .poses import POSE_FIELDS, solve_pose_waypoints
 
@@ -36,6 +37,7 @@ class PtpConfig:
     grid: float | None
     robot: str | None = None
     solved_poses: dict[str, Any] | None = None  # waypoints given as tool poses: the IK's solutions (poses.py)
+    robot_model: Robot | None = None  # the named robot: its qdlim/qddlim are checked against the plan
 
     @property
     def n_waypoints(self) -> int:
@@ -46,7 +48,7 @@ class PtpConfig:
         return self.n_waypoints - 1
 
 
-_TOP_FIELDS = {"planner", "description", "robot", "method", "compare", "step", "units", "waypoints", "timing"}
+_TOP_FIELDS = {"planner", "description", "robot", "method", "compare", "step", "units", "waypoints", "timing", "check"}
 _WAYPOINT_FIELDS = {"t", "theta", "omega", "eps", *POSE_FIELDS}
 _TIMING_FIELDS = {"omega_max", "eps_max", "grid"}
 
@@ -159,7 +161,11 @@ def parse_ptp_task(task: dict[str, Any], source: str) -> PtpConfig:
         raise fields.fail("units.angle", f"= {excerpt(repr(angle_unit))} must be \"rad\" or \"deg\"")
     scale = ANGLE_SCALE[angle_unit]
 
+    check = fields.table(task, "check", False, {"limits"})
+    if check.get("limits", "error") not in LIMIT_POLICIES:  # applied by run_task
+        raise fields.fail("check.limits", f"= {excerpt(repr(check['limits']))} must be one of {', '.join(LIMIT_POLICIES)}")
     robot_name = task.get("robot")
+    robot = None
     qlims: list[tuple[float, float] | None]
     if robot_name is None:
         names: tuple[str, ...] = ("j1",)
@@ -241,7 +247,7 @@ def parse_ptp_task(task: dict[str, Any], source: str) -> PtpConfig:
     if "grid" in timing:
         grid = fields.positive(timing["grid"], "timing.grid", "give the duration grid in seconds (e.g. 1.0) or remove it")
     config = PtpConfig(source, method, tuple(compare_raw), step, angle_unit, tuple(joints), times, omega_max, eps_max,
-                       grid, robot_name, solved_poses)
+                       grid, robot_name, solved_poses, robot)
     if omega_max is not None:
         _check_bounds_against_waypoints(config)
     for m in dict.fromkeys([method, *compare_raw]):

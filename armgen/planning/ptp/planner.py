@@ -5,7 +5,11 @@ The methods, selected by name (:data:`~armgen.planning.ptp.families.METHODS`), a
 families of :mod:`~armgen.planning.ptp.families`; :mod:`~armgen.planning.ptp.config` reads the
 task file, the time solver of :mod:`~armgen.planning.ptp.timing` finds the segment durations
 and :mod:`~armgen.planning.ptp.summary` writes the metrics and the plan metadata. This module
-plans: knot times, the limit checks, the sampled CSV.
+plans: knot times, the limit checks, the sampled CSV. With a robot, the plan's joint speeds and
+accelerations (the polynomials' own derivatives at the CSV's samples, as the controller's
+playback evaluates them) are reported against the robot file's ``qdlim``/``qddlim`` in
+``summary.joint_speed``; :func:`armgen.planning.tasks.run_task` applies the task's
+``[check] limits`` policy to them (``timing.omega_max``/``eps_max`` are the task's own bounds).
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ import numpy as np
 
 from ...errors import PlanningError, TaskFileError
 from ..result import PlanResult
+from ..toolpath.limits import speed_report
 from .config import ANGLE_SCALE, PtpConfig, parse_ptp_task, segment_label
 from .families import segment_shape, timing_order
 from .plans import PtpPlan, plan_with_times
@@ -149,4 +154,8 @@ def plan_task(task: dict[str, Any], source: str, backend: str = "symbolic") -> P
     for j, name in enumerate(result.joint_names):
         columns += [f"theta_{name}_rad", f"omega_{name}_rad_s", f"eps_{name}_rad_s2", f"jerk_{name}_rad_s3"]
         blocks.append(np.column_stack([v[:, j] for v in values]))
-    return PlanResult(columns, np.hstack(blocks), plan_metadata(config, result, report))
+    meta = plan_metadata(config, result, report)
+    if config.robot_model is not None:
+        meta["summary"]["joint_speed"] = speed_report(config.robot_model, t, values[1], values[2]) | {
+            "enforced": False, "rate_rule": "the polynomials' derivatives at the samples"}
+    return PlanResult(columns, np.hstack(blocks), meta)

@@ -9,7 +9,7 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import Field
 
 from ...schemas import StrictModel
-from ..cartesian.schema import Description, Positive, RobotReference
+from ..cartesian.schema import Description, Positive, RobotReference, SpeedCheck
 
 MAX_WAYPOINTS = 10_000
 Values = Annotated[list[float], Field(max_length=MAX_WAYPOINTS)]
@@ -54,6 +54,7 @@ class PtpTaskFile(StrictModel):
     units: Units = Field(default_factory=Units)
     waypoints: Waypoints
     timing: Timing = Field(default_factory=Timing)
+    check: SpeedCheck = Field(default_factory=SpeedCheck, description="with a robot: the plan against its qdlim/qddlim")
 
 
 def workload(task: PtpTaskFile) -> tuple[float, float]:

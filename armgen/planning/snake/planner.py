@@ -4,7 +4,8 @@ Pipeline: task file (:mod:`.task`) → robot structure (:mod:`.arm`: rail feed +
 joints) → path spline and rail (:mod:`.spline`) → joint-centre coordinates over time by the exact geometric solver
 (:mod:`.exact`) or the paper's denoised multi-link dynamics (:mod:`.dynamics`) →
 universal-joint angles (signed form) → forward kinematics on those angles → tip deviation,
-chord errors, obstacle clearance (:mod:`.obstacles`), speeds → CSV + metadata.
+chord errors, obstacle clearance (:mod:`.obstacles`), speeds, the joints' speeds against the
+robot file's ``qdlim``/``qddlim`` (:func:`~armgen.planning.limits.playback_rates`) → CSV + metadata.
 
 The task file may use mm/deg (``[units]``); everything is SI inside. See ``docs/snake.md``.
 """
@@ -19,7 +20,9 @@ from typing import Any
 import numpy as np
 
 from ...errors import PlanningError, TaskFileError
+from ..limits import PLAYBACK_RATE_RULE, playback_rates
 from ..result import PlanResult
+from ..toolpath.limits import speed_report
 from .arm import SnakeArm, recover_angles
 from .dynamics import EXPLICIT_METHODS, BarModel, DenoisedDynamics, DynamicsRun
 from .exact import joint_rates, solve_exact
@@ -193,6 +196,8 @@ def plan_snake(task: SnakeTask, backend: str = "symbolic") -> PlanResult:
     result = _result(task, sol, feed, alpha, beta, tip, tip_dev, chord_err, speeds, clear)
     result.metadata = _metadata(task, track, sol, alpha, beta, feed, tip_dev, tip_to_planned, chord_err, speeds, clear,
                                 fk_centres, centres, fk_check, recover_s, time.perf_counter() - started)
+    result.metadata["summary"]["joint_speed"] = speed_report(arm.robot, t, playback_rates(q, task.output_step)) | {
+        "enforced": False, "rate_rule": PLAYBACK_RATE_RULE}
     return result
 
 

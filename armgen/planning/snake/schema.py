@@ -7,7 +7,7 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import Field, StringConstraints
 
 from ...schemas import StrictModel
-from ..cartesian.schema import Description, NonNegative, Positive, RobotReference, Vector3
+from ..cartesian.schema import Description, NonNegative, Positive, RobotReference, SpeedCheck, Vector3
 
 MAX_WAYPOINTS = 10_000
 MAX_OBSTACLES = 1_000
@@ -81,6 +81,7 @@ class SnakeTaskFile(StrictModel):
     solver: Solver = Field(default_factory=Solver)
     links: Links = Field(default_factory=Links)
     obstacles: Annotated[list[Obstacle], Field(max_length=MAX_OBSTACLES)] = Field(default_factory=list)
+    check: SpeedCheck = Field(default_factory=SpeedCheck)
 
 
 def workload(task: SnakeTaskFile) -> tuple[float, float]:

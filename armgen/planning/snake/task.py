@@ -11,6 +11,7 @@ import numpy as np
 
 from ...errors import RobotFileError, TaskFileError, excerpt
 from ...robot import load_robot
+from ..limits import LIMIT_POLICIES
 from .arm import SnakeArm, snake_arm
 from .dynamics import METHODS as INTEGRATORS
 from .obstacles import FACES, Obstacle
@@ -84,7 +85,8 @@ class VelocityLaw:
         return self.travel, 0.0, 0.0
 
 
-_TOP_FIELDS = {"planner", "description", "robot", "units", "path", "rail", "motion", "solver", "links", "obstacles"}
+_TOP_FIELDS = {"planner", "description", "robot", "units", "path", "rail", "motion", "solver", "links", "obstacles",
+               "check"}
 _PATH_FIELDS = {"waypoints", "start_tangent", "end_tangent"}
 _RAIL_FIELDS = {"start"}
 _MOTION_FIELDS = {"driven", "v", "duration", "ramp", "output_step"}
@@ -272,6 +274,7 @@ def parse_snake_task(task: dict[str, Any], source: str) -> SnakeTask:
     if not isinstance(raw_obs, list):
         raise f.fail("obstacles", "must be an array of tables ([[obstacles]])")
     obstacles = [_parse_obstacle(f, raw, k) for k, raw in enumerate(raw_obs)]
+    f.choice(f.table(task, "check", {"limits"}), "limits", "check", LIMIT_POLICIES, "error")  # applied by run_task
     return SnakeTask(
         arm=arm, waypoints=waypoints, start_tangent=start_tangent, end_tangent=end_tangent, rail_start=rail_start,
         driven=driven, law=VelocityLaw(v, duration, ramp), output_step=output_step, solver=method, h=h,

@@ -177,9 +177,11 @@ def _finite_or_none(values: np.ndarray) -> list[float | None]:
     return [float(v) if math.isfinite(v) else None for v in values]
 
 
-def speed_report(robot: Robot, t: np.ndarray, qd: np.ndarray) -> dict[str, Any]:
-    """Peak |q̇|/q̇_max (and |q̈|/q̈_max) per joint; None for a joint without that limit."""
-    per_sample_v, per_sample_a = speed_ratios(robot, qd), acceleration_ratios(robot, t, qd)
+def speed_report(robot: Robot, t: np.ndarray, qd: np.ndarray, qdd: np.ndarray | None = None) -> dict[str, Any]:
+    """Peak |q̇|/q̇_max (and |q̈|/q̈_max) per joint; None for a joint without that limit. q̈ is
+    ``qdd`` where the plan has it in closed form (ptp's polynomials), else the differences of q̇."""
+    per_sample_v = speed_ratios(robot, qd)
+    per_sample_a = acceleration_ratios(robot, t, qd) if qdd is None else np.abs(qdd) / robot.qddlim
     ratio_v, ratio_a = per_sample_v.max(axis=0), per_sample_a.max(axis=0)
     limited_v, limited_a = np.isfinite(robot.qdlim), np.isfinite(robot.qddlim)
     beyond = [{"joint": j.name, "limit": kind, "ratio": float(ratios[k, i]), "t_s": float(t[k])}
