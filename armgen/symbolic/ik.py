@@ -24,9 +24,7 @@ An attempt ends after ITERATIONS evaluations or as soon as it stalls (a step lea
 above STALL_RATIO of the previous one); the next one moves the joints that the last step held
 at a limit to the next point of a deterministic sequence (a Kronecker sequence over the joint
 ranges) and steps on with the others (all move when none was held, and at every
-FULL_RESEED_EVERY-th attempt), up to ATTEMPTS attempts; attempt LIBRARY_ATTEMPT instead starts
-from the seed library's configuration (LIBRARY_SIZE points of the same sequence, their FK poses
-stored in the definition) whose pose is nearest the target, picked once before the loop.
+FULL_RESEED_EVERY-th attempt), up to ATTEMPTS attempts.
 The state carries the closest configuration seen (smallest ``½‖e‖²``), so a miss returns the
 closest one reached. ``max_iterations`` (≤ MAX_ITERATIONS) stops earlier: a bound on the time
 a call may take (on a Cortex-M4F, ~3.5k instructions per step of a 7-DOF arm: the float C
@@ -87,21 +85,6 @@ STALL_RATIO = 0.8
 # iiwa14 and the Gen3 within ±0.1 %; every 4th, 6th or 7th: as every 3rd. Within 150 steps
 # panda reaches 99.91 % (never: 99.45 %).
 FULL_RESEED_EVERY = 5
-# The seed library: the restart sequence's points LIBRARY_START … LIBRARY_START + LIBRARY_SIZE − 1
-# (past the indices the attempts use), with the FK tool poses of their configurations as
-# constants of the definition (made at code generation, the same for every call). Before the
-# loop the solver picks the one whose pose is nearest the target (‖p_t − p_k‖² +
-# LIBRARY_ORIENTATION_WEIGHT·(3 − tr(R_tᵀ R_k)), the latter ≈ θ² for a small angle θ; m², so
-# 0.3 weighs 1 rad like 0.55 m), and attempt LIBRARY_ATTEMPT starts from it (every joint).
-# Tuned on the Cortex-M4F within 170 000 instructions (training poses, 5000 per seed, seeds 7,
-# 11, 13 and 17, none the benchmark's; panda, the arm it is for): K 32 / 48 / 64 / 96 / 128 at
-# weight 0.3, attempt 2: 98.4 / 98.6 / 98.6 / 98.6 / 98.6 % (no library: 98.35 %); weight 0
-# (position only, K 128) 98.1 %, 0.1 98.6 %, 1 98.4 %; attempt 1 98.2 %. The selection costs
-# ~75 instructions per configuration (64: ~4.7k, ~1.4 steps of the 7-DOF arms).
-LIBRARY_SIZE = 64
-LIBRARY_START = ATTEMPTS
-LIBRARY_ORIENTATION_WEIGHT = 0.3
-LIBRARY_ATTEMPT = 2
 # sin θ below this is treated as 0 in θ/sin θ (the axis-angle scale): representable in float.
 SIN_FLOOR = 1e-30
 # The closest error so far starts here (any finite error is smaller; float-representable).
@@ -124,15 +107,6 @@ def _irrational_steps(n: int) -> list[float]:
             primes.append(k)
         k += 1
     return [math.sqrt(p) % 1.0 for p in primes]
-
-
-def restart_sequence(robot, index):
-    """Point ``index`` of the restart sequence: SX (the step) or a NumPy array of indices
-    (the seed library's configurations), by the same formula."""
-    lib = ca if isinstance(index, ca.SX) else np
-    steps = ca.DM(_irrational_steps(robot.n)) if lib is ca else np.array(_irrational_steps(robot.n))
-    frac = index * steps + 0.5
-    return robot.qmin + (robot.qmax - robot.qmin) * (SEED_MARGIN + (1 - 2 * SEED_MARGIN) * (frac - lib.floor(frac)))
 
 
 @dataclass(frozen=True)
@@ -186,12 +160,8 @@ class _Layout:
         return 2 * self.n + 8
 
     @property
-    def library_index(self) -> int:  # the index of the library seed nearest the target
-        return 2 * self.n + 9
-
-    @property
     def size(self) -> int:
-        return 2 * self.n + 10
+        return 2 * self.n + 9
 
 
 def pose_error(tool: ca.SX, target: ca.SX) -> ca.SX:
@@ -271,14 +241,13 @@ class IKDefinition:
         restart = ca.logic_or(capped, ca.logic_and(state[lay.k] >= STALL_AFTER,
                                                    energy > STALL_RATIO * state[lay.previous]))
         attempt = state[lay.attempt] + 1
-        library_attempt = attempt == LIBRARY_ATTEMPT
-        sequence = restart_sequence(robot, ca.if_else(library_attempt, state[lay.library_index], attempt))
+        frac = attempt * ca.DM(_irrational_steps(n)) + 0.5
+        sequence = qmin + (qmax - qmin) * (SEED_MARGIN + (1 - 2 * SEED_MARGIN) * (frac - ca.floor(frac)))
         held = 1 - free
         # every FULL_RESEED_EVERY-th attempt starts afresh: moving only the held joints can send
         # the others back to the same local minimum, attempt after attempt (attempt/5 is exact
         # for a multiple of 5 and rounds below the next integer otherwise, float included)
-        afresh = ca.logic_or(ca.logic_or(attempt == FULL_RESEED_EVERY * ca.floor(attempt / FULL_RESEED_EVERY),
-                                         library_attempt),
+        afresh = ca.logic_or(attempt == FULL_RESEED_EVERY * ca.floor(attempt / FULL_RESEED_EVERY),
                              ca.logic_and(capped, ca.sum1(held) == 0))
         seed = ca.if_else(ca.logic_or(held, afresh), sequence, stepped)
         new = ca.vertcat(
@@ -292,37 +261,15 @@ class IKDefinition:
             state[lay.iterations] + 1,
             converged,
             ca.if_else(restart, ERROR_START, energy),
-            ca.logic_or(converged, state[lay.iterations] + 1 >= max_iterations),
-            state[lay.library_index])
+            ca.logic_or(converged, state[lay.iterations] + 1 >= max_iterations))
         nxt = ca.if_else(state[lay.stopped], state, new)
         return ca.Function(self._tag, [state, target, q_rest, use_rest, tol_p, tol_o, max_iterations], [nxt],
                            ["state", *STEP_CONSTANTS], ["next"])
 
-    def initial_state(self, q_seed: ca.SX, target: ca.SX) -> ca.SX:
+    def initial_state(self, q_seed: ca.SX) -> ca.SX:
         robot = self.robot
         q = ca.fmin(ca.fmax(q_seed, robot.qmin), robot.qmax)
-        return ca.vertcat(q, q, ERROR_START, ERROR_START, ERROR_START, 0, 0, 0, 0, ERROR_START, 0,
-                          self.nearest_library_seed(target))
-
-    @cached_property
-    def library(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The seed library: the sequence's indices LIBRARY_START … and the FK tool positions
-        and orientations of their points."""
-        indices = np.arange(LIBRARY_START, LIBRARY_START + LIBRARY_SIZE)
-        poses = self.robot.fk(restart_sequence(self.robot, indices[:, None]))
-        return indices, poses[:, :3, 3], poses[:, :3, :3]
-
-    def nearest_library_seed(self, target: ca.SX) -> ca.SX:
-        """The library index whose pose is nearest the target: ‖p_t − p_k‖² + w (3 − tr(R_tᵀ R_k))."""
-        best_distance, best = ca.SX(ERROR_START), ca.SX(0)
-        for index, position, rotation in zip(*self.library):
-            gap = target[:3, 3] - ca.DM(position)
-            distance = ca.dot(gap, gap)
-            distance += LIBRARY_ORIENTATION_WEIGHT * (3 - ca.sum1(ca.sum2(target[:3, :3] * ca.DM(rotation))))
-            closer = distance < best_distance
-            best_distance = ca.if_else(closer, distance, best_distance)
-            best = ca.if_else(closer, float(index), best)
-        return best
+        return ca.vertcat(q, q, ERROR_START, ERROR_START, ERROR_START, 0, 0, 0, 0, ERROR_START, 0)
 
     def outputs(self, state: ca.SX) -> list[ca.SX]:
         """q, position_error, orientation_error, iterations, success of a final state."""
@@ -337,7 +284,7 @@ class IKDefinition:
         constants = [ca.SX.sym(step.name_in(k), step.sparsity_in(k).shape) for k in range(1, step.n_in())]
         q_seed = ca.SX.sym("q_seed", self.n)
         loop = fixed_loop(step, MAX_ITERATIONS, stop=self.layout.stopped, fused_float=True)
-        final = loop(self.initial_state(q_seed, constants[0]), *constants)
+        final = loop(self.initial_state(q_seed), *constants)
         return ca.Function("ik", [constants[0], q_seed, *constants[1:]], [ca.densify(x) for x in self.outputs(final)],
                            INPUT_NAMES, OUTPUT_NAMES)
 

@@ -63,12 +63,8 @@ def find_loop(name: str) -> Loop | None:
 def calls_in_order(func: ca.Function) -> list[ca.Function]:
     """The functions ``func``'s call instructions (``OP_CALL``) call, one per instruction, in
     the algorithm's order (CasADi numbers call nodes as it prints them)."""
+    names = re.findall(r"(\w+)\(\[", str(func.instructions_sx())) if func.get_function() else []
     calls = [k for k in range(func.n_instructions()) if func.instruction_id(k) == ca.OP_CALL]
-    # each call instruction's own expression (printing the whole instruction vector elides the
-    # middle of a long one): the callee's name is the last ``name([`` of it
-    instructions = func.instructions_sx() if calls else None
-    names = [re.findall(r"(\w+)\(\[", str(instructions[k]))[-1:] for k in calls]
-    names = [name for found in names for name in found]
     callees = [func.get_function(name) for name in names]
     if len(callees) != len(calls) or any(len(func.instruction_input(k)) != callee.nnz_in()
                                          for k, callee in zip(calls, callees)):
