@@ -7,7 +7,9 @@ controller evaluates the table in C and integrates its own law."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import re
 import tomllib
 from pathlib import Path
 
@@ -71,6 +73,46 @@ def test_slowed_program_replays_in_double(baxter_builder, tmp_path):
     assert np.all(np.abs(qd) <= robot.qdlim * (1 + 1e-9))  # the speed guard's limits are the robot file's
 
 
+def test_self_motion_limiter_on_board(tmp_path):
+    """A strong null-space term (GPM, K = 50) on Baxter with a quarter of its speed limits: the
+    planner scales the self-motion on many steps; the controller's limiter does the same (its
+    saturated joints land on their limits, not an ulp above: the speed guard does not fire)."""
+    slow = tmp_path / "baxter_slow.toml"
+    slow.write_text(BAXTER.read_text().replace("qdlim = 2.0", "qdlim = 0.5").replace("qdlim = 4.0", "qdlim = 1.0"))
+    path, plan = _plan("fault_tolerant", tmp_path, bar_task("fault_tolerant", slow) + '\n[method]\nname = "gpm"\nK = 50.0\n')
+    assert plan.metadata["summary"]["self_motion_limited_steps"] > 0
+    robot = load_robot(slow)
+    task = fw.task_from_plan(plan, str(path), robot)
+    run = fw.run_host(fw.FirmwareBuilder(robot, tmp_path / "fw").executable(fw.Variant("host", "double"), task))
+    comparison = compare_with_plan(plan, run, task, "double", "limited")
+    assert comparison.passed, comparison.rows
+    assert comparison.max_dq <= FW_DOUBLE_BOUND_RAD
+
+
+def _first_q_moved(header: str) -> str:
+    """q_start's first joint 0.01 rad away: FK(q_start) is no longer the table's first pose."""
+    return re.sub(r"(\.q_start = \{CTRL_LIT\()([^)]*)", lambda m: m.group(1) + repr(float(m.group(2)) + 0.01), header,
+                  count=1)
+
+
+@pytest.mark.parametrize("name, edit", [
+    ("null", lambda h: h.replace(".program = &fw_program_table,", ".program = 0,")),
+    ("relative", lambda h: h.replace(".relative = 0,", ".relative = 1,")),
+    ("short", lambda h: re.sub(r"(\.path = CTRL_PATH_PROGRAM,\s*\.program = &fw_program_table,\s*\.duration = )"
+                               r"CTRL_LIT\(([^)]*)\)", lambda m: f"{m.group(1)}CTRL_LIT({float(m.group(2)) / 2!r})", h)),
+    ("start", _first_q_moved),
+])
+def test_bad_program_config_is_refused_at_init(baxter_builder, tmp_path, name, edit):
+    """ctrl_init refuses a program it cannot run as planned (BAD_CONFIG, holding q_start): no
+    table, relative points, a duration shorter than the table's time law, a start elsewhere."""
+    path, plan = _plan("cartesian", tmp_path)
+    task = fw.task_from_plan(plan, str(path), baxter_builder.robot)
+    bad = dataclasses.replace(task, header=edit(task.header))
+    assert bad.header != task.header
+    run = fw.run_host(baxter_builder.executable(fw.Variant("host", "double", sanitize=True), bad, f"bad_{name}"))
+    assert (run.summary["init"], run.state, run.fault) == ("BAD_CONFIG", "FAULT", "BAD_CONFIG")
+
+
 def test_plan_from_disk_is_planned_again_and_checked(tmp_path):
     """--plan plan.csv: the program's time law is the task's planned again, which must give the
     plan's duration; a plan.json that says otherwise is refused (exit 5), nothing written."""
@@ -83,13 +125,21 @@ def test_plan_from_disk_is_planned_again_and_checked(tmp_path):
     assert plan.motion is None
     header = fw.task_from_plan(plan, str(plan_csv)).header
     assert "fw_program_table" in header
-    meta = json.loads(plan_csv.with_suffix(".json").read_text())
+    meta_text, csv_text = plan_csv.with_suffix(".json").read_text(), plan_csv.read_text()
+    meta = json.loads(meta_text)
     meta["path"]["program_duration_s"] += 0.5
-    plan_csv.with_suffix(".json").write_text(json.dumps(meta))
-    out = CliRunner().invoke(cli, ["firmware", str(BAXTER), "--plan", str(plan_csv), "--out", str(tmp_path / "fw")])
-    assert out.exit_code == 5, out.output
-    assert "program_duration_s" in out.output or "gives a program of" in out.output, out.output
-    assert not (tmp_path / "fw").exists()
+    lines = csv_text.splitlines(keepends=True)
+    cells = lines[5].split(",")
+    cells[1] = repr(float(cells[1]) + 1e-6)  # one joint angle 1e-6 rad off: another plan
+    tampered = {"duration": (json.dumps(meta), csv_text),
+                "sample": (meta_text, "".join(lines[:5] + [",".join(cells)] + lines[6:]))}
+    for what, (json_text, plan_text) in tampered.items():
+        plan_csv.with_suffix(".json").write_text(json_text)
+        plan_csv.write_text(plan_text)
+        out = CliRunner().invoke(cli, ["firmware", str(BAXTER), "--plan", str(plan_csv), "--out", str(tmp_path / "fw")])
+        assert out.exit_code == 5, (what, out.output)
+        assert "does not give this plan" in out.output, (what, out.output)
+        assert not (tmp_path / "fw").exists()
 
 
 @pytest.mark.arm

@@ -168,7 +168,8 @@ def _table_row(header: str, row: int, value: str) -> str:
     """The header with the first value of table row ``row`` replaced."""
     lines = header.splitlines()
     start = next(i for i, line in enumerate(lines) if line.startswith("static const ctrl_real fw_task_samples"))
-    lines[start + 1 + row] = re.sub(r"\(ctrl_real\)[^,}]+", value, lines[start + 1 + row], count=1)
+    literal = r"CTRL_LIT\([^)]*\)|\(\(ctrl_real\)[^)]*\)"  # armgen.firmware.literals.c_real's two forms
+    lines[start + 1 + row] = re.sub(literal, value, lines[start + 1 + row], count=1)
     return "\n".join(lines)
 
 

@@ -51,6 +51,14 @@ DEFAULT_QDOT_MAX = 3.0
 # rad/s²: MOVE_TO's acceleration of a joint whose robot file gives no qddlim (a moderate
 # industrial-arm figure: 0 → 3 rad/s in 0.3 s).
 DEFAULT_QDDOT_MAX = 10.0
+# The playback guards' slack (controller.c PLAYBACK_STEP_RTOL): a joint's speed may reach its
+# guard times (1 + this) before SPEED.
+PLAYBACK_SPEED_RTOL = 1e-3
+# A program plan read from disk is planned again; its samples must come back to this (the
+# CSV holds the doubles exactly; a plan made with another backend differs by ~1e-12, far
+# below the double controller's 1e-9 replay bound, while another path or time law differs
+# by far more).
+REPLANNED_SAMPLE_TOL = 1e-9
 DEFAULT_RESIDUAL_REL = 1e-3  # |J q̇ − ẋ|∞ ≤ 1e-3 |ẋ|∞ + 1e-6: float rounding stays below 1e-5
 DEFAULT_RESIDUAL_ABS = 1e-6
 DEFAULT_POS_ERR_MAX = 5e-3  # m: the planner's own MAX_PATH_ERROR
@@ -340,10 +348,9 @@ def sampled_task(plan: PlanResult, source: str, robot: Robot | None = None) -> F
         "typedef char fw_task_check_nsamples[(CTRL_MAX_SAMPLES >= FW_TASK_SAMPLES) ? 1 : -1];",
         "/* The plan's joint samples, row k = tick k (robot joint order; m for the prismatic joints, rad",
         " * for the revolute ones). const: it stays in flash and never changes; fw_task points to it.",
-        " * Each value is the plan's double, cast: exact in double, rounded once in float (where a",
-        " * planner's 1e-80 would be a float literal that underflows and warns). */",
+        " * Each value is the plan's double: exact in double, rounded once in float. */",
         "static const ctrl_real fw_task_samples[FW_TASK_SAMPLES][CTRL_NDOF] = {",
-        *[f"    {{{', '.join(f'(ctrl_real){float(x)!r}' for x in row)}}}," for row in q],
+        *[f"    {c_reals(row, 'joint sample')}," for row in q],
         "};",
         "",
     ]
@@ -505,18 +512,22 @@ def task_source(plan: PlanResult, source: str) -> str:
 def _plan_motion(plan: PlanResult, task: dict[str, Any], source: str) -> ProgramMotion | None:
     """A program plan's final motion (geometry and time law, after any slowing down): the one
     the plan carries in memory, else (a plan read from disk) the task planned again, which
-    must give the plan's own duration — a plan.json from another armgen or robot file is
-    refused rather than run with another time law."""
+    must give the plan's own duration and samples — a plan from another armgen, robot file or
+    poses file is refused rather than run with another path or time law."""
     if not _is_program(task):
         return None
     if plan.motion is not None:
         return plan.motion
     replanned = run_task(task, task_source(plan, source))
     recorded = (plan.metadata.get("path") or {}).get("program_duration_s")
-    if recorded != replanned.motion.duration:
-        raise FirmwareError(f"{source}: planning its task again gives a program of {replanned.motion.duration!r} s, "
-                            f"the plan says {recorded!r} s (made by another armgen or robot file?); plan the task "
-                            "again with this armgen and give that plan, or give the task file (--task)")
+    same = (recorded == replanned.motion.duration and replanned.columns == plan.columns
+            and replanned.data.shape == plan.data.shape
+            and bool(np.all(np.abs(replanned.data - plan.data) <= REPLANNED_SAMPLE_TOL)))
+    if not same:
+        raise FirmwareError(f"{source}: planning its task again does not give this plan (program of "
+                            f"{replanned.motion.duration!r} s, the plan says {recorded!r} s; or other samples): it was "
+                            "made by another armgen, robot file or poses file; plan the task again and give that plan, "
+                            "or give the task file (--task)")
     return replanned.motion
 
 

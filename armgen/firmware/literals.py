@@ -11,11 +11,20 @@ import numpy as np
 from .errors import FirmwareError
 
 
+# float's smallest normal number: a float literal below it (a planner's 1e-80) underflows,
+# which gcc reports as an error under -Werror (-Woverflow).
+FLOAT_MIN_NORMAL = 1.1754943508222875e-38
+
+
 def c_real(x: float, what: str = "task parameter") -> str:
-    """``CTRL_LIT(x)``; a FirmwareError naming ``what`` for a non-finite number."""
+    """``CTRL_LIT(x)``; a FirmwareError naming ``what`` for a non-finite number. A number below
+    float's normal range is the cast ``((ctrl_real)x)`` instead: exact in double, 0 or a
+    subnormal in float, without the underflowing literal."""
     x = float(x)
     if not math.isfinite(x):
         raise FirmwareError(f"{what} {x} is not finite; it cannot run on board")
+    if x != 0.0 and abs(x) < FLOAT_MIN_NORMAL:
+        return f"((ctrl_real){x!r})"
     return f"CTRL_LIT({x!r})"
 
 

@@ -252,7 +252,7 @@ def _copy_poses_files(task: dict[str, Any], folder: Path | None, demo: Path) -> 
     if not (isinstance(path, dict) and isinstance(path.get("moves"), list)):
         return task
     moves = []
-    for k, move in enumerate(path["moves"], start=1):
+    for k, move in enumerate(path["moves"]):  # k as in path.moves[k] of the planners' messages
         if isinstance(move, dict) and isinstance(move.get("file"), str):
             source = Path(move["file"]) if folder is None else folder / move["file"]
             name = f"poses_{k}.csv"

@@ -8,7 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from ..firmware.configuration import DEFAULT_POS_ERR_MAX, RESOLVED_MODES, FirmwareTask, speed_guard
+from ..firmware.configuration import (DEFAULT_POS_ERR_MAX, PLAYBACK_SPEED_RTOL, RESOLVED_MODES, FirmwareTask,
+                                     speed_guard)
 from ..firmware.output import FAULT_STATE, FirmwareRun
 from ..planning.limits import playback_rates
 from ..planning.result import PlanResult
@@ -94,7 +95,7 @@ def _expected_fault_ticks(plan: PlanResult, task: FirmwareTask,
     if task.mode == "sampled":
         q, qd = _sampled(plan, task)
         bad_q = ((q > robot.qmax) | (q < robot.qmin)).any(axis=1)
-        bad_s = (np.abs(qd) > speed_guard(robot)).any(axis=1)
+        bad_s = (np.abs(qd) > speed_guard(robot) * (1 + PLAYBACK_SPEED_RTOL)).any(axis=1)
         rows = np.flatnonzero(bad_q | bad_s)
         if not rows.size:
             return None

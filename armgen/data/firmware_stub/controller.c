@@ -40,8 +40,9 @@ typedef char ctrl_check_ptp_ncoef[(FW_PTP_NCOEF == CTRL_NCOEF) ? 1 : -1];
 #define POS_ERR_MAX_LIMIT CTRL_LIT(1.0)
 /* A playback plan must start where the arm is: |theta(t0) - q_start| below this, rad. */
 #define PLAYBACK_START_TOL CTRL_LIT(1e-5)
-/* Playback: one tick may move a joint by qdot_max * dt times (1 + this): the chord of a
- * polynomial whose speed stays below qdot_max is shorter, this covers the rounding. */
+/* Playback: a joint's speed may reach qdot_max, and one tick's step qdot_max * dt, times (1 +
+ * this): the planners accept a plan up to 1e-9 above a limit, and a float table value (or a
+ * polynomial's chord) carries a few 1e-5 of rounding relative to a step; this covers both. */
 #define PLAYBACK_STEP_RTOL CTRL_LIT(1e-3)
 /* MOVE_TO. The IK's tolerances: float cannot resolve 1e-6 m on a ~1 m arm (its FK carries a
  * few 1e-7 of rounding), so 5e-5 m / rad there (half the 1e-4 the target is checked to);
@@ -55,6 +56,7 @@ typedef char ctrl_check_ptp_ncoef[(FW_PTP_NCOEF == CTRL_NCOEF) ? 1 : -1];
  * table from FK(q_start) in double: ~1e-16 m; the float FK on the M4: ~1e-7 m per metre of
  * reach); 1e-5 m is far above both and far below any other start (a table for another task). */
 #define PROGRAM_START_TOL CTRL_LIT(1e-5)
+#define PROGRAM_START_TOL_RAD CTRL_LIT(1e-5) /* rad, likewise for the first rotation */
 #define MOVE_TO_ITERATIONS CTRL_LIT(150.0)
 /* The profile accelerates over this fraction of its duration and decelerates over as much. */
 #define MOVE_TO_BLEND CTRL_LIT(0.25)
@@ -384,19 +386,23 @@ static int method_valid(ctrl_method m) {
 
 /* A program path: a well-formed table (fw_program_check), absolute (relative = 0), whose
  * time law ends within the task's duration (the planner rounds it up to whole ticks) and
- * whose first pose is FK(q_start) (start pose tp, column-major 4x4), to PROGRAM_START_TOL:
+ * whose first pose is FK(q_start) (start pose Tp, column-major 4x4), to PROGRAM_START_TOL(_RAD):
  * a table planned from another start is refused, not tracked. */
 static int init_program(const ctrl *c, const ctrl_real *Tp) {
   const ctrl_rr_config *rr = &c->cfg.rr;
-  ctrl_real p[3], R[9], xdot[6], d[3];
-  int i;
+  ctrl_real p[3], R[9], xdot[6], d[3], R0[9], e[3];
+  int i, r;
   if (rr->program == NULL || !fw_program_check(rr->program) || rr->relative != 0) return 0;
   if (!(fw_program_duration(rr->program) <= rr->duration * (CTRL_LIT(1.0) + DURATION_RTOL))) return 0;
   fw_program_desired(rr->program, CTRL_LIT(0.0), p, R, xdot);
   for (i = 0; i < 3; ++i) {
     d[i] = p[i] - Tp[12 + i];
+    for (r = 0; r < 3; ++r) {
+      R0[r + 3 * i] = Tp[r + 4 * i];
+    }
   }
-  return norm3(d) <= PROGRAM_START_TOL;
+  orientation_error(R0, R, e);
+  return norm3(d) <= PROGRAM_START_TOL && norm3(e) <= PROGRAM_START_TOL_RAD;
 }
 
 /* The path and time law shared by the resolved-rate modes: duration a whole number of ticks,
@@ -768,7 +774,13 @@ static ctrl_fault limit_self_motion(const ctrl *c, const ctrl_real *J, ctrl_real
   }
   scale = max_r(scale, CTRL_LIT(0.0));
   for (i = 0; i < N; ++i) {
+    ctrl_real limit = cfg->qdot_max[i];
     qd[i] = tool[i] + scale * (qd[i] - tool[i]);
+    /* the joint that set the scale lands on its limit, up to one rounding: onto it exactly (the
+     * planner accepts it to 1e-9; the speed guard's strict > would not) */
+    if (CTRL_FABS(tool[i]) <= limit && CTRL_FABS(qd[i]) > limit) {
+      qd[i] = qd[i] > CTRL_LIT(0.0) ? limit : -limit;
+    }
   }
   return CTRL_FAULT_NONE;
 }
@@ -959,8 +971,8 @@ static ctrl_fault emit_played(ctrl *c, ctrl_real t, const ctrl_real *q, const ct
   if (f == CTRL_FAULT_NONE && !all_finite(qd, N)) f = CTRL_FAULT_NONFINITE_OUTPUT;
   if (f != CTRL_FAULT_NONE) return f;
   for (i = 0; i < N; ++i) {
-    ctrl_real step_max = cfg->qdot_max[i] * cfg->dt * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
-    if (CTRL_FABS(qd[i]) > cfg->qdot_max[i] || CTRL_FABS(q[i] - c->q_hold[i]) > step_max) return CTRL_FAULT_SPEED;
+    ctrl_real speed_max = cfg->qdot_max[i] * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
+    if (CTRL_FABS(qd[i]) > speed_max || CTRL_FABS(q[i] - c->q_hold[i]) > speed_max * cfg->dt) return CTRL_FAULT_SPEED;
   }
   accept(c, t, q, qd, out);
   if (moving(c)) {

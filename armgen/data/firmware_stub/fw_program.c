@@ -148,9 +148,9 @@ static void eval_corner(const fw_program *prog, const fw_program_corner *k, ctrl
     v[i] = w * k->rotvec[i];
   }
   speed = CTRL_SQRT(vec_dot(d, d));
-  for (i = 0; i < 3; ++i) {
-    rate[i] = d[i] / speed;
-    rate[i + 3] = k->omega[i] / speed;
+  for (i = 0; i < 3; ++i) { /* a table whose curve stops (no direction) gives rate 0, not NaN */
+    rate[i] = speed > CTRL_LIT(0.0) ? d[i] / speed : CTRL_LIT(0.0);
+    rate[i + 3] = speed > CTRL_LIT(0.0) ? k->omega[i] / speed : CTRL_LIT(0.0);
   }
   rotate(k->q0, v, R);
 }
@@ -201,9 +201,10 @@ static void eval_spline(const fw_program *prog, const fw_program_spline *sp, ctr
   for (i = 0; i < 3; ++i) {
     body[i] = rdot[i] - k1 * c1[i] + k2 * c2[i];
   }
-  for (i = 0; i < 3; ++i) { /* body to base frame, per metre of path */
-    rate[i] = d[i] / speed;
-    rate[i + 3] = (R[i] * body[0] + R[i + 3] * body[1] + R[i + 6] * body[2]) / speed;
+  for (i = 0; i < 3; ++i) { /* body to base frame, per metre of path (0 where the curve stops) */
+    rate[i] = speed > CTRL_LIT(0.0) ? d[i] / speed : CTRL_LIT(0.0);
+    rate[i + 3] = speed > CTRL_LIT(0.0) ? (R[i] * body[0] + R[i + 3] * body[1] + R[i + 6] * body[2]) / speed
+                                        : CTRL_LIT(0.0);
   }
 }
 
