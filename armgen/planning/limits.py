@@ -114,3 +114,45 @@ def enforce_speed_limits(report: dict[str, Any] | None, policy: str, source: str
         f"(the robot file's {'qdlim' if first['limit'] == 'velocity' else 'qddlim'}) at t = {first['t_s']:.3f} s; "
         f"nothing was written. {SPEED_LIMIT_FIXES.get(planner, FIXED_DURATION_FIX)}; or, to write the plan "
         "and inspect it, set [check] limits = \"report\" in the task (or --set check.limits=report)")
+
+
+# A ratio up to this counts as within the limit (the rounding of q̇ = J⁺ẋ at the limit).
+RATIO_TOL = 1.0 + 1e-9
+
+
+def speed_ratios(robot: Robot, qd: np.ndarray) -> np.ndarray:
+    """|q̇| / q̇_max per sample and joint (0 for an unlimited joint)."""
+    return np.abs(qd) / robot.qdlim
+
+
+def acceleration_ratios(robot: Robot, t: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    """|q̈| / q̈_max per sample (differences of q̇ between samples, given at the later one)."""
+    qdd = np.zeros_like(qd)
+    qdd[1:] = np.diff(qd, axis=0) / np.diff(t)[:, None]
+    return np.abs(qdd) / robot.qddlim
+
+
+def _finite_or_none(values: np.ndarray) -> list[float | None]:
+    return [float(v) if math.isfinite(v) else None for v in values]
+
+
+def speed_report(robot: Robot, t: np.ndarray, qd: np.ndarray, qdd: np.ndarray | None = None) -> dict[str, Any]:
+    """Peak |q̇|/q̇_max (and |q̈|/q̈_max) per joint; None for a joint without that limit. q̈ is
+    ``qdd`` where the plan has it in closed form (ptp's polynomials), else the differences of q̇."""
+    per_sample_v = speed_ratios(robot, qd)
+    per_sample_a = acceleration_ratios(robot, t, qd) if qdd is None else np.abs(qdd) / robot.qddlim
+    ratio_v, ratio_a = per_sample_v.max(axis=0), per_sample_a.max(axis=0)
+    limited_v, limited_a = np.isfinite(robot.qdlim), np.isfinite(robot.qddlim)
+    beyond = [{"joint": j.name, "limit": kind, "ratio": float(ratios[k, i]), "t_s": float(t[k])}
+              for kind, ratios in (("velocity", per_sample_v), ("acceleration", per_sample_a))
+              for i, j in enumerate(robot.joints)
+              for k in [int(np.argmax(ratios[:, i]))] if ratios[k, i] > RATIO_TOL]
+    return {
+        "qdlim": _finite_or_none(robot.qdlim),
+        "peak_speed_ratio": [float(r) if ok else None for r, ok in zip(ratio_v, limited_v)],
+        "max_speed_ratio": float(ratio_v[limited_v].max()) if limited_v.any() else None,
+        "qddlim": _finite_or_none(robot.qddlim),
+        "peak_acceleration_ratio": [float(r) if ok else None for r, ok in zip(ratio_a, limited_a)],
+        "within_speed_limits": not beyond,
+        "beyond_speed_limits": beyond,  # per joint and limit: the worst ratio and when
+    }

@@ -20,8 +20,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from ...errors import PlanningError, TaskFileError
+from ..limits import speed_report
 from ..result import PlanResult
-from ..toolpath.limits import speed_report
 from .config import ANGLE_SCALE, PtpConfig, parse_ptp_task, segment_label
 from .families import segment_shape, timing_order
 from .plans import PtpPlan, plan_with_times

@@ -20,9 +20,8 @@ from typing import Any
 import numpy as np
 
 from ...errors import PlanningError, TaskFileError
-from ..limits import PLAYBACK_RATE_RULE, playback_rates
+from ..limits import PLAYBACK_RATE_RULE, playback_rates, speed_report
 from ..result import PlanResult
-from ..toolpath.limits import speed_report
 from .arm import SnakeArm, recover_angles
 from .dynamics import EXPLICIT_METHODS, BarModel, DenoisedDynamics, DynamicsRun
 from .exact import joint_rates, solve_exact

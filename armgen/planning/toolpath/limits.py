@@ -26,6 +26,7 @@ import numpy as np
 
 from ...errors import PlanningError
 from ...robot import Robot
+from ..limits import RATIO_TOL, acceleration_ratios, speed_ratios, speed_report
 from .timelaw import ProgramMotion, program_profile
 
 # The slowed speed is this fraction of what the measured ratio allows: q̇ is sampled at the
@@ -37,8 +38,6 @@ MAX_SLOWDOWN_ROUNDS = 8
 # A plan whose tool leaves the program by more than this is infeasible (the Cartesian
 # planner's bound for its circle and line: closed-loop tracking stays far below it).
 MAX_PROGRAM_PATH_ERROR = 5e-3  # m
-# A ratio up to this counts as within the limit (the rounding of q̇ = J⁺ẋ at the limit).
-RATIO_TOL = 1.0 + 1e-9
 # A stretch counts as slowed where the final path speed is this fraction below the nominal one.
 SLOWED_FRACTION = 1e-6
 # Below this path speed (m/s) the tool is at rest: slowing it further cannot lower q̇.
@@ -76,18 +75,6 @@ class SelfMotionLimiter:
         if c < 1.0:
             self.limited_steps += 1
         return out
-
-
-def speed_ratios(robot: Robot, qd: np.ndarray) -> np.ndarray:
-    """|q̇| / q̇_max per sample and joint (0 for an unlimited joint)."""
-    return np.abs(qd) / robot.qdlim
-
-
-def acceleration_ratios(robot: Robot, t: np.ndarray, qd: np.ndarray) -> np.ndarray:
-    """|q̈| / q̈_max per sample (differences of q̇ between samples, given at the later one)."""
-    qdd = np.zeros_like(qd)
-    qdd[1:] = np.diff(qd, axis=0) / np.diff(t)[:, None]
-    return np.abs(qdd) / robot.qddlim
 
 
 def _at_nodes(grid: np.ndarray, s: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -171,32 +158,6 @@ def check_on_path(result, motion: ProgramMotion, source: str) -> None:
         f"{source}: path.moves[{move}] ({motion.program.moves[move].kind}) is not reachable from this start: the tool "
         f"left the program by {error[k] * 1e3:.1f} mm (> {MAX_PROGRAM_PATH_ERROR * 1e3:g} mm) at t = {t:.2f} s; move "
         "its target (position or orientation) into the arm's workspace, or start from another configuration")
-
-
-def _finite_or_none(values: np.ndarray) -> list[float | None]:
-    return [float(v) if math.isfinite(v) else None for v in values]
-
-
-def speed_report(robot: Robot, t: np.ndarray, qd: np.ndarray, qdd: np.ndarray | None = None) -> dict[str, Any]:
-    """Peak |q̇|/q̇_max (and |q̈|/q̈_max) per joint; None for a joint without that limit. q̈ is
-    ``qdd`` where the plan has it in closed form (ptp's polynomials), else the differences of q̇."""
-    per_sample_v = speed_ratios(robot, qd)
-    per_sample_a = acceleration_ratios(robot, t, qd) if qdd is None else np.abs(qdd) / robot.qddlim
-    ratio_v, ratio_a = per_sample_v.max(axis=0), per_sample_a.max(axis=0)
-    limited_v, limited_a = np.isfinite(robot.qdlim), np.isfinite(robot.qddlim)
-    beyond = [{"joint": j.name, "limit": kind, "ratio": float(ratios[k, i]), "t_s": float(t[k])}
-              for kind, ratios in (("velocity", per_sample_v), ("acceleration", per_sample_a))
-              for i, j in enumerate(robot.joints)
-              for k in [int(np.argmax(ratios[:, i]))] if ratios[k, i] > RATIO_TOL]
-    return {
-        "qdlim": _finite_or_none(robot.qdlim),
-        "peak_speed_ratio": [float(r) if ok else None for r, ok in zip(ratio_v, limited_v)],
-        "max_speed_ratio": float(ratio_v[limited_v].max()) if limited_v.any() else None,
-        "qddlim": _finite_or_none(robot.qddlim),
-        "peak_acceleration_ratio": [float(r) if ok else None for r, ok in zip(ratio_a, limited_a)],
-        "within_speed_limits": not beyond,
-        "beyond_speed_limits": beyond,  # per joint and limit: the worst ratio and when
-    }
 
 
 def _report(robot: Robot, t: np.ndarray, qd: np.ndarray, nominal: ProgramMotion, final: ProgramMotion) -> dict[str, Any]:
