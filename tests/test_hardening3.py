@@ -14,6 +14,7 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -138,6 +139,37 @@ def test_ctrl_c_stops_the_sweep_and_keeps_the_finished_rows(tmp_path, workers):
 # would be (the finding: it ran on for the whole sweep).
 FAULT_TASK = EXAMPLES / "modular8_fault_circle_gpm.toml"
 SWEEP_RUNS = 2000
+
+
+def test_ctrl_c_inside_a_run_that_swallows_it_still_stops_the_sweep(tmp_path, monkeypatch):
+    """A library inside a run may turn the interrupt into its own error (CasADi makes a Ctrl-C in
+    its C++ a RuntimeError): the sweep then went on to its end (seen as a sweep that ignored
+    Ctrl-C about half of the time). In process, Ctrl-C only sets a flag: the run in progress ends
+    undisturbed, is not kept, and the sweep stops there with the runs before it written."""
+    from armgen.errors import Interrupted
+    from armgen.planning import sweep as sweep_module
+    from armgen.planning.result import PlanResult
+
+    calls = []
+
+    def run_task_swallowing_ctrl_c(task, source, sha256="", backend="symbolic"):
+        calls.append(task["method"]["K"])
+        if len(calls) == 3:  # Ctrl-C arrives while the third run is inside a library call
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.05)
+            except KeyboardInterrupt:
+                raise RuntimeError("KeyboardInterrupt") from None  # what CasADi makes of it
+        return PlanResult(["t_s"], np.zeros((1, 1)), {"summary": {"K": float(task["method"]["K"])}})
+
+    monkeypatch.setattr(sweep_module, "run_task", run_task_swallowing_ctrl_c)
+    task = {"planner": "fault_tolerant", "method": {"K": 0.0}}
+    out = tmp_path / "s.csv"
+    spec = sweep_module.SweepSpec(grid=[("method.K", [1.0, 2.0, 3.0, 4.0, 5.0])])
+    with pytest.raises(Interrupted, match="interrupted after 2 of 5 runs"):
+        sweep_module.sweep(task, "task.toml", "", spec, out)
+    assert calls == [1.0, 2.0, 3.0]
+    assert [row["method.K"] for row in sweep_module.read_table(out)] == [1.0, 2.0]
 SWEEP_INTERRUPT_AFTER_S = 10.0
 SWEEP_STOP_WITHIN_S = 15.0
 

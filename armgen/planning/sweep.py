@@ -33,6 +33,7 @@ import math
 import multiprocessing
 import os
 import signal
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator, Sequence
@@ -322,12 +323,33 @@ def _run_batch_args(args: tuple) -> list[dict[str, Any]]:
     return run_batch(*args)
 
 
+@contextlib.contextmanager
+def _deferred_sigint() -> Iterator[list[int]]:
+    """Ctrl-C during an in-process sweep only sets a flag (the list it yields fills), checked
+    between runs. A KeyboardInterrupt raised inside a run would not stop the sweep: CasADi turns
+    an interrupt in its C++ into a RuntimeError, which becomes that run's error row, and the
+    sweep went on to the end. (Main thread only: Python delivers signals there.)"""
+    pending: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield pending
+        return
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: pending.append(signum))
+    try:
+        yield pending
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _execute(task, source, sha256, todo, backend, workers, scheduler) -> Iterator[dict[str, Any]]:
     if scheduler:
         yield from _on_dask(scheduler, task, source, sha256, todo, backend)
     elif workers <= 1 or len(todo) <= 1:
-        for index, fields in todo:
-            yield run_one(task, source, sha256, index, fields, backend)
+        with _deferred_sigint() as interrupted:
+            for index, fields in todo:
+                row = run_one(task, source, sha256, index, fields, backend)
+                if interrupted:  # the run in progress is not kept: the signal also reached its compiler
+                    raise KeyboardInterrupt
+                yield row
     else:
         # The planner's modules, imported once here, are inherited by forked workers.
         planner_module(task)
