@@ -22,9 +22,6 @@ import numpy as np
 from ..errors import PlanningError
 from ..robot import Robot
 
-# The values of a task's ``check.limits`` field.
-LIMIT_POLICIES = ("error", "report")
-
 
 def limit_report(robot: Robot, t: np.ndarray, q: np.ndarray) -> tuple[list[dict[str, Any]], float]:
     """(one entry per joint that leaves its limits, smallest margin to a limit over the plan

@@ -20,6 +20,7 @@
 #include <stdint.h>
 
 #include BENCH_HEADER
+#include "bench_systick.h"
 #include "semihost.h"
 
 #ifndef BENCH_NCALLS
@@ -27,10 +28,6 @@
 #endif
 #define QTABLE 64 /* a power of two */
 
-#define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
-#define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
-#define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
-#define SYST_MASK 0xFFFFFFu /* 24-bit down-counter */
 
 typedef BENCH_REAL real_t;
 typedef void (*kin_fn)(const real_t *q, real_t *T, real_t *J);
@@ -70,20 +67,10 @@ __attribute__((noinline)) static uint32_t timed_loop(uint32_t ncalls) {
   return (t0 - t1) & SYST_MASK;
 }
 
-__attribute__((noinline)) static uint32_t timed_calib(uint32_t iterations) {
-  uint32_t t0, t1;
-  t0 = SYST_CVR;
-  __asm__ volatile("1: subs %0, %0, #1\n\tbne 1b" : "+r"(iterations)::"cc");
-  t1 = SYST_CVR;
-  return (t0 - t1) & SYST_MASK;
-}
-
 int main(void) {
   uint32_t calib_small, calib_large;
   fill_table();
-  SYST_RVR = SYST_MASK;
-  SYST_CVR = 0u;
-  SYST_CSR = 5u; /* ENABLE | CLKSOURCE=processor clock, no interrupt */
+  systick_start();
 
   /* 2 * (large - small) instructions between the two calibration runs */
   calib_small = timed_calib(1000u);

@@ -18,13 +18,10 @@
 #include <string.h>
 
 #include "fw_program.h"
+#include "bench_systick.h"
 #include "semihost.h"
 #include "table.h"
 
-#define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
-#define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
-#define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
-#define SYST_MASK 0xFFFFFFu
 
 typedef void (*desired_fn)(const fw_program *prog, ctrl_real t, ctrl_real *p, ctrl_real *R, ctrl_real *xdot);
 static desired_fn volatile selected_fn; /* volatile: the timed call is a real call */
@@ -48,14 +45,6 @@ __attribute__((noinline)) static uint32_t timed_call(ctrl_real t) {
   return (t0 - t1) & SYST_MASK;
 }
 
-__attribute__((noinline)) static uint32_t timed_calib(uint32_t iterations) {
-  uint32_t t0, t1;
-  t0 = SYST_CVR;
-  __asm__ volatile("1: subs %0, %0, #1\n\tbne 1b" : "+r"(iterations)::"cc");
-  t1 = SYST_CVR;
-  return (t0 - t1) & SYST_MASK;
-}
-
 /* " <bits>" per value: the float's representation, read back exactly by the benchmark. */
 static void put_bits(const ctrl_real *x, int n) {
   int i;
@@ -69,9 +58,7 @@ static void put_bits(const ctrl_real *x, int n) {
 
 int main(void) {
   uint32_t k, stub = 0u, calib;
-  SYST_RVR = SYST_MASK;
-  SYST_CVR = 0u;
-  SYST_CSR = 5u; /* ENABLE | CLKSOURCE = processor clock, no interrupt */
+  systick_start();
   calib = timed_calib(101000u) - timed_calib(1000u);
   sh_put_kv("check", (uint32_t)fw_program_check(&fw_program_table));
   sh_put_kv("calib_insns", 200000u);

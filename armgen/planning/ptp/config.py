@@ -10,7 +10,6 @@ import numpy as np
 
 from ...errors import RobotFileError, TaskFileError, excerpt
 from ...robot import Robot, load_robot
-from ..limits import LIMIT_POLICIES
 from .families import DEFAULT_METHOD, METHODS, JointWaypoints, preset_accel
 from .poses import POSE_FIELDS, solve_pose_waypoints
 
@@ -161,9 +160,6 @@ def parse_ptp_task(task: dict[str, Any], source: str) -> PtpConfig:
         raise fields.fail("units.angle", f"= {excerpt(repr(angle_unit))} must be \"rad\" or \"deg\"")
     scale = ANGLE_SCALE[angle_unit]
 
-    check = fields.table(task, "check", False, {"limits"})
-    if check.get("limits", "error") not in LIMIT_POLICIES:  # applied by run_task
-        raise fields.fail("check.limits", f"= {excerpt(repr(check['limits']))} must be one of {', '.join(LIMIT_POLICIES)}")
     robot_name = task.get("robot")
     robot = None
     qlims: list[tuple[float, float] | None]

@@ -11,7 +11,6 @@ import numpy as np
 
 from ...errors import RobotFileError, TaskFileError, excerpt
 from ...robot import load_robot
-from ..limits import LIMIT_POLICIES
 from .arm import SnakeArm, snake_arm
 from .dynamics import METHODS as INTEGRATORS
 from .obstacles import FACES, Obstacle
@@ -274,7 +273,6 @@ def parse_snake_task(task: dict[str, Any], source: str) -> SnakeTask:
     if not isinstance(raw_obs, list):
         raise f.fail("obstacles", "must be an array of tables ([[obstacles]])")
     obstacles = [_parse_obstacle(f, raw, k) for k, raw in enumerate(raw_obs)]
-    f.choice(f.table(task, "check", {"limits"}), "limits", "check", LIMIT_POLICIES, "error")  # applied by run_task
     return SnakeTask(
         arm=arm, waypoints=waypoints, start_tangent=start_tangent, end_tangent=end_tangent, rail_start=rail_start,
         driven=driven, law=VelocityLaw(v, duration, ramp), output_step=output_step, solver=method, h=h,
