@@ -32,10 +32,12 @@ import numpy as np
 
 from .. import __version__
 from ..codegen.generate import CodegenConfig, generate
-from ..errors import ArmgenError, OutputError, PlanningError, excerpt
+from ..errors import ArmgenError, OutputError, PlanningError, TaskFileError, excerpt
 from ..planning.result import PlanResult, read_plan, write_plan
 from ..planning.tasks import load_task, run_task
+from ..planning.toolpath.task import MAX_POSES_FILE_BYTES
 from ..robot import Robot, load_robot, resolve_robot_path
+from ..schemas import read_input_file
 from ..symbolic.model import SymbolicModel
 from .configuration import FirmwareTask, refusal, task_from_plan, task_source, write_task_files
 from .errors import FirmwareError
@@ -256,7 +258,7 @@ def _copy_poses_files(task: dict[str, Any], folder: Path | None, demo: Path) -> 
         if isinstance(move, dict) and isinstance(move.get("file"), str):
             source = Path(move["file"]) if folder is None else folder / move["file"]
             name = f"poses_{k}.csv"
-            (demo / name).write_bytes(source.read_bytes())
+            (demo / name).write_bytes(read_input_file(source, MAX_POSES_FILE_BYTES, "poses file", TaskFileError))
             move = dict(move, file=name)
         moves.append(move)
     return dict(task, path=dict(path, moves=moves))
