@@ -27,8 +27,9 @@ PIVOT_FLOOR = 1e-18
 PIVOT_FLOOR_REL = 1e-10
 
 
-def spd_solve(a: ca.SX, b: ca.SX) -> ca.SX:
-    """Solve ``a x = b`` for symmetric positive (semi)definite ``a`` by LDLᵀ, no pivoting."""
+def ldl_factor(a: ca.SX) -> tuple[list[list[ca.SX]], list[ca.SX]]:
+    """(L, D) of ``a = L D Lᵀ`` for symmetric positive (semi)definite ``a``, no pivoting; the
+    pivots floored (PIVOT_FLOOR_REL, PIVOT_FLOOR). ``L`` as rows, strictly lower part only."""
     m = a.shape[0]
     lower = [[None] * m for _ in range(m)]
     diag = [None] * m
@@ -38,6 +39,13 @@ def spd_solve(a: ca.SX, b: ca.SX) -> ca.SX:
         for i in range(j + 1, m):
             lij = a[i, j] - sum((lower[i][k] * lower[j][k] * diag[k] for k in range(j)), ca.SX(0))
             lower[i][j] = lij / diag[j]
+    return lower, diag
+
+
+def ldl_solve(factor: tuple[list[list[ca.SX]], list[ca.SX]], b: ca.SX) -> ca.SX:
+    """Solve ``L D Lᵀ x = b`` with the factor of :func:`ldl_factor`."""
+    lower, diag = factor
+    m = len(diag)
     y = [None] * m
     for i in range(m):  # L y = b
         y[i] = b[i] - sum((lower[i][k] * y[k] for k in range(i)), ca.SX(0))
@@ -45,6 +53,11 @@ def spd_solve(a: ca.SX, b: ca.SX) -> ca.SX:
     for i in reversed(range(m)):  # D Lᵀ x = y
         x[i] = y[i] / diag[i] - sum((lower[k][i] * x[k] for k in range(i + 1, m)), ca.SX(0))
     return ca.vertcat(*x)
+
+
+def spd_solve(a: ca.SX, b: ca.SX) -> ca.SX:
+    """Solve ``a x = b`` for symmetric positive (semi)definite ``a`` by LDLᵀ, no pivoting."""
+    return ldl_solve(ldl_factor(a), b)
 
 
 def weighted_gram(j: ca.SX, col_scale: ca.SX | None = None) -> ca.SX:
