@@ -21,7 +21,6 @@ never does (the C and Python must run the same roundings there).
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 import casadi as ca
@@ -62,11 +61,13 @@ def find_loop(name: str) -> Loop | None:
 
 def calls_in_order(func: ca.Function) -> list[ca.Function]:
     """The functions ``func``'s call instructions (``OP_CALL``) call, one per instruction, in
-    the algorithm's order (CasADi numbers call nodes as it prints them)."""
-    names = re.findall(r"(\w+)\(\[", str(func.instructions_sx())) if func.get_function() else []
+    the algorithm's order: each call instruction's own SX node names its function."""
     calls = [k for k in range(func.n_instructions()) if func.instruction_id(k) == ca.OP_CALL]
-    callees = [func.get_function(name) for name in names]
-    if len(callees) != len(calls) or any(len(func.instruction_input(k)) != callee.nnz_in()
-                                         for k, callee in zip(calls, callees)):
-        raise ValueError(f"{func.name()}: cannot match its {len(calls)} call instructions to the calls {names}")
+    if not calls:
+        return []
+    nodes = func.instructions_sx()
+    callees = [nodes[k].which_function() for k in calls]
+    if any(len(func.instruction_input(k)) != callee.nnz_in() for k, callee in zip(calls, callees)):
+        raise ValueError(f"{func.name()}: cannot match its {len(calls)} call instructions to the calls "
+                         f"{[callee.name() for callee in callees]}")
     return callees
