@@ -89,6 +89,22 @@ def test_self_motion_limiter_on_board(tmp_path):
     assert comparison.max_dq <= FW_DOUBLE_BOUND_RAD
 
 
+
+def test_strong_self_motion_program_runs_in_float(tmp_path):
+    """The same strong null-space program in the float build: at rest the command is ~0 while
+    the GPM products J q̇ sums are large and cancel, so their float rounding alone exceeded the
+    residual guard's command-relative bound (SINGULAR at tick 0); the guard also scales with
+    those products. The run ends DONE within the float replay bound."""
+    slow = tmp_path / "baxter_slow.toml"
+    slow.write_text(BAXTER.read_text().replace("qdlim = 2.0", "qdlim = 0.5").replace("qdlim = 4.0", "qdlim = 1.0"))
+    path, plan = _plan("fault_tolerant", tmp_path, bar_task("fault_tolerant", slow) + '\n[method]\nname = "gpm"\nK = 50.0\n')
+    robot = load_robot(slow)
+    task = fw.task_from_plan(plan, str(path), robot)
+    run = fw.run_host(fw.FirmwareBuilder(robot, tmp_path / "fw").executable(fw.Variant("host", "float", sanitize=True), task))
+    comparison = compare_with_plan(plan, run, task, "float", "limited")
+    assert comparison.passed, comparison.rows
+    assert comparison.max_dq <= ISSUE_FLOAT_BAR_RAD
+
 def _first_q_moved(header: str) -> str:
     """q_start's first joint 0.01 rad away: FK(q_start) is no longer the table's first pose."""
     return re.sub(r"(\.q_start = \{CTRL_LIT\()([^)]*)", lambda m: m.group(1) + repr(float(m.group(2)) + 0.01), header,

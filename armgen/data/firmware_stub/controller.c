@@ -790,6 +790,25 @@ static ctrl_fault limit_speed(const ctrl *c, const ctrl_real *J, ctrl_real *qd) 
   return c->cfg.rr.path == CTRL_PATH_PROGRAM ? limit_self_motion(c, J, qd) : CTRL_FAULT_NONE;
 }
 
+/* max over the task rows of sum_i |J_ri q_dot_i|, the size of the terms J q_dot sums: its
+ * rounding is a few ulp of this, not of |J q_dot|. A strong null-space term makes these
+ * products large while they cancel to the (small) command, so the residual guard's relative
+ * part also takes this scale (only when the command's scale alone would fault: no cost on
+ * the ticks that pass). Without it a float program with GPM K = 50 faulted at its first
+ * tick, at rest: a command of ~0 against the rounding of large cancelling products. */
+static ctrl_real product_scale(const ctrl_config *cfg, const ctrl_real *J, const ctrl_real *qd) {
+  ctrl_real scale = CTRL_LIT(0.0);
+  int i, r;
+  for (r = 0; r < CTRL_NTASK; ++r) {
+    ctrl_real sum = CTRL_LIT(0.0);
+    for (i = 0; i < N; ++i) {
+      sum = sum + CTRL_FABS(J[6 * i + cfg->rr.task_rows[r]] * qd[i]);
+    }
+    scale = max_r(scale, sum);
+  }
+  return scale;
+}
+
 /* The guards every resolved-rate step passes before its command is accepted: speed
  * (qdot_max), task residual |J q_dot - cmd| (only for undamped steps: damping trades the
  * residual for a bounded speed by design) and tracking. */
@@ -826,7 +845,10 @@ static ctrl_fault check_step(const ctrl *c, const ctrl_real *J, const ctrl_real 
     for (r = 0; r < CTRL_NTASK; ++r) {
       res_max = max_r(res_max, CTRL_FABS(v[cfg->rr.task_rows[r]] - cmd[r]));
     }
-    if (res_max > cfg->residual_rel * cmd_max + cfg->residual_abs) return CTRL_FAULT_SINGULAR;
+    if (res_max > cfg->residual_rel * cmd_max + cfg->residual_abs &&
+        res_max > cfg->residual_rel * product_scale(cfg, J, qd) + cfg->residual_abs) {
+      return CTRL_FAULT_SINGULAR;
+    }
   }
   if (cfg->pos_err_max > CTRL_LIT(0.0) && c->pos_err > cfg->pos_err_max) return CTRL_FAULT_TRACKING;
   return CTRL_FAULT_NONE;
