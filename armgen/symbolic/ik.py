@@ -27,8 +27,8 @@ The step (damped least squares, Levenberg–Marquardt with Sugihara's damping):
 
 An attempt ends after ITERATIONS evaluations or as soon as it stalls (a step leaves ½‖e‖²
 above STALL_RATIO of the previous one); the next one moves the joints that the last step held
-at a limit to the next point of a deterministic sequence (a Kronecker sequence over the joint
-ranges) and steps on with the others (all move when none was held, and at every
+at a limit, and their neighbours in the chain, to the next point of a deterministic sequence (a
+Kronecker sequence over the joint ranges) and steps on with the others (all move when none was held, and at every
 FULL_RESEED_EVERY-th attempt), up to ATTEMPTS attempts.
 The state carries the closest configuration seen (smallest ``½‖e‖²``), so a miss returns the
 closest one reached. ``max_iterations`` (≤ MAX_ITERATIONS) stops earlier: a bound on the time
@@ -286,7 +286,11 @@ class IKDefinition:
         # for a multiple of 5 and rounds below the next integer otherwise, float included)
         afresh = ca.logic_or(attempt == FULL_RESEED_EVERY * ca.floor(attempt / FULL_RESEED_EVERY),
                              ca.logic_and(capped, ca.sum1(held) == 0))
-        seed = ca.if_else(ca.logic_or(held, afresh), sequence, stepped)
+        # a held joint's neighbours in the chain move with it: they carry the compensation that
+        # keeps the attempt on the branch the limit blocks (panda, 3000 training poses each of
+        # seeds 7, 11 and 13 at 1e-4: +0.24 to +0.33 % within 49 steps; the other arms ±0.1 %)
+        moved = held + ca.vertcat(held[1:], 0) + ca.vertcat(0, held[:-1])  # nonzero: held or beside one
+        seed = ca.if_else(ca.logic_or(moved, afresh), sequence, stepped)
         new = ca.vertcat(
             ca.if_else(converged, q, ca.if_else(restart, seed, stepped)),
             ca.if_else(closer, q, state[lay.best_q]),
