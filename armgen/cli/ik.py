@@ -39,7 +39,7 @@ def _joints(robot, text: str, option: str, angle_scale: float) -> np.ndarray:
 @click.option("--q0", default=None, help="stay near this configuration (name or values; default: away from the "
                                          "joint limits)")
 @click.option("--max-iterations", type=click.IntRange(1, None), default=None,
-              help="stop after this many steps (default: the solver's cap, 300)")
+              help="stop after this many steps (default: the solver's cap, 450)")
 @click.option("--units", type=click.Choice(["rad", "deg"]), default="rad", show_default=True,
               help="angle unit of --rpy, --seed, --q0 and the printed joint angles")
 @handle_errors

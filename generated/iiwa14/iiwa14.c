@@ -14126,7 +14126,7 @@ iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_re
   }
 }
 
-/* ik: 234600 add, 230700 mul, 21300 div, 1500 sqrt, 4500 trig, 19814 minmax, 24900 compare, 33900 select */
+/* ik: 351900 add, 346050 mul, 31950 div, 2250 sqrt, 6750 trig, 29714 minmax, 37350 compare, 50850 select */
 iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed[IIWA14_NDOF], const iiwa14_real q_rest[IIWA14_NDOF], iiwa14_real use_rest, iiwa14_real tol_position, iiwa14_real tol_orientation, iiwa14_real max_iterations, iiwa14_real q[IIWA14_NDOF], iiwa14_real *position_error, iiwa14_real *orientation_error, iiwa14_real *iterations, iiwa14_real *success) {
   iiwa14_real w36;
   iiwa14_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;

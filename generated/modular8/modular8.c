@@ -16952,7 +16952,7 @@ modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const m
   }
 }
 
-/* ik: 266400 add, 257700 mul, 22800 div, 1500 sqrt, 5100 trig, 22216 minmax, 27300 compare, 37500 select */
+/* ik: 399600 add, 386550 mul, 34200 div, 2250 sqrt, 7650 trig, 33316 minmax, 40950 compare, 56250 select */
 modular8_status modular8_ik(const modular8_real T_target[16], const modular8_real q_seed[MODULAR8_NDOF], const modular8_real q_rest[MODULAR8_NDOF], modular8_real use_rest, modular8_real tol_position, modular8_real tol_orientation, modular8_real max_iterations, modular8_real q[MODULAR8_NDOF], modular8_real *position_error, modular8_real *orientation_error, modular8_real *iterations, modular8_real *success) {
   modular8_real w36, w37, w38;
   modular8_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;

@@ -450,7 +450,7 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_WORK_REALS 248
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 266400 add, 257700 mul, 22800 div, 1500 sqrt, 5100 trig, 22216 minmax, 27300 compare, 37500 select; work: 39 reals. */
+ * ops: 399600 add, 386550 mul, 34200 div, 2250 sqrt, 7650 trig, 33316 minmax, 40950 compare, 56250 select; work: 39 reals. */
 #define MODULAR8_IK_T_TARGET_ROWS 4
 #define MODULAR8_IK_T_TARGET_COLS 4
 #define MODULAR8_IK_Q_SEED_ROWS 8
@@ -470,9 +470,9 @@ modular8_status modular8_ik(const modular8_real T_target[16], const modular8_rea
 void modular8_bisection_step6_loop(const modular8_real state[2], const modular8_real d[6], const modular8_real e2[5], modular8_real final[2]);
 /* ik_step_95c2c3c3_loop: a fixed-count loop the functions above call (not for direct use). */
 #if MODULAR8_USE_FLOAT
-#define MODULAR8_IK_STEP_95C2C3C3_LOOP_COUNT 300
+#define MODULAR8_IK_STEP_95C2C3C3_LOOP_COUNT 450
 #else
-#define MODULAR8_IK_STEP_95C2C3C3_LOOP_COUNT 300
+#define MODULAR8_IK_STEP_95C2C3C3_LOOP_COUNT 450
 #endif
 void modular8_ik_step_95c2c3c3_loop(const modular8_real state[25], const modular8_real T_target[16], const modular8_real q_rest[8], const modular8_real use_rest[1], const modular8_real tol_position[1], const modular8_real tol_orientation[1], const modular8_real max_iterations[1], modular8_real final[25]);
 

@@ -14237,7 +14237,7 @@ panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xd
   }
 }
 
-/* ik: 239100 add, 233400 mul, 21300 div, 1500 sqrt, 4500 trig, 19814 minmax, 24900 compare, 33900 select */
+/* ik: 358650 add, 350100 mul, 31950 div, 2250 sqrt, 6750 trig, 29714 minmax, 37350 compare, 50850 select */
 panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PANDA_NDOF], const panda_real q_rest[PANDA_NDOF], panda_real use_rest, panda_real tol_position, panda_real tol_orientation, panda_real max_iterations, panda_real q[PANDA_NDOF], panda_real *position_error, panda_real *orientation_error, panda_real *iterations, panda_real *success) {
   panda_real w36;
   panda_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;

@@ -450,7 +450,7 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_WORK_REALS 217
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 239100 add, 233400 mul, 21300 div, 1500 sqrt, 4500 trig, 19814 minmax, 24900 compare, 33900 select; work: 37 reals. */
+ * ops: 358650 add, 350100 mul, 31950 div, 2250 sqrt, 6750 trig, 29714 minmax, 37350 compare, 50850 select; work: 37 reals. */
 #define PANDA_IK_T_TARGET_ROWS 4
 #define PANDA_IK_T_TARGET_COLS 4
 #define PANDA_IK_Q_SEED_ROWS 7
@@ -470,9 +470,9 @@ panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PAN
 void panda_bisection_step6_loop(const panda_real state[2], const panda_real d[6], const panda_real e2[5], panda_real final[2]);
 /* ik_step_8a95a0f1_loop: a fixed-count loop the functions above call (not for direct use). */
 #if PANDA_USE_FLOAT
-#define PANDA_IK_STEP_8A95A0F1_LOOP_COUNT 300
+#define PANDA_IK_STEP_8A95A0F1_LOOP_COUNT 450
 #else
-#define PANDA_IK_STEP_8A95A0F1_LOOP_COUNT 300
+#define PANDA_IK_STEP_8A95A0F1_LOOP_COUNT 450
 #endif
 void panda_ik_step_8a95a0f1_loop(const panda_real state[23], const panda_real T_target[16], const panda_real q_rest[7], const panda_real use_rest[1], const panda_real tol_position[1], const panda_real tol_orientation[1], const panda_real max_iterations[1], panda_real final[23]);
 

@@ -2471,7 +2471,7 @@ planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const plana
   }
 }
 
-/* ik: 69600 add, 54000 mul, 9000 div, 1200 sqrt, 2100 trig, 9606 minmax, 15300 compare, 19500 select */
+/* ik: 104400 add, 81000 mul, 13500 div, 1800 sqrt, 3150 trig, 14406 minmax, 22950 compare, 29250 select */
 planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_seed[PLANAR3_NDOF], const planar3_real q_rest[PLANAR3_NDOF], planar3_real use_rest, planar3_real tol_position, planar3_real tol_orientation, planar3_real max_iterations, planar3_real q[PLANAR3_NDOF], planar3_real *position_error, planar3_real *orientation_error, planar3_real *iterations, planar3_real *success) {
   planar3_real w24, w25, w26, w27, w28;
   planar3_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;

@@ -449,7 +449,7 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 #define PLANAR3_STEP_WGPM_WORK_REALS 70
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 69600 add, 54000 mul, 9000 div, 1200 sqrt, 2100 trig, 9606 minmax, 15300 compare, 19500 select; work: 29 reals. */
+ * ops: 104400 add, 81000 mul, 13500 div, 1800 sqrt, 3150 trig, 14406 minmax, 22950 compare, 29250 select; work: 29 reals. */
 #define PLANAR3_IK_T_TARGET_ROWS 4
 #define PLANAR3_IK_T_TARGET_COLS 4
 #define PLANAR3_IK_Q_SEED_ROWS 3
@@ -469,9 +469,9 @@ planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_
 void planar3_bisection_step3_loop(const planar3_real state[2], const planar3_real d[3], const planar3_real e2[2], planar3_real final[2]);
 /* ik_step_2f36c519_loop: a fixed-count loop the functions above call (not for direct use). */
 #if PLANAR3_USE_FLOAT
-#define PLANAR3_IK_STEP_2F36C519_LOOP_COUNT 300
+#define PLANAR3_IK_STEP_2F36C519_LOOP_COUNT 450
 #else
-#define PLANAR3_IK_STEP_2F36C519_LOOP_COUNT 300
+#define PLANAR3_IK_STEP_2F36C519_LOOP_COUNT 450
 #endif
 void planar3_ik_step_2f36c519_loop(const planar3_real state[15], const planar3_real T_target[16], const planar3_real q_rest[3], const planar3_real use_rest[1], const planar3_real tol_position[1], const planar3_real tol_orientation[1], const planar3_real max_iterations[1], planar3_real final[15]);
 

@@ -55689,7 +55689,7 @@ snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake
   }
 }
 
-/* ik: 738900 add, 677100 mul, 48300 div, 1500 sqrt, 14700 trig, 63050 minmax, 68100 compare, 98700 select */
+/* ik: 1108350 add, 1015650 mul, 72450 div, 2250 sqrt, 22050 trig, 94550 minmax, 102150 compare, 148050 select */
 snake12_status snake12_ik(const snake12_real T_target[16], const snake12_real q_seed[SNAKE12_NDOF], const snake12_real q_rest[SNAKE12_NDOF], snake12_real use_rest, snake12_real tol_position, snake12_real tol_orientation, snake12_real max_iterations, snake12_real q[SNAKE12_NDOF], snake12_real *position_error, snake12_real *orientation_error, snake12_real *iterations, snake12_real *success) {
   snake12_real w72;
   snake12_real w60, w61, w62, w63, w64, w65, w66, w67, w68, w69, w70, w71;

@@ -449,7 +449,7 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_WORK_REALS 749
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 738900 add, 677100 mul, 48300 div, 1500 sqrt, 14700 trig, 63050 minmax, 68100 compare, 98700 select; work: 73 reals. */
+ * ops: 1108350 add, 1015650 mul, 72450 div, 2250 sqrt, 22050 trig, 94550 minmax, 102150 compare, 148050 select; work: 73 reals. */
 #define SNAKE12_IK_T_TARGET_ROWS 4
 #define SNAKE12_IK_T_TARGET_COLS 4
 #define SNAKE12_IK_Q_SEED_ROWS 25
@@ -469,9 +469,9 @@ snake12_status snake12_ik(const snake12_real T_target[16], const snake12_real q_
 void snake12_bisection_step6_loop(const snake12_real state[2], const snake12_real d[6], const snake12_real e2[5], snake12_real final[2]);
 /* ik_step_8e27ca69_loop: a fixed-count loop the functions above call (not for direct use). */
 #if SNAKE12_USE_FLOAT
-#define SNAKE12_IK_STEP_8E27CA69_LOOP_COUNT 300
+#define SNAKE12_IK_STEP_8E27CA69_LOOP_COUNT 450
 #else
-#define SNAKE12_IK_STEP_8E27CA69_LOOP_COUNT 300
+#define SNAKE12_IK_STEP_8E27CA69_LOOP_COUNT 450
 #endif
 void snake12_ik_step_8e27ca69_loop(const snake12_real state[59], const snake12_real T_target[16], const snake12_real q_rest[25], const snake12_real use_rest[1], const snake12_real tol_position[1], const snake12_real tol_orientation[1], const snake12_real max_iterations[1], snake12_real final[59]);
 
