@@ -73,21 +73,26 @@ def test_slowed_program_replays_in_double(baxter_builder, tmp_path):
     assert np.all(np.abs(qd) <= robot.qdlim * (1 + 1e-9))  # the speed guard's limits are the robot file's
 
 
-def test_self_motion_limiter_on_board(tmp_path):
-    """A strong null-space term (GPM, K = 50) on Baxter with a quarter of its speed limits: the
-    planner scales the self-motion on many steps; the controller's limiter does the same (its
-    saturated joints land on their limits, not an ulp above: the speed guard does not fire)."""
+def _strong_self_motion_task(tmp_path: Path):
+    """A strong null-space term (GPM, K = 50) on Baxter with a quarter of its speed limits:
+    (plan, its firmware task, the robot)."""
     slow = tmp_path / "baxter_slow.toml"
     slow.write_text(BAXTER.read_text().replace("qdlim = 2.0", "qdlim = 0.5").replace("qdlim = 4.0", "qdlim = 1.0"))
     path, plan = _plan("fault_tolerant", tmp_path, bar_task("fault_tolerant", slow) + '\n[method]\nname = "gpm"\nK = 50.0\n')
-    assert plan.metadata["summary"]["self_motion_limited_steps"] > 0
     robot = load_robot(slow)
-    task = fw.task_from_plan(plan, str(path), robot)
+    return plan, fw.task_from_plan(plan, str(path), robot), robot
+
+
+def test_self_motion_limiter_on_board(tmp_path):
+    """The strong null-space task: the planner scales the self-motion on many steps; the
+    controller's limiter does the same (its saturated joints land on their limits, not an ulp
+    above: the speed guard does not fire)."""
+    plan, task, robot = _strong_self_motion_task(tmp_path)
+    assert plan.metadata["summary"]["self_motion_limited_steps"] > 0
     run = fw.run_host(fw.FirmwareBuilder(robot, tmp_path / "fw").executable(fw.Variant("host", "double"), task))
     comparison = compare_with_plan(plan, run, task, "double", "limited")
     assert comparison.passed, comparison.rows
     assert comparison.max_dq <= FW_DOUBLE_BOUND_RAD
-
 
 
 def test_strong_self_motion_program_runs_in_float(tmp_path):
@@ -95,15 +100,12 @@ def test_strong_self_motion_program_runs_in_float(tmp_path):
     the GPM products J q̇ sums are large and cancel, so their float rounding alone exceeded the
     residual guard's command-relative bound (SINGULAR at tick 0); the guard also scales with
     those products. The run ends DONE within the float replay bound."""
-    slow = tmp_path / "baxter_slow.toml"
-    slow.write_text(BAXTER.read_text().replace("qdlim = 2.0", "qdlim = 0.5").replace("qdlim = 4.0", "qdlim = 1.0"))
-    path, plan = _plan("fault_tolerant", tmp_path, bar_task("fault_tolerant", slow) + '\n[method]\nname = "gpm"\nK = 50.0\n')
-    robot = load_robot(slow)
-    task = fw.task_from_plan(plan, str(path), robot)
+    plan, task, robot = _strong_self_motion_task(tmp_path)
     run = fw.run_host(fw.FirmwareBuilder(robot, tmp_path / "fw").executable(fw.Variant("host", "float", sanitize=True), task))
     comparison = compare_with_plan(plan, run, task, "float", "limited")
     assert comparison.passed, comparison.rows
     assert comparison.max_dq <= ISSUE_FLOAT_BAR_RAD
+
 
 def _first_q_moved(header: str) -> str:
     """q_start's first joint 0.01 rad away: FK(q_start) is no longer the table's first pose."""

@@ -247,7 +247,6 @@ def test_steps_finite_at_a_singular_pose():
         assert np.all(np.isfinite(qdot))
 
 
-
 def test_loop_calls_found_in_order_and_replayed():
     """Two fixed loops called in one function, the second on the first's result: calls_in_order
     names them in the algorithm's order (from each call instruction's own SX node), and the

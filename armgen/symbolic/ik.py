@@ -27,9 +27,9 @@ The step (damped least squares, Levenberg–Marquardt with Sugihara's damping):
 
 An attempt ends after ITERATIONS evaluations or as soon as it stalls (a step leaves ½‖e‖²
 above STALL_RATIO of the previous one); the next one moves the joints that the last step held
-at a limit, and their neighbours in the chain, to the next point of a deterministic sequence (a
-Kronecker sequence over the joint ranges) and steps on with the others (all move when none was held, and at every
-FULL_RESEED_EVERY-th attempt), up to ATTEMPTS attempts.
+at a limit, and their neighbours in the chain, to the next point of a deterministic sequence
+(a Kronecker sequence over the joint ranges) and steps on with the others (all move when none
+was held, and at every FULL_RESEED_EVERY-th attempt), up to ATTEMPTS attempts.
 The state carries the closest configuration seen (smallest ``½‖e‖²``), so a miss returns the
 closest one reached. ``max_iterations`` (≤ MAX_ITERATIONS) stops earlier: a bound on the time
 a call may take (on a Cortex-M4F, ~3.5k instructions per step of a 7-DOF arm: the float C
