@@ -98,6 +98,10 @@ FULL_RESEED_EVERY = 5
 # is near-singular). 1e-6 is above float's rounding of 1 − (a number near 1) (6e-8), so the
 # float step stays finite, and then damps that step as a floored pivot would.
 SHERMAN_MORRISON_FLOOR = 1e-6
+# The seed is turned about the first joint's axis only when the tool point and the target are
+# both farther than about this from that axis (m; as the product of their distances): nearer,
+# the direction to either is rounding.
+AZIMUTH_RADIUS = 1e-3
 # sin θ below this is treated as 0 in θ/sin θ (the axis-angle scale): representable in float.
 SIN_FLOOR = 1e-30
 # The closest error so far starts here (any finite error is smaller; float-representable).
@@ -188,14 +192,17 @@ def pose_error(tool: ca.SX, target: ca.SX) -> ca.SX:
     return ca.vertcat(target[:3, 3] - tool[:3, 3], v * (theta / ca.fmax(s, SIN_FLOOR)))
 
 
-def held_joint_step(jac: ca.SX, factor, q: ca.SX, trial: ca.SX, alpha: ca.SX, e: ca.SX, qmin, qmax) -> ca.SX:
-    """The step after the trial step ``trial − q``: the joint the trial drives furthest past a
-    limit (relative to its range; the first of equals) stops at that limit, and the others
-    re-solve for the error that leaves, ``Δq_F = α_F + J_Fᵀ (J_F J_Fᵀ + λI)⁻¹ (e − u δ − J α_F)``
-    (``u`` the held joint's column, ``δ`` its move). ``J_F J_Fᵀ + λI = G − u uᵀ`` is solved
-    through G's factor by Sherman–Morrison: two triangular solves instead of a second Gram
-    matrix and factorisation. Joints that still leave their range are clamped by the caller.
-    With no joint past a limit this is the trial step (u = 0)."""
+def held_joint_step(jac: ca.SX, factor, q: ca.SX, trial: ca.SX, alpha: ca.SX, solved: ca.SX, qmin, qmax) -> ca.SX:
+    """The step after the trial step ``trial − q = α + Jᵀ w`` (``solved`` = w = G⁻¹(e − J α),
+    G = J Jᵀ + λI): the joint the trial drives furthest past a limit (relative to its range; the
+    first of equals) stops at that limit, and the others re-solve for the error that leaves,
+    ``Δq_F = α_F + J_Fᵀ (G − u uᵀ)⁻¹ (e − u δ − J α_F)`` (``u`` the held joint's column, ``δ``
+    its move, ``J_F J_Fᵀ + λI = G − u uᵀ``). With ``s = δ − α_h`` the right-hand side is
+    ``(e − J α) − u s``, so by Sherman–Morrison, with ``b = G⁻¹ u``, the solution is
+    ``w + c b``, ``c = (uᵀw − s uᵀb)/(1 − uᵀb) − s``: one triangular solve pair and one Jᵀ
+    product beyond the trial's, no second Gram matrix or factorisation. Joints that still leave
+    their range are clamped by the caller. With no joint past a limit this is the trial step
+    (u = 0, δ = α_h = 0)."""
     n = q.shape[0]
     # signed excess past the nearer limit, relative to the range (negative inside); few
     # comparisons: each costs a compare, a flag transfer and a select on a Cortex-M4F
@@ -210,12 +217,12 @@ def held_joint_step(jac: ca.SX, factor, q: ca.SX, trial: ca.SX, alpha: ca.SX, e:
         taken = taken + held[i]
     held = ca.vertcat(*held)
     move = ca.dot(held, ca.fmin(ca.fmax(trial, qmin), qmax) - q)
+    shift = move - ca.dot(held, alpha)
     column = ca.mtimes(jac, held)
-    z = (1 - held) * alpha
-    a = ldl_solve(factor, e - column * move - ca.mtimes(jac, z))
     b = ldl_solve(factor, column)
-    y = a + b * (ca.dot(column, a) / ca.fmax(1 - ca.dot(column, b), SHERMAN_MORRISON_FLOOR))
-    return z + (1 - held) * ca.mtimes(jac.T, y) + held * move
+    ub = ca.dot(column, b)
+    scale = (ca.dot(column, solved) - shift * ub) / ca.fmax(1 - ub, SHERMAN_MORRISON_FLOOR) - shift
+    return (1 - held) * (trial - q + scale * ca.mtimes(jac.T, b)) + held * move
 
 
 class IKDefinition:
@@ -267,9 +274,10 @@ class IKDefinition:
         alpha = -NULL_STEP * ca.fmin(ca.sqrt(2 * energy), 1) * grad / ca.fmax(ca.norm_2(grad), 1)
         damping = DAMPING_SCALE * energy + DAMPING_FLOOR
         factor = ldl_factor(weighted_gram(jac) + damping * ca.SX.eye(len(self.rows)))
-        trial = q + alpha + ca.mtimes(jac.T, ldl_solve(factor, e - ca.mtimes(jac, alpha)))
+        solved = ldl_solve(factor, e - ca.mtimes(jac, alpha))
+        trial = q + alpha + ca.mtimes(jac.T, solved)
         free = ca.logic_and(trial >= qmin, trial <= qmax)
-        stepped = ca.fmin(ca.fmax(q + held_joint_step(jac, factor, q, trial, alpha, e, qmin, qmax), qmin), qmax)
+        stepped = ca.fmin(ca.fmax(q + held_joint_step(jac, factor, q, trial, alpha, solved, qmin, qmax), qmin), qmax)
         # a new attempt as soon as this one stalls, or after ITERATIONS evaluations: the joints the
         # step held at a limit move to the next point of the sequence and the others step on (a
         # stalled attempt is mostly right but for the joints a limit holds: with STALL_AFTER 3,
@@ -291,15 +299,17 @@ class IKDefinition:
         # keeps the attempt on the branch the limit blocks (panda, 3000 training poses each of
         # seeds 7, 11 and 13 at 1e-4: +0.24 to +0.33 % within 49 steps; the other arms ±0.1 %)
         moved = held + ca.vertcat(held[1:], 0) + ca.vertcat(0, held[:-1])  # nonzero: held or beside one
-        seed = ca.if_else(ca.logic_or(moved, afresh), sequence, stepped)
+        # one select per joint: a converged step's q is never read again (the state stops there
+        # and the answer is best_q, which takes this q); counters by arithmetic, exact on integers
+        reseeded = ca.logic_and(restart, ca.logic_or(moved, afresh))
         new = ca.vertcat(
-            ca.if_else(converged, q, ca.if_else(restart, seed, stepped)),
+            ca.if_else(reseeded, sequence, stepped),
             ca.if_else(closer, q, state[lay.best_q]),
             ca.if_else(closer, energy, state[lay.best_error]),
             ca.if_else(closer, pos, state[lay.best_position]),
             ca.if_else(closer, ori, state[lay.best_orientation]),
-            ca.if_else(restart, 0, state[lay.k] + 1),
-            ca.if_else(restart, attempt, state[lay.attempt]),
+            (state[lay.k] + 1) * (1 - restart),
+            state[lay.attempt] + restart,
             state[lay.iterations] + 1,
             converged,
             ca.if_else(restart, ERROR_START, energy),
@@ -308,9 +318,33 @@ class IKDefinition:
         return ca.Function(self._tag, [state, target, q_rest, use_rest, tol_p, tol_o, max_iterations], [nxt],
                            ["state", *STEP_CONSTANTS], ["next"])
 
-    def initial_state(self, q_seed: ca.SX) -> ca.SX:
+    def aligned_seed(self, q_seed: ca.SX, target: ca.SX, use_rest: ca.SX) -> ca.SX:
+        """The seed turned about the first joint's axis (a revolute one) so that the tool point
+        lies in the target's half-plane about that axis, then clamped to the limits: the base
+        rotation is the largest and least linear move toward a target beside or behind the arm,
+        where a damped least-squares run from the seed often stalls (panda, 3000 training poses
+        each of seeds 7 and 11: 69 → 78 % reached within 10 steps, 98.75 → 99.0 % within 49).
+        Not with ``use_rest`` = 1: the caller asks for an answer near q_rest, and its seed (by
+        default q_rest, e.g. the previous waypoint's solution) is kept as given."""
         robot = self.robot
         q = ca.fmin(ca.fmax(q_seed, robot.qmin), robot.qmax)
+        if not robot.joints[0].revolute:
+            return q
+        axis_frames, _, tool = chain(robot, q)
+        axis, origin = axis_frames[0][:3, 2], axis_frames[0][:3, 3]
+        a, b = tool[:3, 3] - origin, target[:3, 3] - origin
+        a, b = a - axis * ca.dot(axis, a), b - axis * ca.dot(axis, b)
+        sine, cosine = ca.dot(axis, ca.cross(a, b)), ca.dot(a, b)  # |a||b| (sin, cos) of the turn
+        turn = ca.atan2(sine, cosine) * ca.logic_and(sine * sine + cosine * cosine > AZIMUTH_RADIUS ** 4, use_rest == 0)
+        lo, hi = robot.qmin[0], robot.qmax[0]
+        first = q[0] + turn
+        # the same turn a revolution the other way when that lands inside the range
+        down = ca.logic_and(first > hi, first - 2 * math.pi >= lo)
+        up = ca.logic_and(first < lo, first + 2 * math.pi <= hi)
+        first = first - 2 * math.pi * down + 2 * math.pi * up
+        return ca.vertcat(ca.fmin(ca.fmax(first, lo), hi), q[1:])
+
+    def initial_state(self, q: ca.SX) -> ca.SX:
         return ca.vertcat(q, q, ERROR_START, ERROR_START, ERROR_START, 0, 0, 0, 0, ERROR_START, 0)
 
     def outputs(self, state: ca.SX) -> list[ca.SX]:
@@ -326,7 +360,7 @@ class IKDefinition:
         constants = [ca.SX.sym(step.name_in(k), step.sparsity_in(k).shape) for k in range(1, step.n_in())]
         q_seed = ca.SX.sym("q_seed", self.n)
         loop = fixed_loop(step, MAX_ITERATIONS, stop=self.layout.stopped, fused_float=True)
-        final = loop(self.initial_state(q_seed), *constants)
+        final = loop(self.initial_state(self.aligned_seed(q_seed, constants[0], constants[2])), *constants)
         return ca.Function("ik", [constants[0], q_seed, *constants[1:]], [ca.densify(x) for x in self.outputs(final)],
                            INPUT_NAMES, OUTPUT_NAMES)
 
