@@ -25,14 +25,15 @@ The step (damped least squares, Levenberg–Marquardt with Sugihara's damping):
   step (panda, 3000 poses of seed 11, tolerance 1e-4: 98.5 against 98.2 % within 49 steps,
   99.9 against 99.6 % within 100; iiwa14, modular8 and the Gen3 within ±0.1 %).
 
-An attempt ends after ITERATIONS evaluations or as soon as it stalls (a step leaves ½‖e‖²
+The first attempt starts from the seed turned about the first joint's axis toward the target
+(``aligned_seed``; not when ``use_rest`` = 1). An attempt ends after ITERATIONS evaluations or as soon as it stalls (a step leaves ½‖e‖²
 above STALL_RATIO of the previous one); the next one moves the joints that the last step held
 at a limit, and their neighbours in the chain, to the next point of a deterministic sequence
 (a Kronecker sequence over the joint ranges) and steps on with the others (all move when none
 was held, and at every FULL_RESEED_EVERY-th attempt), up to ATTEMPTS attempts.
 The state carries the closest configuration seen (smallest ``½‖e‖²``), so a miss returns the
 closest one reached. ``max_iterations`` (≤ MAX_ITERATIONS) stops earlier: a bound on the time
-a call may take (on a Cortex-M4F, ~3.5k instructions per step of a 7-DOF arm: the float C
+a call may take (on a Cortex-M4F, ~3.0k instructions per step of a 7-DOF arm: the float C
 lets the compiler fuse the step's multiply–adds, ``Loop.fused_float``). Once converged
 (position error ≤ ``tol_position`` and orientation error ≤ ``tol_orientation``) or out of
 steps, the step is the identity: the generated C leaves its loop there (``Loop.stop``) and the
@@ -355,7 +356,8 @@ class IKDefinition:
 
     @cached_property
     def function(self) -> ca.Function:
-        """``ik``: the step ITERATIONS × ATTEMPTS times (a fixed loop) from the clamped seed."""
+        """``ik``: the step ITERATIONS × ATTEMPTS times (a fixed loop) from the seed, turned
+        toward the target (aligned_seed) and clamped."""
         step = self.step
         constants = [ca.SX.sym(step.name_in(k), step.sparsity_in(k).shape) for k in range(1, step.n_in())]
         q_seed = ca.SX.sym("q_seed", self.n)

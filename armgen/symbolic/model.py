@@ -57,7 +57,8 @@ DESCRIPTIONS = {
     "step_wgpm": "multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from "
                  "sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains",
     "ik": "inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, "
-          "deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits); "
+          "deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and "
+          "q_seed first turned about the first joint's axis toward the target); "
           "success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else "
           "NOT_CONVERGED with the closest q reached",
 }
