@@ -375,3 +375,72 @@ def test_a_pose_solved_from_its_own_configuration_is_that_configuration(name, fr
     result = robot.ik(robot.fk(q), seed=q)
     assert result.success and result.iterations == 1
     np.testing.assert_array_equal(result.q, q)
+
+
+# Closed-form references agree with the SX to rounding: a few ulps of 1 m or 1 rad.
+REFERENCE_TOL = 1e-12
+
+
+def _symbolic(expression_builder, *shapes):
+    import casadi as ca
+    symbols = [ca.SX.sym(f"x{k}", *shape) for k, shape in enumerate(shapes)]
+    return ca.Function("f", symbols, [expression_builder(*symbols)])
+
+
+@pytest.mark.parametrize("name", ["panda", "iiwa14"])
+def test_the_seed_turns_about_the_first_axis_toward_the_target(name):
+    """The turned seed's tool point has the target's azimuth about the (vertical) first axis,
+    by the NumPy FK; the other joints are unchanged; with use_rest = 1 the seed is kept, and so
+    is a seed whose tool point lies on that axis (iiwa14 stretched upright)."""
+    robot = load_robot(name)
+    definition = ik.definition(robot)
+    turn = _symbolic(definition.aligned_seed, (robot.n, 1), (4, 4), (1, 1))
+    upright = np.zeros(robot.n)
+    if name == "iiwa14":
+        np.testing.assert_array_equal(np.asarray(turn(upright, robot.fk(robot.qmid + 0.5), 0.0)).ravel(), upright)
+    seed = robot.qmid + 0.4 * np.eye(robot.n)[1]  # the shoulder bent: the tool point off the axis
+    azimuth = lambda p: np.arctan2(p[1], p[0])  # noqa: E731 (both arms' first axis is the base z)
+    checked = 0
+    for target_q in random_configurations(robot, 40, seed=3):
+        target = robot.fk(target_q)
+        turned = np.asarray(turn(seed, target, 0.0)).ravel()
+        np.testing.assert_array_equal(turned[1:], seed[1:])
+        np.testing.assert_array_equal(np.asarray(turn(seed, target, 1.0)).ravel(), seed)
+        assert robot.qmin[0] <= turned[0] <= robot.qmax[0]
+        if robot.qmin[0] < turned[0] < robot.qmax[0]:  # not clamped: the azimuths agree
+            gap = azimuth(robot.fk(turned)[:3, 3]) - azimuth(target[:3, 3])
+            assert abs((gap + np.pi) % (2 * np.pi) - np.pi) < REFERENCE_TOL
+            checked += 1
+    assert checked >= 20
+
+
+def test_held_joint_step_is_the_reduced_least_squares_step():
+    """held_joint_step against NumPy: the held joint moves to its limit, and the others take
+    α_F + J_Fᵀ (J_F J_Fᵀ + λI)⁻¹ (e − u δ − J α_F) from a dense solve with its column removed."""
+    import casadi as ca
+    from armgen.symbolic.steps import ldl_factor, ldl_solve
+    rng = np.random.default_rng(5)
+    n, m = 7, 6
+    qmin, qmax = -np.ones(n), np.ones(n)
+    for _ in range(20):
+        jac, e, alpha = rng.normal(size=(m, n)), rng.normal(size=m), 0.1 * rng.normal(size=n)
+        q = rng.uniform(-0.9, 0.9, n)
+        lam = 0.05
+        J, E, A, Q = ca.SX.sym("J", m, n), ca.SX.sym("e", m), ca.SX.sym("a", n), ca.SX.sym("q", n)
+        factor = ldl_factor(J @ J.T + lam * ca.SX.eye(m))
+        solved = ldl_solve(factor, E - J @ A)
+        trial = Q + A + J.T @ solved
+        step = ca.Function("s", [J, E, A, Q], [ik.held_joint_step(J, factor, Q, trial, A, solved, qmin, qmax), trial])
+        got, trial_value = (np.asarray(x).ravel() for x in step(jac, e, alpha, q))
+        excess = np.maximum(trial_value - qmax, qmin - trial_value) / (qmax - qmin)
+        if excess.max() <= 0:
+            np.testing.assert_allclose(got, trial_value - q, atol=REFERENCE_TOL)
+            continue
+        h = int(np.argmax(excess))
+        move = np.clip(trial_value[h], qmin[h], qmax[h]) - q[h]
+        free = np.arange(n) != h
+        jf, af = jac[:, free], alpha[free]
+        expected = np.empty(n)
+        expected[h] = move
+        expected[free] = af + jf.T @ np.linalg.solve(jf @ jf.T + lam * np.eye(m), e - jac[:, h] * move - jf @ af)
+        np.testing.assert_allclose(got, expected, atol=1e-10)
