@@ -1,5 +1,6 @@
 """Inverse kinematics (armgen.symbolic.ik, Robot.ik): round trips, limits, batches, misses."""
 
+import casadi as ca
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -382,9 +383,12 @@ REFERENCE_TOL = 1e-12
 
 
 def _symbolic(expression_builder, *shapes):
-    import casadi as ca
     symbols = [ca.SX.sym(f"x{k}", *shape) for k, shape in enumerate(shapes)]
     return ca.Function("f", symbols, [expression_builder(*symbols)])
+
+
+def _azimuth(point):
+    return np.arctan2(point[1], point[0])  # about the base z: both arms' first axis
 
 
 @pytest.mark.parametrize("name", ["panda", "iiwa14"])
@@ -399,7 +403,6 @@ def test_the_seed_turns_about_the_first_axis_toward_the_target(name):
     if name == "iiwa14":
         np.testing.assert_array_equal(np.asarray(turn(upright, robot.fk(robot.qmid + 0.5), 0.0)).ravel(), upright)
     seed = robot.qmid + 0.8 * np.eye(robot.n)[1]  # the shoulder bent: the tool point off the axis
-    azimuth = lambda p: np.arctan2(p[1], p[0])  # noqa: E731 (both arms' first axis is the base z)
     checked = 0
     for target_q in random_configurations(robot, 40, seed=3):
         target = robot.fk(target_q)
@@ -411,7 +414,7 @@ def test_the_seed_turns_about_the_first_axis_toward_the_target(name):
         if np.hypot(goal[0], goal[1]) <= ik.AZIMUTH_MIN_SINE * np.linalg.norm(goal):  # near the axis: kept
             assert turned[0] == seed[0]
         elif robot.qmin[0] < turned[0] < robot.qmax[0]:  # not clamped: the azimuths agree
-            gap = azimuth(robot.fk(turned)[:3, 3]) - azimuth(target[:3, 3])
+            gap = _azimuth(robot.fk(turned)[:3, 3]) - _azimuth(target[:3, 3])
             assert abs((gap + np.pi) % (2 * np.pi) - np.pi) < REFERENCE_TOL
             checked += 1
     assert checked >= 20
@@ -420,7 +423,6 @@ def test_the_seed_turns_about_the_first_axis_toward_the_target(name):
 def test_held_joint_step_is_the_reduced_least_squares_step():
     """held_joint_step against NumPy: the held joint moves to its limit, and the others take
     α_F + J_Fᵀ (J_F J_Fᵀ + λI)⁻¹ (e − u δ − J α_F) from a dense solve with its column removed."""
-    import casadi as ca
     from armgen.symbolic.steps import ldl_factor, ldl_solve
     rng = np.random.default_rng(5)
     n, m = 7, 6

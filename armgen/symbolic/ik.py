@@ -26,11 +26,12 @@ The step (damped least squares, Levenberg–Marquardt with Sugihara's damping):
   99.9 against 99.6 % within 100; iiwa14, modular8 and the Gen3 within ±0.1 %).
 
 The first attempt starts from the seed turned about the first joint's axis toward the target
-(``aligned_seed``; not when ``use_rest`` = 1). An attempt ends after ITERATIONS evaluations or as soon as it stalls (a step leaves ½‖e‖²
-above STALL_RATIO of the previous one); the next one moves the joints that the last step held
-at a limit, and their neighbours in the chain, to the next point of a deterministic sequence
-(a Kronecker sequence over the joint ranges) and steps on with the others (all move when none
-was held, and at every FULL_RESEED_EVERY-th attempt), up to ATTEMPTS attempts.
+(``aligned_seed``; not when ``use_rest`` = 1). An attempt ends after ITERATIONS evaluations or
+as soon as it stalls (a step leaves ½‖e‖² above STALL_RATIO of the previous one); the next
+one moves the joints that the last step held at a limit, and their neighbours in the chain, to
+the next point of a deterministic sequence (a Kronecker sequence over the joint ranges) and
+steps on with the others (all move when none was held, and at every FULL_RESEED_EVERY-th
+attempt), up to ATTEMPTS attempts.
 The state carries the closest configuration seen (smallest ``½‖e‖²``), so a miss returns the
 closest one reached. ``max_iterations`` (≤ MAX_ITERATIONS) stops earlier: a bound on the time
 a call may take (on a Cortex-M4F, ~3.0k instructions per step of a 7-DOF arm: the float C
@@ -329,7 +330,8 @@ class IKDefinition:
         where a damped least-squares run from the seed often stalls (panda, 3000 training poses
         each of seeds 7 and 11: 69 → 78 % reached within 10 steps, 98.75 → 99.0 % within 49).
         Not with ``use_rest`` = 1: the caller asks for an answer near q_rest, and its seed (by
-        default q_rest, e.g. the previous waypoint's solution) is kept as given."""
+        default q_rest, e.g. the previous waypoint's solution) is kept as given; nor when the
+        tool point or the target lies near the axis (AZIMUTH_MIN_SINE)."""
         robot = self.robot
         q = ca.fmin(ca.fmax(q_seed, robot.qmin), robot.qmax)
         if not robot.joints[0].revolute:
