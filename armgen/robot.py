@@ -191,7 +191,9 @@ class Robot(RobotDescription):
             limits), and the first attempt starts from it unless ``seed`` is given.
         seed
             The first attempt's start: a named configuration or joint values (default: ``q0``,
-            else the middle of the limits).
+            else the middle of the limits). Without ``q0`` the start is first turned about the
+            first joint's axis toward the target when both reach out from that axis
+            (docs/ik.md, Method).
         tol_position, tol_orientation
             Success thresholds (m, rad; default 1e-6 each).
         max_iterations

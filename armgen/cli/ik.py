@@ -35,7 +35,8 @@ def _joints(robot, text: str, option: str, angle_scale: float) -> np.ndarray:
 @click.option("--rpy", nargs=3, type=float, default=(0.0, 0.0, 0.0), show_default=True,
               help="tool orientation, R = Rz(yaw) Ry(pitch) Rx(roll) [--units]")
 @click.option("--seed", default=None, help="first start: a configuration name or n joint values (default: --q0, "
-                                           "else the middle of the limits)")
+                                           "else the middle of the limits; without --q0 first turned about the "
+                                           "first joint's axis toward the target)")
 @click.option("--q0", default=None, help="stay near this configuration (name or values; default: away from the "
                                          "joint limits)")
 @click.option("--max-iterations", type=click.IntRange(1, None), default=None,
