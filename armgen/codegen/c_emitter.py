@@ -11,6 +11,7 @@ CasADi) becomes scalar locals, which the C compiler keeps in registers.
 
 from __future__ import annotations
 
+import heapq
 from collections import Counter
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -165,6 +166,8 @@ class _Statement:
     lines: list[str]
     writes: tuple[int, ...]
     reads: tuple[int, ...]
+    op: int = -1  # the SX operation (OP_*), -1 for a call
+    constant: float | None = None  # the value an OP_CONST writes
 
 
 def _live(statements: list[_Statement]) -> list[_Statement]:
@@ -182,14 +185,183 @@ def _live(statements: list[_Statement]) -> list[_Statement]:
     return kept[::-1]
 
 
+# The op of a select fused from CasADi's if_else (if_else_zero(c, x) + if_else_zero(!c, y)).
+_SELECT = -2
+
+
+def _fused_selects(statements: list[_Statement], macro_prefix: str) -> list[_Statement]:
+    """CasADi's SX ``if_else(c, x, y)`` is ``if_else_zero(c, x) + if_else_zero(!c, y)``: the sum
+    becomes one select ``(c ? x : y) + 0`` (``x + 0`` is x but for −0, which the sum turns
+    into +0 as well, so the value is the same to the bit)."""
+    writer = {w: st for st in statements for w in st.writes}
+    unsigned = set()  # registers that cannot hold −0 (a select's x + 0)
+    fused = []
+    for st in statements:
+        if st.op == ca.OP_ADD and st.reads[0] != st.reads[1]:
+            left, right = writer.get(st.reads[0]), writer.get(st.reads[1])
+            if left and right and left.op == right.op == ca.OP_IF_ELSE_ZERO:
+                for (cond, then), (negated, other) in ((left.reads, right.reads), (right.reads, left.reads)):
+                    if writer.get(negated) is not None and writer[negated].op == ca.OP_NOT \
+                            and writer[negated].reads == (cond,):
+                        known = writer[cond].constant if cond in writer else None
+                        if known is not None:  # a constant condition: the side it takes
+                            taken = then if known != 0.0 else other
+                            plus = "" if taken in unsigned else f" + {macro_prefix}_LIT(0.0)"
+                            st = _Statement([f"w{st.writes[0]} = w{taken}{plus};"], st.writes, (taken,), ca.OP_ASSIGN)
+                            unsigned.add(st.writes[0])
+                            break
+                        text = (f"w{st.writes[0]} = ((w{cond} != {macro_prefix}_LIT(0.0)) ? w{then} : w{other})"
+                                f" + {macro_prefix}_LIT(0.0);")
+                        st = _Statement([text], st.writes, (cond, then, other), _SELECT)
+                        unsigned.add(st.writes[0])
+                        break
+        fused.append(st)
+    return _live(fused)
+
+
+def _branched(body: list[_Statement], macro_prefix: str) -> list[str]:
+    """The statements (selects fused, :func:`_fused_selects`) with each select's sides as an
+    ``if``/``else``: a statement whose value only one side of the selects on one condition
+    reads (directly or through other such statements) moves into that side, so it runs only
+    when that side is taken (the restart code of a solver step: once per restart instead of
+    every step). The same operations on the same operands, so the same values. The selects
+    on one condition share one block; blocks and statements keep their order but where a
+    reader must follow a block."""
+    writes = [w for st in body for w in st.writes]
+    if len(writes) != len(set(writes)):
+        raise ArmgenError("internal: branched emission needs each work register written once")
+    plain: set[int] = set()  # selects emitted as one line
+    while True:
+        owner, groups = _owners(body, plain)
+        owning = {key[1] for key in owner if key is not None}
+        empty = {k for group, members in groups.items() if group not in owning for k in members}
+        if empty:
+            plain |= empty
+            continue
+        try:
+            return _emit_level(body, owner, groups, None, macro_prefix)
+        except _Unordered as err:
+            plain |= set(groups[err.group])
+
+
+class _Unordered(Exception):
+    """A select group's block would have to come both before and after another statement."""
+
+    def __init__(self, group: tuple):
+        super().__init__(group)
+        self.group = group
+
+
+def _owners(body: list[_Statement], plain: set[int]) -> tuple[list, dict]:
+    """Each statement's owner, ``(side, group)`` or None (top level), and each group's selects
+    (positions, in order); a group is ``(its selects' owner, condition register)``. Outputs
+    and calls stay at the top level."""
+    users: dict[int, list[int]] = {}
+    for k, st in enumerate(body):
+        for r in set(st.reads):
+            users.setdefault(r, []).append(k)
+    owner: list = [None] * len(body)
+    group_of: dict[int, tuple] = {}
+    groups: dict[tuple, list[int]] = {}
+    for k in reversed(range(len(body))):  # every reader of statement k comes after it
+        st = body[k]
+        if st.writes and st.op != -1:
+            value, keys = st.writes[0], set()
+            for u in users.get(value, []):
+                if u in group_of:
+                    cond, then, other = body[u].reads
+                    side = "then" if value == then and value not in (cond, other) else \
+                        "else" if value == other and value not in (cond, then) else None
+                    keys.add((side, group_of[u]) if side else None)
+                else:
+                    keys.add(owner[u])
+            owner[k] = keys.pop() if len(keys) == 1 else None
+        if st.op == _SELECT and k not in plain:
+            group_of[k] = (owner[k], st.reads[0])
+            groups.setdefault(group_of[k], []).insert(0, k)
+    return owner, groups
+
+
+def _emit_level(body: list[_Statement], owner: list, groups: dict, key, macro_prefix: str) -> list[str]:
+    """The lines of the statements owned by ``key`` (None: the top level), each select group
+    as one block: in their order, but a statement that reads a block's select comes after it
+    (a stable topological order; a block that cannot be placed raises _Unordered)."""
+    member_group = {k: group for group, members in groups.items() for k in members}
+    items = []  # (position, reads, writes, group or statement position)
+    for k, st in enumerate(body):
+        if owner[k] != key:
+            continue
+        if k in member_group:
+            group = member_group[k]
+            if k == groups[group][0]:
+                inner = [i for i in range(len(body)) if _within(owner, i, group)] + groups[group]
+                written = {w for i in inner for w in body[i].writes}
+                read = {r for i in inner for r in body[i].reads} - written
+                items.append((groups[group][-1], read, {body[m].writes[0] for m in groups[group]}, group))
+            continue
+        items.append((k, set(st.reads), set(st.writes), k))
+    producer = {w: n for n, item in enumerate(items) for w in item[2]}
+    waiting = [sum(1 for r in item[1] if r in producer) for item in items]
+    readers: dict[int, list[int]] = {}
+    for n, item in enumerate(items):
+        for r in item[1]:
+            if r in producer:
+                readers.setdefault(producer[r], []).append(n)
+    ready = [(items[n][0], n) for n in range(len(items)) if waiting[n] == 0]
+    heapq.heapify(ready)
+    lines: list[str] = []
+    while ready:
+        _, n = heapq.heappop(ready)
+        what = items[n][3]
+        lines += body[what].lines if isinstance(what, int) else _block(body, owner, groups, what, macro_prefix)
+        for reader in readers.get(n, []):
+            waiting[reader] -= 1
+            if waiting[reader] == 0:
+                heapq.heappush(ready, (items[reader][0], reader))
+    stuck = [items[n][3] for n in range(len(items)) if waiting[n] > 0 and not isinstance(items[n][3], int)]
+    if stuck:
+        raise _Unordered(stuck[0])
+    return lines
+
+
+def _within(owner: list, k: int, group: tuple) -> bool:
+    """Whether statement k sits in one of the group's sides (at any depth)."""
+    key = owner[k]
+    while key is not None:
+        if key[1] == group:
+            return True
+        key = key[1][0]
+    return False
+
+
+def _block(body: list[_Statement], owner: list, groups: dict, group: tuple, macro_prefix: str) -> list[str]:
+    """``if (c) { then side; selects = then operands } else { … }``."""
+    zero = f"{macro_prefix}_LIT(0.0)"
+    members = groups[group]
+    lines = [f"if (w{group[1]} != {zero}) {{"]
+    for side, operand in (("then", 1), ("else", 2)):
+        if side == "else":
+            lines.append("} else {")
+        inner = _emit_level(body, owner, groups, (side, group), macro_prefix)
+        inner += [f"w{body[m].writes[0]} = w{body[m].reads[operand]} + {zero};" for m in members]
+        lines += ["  " + line for line in inner]
+    lines.append("}")
+    return lines
+
+
 def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], res_names: list[str],
-              res_scalar: list[bool], macro_prefix: str, indent: str = "  ", trig_table: bool = False) -> EmittedFunction:
+              res_scalar: list[bool], macro_prefix: str, indent: str = "  ", trig_table: bool = False,
+              branches: bool = False, zero_entries: frozenset = frozenset()) -> EmittedFunction:
     """The statements of ``func``'s SX algorithm as C; inputs/outputs by the given names.
 
     Outputs must be dense (see ``casadi.densify``); the nonzero index then equals the
     column-major element index. A scalar input is a value, a scalar output ``x`` is ``*x``.
     ``trig_table``: the sin and cos of every angle come first, from one call of the header's
     ``<p>_sincos_table`` (a loop a compiler may vectorise), and the body reads them.
+    ``branches``: the selects become ``if``/``else`` blocks that compute what only one side
+    reads (:func:`_branched`); ``func`` must write each work register once
+    (``live_variables`` off). ``zero_entries``: (input, nonzero) pairs the caller guarantees
+    to be zero where the body runs (a loop's stop entry), read as the constant.
     """
     if not func.is_a("SXFunction"):
         raise ArmgenError(f"function {func.name()} is not an SX function")
@@ -220,6 +392,10 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
             counts["trig"] += 1
             statements.append(_Statement([f"w{outs[0]} = trig_{'sin' if op == ca.OP_SIN else 'cos'}[{table[k]}];"],
                                          (outs[0],), ()))
+        elif op == ca.OP_INPUT and (ins[0], ins[1]) in zero_entries:
+            counts["input"] += 1
+            statements.append(_Statement([f"w{outs[0]} = {c_literal(0.0, macro_prefix)};"], (outs[0],), (),
+                                         ca.OP_CONST, 0.0))
         elif op == ca.OP_INPUT:
             counts["input"] += 1
             statements.append(_Statement([f"w{outs[0]} = {_input_text(arg_names, arg_scalar, ins)};"], (outs[0],), ()))
@@ -229,18 +405,19 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
             statements.append(_Statement([f"{target} = w{ins[0]};"], (), (ins[0],)))
         elif op == ca.OP_CONST:
             counts["const"] += 1
-            statements.append(_Statement([f"w{outs[0]} = {c_literal(func.instruction_constant(k), macro_prefix)};"],
-                                         (outs[0],), ()))
+            value = func.instruction_constant(k)
+            statements.append(_Statement([f"w{outs[0]} = {c_literal(value, macro_prefix)};"], (outs[0],), (),
+                                         op, value))
         elif op in _BINARY:
             category, template = _BINARY[op]
             counts[category] += 1
             expr = template.format(a=f"w{ins[0]}", b=f"w{ins[1]}", P=macro_prefix, p=macro_prefix.lower())
-            statements.append(_Statement([f"w{outs[0]} = {expr};"], (outs[0],), (ins[0], ins[1])))
+            statements.append(_Statement([f"w{outs[0]} = {expr};"], (outs[0],), (ins[0], ins[1]), op))
         elif op in _UNARY:
             category, template = _UNARY[op]
             counts[category] += 1
             expr = template.format(a=f"w{ins[0]}", P=macro_prefix, p=macro_prefix.lower())
-            statements.append(_Statement([f"w{outs[0]} = {expr};"], (outs[0],), (ins[0],)))
+            statements.append(_Statement([f"w{outs[0]} = {expr};"], (outs[0],), (ins[0],), op))
         elif op == ca.OP_CALL:
             loop = _called_loop(func, next(callees))
             counts.update({category: n * loop.count for category, n in _step_counts(loop).items()})
@@ -249,9 +426,10 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
                                          tuple(i for i in ins if i >= 0)))
         else:
             raise ArmgenError(f"function {func.name()}: CasADi operation {op} has no C translation in armgen")
-    for statement in _live(statements):
-        lines += statement.lines
+    kept = _fused_selects(_live(statements), macro_prefix) if branches else _live(statements)
+    for statement in kept:
         used.update(statement.writes)
+    lines += _branched(kept, macro_prefix) if branches else [line for statement in kept for line in statement.lines]
     read_args = {func.instruction_input(k)[0] for k in range(func.n_instructions())
                  if func.instruction_id(k) == ca.OP_INPUT}
     # an input the expression does not depend on (e.g. q of a constant criterion) is still
@@ -341,9 +519,16 @@ def _step_counts(loop: Loop) -> dict[str, int]:
 
 
 def emit_loop_step(loop: Loop, macro_prefix: str) -> EmittedFunction:
+    """The step's statements, its selects as branches (a loop step is where the work a select
+    discards costs most): the same SX with one work register per instruction."""
     step = loop.step
-    return emit_body(step, ["current", *step.name_in()[1:]], [False] * step.n_in(), ["next"], [False],
-                     macro_prefix, indent="    ")
+    inputs = step.sx_in()
+    single = ca.Function(step.name(), inputs, step.call(inputs), step.name_in(), step.name_out(),
+                         {"live_variables": False})
+    # the loop leaves before a step whose stop entry is nonzero: the body reads it as zero
+    stop = frozenset() if loop.stop is None else frozenset({(0, loop.stop)})
+    return emit_body(single, ["current", *step.name_in()[1:]], [False] * step.n_in(), ["next"], [False],
+                     macro_prefix, indent="    ", branches=True, zero_entries=stop)
 
 
 def emit_loop(loop: Loop, macro_prefix: str) -> tuple[str, str]:
@@ -361,16 +546,20 @@ def emit_loop(loop: Loop, macro_prefix: str) -> tuple[str, str]:
     definition = "\n".join([
         f"/* {fn.name()}: {step.name()} {count} times ({describe_counts(body.op_counts)} each) */",
         f"{signature} {{",
-        f"  {p}_real current[{size}];",
+        f"  {p}_real state_a[{size}], state_b[{size}];",
+        f"  {p}_real *current = state_a;",
+        f"  {p}_real *next = state_b;",
+        f"  {p}_real *swap;",
         "  int k;",
         "  int i;",
         f"  for (i = 0; i < {size}; ++i) {{ current[i] = {first}[i]; }}",
         f"  for (k = 0; k < {count}; ++k) {{",
-        f"    {p}_real next[{size}];",
         *([f"    if (current[{loop.stop}] != {macro_prefix}_LIT(0.0)) {{ break; }}  /* finished: the rest are the identity */"]
           if loop.stop is not None else []),
         body.body,
-        f"    for (i = 0; i < {size}; ++i) {{ current[i] = next[i]; }}",
+        "    swap = current;  /* the next state becomes the current one: no copy */",
+        "    current = next;",
+        "    next = swap;",
         "  }",
         f"  for (i = 0; i < {size}; ++i) {{ final[i] = current[i]; }}",
         "}",

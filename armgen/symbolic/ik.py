@@ -197,6 +197,17 @@ def pose_error(tool: ca.SX, target: ca.SX) -> ca.SX:
     return ca.vertcat(target[:3, 3] - tool[:3, 3], v * (theta / ca.fmax(s, SIN_FLOOR)))
 
 
+def _turned_back(target: ca.SX, axis_frame: ca.SX, angle: ca.SX) -> ca.SX:
+    """The target turned by −angle about the axis of ``axis_frame`` (its z through its origin):
+    Rodrigues' rotation, applied to the target's frame and to its position about the origin."""
+    axis, origin = axis_frame[:3, 2], axis_frame[:3, 3]
+    cross = ca.skew(axis)
+    rotation = ca.SX.eye(3) - ca.sin(angle) * cross + (1 - ca.cos(angle)) * ca.mtimes(cross, cross)
+    return ca.vertcat(ca.horzcat(ca.mtimes(rotation, target[:3, :3]),
+                                 origin + ca.mtimes(rotation, target[:3, 3] - origin)),
+                      target[3, :])
+
+
 def held_joint_step(jac: ca.SX, factor, q: ca.SX, trial: ca.SX, alpha: ca.SX, solved: ca.SX, qmin, qmax) -> ca.SX:
     """The step after the trial step ``trial − q = α + Jᵀ w`` (``solved`` = w = G⁻¹(e − J α),
     G = J Jᵀ + λI): the joint the trial drives furthest past a limit (relative to its range; the
@@ -273,16 +284,30 @@ class IKDefinition:
         pos, ori = self._errors(e)
         converged = ca.logic_and(pos <= tol_p, ori <= tol_o)
         closer = ca.logic_or(energy < state[lay.best_error], converged)
+        # the first evaluation of a restarted attempt steps from its configuration turned about
+        # the first axis toward the target (as the seed, aligned_seed), without an evaluation of
+        # its own: the turned configuration's J and e are this one's rotated by the turn, so its
+        # step is this one's toward the target turned back; the C computes the turn only then
+        # (a branch of the selects on ``turning``)
+        turning = ca.logic_and(ca.logic_and(state[lay.k] == 0, state[lay.attempt] > 0), use_rest == 0)
+        base, e_step = q, e
+        if robot.joints[0].revolute:
+            first, turn = self._turned_first(q, axis_frames, tool, target)
+            first = ca.if_else(turn, first, q[0])  # near the axis: no turn (e_turned is then e)
+            e_turned = pose_error(tool, _turned_back(target, axis_frames[0], first - q[0]))[self.rows]
+            e_step = ca.if_else(turning, e_turned, e)
+            base = ca.vertcat(ca.if_else(turning, first, q[0]), q[1:])
+        energy_step = 0.5 * ca.dot(e_step, e_step)
         # self-motion: descent on the criterion, at most NULL_STEP long
         grad = ((1 - use_rest) * ca.gradient(criteria.zghal_safe(q, qmin.tolist(), qmax.tolist()), q)
                 + use_rest * (q - q_rest))
-        alpha = -NULL_STEP * ca.fmin(ca.sqrt(2 * energy), 1) * grad / ca.fmax(ca.norm_2(grad), 1)
-        damping = DAMPING_SCALE * energy + DAMPING_FLOOR
+        alpha = -NULL_STEP * ca.fmin(ca.sqrt(2 * energy_step), 1) * grad / ca.fmax(ca.norm_2(grad), 1)
+        damping = DAMPING_SCALE * energy_step + DAMPING_FLOOR
         factor = ldl_factor(weighted_gram(jac) + damping * ca.SX.eye(len(self.rows)))
-        solved = ldl_solve(factor, e - ca.mtimes(jac, alpha))
-        trial = q + alpha + ca.mtimes(jac.T, solved)
+        solved = ldl_solve(factor, e_step - ca.mtimes(jac, alpha))
+        trial = base + alpha + ca.mtimes(jac.T, solved)
         free = ca.logic_and(trial >= qmin, trial <= qmax)
-        stepped = ca.fmin(ca.fmax(q + held_joint_step(jac, factor, q, trial, alpha, solved, qmin, qmax), qmin), qmax)
+        stepped = ca.fmin(ca.fmax(base + held_joint_step(jac, factor, base, trial, alpha, solved, qmin, qmax), qmin), qmax)
         # a new attempt as soon as this one stalls, or after ITERATIONS evaluations: the joints the
         # step held at a limit move to the next point of the sequence and the others step on (a
         # stalled attempt is mostly right but for the joints a limit holds: with STALL_AFTER 3,
@@ -305,8 +330,10 @@ class IKDefinition:
         # seeds 7, 11 and 13 at 1e-4: +0.24 to +0.33 % within 49 steps; the other arms ±0.1 %)
         moved = held + ca.vertcat(held[1:], 0) + ca.vertcat(0, held[:-1])  # nonzero: held or beside one
         # one select per joint: a converged step's q is never read again (the state stops there
-        # and the answer is best_q, which takes this q); counters by arithmetic, exact on integers
-        reseeded = ca.logic_and(restart, ca.logic_or(moved, afresh))
+        # and the answer is best_q, which takes this q); counters by arithmetic, exact on integers.
+        # Which joints to reseed is a select on ``restart`` (not a product), so that the C
+        # works it out only at a restart (a branch)
+        reseeded = ca.if_else(restart, ca.logic_or(moved, afresh), 0)
         new = ca.vertcat(
             ca.if_else(reseeded, sequence, stepped),
             ca.if_else(closer, q, state[lay.best_q]),
@@ -337,20 +364,27 @@ class IKDefinition:
         if not robot.joints[0].revolute:
             return q
         axis_frames, _, tool = chain(robot, q)
+        first, turn = self._turned_first(q, axis_frames, tool, target)
+        return ca.vertcat(ca.if_else(ca.logic_and(turn, use_rest == 0), first, q[0]), q[1:])
+
+    def _turned_first(self, q: ca.SX, axis_frames, tool: ca.SX, target: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """(the first joint turned so that the tool point lies in the target's half-plane about
+        its axis, then wrapped by a revolution or clamped into its range; whether to turn: both
+        points off the axis, AZIMUTH_MIN_SINE)."""
+        robot = self.robot
         axis, origin = axis_frames[0][:3, 2], axis_frames[0][:3, 3]
         reach, goal = tool[:3, 3] - origin, target[:3, 3] - origin
         a, b = reach - axis * ca.dot(axis, reach), goal - axis * ca.dot(axis, goal)  # off the axis
         sine, cosine = ca.dot(axis, ca.cross(a, b)), ca.dot(a, b)  # |a||b| (sin, cos) of the turn
         off_axis = ca.logic_and(ca.dot(a, a) > AZIMUTH_MIN_SINE ** 2 * ca.dot(reach, reach),
                                 ca.dot(b, b) > AZIMUTH_MIN_SINE ** 2 * ca.dot(goal, goal))
-        turn = ca.atan2(sine, cosine) * ca.logic_and(off_axis, use_rest == 0)
         lo, hi = robot.qmin[0], robot.qmax[0]
-        first = q[0] + turn
+        first = q[0] + ca.atan2(sine, cosine)
         # the same turn a revolution the other way when that lands inside the range
         down = ca.logic_and(first > hi, first - 2 * math.pi >= lo)
         up = ca.logic_and(first < lo, first + 2 * math.pi <= hi)
         first = first - 2 * math.pi * down + 2 * math.pi * up
-        return ca.vertcat(ca.fmin(ca.fmax(first, lo), hi), q[1:])
+        return ca.fmin(ca.fmax(first, lo), hi), off_axis
 
     def initial_state(self, q: ca.SX) -> ca.SX:
         return ca.vertcat(q, q, ERROR_START, ERROR_START, ERROR_START, 0, 0, 0, 0, ERROR_START, 0)
