@@ -185,14 +185,16 @@ def _live(statements: list[_Statement]) -> list[_Statement]:
     return kept[::-1]
 
 
-# The op of a select fused from CasADi's if_else (if_else_zero(c, x) + if_else_zero(!c, y)).
+# The op of a select: fused from CasADi's if_else (if_else_zero(c, x) + if_else_zero(!c, y);
+# reads c, x, y) or an if_else_zero(c, x) on its own (reads c, x; else 0).
 _SELECT = -2
 
 
 def _fused_selects(statements: list[_Statement], macro_prefix: str) -> list[_Statement]:
     """CasADi's SX ``if_else(c, x, y)`` is ``if_else_zero(c, x) + if_else_zero(!c, y)``: the sum
     becomes one select ``(c ? x : y) + 0`` (``x + 0`` is x but for −0, which the sum turns
-    into +0 as well, so the value is the same to the bit)."""
+    into +0 as well, so the value is the same to the bit). An ``if_else_zero`` left on its own
+    is a select too (``c ? x : 0``, as CasADi evaluates it)."""
     writer = {w: st for st in statements for w in st.writes}
     unsigned = set()  # registers that cannot hold −0 (a select's x + 0)
     fused = []
@@ -216,7 +218,8 @@ def _fused_selects(statements: list[_Statement], macro_prefix: str) -> list[_Sta
                         unsigned.add(st.writes[0])
                         break
         fused.append(st)
-    return _live(fused)
+    return [_Statement(st.lines, st.writes, st.reads, _SELECT) if st.op == ca.OP_IF_ELSE_ZERO else st
+            for st in _live(fused)]
 
 
 def _branched(body: list[_Statement], macro_prefix: str) -> list[str]:
@@ -269,9 +272,10 @@ def _owners(body: list[_Statement], plain: set[int]) -> tuple[list, dict]:
             value, keys = st.writes[0], set()
             for u in users.get(value, []):
                 if u in group_of:
-                    cond, then, other = body[u].reads
+                    cond, then, *rest = body[u].reads
+                    other = rest[0] if rest else None
                     side = "then" if value == then and value not in (cond, other) else \
-                        "else" if value == other and value not in (cond, then) else None
+                        "else" if value == other and value not in (cond, then) else None  # other None: 0
                     keys.add((side, group_of[u]) if side else None)
                 else:
                     keys.add(owner[u])
@@ -343,10 +347,18 @@ def _block(body: list[_Statement], owner: list, groups: dict, group: tuple, macr
         if side == "else":
             lines.append("} else {")
         inner = _emit_level(body, owner, groups, (side, group), macro_prefix)
-        inner += [f"w{body[m].writes[0]} = w{body[m].reads[operand]} + {zero};" for m in members]
+        inner += [_assignment(body[m], operand, zero) for m in members]
         lines += ["  " + line for line in inner]
     lines.append("}")
     return lines
+
+
+def _assignment(select: _Statement, operand: int, zero: str) -> str:
+    """A select's value on one side: a fused select's operand + 0, a lone one's x or 0."""
+    out = select.writes[0]
+    if len(select.reads) == 3:
+        return f"w{out} = w{select.reads[operand]} + {zero};"
+    return f"w{out} = w{select.reads[1]};" if operand == 1 else f"w{out} = {zero};"
 
 
 def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], res_names: list[str],

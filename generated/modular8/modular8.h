@@ -450,7 +450,7 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_WORK_REALS 248
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 388848 add, 387532 mul, 31950 div, 2700 sqrt, 9465 trig, 34668 minmax, 46812 compare, 51302 select; work: 39 reals. */
+ * ops: 388848 add, 387532 mul, 31950 div, 2700 sqrt, 9465 trig, 27468 minmax, 54012 compare, 58502 select; work: 39 reals. */
 #define MODULAR8_IK_T_TARGET_ROWS 4
 #define MODULAR8_IK_T_TARGET_COLS 4
 #define MODULAR8_IK_Q_SEED_ROWS 8

@@ -449,7 +449,7 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 #define PLANAR3_STEP_WGPM_WORK_REALS 70
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 116123 add, 100385 mul, 12600 div, 2250 sqrt, 4957 trig, 15758 minmax, 28812 compare, 28352 select; work: 29 reals. */
+ * ops: 116123 add, 100385 mul, 12600 div, 2250 sqrt, 4957 trig, 13058 minmax, 31512 compare, 31052 select; work: 29 reals. */
 #define PLANAR3_IK_T_TARGET_ROWS 4
 #define PLANAR3_IK_T_TARGET_COLS 4
 #define PLANAR3_IK_Q_SEED_ROWS 3

@@ -449,7 +449,7 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_WORK_REALS 749
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 1018350 add, 949050 mul, 69750 div, 2250 sqrt, 22050 trig, 94550 minmax, 100350 compare, 112950 select; work: 73 reals. */
+ * ops: 1018350 add, 949050 mul, 69750 div, 2250 sqrt, 22050 trig, 72050 minmax, 122400 compare, 135000 select; work: 73 reals. */
 #define SNAKE12_IK_T_TARGET_ROWS 4
 #define SNAKE12_IK_T_TARGET_COLS 4
 #define SNAKE12_IK_Q_SEED_ROWS 25
