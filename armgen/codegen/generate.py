@@ -264,12 +264,26 @@ BOUNDED_TRIG_RANGE = 100
 BOUNDED_ATAN2_ULP = 4
 
 
-def _lean_math(p: str, P: str) -> str:
+def _lean_math(p: str, P: str, math: list[str]) -> str:
     """Static inline math of the generated header (also used by the firmware through <P>_SQRT …):
     fmin/fmax (C99 semantics: a NaN operand yields the other) need no library call; sqrt is the
-    FPU's vsqrt.f32 on a Cortex-M with a single-precision FPU (no errno path); the optional
-    branch-free bounded-range sin/cos, and the sin/cos table the kinematics fill first.
-    Everything else goes to libm."""
+    FPU's vsqrt.f32 on a Cortex-M with a single-precision FPU (no errno path); the float floor
+    (when the source calls floor) by a conversion to an integer, exact (the call and its spills
+    cost more than the arithmetic on a Cortex-M4F); the optional branch-free bounded-range
+    sin/cos, and the sin/cos table the kinematics fill first. Everything else goes to libm."""
+    floor = "" if "FLOOR" not in math else f"""#if {P}_USE_FLOAT
+/* floor(x) by a conversion to an integer (exact: |x| >= 2^23 is already integral, and NaN,
+ * inf and -0 are their own floor): no library call, whose spills cost more on a Cortex-M4F. */
+static inline float {p}_floorf(float x) {{
+  float r = x;
+  if ((fabsf(x) < 8388608.0f) && (x != 0.0f)) {{
+    const float t = (float)(long)x;
+    r = (t > x) ? (t - 1.0f) : t;
+  }}
+  return r;
+}}
+#endif
+"""
     return f"""/* Lean math (no library calls where the FPU or a comparison does the job). */
 static inline {p}_real {p}_fmin({p}_real a, {p}_real b) {{ return ((a < b) || (b != b)) ? a : b; }}
 static inline {p}_real {p}_fmax({p}_real a, {p}_real b) {{ return ((a > b) || (b != b)) ? a : b; }}
@@ -284,7 +298,7 @@ static inline {p}_real {p}_sqrt({p}_real x) {{
   return sqrt(x);
 #endif
 }}
-#if defined(__GNUC__)
+{floor}#if defined(__GNUC__)
 #define {P}_TRIG_INLINE static inline __attribute__((always_inline))
 #else
 #define {P}_TRIG_INLINE static inline
@@ -385,7 +399,7 @@ def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str
     guard = f"{P}_H"
     float_default = 1 if config.precision == "float" else 0
     lean = {"FMIN": f"{p}_fmin", "FMAX": f"{p}_fmax", "SQRT": f"{p}_sqrt"}
-    macros_f = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower() + 'f')}" for m in math
+    macros_f = "\n".join(f"#define {P}_{m} {({'FLOOR': f'{p}_floorf'} | lean).get(m, m.lower() + 'f')}" for m in math
                          if m not in ("SIN", "COS", "ATAN2"))
     atan2_bounded, atan2_libm = (f"\n#define {P}_ATAN2 {p}_atan2_bounded", f"\n#define {P}_ATAN2 atan2f") \
         if "ATAN2" in math else ("", "")
@@ -441,7 +455,7 @@ typedef double {p}_real;
 
 {_speed_limit_macros(config.robot, P)}
 
-{_lean_math(p, P)}/* Result of the functions that can fail. */
+{_lean_math(p, P, math)}/* Result of the functions that can fail. */
 typedef enum {{
   {P}_OK = 0,            /* output is finite */
   {P}_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */

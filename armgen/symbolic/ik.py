@@ -301,7 +301,7 @@ class IKDefinition:
             base = ca.vertcat(ca.if_else(turning, first, q[0]), q[1:])
         energy_step = 0.5 * ca.dot(e_step, e_step)
         # self-motion: descent on the criterion, at most NULL_STEP long
-        grad = ((1 - use_rest) * ca.gradient(criteria.zghal_safe(q, qmin.tolist(), qmax.tolist()), q)
+        grad = ((1 - use_rest) * criteria.zghal_safe_gradient(q, qmin.tolist(), qmax.tolist())
                 + use_rest * (q - q_rest))
         alpha = -NULL_STEP * ca.fmin(ca.sqrt(2 * energy_step), 1) * grad / ca.fmax(ca.norm_2(grad), 1)
         damping = DAMPING_SCALE * energy_step + DAMPING_FLOOR

@@ -160,7 +160,8 @@ class SymbolicModel:
         if name == "zghal":
             # the floored form: equal inside the limits, finite (saturated) at and beyond them
             h = criteria.zghal_safe(q, qmin, qmax)
-            return ca.Function("zghal", [q], [h, dense(ca.gradient(h, q))], ["q"], ["H_L", "grad_H_L"])
+            return ca.Function("zghal", [q], [h, dense(criteria.zghal_safe_gradient(q, qmin, qmax))], ["q"],
+                               ["H_L", "grad_H_L"])
         if name == "repetitive":
             q_init = ca.SX.sym("q_init", self.n)
             h = criteria.repetitive(q, q_init)

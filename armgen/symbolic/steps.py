@@ -251,10 +251,10 @@ def step_wgpm(j: ca.SX, vjp: Callable[[ca.SX], ca.SX], q: ca.SX, qmin, qmax, xdo
     u = ca.if_else(sense > 0, h_n, 1 - h_n)
     gains = sense * criteria.online_gain(u, k_hi, k_lo, u_th, u_band)
     # Σ_j k_j ∇H_j / span_j (the gains are not differentiated, as the spec's formula says): the
-    # J-dependent criteria through one closed-form vector–Jacobian product, Zghal by AD
+    # J-dependent criteria through one closed-form vector–Jacobian product, Zghal's in closed form
     c = gains / span
     combined = (vjp(sensitivities.combine(c[0], c[1], c[3]))
-                + c[2] * ca.gradient(criteria.zghal_safe(q, qmin, qmax), q))
+                + c[2] * criteria.zghal_safe_gradient(q, qmin, qmax))
     z = ramp * (t_r + w_b * combined)
     scale = w_b * w_b
     gram = weighted_gram(j, scale)

@@ -40,7 +40,7 @@ typedef float iiwa14_real;
 #define IIWA14_EXP expf
 #define IIWA14_LOG logf
 #define IIWA14_FABS fabsf
-#define IIWA14_FLOOR floorf
+#define IIWA14_FLOOR iiwa14_floorf
 #define IIWA14_FMIN iiwa14_fmin
 #define IIWA14_FMAX iiwa14_fmax
 #define IIWA14_COPYSIGN copysignf
@@ -89,6 +89,18 @@ static inline iiwa14_real iiwa14_sqrt(iiwa14_real x) {
   return sqrt(x);
 #endif
 }
+#if IIWA14_USE_FLOAT
+/* floor(x) by a conversion to an integer (exact: |x| >= 2^23 is already integral, and NaN,
+ * inf and -0 are their own floor): no library call, whose spills cost more on a Cortex-M4F. */
+static inline float iiwa14_floorf(float x) {
+  float r = x;
+  if ((fabsf(x) < 8388608.0f) && (x != 0.0f)) {
+    const float t = (float)(long)x;
+    r = (t > x) ? (t - 1.0f) : t;
+  }
+  return r;
+}
+#endif
 #if defined(__GNUC__)
 #define IIWA14_TRIG_INLINE static inline __attribute__((always_inline))
 #else
@@ -273,7 +285,7 @@ iiwa14_status iiwa14_step_wln_from_jacobian(const iiwa14_real J[42], const iiwa1
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 108
 iiwa14_status iiwa14_step_fault_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 2659 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 394 minmax, 74 compare, 12 select; work: 175 reals. */
+ * ops: 2652 add, 2068 mul, 331 div, 20 sqrt, 2 exp, 387 minmax, 67 compare, 19 select; work: 175 reals. */
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 7
@@ -303,12 +315,12 @@ iiwa14_status iiwa14_step_fault_from_jacobian(const iiwa14_real J[42], const iiw
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 175
 iiwa14_status iiwa14_step_wgpm_from_jacobian(const iiwa14_real J[42], const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 34 add, 28 mul, 21 div, 7 minmax, 14 compare; work: 39 reals. */
+ * ops: 34 add, 28 mul, 14 div, 7 minmax, 7 compare, 7 select; work: 19 reals. */
 #define IIWA14_ZGHAL_Q_ROWS 7
 #define IIWA14_ZGHAL_Q_COLS 1
 #define IIWA14_ZGHAL_GRAD_H_L_ROWS 7
 #define IIWA14_ZGHAL_GRAD_H_L_COLS 1
-#define IIWA14_ZGHAL_WORK_REALS 39
+#define IIWA14_ZGHAL_WORK_REALS 19
 void iiwa14_zghal(const iiwa14_real q[IIWA14_NDOF], iiwa14_real *H_L, iiwa14_real grad_H_L[IIWA14_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
  * ops: 13 add, 8 mul; work: 10 reals. */
@@ -421,7 +433,7 @@ iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_FAULT_WORK_REALS 150
 iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 2717 add, 2162 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 394 minmax, 74 compare, 12 select (calls iiwa14_jacobian and iiwa14_step_wgpm_from_jacobian); work: 217 reals. */
+ * ops: 2710 add, 2155 mul, 331 div, 20 sqrt, 12 trig, 2 exp, 387 minmax, 67 compare, 19 select (calls iiwa14_jacobian and iiwa14_step_wgpm_from_jacobian); work: 217 reals. */
 #define IIWA14_STEP_WGPM_Q_ROWS 7
 #define IIWA14_STEP_WGPM_Q_COLS 1
 #define IIWA14_STEP_WGPM_XDOT_ROWS 6
@@ -449,7 +461,7 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
 #define IIWA14_STEP_WGPM_WORK_REALS 217
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 344287 add, 349265 mul, 29700 div, 2700 sqrt, 8563 trig, 24766 minmax, 49512 compare, 53552 select; work: 37 reals. */
+ * ops: 337987 add, 346115 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46362 compare, 56702 select; work: 37 reals. */
 #define IIWA14_IK_T_TARGET_ROWS 4
 #define IIWA14_IK_T_TARGET_COLS 4
 #define IIWA14_IK_Q_SEED_ROWS 7

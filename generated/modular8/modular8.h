@@ -40,7 +40,7 @@ typedef float modular8_real;
 #define MODULAR8_EXP expf
 #define MODULAR8_LOG logf
 #define MODULAR8_FABS fabsf
-#define MODULAR8_FLOOR floorf
+#define MODULAR8_FLOOR modular8_floorf
 #define MODULAR8_FMIN modular8_fmin
 #define MODULAR8_FMAX modular8_fmax
 #define MODULAR8_COPYSIGN copysignf
@@ -90,6 +90,18 @@ static inline modular8_real modular8_sqrt(modular8_real x) {
   return sqrt(x);
 #endif
 }
+#if MODULAR8_USE_FLOAT
+/* floor(x) by a conversion to an integer (exact: |x| >= 2^23 is already integral, and NaN,
+ * inf and -0 are their own floor): no library call, whose spills cost more on a Cortex-M4F. */
+static inline float modular8_floorf(float x) {
+  float r = x;
+  if ((fabsf(x) < 8388608.0f) && (x != 0.0f)) {
+    const float t = (float)(long)x;
+    r = (t > x) ? (t - 1.0f) : t;
+  }
+  return r;
+}
+#endif
 #if defined(__GNUC__)
 #define MODULAR8_TRIG_INLINE static inline __attribute__((always_inline))
 #else
@@ -274,7 +286,7 @@ modular8_status modular8_step_wln_from_jacobian(const modular8_real J[48], const
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 116
 modular8_status modular8_step_fault_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 3005 add, 2475 mul, 361 div, 21 sqrt, 2 exp, 400 minmax, 76 compare, 12 select; work: 200 reals. */
+ * ops: 2997 add, 2467 mul, 345 div, 21 sqrt, 2 exp, 392 minmax, 68 compare, 20 select; work: 200 reals. */
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 8
@@ -304,12 +316,12 @@ modular8_status modular8_step_fault_from_jacobian(const modular8_real J[48], con
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 200
 modular8_status modular8_step_wgpm_from_jacobian(const modular8_real J[48], const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 39 add, 32 mul, 24 div, 8 minmax, 16 compare; work: 42 reals. */
+ * ops: 39 add, 32 mul, 16 div, 8 minmax, 8 compare, 8 select; work: 15 reals. */
 #define MODULAR8_ZGHAL_Q_ROWS 8
 #define MODULAR8_ZGHAL_Q_COLS 1
 #define MODULAR8_ZGHAL_GRAD_H_L_ROWS 8
 #define MODULAR8_ZGHAL_GRAD_H_L_COLS 1
-#define MODULAR8_ZGHAL_WORK_REALS 42
+#define MODULAR8_ZGHAL_WORK_REALS 15
 void modular8_zghal(const modular8_real q[MODULAR8_NDOF], modular8_real *H_L, modular8_real grad_H_L[MODULAR8_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
  * ops: 15 add, 9 mul; work: 11 reals. */
@@ -422,7 +434,7 @@ modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_FAULT_WORK_REALS 164
 modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 3095 add, 2585 mul, 361 div, 21 sqrt, 14 trig, 2 exp, 400 minmax, 76 compare, 12 select (calls modular8_jacobian and modular8_step_wgpm_from_jacobian); work: 248 reals. */
+ * ops: 3087 add, 2577 mul, 345 div, 21 sqrt, 14 trig, 2 exp, 392 minmax, 68 compare, 20 select (calls modular8_jacobian and modular8_step_wgpm_from_jacobian); work: 248 reals. */
 #define MODULAR8_STEP_WGPM_Q_ROWS 8
 #define MODULAR8_STEP_WGPM_Q_COLS 1
 #define MODULAR8_STEP_WGPM_XDOT_ROWS 6
@@ -450,7 +462,7 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_WORK_REALS 248
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 388848 add, 387532 mul, 31950 div, 2700 sqrt, 9465 trig, 27468 minmax, 54012 compare, 58502 select; work: 39 reals. */
+ * ops: 381648 add, 383932 mul, 24750 div, 2700 sqrt, 9465 trig, 23868 minmax, 50412 compare, 62102 select; work: 39 reals. */
 #define MODULAR8_IK_T_TARGET_ROWS 4
 #define MODULAR8_IK_T_TARGET_COLS 4
 #define MODULAR8_IK_Q_SEED_ROWS 8

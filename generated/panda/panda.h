@@ -40,7 +40,7 @@ typedef float panda_real;
 #define PANDA_EXP expf
 #define PANDA_LOG logf
 #define PANDA_FABS fabsf
-#define PANDA_FLOOR floorf
+#define PANDA_FLOOR panda_floorf
 #define PANDA_FMIN panda_fmin
 #define PANDA_FMAX panda_fmax
 #define PANDA_COPYSIGN copysignf
@@ -90,6 +90,18 @@ static inline panda_real panda_sqrt(panda_real x) {
   return sqrt(x);
 #endif
 }
+#if PANDA_USE_FLOAT
+/* floor(x) by a conversion to an integer (exact: |x| >= 2^23 is already integral, and NaN,
+ * inf and -0 are their own floor): no library call, whose spills cost more on a Cortex-M4F. */
+static inline float panda_floorf(float x) {
+  float r = x;
+  if ((fabsf(x) < 8388608.0f) && (x != 0.0f)) {
+    const float t = (float)(long)x;
+    r = (t > x) ? (t - 1.0f) : t;
+  }
+  return r;
+}
+#endif
 #if defined(__GNUC__)
 #define PANDA_TRIG_INLINE static inline __attribute__((always_inline))
 #else
@@ -274,7 +286,7 @@ panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_re
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 108
 panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 2659 add, 2075 mul, 345 div, 20 sqrt, 2 exp, 394 minmax, 74 compare, 12 select; work: 175 reals. */
+ * ops: 2656 add, 2068 mul, 331 div, 20 sqrt, 2 exp, 387 minmax, 67 compare, 19 select; work: 175 reals. */
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_J_COLS 7
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 7
@@ -304,12 +316,12 @@ panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 175
 panda_status panda_step_wgpm_from_jacobian(const panda_real J[42], const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 34 add, 28 mul, 21 div, 7 minmax, 14 compare; work: 40 reals. */
+ * ops: 38 add, 28 mul, 14 div, 7 minmax, 7 compare, 7 select; work: 25 reals. */
 #define PANDA_ZGHAL_Q_ROWS 7
 #define PANDA_ZGHAL_Q_COLS 1
 #define PANDA_ZGHAL_GRAD_H_L_ROWS 7
 #define PANDA_ZGHAL_GRAD_H_L_COLS 1
-#define PANDA_ZGHAL_WORK_REALS 40
+#define PANDA_ZGHAL_WORK_REALS 25
 void panda_zghal(const panda_real q[PANDA_NDOF], panda_real *H_L, panda_real grad_H_L[PANDA_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
  * ops: 13 add, 8 mul; work: 10 reals. */
@@ -422,7 +434,7 @@ panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_FAULT_WORK_REALS 150
 panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 2739 add, 2177 mul, 345 div, 20 sqrt, 12 trig, 2 exp, 394 minmax, 74 compare, 12 select (calls panda_jacobian and panda_step_wgpm_from_jacobian); work: 217 reals. */
+ * ops: 2736 add, 2170 mul, 331 div, 20 sqrt, 12 trig, 2 exp, 387 minmax, 67 compare, 19 select (calls panda_jacobian and panda_step_wgpm_from_jacobian); work: 217 reals. */
 #define PANDA_STEP_WGPM_Q_ROWS 7
 #define PANDA_STEP_WGPM_Q_COLS 1
 #define PANDA_STEP_WGPM_XDOT_ROWS 6
@@ -450,7 +462,7 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_WORK_REALS 217
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 351949 add, 353330 mul, 29700 div, 2700 sqrt, 8563 trig, 24766 minmax, 49512 compare, 53552 select; work: 37 reals. */
+ * ops: 347449 add, 350180 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46362 compare, 56702 select; work: 37 reals. */
 #define PANDA_IK_T_TARGET_ROWS 4
 #define PANDA_IK_T_TARGET_COLS 4
 #define PANDA_IK_Q_SEED_ROWS 7

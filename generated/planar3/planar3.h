@@ -40,7 +40,7 @@ typedef float planar3_real;
 #define PLANAR3_EXP expf
 #define PLANAR3_LOG logf
 #define PLANAR3_FABS fabsf
-#define PLANAR3_FLOOR floorf
+#define PLANAR3_FLOOR planar3_floorf
 #define PLANAR3_FMIN planar3_fmin
 #define PLANAR3_FMAX planar3_fmax
 #define PLANAR3_COPYSIGN copysignf
@@ -89,6 +89,18 @@ static inline planar3_real planar3_sqrt(planar3_real x) {
   return sqrt(x);
 #endif
 }
+#if PLANAR3_USE_FLOAT
+/* floor(x) by a conversion to an integer (exact: |x| >= 2^23 is already integral, and NaN,
+ * inf and -0 are their own floor): no library call, whose spills cost more on a Cortex-M4F. */
+static inline float planar3_floorf(float x) {
+  float r = x;
+  if ((fabsf(x) < 8388608.0f) && (x != 0.0f)) {
+    const float t = (float)(long)x;
+    r = (t > x) ? (t - 1.0f) : t;
+  }
+  return r;
+}
+#endif
 #if defined(__GNUC__)
 #define PLANAR3_TRIG_INLINE static inline __attribute__((always_inline))
 #else
@@ -273,7 +285,7 @@ planar3_status planar3_step_wln_from_jacobian(const planar3_real J[18], const pl
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 35
 planar3_status planar3_step_fault_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 839 add, 386 mul, 141 div, 7 sqrt, 2 exp, 206 minmax, 60 compare, 6 select; work: 52 reals. */
+ * ops: 836 add, 383 mul, 135 div, 7 sqrt, 2 exp, 203 minmax, 57 compare, 9 select; work: 52 reals. */
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 3
@@ -303,12 +315,12 @@ planar3_status planar3_step_fault_from_jacobian(const planar3_real J[18], const 
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 52
 planar3_status planar3_step_wgpm_from_jacobian(const planar3_real J[18], const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 14 add, 12 mul, 9 div, 3 minmax, 6 compare; work: 17 reals. */
+ * ops: 14 add, 12 mul, 6 div, 3 minmax, 3 compare, 3 select; work: 10 reals. */
 #define PLANAR3_ZGHAL_Q_ROWS 3
 #define PLANAR3_ZGHAL_Q_COLS 1
 #define PLANAR3_ZGHAL_GRAD_H_L_ROWS 3
 #define PLANAR3_ZGHAL_GRAD_H_L_COLS 1
-#define PLANAR3_ZGHAL_WORK_REALS 17
+#define PLANAR3_ZGHAL_WORK_REALS 10
 void planar3_zghal(const planar3_real q[PLANAR3_NDOF], planar3_real *H_L, planar3_real grad_H_L[PLANAR3_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
  * ops: 5 add, 4 mul; work: 6 reals. */
@@ -421,7 +433,7 @@ planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar
 #define PLANAR3_STEP_FAULT_WORK_REALS 53
 planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 854 add, 404 mul, 141 div, 7 sqrt, 6 trig, 2 exp, 206 minmax, 60 compare, 6 select (calls planar3_jacobian and planar3_step_wgpm_from_jacobian); work: 70 reals. */
+ * ops: 851 add, 401 mul, 135 div, 7 sqrt, 6 trig, 2 exp, 203 minmax, 57 compare, 9 select (calls planar3_jacobian and planar3_step_wgpm_from_jacobian); work: 70 reals. */
 #define PLANAR3_STEP_WGPM_Q_ROWS 3
 #define PLANAR3_STEP_WGPM_Q_COLS 1
 #define PLANAR3_STEP_WGPM_XDOT_ROWS 3
@@ -449,7 +461,7 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 #define PLANAR3_STEP_WGPM_WORK_REALS 70
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 116123 add, 100385 mul, 12600 div, 2250 sqrt, 4957 trig, 13058 minmax, 31512 compare, 31052 select; work: 29 reals. */
+ * ops: 113423 add, 99035 mul, 9900 div, 2250 sqrt, 4957 trig, 11708 minmax, 30162 compare, 32402 select; work: 29 reals. */
 #define PLANAR3_IK_T_TARGET_ROWS 4
 #define PLANAR3_IK_T_TARGET_COLS 4
 #define PLANAR3_IK_Q_SEED_ROWS 3

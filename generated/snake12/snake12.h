@@ -40,7 +40,7 @@ typedef float snake12_real;
 #define SNAKE12_EXP expf
 #define SNAKE12_LOG logf
 #define SNAKE12_FABS fabsf
-#define SNAKE12_FLOOR floorf
+#define SNAKE12_FLOOR snake12_floorf
 #define SNAKE12_FMIN snake12_fmin
 #define SNAKE12_FMAX snake12_fmax
 #define SNAKE12_COPYSIGN copysignf
@@ -89,6 +89,18 @@ static inline snake12_real snake12_sqrt(snake12_real x) {
   return sqrt(x);
 #endif
 }
+#if SNAKE12_USE_FLOAT
+/* floor(x) by a conversion to an integer (exact: |x| >= 2^23 is already integral, and NaN,
+ * inf and -0 are their own floor): no library call, whose spills cost more on a Cortex-M4F. */
+static inline float snake12_floorf(float x) {
+  float r = x;
+  if ((fabsf(x) < 8388608.0f) && (x != 0.0f)) {
+    const float t = (float)(long)x;
+    r = (t > x) ? (t - 1.0f) : t;
+  }
+  return r;
+}
+#endif
 #if defined(__GNUC__)
 #define SNAKE12_TRIG_INLINE static inline __attribute__((always_inline))
 #else
@@ -273,7 +285,7 @@ snake12_status snake12_step_wln_from_jacobian(const snake12_real J[150], const s
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 246
 snake12_status snake12_step_fault_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 7770 add, 7573 mul, 614 div, 38 sqrt, 2 exp, 527 minmax, 108 compare, 10 select; work: 599 reals. */
+ * ops: 7747 add, 7548 mul, 564 div, 38 sqrt, 2 exp, 502 minmax, 83 compare, 35 select; work: 598 reals. */
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 25
@@ -300,15 +312,15 @@ snake12_status snake12_step_fault_from_jacobian(const snake12_real J[150], const
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
-#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 599
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 598
 snake12_status snake12_step_wgpm_from_jacobian(const snake12_real J[150], const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 123 add, 100 mul, 75 div, 25 minmax, 50 compare; work: 128 reals. */
+ * ops: 124 add, 100 mul, 50 div, 25 minmax, 25 compare, 25 select; work: 35 reals. */
 #define SNAKE12_ZGHAL_Q_ROWS 25
 #define SNAKE12_ZGHAL_Q_COLS 1
 #define SNAKE12_ZGHAL_GRAD_H_L_ROWS 25
 #define SNAKE12_ZGHAL_GRAD_H_L_COLS 1
-#define SNAKE12_ZGHAL_WORK_REALS 128
+#define SNAKE12_ZGHAL_WORK_REALS 35
 void snake12_zghal(const snake12_real q[SNAKE12_NDOF], snake12_real *H_L, snake12_real grad_H_L[SNAKE12_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
  * ops: 49 add, 26 mul; work: 28 reals. */
@@ -421,7 +433,7 @@ snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_FAULT_WORK_REALS 396
 snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 8105 add, 8005 mul, 614 div, 38 sqrt, 48 trig, 2 exp, 527 minmax, 108 compare, 10 select (calls snake12_jacobian and snake12_step_wgpm_from_jacobian); work: 749 reals. */
+ * ops: 8082 add, 7980 mul, 564 div, 38 sqrt, 48 trig, 2 exp, 502 minmax, 83 compare, 35 select (calls snake12_jacobian and snake12_step_wgpm_from_jacobian); work: 748 reals. */
 #define SNAKE12_STEP_WGPM_Q_ROWS 25
 #define SNAKE12_STEP_WGPM_Q_COLS 1
 #define SNAKE12_STEP_WGPM_XDOT_ROWS 6
@@ -446,10 +458,10 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_GAINS_COLS 1
 #define SNAKE12_STEP_WGPM_H_ROWS 4
 #define SNAKE12_STEP_WGPM_H_COLS 1
-#define SNAKE12_STEP_WGPM_WORK_REALS 749
+#define SNAKE12_STEP_WGPM_WORK_REALS 748
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 1018350 add, 949050 mul, 69750 div, 2250 sqrt, 22050 trig, 72050 minmax, 122400 compare, 135000 select; work: 73 reals. */
+ * ops: 996750 add, 937800 mul, 47250 div, 2250 sqrt, 22050 trig, 60800 minmax, 111150 compare, 146250 select; work: 73 reals. */
 #define SNAKE12_IK_T_TARGET_ROWS 4
 #define SNAKE12_IK_T_TARGET_COLS 4
 #define SNAKE12_IK_Q_SEED_ROWS 25
