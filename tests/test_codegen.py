@@ -195,3 +195,44 @@ def test_sanitizer_driver_catches_an_out_of_bounds_write_and_names_the_line(tmp_
     functions = SymbolicModel(load_robot("planar3")).functions()
     with pytest.raises(ToolchainError, match=r"(?s)stack-buffer-overflow.*planar3\.c:\d+"):
         run_sanitized(copy, "planar3", functions, "double")
+
+
+def test_loop_step_branches_keep_casadi_values_to_the_bit(tmp_path):
+    """A loop step's selects become if/else blocks (c_emitter._branched): what one side alone
+    reads moves into it, selects on one condition share a block, a lone if_else_zero is a
+    select too, and the compiled loop gives CasADi's values bit for bit, signed zeros and NaN
+    included (CasADi's if_else is if_else_zero(c, x) + if_else_zero(!c, y): −0 comes out +0)."""
+    require_tool("gcc")
+    import numpy as np
+
+    from armgen.codegen.c_emitter import emit_loop_step
+    from armgen.codegen.compiled import NativeKernel
+    from armgen.symbolic.loops import find_loop, fixed_loop
+
+    state, c = ca.SX.sym("state", 4), ca.SX.sym("c")
+    taken = state[0] > c
+    only_then = ca.floor(state[1] * 3.7) - ca.sqrt(ca.fabs(state[2]))  # read by the then sides only
+    nxt = ca.vertcat(ca.if_else(taken, only_then, state[1] * state[2]),
+                     ca.if_else(taken, only_then * state[3], state[2]),  # the same condition: one block
+                     ca.if_else(state[1] < 0, ca.exp(state[3]) - state[1], 0),  # a lone if_else_zero
+                     ca.if_else(state[2] > state[3], state[3], state[2]) * 0.5 + c)
+    step = ca.Function("test_branched_step", [state, c], [nxt], ["state", "c"], ["next"])
+    loop_call = fixed_loop(step, 3)
+    x = ca.SX.sym("x", 5)
+    func = ca.Function("branched", [x], [loop_call(x[:4], x[4])])
+    body = emit_loop_step(find_loop("test_branched_step_loop"), "K").body
+    assert "if (" in body and "else" in body
+    floor_line = next(line for line in body.splitlines() if "K_FLOOR" in line)
+    assert len(floor_line) - len(floor_line.lstrip()) > 4  # inside a branch, not at the step's top level
+    kernel = NativeKernel(func, tmp_path)
+    rng = np.random.default_rng(5)
+    special = [0.0, -0.0, np.nan, np.inf, -np.inf, 1e-300, -2.5]
+    for trial in range(300):
+        value = rng.normal(size=5) * 3
+        if trial % 3 == 0:
+            value[rng.integers(0, 5, 2)] = rng.choice(special, 2)
+        kernel.x[:] = value
+        kernel()
+        expected = np.asarray(func(value)).ravel()
+        np.testing.assert_array_equal(kernel.y, expected)
+        assert np.array_equal(np.signbit(kernel.y), np.signbit(expected))

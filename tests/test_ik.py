@@ -449,3 +449,27 @@ def test_held_joint_step_is_the_reduced_least_squares_step():
         expected[h] = move
         expected[free] = af + jf.T @ np.linalg.solve(jf @ jf.T + lam * np.eye(m), e - jac[:, h] * move - jf @ af)
         np.testing.assert_allclose(got, expected, atol=1e-10)
+
+
+def test_a_restart_steps_from_its_configuration_turned_toward_the_target():
+    """The restart turn's identity (IKDefinition.step): the pose error of the configuration
+    turned by δ about the first axis equals this configuration's error toward the target turned
+    back by δ (``_turned_back``), rotated by δ (SciPy's rotation), position and orientation
+    rows alike; J rotates the same way, so one J and factor serve the turned configuration."""
+    from armgen.symbolic.kinematics import chain
+    robot = load_robot("panda")
+    q_sym, target_sym, angle_sym = ca.SX.sym("q", robot.n), ca.SX.sym("T", 4, 4), ca.SX.sym("angle")
+    frames, _, tool = chain(robot, q_sym)
+    error = ca.Function("e", [q_sym, target_sym], [ik.pose_error(tool, target_sym)])
+    turned_back = ca.Function("t", [q_sym, target_sym, angle_sym],
+                              [ik._turned_back(target_sym, frames[0], angle_sym), frames[0]])
+    rng = np.random.default_rng(17)
+    for q, goal in zip(random_configurations(robot, 20, seed=3), random_configurations(robot, 20, seed=4)):
+        target, angle = robot.fk(goal), rng.uniform(-2.5, 2.5)
+        back, frame = (np.asarray(x) for x in turned_back(q, target, angle))
+        rotation = Rotation.from_rotvec(frame[:3, 2] * angle).as_matrix()
+        turned = q.copy()
+        turned[0] += angle
+        expected = np.asarray(error(turned, target)).ravel()
+        got = np.asarray(error(q, back)).ravel()
+        np.testing.assert_allclose(np.concatenate([rotation @ got[:3], rotation @ got[3:]]), expected, atol=1e-11)

@@ -112,6 +112,49 @@ def test_bounded_atan2_error_in_ulp(tmp_path):
     assert got[len(radius)] == 0.0 and np.all(np.isnan(got[~finite]))
 
 
+FLOOR_HARNESS = r"""
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include "{p}.c"
+/* argv: n; stdin: n floats; stdout: n (floorf, {p}_floorf) pairs */
+int main(int argc, char **argv) {{
+  long n = atol(argv[1]), i;
+  for (i = 0; i < n; ++i) {{
+    float x, out[2];
+    if (fread(&x, sizeof x, 1, stdin) != 1) return 3;
+    out[0] = floorf(x);
+    out[1] = {p}_floorf(x);
+    (void)fwrite(out, sizeof out, 1, stdout);
+  }}
+  return 0;
+}}
+"""
+
+
+def test_float_floor_is_libm_floor_to_the_bit(tmp_path):
+    """<p>_floorf (the float build's floor, no library call) equals libm's floorf bit for bit:
+    fractions of either sign, integers, the 2^22…2^24 edges where floats stop having
+    fractions, ±0, tiny values, ±inf and NaN."""
+    require_tool("gcc")
+    code = generate(CodegenConfig(load_robot("planar3"), precision="float"))
+    write(code, tmp_path)
+    (tmp_path / "h.c").write_text(FLOOR_HARNESS.format(p="planar3"))
+    exe = tmp_path / "h"
+    subprocess.run(["gcc", "-std=c99", "-O2", f"-I{tmp_path}", str(tmp_path / "h.c"), "-o", str(exe), "-lm"],
+                   check=True)
+    rng = np.random.default_rng(13)
+    edges = [2.0 ** 22, 2.0 ** 23, 2.0 ** 24]
+    values = np.concatenate([rng.uniform(-50, 50, 100_000), 10.0 ** rng.uniform(-30, 30, 20_000) * rng.choice([-1, 1], 20_000),
+                             np.arange(-20, 20, 0.25), [e + d for e in edges for d in (-1.5, -0.5, 0.0, 0.5, 1.0)],
+                             [-e - d for e in edges for d in (-1.5, -0.5, 0.0, 0.5, 1.0)],
+                             [0.0, -0.0, 1e-45, -1e-45, np.inf, -np.inf, np.nan]]).astype(np.float32)
+    raw = subprocess.run([str(exe), str(len(values))], input=values.tobytes(), check=True, capture_output=True).stdout
+    libm, ours = np.frombuffer(raw, dtype=np.float32).reshape(-1, 2).T
+    assert np.array_equal(libm.view(np.uint32)[~np.isnan(libm)], ours.view(np.uint32)[~np.isnan(libm)])
+    assert np.array_equal(np.isnan(libm), np.isnan(ours))
+
+
 # draw()'s kind of an input: 1 a joint angle (near its limits), 2 a lock mask (0/1 by its
 # documented domain), 0 anything else
 DRAW_KIND = {"q": 1, "mask": 2}

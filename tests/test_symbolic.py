@@ -274,3 +274,25 @@ def test_loop_calls_found_in_order_and_replayed():
     replay = BatchFunction(func)([inputs], 5)[0]
     reference = np.array([float(func(inputs[:, j])) for j in range(5)])
     np.testing.assert_array_equal(replay[0], reference)
+
+
+@pytest.mark.parametrize("name", ["panda", "iiwa14"])
+def test_zghal_gradient_closed_form_equals_reverse_mode_ad(name):
+    """criteria.zghal_safe_gradient (the closed form every step uses) against CasADi's AD of
+    zghal_safe, inside the limits, within a hair of them and beyond them (floored: zero)."""
+    import casadi as ca
+
+    from armgen.symbolic import criteria
+    robot = load_robot(name)
+    q = ca.SX.sym("q", robot.n)
+    lo, hi = robot.qmin.tolist(), robot.qmax.tolist()
+    both = ca.Function("g", [q], [criteria.zghal_safe_gradient(q, lo, hi), ca.gradient(criteria.zghal_safe(q, lo, hi), q)])
+    rng = np.random.default_rng(11)
+    span = robot.qmax - robot.qmin
+    samples = [robot.qmin + span * rng.uniform(0, 1, robot.n) for _ in range(40)]
+    samples += [robot.qmin + span * rng.choice([1e-4, 1 - 1e-4, -0.1, 1.1], robot.n) for _ in range(20)]
+    for sample in samples:
+        closed, ad = (np.asarray(x).ravel() for x in both(sample))
+        np.testing.assert_allclose(closed, ad, rtol=1e-12, atol=0)
+    outside = robot.qmax + 0.1
+    assert not np.any(np.asarray(both(outside)[0]))
