@@ -7,6 +7,15 @@ step through the precision macros of the header: ``<P>_LIT(x)`` pastes an ``f`` 
 float mode and ``<P>_SIN`` … map to ``sinf`` …, so one source compiles to true single or
 double precision with no promotion. The work vector (already register-allocated by
 CasADi) becomes scalar locals, which the C compiler keeps in registers.
+
+A fixed loop's step (:mod:`armgen.symbolic.loops`) is emitted with its selects as branches:
+SX has no branches (``if_else(c, x, y)`` is ``if_else_zero(c, x) + if_else_zero(!c, y)``, both
+sides computed), so a solver step would compute its restart code at every step. There each
+select becomes one ``c ? x : y`` (``+ 0``, as the sum gives +0 for −0), and the statements
+that only one side of the selects on one condition reads move into an ``if``/``else``: the
+same operations on the same values, run only when taken. The loop swaps two state buffers
+instead of copying the next state, and reads its stop entry as 0 (it has left the loop
+otherwise).
 """
 
 from __future__ import annotations

@@ -12,7 +12,8 @@ The step (damped least squares, Levenberg–Marquardt with Sugihara's damping):
 - ``λ = DAMPING_SCALE · ½ eᵀe + DAMPING_FLOOR`` (Sugihara 2011: large far from the target,
   vanishing at it, so the last steps are Gauss–Newton steps and converge quadratically);
 - ``Δq = α + Jᵀ (J Jᵀ + λ I)⁻¹ (e − J α)``: the self-motion ``α`` is a descent step of a
-  criterion — the Zghal joint-limit index (``use_rest = 0``) or ``½‖q − q_rest‖²``
+  criterion — the Zghal joint-limit index (``use_rest = 0``; its gradient in closed form,
+  ``criteria.zghal_safe_gradient``) or ``½‖q − q_rest‖²``
   (``use_rest = 1``) — of length at most NULL_STEP · min(‖e‖, 1) (it fades with the error, so
   the damped step's residual ~ λ‖Jα‖ cannot hold the error above the tolerance);
 - ``q ← clamp(q + Δq, q_min, q_max)``: every iterate is inside the limits; the joint that
@@ -26,7 +27,9 @@ The step (damped least squares, Levenberg–Marquardt with Sugihara's damping):
   99.9 against 99.6 % within 100; iiwa14, modular8 and the Gen3 within ±0.1 %).
 
 The first attempt starts from the seed turned about the first joint's axis toward the target
-(``aligned_seed``; not when ``use_rest`` = 1). An attempt ends after ITERATIONS evaluations or
+(``aligned_seed``; not when ``use_rest`` = 1), and every later attempt's first step is the step
+of its configuration turned the same way (``_turned_back``: the turned configuration's J and e
+are this one's rotated, so no evaluation is spent on it). An attempt ends after ITERATIONS evaluations or
 as soon as it stalls (a step leaves ½‖e‖² above STALL_RATIO of the previous one); the next
 one moves the joints that the last step held at a limit, and their neighbours in the chain, to
 the next point of a deterministic sequence (a Kronecker sequence over the joint ranges) and
@@ -34,8 +37,10 @@ steps on with the others (all move when none was held, and at every FULL_RESEED_
 attempt), up to ATTEMPTS attempts.
 The state carries the closest configuration seen (smallest ``½‖e‖²``), so a miss returns the
 closest one reached. ``max_iterations`` (≤ MAX_ITERATIONS) stops earlier: a bound on the time
-a call may take (on a Cortex-M4F, ~3.0k instructions per step of a 7-DOF arm: the float C
-lets the compiler fuse the step's multiply–adds, ``Loop.fused_float``). Once converged
+a call may take (on a Cortex-M4F, ~2.6k instructions per step of a 7-DOF arm, counting the
+restart and turn code once every five steps, the most often they run: the float C lets the
+compiler fuse the step's multiply–adds, ``Loop.fused_float``, and computes what only a restart
+or a turn needs in the branches of its selects, ``c_emitter._branched``). Once converged
 (position error ≤ ``tol_position`` and orientation error ≤ ``tol_orientation``) or out of
 steps, the step is the identity: the generated C leaves its loop there (``Loop.stop``) and the
 NumPy evaluation stops those samples, with the same result as running the remaining iterations.
