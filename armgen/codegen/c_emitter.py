@@ -21,6 +21,7 @@ otherwise).
 from __future__ import annotations
 
 import heapq
+import re
 from collections import Counter
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -362,6 +363,40 @@ def _block(body: list[_Statement], owner: list, groups: dict, group: tuple, macr
     return lines
 
 
+_REGISTER = re.compile(r"\bw(\d+)\b")
+_DEFINITION = re.compile(r"\s*w(\d+) = ")
+_SELF_ASSIGNMENT = re.compile(r"\s*(w\d+) = \1;")
+
+
+def _reused_registers(lines: list[str]) -> tuple[list[str], set[int]]:
+    """The lines with their work registers renamed so that values whose lifetimes do not
+    overlap share one (linear scan over the lines in order; a value's lifetime runs from its
+    first assignment to its last read). Branched emission starts from one register per
+    instruction, thousands of locals that cppcheck's analysis takes minutes over; a value
+    assigned in a branch is read only there or, for a select, assigned in both branches, so
+    the order of the lines bounds every lifetime. Returns the lines and the registers used."""
+    first: dict[int, int] = {}
+    last: dict[int, int] = {}
+    for k, line in enumerate(lines):
+        match = _DEFINITION.match(line)
+        if match:
+            first.setdefault(int(match.group(1)), k)
+        for register in _REGISTER.findall(line[match.end():] if match else line):
+            last[int(register)] = k
+    rename: dict[int, int] = {}
+    free: list[int] = []  # registers no value holds any more (a heap: the lowest first)
+    held: list[tuple[int, int]] = []  # (last read, register) of the values holding one
+    for value in sorted(first, key=first.get):
+        start = first[value]
+        while held and held[0][0] <= start:  # read last at or before this assignment
+            heapq.heappush(free, heapq.heappop(held)[1])
+        rename[value] = heapq.heappop(free) if free else len(held)
+        heapq.heappush(held, (last.get(value, start), rename[value]))
+    renamed = [_REGISTER.sub(lambda m: f"w{rename[int(m.group(1))]}", line) for line in lines]
+    # a select's side that passes on a value read last there now names one register twice
+    return [line for line in renamed if not _SELF_ASSIGNMENT.fullmatch(line)], set(rename.values())
+
+
 def _assignment(select: _Statement, operand: int, zero: str) -> str:
     """A select's value on one side: a fused select's operand + 0, a lone one's x or 0."""
     out = select.writes[0]
@@ -447,10 +482,15 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
                                          tuple(i for i in ins if i >= 0)))
         else:
             raise ArmgenError(f"function {func.name()}: CasADi operation {op} has no C translation in armgen")
-    kept = _fused_selects(_live(statements), macro_prefix) if branches else _live(statements)
-    for statement in kept:
-        used.update(statement.writes)
-    lines += _branched(kept, macro_prefix) if branches else [line for statement in kept for line in statement.lines]
+    if branches:
+        branched, registers = _reused_registers(_branched(_fused_selects(_live(statements), macro_prefix),
+                                                          macro_prefix))
+        lines += branched
+        used.update(registers)
+    else:
+        for statement in _live(statements):
+            used.update(statement.writes)
+            lines += statement.lines
     read_args = {func.instruction_input(k)[0] for k in range(func.n_instructions())
                  if func.instruction_id(k) == ca.OP_INPUT}
     # an input the expression does not depend on (e.g. q of a constant criterion) is still
