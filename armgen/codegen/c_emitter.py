@@ -13,7 +13,9 @@ SX has no branches (``if_else(c, x, y)`` is ``if_else_zero(c, x) + if_else_zero(
 sides computed), so a solver step would compute its restart code at every step. There each
 select becomes one ``c ? x : y`` (``+ 0``, as the sum gives +0 for −0), and the statements
 that only one side of the selects on one condition reads move into an ``if``/``else``: the
-same operations on the same values, run only when taken. The loop swaps two state buffers
+same operations on the same values, run only when taken (the step is taken from CasADi with
+one work register per instruction, so that statements can move, and its locals are shared
+again afterwards, ``_reused_registers``). The loop swaps two state buffers
 instead of copying the next state, and reads its stop entry as 0 (it has left the loop
 otherwise).
 """

@@ -97,7 +97,11 @@ static inline float modular8_floorf(float x) {
   float r = x;
   if ((fabsf(x) < 8388608.0f) && (x != 0.0f)) {
     const float t = (float)(long)x;
-    r = (t > x) ? (t - 1.0f) : t;
+    if (t > x) {
+      r = t - 1.0f;
+    } else {
+      r = t;
+    }
   }
   return r;
 }
