@@ -15,8 +15,9 @@ select becomes one ``c ? x : y`` (``+ 0``, as the sum gives +0 for −0), and th
 that only one side of the selects on one condition reads move into an ``if``/``else``: the
 same operations on the same values, run only when taken (the step is taken from CasADi with
 one work register per instruction, so that statements can move, and its locals are shared
-again afterwards, ``_reused_registers``). The loop swaps two state buffers
-instead of copying the next state, and reads its stop entry as 0 (it has left the loop
+again afterwards, ``_reused_registers``). The loop copies the next state entry by entry (a
+copy loop became a ``memcpy`` call; swapping two buffers instead put a small state, that GCC
+kept in registers, in memory), and the step reads its stop entry as 0 (the loop has left
 otherwise).
 """
 
@@ -609,10 +610,8 @@ def emit_loop(loop: Loop, macro_prefix: str) -> tuple[str, str]:
     definition = "\n".join([
         f"/* {fn.name()}: {step.name()} {count} times ({describe_counts(body.op_counts)} each) */",
         f"{signature} {{",
-        f"  {p}_real state_a[{size}], state_b[{size}];",
-        f"  {p}_real *current = state_a;",
-        f"  {p}_real *next = state_b;",
-        f"  {p}_real *swap;",
+        f"  {p}_real current[{size}];",
+        f"  {p}_real next[{size}];",
         "  int k;",
         "  int i;",
         f"  for (i = 0; i < {size}; ++i) {{ current[i] = {first}[i]; }}",
@@ -620,9 +619,7 @@ def emit_loop(loop: Loop, macro_prefix: str) -> tuple[str, str]:
         *([f"    if (current[{loop.stop}] != {macro_prefix}_LIT(0.0)) {{ break; }}  /* finished: the rest are the identity */"]
           if loop.stop is not None else []),
         body.body,
-        "    swap = current;  /* the next state becomes the current one: no copy */",
-        "    current = next;",
-        "    next = swap;",
+        *(f"    current[{i}] = next[{i}];" for i in range(size)),
         "  }",
         f"  for (i = 0; i < {size}; ++i) {{ final[i] = current[i]; }}",
         "}",

@@ -17235,10 +17235,8 @@ modular8_status modular8_ik(const modular8_real T_target[16], const modular8_rea
 
 /* bisection_step6_loop: bisection_step6 MODULAR8_BISECTION_STEP6_LOOP_COUNT times (24 add, 2 mul, 5 div, 6 minmax, 1 compare each) */
 void modular8_bisection_step6_loop(const modular8_real state[2], const modular8_real d[6], const modular8_real e2[5], modular8_real final[2]) {
-  modular8_real state_a[2], state_b[2];
-  modular8_real *current = state_a;
-  modular8_real *next = state_b;
-  modular8_real *swap;
+  modular8_real current[2];
+  modular8_real next[2];
   int k;
   int i;
   for (i = 0; i < 2; ++i) { current[i] = state[i]; }
@@ -17299,9 +17297,8 @@ void modular8_bisection_step6_loop(const modular8_real state[2], const modular8_
     w0 = MODULAR8_LIT(0.5);
     w0 = w0 * w3;
     next[1] = w0;
-    swap = current;  /* the next state becomes the current one: no copy */
-    current = next;
-    next = swap;
+    current[0] = next[0];
+    current[1] = next[1];
   }
   for (i = 0; i < 2; ++i) { final[i] = current[i]; }
 }
@@ -17312,10 +17309,8 @@ void modular8_bisection_step6_loop(const modular8_real state[2], const modular8_
 #endif
 /* ik_step_95c2c3c3_loop: ik_step_95c2c3c3 MODULAR8_IK_STEP_95C2C3C3_LOOP_COUNT times (848 add, 853 mul, 55 div, 6 sqrt, 21 trig, 53 minmax, 112 compare, 138 select each) */
 void modular8_ik_step_95c2c3c3_loop(const modular8_real state[25], const modular8_real T_target[16], const modular8_real q_rest[8], const modular8_real use_rest[1], const modular8_real tol_position[1], const modular8_real tol_orientation[1], const modular8_real max_iterations[1], modular8_real final[25]) {
-  modular8_real state_a[25], state_b[25];
-  modular8_real *current = state_a;
-  modular8_real *next = state_b;
-  modular8_real *swap;
+  modular8_real current[25];
+  modular8_real next[25];
   int k;
   int i;
   for (i = 0; i < 25; ++i) { current[i] = state[i]; }
@@ -19435,9 +19430,31 @@ void modular8_ik_step_95c2c3c3_loop(const modular8_real state[25], const modular
     w0 = (modular8_real)((w42 != MODULAR8_LIT(0.0)) || (w0 != MODULAR8_LIT(0.0)));
     w0 = w0 + MODULAR8_LIT(0.0);
     next[24] = w0;
-    swap = current;  /* the next state becomes the current one: no copy */
-    current = next;
-    next = swap;
+    current[0] = next[0];
+    current[1] = next[1];
+    current[2] = next[2];
+    current[3] = next[3];
+    current[4] = next[4];
+    current[5] = next[5];
+    current[6] = next[6];
+    current[7] = next[7];
+    current[8] = next[8];
+    current[9] = next[9];
+    current[10] = next[10];
+    current[11] = next[11];
+    current[12] = next[12];
+    current[13] = next[13];
+    current[14] = next[14];
+    current[15] = next[15];
+    current[16] = next[16];
+    current[17] = next[17];
+    current[18] = next[18];
+    current[19] = next[19];
+    current[20] = next[20];
+    current[21] = next[21];
+    current[22] = next[22];
+    current[23] = next[23];
+    current[24] = next[24];
   }
   for (i = 0; i < 25; ++i) { final[i] = current[i]; }
 }

@@ -14535,10 +14535,8 @@ panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PAN
 
 /* bisection_step6_loop: bisection_step6 PANDA_BISECTION_STEP6_LOOP_COUNT times (24 add, 2 mul, 5 div, 6 minmax, 1 compare each) */
 void panda_bisection_step6_loop(const panda_real state[2], const panda_real d[6], const panda_real e2[5], panda_real final[2]) {
-  panda_real state_a[2], state_b[2];
-  panda_real *current = state_a;
-  panda_real *next = state_b;
-  panda_real *swap;
+  panda_real current[2];
+  panda_real next[2];
   int k;
   int i;
   for (i = 0; i < 2; ++i) { current[i] = state[i]; }
@@ -14599,9 +14597,8 @@ void panda_bisection_step6_loop(const panda_real state[2], const panda_real d[6]
     w0 = PANDA_LIT(0.5);
     w0 = w0 * w3;
     next[1] = w0;
-    swap = current;  /* the next state becomes the current one: no copy */
-    current = next;
-    next = swap;
+    current[0] = next[0];
+    current[1] = next[1];
   }
   for (i = 0; i < 2; ++i) { final[i] = current[i]; }
 }
@@ -14612,10 +14609,8 @@ void panda_bisection_step6_loop(const panda_real state[2], const panda_real d[6]
 #endif
 /* ik_step_8a95a0f1_loop: ik_step_8a95a0f1 PANDA_IK_STEP_8A95A0F1_LOOP_COUNT times (772 add, 778 mul, 52 div, 6 sqrt, 19 trig, 48 minmax, 103 compare, 126 select each) */
 void panda_ik_step_8a95a0f1_loop(const panda_real state[23], const panda_real T_target[16], const panda_real q_rest[7], const panda_real use_rest[1], const panda_real tol_position[1], const panda_real tol_orientation[1], const panda_real max_iterations[1], panda_real final[23]) {
-  panda_real state_a[23], state_b[23];
-  panda_real *current = state_a;
-  panda_real *next = state_b;
-  panda_real *swap;
+  panda_real current[23];
+  panda_real next[23];
   int k;
   int i;
   for (i = 0; i < 23; ++i) { current[i] = state[i]; }
@@ -16576,9 +16571,29 @@ void panda_ik_step_8a95a0f1_loop(const panda_real state[23], const panda_real T_
     w0 = (panda_real)((w40 != PANDA_LIT(0.0)) || (w0 != PANDA_LIT(0.0)));
     w0 = w0 + PANDA_LIT(0.0);
     next[22] = w0;
-    swap = current;  /* the next state becomes the current one: no copy */
-    current = next;
-    next = swap;
+    current[0] = next[0];
+    current[1] = next[1];
+    current[2] = next[2];
+    current[3] = next[3];
+    current[4] = next[4];
+    current[5] = next[5];
+    current[6] = next[6];
+    current[7] = next[7];
+    current[8] = next[8];
+    current[9] = next[9];
+    current[10] = next[10];
+    current[11] = next[11];
+    current[12] = next[12];
+    current[13] = next[13];
+    current[14] = next[14];
+    current[15] = next[15];
+    current[16] = next[16];
+    current[17] = next[17];
+    current[18] = next[18];
+    current[19] = next[19];
+    current[20] = next[20];
+    current[21] = next[21];
+    current[22] = next[22];
   }
   for (i = 0; i < 23; ++i) { final[i] = current[i]; }
 }

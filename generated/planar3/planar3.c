@@ -2651,10 +2651,8 @@ planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_
 
 /* bisection_step3_loop: bisection_step3 PLANAR3_BISECTION_STEP3_LOOP_COUNT times (12 add, 2 mul, 2 div, 3 minmax, 1 compare each) */
 void planar3_bisection_step3_loop(const planar3_real state[2], const planar3_real d[3], const planar3_real e2[2], planar3_real final[2]) {
-  planar3_real state_a[2], state_b[2];
-  planar3_real *current = state_a;
-  planar3_real *next = state_b;
-  planar3_real *swap;
+  planar3_real current[2];
+  planar3_real next[2];
   int k;
   int i;
   for (i = 0; i < 2; ++i) { current[i] = state[i]; }
@@ -2691,9 +2689,8 @@ void planar3_bisection_step3_loop(const planar3_real state[2], const planar3_rea
     w0 = PLANAR3_LIT(0.5);
     w0 = w0 * w3;
     next[1] = w0;
-    swap = current;  /* the next state becomes the current one: no copy */
-    current = next;
-    next = swap;
+    current[0] = next[0];
+    current[1] = next[1];
   }
   for (i = 0; i < 2; ++i) { final[i] = current[i]; }
 }
@@ -2704,10 +2701,8 @@ void planar3_bisection_step3_loop(const planar3_real state[2], const planar3_rea
 #endif
 /* ik_step_2f36c519_loop: ik_step_2f36c519 PLANAR3_IK_STEP_2F36C519_LOOP_COUNT times (252 add, 220 mul, 22 div, 5 sqrt, 11 trig, 26 minmax, 67 compare, 72 select each) */
 void planar3_ik_step_2f36c519_loop(const planar3_real state[15], const planar3_real T_target[16], const planar3_real q_rest[3], const planar3_real use_rest[1], const planar3_real tol_position[1], const planar3_real tol_orientation[1], const planar3_real max_iterations[1], planar3_real final[15]) {
-  planar3_real state_a[15], state_b[15];
-  planar3_real *current = state_a;
-  planar3_real *next = state_b;
-  planar3_real *swap;
+  planar3_real current[15];
+  planar3_real next[15];
   int k;
   int i;
   for (i = 0; i < 15; ++i) { current[i] = state[i]; }
@@ -3416,9 +3411,21 @@ void planar3_ik_step_2f36c519_loop(const planar3_real state[15], const planar3_r
     w0 = (planar3_real)((w24 != PLANAR3_LIT(0.0)) || (w0 != PLANAR3_LIT(0.0)));
     w0 = w0 + PLANAR3_LIT(0.0);
     next[14] = w0;
-    swap = current;  /* the next state becomes the current one: no copy */
-    current = next;
-    next = swap;
+    current[0] = next[0];
+    current[1] = next[1];
+    current[2] = next[2];
+    current[3] = next[3];
+    current[4] = next[4];
+    current[5] = next[5];
+    current[6] = next[6];
+    current[7] = next[7];
+    current[8] = next[8];
+    current[9] = next[9];
+    current[10] = next[10];
+    current[11] = next[11];
+    current[12] = next[12];
+    current[13] = next[13];
+    current[14] = next[14];
   }
   for (i = 0; i < 15; ++i) { final[i] = current[i]; }
 }

@@ -55872,10 +55872,8 @@ snake12_status snake12_ik(const snake12_real T_target[16], const snake12_real q_
 
 /* bisection_step6_loop: bisection_step6 SNAKE12_BISECTION_STEP6_LOOP_COUNT times (24 add, 2 mul, 5 div, 6 minmax, 1 compare each) */
 void snake12_bisection_step6_loop(const snake12_real state[2], const snake12_real d[6], const snake12_real e2[5], snake12_real final[2]) {
-  snake12_real state_a[2], state_b[2];
-  snake12_real *current = state_a;
-  snake12_real *next = state_b;
-  snake12_real *swap;
+  snake12_real current[2];
+  snake12_real next[2];
   int k;
   int i;
   for (i = 0; i < 2; ++i) { current[i] = state[i]; }
@@ -55936,9 +55934,8 @@ void snake12_bisection_step6_loop(const snake12_real state[2], const snake12_rea
     w0 = SNAKE12_LIT(0.5);
     w0 = w0 * w3;
     next[1] = w0;
-    swap = current;  /* the next state becomes the current one: no copy */
-    current = next;
-    next = swap;
+    current[0] = next[0];
+    current[1] = next[1];
   }
   for (i = 0; i < 2; ++i) { final[i] = current[i]; }
 }
@@ -55949,10 +55946,8 @@ void snake12_bisection_step6_loop(const snake12_real state[2], const snake12_rea
 #endif
 /* ik_step_8e27ca69_loop: ik_step_8e27ca69 SNAKE12_IK_STEP_8E27CA69_LOOP_COUNT times (2215 add, 2084 mul, 105 div, 5 sqrt, 49 trig, 135 minmax, 247 compare, 325 select each) */
 void snake12_ik_step_8e27ca69_loop(const snake12_real state[59], const snake12_real T_target[16], const snake12_real q_rest[25], const snake12_real use_rest[1], const snake12_real tol_position[1], const snake12_real tol_orientation[1], const snake12_real max_iterations[1], snake12_real final[59]) {
-  snake12_real state_a[59], state_b[59];
-  snake12_real *current = state_a;
-  snake12_real *next = state_b;
-  snake12_real *swap;
+  snake12_real current[59];
+  snake12_real next[59];
   int k;
   int i;
   for (i = 0; i < 59; ++i) { current[i] = state[i]; }
@@ -61154,9 +61149,65 @@ void snake12_ik_step_8e27ca69_loop(const snake12_real state[59], const snake12_r
     w0 = (snake12_real)((w92 != SNAKE12_LIT(0.0)) || (w0 != SNAKE12_LIT(0.0)));
     w0 = w0 + SNAKE12_LIT(0.0);
     next[58] = w0;
-    swap = current;  /* the next state becomes the current one: no copy */
-    current = next;
-    next = swap;
+    current[0] = next[0];
+    current[1] = next[1];
+    current[2] = next[2];
+    current[3] = next[3];
+    current[4] = next[4];
+    current[5] = next[5];
+    current[6] = next[6];
+    current[7] = next[7];
+    current[8] = next[8];
+    current[9] = next[9];
+    current[10] = next[10];
+    current[11] = next[11];
+    current[12] = next[12];
+    current[13] = next[13];
+    current[14] = next[14];
+    current[15] = next[15];
+    current[16] = next[16];
+    current[17] = next[17];
+    current[18] = next[18];
+    current[19] = next[19];
+    current[20] = next[20];
+    current[21] = next[21];
+    current[22] = next[22];
+    current[23] = next[23];
+    current[24] = next[24];
+    current[25] = next[25];
+    current[26] = next[26];
+    current[27] = next[27];
+    current[28] = next[28];
+    current[29] = next[29];
+    current[30] = next[30];
+    current[31] = next[31];
+    current[32] = next[32];
+    current[33] = next[33];
+    current[34] = next[34];
+    current[35] = next[35];
+    current[36] = next[36];
+    current[37] = next[37];
+    current[38] = next[38];
+    current[39] = next[39];
+    current[40] = next[40];
+    current[41] = next[41];
+    current[42] = next[42];
+    current[43] = next[43];
+    current[44] = next[44];
+    current[45] = next[45];
+    current[46] = next[46];
+    current[47] = next[47];
+    current[48] = next[48];
+    current[49] = next[49];
+    current[50] = next[50];
+    current[51] = next[51];
+    current[52] = next[52];
+    current[53] = next[53];
+    current[54] = next[54];
+    current[55] = next[55];
+    current[56] = next[56];
+    current[57] = next[57];
+    current[58] = next[58];
   }
   for (i = 0; i < 59; ++i) { final[i] = current[i]; }
 }
