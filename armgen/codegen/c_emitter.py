@@ -179,7 +179,7 @@ class _Statement:
     lines: list[str]
     writes: tuple[int, ...]
     reads: tuple[int, ...]
-    op: int = -1  # the SX operation (OP_*), -1 for a call
+    op: int = -1  # the SX operation (OP_*); -1 for a call, an input, an output or a table read
     constant: float | None = None  # the value an OP_CONST writes
 
 

@@ -403,7 +403,8 @@ def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str
     guard = f"{P}_H"
     float_default = 1 if config.precision == "float" else 0
     lean = {"FMIN": f"{p}_fmin", "FMAX": f"{p}_fmax", "SQRT": f"{p}_sqrt"}
-    macros_f = "\n".join(f"#define {P}_{m} {({'FLOOR': f'{p}_floorf'} | lean).get(m, m.lower() + 'f')}" for m in math
+    lean_float = lean | {"FLOOR": f"{p}_floorf"}
+    macros_f = "\n".join(f"#define {P}_{m} {lean_float.get(m, m.lower() + 'f')}" for m in math
                          if m not in ("SIN", "COS", "ATAN2"))
     atan2_bounded, atan2_libm = (f"\n#define {P}_ATAN2 {p}_atan2_bounded", f"\n#define {P}_ATAN2 atan2f") \
         if "ATAN2" in math else ("", "")

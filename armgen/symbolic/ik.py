@@ -29,8 +29,8 @@ The step (damped least squares, Levenberg–Marquardt with Sugihara's damping):
 The first attempt starts from the seed turned about the first joint's axis toward the target
 (``aligned_seed``; not when ``use_rest`` = 1), and every later attempt's first step is the step
 of its configuration turned the same way (``_turned_back``: the turned configuration's J and e
-are this one's rotated, so no evaluation is spent on it). An attempt ends after ITERATIONS evaluations or
-as soon as it stalls (a step leaves ½‖e‖² above STALL_RATIO of the previous one); the next
+are this one's rotated, so no evaluation is spent on it). An attempt ends after ITERATIONS
+evaluations or as soon as it stalls (a step leaves ½‖e‖² above STALL_RATIO of the previous one); the next
 one moves the joints that the last step held at a limit, and their neighbours in the chain, to
 the next point of a deterministic sequence (a Kronecker sequence over the joint ranges) and
 steps on with the others (all move when none was held, and at every FULL_RESEED_EVERY-th
