@@ -8,14 +8,16 @@ import csv
 import hashlib
 import io
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ...errors import TaskFileError
+from ...errors import TaskFileError, excerpt
 from ...description import rpy_matrix
+from ...description.model import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M
 from ...robot import Robot
 from ...schemas import read_input_file
 from .geometry import GeometryError, MoveSpec, Program
@@ -28,6 +30,9 @@ RPY_COLUMNS = ("roll", "pitch", "yaw")
 QUATERNION_COLUMNS = ("qw", "qx", "qy", "qz")
 # A quaternion shorter than this is no rotation (rows are normalised otherwise).
 MIN_QUATERNION_NORM = 1e-6
+# A quaternion component beyond this is no unit quaternion written out, but a wrong column or
+# unit (and its square would leave the floating-point range on the way to the norm).
+MAX_QUATERNION_COMPONENT = 1e6
 
 
 @dataclass(frozen=True)
@@ -90,48 +95,100 @@ def parse_program(path: dict, source: str, ls: float, as_: float) -> ProgramSpec
 def read_poses(file: Path, label: str, k: int, source: str, ls: float,
                as_: float) -> tuple[np.ndarray, Rotation, str, str]:
     """(positions, rotations, file name, sha256) of a poses CSV: a header row naming x, y, z and
-    roll, pitch, yaw or qw, qx, qy, qz (any order, other columns ignored), then one pose a row."""
-    where = f"{source}: {_where(k, 'poses')}: {label}"
+    roll, pitch, yaw or qw, qx, qy, qz (any order, other columns ignored), then one pose a row.
+    Every error names the file and the line, quoting at most an excerpt of what is there."""
+    where = f"{source}: {_where(k, 'poses')}: {excerpt(label)}"
     try:
         data = read_input_file(file, MAX_POSES_FILE_BYTES, "poses file (relative to the task file; thin the samples "
                                "if it is too large)", TaskFileError)
     except TaskFileError as exc:
         raise TaskFileError(f"{source}: {_where(k, 'poses')}: {exc}") from None
+    _refuse_pseudo_file(file, len(data), where)
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise TaskFileError(f"{where}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    rows = [r for r in csv.reader(io.StringIO(text)) if r and not r[0].lstrip().startswith("#")]
+    rows = _csv_rows(text, where)
     if not rows:
         raise TaskFileError(f"{where}: empty; give a header row (x,y,z,roll,pitch,yaw) and one pose a row")
-    header = [h.strip().lower() for h in rows[0]]
+    header = [h.strip().lower() for h in rows[0][1]]
     orientation = RPY_COLUMNS if set(RPY_COLUMNS) <= set(header) else QUATERNION_COLUMNS
     wanted = POSITION_COLUMNS + orientation
     if not set(wanted) <= set(header):
-        raise TaskFileError(f"{where}: the header row {rows[0]} lacks {', '.join(c for c in wanted if c not in header)}; "
-                            "name the columns x, y, z and roll, pitch, yaw (or qw, qx, qy, qz)")
+        raise TaskFileError(f"{where}: line {rows[0][0]}: the header row {excerpt(repr(','.join(rows[0][1])))} lacks "
+                            f"{', '.join(c for c in wanted if c not in header)}; name the columns x, y, z and roll, "
+                            "pitch, yaw (or qw, qx, qy, qz)")
+    if len(rows) == 1:
+        raise TaskFileError(f"{where}: only the header row, no pose; give one pose a row below it")
     index = [header.index(c) for c in wanted]
     values = np.empty((len(rows) - 1, len(wanted)))
-    for r, row in enumerate(rows[1:], start=2):
+    for r, (line, row) in enumerate(rows[1:]):
         for c, col in enumerate(index):
             cell = row[col].strip() if col < len(row) else ""
             try:
                 value = float(cell)
             except ValueError:
-                raise TaskFileError(f"{where}: line {r}, column {wanted[c]} = {cell!r} is not a number") from None
+                raise TaskFileError(f"{where}: line {line}, column {wanted[c]} = {excerpt(repr(cell))} is not a "
+                                    "number") from None
             if not math.isfinite(value):
-                raise TaskFileError(f"{where}: line {r}, column {wanted[c]} is {cell}; every value must be a finite "
-                                    "number (fill or drop the row)")
-            values[r - 2, c] = value
+                raise TaskFileError(f"{where}: line {line}, column {wanted[c]} is {excerpt(cell)}; every value must "
+                                    "be a finite number (fill or drop the row)")
+            values[r, c] = value
+    lines = [line for line, _ in rows[1:]]
     points = values[:, :3] * ls
+    _check_bound(np.abs(points), MAX_ABS_LENGTH_M, "m", POSITION_COLUMNS, lines, where)
     if orientation == RPY_COLUMNS:
-        rotations = Rotation.from_euler("xyz", values[:, 3:] * as_)  # extrinsic x, y, z: Rz(yaw) Ry(pitch) Rx(roll)
+        angles = values[:, 3:] * as_
+        _check_bound(np.abs(angles), MAX_ABS_ANGLE_RAD, "rad", RPY_COLUMNS, lines, where)
+        rotations = Rotation.from_euler("xyz", angles)  # extrinsic x, y, z: Rz(yaw) Ry(pitch) Rx(roll)
     else:
+        # bounded first, so that the norms below cannot overflow
+        _check_bound(np.abs(values[:, 3:]), MAX_QUATERNION_COMPONENT, "", QUATERNION_COLUMNS, lines, where,
+                     "a quaternion's components are near 1 (each row is normalised): check the column")
         norms = np.linalg.norm(values[:, 3:], axis=1)
-        if values.shape[0] and norms.min() < MIN_QUATERNION_NORM:
-            raise TaskFileError(f"{where}: line {int(np.argmin(norms)) + 2}: the quaternion is zero; give a rotation")
+        if norms.min() < MIN_QUATERNION_NORM:
+            raise TaskFileError(f"{where}: line {lines[int(np.argmin(norms))]}: the quaternion is zero; give a "
+                                "rotation")
         rotations = Rotation.from_quat(values[:, [4, 5, 6, 3]])  # SciPy is scalar-last
     return points, rotations, file.name, hashlib.sha256(data).hexdigest()
+
+
+def _refuse_pseudo_file(file: Path, size: int, where: str) -> None:
+    """A file of /proc or /sys passes as a regular file but reports a size (0, 4096) unlike
+    what it holds: refuse it rather than quote the machine's state (its environment) back."""
+    try:
+        reported = os.stat(file).st_size
+    except OSError as exc:
+        raise TaskFileError(f"{where}: cannot read the poses file: {exc.strerror or exc}") from None
+    if reported != size:
+        raise TaskFileError(f"{where}: the file system says {reported} bytes but {size} were read: a pseudo-file "
+                            "(as under /proc or /sys) or a file being written; give a finished poses CSV")
+
+
+def _csv_rows(text: str, where: str) -> list[tuple[int, list[str]]]:
+    """The non-empty rows of the CSV text with their line numbers (1-based); comment lines (#)
+    are blanked before the CSV reader sees them, so a long or quoted comment is only a comment."""
+    lines = ("\n" if line.lstrip().startswith("#") else line for line in io.StringIO(text, newline=""))
+    reader = csv.reader(lines)
+    rows = []
+    try:
+        for row in reader:
+            if row:
+                rows.append((reader.line_num, row))
+    except csv.Error as exc:
+        raise TaskFileError(f"{where}: line {reader.line_num}: not CSV ({excerpt(str(exc))}); a value holds at "
+                            f"most {csv.field_size_limit()} characters and a quoted one ends with a quote") from None
+    return rows
+
+
+def _check_bound(magnitudes: np.ndarray, bound: float, unit: str, columns: tuple[str, ...], lines: list[int],
+                 where: str, fix: str = "no pose of an arm is that far out: check the value and [units]") -> None:
+    """Refuse the first value beyond ``bound`` (SI, after [units]), naming its line and column."""
+    beyond = magnitudes > bound
+    if beyond.any():
+        r, c = np.argwhere(beyond)[0]
+        raise TaskFileError(f"{where}: line {lines[r]}, column {columns[c]} is beyond ±{f'{bound:g} {unit}'.strip()}; "
+                            f"{fix}")
 
 
 def build_program(spec: ProgramSpec, start_pose: np.ndarray, source: str) -> Program:
