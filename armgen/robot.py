@@ -21,6 +21,8 @@ from numpy.typing import ArrayLike
 
 from .description import (BUNDLED_DIR, Joint, RobotDescription, bundled_robots, describe, load_description,
                           matrix_rpy, parse_description, read_urdf, resolve_robot_path, rpy_matrix)
+from .description.model import MAX_ABS_LENGTH_M
+from .errors import excerpt
 
 __all__ = ["BUNDLED_DIR", "Joint", "Robot", "bundled_robots", "describe", "load_robot", "load_robot_any",
            "matrix_rpy", "parse_robot", "resolve_robot_path", "rpy_matrix"]
@@ -195,10 +197,12 @@ class Robot(RobotDescription):
             first joint's axis toward the target when both reach out from that axis
             (docs/ik.md, Method).
         tol_position, tol_orientation
-            Success thresholds (m, rad; default 1e-6 each).
+            Success thresholds (m, rad; default 1e-6 each; above 0 and at most
+            :data:`MAX_TOL_POSITION` / :data:`MAX_TOL_ORIENTATION`, 0.01).
         max_iterations
-            Stop after this many steps (1 to the default, ``armgen.symbolic.ik.MAX_ITERATIONS``):
-            a bound on the time a solve takes, at the price of more misses.
+            Stop after this many steps (an int, 1 to the default,
+            ``armgen.symbolic.ik.MAX_ITERATIONS``): a bound on the time a solve takes, at the
+            price of more misses.
 
         Returns
         -------
@@ -209,30 +213,41 @@ class Robot(RobotDescription):
 
         Raises
         ------
+        TypeError
+            A pose, ``q0`` or ``seed`` that does not hold real numbers (text, complex, bool), a
+            tolerance that is no number, a ``max_iterations`` that is no int (or a bool).
         ValueError
-            A pose that is not a finite homogeneous transform with a rotation part, or a
-            ``q0``/``seed`` of the wrong size.
+            A pose that is not a finite homogeneous transform with a rotation part (or has an
+            entry beyond ±1000 m), a ``q0``/``seed`` of the wrong size, a tolerance outside
+            its range, a ``max_iterations`` outside its range.
         """
         from .symbolic import ik
 
-        pose = np.asarray(pose, dtype=float)
+        pose = _real_array(pose, "pose")
         if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
             raise ValueError(f"pose must have shape (4, 4) or (..., 4, 4), got {pose.shape}")
         batch_shape = pose.shape[:-2]
         targets = pose.reshape(-1, 4, 4)
+        if np.max(np.abs(np.where(np.isfinite(targets), targets, 0.0)), initial=0.0) > MAX_ABS_LENGTH_M:
+            raise ValueError(f"pose: an entry is beyond ±{MAX_ABS_LENGTH_M:g} (m), far out of any arm's reach; "
+                             "give the position in metres")
         _check_poses(targets)
         size = targets.shape[0]
 
         def joints(value: ArrayLike, what: str) -> np.ndarray:
-            value = np.asarray(value, dtype=float)
+            value = _real_array(value, what)
             if value.ndim == 0 or value.shape[-1] != self.n or not np.all(np.isfinite(value)):
                 raise ValueError(f"{what} must hold {self.n} finite joint values for robot '{self.name}' "
                                  f"(shape ({self.n},) or (..., {self.n})), got shape {value.shape}")
             return np.broadcast_to(value, batch_shape + (self.n,)).reshape(size, self.n)
 
         cap = ik.MAX_ITERATIONS if max_iterations is None else max_iterations
-        if not isinstance(cap, (int, np.integer)) or not 1 <= cap <= ik.MAX_ITERATIONS:
+        if isinstance(cap, (bool, np.bool_)) or not isinstance(cap, (int, np.integer)):
+            raise TypeError(f"max_iterations must be an integer (not a bool), got {excerpt(repr(max_iterations))}")
+        if not 1 <= cap <= ik.MAX_ITERATIONS:
             raise ValueError(f"max_iterations must be an integer from 1 to {ik.MAX_ITERATIONS}, got {max_iterations!r}")
+        tol_p = _tolerance(tol_position, "tol_position", ik.TOL_POSITION, MAX_TOL_POSITION, "m")
+        tol_o = _tolerance(tol_orientation, "tol_orientation", ik.TOL_ORIENTATION, MAX_TOL_ORIENTATION, "rad")
         rest = joints(q0, "q0") if q0 is not None else np.broadcast_to(self.qmid, (size, self.n))
         if isinstance(seed, str):
             start = joints(self.configuration(seed), f"seed '{seed}'")
@@ -242,8 +257,7 @@ class Robot(RobotDescription):
             start = rest
         outputs = ik.solve(self, targets, np.ascontiguousarray(start), np.ascontiguousarray(rest),
                            0.0 if q0 is None else 1.0,
-                           ik.TOL_POSITION if tol_position is None else tol_position,
-                           ik.TOL_ORIENTATION if tol_orientation is None else tol_orientation, int(cap))
+                           tol_p, tol_o, int(cap))
         q, pos, ori, iterations, success = outputs
         q = q.T.reshape(batch_shape + (self.n,))
         return ik.IKResult(q, success.reshape(batch_shape) != 0, pos.reshape(batch_shape), ori.reshape(batch_shape),
@@ -267,6 +281,34 @@ def _check_poses(poses: np.ndarray) -> None:
     if np.max(np.abs(gram), initial=0.0) > POSE_ORTHONORMAL_TOL or np.any(np.linalg.det(rot) < 0):
         raise ValueError(f"pose: the 3x3 rotation part is not a rotation (R^T R = I within {POSE_ORTHONORMAL_TOL:g}, "
                          "det R = +1); build it e.g. with scipy.spatial.transform.Rotation")
+
+
+# The largest success thresholds Robot.ik takes: a solution farther than 1 cm or 0.01 rad
+# (0.6°) from the pose is not at it (a tool's accuracy is far below a millimetre); a larger
+# tolerance would report success for poses out of reach.
+MAX_TOL_POSITION = 1e-2
+MAX_TOL_ORIENTATION = 1e-2
+
+
+def _real_array(value: ArrayLike, what: str) -> np.ndarray:
+    """``value`` as a float array; anything but real numbers (text, complex, bool, objects)
+    is a TypeError rather than silently converted."""
+    array = np.asarray(value)
+    if array.dtype.kind not in "iuf":
+        raise TypeError(f"{what} must hold real numbers (int or float), got an array of dtype {array.dtype}")
+    return array.astype(float)
+
+
+def _tolerance(value: object, what: str, default: float, bound: float, unit: str) -> float:
+    """A success threshold: the default for None, else a real number in (0, ``bound``]."""
+    if value is None:
+        return default
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{what} must be a number ({unit}), got {excerpt(repr(value))}")
+    if not 0.0 < float(value) <= bound:
+        raise ValueError(f"{what} = {value!r} {unit}: give a tolerance above 0 and at most {bound:g} {unit} (a larger "
+                         "one would call a pose out of reach solved)")
+    return float(value)
 
 
 def parse_robot(text: str, source: str, sha256: str | None = None, directory: Path | None = None) -> Robot:

@@ -9,9 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from click.testing import CliRunner
 
+from armgen.cli.main import cli
 from armgen.errors import TaskFileError
 from armgen.planning.toolpath.task import read_poses
+from armgen.robot import MAX_TOL_ORIENTATION, MAX_TOL_POSITION, load_robot
 
 # An error message names the file, the place and the fix, quoting a bounded excerpt.
 MAX_MESSAGE_CHARS = 600
@@ -89,3 +92,95 @@ def test_poses_pseudo_file_is_refused_without_quoting_it():
     message = str(info.value)
     assert "pseudo-file" in message and len(message) < MAX_MESSAGE_CHARS
     assert "PATH=" not in message and os.environ.get("HOME", "/nonexistent-home") not in message
+
+
+# -- 16: the IK entry points --------------------------------------------------------------
+
+def _planar3_target(x: float = 0.4, y: float = 0.2) -> np.ndarray:
+    pose = np.eye(4)
+    pose[:3, 3] = [x, y, 0.0]  # planar3: every DH d and alpha is 0, so the arm lies in z = 0
+    return pose
+
+
+def test_ik_tolerance_cannot_call_a_pose_out_of_reach_solved():
+    robot = load_robot("planar3")
+    far = _planar3_target(10.0, 0.0)  # its links add up to 1.2 m
+    with pytest.raises(ValueError, match=r"tol_position = 1e\+30 m.*at most 0.01 m"):
+        robot.ik(far, tol_position=1e30)
+    assert not robot.ik(far, tol_position=MAX_TOL_POSITION, tol_orientation=MAX_TOL_ORIENTATION).success
+
+
+@pytest.mark.parametrize("keyword,value,error", [
+    ("tol_position", float("nan"), ValueError), ("tol_position", -1e-6, ValueError), ("tol_position", 0.0, ValueError),
+    ("tol_orientation", float("inf"), ValueError), ("tol_orientation", 1.0, ValueError),
+    ("tol_position", "1e-3", TypeError), ("tol_orientation", True, TypeError), ("tol_position", 1e-3j, TypeError),
+    ("max_iterations", True, TypeError), ("max_iterations", np.True_, TypeError), ("max_iterations", 2.5, TypeError),
+    ("max_iterations", "10", TypeError), ("max_iterations", 0, ValueError), ("max_iterations", 451, ValueError),
+])
+def test_ik_refuses_bad_arguments(keyword, value, error):
+    with pytest.raises(error, match=keyword):
+        load_robot("planar3").ik(_planar3_target(), **{keyword: value})
+
+
+@pytest.mark.parametrize("convert", [lambda p: p.astype(complex), lambda p: p.astype(str), lambda p: p.astype(bool),
+                                     lambda p: p.astype(object), lambda p: p.tolist() + [], lambda p: "eye"])
+def test_ik_pose_must_hold_real_numbers(convert):
+    pose = _planar3_target()
+    converted = convert(pose)
+    if isinstance(converted, list):  # a nested list with a string in it
+        converted[0][0] = "1"
+    with pytest.raises(TypeError, match="pose must hold real numbers"):
+        load_robot("planar3").ik(converted)
+
+
+@pytest.mark.parametrize("keyword", ["seed", "q0"])
+def test_ik_joint_values_must_be_real_numbers(keyword):
+    with pytest.raises(TypeError, match=f"{keyword} must hold real numbers"):
+        load_robot("planar3").ik(_planar3_target(), **{keyword: np.array([0.1, 0.2, 0.3]) + 0j})
+
+
+def test_ik_pose_beyond_any_reach_is_refused():
+    pose = _planar3_target(1e300, 0.0)
+    with pytest.raises(ValueError, match="beyond ±1000"):
+        load_robot("planar3").ik(pose)
+
+
+def test_ik_accepts_numpy_scalars_and_integer_poses():
+    robot = load_robot("planar3")
+    result = robot.ik(np.eye(4, dtype=int), tol_position=np.float32(1e-3),
+                      max_iterations=np.int64(450))
+    assert result.position_error.shape == ()
+
+
+def _ik_cli(*args: str):
+    return CliRunner().invoke(cli, ["ik", *args])
+
+
+def test_ik_cli_planar_arm_does_not_call_an_uncontrolled_row_solved():
+    result = _ik_cli("planar3", "--xyz", "0.4", "0.2", "0.6")
+    assert result.exit_code == 3, result.output
+    assert "solved" not in result.output and "closest reached" in result.output
+    assert "rows the arm does not control (vz, wx, wy): position error 0.6 m" in result.output
+    assert "controls only the rows vx, vy, wz" in result.output
+
+
+def test_ik_cli_planar_arm_in_its_plane_is_solved():
+    result = _ik_cli("planar3", "--xyz", "0.4", "0.2", "0")
+    assert result.exit_code == 0, result.output
+    assert result.output.startswith("solved") and "position error 0 m, orientation error 0 rad" in result.output
+
+
+def test_ik_cli_planar_arm_reports_an_orientation_it_cannot_take():
+    result = _ik_cli("planar3", "--xyz", "0.4", "0.2", "0", "--rpy", "0.3", "0", "0")
+    assert result.exit_code == 3, result.output
+    assert "orientation error 0.3 rad" in result.output
+
+
+@pytest.mark.parametrize("args,needle", [(["--rpy", "1e300", "0", "0"], "--rpy 1e+300 0 0: beyond ±1000 rad"),
+                                         (["--rpy", "0", "0", "1e5", "--units", "deg"], "beyond ±1000 rad"),
+                                         (["--xyz", "1e300", "0", "0"], "--xyz 1e+300 0 0: beyond ±1000 m")])
+def test_ik_cli_refuses_huge_numbers(args, needle):
+    xyz = [] if "--xyz" in args else ["--xyz", "0.4", "0.2", "0"]
+    result = _ik_cli("planar3", *xyz, *args)
+    assert result.exit_code == 2, result.output
+    assert needle in result.output

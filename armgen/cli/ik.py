@@ -1,5 +1,7 @@
 """``armgen ik ROBOT --xyz X Y Z --rpy R P Y``: the joint angles that put the tool at a pose
-(``docs/ik.md``). Exit 0 when found, 3 when not (the closest configuration reached is printed)."""
+(``docs/ik.md``). Exit 0 when found, 3 when not (the closest configuration reached is printed),
+also when the arm reaches its task rows but the pose asks for other values in the rows it does
+not control (a planar arm's z)."""
 
 from __future__ import annotations
 
@@ -8,6 +10,7 @@ import math
 import click
 import numpy as np
 
+from ..description.model import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, TASK_ROWS
 from .handling import handle_errors
 
 
@@ -29,11 +32,27 @@ def _joints(robot, text: str, option: str, angle_scale: float) -> np.ndarray:
     return np.array(values) * scale
 
 
+def _uncontrolled_error(robot, pose: np.ndarray, q: np.ndarray) -> tuple[list[str], float, float]:
+    """The task rows the robot does not control, and the pose error in them at ``q``: the
+    largest position (m) and rotation-vector (rad, base frame) component. The solver drives
+    only the controlled rows, so these are what a planar arm leaves of the requested pose."""
+    from scipy.spatial.transform import Rotation
+
+    free = [k for k in range(len(TASK_ROWS)) if k not in robot.task_rows]
+    reached = robot.fk(q)
+    error = np.concatenate([pose[:3, 3] - reached[:3, 3],
+                            Rotation.from_matrix(pose[:3, :3] @ reached[:3, :3].T).as_rotvec()])
+    position = max((abs(error[k]) for k in free if k < 3), default=0.0)
+    orientation = max((abs(error[k]) for k in free if k >= 3), default=0.0)
+    return [TASK_ROWS[k] for k in free], float(position), float(orientation)
+
+
 @click.command("ik")
 @click.argument("robot")
 @click.option("--xyz", nargs=3, type=float, required=True, help="tool position in the base frame [m]")
-@click.option("--rpy", nargs=3, type=float, default=(0.0, 0.0, 0.0), show_default=True,
-              help="tool orientation, R = Rz(yaw) Ry(pitch) Rx(roll) [--units]")
+@click.option("--rpy", nargs=3, type=float, default=None,
+              help="tool orientation, R = Rz(yaw) Ry(pitch) Rx(roll) [--units] (default: 0 0 0, not required in the "
+                   "orientation rows the arm does not control)")
 @click.option("--seed", default=None, help="first start: a configuration name or n joint values (default: --q0, "
                                            "else the middle of the limits; without --q0 first turned about the "
                                            "first joint's axis toward the target)")
@@ -44,31 +63,52 @@ def _joints(robot, text: str, option: str, angle_scale: float) -> np.ndarray:
 @click.option("--units", type=click.Choice(["rad", "deg"]), default="rad", show_default=True,
               help="angle unit of --rpy, --seed, --q0 and the printed joint angles")
 @handle_errors
-def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float, float], seed: str | None,
+def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float, float] | None, seed: str | None,
            q0: str | None, max_iterations: int | None, units: str) -> None:
     """Inverse kinematics: joint values that put the tool at a pose (exit 3 when none is found)."""
     from ..errors import OptionError, PlanningError
-    from ..description import rpy_matrix
+    from ..description import matrix_rpy, rpy_matrix
     from ..robot import load_robot_any
     from ..symbolic import ik
 
     r = load_robot_any(robot)
     scale = math.pi / 180 if units == "deg" else 1.0
+    rpy_given, rpy = rpy, rpy or (0.0, 0.0, 0.0)
     if not all(math.isfinite(v) for v in (*xyz, *rpy)):
         raise OptionError("--xyz/--rpy: give finite numbers")
+    if max(abs(v) for v in xyz) > MAX_ABS_LENGTH_M:
+        raise OptionError(f"--xyz {' '.join(f'{v:g}' for v in xyz)}: beyond ±{MAX_ABS_LENGTH_M:g} m, out of any arm's "
+                          "reach; give the position in metres")
+    if max(abs(v * scale) for v in rpy) > MAX_ABS_ANGLE_RAD:
+        raise OptionError(f"--rpy {' '.join(f'{v:g}' for v in rpy)}: beyond ±{MAX_ABS_ANGLE_RAD:g} rad; give angles "
+                          f"of a few turns at most, in --units ({units})")
     pose = np.eye(4)
     pose[:3, :3] = rpy_matrix(*(v * scale for v in rpy))
     pose[:3, 3] = xyz
     result = r.ik(pose, None if q0 is None else _joints(r, q0, "--q0", scale),
                   seed=None if seed is None else _joints(r, seed, "--seed", scale),
                   max_iterations=None if max_iterations is None else min(max_iterations, ik.MAX_ITERATIONS))
-    rows = ", ".join(f"{'vx vy vz wx wy wz'.split()[k]}" for k in r.task_rows)
-    click.echo(f"{'solved' if result.success else 'closest reached'} in {int(result.iterations)} iterations "
-               f"(task rows {rows}): position error {float(result.position_error):.3g} m, "
+    rows = ", ".join(TASK_ROWS[k] for k in r.task_rows)
+    free_rows, free_position, free_orientation = _uncontrolled_error(r, pose, result.q)
+    # the orientation counts where the user gave one (--rpy), the position always (--xyz)
+    free_ok = free_position <= ik.TOL_POSITION and (rpy_given is None or free_orientation <= ik.TOL_ORIENTATION)
+    click.echo(f"{'solved' if result.success and free_ok else 'closest reached'} in {int(result.iterations)} "
+               f"iterations (task rows {rows}): position error {float(result.position_error):.3g} m, "
                f"orientation error {float(result.orientation_error):.3g} rad")
+    if free_rows:
+        reached = r.fk(result.q)
+        click.echo(f"rows the arm does not control ({', '.join(free_rows)}): position error {free_position:.3g} m, "
+                   f"orientation error {free_orientation:.3g} rad; the tool is at xyz "
+                   f"{(np.round(reached[:3, 3], 9) + 0.0).tolist()} m, rpy "
+                   f"{(np.round(matrix_rpy(reached[:3, :3]) / scale, 9) + 0.0).tolist()} {units}")  # + 0.0: no -0.0
     for joint, value in zip(r.joints, result.q):
         shown, unit = (value / scale, units) if joint.revolute else (value, "m")
         click.echo(f"  {joint.name:12s} {shown: .9g} {unit}")
+    if result.success and not free_ok:
+        raise PlanningError(f"robot '{r.name}' controls only the rows {rows} of the tool pose: the configuration "
+                            f"found reaches those, but the pose asks for other values in the rows "
+                            f"{', '.join(free_rows)} ({free_position:.3g} m / {free_orientation:.3g} rad off); give "
+                            "--xyz/--rpy the arm takes there (the tool pose reached is printed above)")
     if not result.success:
         raise PlanningError(f"no configuration of robot '{r.name}' within the tolerances was found for this pose "
                             f"(the closest one reached is printed above); check that the pose is within reach, or "
