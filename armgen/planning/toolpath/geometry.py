@@ -16,7 +16,8 @@ Rounded corners: a corner with blend radius ``r`` is cut at path length ``r`` be
 it (points A and B) and joined by the cubic Bézier ``A, A + ⅔ d_A t_A, B − ⅔ d_B t_B, B``
 (``d`` the chord to the corner): tangent-continuous at A and B, and, being inside the convex
 hull of four points within ``r`` of the corner, within ``r`` of it. Between two lines it is
-the quadratic Bézier through the corner's tangent lines.
+the quadratic Bézier through the corner's tangent lines. A corner that turns back (by more
+than :data:`MAX_BLEND_TURN`) cannot be rounded: the tool stops there instead.
 """
 
 from __future__ import annotations
@@ -30,6 +31,12 @@ from scipy.spatial.transform import Rotation, RotationSpline
 
 # Two tangents closer than this (rad) meet smoothly: no corner, nothing to round or stop at.
 CORNER_ANGLE_TOL = 1e-6
+# A corner that turns the path by more than this (rad) is not rounded, whatever its blend: the
+# tool stops there. The rounding's peak curvature grows as sin(θ/2) / (r cos²(θ/2)) (a cusp at
+# a reversal, θ = 180°: the Bézier's speed vanishes and its arc length cannot be inverted);
+# up to 170° its radius of curvature is still 0.8 % of the blend radius, which the time law's
+# grid resolves (see CELLS_PER_MIN_RADIUS in .timelaw).
+MAX_BLEND_TURN = math.radians(170.0)
 # Three arc points closer than this to a line (relative to the chords) define no circle.
 COLLINEAR_TOL = 1e-6
 # A move shorter than this (m) has no direction: a pure reorientation is not a path.
@@ -171,7 +178,9 @@ class Curve(Piece):
 
 class Corner(Curve):
     """The rounded corner of radius ``radius`` at ``corner``, from A = (position, tangent,
-    rotation matrix) to B (see the module); ``move`` is the move it leaves."""
+    rotation matrix) to B (see the module); ``move`` is the move it leaves. ``min_radius`` is
+    its smallest radius of curvature (over its arc-length table), which sets how finely the
+    time law resolves it."""
 
     def __init__(self, a: tuple, b: tuple, corner: np.ndarray, radius: float, move: int):
         (pa, ta, ra), (pb, tb, rb) = a, b
@@ -192,10 +201,16 @@ class Corner(Curve):
             return 3 * (np.multiply.outer(m * m, ctrl[1] - ctrl[0]) + np.multiply.outer(2 * m * w, ctrl[2] - ctrl[1])
                         + np.multiply.outer(w * w, ctrl[3] - ctrl[2]))
 
+        w = np.linspace(0.0, 1.0, SAMPLES_PER_BLEND + 1)
         super().__init__(position, derivative, orientation,
-                         lambda w: np.broadcast_to(orientation.omega, (w.size, 3)),
-                         np.linspace(0.0, 1.0, SAMPLES_PER_BLEND + 1))
+                         lambda w: np.broadcast_to(orientation.omega, (w.size, 3)), w)
         self.move = move
+        m = 1 - w
+        second = 6 * (np.multiply.outer(m, ctrl[2] - 2 * ctrl[1] + ctrl[0]) + np.multiply.outer(w, ctrl[3] - 2 * ctrl[2]
+                                                                                                + ctrl[1]))
+        first = derivative(w)
+        curvature = np.linalg.norm(np.cross(first, second), axis=1) / np.linalg.norm(first, axis=1) ** 3
+        self.min_radius = float(1.0 / curvature.max()) if curvature.max() > 0 else math.inf
 
 
 def pose_spline(points: np.ndarray, rotations: Rotation, move: int) -> PoseSpline:
@@ -276,11 +291,13 @@ class Program:
 
     Attributes: ``pieces``; ``starts`` (path length where each begins, plus the total);
     ``stops`` (path lengths of corners without a blend, where the tool must come to rest);
-    ``moves`` (the specs).
+    ``moves`` (the specs); ``unrounded`` ((move, turn angle in rad) of every corner whose blend
+    was not applied because it turns by more than :data:`MAX_BLEND_TURN`: a stop instead).
     """
 
     def __init__(self, start_position: np.ndarray, start_rotation: np.ndarray, moves: list[MoveSpec]):
         self.moves = moves
+        self.unrounded: list[tuple[int, float]] = []
         raw = self._raw_pieces(start_position, Rotation.from_matrix(start_rotation), moves)
         self.pieces, stop_after = self._round_corners(raw)
         lengths = np.array([p.length for p in self.pieces])
@@ -325,6 +342,9 @@ class Program:
             if angle <= CORNER_ANGLE_TOL:
                 continue
             radius = self.moves[k].blend
+            if radius > 0 and angle > MAX_BLEND_TURN:  # (nearly) a reversal: no rounding can turn back
+                self.unrounded.append((k, angle))
+                radius = 0.0
             corners.append((k, radius))
             if radius == 0:
                 continue

@@ -207,4 +207,6 @@ def program_metadata(motion: ProgramMotion) -> dict[str, Any]:
     return {"type": "program", "length_mm": program.length * 1e3, "moves": len(program.moves),
             "program_duration_s": motion.duration, "law": "trapezoidal",
             "stops_mm": (program.stops * 1e3).tolist(),
-            "blend_zones_mm": [[a * 1e3, b * 1e3] for a, b, _, _ in program.blend_zones()]}
+            "blend_zones_mm": [[a * 1e3, b * 1e3] for a, b, _, _ in program.blend_zones()],
+            # corners whose blend turned back too sharply to round: the tool stops there
+            "unrounded_corners": [{"move": k, "turn_deg": math.degrees(angle)} for k, angle in program.unrounded]}

@@ -21,13 +21,25 @@ from .geometry import Corner, Program
 GRID_CELLS = 4000
 # Cells per piece at least (short rounded corners still get their speed cap resolved).
 MIN_CELLS_PER_PIECE = 8
+# Cells per smallest radius of curvature of a rounded corner: the centripetal cap averages the
+# curvature over half a cell, so cells must be small against the sharpest bend. With 4, the
+# tool's normal acceleration ṡ²κ stays within 1 % of its bound at every corner up to
+# geometry.MAX_BLEND_TURN (a tight corner on a long program had 2–50× at 8 cells a corner).
+CELLS_PER_MIN_RADIUS = 4
+
+
+def _cells(piece, step: float) -> int:
+    cells = max(MIN_CELLS_PER_PIECE, int(math.ceil(piece.length / step)))
+    if isinstance(piece, Corner):
+        cells = max(cells, int(math.ceil(CELLS_PER_MIN_RADIUS * piece.length / piece.min_radius)))
+    return cells
 
 
 def program_grid(program: Program) -> np.ndarray:
-    """Path lengths of the grid: every piece boundary, and cells of ~length/GRID_CELLS."""
+    """Path lengths of the grid: every piece boundary, cells of ~length/GRID_CELLS, finer in
+    tight rounded corners."""
     step = program.length / GRID_CELLS
-    parts = [np.linspace(program.starts[k], program.starts[k + 1],
-                         max(MIN_CELLS_PER_PIECE, int(math.ceil(piece.length / step))) + 1)
+    parts = [np.linspace(program.starts[k], program.starts[k + 1], _cells(piece, step) + 1)
              for k, piece in enumerate(program.pieces)]
     return np.unique(np.concatenate(parts))
 
@@ -68,13 +80,22 @@ class PathProfile:
 def _centripetal_cap(program: Program, s: np.ndarray, acc: np.ndarray) -> np.ndarray:
     """``√(a/κ)`` at the nodes: the tool's acceleration bound holds for the normal part ``ṡ²κ``
     too. The curvature of each cell comes from tangents a quarter cell either side of its
-    middle (one piece: cells never straddle a piece boundary, where a stop may sit)."""
+    middle (one piece: cells never straddle a piece boundary, where a stop may sit), and that
+    at each node inside a piece from tangents a quarter of its shorter cell either side (the
+    peak of a rounded corner sits on a node)."""
     mid, half = 0.5 * (s[1:] + s[:-1]), 0.25 * np.diff(s)
     tangent_hi, tangent_lo = program.tangent(mid + half), program.tangent(mid - half)
     kappa = np.linalg.norm(tangent_hi - tangent_lo, axis=-1) / (2 * half)
     with np.errstate(divide="ignore"):
         cell = np.where(kappa > 0, np.sqrt(acc / kappa), np.inf)
-    return np.minimum(np.concatenate([cell[:1], cell]), np.concatenate([cell, cell[-1:]]))
+    cap = np.minimum(np.concatenate([cell[:1], cell]), np.concatenate([cell, cell[-1:]]))
+    inner = np.flatnonzero(np.isin(s[1:-1], program.starts, invert=True)) + 1  # not on a piece boundary
+    reach = np.minimum(half[inner - 1], half[inner])
+    node_kappa = np.linalg.norm(program.tangent(s[inner] + reach) - program.tangent(s[inner] - reach), axis=-1) / (2 * reach)
+    node_acc = np.minimum(acc[inner - 1], acc[inner])
+    with np.errstate(divide="ignore"):
+        cap[inner] = np.minimum(cap[inner], np.where(node_kappa > 0, np.sqrt(node_acc / node_kappa), np.inf))
+    return cap
 
 
 def program_profile(program: Program, angular_speed: float | None, slowdown: np.ndarray | None = None,
