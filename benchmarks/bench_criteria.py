@@ -27,6 +27,11 @@ construction of the manipulability family, before issue 12), built and measured 
 
 The previous figures of rows the old code cannot give (snake12 had none of the criteria; the
 old exponent) are the issue's, marked "(issue)". Bars (reported, never asserted) are in BARS.
+
+``--quick`` (seconds): the current code only (no previous build, so no git history needed),
+the M4 in its bounded-trig build, small call counts, snake12 generated but not compiled,
+chains up to n = 16. The exit status is bench_kinematics.py's: 1 when a measurement failed, 4 when a tool is
+missing.
 """
 
 from __future__ import annotations
@@ -51,11 +56,11 @@ for path in (str(REPO), str(HERE)):
         sys.path.insert(0, path)
 
 from bench_kinematics import (FIRMWARE, QEMU_BASE, Report, Skip, arm_flags, arm_object, bar_note,  # noqa: E402
-                              build_host_driver, callgrind_instr, finish, run, tool)
+                              build_host_driver, callgrind_instr, finish, run, tool, use_quick_counts)
 from armgen.codegen.generate import CodegenConfig, generate, write  # noqa: E402
 from armgen.codegen.toolchain import STRICT_FLAGS  # noqa: E402
 from armgen.robot import load_robot, parse_robot  # noqa: E402
-from armgen.symbolic.model import STEP_FUNCTIONS, SymbolicModel  # noqa: E402
+from armgen.symbolic.model import SymbolicModel  # noqa: E402
 from armgen.verify.samples import function_inputs, joint_samples  # noqa: E402
 
 PREVIOUS_REV = "85a2322"  # main before issue 12: the Cauchy–Binet criteria
@@ -74,6 +79,8 @@ INPUT_SETS = 16  # seeded input sets per function, cycled by the timing loop
 ARM_NCALLS = 512  # calls per function and timing loop (a multiple of INPUT_SETS)
 CHAIN_DOFS = (6, 8, 10, 12, 16, 20, 25, 30, 40)
 FIT_FROM_DOF = 12
+QUICK_ARM_NCALLS = 32  # --quick: two cycles of the input sets
+QUICK_CHAIN_DOFS = (6, 12, 16)  # --quick: two points from FIT_FROM_DOF on, for the fit
 HOST_OPT = "-O2"
 SECTIONS = ("cortex_m4f", "x86", "snake12", "growth")
 
@@ -104,9 +111,21 @@ def _c_literal(value: float) -> str:
     return f"{float(np.float32(value))!r}f"
 
 
-def arm_driver(model: SymbolicModel, prefix: str, names: list[str]) -> str:
+def return_types(header: str, prefix: str, names: list[str]) -> dict[str, str]:
+    """Each function's C return type, as its prototype in the generated header declares it."""
+    types = {}
+    for name in names:
+        match = re.search(rf"^(\w+) {prefix}_{name}\(", header, re.M)
+        if match is None:
+            raise RuntimeError(f"no prototype of {prefix}_{name} in the generated header")
+        types[name] = match.group(1)
+    return types
+
+
+def arm_driver(model: SymbolicModel, prefix: str, names: list[str], returns: dict[str, str], ncalls: int) -> str:
     """Timing firmware: per function a wrapper reading one of INPUT_SETS input sets and calling
-    through a volatile pointer that is either the function or a stub of the same signature."""
+    through a volatile pointer that is either the function or a stub of the same signature
+    (``returns``: the return types of the header's prototypes)."""
     P = prefix.upper()
     functions = model.functions()
     lines = ["#include <stdint.h>", f'#include "{prefix}.h"', '#include "semihost.h"',
@@ -137,7 +156,7 @@ def arm_driver(model: SymbolicModel, prefix: str, names: list[str]) -> str:
         for k in range(func.n_out()):
             params.append("real_t *")
             args.append("out_buf")
-        ret = f"{prefix}_status" if name in STEP_FUNCTIONS else "void"
+        ret = returns[name]
         stub_params = ", ".join(f"{t} a{i}" for i, t in enumerate(params))
         stub_body = " ".join(f"(void)a{i};" for i in range(len(params)))
         stub_ret = f" return {P}_OK;" if ret != "void" else ""
@@ -160,22 +179,23 @@ def arm_driver(model: SymbolicModel, prefix: str, names: list[str]) -> str:
               "  SYST_RVR = SYST_MASK; SYST_CVR = 0u; SYST_CSR = 5u;",
               "  small = timed_calib(1000u); large = timed_calib(101000u);",
               '  sh_put_kv("calib_insns", 2u * 100000u); sh_put_kv("calib_ticks", large - small);',
-              f'  sh_put_kv("ncalls", {ARM_NCALLS}u);']
+              f'  sh_put_kv("ncalls", {ncalls}u);']
     for index, name in enumerate(names):
         lines += [f"  selected = call_{name};",
-                  f"  ptr_{name} = stub_{name}; sh_put_kv(\"stub_{index}\", timed_loop({ARM_NCALLS}u));",
-                  f"  ptr_{name} = {prefix}_{name}; sh_put_kv(\"fn_{index}\", timed_loop({ARM_NCALLS}u));"]
+                  f"  ptr_{name} = stub_{name}; sh_put_kv(\"stub_{index}\", timed_loop({ncalls}u));",
+                  f"  ptr_{name} = {prefix}_{name}; sh_put_kv(\"fn_{index}\", timed_loop({ncalls}u));"]
     lines += ["  bench_sink = out_buf[0];", '  sh_puts("done\\n");', "  return 0;", "}"]
     return "\n".join(lines) + "\n"
 
 
 def m4_instructions(work: Path, gen_dir: Path, model: SymbolicModel, prefix: str, names: list[str], obj: Path,
-                    defines: tuple[str, ...] = ()) -> dict[str, float]:
+                    defines: tuple[str, ...] = (), ncalls: int = ARM_NCALLS) -> dict[str, float]:
     gcc = tool("arm-none-eabi-gcc")
     tool("qemu-system-arm")
     tag = "_".join(d.split("=")[0].lower() for d in defines) or "plain"
     drv = work / f"drv_{prefix}_{tag}.c"
-    drv.write_text(arm_driver(model, prefix, names))
+    returns = return_types((gen_dir / f"{prefix}.h").read_text(), prefix, names)
+    drv.write_text(arm_driver(model, prefix, names, returns, ncalls))
     elf = work / f"crit_{prefix}_{tag}.elf"
     # the driver casts nothing and calls by exact prototypes: strict flags but the unused-function rule
     run([gcc, *arm_flags(prefix), *[f"-D{d}" for d in defines], "-Wno-unused-function", "-I", gen_dir, "-I", FIRMWARE,
@@ -188,7 +208,7 @@ def m4_instructions(work: Path, gen_dir: Path, model: SymbolicModel, prefix: str
     ipt = kv["calib_insns"] / kv["calib_ticks"]
     result = {}
     for index, name in enumerate(names):
-        stub_own = 2 if name in STEP_FUNCTIONS else 1  # movs r0, #0 (status) + bx lr
+        stub_own = 1 if returns[name] == "void" else 2  # bx lr, after movs r0, #0 for a status
         result[name] = (kv[f"fn_{index}"] - kv[f"stub_{index}"]) * ipt / kv["ncalls"] + stub_own
     return result
 
@@ -216,11 +236,18 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--robot", default="modular8", help="bundled robot (default modular8)")
     ap.add_argument("--previous", default=PREVIOUS_REV, help="git revision of the previous generated C")
-    ap.add_argument("--out", default=str(HERE / "results" / "criteria.json"), help="JSON results file")
+    ap.add_argument("--out", default=None, help="JSON results file (default benchmarks/results/criteria.json; "
+                    "none with --quick)")
     ap.add_argument("--keep", action="store_true", help="keep the build directory and print its path")
     ap.add_argument("--only", action="append", choices=SECTIONS,
                     help="run only this section (repeatable; default: all)")
+    ap.add_argument("--quick", action="store_true",
+                    help="the current code only, small counts, in seconds (a smoke run, see the docstring)")
     args = ap.parse_args(argv)
+    if args.quick:
+        use_quick_counts()
+    elif args.out is None:
+        args.out = str(HERE / "results" / "criteria.json")
     started = time.perf_counter()
     rep = Report(set(args.only) if args.only else None)
     work = Path(tempfile.mkdtemp(prefix="armgen_bench_crit_"))
@@ -237,9 +264,12 @@ def main(argv=None) -> int:
           f"build dir {work}")
 
     def cortex_m4():
-        gen_prev = previous_code(args.previous, prefix, work / "prev")
-        builds = {"previous": (gen_prev, ()), "now": (gen_now, ()),
-                  "now+bounded": (gen_now, (f"{prefix.upper()}_BOUNDED_TRIG=1",))}
+        bounded = (f"{prefix.upper()}_BOUNDED_TRIG=1",)
+        if args.quick:
+            builds = {"now+bounded": (gen_now, bounded)}
+        else:
+            builds = {"previous": (previous_code(args.previous, prefix, work / "prev"), ()), "now": (gen_now, ()),
+                      "now+bounded": (gen_now, bounded)}
         figures: dict[str, dict] = {}
         for label, (gen_dir, defines) in builds.items():
             sub = work / f"m4_{label.replace('+', '_')}"
@@ -251,14 +281,16 @@ def main(argv=None) -> int:
             figures[label] = {"text": info["text_bytes"], "text_total": info["text_total"],
                               "undefined": info["undefined"], "aeabi_double": info["aeabi_double"],
                               "instr": m4_instructions(sub, obj.parent if defines else gen_dir, model, prefix,
-                                                       present, obj, defines)}
+                                                       present, obj, defines,
+                                                       QUICK_ARM_NCALLS if args.quick else ARM_NCALLS)}
         rep.data["cortex_m4f"] = figures
-        prev, now, fast = figures["previous"], figures["now"], figures["now+bounded"]
+        fast = figures["now+bounded"]
+        prev, now = figures.get("previous", {}), figures.get("now", fast)
         print(f"  {'function':<22} {'text prev':>10} {'text now':>9} {'ratio':>6}   {'instr prev':>10} "
               f"{'instr now':>9} {'bounded':>8} {'ratio':>6}  bar")
         for name in names:
-            tp, tn = prev["text"].get(name), now["text"].get(name)
-            ip, i_now, ib = prev["instr"].get(name), now["instr"][name], fast["instr"][name]
+            tp, tn = prev.get("text", {}).get(name), now["text"].get(name)
+            ip, i_now, ib = prev.get("instr", {}).get(name), now["instr"][name], fast["instr"][name]
             ip_text = "-" if ip is None else str(round(ip))
             bar = BARS["m4_instr"].get(name)
             best = min(i_now, ib)
@@ -267,12 +299,14 @@ def main(argv=None) -> int:
                   f"{(tn / tp if tp else float('nan')):>6.2f}   {ip_text:>10} {i_now:>9.0f} "
                   f"{ib:>8.0f} {(best / ip if ip else float('nan')):>6.2f}  {note}")
             rep.rows.append((f"M4 {name}", f"{tn} B / {best:.0f} instr", "", f"previous {tp} B / {ip} instr; {note}"))
-        print(f"  {'whole file':<22} {prev['text_total']:>10} {now['text_total']:>9} "
-              f"{now['text_total'] / prev['text_total']:>6.2f}   bounded-trig text {fast['text_total']}  "
-              f"{bar_note(now['text_total'], BARS['m4_text_total'])}")
+        prev_total = prev.get("text_total")
+        print(f"  {'whole file':<22} {prev_total if prev_total else '-':>10} {now['text_total']:>9} "
+              f"{(now['text_total'] / prev_total if prev_total else float('nan')):>6.2f}   bounded-trig text "
+              f"{fast['text_total']}  {bar_note(now['text_total'], BARS['m4_text_total'])}")
         rep.row("M4 undefined symbols now (plain / bounded trig)", "", "",
                 f"{' '.join(now['undefined'])} / {' '.join(fast['undefined']) or 'none'}")
-        rep.row("M4 undefined symbols previous", "", "", " ".join(prev["undefined"]))
+        if prev:
+            rep.row("M4 undefined symbols previous", "", "", " ".join(prev["undefined"]))
 
     rep.section("cortex_m4f", "1. Cortex-M4F -Os float, per function (previous C vs now; instr/call):", cortex_m4)
 
@@ -331,6 +365,9 @@ void casadi_fkj_call(const float *q, float *T, float *J) {{
         rep.row("snake12 generation, all functions", f"{gen_s:.2f}", "s",
                 f"{len(snake.emitted)} functions; previous: {ISSUE_PREVIOUS['snake12']} (issue); "
                 + bar_note(gen_s, BARS["snake12_gen_seconds"]))
+        if args.quick:  # its compiles take a minute
+            rep.data["snake12"] = {"generation_seconds": gen_s}
+            return
         compile_s = {}
         for precision, flag in (("double", 0), ("float", 1)):
             t0 = time.perf_counter()
@@ -349,14 +386,15 @@ void casadi_fkj_call(const float *q, float *T, float *J) {{
 
     def growth():
         flops: dict[str, list[int]] = {}
-        for dof in CHAIN_DOFS:
+        dofs = QUICK_CHAIN_DOFS if args.quick else CHAIN_DOFS
+        for dof in dofs:
             chain = generate(CodegenConfig(parse_robot(chain_toml(dof), f"chain{dof}.toml")))
             for em in chain.emitted:
                 flops.setdefault(em.name, []).append(em.flops)
-        exponents = {name: fit_exponent(list(CHAIN_DOFS), values) for name, values in flops.items()}
-        rep.data["growth"] = {"dofs": list(CHAIN_DOFS), "flops": flops, "exponent_fit_from": FIT_FROM_DOF,
+        exponents = {name: fit_exponent(list(dofs), values) for name, values in flops.items()}
+        rep.data["growth"] = {"dofs": list(dofs), "flops": flops, "exponent_fit_from": FIT_FROM_DOF,
                               "exponents": exponents}
-        print(f"  {'function':<22} " + " ".join(f"{'n=' + str(d):>8}" for d in CHAIN_DOFS) + "  exponent")
+        print(f"  {'function':<22} " + " ".join(f"{'n=' + str(d):>8}" for d in dofs) + "  exponent")
         for name, values in flops.items():
             print(f"  {name:<22} " + " ".join(f"{v:>8}" for v in values) + f"  {exponents[name]:.2f}")
         rep.rows.append(("growth exponents", json.dumps({k: round(v, 2) for k, v in exponents.items()}), "",

@@ -33,7 +33,11 @@ For the joint controller of firmware_stub/ running spec 20's combined plan on mo
    resolved-rate tick) in the same build, flash of the program table and of fw_program.o, RAM
    (sizeof(ctrl)), and the replay error of the QEMU run against the plan.
 
-Bars (reported, not asserted): BARS. A missing tool skips its rows. About a minute on 2 cores.
+Bars (reported, not asserted): BARS. A missing tool skips its rows and the run exits 4; a
+measurement that fails is reported FAILED and the run exits 1 (bench_kinematics.py's
+EXIT_CODES). About a minute on 2 cores. ``--quick`` (seconds, a smoke run whose figures are not
+the ones to quote): sections 0–4 on the 5-s plan of the split (QUICK_OVERRIDES) instead of the
+12 500-tick one, without the variants and the trace, host time best of 2; no section 5.
 """
 
 from __future__ import annotations
@@ -92,11 +96,13 @@ MODE_LOOPS = {"FAULT_TOLERANT", "WEIGHTED_GPM"}
 MODE_TICK = {"RESOLVED_RATE": "tick_resolved_rate", "PLAYBACK": "tick_playback",
              "FAULT_TOLERANT": "tick_fault_tolerant", "WEIGHTED_GPM": "tick_weighted_gpm"}
 HOST_REPEATS = 20
+QUICK_HOST_REPEATS = 2
 # A short plan with every operator active (windows open and close, alpha_R and gamma_R ramp):
 # the instruction trace of its 251 ticks gives the per-function split.
 SPLIT_OVERRIDES = ["path.type=line", "path.end=[-450, 400, 900]", "timing.duration=5", "method.theta_s=75",
                    "method.T_smo_L=0.5", "method.T_sum_L=1", "method.rho_L=0.01", "method.gamma_R_ramp=1",
                    "method.T_smo_R=1"]
+QUICK_OVERRIDES = SPLIT_OVERRIDES  # --quick: 251 ticks instead of 12 501
 
 
 def tool(name: str) -> str:
@@ -248,12 +254,16 @@ def trace_split(elf: Path, work: Path) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default=str(HERE / "results" / "firmware.json"))
+    ap.add_argument("--out", default=None, help="JSON results file (default benchmarks/results/firmware.json; "
+                    "none with --quick)")
     ap.add_argument("--keep", action="store_true", help="keep the build directory")
     ap.add_argument("--modes-only", action="store_true", help="only section 5 (every controller mode)")
     ap.add_argument("--move-to-only", action="store_true", help="only section 6 (MOVE_TO under QEMU)")
     ap.add_argument("--program-only", action="store_true", help="only section 7 (a program on board)")
+    ap.add_argument("--quick", action="store_true", help="sections 0-4 on a 5-s plan, in seconds (a smoke run)")
     args = ap.parse_args(argv)
+    if args.out is None and not args.quick:
+        args.out = str(HERE / "results" / "firmware.json")
     os.environ["ARMGEN_NO_PROGRESS"] = "1"
     started = time.perf_counter()
     work = Path(tempfile.mkdtemp(prefix="armgen_fwbench_"))
@@ -284,6 +294,8 @@ def main(argv=None) -> int:
 
     def planning():
         task, sha = load_task(EXAMPLE)
+        if args.quick:
+            apply_overrides(task, list(QUICK_OVERRIDES))
         t0 = time.perf_counter()
         result = run_task(copy.deepcopy(task), EXAMPLE.name, sha, "symbolic")
         state["python_s"] = time.perf_counter() - t0
@@ -291,7 +303,7 @@ def main(argv=None) -> int:
         state["task"] = fw.task_from_plan(result, EXAMPLE.name)
         write_plan(result, work / "combined.csv")
         rep.data["plan"] = {"python_symbolic_s": state["python_s"], "ticks": state["task"].n_ticks}
-        rep.row("Python planner, symbolic backend (12 500 steps)", state["python_s"], "s")
+        rep.row(f"Python planner, symbolic backend ({state['task'].n_ticks - 1} steps)", state["python_s"], "s")
 
     rep.section("plan", "0. The plan (examples/modular8_circle_combined.toml):", planning)
     if "task" not in state:
@@ -366,6 +378,8 @@ def main(argv=None) -> int:
         rep.row("stack peak measured under QEMU (whole firmware)", m4["stack_peak_bytes"], "bytes")
         rep.row("sizeof(ctrl) (the controller object, RAM)", m4["sizeof_ctrl"], "bytes",
                 f"sizeof(ctrl_config) {run_.summary['sizeof_config']} (const, flash)")
+        if args.quick:
+            return
         variants = {
             "newlib sinf/cosf": dataclasses.replace(fw.ARM_VARIANT, print_rows=False, fast_trig=False),
             "all -O2": fw.Variant("arm", "float", opt="-O2", print_rows=False),
@@ -395,14 +409,15 @@ def main(argv=None) -> int:
         tool("gcc")
         for precision in ("double", "float"):
             exe = builder.executable(fw.Variant("host", precision), task, f"time_{precision}")
-            out = subprocess.run([str(exe), "--quiet", "--time", str(HOST_REPEATS)], capture_output=True, text=True,
+            repeats = QUICK_HOST_REPEATS if args.quick else HOST_REPEATS
+            out = subprocess.run([str(exe), "--quiet", "--time", str(repeats)], capture_output=True, text=True,
                                  check=True).stdout
             s = fw.parse_output(out).summary
             ms = float(s["wall_ns_best"]) / 1e6
             host[precision] = {"ms": ms, "ns_per_tick": float(s["wall_ns_per_tick"]), "ticks": int(s["timed_ticks"])}
             note = (f"{bar_note(ms, BARS['host_plan_ms'])}; Python planner {state['python_s'] / (ms / 1e3):.0f}x slower, "
                     f"paper {PAPER_SECONDS / (ms / 1e3):.0f}x slower")
-            rep.row(f"host firmware -O2 {precision}, 12 500-tick plan", ms, "ms", note)
+            rep.row(f"host firmware -O2 {precision}, {task.n_ticks - 1}-tick plan", ms, "ms", note)
             rep.row("  per tick", host[precision]["ns_per_tick"], "ns")
 
     rep.section("host", "3. The whole plan natively on the host (gcc -O2, best of 20):", host_time)
@@ -424,7 +439,9 @@ def main(argv=None) -> int:
             rep.row(f"{label}: max |Δq|", cmp.max_dq, "rad", f"bound {bq:g}; {'pass' if cmp.passed else 'FAIL'}")
             rep.row(f"{label}: max |Δ task error|", cmp.max_dtask, "m", f"bound {bt:g}; end {r.state}/{r.fault}")
 
-    rep.section("replay", "4. Replay of the 12 500-step plan against the plan CSV:", replays)
+    rep.section("replay", "4. Replay of the plan against the plan CSV:", replays)
+    if args.quick:
+        return finish(rep, args, work, started)
     rep.section("modes", "5. Every controller mode, modular8, Cortex-M4F float (QEMU -icount):",
                 lambda: modes_table(rep, work, builder))
     return finish(rep, args, work, started)

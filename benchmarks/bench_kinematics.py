@@ -21,7 +21,10 @@ In one run, for ``<robot>_fk_jacobian`` (tool pose T and geometric Jacobian J):
 5. Generation time of ``generate_robot`` for the robot and for a synthetic 25-DOF chain.
 
 Bars (reported, not asserted) are in BARS. A missing tool skips its rows
-("skipped: <tool> not installed"). Run time is well under a minute on 2 cores.
+("skipped: <tool> not installed") and the run exits 4; a measurement that fails is reported
+FAILED and the run exits 1 (EXIT_CODES). Run time is well under a minute on 2 cores; ``--quick``
+runs every measurement with small counts in seconds (a smoke run: its figures are not the ones
+to quote).
 """
 
 from __future__ import annotations
@@ -76,10 +79,19 @@ ARM_TRACE_NCALLS = 64
 QEMU_BASE = ("-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native",
              "-icount", "shift=0")
 CHAIN25_FUNCTIONS = ("fk", "jacobian", "fk_jacobian")
+# --quick: every measurement runs, with counts a few hundred times smaller (seconds, not minutes)
+QUICK_COUNTS = {"TIME_CALLS": 10_000, "TIME_REPEATS": 1, "CG_CALLS": (256, 512), "ARM_NCALLS": 256}
+# The exit status of every benchmark script built on Report (benchmarks/README.md).
+EXIT_CODES = {"measured": 0, "failed": 1, "tool missing": 4}
 
 
 class Skip(Exception):
     """A row that cannot be measured here (missing tool); the message is printed as is."""
+
+
+def use_quick_counts() -> None:
+    """--quick: the timing loops of this module (also used by bench_criteria.py) run QUICK_COUNTS."""
+    globals().update(QUICK_COUNTS)
 
 
 def tool(name: str) -> str:
@@ -417,12 +429,21 @@ def time_generation(robot, out_dir: Path, functions=None) -> dict:
 # ---------------------------------------------------------------------------------------------
 
 class Report:
-    """Rows printed as they come and kept for the JSON; ``only`` names the sections to run."""
+    """Rows printed as they come and kept for the JSON; ``only`` names the sections to run.
+    What could not be measured is kept too (``missing``: a tool is not installed; ``failed``: a
+    build or run failed), so the run's exit status says whether every figure was measured."""
 
     def __init__(self, only: set[str] | None = None):
         self.rows: list[tuple[str, str, str, str]] = []
         self.data: dict = {}
         self.only = only
+        self.missing: list[str] = []
+        self.failed: list[str] = []
+
+    def not_measured(self, what: str, exc: Skip) -> None:
+        """A row inside a section that a missing tool skipped (the section goes on)."""
+        self.row(what, str(exc))
+        self.missing.append(f"{what}: {exc}")
 
     def row(self, what: str, value, unit: str = "", note: str = "") -> None:
         value = f"{value:.4g}" if isinstance(value, float) else str(value)
@@ -434,14 +455,18 @@ class Report:
             return
         print(f"\n{title}", flush=True)
         label = re.sub(r"^\d+\.\s*", "", title).split(",")[0].split(":")[0]
+        started = time.perf_counter()
         try:
             func()
         except Skip as exc:
             self.row(label, str(exc))
             self.data.setdefault(key, {})["skipped"] = str(exc)
+            self.missing.append(f"{label}: {exc}")
         except Exception as exc:  # a benchmark reports, it does not stop at the first failure
             self.row(label, "FAILED", "", str(exc).splitlines()[0][:120])
             self.data.setdefault(key, {})["error"] = str(exc)
+            self.failed.append(f"{label}: {exc}")
+        print(f"  ({time.perf_counter() - started:.1f} s)", flush=True)
 
 
 def bar_note(value: float, bar: float, le: bool = True) -> str:
@@ -452,9 +477,15 @@ def bar_note(value: float, bar: float, le: bool = True) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--robot", default="modular8", help="bundled robot name or robot file (default modular8)")
-    ap.add_argument("--out", default=str(HERE / "results" / "kinematics.json"), help="JSON results file")
+    ap.add_argument("--out", default=None, help="JSON results file (default benchmarks/results/kinematics.json; "
+                    "none with --quick)")
     ap.add_argument("--keep", action="store_true", help="keep the build directory and print its path")
+    ap.add_argument("--quick", action="store_true", help="every measurement with small counts, in seconds (a smoke run)")
     args = ap.parse_args(argv)
+    if args.quick:
+        use_quick_counts()
+    elif args.out is None:
+        args.out = str(HERE / "results" / "kinematics.json")
 
     started = time.perf_counter()
     rep = Report()
@@ -515,7 +546,7 @@ def main(argv=None) -> int:
             try:
                 cg = callgrind_instr(state[f"exe_{precision}"], f"{prefix}_fk_jacobian", work)
             except Skip as exc:
-                rep.row(f"x86 {HOST_OPT} {precision} fk_jacobian instructions", str(exc))
+                rep.not_measured(f"x86 {HOST_OPT} {precision} fk_jacobian instructions", exc)
                 host[precision]["instr_skipped"] = str(exc)
                 continue
             host[precision].update(cg)
@@ -544,7 +575,7 @@ def main(argv=None) -> int:
         except Skip as exc:
             cg = {}
             base["instr_skipped"] = str(exc)
-            rep.row("CasADi C double (jacobian()) instructions", str(exc))
+            rep.not_measured("CasADi C double (jacobian()) instructions", exc)
         else:
             base.update(cg)
             rep.row("CasADi C double (jacobian()) instructions", f"{cg['instr_per_call']:.1f}", "instr/call",
@@ -607,7 +638,7 @@ def main(argv=None) -> int:
         try:
             counts = qemu_counts(elf)
         except Skip as exc:
-            rep.row("M4F executed instructions (QEMU)", str(exc))
+            rep.not_measured("M4F executed instructions (QEMU)", exc)
             m4["qemu_skipped"] = str(exc)
             return
         m4["qemu_icount_systick"] = counts
@@ -661,18 +692,28 @@ def _cpu_model() -> str:
 
 
 def finish(rep: Report, args, work: Path, started: float) -> int:
-    """Write the JSON report, print where, remove the build folder (unless --keep); exit code 0."""
+    """Write the JSON report, print where and what could not be measured, remove the build
+    folder (unless --keep); the exit status of EXIT_CODES."""
     rep.data["meta"]["run_seconds"] = time.perf_counter() - started
     rep.data["table"] = [{"what": w, "value": v, "unit": u, "note": n} for w, v, u, n in rep.rows]
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(rep.data, indent=2, default=str) + "\n")
-    print(f"\nwrote {out} (run {rep.data['meta']['run_seconds']:.1f} s)")
+    rep.data["not_measured"] = {"failed": rep.failed, "tool missing": rep.missing}
+    if args.out:  # a --quick run writes no results file unless asked to: its figures are a smoke run's
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(rep.data, indent=2, default=str) + "\n")
+        print(f"\nwrote {out} (run {rep.data['meta']['run_seconds']:.1f} s)")
+    else:
+        print(f"\nrun {rep.data['meta']['run_seconds']:.1f} s")
     if args.keep:
         print(f"build directory kept: {work}")
     else:
         shutil.rmtree(work, ignore_errors=True)
-    return 0
+    for kind, whats in (("FAILED", rep.failed), ("NOT MEASURED (tool missing)", rep.missing)):
+        for what in whats:
+            print(f"{kind}: {what.splitlines()[0][:200]}")
+    if rep.failed:
+        return EXIT_CODES["failed"]
+    return EXIT_CODES["tool missing"] if rep.missing else EXIT_CODES["measured"]
 
 
 if __name__ == "__main__":
