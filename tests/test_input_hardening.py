@@ -184,3 +184,99 @@ def test_ik_cli_refuses_huge_numbers(args, needle):
     result = _ik_cli("planar3", *xyz, *args)
     assert result.exit_code == 2, result.output
     assert needle in result.output
+
+
+# -- 15 and 16: `armgen sweep` --------------------------------------------------------------
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+PTP_TASK = EXAMPLES / "ptp_single_joint.toml"
+
+
+def _sweep_cli(tmp_path: Path, *args: str):
+    return CliRunner().invoke(cli, ["sweep", str(PTP_TASK), *args, "-o", str(tmp_path / "t.csv")])
+
+
+@pytest.mark.parametrize("option,needle", [
+    (["--grid", "stpe=[0.01, 0.02]"], "--grid 'stpe': the ptp task has no field 'stpe' (did you mean `step`?)"),
+    (["--grid", "waypoints.tt=[1]"], "no field 'tt' in [waypoints] (did you mean `t`?)"),
+    (["--grid", "nosuch.field=[1, 2]"], "no field 'nosuch'"),
+    (["--grid", "step.x=[1]"], "'step' is not a table"),
+    (["--grid", "step=[0.01]", "--random", "2", "--range", "timing.omeg_max=1:2"], "no field 'omeg_max' in [timing]"),
+])
+def test_sweep_unknown_key_is_refused_before_any_run(tmp_path, monkeypatch, option, needle):
+    import armgen.planning.sweep as module
+
+    calls = []
+    monkeypatch.setattr(module, "run_one", lambda *a: calls.append(a))
+    result = _sweep_cli(tmp_path, *option, "--workers", "1")
+    assert result.exit_code == 2, result.output
+    assert needle in result.output
+    assert calls == [] and not (tmp_path / "t.csv").exists()
+
+
+@pytest.mark.parametrize("grid", ["step=[1979-05-27]", "step=[[07:32:00]]", "compare=[{a = 1979-05-27T07:32:00Z}]"])
+def test_sweep_toml_date_is_a_bad_option(tmp_path, grid):
+    result = _sweep_cli(tmp_path, "--grid", grid, "--workers", "1")
+    assert result.exit_code == 2, result.output
+    assert "a TOML date or time is no task value" in result.output and "internal error" not in result.output
+
+
+def test_sweep_batches_are_small():
+    from armgen.planning.sweep import MAX_RUNS_PER_BATCH, _batches
+
+    todo = [(i, {"k": i}) for i in range(20_000)]
+    batches = _batches(todo, 2)
+    assert max(len(b) for b in batches) <= MAX_RUNS_PER_BATCH <= 16
+    assert [item for batch in batches for item in batch] == todo
+
+
+# How long a stand-in run takes (s), read by the workers forked at the pool's start.
+RUN_SECONDS = [0.02]
+
+
+def _stand_in_run(task, source, sha256, index, fields, backend):
+    import json
+    import time
+
+    time.sleep(RUN_SECONDS[0])
+    return {"run": index, **fields, "overrides": json.dumps(fields, sort_keys=True), "status": "ok", "exit_code": 0,
+            "message": ""}
+
+
+def test_interrupted_worker_sweep_keeps_its_finished_runs(tmp_path, monkeypatch):
+    """Ctrl-C 1.5 s into a 2-worker sweep of 8000 runs of 20 ms: the runs finished by then are
+    written, and --resume runs only the rest (with batches of 250 runs, 5 s each, none had come
+    back)."""
+    import signal
+    import threading
+
+    import armgen.planning.sweep as module
+    from armgen.errors import Interrupted
+    from armgen.planning.sweep import SweepSpec, sweep
+    from armgen.planning.tasks import load_task
+
+    monkeypatch.setenv("ARMGEN_NO_PROGRESS", "1")
+    monkeypatch.setattr(module, "run_one", _stand_in_run)
+    RUN_SECONDS[0] = 0.02
+    task, sha = load_task(PTP_TASK)
+    spec = SweepSpec([("step", [round(1e-3 * (1 + k % 50), 3) for k in range(50)]),
+                      ("timing.omega_max", [[8.0 + k, 8.5, 8.5, 8.5] for k in range(160)])])
+    out = tmp_path / "t.csv"
+    timer = threading.Timer(1.5, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        with pytest.raises(Interrupted) as info:
+            sweep(task, "t.toml", sha, spec, out, workers=2)
+    finally:
+        timer.cancel()
+    kept = len(out.read_text().splitlines()) - 1 if out.exists() else 0
+    assert kept > 0, str(info.value)
+    assert f"wrote the {kept} finished runs" in str(info.value)
+    RUN_SECONDS[0] = 0.0
+    said = []
+    try:
+        rows = sweep(task, "t.toml", sha, spec, out, workers=2, resume=True, echo=said.append)
+    finally:
+        RUN_SECONDS[0] = 0.02
+    assert said == [f"resuming: {kept} of 8000 runs already in {out}"]
+    assert [r["run"] for r in rows] == list(range(8000))
