@@ -77,6 +77,44 @@ class Robot(RobotDescription):
         """
         return self._numeric().evaluate("fk", q)["T"]
 
+    def frames(self, q: ArrayLike) -> np.ndarray:
+        """The base frame, the frame after each joint and the tool pose, in the base frame: the
+        chain :meth:`fk` ends in, for drawing the links (consecutive frame origins).
+
+        After joint i is the DH frame i of a DH robot, and the joint's child frame (turned so
+        that z is the joint axis) of a URDF robot; its origin lies on the joint's axis.
+
+        Parameters
+        ----------
+        q
+            Joint values (rad / m), shape ``(n,)`` or ``(..., n)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            Homogeneous transforms, shape ``(n + 2, 4, 4)`` or ``(..., n + 2, 4, 4)``; the last
+            is :meth:`fk`'s tool pose.
+        """
+        q = np.asarray(q, dtype=float)
+        if q.ndim == 0 or q.shape[-1] != self.n:
+            raise ValueError(f"q must have shape ({self.n},) or (..., {self.n}) for robot '{self.name}', got {q.shape}")
+        if "frames" not in self._cache:
+            import casadi as ca
+
+            from .symbolic.kinematics import chain
+            from .symbolic.numeric import BatchFunction
+
+            symbols = ca.SX.sym("q", self.n)
+            _, joint_frames, tool = chain(self, symbols)
+            stacked = ca.vertcat(*[ca.densify(frame) for frame in [ca.SX(ca.DM(self.base)), *joint_frames, tool]])
+            self._cache["frames"] = BatchFunction(ca.Function("frames", [symbols], [stacked], ["q"], ["T"]))
+        batch_shape = q.shape[:-1]
+        samples = q.reshape(-1, self.n)
+        (stacked,) = self._cache["frames"]([np.ascontiguousarray(samples.T)], samples.shape[0])
+        # column-major (4 (n + 2)) × 4 entries per sample → (samples, n + 2, 4, 4)
+        count = self.n + 2
+        return stacked.reshape(4, count, 4, -1).transpose(3, 1, 2, 0).reshape(batch_shape + (count, 4, 4))
+
     def jacobian(self, q: ArrayLike) -> np.ndarray:
         """Geometric Jacobian: rows ``[v; ω]`` of the tool origin in the base frame.
 

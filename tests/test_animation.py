@@ -1,4 +1,5 @@
-"""``armgen animate``: the requested number of frames, GIF without ffmpeg, MP4 with it, clear errors."""
+"""``armgen animate``: the requested number of frames, GIF without ffmpeg, MP4 with it, clear errors,
+a URDF arm drawn through its own kinematics (against Pinocchio)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from armgen.planning.animation import animate_plan, frame_samples
 from armgen.planning.result import write_plan
 from armgen.planning.tasks import load_task, run_task
 from conftest import require_tool
+from test_plots import PINOCCHIO_TOL, pinocchio_frames, urdf_plan  # noqa: F401 (urdf_plan: the shared fixture)
 
 
 def _plan(tmp_path_factory, name):
@@ -92,3 +94,48 @@ def test_size_option_sets_the_frame_size_default_laptop_readable(short_plan, tmp
         assert run.exit_code == 0, run.output
         with Image.open(out) as gif:
             assert gif.size == expected
+
+
+# -- a URDF arm moves as its own kinematics say; a CSV without plan.json (issue 37 items 2, 16) --
+
+
+def test_urdf_arm_links_are_the_joint_origins_of_pinocchio(urdf_plan):
+    """Each frame's drawn links pass through the URDF arm's joint origins (Pinocchio) and end at
+    its tool; the old DH-only chain drew every joint at the base (a still stick)."""
+    from armgen.planning.plotting import new_figure, plan_robot
+    from armgen.planning.result import read_plan
+
+    _, csv, model = urdf_plan
+    result = read_plan(csv)
+    robot = plan_robot(result, csv)
+    frames, _ = frame_samples(result.column("t_s"), fps=4, duration=1.0)
+    fig = new_figure(6, 4.8)
+    draw = animation._serial_scene(fig, result, frames, robot)
+    q = np.column_stack([result.column(f"q{i + 1}_rad") for i in range(robot.n)])[frames]
+    origins, tools = pinocchio_frames(model, robot, q)
+    links = next(line for line in fig.axes[0].get_lines() if line.get_label() == "links (joint frames)")
+    drawn = []
+    for f in range(len(frames)):
+        draw(f)
+        drawn.append(np.column_stack(links.get_data_3d()))
+    drawn = np.array(drawn) / 1e3  # mm → m
+    np.testing.assert_allclose(drawn[:, 1:-1], origins, atol=PINOCCHIO_TOL, rtol=0)
+    np.testing.assert_allclose(drawn[:, -1], tools[:, :3, 3], atol=PINOCCHIO_TOL, rtol=0)
+    assert np.ptp(drawn[:, -1], axis=0).max() > 0.05  # the tool moves between the frames
+
+
+def test_animate_without_plan_json_is_a_clear_error_or_drawn_with_robot(urdf_plan, tmp_path):
+    project, csv, _ = urdf_plan
+    alone = tmp_path / "plan.csv"
+    alone.write_bytes(csv.read_bytes())
+    run = CliRunner().invoke(cli, ["animate", str(alone), "-o", str(tmp_path / "arm.gif")])
+    assert run.exit_code == 2, run.output
+    assert f"{tmp_path / 'plan.json'} not found" in run.output and "--robot" in run.output
+    assert "Traceback" not in run.output and list(tmp_path.iterdir()) == [alone]
+    run = CliRunner().invoke(cli, ["animate", str(alone), "-o", str(tmp_path / "arm.gif"), "--fps", "2",
+                                   "--duration", "1", "--robot", str(project / "job" / "arm.toml")])
+    assert run.exit_code == 0, run.output
+    with Image.open(tmp_path / "arm.gif") as gif:
+        assert gif.n_frames == 2
+    run = CliRunner().invoke(cli, ["plot", str(alone), "-o", str(tmp_path / "arm.png")])
+    assert run.exit_code == 2 and "plan.json not found" in run.output

@@ -11,10 +11,8 @@ from click.testing import CliRunner
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 from armgen.cli.main import cli
-from armgen.planning.plotting import (JOINT_COLOURS, FigureWriteError, dh_frames,
-                                      executed_tool_path, plan_robot,
-                                      save_figure)
-from armgen.planning.result import write_plan
+from armgen.planning.plotting import JOINT_COLOURS, FigureWriteError, executed_tool_path, plan_robot, save_figure
+from armgen.planning.result import read_plan, write_plan
 from armgen.planning.tasks import load_task, plot_plan, run_task
 
 # example -> axes the figure promises: planner panels + twin axes + 3 tool-path views (3-D, top, side)
@@ -120,16 +118,161 @@ def test_executed_tool_path_matches_the_planners_pose(plans, name):
     np.testing.assert_allclose(executed, logged, atol=FK_TOL, rtol=0)
 
 
-def test_dh_frames_match_the_generated_fk(robot):
+def test_frames_end_in_the_generated_fk(robot):
     from armgen.symbolic.model import SymbolicModel
 
     fk = SymbolicModel(robot).functions()["fk"]
     q = np.random.default_rng(16).uniform(robot.qmin, robot.qmax, size=(20, robot.n))
-    frames = dh_frames(robot, q)
+    frames = robot.frames(q)
     assert frames.shape == (20, robot.n + 2, 4, 4)
     for k in range(q.shape[0]):
         np.testing.assert_allclose(frames[k, -1], np.array(fk(q[k])), atol=FK_TOL, rtol=0)
     np.testing.assert_allclose(frames[:, 0], np.broadcast_to(robot.base, (20, 4, 4)))
+    np.testing.assert_array_equal(robot.frames(q[3]), frames[3])  # one sample, same numbers
+
+
+# -- a URDF arm is drawn through its own kinematics (issue 37 item 2) ----------------------------
+
+URDF_TIP = "panda_hand_tcp"
+# Pinocchio and armgen compose the same URDF transforms in double precision: a few ulps of
+# metre-sized values (as in test_urdf.PINOCCHIO_TOL).
+PINOCCHIO_TOL = 1e-12  # m
+URDF_ARM = f"""name = "panda_urdf"
+urdf = "panda.urdf"
+tip_link = "{URDF_TIP}"
+[units]
+length = "mm"
+angle = "deg"
+[configurations]
+q0 = [0, -45, 0, -135, 0, 90, 45]
+"""
+URDF_TASK = """planner = "cartesian"
+robot = "arm.toml"
+start = "q0"
+[units]
+length = "mm"
+angle = "deg"
+[path]
+type = "line"
+end = [400, 100, 500]
+[timing]
+duration = 2
+[integrator]
+method = "rk4"
+step = 0.01
+"""
+
+
+@pytest.fixture(scope="module")
+def urdf_plan(tmp_path_factory):
+    """A URDF arm (example-robot-data's Panda, through a robot file) planned from the project
+    folder as `armgen plan job/task.toml -o job/plan.csv`: plan.json records job/arm.toml."""
+    pin = pytest.importorskip("pinocchio")
+    from test_urdf import _example_robot_data_dir
+
+    project = tmp_path_factory.mktemp("urdf_project")
+    job = project / "job"
+    job.mkdir()
+    urdf = _example_robot_data_dir() / "panda_description/urdf/panda.urdf"
+    (job / "panda.urdf").write_bytes(urdf.read_bytes())
+    (job / "arm.toml").write_text(URDF_ARM)
+    (job / "task.toml").write_text(URDF_TASK)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.chdir(project)
+        run = CliRunner().invoke(cli, ["plan", "job/task.toml", "-o", "job/plan.csv"])
+    assert run.exit_code == 0, run.output
+    return project, job / "plan.csv", pin.buildModelFromUrdf(str(urdf))
+
+
+def pinocchio_frames(model, robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(joint origins (samples, n, 3), tool poses (samples, 4, 4)) of ``robot``'s joint vectors by Pinocchio."""
+    import pinocchio as pin
+
+    data = model.createData()
+    ids = [model.getJointId(joint.name) for joint in robot.joints]
+    tip = model.getFrameId(URDF_TIP)
+    origins, tools = [], []
+    for sample in np.atleast_2d(q):
+        configuration = pin.neutral(model)
+        for jid, value in zip(ids, sample):
+            configuration[model.joints[jid].idx_q] = value
+        pin.forwardKinematics(model, data, configuration)
+        pin.updateFramePlacements(model, data)
+        origins.append([data.oMi[jid].translation.copy() for jid in ids])
+        tools.append(data.oMf[tip].homogeneous.copy())
+    return np.array(origins), np.array(tools)
+
+
+def test_urdf_frames_match_pinocchio(urdf_plan):
+    """Every joint frame's origin and the tool pose, against an independent implementation."""
+    _, csv, model = urdf_plan
+    robot = plan_robot(read_plan(csv), csv)
+    assert robot.urdf is not None and robot.n == 7
+    q = np.random.default_rng(37).uniform(robot.qmin, robot.qmax, size=(50, robot.n))
+    frames = robot.frames(q)
+    origins, tools = pinocchio_frames(model, robot, q)
+    np.testing.assert_allclose(frames[:, 1:-1, :3, 3], origins, atol=PINOCCHIO_TOL, rtol=0)
+    np.testing.assert_allclose(frames[:, -1], tools, atol=PINOCCHIO_TOL, rtol=0)
+    np.testing.assert_allclose(frames[:, 0], np.broadcast_to(np.eye(4), (50, 4, 4)), atol=0)
+
+
+def test_urdf_plan_figure_draws_the_executed_path_by_the_arms_fk(urdf_plan, tmp_path):
+    """The executed tool path drawn for a URDF plan is the arm's FK (Pinocchio) of the plan's
+    angles; the old DH-only chain collapsed it to one point."""
+    _, csv, model = urdf_plan
+    result = read_plan(csv)
+    robot = plan_robot(result, csv)
+    q = np.column_stack([result.column(f"q{i + 1}_rad") for i in range(robot.n)])
+    _, tools = pinocchio_frames(model, robot, q)
+    expected_mm = tools[:, :3, 3] * 1e3
+    assert np.ptp(expected_mm, axis=0).max() > 50  # the tool moves (a 0.2 m line)
+    fig = plot_plan(result, str(csv), robot)
+    inset = next(ax for ax in fig.axes if ax.get_title() == "tool path, 3-D")
+    (executed,) = [line for line in inset.get_lines() if line.get_label().startswith("executed")]
+    np.testing.assert_allclose(np.column_stack(executed.get_data_3d()), expected_mm, atol=PINOCCHIO_TOL * 1e3, rtol=0)
+    planned = next(line for line in inset.get_lines() if line.get_label() == "planned path")
+    start = np.column_stack(planned.get_data_3d())[0]
+    np.testing.assert_allclose(start, expected_mm[0], atol=1e-6)  # the planned path starts at the tool
+    out = tmp_path / "urdf.png"
+    run = CliRunner().invoke(cli, ["plot", str(csv), "-o", str(out)])
+    assert run.exit_code == 0, run.output
+    assert out.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_plot_finds_the_recorded_robot_from_another_folder(urdf_plan, tmp_path, monkeypatch):
+    """plan.json records job/arm.toml relative to the folder `armgen plan` ran in: found from
+    the plan's folder, from an unrelated folder, and after the plan was copied elsewhere."""
+    project, csv, _ = urdf_plan
+    for folder in (csv.parent, tmp_path):
+        monkeypatch.chdir(folder)
+        out = tmp_path / f"from_{folder.name}.png"
+        run = CliRunner().invoke(cli, ["plot", str(csv), "-o", str(out)])
+        assert run.exit_code == 0, run.output
+    moved = tmp_path / "moved"
+    moved.mkdir()
+    for name in ("plan.csv", "plan.json"):
+        (moved / name).write_bytes((csv.parent / name).read_bytes())
+    run = CliRunner().invoke(cli, ["plot", str(moved / "plan.csv"), "-o", str(tmp_path / "moved.png")])
+    assert run.exit_code == 2
+    assert "job/arm.toml" in run.output and str(moved / "job" / "arm.toml") in run.output  # where it looked
+    assert "--robot" in run.output and not (tmp_path / "moved.png").exists()
+    run = CliRunner().invoke(cli, ["plot", str(moved / "plan.csv"), "-o", str(tmp_path / "moved.png"),
+                                   "--robot", str(project / "job" / "arm.toml")])
+    assert run.exit_code == 0, run.output
+    run = CliRunner().invoke(cli, ["plot", str(moved / "plan.csv"), "--robot", "planar3"])
+    assert run.exit_code == 2 and "3 joints" in run.output and "has 7" in run.output
+
+
+def test_an_edited_robot_file_is_not_drawn_as_the_plans(urdf_plan, tmp_path):
+    """The recorded file with another sha256 is not the plan's robot: named in the error."""
+    project, csv, _ = urdf_plan
+    copy = tmp_path / "project"
+    (copy / "job").mkdir(parents=True)
+    for name in ("plan.csv", "plan.json", "panda.urdf"):
+        (copy / "job" / name).write_bytes((csv.parent / name).read_bytes())
+    (copy / "job" / "arm.toml").write_text(URDF_ARM.replace('tip_link = "panda_hand_tcp"', 'tip_link = "panda_hand"'))
+    run = CliRunner().invoke(cli, ["plot", str(copy / "job" / "plan.csv"), "-o", str(tmp_path / "p.png")])
+    assert run.exit_code == 2 and "changed since planning" in run.output, run.output
 
 
 def test_ptp_bounds_drawn_and_violations_marked(plans):

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from .handling import handle_errors
-from .options import out_option
+from .options import out_option, plan_robot_option, plan_with_metadata
 
 
 @click.command("animate")
@@ -19,14 +19,18 @@ from .options import out_option
               help="video length in seconds (default: the plan's duration, at most 10 s)")
 @click.option("--size", default="960x720", show_default=True, metavar="WxH",
               help="frame size in pixels (text and lines scale with it)")
+@plan_robot_option()
 @handle_errors
-def animate_cmd(plan_csv: str, output: str | None, fps: float, duration: float | None, size: str) -> None:
-    """Draw the arm moving through a plan: links between the joint frames (forward kinematics),
-    the tool frame, the planned path, snake obstacles, and a time stamp."""
+def animate_cmd(plan_csv: str, output: str | None, fps: float, duration: float | None, size: str,
+                robot: str | None) -> None:
+    """Draw the arm moving through a plan: links between the joint frames (the arm's own forward
+    kinematics), the tool frame, the planned path, snake obstacles, and a time stamp."""
     from ..planning.animation import animate_plan, parse_size
-    from ..planning.result import read_plan
+    from ..planning.plotting import plan_robot
 
     pixels = parse_size(size)  # a bad --size fails before any work
     out = Path(output) if output is not None else Path(plan_csv).with_suffix(".gif")
-    animate_plan(read_plan(plan_csv), output if output is not None else out, fps, duration, pixels)
+    result = plan_with_metadata(plan_csv, robot, "animate")
+    arm = plan_robot(result, plan_csv, robot)
+    animate_plan(result, output if output is not None else out, fps, duration, pixels, arm)
     click.echo(f"wrote {out}")

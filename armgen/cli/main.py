@@ -11,7 +11,7 @@ import click
 
 from .. import __version__
 from .handling import handle_errors
-from .options import out_option
+from .options import out_option, plan_robot_option, plan_with_metadata
 
 
 @click.group()
@@ -170,16 +170,19 @@ def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | 
 @click.argument("plan_csv", type=click.Path(exists=True, dir_okay=False))
 @out_option("output", "figure to write: .png, .svg or .pdf (default: the CSV's name with .png, beside it)",
             default=None)
+@plan_robot_option()
 @handle_errors
-def plot_cmd(plan_csv: str, output: str | None) -> None:
-    """Draw a plan: joint angles with limits, velocities with bounds, criteria, task error, tool path."""
-    from ..planning.plotting import figure_format, save_figure
-    from ..planning.result import read_plan
+def plot_cmd(plan_csv: str, output: str | None, robot: str | None) -> None:
+    """Draw a plan: joint angles with limits, velocities with bounds, criteria, task error, tool
+    path (the arm's own forward kinematics)."""
+    from ..planning.plotting import figure_format, plan_robot, save_figure
     from ..planning.tasks import plot_plan
 
     out = Path(output) if output is not None else Path(plan_csv).with_suffix(".png")
     figure_format(output if output is not None else out)  # a bad -o fails before any work
-    save_figure(plot_plan(read_plan(plan_csv), plan_csv), out)
+    result = plan_with_metadata(plan_csv, robot, "plot")
+    arm = plan_robot(result, plan_csv, robot) if result.metadata.get("planner") != "ptp" else None
+    save_figure(plot_plan(result, plan_csv, arm), out)
     click.echo(f"wrote {out}")
 
 

@@ -28,3 +28,25 @@ def out_option(dest: str, help: str, old: tuple[str, ...] = ("--output",), **kwa
     """``-o/--out`` stored in ``dest``; ``old`` are the spellings this command had before."""
     assert set(old) <= set(OLD_OUT_SPELLINGS)
     return click.option("-o", "--out", *old, dest, cls=HiddenAliasOption, help=help, **kwargs)
+
+
+def plan_robot_option():
+    """``--robot``: the arm a plan is drawn with, when ``plan.json``'s record is not found."""
+    return click.option("--robot", default=None, metavar="FILE|NAME",
+                        help="robot to draw (robot TOML, URDF or bundled name); default: the one plan.json records, "
+                             "looked for as recorded and beside the plan")
+
+
+def plan_with_metadata(plan_csv: str, robot: str | None, command: str):
+    """The plan of ``plan_csv`` with its plan.json; without one, an error naming the missing
+    file and the fix (``--robot`` draws a plan without it where ``command`` can)."""
+    from ..errors import PlanFileError
+    from ..planning.result import metadata_path, read_plan
+
+    result = read_plan(plan_csv)
+    if not result.metadata and (robot is None or command == "plot"):
+        fix = ", or give the arm with --robot FILE to draw its joint columns" if command == "animate" else ""
+        raise PlanFileError(f"{metadata_path(plan_csv)} not found: `armgen {command}` needs the plan.json that "
+                            f"`armgen plan` wrote beside {plan_csv} (it names the planner and the robot); copy it "
+                            f"there, or re-run `armgen plan`{fix}")
+    return result

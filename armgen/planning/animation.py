@@ -1,11 +1,12 @@
 """The arm moving through a plan, as a GIF (Pillow, no other install) or an MP4 (ffmpeg).
 
-Each frame draws the arm from its forward kinematics (the NumPy DH chain of the robot named in
-``plan.json``): links as straight segments between consecutive joint-frame origins, the tool
-frame's axes (x red, y green, z blue), the planned tool path dashed and the executed one so
-far, and a time stamp. Snake plans are drawn in top (and side, when the path leaves the plane)
-view with their obstacles and plate openings. Frames are plan samples picked evenly in time so
-that the video lasts ``duration`` seconds at ``fps`` frames per second.
+Each frame draws the arm from its own forward kinematics (``robot.frames``, DH or URDF alike, of
+the robot ``plan.json`` records or ``--robot``): links as straight segments between consecutive
+joint-frame origins (base, each joint's frame, the tool), the tool frame's axes (x red, y green,
+z blue), the planned tool path dashed and the executed one so far, and a time stamp. Snake plans
+are drawn in top (and side, when the path leaves the plane) view with their obstacles and plate
+openings. Frames are plan samples picked evenly in time so that the video lasts ``duration``
+seconds at ``fps`` frames per second.
 """
 
 from __future__ import annotations
@@ -18,11 +19,12 @@ import numpy as np
 from matplotlib.animation import FFMpegWriter, PillowWriter
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-from ..errors import ArmgenError, TaskFileError, ToolchainError, excerpt
+from ..errors import PlanFileError, TaskFileError, ToolchainError, excerpt
 from ..fileio import atomic_open
 from ..progress import progress
-from ..robot import load_robot
-from .plotting import FigureOutputError, FigureWriteError, dh_frames, new_figure, plan_robot, planned_tool_path
+from ..robot import Robot
+from .plotting import (FigureOutputError, FigureWriteError, joint_count, new_figure, plan_robot,
+                       planned_tool_path)
 from .result import PlanResult
 
 VIDEO_FORMATS = (".gif", ".mp4")
@@ -88,27 +90,29 @@ def _check_output(out_path: str | Path) -> Path:
     return out
 
 
-def _serial_joint_angles(result: PlanResult) -> tuple[object, np.ndarray]:
-    """(robot, q per sample) of a resolved-rate or PTP plan."""
-    meta = result.metadata
-    if meta.get("planner") == "ptp":
-        name = (meta.get("parameters") or {}).get("robot")
-        if not name:
-            raise TaskFileError("this PTP plan names no robot, so there is no arm to draw; add robot = \"<name>\" "
-                                "to the task file (its joints named as the robot's) and re-run `armgen plan`")
-        robot = load_robot(name)
-        q = np.zeros((result.data.shape[0], robot.n))
-        for i, joint in enumerate(robot.joints):
-            if f"theta_{joint.name}_rad" in result.columns:
-                q[:, i] = result.column(f"theta_{joint.name}_rad")
-        return robot, q
-    robot = plan_robot(result)
-    return robot, np.column_stack([result.column(f"q{i + 1}_rad") for i in range(robot.n)])
+def _joint_angles(result: PlanResult, robot: Robot) -> np.ndarray:
+    """q per sample: the columns q1_rad… (resolved-rate plans) or theta_<joint>_rad (PTP plans,
+    by joint name; a joint the plan does not move stays at 0)."""
+    n = joint_count(result)
+    if n:
+        if n != robot.n:
+            raise PlanFileError(f"the plan has {n} joint columns but robot '{robot.name}' has {robot.n} joints; "
+                                "give the robot the plan was made for")
+        return np.column_stack([result.column(f"q{i + 1}_rad") for i in range(n)])
+    named = [f"theta_{joint.name}_rad" for joint in robot.joints]
+    if not any(column in result.columns for column in named):
+        raise PlanFileError(f"the plan has no joint columns of robot '{robot.name}' (q1_rad… or "
+                            f"{', '.join(named[:2])}…); give the robot the plan was made for")
+    q = np.zeros((result.data.shape[0], robot.n))
+    for i, column in enumerate(named):
+        if column in result.columns:
+            q[:, i] = result.column(column)
+    return q
 
 
-def _serial_scene(fig, result: PlanResult, frames: np.ndarray):
-    robot, q = _serial_joint_angles(result)
-    poses = dh_frames(robot, q[frames])
+def _serial_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
+    q = _joint_angles(result, robot)
+    poses = robot.frames(q[frames])
     origins = poses[:, :, :3, 3] * 1e3
     planned = planned_tool_path(result, robot) if result.metadata.get("planner") != "ptp" else None
     ax = fig.add_subplot(projection="3d")
@@ -138,11 +142,11 @@ def _serial_scene(fig, result: PlanResult, frames: np.ndarray):
     return draw
 
 
-def _snake_scene(fig, result: PlanResult, frames: np.ndarray):
+def _snake_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
     from .snake.plots import PLANAR_TOL, arm_centres, draw_obstacles
 
     meta = result.metadata
-    centres = arm_centres(result, meta)[frames] * 1e3
+    centres = arm_centres(result, meta, robot)[frames] * 1e3
     wp = np.asarray(meta["path"]["waypoints_m"], dtype=float) * 1e3
     views = [(0, 1)] if np.ptp(wp[:, 2]) < PLANAR_TOL else [(0, 1), (0, 2)]
     lines = []
@@ -168,12 +172,16 @@ def _snake_scene(fig, result: PlanResult, frames: np.ndarray):
 
 
 def animate_plan(result: PlanResult, out_path: str | Path, fps: float = DEFAULT_FPS,
-                 duration: float | None = None, size: tuple[int, int] = DEFAULT_SIZE) -> Path:
+                 duration: float | None = None, size: tuple[int, int] = DEFAULT_SIZE,
+                 robot: Robot | str | Path | None = None) -> Path:
     """Render the arm moving through ``result`` to ``out_path`` (.gif or .mp4), atomically.
 
     ``fps`` frames per second, ``duration`` seconds of video (default: the plan's duration, at
     most 10 s); the plan's samples are subsampled (or repeated) to ``fps × duration`` frames;
-    ``size`` the frames' (width, height) in pixels. Returns the path written.
+    ``size`` the frames' (width, height) in pixels; ``robot`` the arm drawn (a Robot, a robot
+    file or a bundled name; default: the one ``plan.json`` records,
+    :func:`~armgen.planning.plotting.plan_robot`). A plan without its ``plan.json`` is drawn
+    only with ``robot`` (its joint columns, no planned path). Returns the path written.
     """
     out = _check_output(out_path)
     t = result.column("t_s")
@@ -183,13 +191,20 @@ def animate_plan(result: PlanResult, out_path: str | Path, fps: float = DEFAULT_
     fig = new_figure(size[0] / dpi, FIGURE_HEIGHT_IN)
     FigureCanvasAgg(fig)
     planner = result.metadata.get("planner")
+    if planner is None and robot is None:
+        raise PlanFileError("the plan has no plan.json (it names the planner and the robot); keep the plan.json that "
+                            "`armgen plan` wrote beside the CSV, or give the robot (--robot FILE) to draw the joint columns")
+    if planner not in (None, "snake", "cartesian", "fault_tolerant", "wgpm", "ptp"):
+        raise PlanFileError(f"no animation for planner {excerpt(repr(planner))}; plan.json is from another armgen version: "
+                            "re-run `armgen plan`")
+    if not isinstance(robot, Robot):
+        robot = plan_robot(result, robot=robot)
     if planner == "snake":
-        draw = _snake_scene(fig, result, frames)
-    elif planner in ("cartesian", "fault_tolerant", "wgpm", "ptp"):
-        draw = _serial_scene(fig, result, frames)
+        draw = _snake_scene(fig, result, frames, robot)
     else:
-        raise ArmgenError(f"no animation for planner {excerpt(repr(planner))} (plan.json missing or unknown planner)")
-    name = result.metadata.get("robot", {}).get("name") or (result.metadata.get("parameters") or {}).get("robot", "")
+        draw = _serial_scene(fig, result, frames, robot)
+    name = robot.name
+    planner = planner or "plan.csv"
     stamp = fig.suptitle("")
     with tempfile.TemporaryDirectory(prefix="armgen-animate-") as scratch:
         scratch_file = Path(scratch) / f"video{out.suffix.lower()}"

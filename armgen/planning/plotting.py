@@ -9,7 +9,8 @@ Shared panels (the layout of the spec 20 paper's figures): joint angles in degre
 joint's own limits dashed in the joint's colour and labelled, joint velocities in deg/s with
 their bounds when the plan has any, the task error, and the tool path in 3-D, top and side
 view — planned (the task's geometric path rebuilt from ``plan.json``) against executed (forward
-kinematics of the plan's joint angles, NumPy DH chain of the robot named in ``plan.json``).
+kinematics of the plan's joint angles: ``robot.fk`` of the robot ``plan.json`` records, DH or
+URDF alike, found by :func:`plan_robot`).
 The 2-D views are chosen from the path itself (:func:`principal_views`): face-on to the plane
 the path lies in, and edge-on to it, so a circle in the y–z plane is drawn as a circle.
 """
@@ -26,9 +27,9 @@ from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
-from ..errors import ArmgenError, excerpt
+from ..errors import ArmgenError, PlanFileError, excerpt
 from ..fileio import atomic_open
-from ..robot import Robot, load_robot
+from ..robot import Robot, bundled_robots, load_robot, load_robot_any
 from .result import PlanResult
 
 FORMATS = {".png": "png", ".svg": "svg", ".pdf": "pdf"}
@@ -107,30 +108,82 @@ def joint_count(result: PlanResult) -> int:
     return sum(1 for c in result.columns if c.startswith("q") and c.endswith("_rad") and c[1:-4].isdigit())
 
 
-def plan_robot(result: PlanResult) -> Robot:
-    """The robot named in ``plan.json``: its file when that path exists and still has the
-    recorded sha256, else the bundled robot of that name."""
-    robot_meta = result.metadata.get("robot") or {}
-    file, name, sha = robot_meta.get("file"), robot_meta.get("name"), robot_meta.get("sha256")
-    if file and Path(file).is_file():
-        robot = load_robot(file)
-        if not sha or robot.sha256 == sha:
-            return robot
-    if not name:
-        raise ArmgenError("plan.json names no robot (field 'robot.name'); re-run `armgen plan` to rewrite it")
-    return load_robot(name)
+def plan_robot(result: PlanResult, plan_file: str | Path | None = None, robot: str | Path | Robot | None = None) -> Robot:
+    """The robot a plan was made for, drawn through its own forward kinematics.
+
+    ``robot`` (``--robot``: a robot file, URDF or bundled name) is used as given when its joint
+    count fits the plan. Otherwise the robot recorded in ``plan.json`` (``robot.file`` with its
+    ``sha256``; a PTP plan records only ``parameters.robot``) is looked for, in this order: the
+    recorded path as it is (absolute, or relative to the current folder), relative to the folder
+    of ``plan_file`` and to each folder above it (``armgen plan`` ran in one of them), the file's
+    name beside ``plan_file``, and the bundled robot of the recorded name. A file counts only
+    with the recorded sha256 (the file the plan was made from). None found: a
+    :class:`PlanFileError` naming every place looked in and the fix.
+    """
+    meta = result.metadata
+    n = joint_count(result)
+    where = str(plan_file) if plan_file is not None else "the plan"
+    if robot is not None:
+        chosen = load_robot_any(robot)
+        if n and chosen.n != n:
+            raise PlanFileError(f"--robot {excerpt(str(robot))}: robot '{chosen.name}' has {chosen.n} joints but {where} "
+                                f"has {n}; give the robot the plan was made for")
+        return chosen
+    record = meta.get("robot") if isinstance(meta.get("robot"), dict) else {}
+    file, name, sha = record.get("file"), record.get("name"), record.get("sha256")
+    if meta.get("planner") == "ptp":
+        file = (meta.get("parameters") or {}).get("robot")
+        if not file:
+            raise PlanFileError(f"{where}: this PTP plan names no robot, so there is no arm to draw; give one with "
+                                "--robot FILE, or add robot = \"<name>\" to the task file (its joints named as the "
+                                "robot's) and re-run `armgen plan`")
+    if not file and not name:
+        raise PlanFileError(f"{where}: plan.json names no robot (field 'robot'), so there is no arm to draw; give one "
+                            "with --robot FILE or re-run `armgen plan`")
+    looked: list[str] = []
+    for candidate in _recorded_robot_paths(str(file) if file else "", plan_file):
+        if not candidate.is_file():
+            looked.append(f"{candidate} (not found)")
+            continue
+        try:
+            found = load_robot(candidate)
+        except ArmgenError as exc:
+            looked.append(f"{candidate} (not loadable: {excerpt(str(exc), 120)})")
+            continue
+        if sha and found.sha256 != sha:
+            looked.append(f"{candidate} (another sha256 {found.sha256[:12]}…: changed since planning)")
+            continue
+        return found
+    label = name or Path(str(file)).stem
+    if label in bundled_robots():
+        found = load_robot(label)
+        if not sha or found.sha256 == sha:
+            return found
+        looked.append(f"bundled robot '{label}' (another sha256 {found.sha256[:12]}…: changed since planning)")
+    else:
+        looked.append(f"the bundled robots (none named {excerpt(repr(label))})")
+    recorded = f"robot '{name}' from {excerpt(repr(str(file)))}" if file else f"robot '{name}'"
+    raise PlanFileError(f"{where}: plan.json records {recorded}" + (f" (sha256 {sha[:12]}…)" if sha else "")
+                        + f"; looked in: {'; '.join(looked)}. Give the robot file with --robot FILE, or re-run "
+                        "`armgen plan`")
 
 
-def dh_frames(robot: Robot, q: np.ndarray) -> np.ndarray:
-    """Frames of the base, after each joint, and of the tool: shape (samples, n + 2, 4, 4)
-    for ``q`` of shape (samples, n) (NumPy DH chain, the same as the symbolic core's)."""
-    from .snake.arm import dh_frames as joint_frames
-
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    joints = joint_frames(robot, q)
-    base = np.broadcast_to(robot.base, (q.shape[0], 1, 4, 4))
-    tool = (joints[:, -1] @ robot.tool)[:, None]
-    return np.concatenate([base, joints, tool], axis=1)
+def _recorded_robot_paths(file: str, plan_file: str | Path | None) -> list[Path]:
+    """Where a recorded robot file may be now (see :func:`plan_robot`), each place once."""
+    if not file:
+        return []
+    recorded = Path(file)
+    if recorded.is_absolute():
+        return [recorded]
+    places = [recorded]
+    if plan_file is not None:
+        folder = Path(plan_file).resolve().parent
+        places += [above / recorded for above in (folder, *folder.parents)]
+        places.append(folder / recorded.name)
+    unique: dict[Path, Path] = {}
+    for place in places:
+        unique.setdefault(place.resolve(), place)
+    return list(unique.values())
 
 
 def limit_lines(ax: Axes, limits: list[tuple[float, float]], labels: list[str], x_end: float) -> None:
@@ -226,24 +279,29 @@ def task_error_panel(ax: Axes, result: PlanResult, t: np.ndarray) -> None:
 
 def planned_tool_path(result: PlanResult, robot: Robot) -> np.ndarray | None:
     """The task's geometric path (m), rebuilt from the task stored in ``plan.json`` and the
-    start pose by forward kinematics; ``None`` when the plan holds no resolved-rate path task."""
-    from .cartesian.planner import parse_path_and_timing, parse_robot_and_start
+    start configuration by ``robot``'s forward kinematics; ``None`` when the plan holds no
+    resolved-rate path task."""
+    from .cartesian.planner import ANGLE_SCALE, LENGTH_SCALE, parse_path_and_timing
     from .toolpath.paths import CirclePath, LinePath
+    from .toolpath.task import build_program, parse_program
 
     meta = result.metadata
     task = meta.get("task")
     if not isinstance(task, dict) or "path" not in task:
         return None
-    if isinstance(task["path"], dict) and task["path"].get("type") == "program":
-        return _planned_program(meta, task, robot)
-    try:
-        _, q_start, _, ls, as_ = parse_robot_and_start(task, "plan.json")
-        path_type, via, end, end_rotation, _, _ = parse_path_and_timing(task, "plan.json", ls, as_)
-    except ArmgenError:
+    q_start = np.asarray((meta.get("start") or {}).get("q_rad", []), dtype=float)
+    units = task.get("units", {})
+    if q_start.shape != (robot.n,) or not isinstance(units, dict):
         return None
-    if "start" in meta and "q_rad" in meta["start"]:
-        q_start = np.asarray(meta["start"]["q_rad"], dtype=float)
-    pose0 = dh_frames(robot, q_start[None])[0, -1]
+    try:
+        ls, as_ = LENGTH_SCALE[units.get("length", "m")], ANGLE_SCALE[units.get("angle", "rad")]
+        pose0 = robot.fk(q_start)
+        if isinstance(task["path"], dict) and task["path"].get("type") == "program":
+            spec = parse_program(task["path"], str(meta.get("task_file", "plan.json")), ls, as_)
+            return build_program(spec, pose0, "plan.json").sample_points(2000)
+        path_type, via, end, end_rotation, _, _ = parse_path_and_timing(task, "plan.json", ls, as_)
+    except (ArmgenError, KeyError, TypeError):
+        return None
     p0, r0 = pose0[:3, 3], pose0[:3, :3]
     offset = p0 if meta.get("path", {}).get("relative") else np.zeros(3)
     if path_type == "circle":
@@ -253,28 +311,11 @@ def planned_tool_path(result: PlanResult, robot: Robot) -> np.ndarray | None:
     return path.sample_points()
 
 
-def _planned_program(meta: dict, task: dict, robot: Robot) -> np.ndarray | None:
-    """A program's geometry from the plan's task and start (a poses file relative to the task file)."""
-    from .cartesian.planner import ANGLE_SCALE, LENGTH_SCALE
-    from .toolpath.task import build_program, parse_program
-
-    q_start = np.asarray(meta.get("start", {}).get("q_rad", []), dtype=float)
-    units = task.get("units", {})
-    if q_start.shape != (robot.n,) or not isinstance(units, dict):
-        return None
-    try:
-        spec = parse_program(task["path"], str(meta.get("task_file", "plan.json")),
-                             LENGTH_SCALE[units.get("length", "m")], ANGLE_SCALE[units.get("angle", "rad")])
-        return build_program(spec, dh_frames(robot, q_start[None])[0, -1], "plan.json").sample_points(2000)
-    except (ArmgenError, KeyError, TypeError):
-        return None
-
-
 def executed_tool_path(result: PlanResult, robot: Robot) -> np.ndarray:
     """Tool positions (m) by forward kinematics of the plan's joint angles."""
     n = robot.n
     q = np.column_stack([result.column(f"q{i + 1}_rad") for i in range(n)])
-    return dh_frames(robot, q)[:, -1, :3, 3]
+    return robot.fk(q)[:, :3, 3]
 
 
 @dataclass(frozen=True)
@@ -339,10 +380,9 @@ def equal_3d_axes(ax, points: np.ndarray) -> None:
         axis.set_major_locator(MaxNLocator(INSET_TICKS))
 
 
-def tool_path_views(fig_or_subfig, result: PlanResult) -> list[Axes]:
+def tool_path_views(fig_or_subfig, result: PlanResult, robot: Robot) -> list[Axes]:
     """Three panels in one row: the tool path in 3-D, then face-on and edge-on to the path's own
-    plane (:func:`principal_views`), in mm."""
-    robot = plan_robot(result)
+    plane (:func:`principal_views`), in mm; ``robot`` is the plan's (:func:`plan_robot`)."""
     executed = executed_tool_path(result, robot) * 1e3
     planned = planned_tool_path(result, robot)
     planned = planned * 1e3 if planned is not None else None
@@ -387,15 +427,16 @@ def path_summary(result: PlanResult) -> str:
     return f"open path: end error {end_mm:.3g} mm"
 
 
-def resolved_rate_figure(result: PlanResult, panels: list, title: str, rows: int) -> Figure:
+def resolved_rate_figure(result: PlanResult, panels: list, title: str, rows: int, robot: Robot | None = None) -> Figure:
     """A figure with the planner's panels in a ``rows``×2 grid above one row of tool-path views.
-    ``panels`` are callables ``draw(ax)``; every panel drawn has data (no empty axes)."""
+    ``panels`` are callables ``draw(ax)``; every panel drawn has data (no empty axes). The tool
+    path is drawn through ``robot``'s forward kinematics (default: :func:`plan_robot`)."""
     fig = new_figure(14, 4.2 * rows + 4.4)
     top, bottom = fig.subfigures(2, 1, height_ratios=[4.2 * rows, 4.4])
     grid = top.add_gridspec(rows, 2)
     for k, draw in enumerate(panels):
         last_alone = k == len(panels) - 1 and k % 2 == 0  # an odd last panel spans the row: no blank slot
         draw(top.add_subplot(grid[k // 2, :] if last_alone else grid[k // 2, k % 2]))
-    tool_path_views(bottom, result)
+    tool_path_views(bottom, result, robot if robot is not None else plan_robot(result))
     fig.suptitle(title)
     return fig

@@ -214,16 +214,19 @@ def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: 
     return result
 
 
-def plot_plan(result: PlanResult, source: str):
+def plot_plan(result: PlanResult, source: str, robot=None):
     """The plan's figure (a :class:`matplotlib.figure.Figure`) drawn by its planner's plots
-    module; write it with :func:`armgen.planning.plotting.save_figure`."""
+    module; write it with :func:`armgen.planning.plotting.save_figure`. An arm is drawn through
+    ``robot``'s kinematics (a :class:`~armgen.robot.Robot`; default: the one ``plan.json``
+    records, :func:`armgen.planning.plotting.plan_robot`); a PTP figure draws no arm."""
     planner = result.metadata.get("planner")
     if planner not in PLANNERS:
         raise PlanFileError(f"{source}: no plot for planner {excerpt(repr(planner))} (plan.json missing or unknown planner); "
                             "keep the plan.json that armgen plan wrote beside the CSV")
     module = importlib.import_module(PLANNERS[planner] + ".plots")
     try:
-        return getattr(module, PLOT_FUNCTIONS[planner])(result)
+        arm = {} if planner == "ptp" or robot is None else {"robot": robot}
+        return getattr(module, PLOT_FUNCTIONS[planner])(result, **arm)
     except (KeyError, IndexError, TypeError, ValueError) as exc:
         # A plan.json that validates but lacks a block the figure needs (hand-edited, from
         # another version) is a PlanFileError, not a crash.

@@ -9,6 +9,7 @@ from matplotlib.figure import Figure
 
 from ..plotting import (angles_panel, joint_count, joint_style, log_trace, path_summary, resolved_rate_figure,
                         task_error_panel, velocities_panel)
+from ...robot import Robot
 from ..result import PlanResult
 
 
@@ -40,7 +41,8 @@ def has_criteria(result: PlanResult) -> bool:
     return any(c in result.columns and np.any(result.column(c) > 0) for c in cols)
 
 
-def plot_resolved_rate(result: PlanResult) -> Figure:
+def plot_resolved_rate(result: PlanResult, robot: Robot | None = None) -> Figure:
+    """The figure; the tool path through ``robot``'s kinematics (default: the plan's, :func:`plan_robot`)."""
     n = joint_count(result)
     t = result.column("t_s")
     meta = result.metadata
@@ -52,4 +54,4 @@ def plot_resolved_rate(result: PlanResult) -> Figure:
     title = f"{meta.get('robot', {}).get('name', '')} — {meta.get('method', '')} — {path_summary(result)}"
     if "max_abs_q_deg" in summary:
         title += f" — max |θ| {max(summary['max_abs_q_deg']):.1f}°"
-    return resolved_rate_figure(result, panels, title, rows=(len(panels) + 1) // 2)
+    return resolved_rate_figure(result, panels, title, rows=(len(panels) + 1) // 2, robot=robot)

@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 
 from ..plotting import (angles_panel, joint_count, joint_style, path_summary, resolved_rate_figure, task_error_panel,
                         velocities_panel)
+from ...robot import Robot
 from ..result import PlanResult
 
 
@@ -60,7 +61,8 @@ def uses_weights(result: PlanResult, n: int) -> bool:
     return weights is not None and bool(np.ptp(weights) > 0)
 
 
-def plot_fault_tolerant(result: PlanResult) -> Figure:
+def plot_fault_tolerant(result: PlanResult, robot: Robot | None = None) -> Figure:
+    """The figure; the tool path through ``robot``'s kinematics (default: the plan's, :func:`plan_robot`)."""
     n = joint_count(result)
     t = result.column("t_s")
     meta = result.metadata
@@ -78,4 +80,5 @@ def plot_fault_tolerant(result: PlanResult) -> Figure:
     completed = "yes" if verdict.get("completed") else f"no ({verdict.get('why_not', '')})"
     title = (f"{meta.get('robot', {}).get('name', '')} — {verdict.get('method', meta.get('method', ''))} — locked: "
              f"{locked} — task completed: {completed} — {path_summary(result)}")
-    return resolved_rate_figure(result, [_with_lock(p, result) for p in panels], title, rows=(len(panels) + 1) // 2)
+    return resolved_rate_figure(result, [_with_lock(p, result) for p in panels], title, rows=(len(panels) + 1) // 2,
+                                robot=robot)

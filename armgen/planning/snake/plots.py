@@ -15,9 +15,9 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Rectangle
 
-from ...errors import ArmgenError
-from ...robot import load_robot
-from ..plotting import joint_style, limit_lines, new_figure
+from ...errors import PlanFileError
+from ...robot import Robot
+from ..plotting import joint_style, limit_lines, new_figure, plan_robot
 from ..result import PlanResult
 from .spline import HermiteSpline
 
@@ -33,15 +33,12 @@ ACCURACY_COLOURS = {"tip": "tab:purple", "chord": "tab:brown", "clearance": "tab
 VIEW_MARGIN = 0.06  # of the largest extent: room around the arm and path in each snapshot
 
 
-def arm_centres(result: PlanResult, meta: dict) -> np.ndarray:
+def arm_centres(result: PlanResult, meta: dict, robot: Robot | None = None) -> np.ndarray:
+    """The joint centres (m) of every sample, by the forward kinematics of ``robot`` (default:
+    the plan's, :func:`~armgen.planning.plotting.plan_robot`)."""
     from .arm import snake_arm
 
-    robot_meta = meta.get("robot", {})
-    try:
-        robot = load_robot(robot_meta.get("file") or robot_meta["name"])
-    except (ArmgenError, KeyError):
-        robot = load_robot(robot_meta.get("name", "snake12"))
-    arm = snake_arm(robot, "plan.json")
+    arm = snake_arm(robot if robot is not None else plan_robot(result), "plan.json")
     n = arm.n_links
     feed = result.column("feed_m")
     alpha = np.column_stack([result.column(f"a{i + 1}_rad") for i in range(n)])
@@ -114,12 +111,13 @@ def accuracy_panel(ax, result: PlanResult, t: np.ndarray) -> None:
     ax.set(xlabel="t [s]", title=title)
 
 
-def plot_snake(result: PlanResult) -> Figure:
+def plot_snake(result: PlanResult, robot: Robot | None = None) -> Figure:
+    """The figure; the arm through ``robot``'s kinematics (default: the plan's, :func:`plan_robot`)."""
     meta = result.metadata
     if "rail" not in meta or "path" not in meta:
-        raise ArmgenError("plan.json lacks the snake planner's rail/path metadata; re-run `armgen plan`")
+        raise PlanFileError("plan.json lacks the snake planner's rail/path metadata; re-run `armgen plan`")
     t = result.column("t_s")
-    centres = arm_centres(result, meta) * 1e3
+    centres = arm_centres(result, meta, robot) * 1e3
     path = meta["path"]
     wp = np.asarray(path["waypoints_m"], dtype=float)
     spline = HermiteSpline(wp, path.get("start_tangent"), path.get("end_tangent"))

@@ -10,6 +10,7 @@ from matplotlib.figure import Figure
 
 from ..plotting import (angles_panel, joint_count, joint_style, log_trace, path_summary, resolved_rate_figure,
                         task_error_panel, velocities_panel)
+from ...robot import Robot
 from ..result import PlanResult
 
 
@@ -49,7 +50,8 @@ def _weights_panel(ax: Axes, result: PlanResult, n: int, t: np.ndarray) -> None:
     ax.grid(alpha=0.3)
 
 
-def plot_wgpm(result: PlanResult) -> Figure:
+def plot_wgpm(result: PlanResult, robot: Robot | None = None) -> Figure:
+    """The figure; the tool path through ``robot``'s kinematics (default: the plan's, :func:`plan_robot`)."""
     n = joint_count(result)
     t = result.column("t_s")
     meta = result.metadata
@@ -60,4 +62,4 @@ def plot_wgpm(result: PlanResult) -> Figure:
     title = (f"{meta.get('robot', {}).get('name', '')} — {meta.get('method', '')} — within limits: "
              f"{'yes' if s.get('within_limits') else 'no'} — tracks: {'yes' if s.get('tracks') else 'no'} — "
              f"{path_summary(result)}")
-    return resolved_rate_figure(result, panels, title, rows=3)
+    return resolved_rate_figure(result, panels, title, rows=3, robot=robot)
