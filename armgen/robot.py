@@ -277,7 +277,11 @@ class Robot(RobotDescription):
             if value.ndim == 0 or value.shape[-1] != self.n or not np.all(np.isfinite(value)):
                 raise ValueError(f"{what} must hold {self.n} finite joint values for robot '{self.name}' "
                                  f"(shape ({self.n},) or (..., {self.n})), got shape {value.shape}")
-            return np.broadcast_to(value, batch_shape + (self.n,)).reshape(size, self.n)
+            try:
+                return np.broadcast_to(value, batch_shape + (self.n,)).reshape(size, self.n)
+            except ValueError:
+                raise ValueError(f"{what} of shape {value.shape} does not fit the poses' batch shape {batch_shape}: "
+                                 f"give shape ({self.n},) or {batch_shape + (self.n,)}") from None
 
         cap = ik.MAX_ITERATIONS if max_iterations is None else max_iterations
         if isinstance(cap, (bool, np.bool_)) or not isinstance(cap, (int, np.integer)):

@@ -280,3 +280,10 @@ def test_interrupted_worker_sweep_keeps_its_finished_runs(tmp_path, monkeypatch)
         RUN_SECONDS[0] = 0.02
     assert said == [f"resuming: {kept} of 8000 runs already in {out}"]
     assert [r["run"] for r in rows] == list(range(8000))
+
+
+@pytest.mark.parametrize("keyword", ["seed", "q0"])
+def test_ik_joint_values_must_fit_the_batch(keyword):
+    """Found by the IK fuzzer: two seeds for one pose was NumPy's broadcasting error."""
+    with pytest.raises(ValueError, match=rf"{keyword} of shape \(2, 3\) does not fit the poses' batch shape \(\)"):
+        load_robot("planar3").ik(_planar3_target(), **{keyword: np.zeros((2, 3))})
