@@ -12,7 +12,8 @@ each planned end to end by ``run_task`` (parse, CSV, spline and arc-length table
 the planner's steps, the limits check), best of 3 after a warm-up that builds the kernels.
 Both have the same duration, hence the same number of samples: the figure is planning time
 per sample and the ratio poses/line. The bar (reported, never asserted): within 2×. The time
-to build the program alone (CSV → geometry → time law) is printed beside it.
+to build the program alone (CSV → geometry → time law) is printed beside it. Any error is a
+traceback (exit 1). ``--quick`` (a smoke run, seconds): QUICK_ROWS rows, one repeat.
 """
 
 from __future__ import annotations
@@ -40,6 +41,8 @@ from armgen.robot import load_robot, rpy_matrix  # noqa: E402
 
 BAR_RATIO = 2.0
 REPEATS = 3
+QUICK_ROWS = 1500  # --quick (a smoke run): a program (~280 mm) that outlasts twice the wgpm ramp (2 s)
+QUICK_REPEATS = 1
 START = ([550.0, -190.0, 400.0], [180.0, 0.0, 180.0])  # mm, deg
 
 TASK = """
@@ -67,10 +70,10 @@ def wave(rows: int) -> np.ndarray:
     return np.column_stack([x, y, np.full(rows, START[0][2])])
 
 
-def best_of(func) -> float:
+def best_of(func, repeats: int) -> float:
     func()  # warm-up: kernels, imports
     best = math.inf
-    for _ in range(REPEATS):
+    for _ in range(repeats):
         started = time.perf_counter()
         func()
         best = min(best, time.perf_counter() - started)
@@ -82,7 +85,11 @@ def main() -> int:
     parser.add_argument("--rows", type=int, default=2000)
     parser.add_argument("--planner", default="wgpm", choices=("cartesian", "fault_tolerant", "wgpm"))
     parser.add_argument("--out", default=None, help="also write the figures as JSON")
+    parser.add_argument("--quick", action="store_true", help=f"{QUICK_ROWS} rows, one repeat (a smoke run)")
     args = parser.parse_args()
+    repeats = QUICK_REPEATS if args.quick else REPEATS
+    if args.quick:
+        args.rows = QUICK_ROWS
     xyz, rpy = START
     with tempfile.TemporaryDirectory() as scratch:
         folder = Path(scratch)
@@ -109,14 +116,15 @@ def main() -> int:
         results = {}
         for name, task, path in (("line", line_task, line_path), ("poses", poses_task, poses_path)):
             samples = len(run_task(task, str(path)).data)
-            seconds = best_of(lambda: run_task(task, str(path)))
+            seconds = best_of(lambda: run_task(task, str(path)), repeats)
             results[name] = {"seconds": seconds, "samples": samples, "ms_per_sample": seconds / samples * 1e3}
         build = best_of(lambda: program_profile(build_program(parse_program(poses_task["path"], str(poses_path), 1e-3,
-                                                                            math.pi / 180), pose, "bench"), None))
+                                                                            math.pi / 180), pose, "bench"), None),
+                        repeats)
     ratio = results["poses"]["ms_per_sample"] / results["line"]["ms_per_sample"]
     robot = load_robot("iiwa14")
     print(f"iiwa14, {args.planner}, {args.rows} rows, path {program.length * 1e3:.1f} mm "
-          f"({robot.n} joints), best of {REPEATS}:")
+          f"({robot.n} joints), best of {repeats}:")
     for name, r in results.items():
         print(f"  {name:5s}: {r['seconds'] * 1e3:8.1f} ms for {r['samples']} samples = {r['ms_per_sample']:.3f} ms/sample")
     print(f"  poses / line per sample: {ratio:.2f}x (bar: within {BAR_RATIO:g}x: {'met' if ratio <= BAR_RATIO else 'NOT met'})")

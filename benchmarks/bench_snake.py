@@ -14,7 +14,9 @@ motion; the stiff h = 0 model 823.88 s), plus the contrasts the spec asks for:
 
 Run time = the solver (joint-centre coordinates for 1001 outputs, every 10 ms) plus the angle
 recovery; "plan" adds the checks (forward kinematics on the recovered angles through the generated
-fk, tip deviation, chords, clearance) and metadata. Best of --repeat runs.
+fk, tip deviation, chords, clearance) and metadata. Best of --repeat runs. Any error is a
+traceback (exit 1). ``--quick`` (a smoke run): one repeat, the planar scenario only, the h = 0
+runs capped at QUICK_CAP_S each.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import argparse
 import copy
 import json
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -38,6 +41,7 @@ PAPER_S = {"planar": 3.19, "tank": 2.85}
 PAPER_TIP_MM = {"planar": 0.005, "tank": 0.018}
 PAPER_STIFF_S = 823.88
 BARS = {"exact": (1e-6, 0.1), "denoised": (0.02, 1.0)}  # tip deviation mm, run time s
+QUICK_CAP_S = 1.0  # --quick: wall-clock cap of each h = 0 run
 
 
 def _task(name: str, **solver) -> sn_task.SnakeTask:
@@ -57,13 +61,13 @@ def _best(task: sn_task.SnakeTask, repeat: int) -> dict:
     return best
 
 
-def accuracy_and_speed(repeat: int) -> list[dict]:
+def accuracy_and_speed(repeat: int, scenarios=tuple(SCENARIOS)) -> list[dict]:
     rows = []
     print("\n== accuracy and run time (10 s of motion, output every 10 ms; best of "
           f"{repeat}) ==")
     print(f"{'scenario':8s} {'solver':22s} {'tip dev [mm]':>13s} {'chord err [mm]':>15s} {'vs exact [mm]':>14s} "
           f"{'run [s]':>8s} {'plan [s]':>9s} {'nfev':>6s} {'bars':>12s} {'paper [s]':>9s}")
-    for name in SCENARIOS:
+    for name in scenarios:
         for label, solver in (("exact", {"method": "exact"}),
                               ("denoised (h=0.1, link)", {"method": "denoised"}),
                               ("denoised (h=0.1, abs)", {"method": "denoised", "state": "absolute"})):
@@ -141,22 +145,27 @@ def generation() -> dict:
     return {"seconds": wall, "functions": ops}
 
 
-def main() -> None:
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--stiff-cap", type=float, default=60.0, help="wall-clock cap of each implicit h = 0 run [s]")
     parser.add_argument("--explicit-cap", type=float, default=10.0, help="wall-clock cap of the explicit h = 0 run [s]")
     parser.add_argument("--skip-stiff", action="store_true")
     parser.add_argument("--json", default=None, help="also write the numbers here")
+    parser.add_argument("--quick", action="store_true", help="one repeat, planar only, h = 0 runs capped (a smoke run)")
     args = parser.parse_args()
+    scenarios = tuple(SCENARIOS)
+    if args.quick:
+        args.repeat, args.stiff_cap, args.explicit_cap, scenarios = 1, QUICK_CAP_S, QUICK_CAP_S, ("planar",)
     os.environ["ARMGEN_NO_PROGRESS"] = "1"
-    out = {"generation": generation(), "runs": accuracy_and_speed(args.repeat),
+    out = {"generation": generation(), "runs": accuracy_and_speed(args.repeat, scenarios),
            "angle_recovery": angle_formula_contrast()}
     if not args.skip_stiff:
         out["stiff"] = stiff_contrast(args.stiff_cap, args.explicit_cap)
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2, default=float) + "\n")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -6,7 +6,9 @@ invalid file that was accepted) and failed plans that left files behind; then th
 example of each bad outcome. Not a test: nothing here asserts.
 
     python benchmarks/fuzz.py [--robots 10000] [--tasks 10000] [--urdfs 10000] [--sweeps 2000] [--seed 0]
-                              [--full-plan-share 0.03]
+                              [--full-plan-share 0.03] [--quick]
+
+``--quick``: QUICK_CASES cases of each kind (a smoke run of the table, seconds).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from fuzzing import (FULL_PLAN_BASES, mutate_robot, mutate_sweep, mutate_task, m
 
 from armgen.progress import progress  # noqa: E402
 
+QUICK_CASES = 20
 COLUMNS = ("cases", "clean errors", "accepted", "tracebacks", "hangs", "accepted nonsense", "wrote on failure")
 
 
@@ -52,7 +55,10 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--full-plan-share", type=float, default=0.03,
                         help="share of task cases planned and written in full (the rest: schema validation)")
+    parser.add_argument("--quick", action="store_true", help=f"{QUICK_CASES} cases of each kind (a smoke run)")
     args = parser.parse_args()
+    if args.quick:
+        args.robots = args.tasks = args.urdfs = args.sweeps = QUICK_CASES
     os.environ.setdefault("ARMGEN_NO_PROGRESS", "")
     rows, examples, seconds = {}, {}, {}
 
