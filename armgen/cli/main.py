@@ -122,20 +122,34 @@ def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
               help="cap on integration steps, checked before planning (default: planning.tasks.MAX_INTEGRATION_STEPS)")
 @click.option("--max-samples", type=click.IntRange(min=1), default=None,
               help="cap on CSV rows, checked before planning (default: planning.tasks.MAX_OUTPUT_SAMPLES)")
+@click.option("--json", "as_json", is_flag=True,
+              help="print the files written and plan.json's summary as JSON (for scripts) instead of the table")
 @handle_errors
 def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[str, ...], units: str,
-             max_steps: int | None, max_samples: int | None) -> None:
-    """Plan a task file to CSV plus JSON metadata (written together or not at all)."""
+             max_steps: int | None, max_samples: int | None, as_json: bool) -> None:
+    """Plan a task file to CSV plus JSON metadata (written together or not at all), and print a
+    summary table in the task file's units."""
     from ..api import plan
-    from ..planning.tasks import parse_override
+    from ..errors import excerpt
+    from ..planning.tasks import load_task, parse_override, set_field
+    from .summary import summary_table, units_hints
 
     fields = dict(parse_override(item) for item in overrides)
+    task, _ = load_task(task_file)  # the task as planned (overrides applied), for the [units] hint
+    for key, value in fields.items():
+        set_field(task, key, value, f"override {excerpt(repr(key))}")
+    for hint in units_hints(task, task_file):
+        click.echo(f"warning: {hint}", err=True)
     planned = plan(task_file, backend, max_steps=max_steps, max_samples=max_samples, **fields)
     out = Path(output) if output else Path(Path(task_file).stem + ".csv")
     csv_path, json_path = planned.save(out, units)
+    if as_json:  # the summary as plan.json holds it (its keys name their units)
+        written = json.loads(json_path.read_text(encoding="utf-8"))
+        click.echo(json.dumps({"csv": str(csv_path), "json": str(json_path), "samples": int(planned.data.shape[0]),
+                               "summary": written.get("summary", {})}, indent=2))
+        return
     click.echo(f"wrote {csv_path} ({planned.data.shape[0]} samples) and {json_path}")
-    for key, value in planned.summary.items():
-        click.echo(f"  {key}: {value}")
+    click.echo(summary_table(json.loads(json_path.read_text(encoding="utf-8"))))
 
 
 @cli.command("verify")
