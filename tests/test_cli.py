@@ -150,7 +150,7 @@ def test_plan_prints_a_table_in_the_files_units_and_json_for_scripts(tmp_path, m
 
 
 def test_a_task_without_units_whose_numbers_look_like_mm_or_deg_gets_a_hint(tmp_path, monkeypatch):
-    """Heuristic (docs/results.md): a position beyond 3 m reads as millimetres, an angle beyond a
+    """Heuristic (docs/input-files.md): a position beyond 3 m reads as millimetres, an angle beyond a
     full turn as degrees; a hint per unit [units] leaves to the default, none when it names it."""
     import math
 

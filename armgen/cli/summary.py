@@ -5,7 +5,7 @@ a hint when a task without ``[units]`` holds numbers that look like millimetres 
 ``max_abs_q_deg``: SI or the planner's choice); the table converts each figure to the task
 file's ``[units]`` (default m and rad), so the numbers read like the ones the user wrote. A list
 (one value per joint or link) is shown by its extreme and where it is; a table of named values
-(per joint, per obstacle) likewise or in full when short. docs/results.md describes both.
+(per joint, per obstacle) likewise or in full when short. docs/input-files.md describes both.
 """
 
 from __future__ import annotations
