@@ -85,6 +85,10 @@ class Check(StrictModel):
     limits: Literal["error", "report"] = Field(
         "error", description="a plan that leaves a joint's limits: 'error' (exit 3, nothing written) or 'report' "
                              "(written; listed in the summary's limit_violations)")
+    path_tolerance: Optional[Positive] = Field(
+        None, description="length unit: the most the tool may deviate from the path (default 0.1 mm for programs and "
+                          "for cartesian circles/lines that leave integrator.step unset); the step is halved to meet it, else "
+                          "exit 3")
 
 
 class SpeedCheck(StrictModel):

@@ -44,6 +44,7 @@ from ..limits import limit_report
 from ..result import PlanResult
 from ..taskpath import (TIMED_WIDTH, TaskPath, base_columns, path_metadata,
                        smoothness, sym_base_row, sym_tracking)
+from ..toolpath.accuracy import path_accuracy
 from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
 from .reach import srs_reach_check
 from .task import FaultMethod, FaultSpec, FaultTolerantTask, parse_fault_tolerant_task
@@ -369,9 +370,11 @@ def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
     parsed = parse_fault_tolerant_task(task, source)
     shared = make_backend(parsed.robot, backend)
 
-    def run(motion):
-        planned = parsed if motion is None else replace(parsed, path=parsed.path.with_motion(motion))
+    def run(motion, step):  # at the step the path tolerance asks for (toolpath.accuracy)
+        path = replace(parsed.path, step=step)
+        planned = replace(parsed, path=path if motion is None else path.with_motion(motion))
         return FaultTolerantPlanner(planned, backend=shared).run()
 
     return plan_with_speed_limits(run, parsed.path.motion, parsed.path.program and parsed.path.program.angular_speed,
-                                  parsed.robot, source)
+                                  parsed.robot, source, path_accuracy(task, parsed.path.step, parsed.path.motion is not None,
+                                                                      unset_step_applies=False), parsed.path.duration)

@@ -27,6 +27,7 @@ import numpy as np
 from ...errors import PlanningError
 from ...robot import Robot
 from ..limits import RATIO_TOL, acceleration_ratios, speed_ratios, speed_report
+from .accuracy import PathAccuracy, plan_accurately
 from .timelaw import ProgramMotion, program_profile
 
 # The slowed speed is this fraction of what the measured ratio allows: q̇ is sampled at the
@@ -107,23 +108,33 @@ def _ramp_scale(profile, s: np.ndarray, ratio_a: np.ndarray) -> np.ndarray:
     return scale
 
 
-def plan_within_limits(plan: Callable[[ProgramMotion], Any], motion: ProgramMotion, angular_speed: float | None,
-                       robot: Robot, source: str, samples: Callable[[Any], tuple[np.ndarray, np.ndarray]]):
-    """Stage 2: plan (``plan(motion)`` → result), measure (``samples(result)`` → (t, q̇)), slow the
-    tool where a joint exceeds a limit, plan again. Returns (result, final motion, report)."""
+def _move_named(motion: ProgramMotion, result, k: int) -> str:
+    move = int(motion.program.move_at(motion.profile(result.column("t_s")[k])[0])[0])
+    return f"path.moves[{move}] ({motion.program.moves[move].kind})"
+
+
+def plan_within_limits(plan: Callable[[ProgramMotion, float], Any], motion: ProgramMotion,
+                       angular_speed: float | None, robot: Robot, source: str,
+                       samples: Callable[[Any], tuple[np.ndarray, np.ndarray]], accuracy: PathAccuracy):
+    """Stage 2: plan (``plan(motion, step)`` → result, within the path tolerance), measure
+    (``samples(result)`` → (t, q̇)), slow the tool where a joint exceeds a limit, plan again.
+    Returns (result, final motion, limits report, accuracy report)."""
     nominal = motion
     program = motion.program
     grid = motion.profile.s
     cap = np.full(grid.shape, np.inf)
     acc_scale = np.ones(grid.size - 1)
+    step = None  # the step the tolerance asked for: a slower time law needs no coarser one
     for _ in range(MAX_SLOWDOWN_ROUNDS):
-        result = plan(motion)
-        check_on_path(result, motion, source)
+        current = motion
+        result, step, accurate = plan_accurately(
+            lambda h: plan(current, h), accuracy, current.duration, source,
+            lambda r, k: _move_named(current, r, k), lambda r: check_on_path(r, current, source), step)
         t, qd = samples(result)
         ratio_v = speed_ratios(robot, qd).max(axis=1)
         ratio_a = acceleration_ratios(robot, t, qd).max(axis=1)
         if ratio_v.max() <= RATIO_TOL and ratio_a.max() <= RATIO_TOL:
-            return result, motion, _report(robot, t, qd, nominal, motion)
+            return result, motion, _report(robot, t, qd, nominal, motion), accurate
         s, sdot, _ = motion.profile(t)
         over = np.maximum(ratio_v, np.sqrt(ratio_a))  # ṡ² drives the centripetal part of q̈
         bad = over > RATIO_TOL
@@ -184,21 +195,29 @@ def plan_samples(result, n: int) -> tuple[np.ndarray, np.ndarray]:
     return result.column("t_s"), np.column_stack([result.column(f"dq{i + 1}_rad_s") for i in range(n)])
 
 
-def plan_with_speed_limits(run: Callable[[ProgramMotion | None], Any], motion: ProgramMotion | None,
-                           angular_speed: float | None, robot: Robot, source: str):
-    """``run(motion)`` → PlanResult, for a program within the joint limits (stage 2), with
-    ``summary.joint_speed``: the report, the time added and where, and whether it was enforced
-    (programs) or only measured (a fixed-duration circle or line: ``run(None)``)."""
+def plan_with_speed_limits(run: Callable[[ProgramMotion | None, float], Any], motion: ProgramMotion | None,
+                           angular_speed: float | None, robot: Robot, source: str, accuracy: PathAccuracy,
+                           duration: float, check_path: Callable[[Any], None] = lambda result: None):
+    """``run(motion, step)`` → PlanResult within the path tolerance (``accuracy``; the step is
+    halved as needed and recorded in the task), for a program within the joint limits (stage
+    2), with ``summary.joint_speed``: the report, the time added and where, and whether it was
+    enforced (programs) or only measured (a fixed-duration circle or line of ``duration`` s:
+    ``run(None, step)``, ``check_path`` refusing a plan whose tool left it), and
+    ``summary.path_accuracy``: the tolerance, the deviation and the step used."""
     if motion is None:
-        result = run(None)
+        result, step, accurate = plan_accurately(lambda h: run(None, h), accuracy, duration, source,
+                                                 lambda r, k: "the path", check_path)
         report = speed_report(robot, *plan_samples(result, robot.n)) | {"enforced": False}
     else:
-        result, final, report = plan_within_limits(run, motion, angular_speed, robot, source,
-                                                   lambda r: plan_samples(r, robot.n))
+        result, final, report, accurate = plan_within_limits(run, motion, angular_speed, robot, source,
+                                                             lambda r: plan_samples(r, robot.n), accuracy)
         report |= {"enforced": True}
         result.metadata.setdefault("path", {}).update(program_metadata(final))
         result.motion = final
-    result.metadata.setdefault("summary", {})["joint_speed"] = report
+    accuracy.record(accurate["step_s"])
+    summary = result.metadata.setdefault("summary", {})
+    summary["joint_speed"] = report
+    summary["path_accuracy"] = accurate
     return result
 
 

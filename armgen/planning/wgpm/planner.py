@@ -38,6 +38,7 @@ from ..limits import check_start_off_limits, limit_report
 from ..result import PlanResult
 from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, parse_path_task, path_metadata,
                        smoothness, sym_base_row, sym_tracking)
+from ..toolpath.accuracy import path_accuracy
 from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
 
 METHODS = ("wgpm", "pinv", "clamp")
@@ -325,10 +326,12 @@ def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
     parsed = parse_wgpm_task(task, source)
     shared = make_backend(parsed.path.robot, backend)
 
-    def run(motion):
-        planned = parsed if motion is None else replace(parsed, path=parsed.path.with_motion(motion))
+    def run(motion, step):  # at the step the path tolerance asks for (toolpath.accuracy)
+        path = replace(parsed.path, step=step)
+        planned = replace(parsed, path=path if motion is None else path.with_motion(motion))
         return WgpmPlanner(planned, backend=shared).run()
 
     return plan_with_speed_limits(run, parsed.path.motion, parsed.path.program and parsed.path.program.angular_speed,
-                                  parsed.path.robot, source)
+                                  parsed.path.robot, source, path_accuracy(task, parsed.path.step, parsed.path.motion is not None,
+                                                                      unset_step_applies=False), parsed.path.duration)
 
