@@ -1,12 +1,13 @@
-"""Mutation fuzzing of the loaders at scale (issues 11, 27): 10 000 robot files, 10 000 task
-files, 10 000 URDF files and 2 000 sets of sweep options by default, seeded, with the suite's
-mutators (tests/fuzzing.py). Prints one row per
+"""Mutation fuzzing of the loaders at scale (issues 11, 27, 37): 10 000 robot files, 10 000 task
+files, 10 000 URDF files, 2 000 sets of sweep options, 10 000 poses CSV files, 10 000 Robot.ik
+calls and 2 000 `armgen ik` command lines by default, seeded, with the suite's mutators
+(tests/fuzzing.py). Prints one row per
 file kind: cases, clean errors, accepted, tracebacks, hangs, accepted nonsense (a certainly
 invalid file that was accepted) and failed plans that left files behind; then the first
 example of each bad outcome. Not a test: nothing here asserts.
 
-    python benchmarks/fuzz.py [--robots 10000] [--tasks 10000] [--urdfs 10000] [--sweeps 2000] [--seed 0]
-                              [--full-plan-share 0.03] [--quick]
+    python benchmarks/fuzz.py [--robots 10000] [--tasks 10000] [--urdfs 10000] [--sweeps 2000] [--poses 10000]
+                              [--iks 10000] [--ik-commands 2000] [--seed 0] [--full-plan-share 0.03] [--quick]
 
 ``--quick``: QUICK_CASES cases of each kind (a smoke run of the table, seconds).
 """
@@ -23,8 +24,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-from fuzzing import (FULL_PLAN_BASES, mutate_robot, mutate_sweep, mutate_task, mutate_urdf, robot_case,  # noqa: E402
-                     sweep_case, task_case, urdf_case)
+from fuzzing import (FULL_PLAN_BASES, ik_case, ik_cli_case, mutate_ik, mutate_ik_cli, mutate_poses,  # noqa: E402
+                     mutate_robot, mutate_sweep, mutate_task, mutate_urdf, poses_case, robot_case, sweep_case,
+                     task_case, urdf_case)
 
 from armgen.progress import progress  # noqa: E402
 
@@ -52,6 +54,9 @@ def main() -> None:
     parser.add_argument("--tasks", type=int, default=10_000)
     parser.add_argument("--urdfs", type=int, default=10_000)
     parser.add_argument("--sweeps", type=int, default=2_000)
+    parser.add_argument("--poses", type=int, default=10_000)
+    parser.add_argument("--iks", type=int, default=10_000)
+    parser.add_argument("--ik-commands", type=int, default=2_000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--full-plan-share", type=float, default=0.03,
                         help="share of task cases planned and written in full (the rest: schema validation)")
@@ -85,7 +90,10 @@ def main() -> None:
     rows["task files"], seconds["task files"] = counts, time.perf_counter() - started
 
     for kind, count, mutate, case in (("URDF files", args.urdfs, mutate_urdf, urdf_case),
-                                      ("sweep options", args.sweeps, mutate_sweep, sweep_case)):
+                                      ("sweep options", args.sweeps, mutate_sweep, sweep_case),
+                                      ("poses CSV files", args.poses, mutate_poses, poses_case),
+                                      ("Robot.ik calls", args.iks, mutate_ik, ik_case),
+                                      ("armgen ik command lines", args.ik_commands, mutate_ik_cli, ik_cli_case)):
         started = time.perf_counter()
         counts = Counter()
         with progress(count, kind) as bar:

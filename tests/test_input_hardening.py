@@ -287,3 +287,11 @@ def test_ik_joint_values_must_fit_the_batch(keyword):
     """Found by the IK fuzzer: two seeds for one pose was NumPy's broadcasting error."""
     with pytest.raises(ValueError, match=rf"{keyword} of shape \(2, 3\) does not fit the poses' batch shape \(\)"):
         load_robot("planar3").ik(_planar3_target(), **{keyword: np.zeros((2, 3))})
+
+
+@pytest.mark.parametrize("option", ["--seed", "--q0"])
+def test_ik_cli_quotes_a_bad_configuration_as_an_excerpt(option):
+    """Found by the IK CLI fuzzer: a 5000-character --seed was echoed whole."""
+    result = _ik_cli("planar3", "--xyz", "0.4", "0.2", "0", option, "x" * 5000)
+    assert result.exit_code == 2, result.output
+    assert "(5002 characters)" in result.output and len(result.output) < MAX_MESSAGE_CHARS

@@ -16,7 +16,7 @@ from .handling import handle_errors
 
 def _joints(robot, text: str, option: str, angle_scale: float) -> np.ndarray:
     """A named configuration, or n numbers separated by commas/spaces (angles in --units)."""
-    from ..errors import OptionError
+    from ..errors import OptionError, excerpt
 
     if text in robot.configurations:
         return robot.configuration(text)
@@ -26,8 +26,8 @@ def _joints(robot, text: str, option: str, angle_scale: float) -> np.ndarray:
         values = []
     if len(values) != robot.n or not all(math.isfinite(v) for v in values):
         known = ", ".join(sorted(robot.configurations)) or "none"
-        raise OptionError(f"{option} {text!r}: give a configuration name of robot '{robot.name}' ({known}) or "
-                          f"{robot.n} finite joint values separated by commas")
+        raise OptionError(f"{option} {excerpt(repr(text))}: give a configuration name of robot '{robot.name}' "
+                          f"({known}) or {robot.n} finite joint values separated by commas")
     scale = np.array([angle_scale if j.revolute else 1.0 for j in robot.joints])
     return np.array(values) * scale
 

@@ -19,9 +19,9 @@ The rows are sorted by run index whichever way they ran.
 
 A sweep has at most :data:`MAX_SWEEP_RUNS` runs (grid combinations × draws), and every swept
 key must be a field of the task's schema (:func:`check_fields`), both checked before anything
-runs; a swept value the schema refuses is that run's error row. ``--resume`` reads the output only when it is a table this command wrote
-(its fixed columns, integer run indices, JSON ``overrides``); anything else is refused, never
-replaced.
+runs; a swept value the schema refuses is that run's error row. ``--resume`` reads the output
+only when it is a table this command wrote (its fixed columns, integer run indices, JSON
+``overrides``); anything else is refused, never replaced.
 """
 
 from __future__ import annotations
@@ -139,7 +139,8 @@ def check_fields(task: dict[str, Any], spec: SweepSpec, source: str) -> None:
     """Refuse, before any run, a swept key the task's schema does not have (a typo would make
     every run an error row) or that cannot be set (a key through a value that is no table).
     A value the schema refuses stays that run's error row: a sweep may probe invalid values."""
-    fields = [("--grid", key, values[0]) for key, values in spec.grid] + [("--range", r.key, r.low) for r in spec.ranges]
+    fields = [("--grid", key, values[0]) for key, values in spec.grid] + \
+        [("--range", r.key, r.low) for r in spec.ranges]
     first = copy.deepcopy(task)
     for option, key, value in fields:
         set_field(first, key, value, f"{option} {excerpt(repr(key))}")
