@@ -278,7 +278,7 @@ def mutate_urdf(rng: random.Random) -> tuple[str, bool]:
     bounded = [k for k, j in enumerate(joints) if j[5] is not None]
     for _ in range(rng.randint(1, 3)):
         action = rng.choice(["many", "origin", "limit", "name", "long_name", "axis", "zero_axis", "nan", "doctype",
-                             "swap", "type", "robot_name", "fine_origin", "fine_limit", "garble"])
+                             "swap", "type", "robot_name", "fine_origin", "fine_limit", "garble", "degrees"])
         k = rng.choice(moving)
         if action == "many":
             count = rng.choice([65, 200, 1000])
@@ -291,6 +291,11 @@ def mutate_urdf(rng: random.Random) -> tuple[str, bool]:
             b = rng.choice([i for i in bounded if i < len(joints)] or [0])
             if joints[b][5] is not None:
                 joints[b][5] = rng.choice([("-1e300", "1e300"), ("-1", "1e12"), ("-1001", "0")])
+                invalid = True
+        elif action == "degrees":  # revolute limits written in degrees
+            b = rng.choice([i for i, j in enumerate(joints) if j[1] == "revolute"] or [None])
+            if b is not None:
+                joints[b][5] = rng.choice([("-170", "170"), ("-360", "360"), ("0", "270")])
                 invalid = True
         elif action == "name":
             joints[k][0] = rng.choice(["not a name", "1abc", "a-b", "x*/y", "naïve", "../x"])
@@ -322,8 +327,8 @@ def mutate_urdf(rng: random.Random) -> tuple[str, bool]:
             invalid = True
         elif action == "fine_origin":  # within the bounds: must still load
             joints[rng.randrange(len(joints))][2] = rng.choice(["999 0 0", "0 -0.001 1e-9", "1e-300 0 0"])
-        elif action == "fine_limit" and joints[k][5] is not None:
-            joints[k][5] = rng.choice([("-999", "999"), ("-1e-6", "1e-6"), ("0", "1")])
+        elif action == "fine_limit" and joints[k][5] is not None:  # revolute ones within two turns (±4π)
+            joints[k][5] = rng.choice([("-12.5", "12.5"), ("-1e-6", "1e-6"), ("0", "1")])
         elif action == "garble":  # may or may not still be a valid file
             text = _urdf_text(joints, robot, prolog)
             cut = rng.randrange(len(text))

@@ -44,7 +44,8 @@ from ..errors import RobotFileError, excerpt
 from ..schemas import (IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded,
                        read_input_file)
 from .frames import rpy_matrix, snap_quarter_turn
-from .model import JOINT_TYPES, MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, TASK_ROWS, Joint, RobotDescription
+from .model import (JOINT_TYPES, MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, MAX_REVOLUTE_LIMIT_RAD, MIN_JOINT_RATE,
+                    TASK_ROWS, Joint, RobotDescription)
 from .schema import RobotFile, UrdfRobotFile
 from .urdf import parse_urdf
 
@@ -139,6 +140,26 @@ def _transform(reader: _Reader, doc: dict, key: str, length_scale: float, angle_
 _JOINT_FIELDS = {"name", "type", "a", "d", "alpha", "offset", "qlim", "theta", "qdlim", "qddlim"}
 
 
+def _beyond_turns(angle_unit: str) -> str:
+    """Why revolute limits beyond ``MAX_REVOLUTE_LIMIT_RAD`` are refused, and the fix."""
+    hint = ('if these are degrees, set [units] angle = "deg"' if angle_unit == "rad"
+            else "check the values")
+    return (f"reaches beyond ±{MAX_REVOLUTE_LIMIT_RAD:.4g} rad (two turns either side of zero, more than any arm's "
+            f"joint turns); the file's angles are in {angle_unit} ([units] angle): {hint}")
+
+
+def _rate(reader: _Reader, table: dict, key: str, where: str, scale: float, default: float) -> float:
+    """A joint's speed (``qdlim``) or acceleration (``qddlim``) limit in SI; ``default`` where
+    ``table`` gives none (unlimited, or a URDF's velocity)."""
+    if key not in table:
+        return default
+    value = reader.number(table, key, where) * scale
+    if not value >= MIN_JOINT_RATE:
+        raise reader.fail(where, f"field '{key}' = {table[key]} is below {MIN_JOINT_RATE:g} SI units (rad or m per "
+                                 "s, per s²): a unit slip; check the value and [units]")
+    return value
+
+
 def _robot_place(doc: dict[str, Any], loc: tuple) -> str:
     """How robot-file errors name a place: 'file', '[units]', "joint 2 ('elbow')"."""
     if not loc:
@@ -215,6 +236,8 @@ def parse_description(text: str, source: str, sha256: str | None = None,
         lo, hi = qlim[0] * q_scale, qlim[1] * q_scale
         if not lo < hi:
             raise reader.fail(where, f"qlim = {qlim} is empty or reversed; write [lower, upper] with lower < upper")
+        if jtype == "revolute" and max(abs(lo), abs(hi)) > MAX_REVOLUTE_LIMIT_RAD:
+            raise reader.fail(where, f"qlim = {qlim} {angle_unit} {_beyond_turns(angle_unit)}")
         q_is_angle = jtype == "revolute"
         for key in ("a", "d", "alpha", "offset", "theta", "qlim"):
             is_angle = key in ("alpha", "theta") or (key in ("offset", "qlim") and q_is_angle)
@@ -234,8 +257,8 @@ def parse_description(text: str, source: str, sha256: str | None = None,
                 reader.number(raw, "offset", where, default=0.0) * q_scale),
             qlim=(lo, hi),
             theta=snap_quarter_turn(reader.number(raw, "theta", where, default=0.0) * as_),
-            qdlim=reader.number(raw, "qdlim", where, default=math.inf) * q_scale,
-            qddlim=reader.number(raw, "qddlim", where, default=math.inf) * q_scale,
+            qdlim=_rate(reader, raw, "qdlim", where, q_scale, math.inf),
+            qddlim=_rate(reader, raw, "qddlim", where, q_scale, math.inf),
         ))
 
     q_scales = np.array([as_ if j.revolute else ls for j in joints])
@@ -371,15 +394,15 @@ def _urdf_robot(path: Path, data: bytes, base_link: str | None, tip_link: str | 
                                       f"(joints: {', '.join(names)})")
     joints = []
     for j, scale in zip(chain.joints, q_scales):
-        qlim = j.qlim
-        if j.name in limits:
-            lo, hi = (v * scale for v in reader.vector(limits, j.name, "[limits]", 2))
-            if not lo < hi:
-                raise reader.fail("[limits]", f"{j.name} = {limits[j.name]} is empty or reversed; write [lower, upper]")
-            qlim = (lo, hi)
-        joints.append(Joint(name=j.name, type="prismatic" if j.type == "prismatic" else "revolute",
-                            a=0.0, d=0.0, alpha=0.0, offset=0.0, qlim=qlim, origin=j.origin, axis=j.axis,
-                            qdlim=j.qdlim))
+        # `joint = [lower, upper]` is short for `joint = { qlim = [lower, upper] }`
+        entry = limits.get(j.name, {})
+        entry, field = ({"qlim": entry}, j.name) if isinstance(entry, list) else (entry, f"{j.name}.qlim")
+        revolute = j.type != "prismatic"
+        joints.append(Joint(name=j.name, type="revolute" if revolute else "prismatic",
+                            a=0.0, d=0.0, alpha=0.0, offset=0.0, origin=j.origin, axis=j.axis,
+                            qlim=_limit_override(reader, entry, field, scale, revolute, angle_unit) or j.qlim,
+                            qdlim=_rate(reader, entry, "qdlim", f"[limits] {j.name}", scale, j.qdlim),
+                            qddlim=_rate(reader, entry, "qddlim", f"[limits] {j.name}", scale, math.inf)))
 
     qmin, qmax = np.array([j.qlim[0] for j in joints]), np.array([j.qlim[1] for j in joints])
     configurations: dict[str, np.ndarray] = {"qmid": 0.5 * (qmin + qmax)}
@@ -401,11 +424,28 @@ def _urdf_robot(path: Path, data: bytes, base_link: str | None, tip_link: str | 
         description=reader.string(doc, "description", "file", default=f"URDF {path.name}: {chain.base_link} -> {chain.tip_link}"),
         units={"length": length_unit, "angle": angle_unit},
         urdf={"file": str(path), "base_link": chain.base_link, "tip_link": chain.tip_link,
-              "continuous": [j.name for j in chain.joints if j.type == "continuous" and j.name not in limits]},
+              "continuous": [j.name for j, joint in zip(chain.joints, joints)
+                             if j.type == "continuous" and joint.qlim == j.qlim]},
     )
     for cname, vec in configurations.items():
         robot.check_within_limits(vec, f"{reader.source}: [configurations] {cname}")
     return robot
+
+
+def _limit_override(reader: _Reader, entry: dict, field: str, scale: float, revolute: bool,
+                    angle_unit: str) -> tuple[float, float] | None:
+    """A robot file's position limits of a URDF joint (SI), or None where it keeps the URDF's."""
+    if "qlim" not in entry:
+        return None
+    lo, hi = (v * scale for v in reader.vector(entry, "qlim", "[limits]", 2))
+    if not lo < hi:
+        raise reader.fail("[limits]", f"{field} = {entry['qlim']} is empty or reversed; write [lower, upper]")
+    if revolute and max(abs(lo), abs(hi)) > MAX_REVOLUTE_LIMIT_RAD:
+        raise reader.fail("[limits]", f"{field} = {entry['qlim']} {angle_unit} {_beyond_turns(angle_unit)}")
+    if not revolute and max(abs(lo), abs(hi)) > MAX_ABS_LENGTH_M:
+        raise reader.fail("[limits]", f"{field} = {entry['qlim']} is beyond ±{MAX_ABS_LENGTH_M:g} m; check [units] "
+                                      "length and the values")
+    return (lo, hi)
 
 
 def _parse_urdf_robot_file(reader: _Reader, doc: dict, sha256: str, directory: Path) -> RobotDescription:

@@ -25,6 +25,16 @@ TASK_ROWS = ("vx", "vy", "vz", "wx", "wy", "wz")
 # the generated kinematics far from overflow, also in single precision (FLT_MAX ~ 3e38).
 MAX_ABS_LENGTH_M = 1e3
 MAX_ABS_ANGLE_RAD = 1e3
+# A revolute joint's limits lie within two turns either side of zero: the widest ranges of
+# real arms fit (UR's ±360°, a FANUC wrist's ±720°, a window moved around a continuous joint),
+# while limits written in degrees where radians belong (±170, ±360 read as rad) land beyond
+# it; accepting them would make every configuration "within the limits" and switch the
+# joint-limit protection off.
+MAX_REVOLUTE_LIMIT_RAD = 4 * math.pi
+# The smallest joint speed or acceleration limit (rad/s or m/s, per s): a joint this slow
+# needs over two months for a turn, so a smaller value is a unit slip, and the tiniest ones
+# (5e-324 deg/s) would become 0 in SI, a limit every motion exceeds by an infinite ratio.
+MIN_JOINT_RATE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -206,9 +216,12 @@ class RobotDescription:
         """A copy of the named configuration; a clear error names the known ones."""
         if name not in self.configurations:
             known = ", ".join(sorted(self.configurations)) or "none"
+            where = ("a URDF holds none: add it in a robot file that references the URDF (urdf = \"...\" and a "
+                     "[configurations] table, docs/urdf.md)" if self.source == self.urdf.get("file")
+                     else "add it under [configurations]")
             raise RobotFileError(
                 f"{self.source}: robot '{self.name}' has no configuration '{name}' (known: {known}); "
-                "add it under [configurations] or give the joint values explicitly"
+                f"{where}, or give the joint values explicitly"
             )
         return self.configurations[name].copy()
 

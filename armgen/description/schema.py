@@ -4,9 +4,9 @@ to SI; ``armgen schema robot`` prints it as JSON Schema for editors."""
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Optional
+from typing import Annotated, Literal, Optional, Union
 
-from pydantic import Field, StringConstraints
+from pydantic import Discriminator, Field, StringConstraints, Tag
 
 from ..schemas import IDENTIFIER_PATTERN, StrictModel
 
@@ -70,16 +70,39 @@ class RobotFile(_RobotFileCommon):
     joints: Annotated[list[JointEntry], Field(min_length=1, max_length=MAX_DOF)]
 
 
+Limits = Annotated[list[Number], Field(min_length=2, max_length=2, description="[lower, upper]")]
+Rate = Annotated[Number, Field(gt=0)]
+
+
+class JointLimits(StrictModel):
+    """One joint's limits set by a robot file that references a URDF, in the file's units:
+    what the URDF gives is replaced, what it cannot hold (accelerations) is added."""
+
+    qlim: Optional[Limits] = Field(None, description="[lower, upper], replacing the URDF's <limit lower upper>")
+    qdlim: Optional[Rate] = Field(
+        None, description="velocity limit (angle or length unit per s), replacing the URDF's <limit velocity>")
+    qddlim: Optional[Rate] = Field(
+        None, description="acceleration limit (angle or length unit per s^2); a URDF has none")
+
+
+# A [limits] entry: `joint = [lower, upper]` (position limits only) or a table; chosen by the
+# value's type, so an error names the problem of that form, not of the other.
+LimitsEntry = Annotated[Union[Annotated[Limits, Tag("list")], Annotated[JointLimits, Tag("table")]],
+                        Discriminator(lambda value: "list" if isinstance(value, list) else "table")]
+
+
 class UrdfRobotFile(_RobotFileCommon):
     """A robot file that takes its chain from a URDF: the chain from ``base_link`` to
     ``tip_link`` (defaults: the URDF's root and its single leaf), with the usual name, units,
-    base/tool transforms, named configurations, task rows and optional joint-limit overrides."""
+    base/tool transforms, named configurations, task rows and optional per-joint limits
+    (position, velocity, acceleration)."""
 
     urdf: Annotated[str, StringConstraints(min_length=1, max_length=4096)] = Field(
         description="path of the URDF file, relative to this robot file")
     name: Optional[Identifier] = Field(None, description="robot name (default: the URDF's robot name)")
     base_link: Optional[Annotated[str, StringConstraints(min_length=1, max_length=256)]] = None
     tip_link: Optional[Annotated[str, StringConstraints(min_length=1, max_length=256)]] = None
-    limits: Annotated[dict[str, Annotated[list[Number], Field(min_length=2, max_length=2)]],
-                      Field(max_length=MAX_DOF, description="joint name = [lower, upper], overriding the URDF's")] = Field(
+    limits: Annotated[dict[str, LimitsEntry],
+                      Field(max_length=MAX_DOF, description="joint name = [lower, upper], or a table of qlim, qdlim, "
+                                                            "qddlim: the joint's limits for this robot file")] = Field(
         default_factory=dict)

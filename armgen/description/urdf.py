@@ -11,8 +11,9 @@ Rules (see ``docs/urdf.md``):
   they follow the last moving joint).
 - ``floating`` and ``planar`` joints and ``<mimic>`` on the chain are rejected; joints off
   the chain (e.g. gripper fingers) are only checked for well-formedness.
-- A revolute or prismatic joint needs ``<limit lower upper>`` with lower < upper; a
-  continuous joint gets ``[-CONTINUOUS_LIMIT, CONTINUOUS_LIMIT]`` unless a robot file
+- A revolute or prismatic joint needs ``<limit lower upper>`` with lower < upper, a
+  revolute joint's within ±``MAX_REVOLUTE_LIMIT_RAD`` (URDF angles are radians: limits
+  written in degrees are refused, not read as dozens of turns); a continuous joint gets ``[-CONTINUOUS_LIMIT, CONTINUOUS_LIMIT]`` unless a robot file
   bounds it under ``[limits]``.
 - The base link defaults to the tree's root, the tip link to the end of the chain when the
   tree does not branch below the base. Branches that lead only through fixed joints to leaf
@@ -35,12 +36,13 @@ import numpy as np
 from ..errors import RobotFileError, excerpt
 from ..schemas import IDENTIFIER_PATTERN
 from .frames import rpy_matrix, snap_quarter_turn
-from .model import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M
+from .model import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, MAX_REVOLUTE_LIMIT_RAD, MIN_JOINT_RATE
 from .schema import MAX_DOF
 
 # Default range of a continuous joint (rad): one full turn about zero. Criteria and planners
 # need finite limits; bound the joint in a robot file's [limits] table to change it.
 CONTINUOUS_LIMIT = math.pi
+DEGREE = math.pi / 180.0  # rad
 
 MOVING_TYPES = ("revolute", "continuous", "prismatic")
 UNSUPPORTED_TYPES = ("floating", "planar")
@@ -328,11 +330,24 @@ def _limits(p: _Parser, raw: _RawJoint, where: str) -> tuple[float, float]:
     (upper,) = p.numbers(limit, "upper", f"{where} <limit>", 1, None)
     if not lower < upper:
         raise p.fail(f"{where} <limit>", f"lower = {lower} is not below upper = {upper}")
+    if raw.type == "revolute" and max(abs(lower), abs(upper)) > MAX_REVOLUTE_LIMIT_RAD:
+        raise p.fail(f"{where} <limit>", revolute_limit_message(lower, upper))
     bound, unit = (MAX_ABS_LENGTH_M, "m") if raw.type == "prismatic" else (MAX_ABS_ANGLE_RAD, "rad")
     if max(abs(lower), abs(upper)) > bound:
         raise p.fail(f"{where} <limit>", f"lower = {lower:g}, upper = {upper:g} reach beyond ±{bound:g} {unit}; "
                                          "check the values (URDF is in m and rad)")
     return (lower, upper)
+
+
+def revolute_limit_message(lower: float, upper: float) -> str:
+    """Why revolute limits beyond ``MAX_REVOLUTE_LIMIT_RAD`` are refused, and the fix: URDF
+    angles are radians, and limits written in degrees read as radians protect nothing."""
+    message = (f"lower = {lower:g}, upper = {upper:g} reach beyond ±{MAX_REVOLUTE_LIMIT_RAD:.4g} rad (two turns "
+               "either side of zero, more than any arm's joint turns): URDF angles are radians")
+    if max(abs(lower), abs(upper)) * DEGREE <= MAX_REVOLUTE_LIMIT_RAD:
+        message += (f"; if these are degrees, write lower=\"{lower * DEGREE:.6g}\" upper=\"{upper * DEGREE:.6g}\" "
+                    "(rad)")
+    return message
 
 
 def _velocity(p: _Parser, raw: _RawJoint, where: str) -> float:
@@ -344,4 +359,7 @@ def _velocity(p: _Parser, raw: _RawJoint, where: str) -> float:
     (velocity,) = p.numbers(limit, "velocity", f"{where} <limit>", 1, None)
     if velocity < 0:
         raise p.fail(f"{where} <limit>", f"velocity = {velocity} is negative; give the speed limit (≥ 0, 0 = none)")
+    if 0 < velocity < MIN_JOINT_RATE:
+        raise p.fail(f"{where} <limit>", f"velocity = {velocity:g} is below {MIN_JOINT_RATE:g} (URDF speeds are rad/s "
+                                         "or m/s): a unit slip; check the value (0 = none)")
     return velocity if velocity > 0 else math.inf

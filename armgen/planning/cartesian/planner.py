@@ -132,6 +132,13 @@ def parse_robot_and_start(task: dict, source: str) -> tuple[Robot, np.ndarray, s
     if isinstance(start, dict):
         q_start, label = start_from_pose(robot, start, source, ls, as_)
     elif isinstance(start, str):
+        if start not in robot.configurations:
+            known = ", ".join(sorted(robot.configurations)) or "none"
+            default = " (the default)" if "start" not in task else ""
+            raise TaskFileError(
+                f"{source}: field 'start' = {excerpt(repr(start))}{default} is not a configuration of robot "
+                f"'{robot.name}' (known: {known}); name one of them, give {robot.n} joint values, or give a tool pose "
+                "solved by the IK: start = { pose = { xyz = [...], rpy = [...] } }" + _urdf_hint(robot))
         q_start, label = robot.configuration(start), start
     else:
         q_units = np.array([as_ if j.revolute else ls for j in robot.joints])
@@ -140,30 +147,50 @@ def parse_robot_and_start(task: dict, source: str) -> tuple[Robot, np.ndarray, s
     return robot, q_start, label, ls, as_
 
 
+def _urdf_hint(robot: Robot) -> str:
+    """Where a named configuration of a robot read from a URDF alone goes (a URDF holds none)."""
+    if robot.source != robot.urdf.get("file"):
+        return ""
+    return ("; a URDF holds no named configurations: add one in a robot file that references it "
+            "(urdf = \"...\" and a [configurations] table, docs/urdf.md)")
+
+
 def start_from_pose(robot: Robot, start: dict, source: str, ls: float, as_: float) -> tuple[np.ndarray, str]:
     """``start = { pose = { xyz, rpy }, seed = … }``: the joint values that reach the pose (the
-    robot's IK, inside the limits, its self-motion away from them), and a label saying which."""
+    robot's IK, inside the limits, its self-motion away from them), and a label saying which.
+    Without ``seed`` the IK starts from the robot's ``q0``, or, for a robot without one (a URDF
+    holds no configurations), where ``armgen ik`` starts: the middle of the joint limits turned
+    about the first joint's axis toward the pose; the label says so."""
     pose = _table(start, "pose", source)
     target = np.eye(4)
     target[:3, 3] = _vector(pose, "xyz", "start.pose", source, 3, ls)
     target[:3, :3] = rpy_matrix(*_vector(pose, "rpy", "start.pose", source, 3, as_))
-    seed = start.get("seed", "q0")
+    seed = start.get("seed", "q0" if "q0" in robot.configurations else None)
     if isinstance(seed, list):
         q_units = np.array([as_ if j.revolute else ls for j in robot.joints])
         seed = _vector(start, "seed", "start", source, robot.n, 1.0) * q_units
         robot.check_within_limits(seed, f"{source}: field 'start.seed'")
-    elif isinstance(seed, str):
-        robot.configuration(seed)  # a clear error for an unknown name
+    elif isinstance(seed, str) and seed not in robot.configurations:
+        known = ", ".join(sorted(robot.configurations)) or "none"
+        raise TaskFileError(
+            f"{source}: field 'start.seed' = {excerpt(repr(seed))} is not a configuration of robot '{robot.name}' "
+            f"(known: {known}); name one of them, give {robot.n} joint values, or leave start.seed out to start the "
+            "IK from the robot's q0 (else from the middle of the joint limits, as armgen ik does)")
     result = robot.ik(target, seed=seed)
-    seed_label = seed if isinstance(seed, str) else "given joint values"
+    seed_label = (f"seed {seed!r}" if isinstance(seed, str) else "seed 'given joint values'" if seed is not None
+                  else "the middle of the joint limits")
     if not result.success:  # a pose outside the workspace: bad input (exit 2)
         raise TaskFileError(
-            f"{source}: field 'start.pose' is not reachable: the inverse kinematics from seed {seed_label!r} stopped "
+            f"{source}: field 'start.pose' is not reachable: the inverse kinematics from {seed_label} stopped "
             f"{float(result.position_error) * 1e3:.3g} mm / {math.degrees(float(result.orientation_error)):.3g} deg "
             "from it; the pose may be outside the workspace or beyond the joint limits: move it, or give a seed "
-            "(start.seed) closer to the configuration you want")
-    label = (f"pose (IK from seed {seed_label!r}: position error {float(result.position_error):.1e} m, "
+            "(start.seed = a configuration name or joint values) closer to the configuration you want")
+    label = (f"pose (IK from {seed_label}: position error {float(result.position_error):.1e} m, "
              f"orientation error {float(result.orientation_error):.1e} rad, {int(result.iterations)} iterations)")
+    if seed is None:
+        label += (f"; note: robot '{robot.name}' has no configuration q0 and the task gives no start.seed, so the IK "
+                  "started where armgen ik does (the middle of the joint limits, turned toward the pose); set "
+                  "start.seed to choose the configuration")
     return np.asarray(result.q, dtype=float), label
 
 
