@@ -376,3 +376,19 @@ def test_snake_accuracy_panel_says_exact_instead_of_drawing_rounding(plans):
     legend = accuracy.get_legend()
     colours = [handle.get_color() for handle in legend.legend_handles]
     assert len(set(colours)) == len(colours)
+
+
+@pytest.mark.parametrize("record", [{"file": 5, "name": ["x"], "sha256": 7}, {"file": "x\u0000y", "name": "nope"},
+                                    {"file": "x" * 5000, "name": "nope"}, {}, {"file": "../../arm.toml"}])
+def test_a_hand_edited_robot_record_is_a_clear_error(urdf_plan, tmp_path, record):
+    import json
+
+    _, csv, _ = urdf_plan
+    (tmp_path / "plan.csv").write_bytes(csv.read_bytes())
+    meta = json.loads(csv.with_suffix(".json").read_text())
+    meta["robot"] = record
+    (tmp_path / "plan.json").write_text(json.dumps(meta))
+    for command in ("plot", "animate"):
+        run = CliRunner().invoke(cli, [command, str(tmp_path / "plan.csv"), "-o", str(tmp_path / f"x.{command}.png")])
+        assert run.exit_code == 2, run.output
+        assert "plan.json" in run.output and "--robot" in run.output and "internal error" not in run.output

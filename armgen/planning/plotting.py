@@ -17,6 +17,7 @@ the path lies in, and edge-on to it, so a circle in the y–z plane is drawn as 
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,6 +54,9 @@ STRAIGHT_RATIO = 1e-6
 LIMIT_LABEL_LINE_FRACTION = 0.05
 # Ticks per axis of the 3-D inset: more crowd the small panel.
 INSET_TICKS = 4
+# A path in an error is quoted up to this length: a real deep path fits, a hand-edited
+# plan.json's megabyte of name does not.
+PATH_EXCERPT_CHARS = 400
 
 
 class FigureOutputError(ArmgenError):
@@ -130,9 +134,10 @@ def plan_robot(result: PlanResult, plan_file: str | Path | None = None, robot: s
                                 f"has {n}; give the robot the plan was made for")
         return chosen
     record = meta.get("robot") if isinstance(meta.get("robot"), dict) else {}
-    file, name, sha = record.get("file"), record.get("name"), record.get("sha256")
+    file, name, sha = (_text(record.get(key)) for key in ("file", "name", "sha256"))
     if meta.get("planner") == "ptp":
-        file = (meta.get("parameters") or {}).get("robot")
+        parameters = meta.get("parameters") if isinstance(meta.get("parameters"), dict) else {}
+        file = _text(parameters.get("robot"))
         if not file:
             raise PlanFileError(f"{where}: this PTP plan names no robot, so there is no arm to draw; give one with "
                                 "--robot FILE, or add robot = \"<name>\" to the task file (its joints named as the "
@@ -141,9 +146,13 @@ def plan_robot(result: PlanResult, plan_file: str | Path | None = None, robot: s
         raise PlanFileError(f"{where}: plan.json names no robot (field 'robot'), so there is no arm to draw; give one "
                             "with --robot FILE or re-run `armgen plan`")
     looked: list[str] = []
-    for candidate in _recorded_robot_paths(str(file) if file else "", plan_file):
-        if not candidate.is_file():
-            looked.append(f"{candidate} (not found)")
+    for candidate in _recorded_robot_paths(file or "", plan_file):
+        try:
+            present = candidate.is_file()
+        except (OSError, ValueError):  # a name too long for the file system, a NUL byte (a hand-edited plan.json)
+            present = False
+        if not present:
+            looked.append(f"{excerpt(str(candidate), PATH_EXCERPT_CHARS)} (not found)")
             continue
         try:
             found = load_robot(candidate)
@@ -154,7 +163,7 @@ def plan_robot(result: PlanResult, plan_file: str | Path | None = None, robot: s
             looked.append(f"{candidate} (another sha256 {found.sha256[:12]}…: changed since planning)")
             continue
         return found
-    label = name or Path(str(file)).stem
+    label = name or Path(file).stem
     if label in bundled_robots():
         found = load_robot(label)
         if not sha or found.sha256 == sha:
@@ -162,10 +171,15 @@ def plan_robot(result: PlanResult, plan_file: str | Path | None = None, robot: s
         looked.append(f"bundled robot '{label}' (another sha256 {found.sha256[:12]}…: changed since planning)")
     else:
         looked.append(f"the bundled robots (none named {excerpt(repr(label))})")
-    recorded = f"robot '{name}' from {excerpt(repr(str(file)))}" if file else f"robot '{name}'"
+    recorded = f"robot {excerpt(repr(name or label))}" + (f" from {excerpt(repr(file))}" if file else "")
     raise PlanFileError(f"{where}: plan.json records {recorded}" + (f" (sha256 {sha[:12]}…)" if sha else "")
                         + f"; looked in: {'; '.join(looked)}. Give the robot file with --robot FILE, or re-run "
                         "`armgen plan`")
+
+
+def _text(value: object) -> str | None:
+    """A plan.json string field, or None (absent, empty or not a string: a hand-edited file)."""
+    return value if isinstance(value, str) and value else None
 
 
 def _recorded_robot_paths(file: str, plan_file: str | Path | None) -> list[Path]:
@@ -177,12 +191,12 @@ def _recorded_robot_paths(file: str, plan_file: str | Path | None) -> list[Path]
         return [recorded]
     places = [recorded]
     if plan_file is not None:
-        folder = Path(plan_file).resolve().parent
+        folder = Path(os.path.abspath(plan_file)).parent  # lexically normal: ".." is not a folder above
         places += [above / recorded for above in (folder, *folder.parents)]
         places.append(folder / recorded.name)
-    unique: dict[Path, Path] = {}
+    unique: dict[str, Path] = {}
     for place in places:
-        unique.setdefault(place.resolve(), place)
+        unique.setdefault(os.path.normpath(os.path.abspath(place)), place)
     return list(unique.values())
 
 
