@@ -295,3 +295,40 @@ def test_ik_cli_quotes_a_bad_configuration_as_an_excerpt(option):
     result = _ik_cli("planar3", "--xyz", "0.4", "0.2", "0", option, "x" * 5000)
     assert result.exit_code == 2, result.output
     assert "(5002 characters)" in result.output and len(result.output) < MAX_MESSAGE_CHARS
+
+
+PLANAR_POSE_TASK = """planner = "ptp"
+robot = "planar3"
+method = "cubic"
+step = 0.01
+[waypoints]
+t = [0, 2, 4]
+xyz = [[0.4, 0.2, 0.0], {middle}, [0.3, 0.3, 0.0]]
+rpy = [[0, 0, 0], {turn}, [0, 0, 0]]
+"""
+
+
+@pytest.mark.parametrize("middle,turn,code,needles", [
+    ("[0.5, 0.1, 0.6]", "[0, 0, 0]", 3,
+     ["waypoint 1", "rows it does not control (vz, wx, wy): 0.6 m", "controls only vx, vy, wz"]),
+    ("[1e9, 0, 0]", "[0, 0, 0]", 2, ["'waypoints.xyz[1]' is beyond ±1000 m"]),
+    ("[0.5, 0.1, 0.0]", "[0, 0, 1e11]", 2, ["'waypoints.rpy[1]' is beyond ±1000 rad"]),
+    ("[0.5, 0.1, 0.0]", "[0.3, 0, 0]", 3, ["waypoint 1", "0 m / 0.3 rad off"]),
+])
+def test_ptp_pose_waypoints_an_arm_cannot_take_are_refused(tmp_path, middle, turn, code, needles):
+    """The IK of a PTP pose waypoint: planar3 drops z, so a waypoint at z = 0.6 was planned
+    (exit 0); a position of 1e9 m was an internal error."""
+    task = tmp_path / "task.toml"
+    task.write_text(PLANAR_POSE_TASK.format(middle=middle, turn=turn))
+    result = CliRunner().invoke(cli, ["plan", str(task), "-o", str(tmp_path / "plan.csv")])
+    assert result.exit_code == code, result.output
+    for needle in needles:
+        assert needle in result.output
+    assert not (tmp_path / "plan.csv").exists()
+
+
+def test_ptp_pose_waypoints_in_the_plane_are_planned(tmp_path):
+    task = tmp_path / "task.toml"
+    task.write_text(PLANAR_POSE_TASK.format(middle="[0.5, 0.1, 0.0]", turn="[0, 0, 0.5]"))
+    result = CliRunner().invoke(cli, ["plan", str(task), "-o", str(tmp_path / "plan.csv")])
+    assert result.exit_code == 0, result.output

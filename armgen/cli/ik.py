@@ -32,21 +32,6 @@ def _joints(robot, text: str, option: str, angle_scale: float) -> np.ndarray:
     return np.array(values) * scale
 
 
-def _uncontrolled_error(robot, pose: np.ndarray, q: np.ndarray) -> tuple[list[str], float, float]:
-    """The task rows the robot does not control, and the pose error in them at ``q``: the
-    largest position (m) and rotation-vector (rad, base frame) component. The solver drives
-    only the controlled rows, so these are what a planar arm leaves of the requested pose."""
-    from scipy.spatial.transform import Rotation
-
-    free = [k for k in range(len(TASK_ROWS)) if k not in robot.task_rows]
-    reached = robot.fk(q)
-    error = np.concatenate([pose[:3, 3] - reached[:3, 3],
-                            Rotation.from_matrix(pose[:3, :3] @ reached[:3, :3].T).as_rotvec()])
-    position = max((abs(error[k]) for k in free if k < 3), default=0.0)
-    orientation = max((abs(error[k]) for k in free if k >= 3), default=0.0)
-    return [TASK_ROWS[k] for k in free], float(position), float(orientation)
-
-
 @click.command("ik")
 @click.argument("robot")
 @click.option("--xyz", nargs=3, type=float, required=True, help="tool position in the base frame [m]")
@@ -68,6 +53,7 @@ def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float,
     """Inverse kinematics: joint values that put the tool at a pose (exit 3 when none is found)."""
     from ..errors import OptionError, PlanningError
     from ..description import matrix_rpy, rpy_matrix
+    from ..planning.ptp.poses import uncontrolled_error
     from ..robot import load_robot_any
     from ..symbolic import ik
 
@@ -89,7 +75,7 @@ def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float,
                   seed=None if seed is None else _joints(r, seed, "--seed", scale),
                   max_iterations=None if max_iterations is None else min(max_iterations, ik.MAX_ITERATIONS))
     rows = ", ".join(TASK_ROWS[k] for k in r.task_rows)
-    free_rows, free_position, free_orientation = _uncontrolled_error(r, pose, result.q)
+    free_rows, free_position, free_orientation = uncontrolled_error(r, pose, result.q)
     # the orientation counts where the user gave one (--rpy), the position always (--xyz)
     free_ok = free_position <= ik.TOL_POSITION and (rpy_given is None or free_orientation <= ik.TOL_ORIENTATION)
     click.echo(f"{'solved' if result.success and free_ok else 'closest reached'} in {int(result.iterations)} "
