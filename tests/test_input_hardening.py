@@ -332,3 +332,15 @@ def test_ptp_pose_waypoints_in_the_plane_are_planned(tmp_path):
     task.write_text(PLANAR_POSE_TASK.format(middle="[0.5, 0.1, 0.0]", turn="[0, 0, 0.5]"))
     result = CliRunner().invoke(cli, ["plan", str(task), "-o", str(tmp_path / "plan.csv")])
     assert result.exit_code == 0, result.output
+
+
+def test_start_pose_beyond_any_reach_is_bad_input(tmp_path):
+    """Robot.ik refuses a pose beyond ±1000 m (a ValueError): a task's start pose there is a
+    task-file error naming the field, not an internal error."""
+    text = (EXAMPLES / "panda_polish_contour_program.toml").read_text()
+    (tmp_path / "panda_polish_contour.csv").write_text((EXAMPLES / "panda_polish_contour.csv").read_text())
+    task = tmp_path / "task.toml"
+    task.write_text(text.replace("pose = { xyz = [550, 0, 350]", "pose = { xyz = [5e7, 0, 350]"))
+    result = CliRunner().invoke(cli, ["plan", str(task), "-o", str(tmp_path / "plan.csv")])
+    assert result.exit_code == 2, result.output
+    assert "field 'start.pose.xyz' is beyond ±1000 m" in result.output

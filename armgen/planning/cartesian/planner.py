@@ -19,6 +19,7 @@ import numpy as np
 from ...errors import PlanningError, TaskFileError, excerpt
 from ...progress import progress
 from ...description import rpy_matrix
+from ...description.model import MAX_ABS_LENGTH_M
 from ...robot import Robot, load_robot
 from ...symbolic.steps import min_eigenvalue
 from ..backends import make_backend
@@ -164,6 +165,9 @@ def start_from_pose(robot: Robot, start: dict, source: str, ls: float, as_: floa
     pose = _table(start, "pose", source)
     target = np.eye(4)
     target[:3, 3] = _vector(pose, "xyz", "start.pose", source, 3, ls)
+    if np.abs(target[:3, 3]).max() > MAX_ABS_LENGTH_M:  # Robot.ik refuses it (a ValueError)
+        raise TaskFileError(f"{source}: field 'start.pose.xyz' is beyond ±{MAX_ABS_LENGTH_M:g} m (after [units]), out "
+                            "of any arm's reach: check the value and [units]")
     target[:3, :3] = rpy_matrix(*_vector(pose, "rpy", "start.pose", source, 3, as_))
     seed = start.get("seed", "q0" if "q0" in robot.configurations else None)
     if isinstance(seed, list):
