@@ -53,6 +53,11 @@ def write(folder: Path, name: str, text: str) -> Path:
     return path
 
 
+# A unit conversion (deg → rad) is one multiplication: one rounding.
+CONVERSION_RTOL = 1e-15
+# armgen ik prints joint angles with 9 significant digits (values up to ~180 deg).
+IK_PRINT_TOL_DEG = 1e-6
+
 WRAPPER = 'urdf = "planar.urdf"\ntask_rows = ["vx", "vy", "wz"]\n'
 
 
@@ -120,13 +125,14 @@ q0 = [10, 40, -30]
 def test_wrapper_sets_speed_acceleration_and_position_limits(tmp_path):
     write(tmp_path, "planar.urdf", planar_urdf())
     robot = load_robot(write(tmp_path, "arm.toml", LIMITED))
-    np.testing.assert_allclose(robot.qdlim, [2.0, math.radians(60), 2.0], rtol=1e-15)  # j1, j3: the URDF's velocity
-    np.testing.assert_allclose(robot.qddlim, np.radians([90, 120, 180]), rtol=1e-15)
-    np.testing.assert_allclose(robot.joints[2].qlim, np.radians([-90, 45]), rtol=1e-15)
+    # j1, j3: the URDF's velocity; j2: the robot file's
+    np.testing.assert_allclose(robot.qdlim, [2.0, math.radians(60), 2.0], rtol=CONVERSION_RTOL)
+    np.testing.assert_allclose(robot.qddlim, np.radians([90, 120, 180]), rtol=CONVERSION_RTOL)
+    np.testing.assert_allclose(robot.joints[2].qlim, np.radians([-90, 45]), rtol=CONVERSION_RTOL)
     assert robot.joints[0].qlim == (-2.9, 2.9)
     # the firmware's MOVE_TO and speed guard take them as they are
-    np.testing.assert_allclose(acceleration_limit(robot), np.radians([90, 120, 180]), rtol=1e-15)
-    np.testing.assert_allclose(speed_guard(robot), [2.0, math.radians(60), 2.0], rtol=1e-15)
+    np.testing.assert_allclose(acceleration_limit(robot), np.radians([90, 120, 180]), rtol=CONVERSION_RTOL)
+    np.testing.assert_allclose(speed_guard(robot), [2.0, math.radians(60), 2.0], rtol=CONVERSION_RTOL)
     shown = CliRunner().invoke(cli, ["show", str(tmp_path / "arm.toml")])
     assert shown.exit_code == 0 and "qdlim=60 deg/s  qddlim=120 deg/s^2" in shown.output
 
@@ -190,8 +196,8 @@ def test_wrapper_acceleration_limits_bound_a_blended_program(tmp_path, monkeypat
     monkeypatch.chdir(tmp_path)
     write(tmp_path, "planar.urdf", planar_urdf())
     write(tmp_path, "free.toml", WRAPPER + '[configurations]\nq0 = [0.3, 1.2, -1.0]\n')
-    write(tmp_path, "limited.toml", WRAPPER + '[limits]\n' + "".join(f"j{i} = {{ qddlim = {QDDLIM} }}\n" for i in (1, 2, 3))
-          + '[configurations]\nq0 = [0.3, 1.2, -1.0]\n')
+    limits = "".join(f"j{i} = {{ qddlim = {QDDLIM} }}\n" for i in (1, 2, 3))
+    write(tmp_path, "limited.toml", WRAPPER + "[limits]\n" + limits + "[configurations]\nq0 = [0.3, 1.2, -1.0]\n")
     runner = CliRunner()
     peaks = {}
     for robot in ("free", "limited"):
@@ -243,7 +249,10 @@ def test_pose_start_without_q0_uses_the_seed_of_armgen_ik(tmp_path, monkeypatch)
                                   "--units", "deg"])
     assert ik.exit_code == 0, ik.output
     shown = [float(line.split()[1]) for line in ik.output.splitlines()[1:]]
-    np.testing.assert_allclose(np.degrees(q), shown, atol=1e-6)
+    np.testing.assert_allclose(np.degrees(q), shown, atol=IK_PRINT_TOL_DEG)
+    planned = CliRunner().invoke(cli, ["plan", "task.toml", "-o", "plan.csv"])
+    assert planned.exit_code == 0, planned.output
+    assert "note: robot 'planar' has no configuration q0" in planned.stderr and "note" not in planned.stdout
 
 
 @pytest.mark.parametrize("start, match", [

@@ -143,6 +143,9 @@ def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[
     planned = plan(task_file, backend, max_steps=max_steps, max_samples=max_samples, **fields)
     out = Path(output) if output else Path(Path(task_file).stem + ".csv")
     csv_path, json_path = planned.save(out, units)
+    start = planned.metadata.get("start", {}).get("label", "")
+    if "; note: " in start:  # a start armgen chose (a pose without a seed on a robot without q0)
+        click.echo(f"note: {start.split('; note: ', 1)[1]}", err=True)
     if as_json:  # the summary as plan.json holds it (its keys name their units)
         written = json.loads(json_path.read_text(encoding="utf-8"))
         click.echo(json.dumps({"csv": str(csv_path), "json": str(json_path), "samples": int(planned.data.shape[0]),

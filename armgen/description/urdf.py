@@ -2,7 +2,7 @@
 
 Only what the kinematics needs is read: ``<link name>``, and per ``<joint>`` its ``name``,
 ``type``, ``<parent link>``, ``<child link>``, ``<origin xyz rpy>``, ``<axis xyz>`` and
-``<limit lower upper>``. Inertial, visual and collision data are ignored.
+``<limit lower upper velocity>``. Inertial, visual and collision data are ignored.
 
 Rules (see ``docs/urdf.md``):
 
@@ -13,8 +13,10 @@ Rules (see ``docs/urdf.md``):
   the chain (e.g. gripper fingers) are only checked for well-formedness.
 - A revolute or prismatic joint needs ``<limit lower upper>`` with lower < upper, a
   revolute joint's within ±``MAX_REVOLUTE_LIMIT_RAD`` (URDF angles are radians: limits
-  written in degrees are refused, not read as dozens of turns); a continuous joint gets ``[-CONTINUOUS_LIMIT, CONTINUOUS_LIMIT]`` unless a robot file
-  bounds it under ``[limits]``.
+  written in degrees are refused, not read as dozens of turns); a continuous joint gets
+  ``[-CONTINUOUS_LIMIT, CONTINUOUS_LIMIT]`` unless a robot file bounds it under ``[limits]``.
+  ``<limit velocity>`` is the speed limit (absent or 0: none; a robot file may replace it
+  and add an acceleration limit, which a URDF cannot hold).
 - The base link defaults to the tree's root, the tip link to the end of the chain when the
   tree does not branch below the base. Branches that lead only through fixed joints to leaf
   frames (a camera or sensor frame beside the arm) are ignored where another branch moves;
