@@ -63,7 +63,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_CASES} cases of each kind (a smoke run)")
     args = parser.parse_args()
     if args.quick:
-        args.robots = args.tasks = args.urdfs = args.sweeps = QUICK_CASES
+        args.robots = args.tasks = args.urdfs = args.sweeps = args.poses = args.iks = args.ik_commands = QUICK_CASES
     os.environ.setdefault("ARMGEN_NO_PROGRESS", "")
     rows, examples, seconds = {}, {}, {}
 
