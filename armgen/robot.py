@@ -269,7 +269,6 @@ class Robot(RobotDescription):
         if np.max(np.abs(np.where(np.isfinite(targets), targets, 0.0)), initial=0.0) > MAX_ABS_LENGTH_M:
             raise ValueError(f"pose: an entry is beyond ±{MAX_ABS_LENGTH_M:g} (m), far out of any arm's reach; "
                              "give the position in metres")
-        _check_poses(targets)
         size = targets.shape[0]
 
         def joints(value: ArrayLike, what: str) -> np.ndarray:
@@ -304,25 +303,6 @@ class Robot(RobotDescription):
         q = q.T.reshape(batch_shape + (self.n,))
         return ik.IKResult(q, success.reshape(batch_shape) != 0, pos.reshape(batch_shape), ori.reshape(batch_shape),
                            iterations.reshape(batch_shape).astype(int))
-
-
-# A target rotation may deviate from orthonormal by rounding (a pose typed or computed in
-# float): 1e-6 in ‖RᵀR − I‖_max; beyond that it is not a rotation and the error is ill-defined.
-POSE_ORTHONORMAL_TOL = 1e-6
-
-
-def _check_poses(poses: np.ndarray) -> None:
-    """Raise ValueError unless every (4, 4) of ``poses`` (B, 4, 4) is a finite homogeneous
-    transform whose rotation part is a rotation (det +1)."""
-    if not np.all(np.isfinite(poses)):
-        raise ValueError("pose holds NaN or inf; give a finite 4x4 homogeneous transform")
-    if not np.allclose(poses[:, 3, :], [0.0, 0.0, 0.0, 1.0], rtol=0, atol=0):
-        raise ValueError("pose: the last row of a homogeneous transform must be [0, 0, 0, 1]")
-    rot = poses[:, :3, :3]
-    gram = np.einsum("bki,bkj->bij", rot, rot) - np.eye(3)
-    if np.max(np.abs(gram), initial=0.0) > POSE_ORTHONORMAL_TOL or np.any(np.linalg.det(rot) < 0):
-        raise ValueError(f"pose: the 3x3 rotation part is not a rotation (R^T R = I within {POSE_ORTHONORMAL_TOL:g}, "
-                         "det R = +1); build it e.g. with scipy.spatial.transform.Rotation")
 
 
 # The largest success thresholds Robot.ik takes: a solution farther than 1 cm or 0.01 rad

@@ -260,8 +260,105 @@ def test_c_status_for_misses_and_nonfinite_input(compiled_ik):
     assert status == 2 and success == 0 and iterations == ik.ITERATIONS * ik.ATTEMPTS and robot.within_limits(q)
     bad = robot.fk(robot.qmid)
     bad[1, 3] = np.nan
-    assert call_c(entry, robot, bad, robot.qmid, robot.qmid, 0, 1e-6)[0] == 1
+    assert call_c(entry, robot, bad, robot.qmid, robot.qmid, 0, 1e-6)[0] == BAD_TARGET  # not a pose
     assert call_c(entry, robot, robot.fk(robot.qmid), [np.inf, 0, 0], robot.qmid, 0, 1e-6)[0] == 1
+
+
+# -- targets that are not poses (issue 37) -------------------------------------------------------
+
+BAD_TARGET = 3  # <P>_BAD_TARGET
+
+
+def stretched(pose, defect):
+    """The pose with its rotation's x column stretched: max |R^T R - I| = defect (exactly in exact
+    arithmetic, (1 + e)^2 - 1; computed here by NumPy, not by the check under test)."""
+    t = pose.copy()
+    t[:3, 0] *= np.sqrt(1.0 + defect)
+    return t
+
+
+def candidate_targets(robot):
+    """(name, 4x4, defect): poses, non-poses and both sides of each build's tolerance; the defect
+    max(|R^T R - I|, |T(3, :) - [0 0 0 1]|) by NumPy (inf: not finite or mirrored)."""
+    pose = robot.fk(robot.qmid + 0.1)
+    shear = np.eye(3)
+    shear[0, 1] = 0.2
+    out = [("pose", pose), ("zero", np.zeros((4, 4))), ("identity", np.eye(4))]
+    for name, rot in (("scaled", 2.0 * pose[:3, :3]), ("sheared", pose[:3, :3] @ shear),
+                      ("mirrored", pose[:3, :3] @ np.diag([1.0, 1.0, -1.0])), ("zero_rotation", np.zeros((3, 3)))):
+        t = pose.copy()
+        t[:3, :3] = rot
+        out.append((name, t))
+    for tol in (ik.POSE_TOL, ik.FLOAT_POSE_TOL):
+        for factor in (0.5, 2.0):
+            out.append((f"stretched {factor} x {tol:g}", stretched(pose, factor * tol)))
+            t = pose.copy()
+            t[3, 2] = factor * tol
+            out.append((f"last row {factor} x {tol:g}", t))
+    for k in ((1, 3), (2, 2), (3, 3)):
+        t = pose.copy()
+        t[k] = np.nan
+        out.append((f"NaN at {k}", t))
+    result = []
+    for name, t in out:
+        rot = t[:3, :3]
+        finite = np.all(np.isfinite(t))
+        defect = np.inf if not finite or np.linalg.det(rot) <= 0 else max(
+            np.max(np.abs(rot.T @ rot - np.eye(3))), np.max(np.abs(t[3] - [0, 0, 0, 1])))
+        result.append((name, t, defect))
+    return result
+
+
+def test_python_refuses_exactly_the_targets_that_are_not_poses():
+    """Robot.ik and the numeric path (ik.solve) raise for a defect beyond POSE_TOL, and only then
+    (the last row within it is accepted too: a pose that went through an inverse)."""
+    robot = load_robot("planar3")
+    seeds = robot.qmid[None]
+    for name, target, defect in candidate_targets(robot):
+        if defect <= ik.POSE_TOL:
+            assert robot.ik(target).q.shape == (robot.n,), name
+            ik.solve(robot, target[None], seeds, seeds, 0.0, 1e-6, 1e-6)
+        else:
+            with pytest.raises(ValueError, match="NaN|rotation|last row"):
+                robot.ik(target)
+            with pytest.raises(ValueError, match="NaN|rotation|last row"):
+                ik.solve(robot, target[None], seeds, seeds, 0.0, 1e-6, 1e-6)
+    batch = np.stack([target for _, target, _ in candidate_targets(robot)[:3]])
+    with pytest.raises(ValueError, match="pose 1 of the batch"):
+        robot.ik(batch)
+
+
+@pytest.mark.parametrize("precision, tol", [("double", ik.POSE_TOL), ("float", ik.FLOAT_POSE_TOL)])
+def test_c_returns_bad_target_for_the_same_targets_and_takes_no_step(compiled_ik, precision, tol):
+    """The generated ik: BAD_TARGET (before: OK or NOT_CONVERGED, and a zero rotation reported
+    orientation error 0) exactly where the defect exceeds the build's tolerance, 0 iterations, q
+    the seed; the double build refuses what Python refuses."""
+    robot = load_robot("planar3")
+    entry = compiled_ik("planar3")[precision]
+    seed = robot.qmid + 0.05
+    for name, target, defect in candidate_targets(robot):
+        status, q, (pos, ori, iterations, success) = call_c(entry, robot, target, seed, seed, 1, 1e-6)
+        if defect > tol:
+            assert status == BAD_TARGET and iterations == 0 and success == 0, name
+            np.testing.assert_array_equal(q, seed.astype(np.float32 if precision == "float" else float), name)
+        else:
+            assert status in (0, 2) and iterations >= 1, name
+
+
+@pytest.mark.parametrize("cap", [0, -1, -1e9])
+def test_max_iterations_of_zero_or_less_takes_no_step(compiled_ik, cap):
+    """C and the numeric path: NOT_CONVERGED, 0 iterations, q the seed (use_rest = 1: not turned),
+    errors not evaluated (ERROR_START). Before: one step was taken."""
+    robot = load_robot("planar3")
+    pose = robot.fk(robot.qmid + 0.2)
+    seed = robot.qmid
+    status, q, (pos, ori, iterations, success) = call_c(compiled_ik("planar3")["double"], robot, pose, seed, seed, 1,
+                                                       1e-6, cap)
+    assert (status, iterations, success) == (2, 0, 0) and pos == ori == ik.ERROR_START
+    np.testing.assert_array_equal(q, seed)
+    outputs = [np.asarray(x).ravel() for x in ik.definition(robot).function(pose, seed, seed, 1, 1e-6, 1e-6, cap)]
+    np.testing.assert_array_equal(outputs[0], seed)
+    assert [float(x[0]) for x in outputs[1:]] == [ik.ERROR_START, ik.ERROR_START, 0.0, 0.0]
 
 
 # -- command line ----------------------------------------------------------------------------------

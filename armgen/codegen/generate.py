@@ -11,7 +11,8 @@ API conventions (stated once in the header):
 - the kinematic and criterion functions cannot fail; the step functions return
   ``<P>_OK`` or ``<P>_NONFINITE`` (then the output holds a non-finite value: a non-finite
   input, or an overflow the damping could not prevent); ``<p>_ik`` returns ``<P>_OK``,
-  ``<P>_NOT_CONVERGED`` (the closest configuration reached is in the outputs) or ``<P>_NONFINITE``.
+  ``<P>_NOT_CONVERGED`` (the closest configuration reached is in the outputs), ``<P>_NONFINITE``
+  or ``<P>_BAD_TARGET`` (the target is not a pose, ``<p>_is_pose``: no step taken).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from ..fileio import write_file_set
 from ..robot import Robot, load_robot_any
 from ..symbolic.model import (DESCRIPTIONS, FROM_JACOBIAN, IK_FUNCTIONS, JACOBIAN_FUNCTIONS, STEP_FUNCTIONS,
                               ModelOptions, SymbolicModel)
+from ..symbolic import ik
 from ..symbolic.loops import find_loop
 from .c_emitter import (MATH_MACROS, EmittedFunction, carried_entries, describe_counts, emit_body, emit_loop,
                         read_entries)
@@ -156,15 +158,37 @@ def _status_check(func: ca.Function, arg_names: list[str], arg_scalar: list[bool
     return "\n".join(["  {", *_finite_probe(values, p, P), f"  return (probe == probe) ? {P}_OK : {P}_NONFINITE;", "  }"])
 
 
-def _ik_status(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], res_names: list[str],
-               res_scalar: list[bool], p: str, P: str) -> str:
-    """The status of <p>_ik: <P>_NONFINITE when an input or output is non-finite (the solver
-    clamps, so a NaN target need not reach q), else <P>_OK when it converged (success = 1),
-    else <P>_NOT_CONVERGED (the outputs hold the closest configuration reached)."""
-    values = _values(arg_names, arg_scalar, [func.sparsity_in(k).numel() for k in range(func.n_in())], "")
+# The ik's cap on its steps inside its body: max_iterations, or 0 (no step) for a target that is
+# not a pose. A local, so that the parameter is never written (MISRA 17.8).
+IK_CAP = "iteration_cap"
+
+
+def _ik_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], res_names: list[str],
+             res_scalar: list[bool], p: str, P: str) -> EmittedFunction:
+    """<p>_ik: the pose check of T_target first (<p>_is_pose in the header); the solver's loop
+    then runs with max_iterations, or with 0 for a target that is not a pose (it stops before
+    its first step: the SX's initial state is stopped unless max_iterations >= 1). The status:
+    <P>_BAD_TARGET for such a target; else <P>_NONFINITE when another input or an output is
+    non-finite (a finite target is what the pose check passed, so the probe leaves it out);
+    else <P>_OK when it converged (success = 1), else <P>_NOT_CONVERGED (the outputs hold the
+    closest configuration reached)."""
+    cap = arg_names.index("max_iterations")
+    em = emit_body(func, [IK_CAP if k == cap else name for k, name in enumerate(arg_names)], arg_scalar, res_names,
+                   res_scalar, P, trig_table=True)
+    target = arg_names.index("T_target")
+    probed = [name for k, name in enumerate(arg_names) if k != target]
+    values = _values(probed, [s for k, s in enumerate(arg_scalar) if k != target],
+                     [func.sparsity_in(k).numel() for k in range(func.n_in()) if k != target], "")
     values += _values(res_names, res_scalar, [func.sparsity_out(k).numel() for k in range(func.n_out())], "*")
-    return "\n".join(["  {", *_finite_probe(values, p, P), f"  if (probe != probe) {{ return {P}_NONFINITE; }}", "  }",
-                      f"  return (*success != {P}_LIT(0.0)) ? {P}_OK : {P}_NOT_CONVERGED;"])
+    em.body = "\n".join([
+        "  /* a target that is not a pose takes no step (the loop stops before its first) */",
+        "  const int pose = " + f"{p}_is_pose(T_target);",
+        f"  const {p}_real {IK_CAP} = (pose != 0) ? max_iterations : {P}_LIT(0.0);",
+        em.body,
+        f"  if (pose == 0) {{ return {P}_BAD_TARGET; }}",
+        "  {", *_finite_probe(values, p, P), f"  if (probe != probe) {{ return {P}_NONFINITE; }}", "  }",
+        f"  return (*success != {P}_LIT(0.0)) ? {P}_OK : {P}_NOT_CONVERGED;"])
+    return em
 
 
 def _through_jacobian_body(func: ca.Function, twin: ca.Function, n: int, p: str, P: str) -> str:
@@ -206,14 +230,16 @@ def generate(config: CodegenConfig) -> GeneratedCode:
             em = EmittedFunction(name, _through_jacobian_body(func, functions[name + FROM_JACOBIAN], model.n, p, P),
                                  kinematics.op_counts + twin.op_counts, twin.work_reals + 6 * model.n)
             calls = f"calls {p}_jacobian and {p}_{twin.name}"
+        elif name in IK_FUNCTIONS:
+            em = _ik_body(func, arg_names, [s for _, s in in_decls], res_names, [s for _, s in out_decls], p, P)
+            calls = ""
         else:
             em = emit_body(func, arg_names, [s for _, s in in_decls], res_names, [s for _, s in out_decls], P,
                            trig_table=True)
             calls = ""
-            status = _ik_status if name in IK_FUNCTIONS else _status_check
             if returns_status:
-                em.body += "\n" + status(func, arg_names, [s for _, s in in_decls], res_names,
-                                          [s for _, s in out_decls], p, P)
+                em.body += "\n" + _status_check(func, arg_names, [s for _, s in in_decls], res_names,
+                                                 [s for _, s in out_decls], p, P)
         emitted.append(em)
         doc = (f"/* {name}: {DESCRIPTIONS[name]}.\n"
                f" * ops: {describe_counts(em.op_counts)}{' (' + calls + ')' if calls else ''}; "
@@ -397,6 +423,41 @@ def _speed_limit_macros(robot, P: str) -> str:
 HEADER_MATH_MACROS = ("SIN", "COS", "SQRT", "FABS")
 
 
+def _pose_check(p: str, P: str) -> str:
+    """``<p>_is_pose`` and its tolerance ``<P>_POSE_TOL`` (armgen.symbolic.ik.POSE_TOL, the
+    float build's FLOAT_POSE_TOL): the target check of ``<p>_ik``, the same conditions as the
+    Python side's ``ik.check_targets``."""
+    return f"""
+/* A pose for {p}_ik: T (4x4, column-major) with a finite position, last row 0 0 0 1 and a
+ * rotation as its 3x3 part (R^T R = I, det R > 0), each entry of T(3, :) - [0 0 0 1] and of
+ * R^T R - I within {P}_POSE_TOL: the default orientation tolerance in double; in float a
+ * product of rotations already carries a few 1e-7 of rounding, hence the float IK tolerance.
+ * 1 for a pose, 0 otherwise (NaN/inf fail every comparison). */
+#if {P}_USE_FLOAT
+#define {P}_POSE_TOL {P}_LIT({ik.FLOAT_POSE_TOL!r})
+#else
+#define {P}_POSE_TOL {P}_LIT({ik.POSE_TOL!r})
+#endif
+static inline int {p}_is_pose(const {p}_real T[16]) {{
+  const {p}_real det = ((T[0] * ((T[5] * T[10]) - (T[6] * T[9]))) - (T[4] * ((T[1] * T[10]) - (T[2] * T[9])))) +
+                       (T[8] * ((T[1] * T[6]) - (T[2] * T[5])));
+  int pose = 1;
+  int a;
+  int b;
+  if (!((det > {P}_LIT(0.0)) && ({P}_FABS(T[15] - {P}_LIT(1.0)) <= {P}_POSE_TOL))) {{ pose = 0; }}
+  for (a = 0; a < 3; ++a) {{
+    if (!(({P}_FABS(T[3 + (4 * a)]) <= {P}_POSE_TOL) && ((T[12 + a] * {P}_LIT(0.0)) == {P}_LIT(0.0)))) {{ pose = 0; }}
+    for (b = a; b < 3; ++b) {{
+      const {p}_real gram = (T[4 * a] * T[4 * b]) + (T[1 + (4 * a)] * T[1 + (4 * b)]) + (T[2 + (4 * a)] * T[2 + (4 * b)]);
+      const {p}_real unit = (a == b) ? {P}_LIT(1.0) : {P}_LIT(0.0);
+      if (!({P}_FABS(gram - unit) <= {P}_POSE_TOL)) {{ pose = 0; }}
+    }}
+  }}
+  return pose;
+}}
+"""
+
+
 def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str], preamble: str,
                    math: list[str]) -> str:
     p, P = config.prefix, config.prefix.upper()
@@ -462,11 +523,12 @@ typedef double {p}_real;
 
 {_lean_math(p, P, math)}/* Result of the functions that can fail. */
 typedef enum {{
-  {P}_OK = 0,            /* output is finite */
-  {P}_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */
-  {P}_NOT_CONVERGED = 2  /* {p}_ik only: no q within the tolerances; the outputs hold the closest reached */
+  {P}_OK = 0,             /* output is finite */
+  {P}_NONFINITE = 1,      /* output holds NaN/inf: a non-finite input, or an overflow */
+  {P}_NOT_CONVERGED = 2,  /* {p}_ik only: no q within the tolerances; the outputs hold the closest reached */
+  {P}_BAD_TARGET = 3      /* {p}_ik only: T_target is not a pose ({p}_is_pose); no step taken */
 }} {p}_status;
-
+{_pose_check(p, P) if any(name in IK_FUNCTIONS for name in model.selected()) else ""}
 /* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].
  * Scalar inputs are passed by value, scalar outputs by pointer. Outputs must not overlap
  * inputs. No heap, no globals, reentrant; locals are the WORK_REALS scalars listed. */

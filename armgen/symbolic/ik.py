@@ -123,6 +123,16 @@ TOL_ORIENTATION = 1e-6
 # rounding, and a chain of ~10 products of ~1 m links leaves a few 1e-6 of noise in the pose
 # error, so 1e-6 is out of reach, 1e-4 well above the noise.
 FLOAT_TOL = 1e-4
+# A target is a pose when its last row is [0 0 0 1] and its 3×3 part a rotation (RᵀR = I,
+# det R > 0), each entry of T[3, :] − [0 0 0 1] and of RᵀR − I within these (a sheared, scaled or
+# zero 3×3 part has no orientation to reach: its error's skew part can vanish, so the solver would
+# report 0). Double: the default orientation tolerance (TOL_ORIENTATION), so a target that passes
+# names an orientation to the accuracy the solver is asked for, far above double rounding (a
+# product of 12 rotations: 4e-15). Float (the generated C's float build): 1e-6 would lie within 2×
+# of a float rotation's own rounding (a product of 12 rotations in float: 6e-7), so FLOAT_TOL,
+# the float IK's tolerance, ~170× above it.
+POSE_TOL = TOL_ORIENTATION
+FLOAT_POSE_TOL = FLOAT_TOL
 
 
 def _irrational_steps(n: int) -> list[float]:
@@ -393,8 +403,11 @@ class IKDefinition:
         first = first - 2 * math.pi * down + 2 * math.pi * up
         return ca.fmin(ca.fmax(first, lo), hi), off_axis
 
-    def initial_state(self, q: ca.SX) -> ca.SX:
-        return ca.vertcat(q, q, ERROR_START, ERROR_START, ERROR_START, 0, 0, 0, 0, ERROR_START, 0)
+    def initial_state(self, q: ca.SX, max_iterations: ca.SX) -> ca.SX:
+        """The state before the first step: stopped already unless max_iterations ≥ 1 (≤ 0 or
+        NaN takes no step: the outputs are q, errors ERROR_START, 0 iterations, no success)."""
+        stopped = ca.logic_not(max_iterations >= 1)
+        return ca.vertcat(q, q, ERROR_START, ERROR_START, ERROR_START, 0, 0, 0, 0, ERROR_START, stopped)
 
     def outputs(self, state: ca.SX) -> list[ca.SX]:
         """q, position_error, orientation_error, iterations, success of a final state."""
@@ -410,7 +423,8 @@ class IKDefinition:
         constants = [ca.SX.sym(step.name_in(k), step.sparsity_in(k).shape) for k in range(1, step.n_in())]
         q_seed = ca.SX.sym("q_seed", self.n)
         loop = fixed_loop(step, MAX_ITERATIONS, stop=self.layout.stopped, fused_float=True)
-        final = loop(self.initial_state(self.aligned_seed(q_seed, constants[0], constants[2])), *constants)
+        start = self.initial_state(self.aligned_seed(q_seed, constants[0], constants[2]), constants[-1])
+        final = loop(start, *constants)
         return ca.Function("ik", [constants[0], q_seed, *constants[1:]], [ca.densify(x) for x in self.outputs(final)],
                            INPUT_NAMES, OUTPUT_NAMES)
 
@@ -473,11 +487,36 @@ class IKResult:
         return bool(np.all(self.success))
 
 
+def check_targets(targets: np.ndarray) -> None:
+    """Raise ValueError unless every target of ``targets`` (B, 4, 4) is a pose: finite, last row
+    [0 0 0 1] and a rotation for its 3×3 part, within POSE_TOL (the checks and order of the
+    generated ``<p>_is_pose``, whose ``<p>_ik`` returns ``<P>_BAD_TARGET`` for such a target)."""
+    def where(k: int) -> str:
+        return f"pose {k} of the batch" if len(targets) > 1 else "pose"
+
+    finite = np.isfinite(targets).all(axis=(1, 2))
+    if not finite.all():
+        raise ValueError(f"{where(int(np.argmin(finite)))} holds NaN or inf; give a finite 4x4 homogeneous transform")
+    row = np.abs(targets[:, 3, :] - [0.0, 0.0, 0.0, 1.0]).max(axis=1)
+    rot = targets[:, :3, :3]
+    gram = np.abs(np.einsum("bki,bkj->bij", rot, rot) - np.eye(3)).max(axis=(1, 2))
+    det = np.einsum("bi,bi->b", rot[:, :, 0], np.cross(rot[:, :, 1], rot[:, :, 2]))
+    for k in range(len(targets)):
+        if not row[k] <= POSE_TOL:
+            raise ValueError(f"{where(k)}: the last row of a homogeneous transform must be [0, 0, 0, 1] "
+                             f"(within {POSE_TOL:g}), got {targets[k, 3].tolist()}")
+        if not (gram[k] <= POSE_TOL and det[k] > 0):
+            raise ValueError(f"{where(k)}: the 3x3 rotation part is not a rotation (R^T R = I within {POSE_TOL:g}, "
+                             "det R = +1); build it e.g. with scipy.spatial.transform.Rotation")
+
+
 def solve(robot, targets: np.ndarray, seeds: np.ndarray, q_rest: np.ndarray, use_rest: float,
           tol_position: float, tol_orientation: float, max_iterations: int = MAX_ITERATIONS) -> list[np.ndarray]:
     """Evaluate ``ik`` for ``targets`` (B, 4, 4) from ``seeds`` (B, n) with ``q_rest`` (B, n):
     the outputs (OUTPUT_NAMES), each (rows, B). One pose goes through CasADi's evaluator, a
-    batch through the NumPy replay of the same SX (which stops stepping finished samples)."""
+    batch through the NumPy replay of the same SX (which stops stepping finished samples).
+    A target that is not a pose raises ValueError (check_targets)."""
+    check_targets(targets)
     ik = definition(robot)
     batch = targets.shape[0]
     scalars = [float(use_rest), float(tol_position), float(tol_orientation), float(max_iterations)]

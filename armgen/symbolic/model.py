@@ -30,7 +30,7 @@ FROM_JACOBIAN = "_from_jacobian"
 TWINS = tuple(name + FROM_JACOBIAN for name in JACOBIAN_FUNCTIONS)
 STEPS = ("step_gpm", "step_wln", "step_fault", "step_wgpm")
 STEP_FUNCTIONS = STEPS + tuple(name + FROM_JACOBIAN for name in STEPS)  # those that return a status
-# inverse kinematics (armgen.symbolic.ik): returns OK, NOT_CONVERGED or NONFINITE
+# inverse kinematics (armgen.symbolic.ik): returns OK, NOT_CONVERGED, NONFINITE or BAD_TARGET
 IK_FUNCTIONS = ("ik",)
 # twins first: the generated functions of J call them (and jacobian)
 ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + TWINS + CRITERION_FUNCTIONS + STEPS + IK_FUNCTIONS
@@ -60,7 +60,8 @@ DESCRIPTIONS = {
           "deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and "
           "q_seed first turned about the first joint's axis toward the target); "
           "success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else "
-          "NOT_CONVERGED with the closest q reached",
+          "NOT_CONVERGED with the closest q reached (max_iterations <= 0: no step, iterations 0); "
+          "BAD_TARGET, no step, for a T_target that is not a pose (is_pose, in the header)",
 }
 DESCRIPTIONS.update({twin: f"{DESCRIPTIONS[name]}; from a given Jacobian J (jacobian's output, 6xn; "
                            "its entries that are constant for this robot are not read)"

@@ -14095,9 +14095,12 @@ iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_re
   }
 }
 
-/* ik: 337987 add, 346115 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46362 compare, 56702 select */
+/* ik: 337987 add, 346115 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46364 compare, 56702 select */
 iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed[IIWA14_NDOF], const iiwa14_real q_rest[IIWA14_NDOF], iiwa14_real use_rest, iiwa14_real tol_position, iiwa14_real tol_orientation, iiwa14_real max_iterations, iiwa14_real q[IIWA14_NDOF], iiwa14_real *position_error, iiwa14_real *orientation_error, iiwa14_real *iterations, iiwa14_real *success) {
-  iiwa14_real w36;
+  /* a target that is not a pose takes no step (the loop stops before its first) */
+  const int pose = iiwa14_is_pose(T_target);
+  const iiwa14_real iteration_cap = (pose != 0) ? max_iterations : IIWA14_LIT(0.0);
+  iiwa14_real w36, w37;
   iiwa14_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
   iiwa14_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   iiwa14_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
@@ -14271,37 +14274,40 @@ iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed
   w2 = IIWA14_LIT(3.0543261909900767);
   w7 = IIWA14_FMIN(w7, w2);
   w2 = IIWA14_LIT(1.0e+30);
-  w4 = T_target[0];
-  w3 = T_target[1];
-  w18 = T_target[2];
-  w13 = T_target[3];
-  w5 = T_target[4];
-  w17 = T_target[5];
-  w21 = T_target[6];
-  w8 = T_target[7];
-  w19 = T_target[8];
-  w24 = T_target[9];
-  w15 = T_target[10];
-  w23 = T_target[11];
-  w14 = T_target[15];
-  w27 = q_rest[0];
-  w20 = q_rest[1];
-  w29 = q_rest[2];
-  w30 = q_rest[3];
-  w31 = q_rest[4];
-  w32 = q_rest[5];
-  w33 = q_rest[6];
-  w34 = tol_position;
-  w35 = tol_orientation;
-  w36 = max_iterations;
+  w4 = IIWA14_LIT(1.0);
+  w3 = iteration_cap;
+  w4 = (iiwa14_real)(w4 <= w3);
+  w4 = (iiwa14_real)(w4 == IIWA14_LIT(0.0));
+  w18 = T_target[0];
+  w13 = T_target[1];
+  w5 = T_target[2];
+  w17 = T_target[3];
+  w21 = T_target[4];
+  w8 = T_target[5];
+  w19 = T_target[6];
+  w24 = T_target[7];
+  w15 = T_target[8];
+  w23 = T_target[9];
+  w14 = T_target[10];
+  w27 = T_target[11];
+  w20 = T_target[15];
+  w29 = q_rest[0];
+  w30 = q_rest[1];
+  w31 = q_rest[2];
+  w32 = q_rest[3];
+  w33 = q_rest[4];
+  w34 = q_rest[5];
+  w35 = q_rest[6];
+  w36 = tol_position;
+  w37 = tol_orientation;
   {
-    iiwa14_real call_in0[23] = {w28, w6, w11, w16, w22, w10, w7, w28, w6, w11, w16, w22, w10, w7, w2, w2, w2, w12, w12, w12, w12, w2, w12};
-    iiwa14_real call_in1[16] = {w4, w3, w18, w13, w5, w17, w21, w8, w19, w24, w15, w23, w1, w26, w9, w14};
-    iiwa14_real call_in2[7] = {w27, w20, w29, w30, w31, w32, w33};
+    iiwa14_real call_in0[23] = {w28, w6, w11, w16, w22, w10, w7, w28, w6, w11, w16, w22, w10, w7, w2, w2, w2, w12, w12, w12, w12, w2, w4};
+    iiwa14_real call_in1[16] = {w18, w13, w5, w17, w21, w8, w19, w24, w15, w23, w14, w27, w1, w26, w9, w20};
+    iiwa14_real call_in2[7] = {w29, w30, w31, w32, w33, w34, w35};
     iiwa14_real call_in3[1] = {w25};
-    iiwa14_real call_in4[1] = {w34};
-    iiwa14_real call_in5[1] = {w35};
-    iiwa14_real call_in6[1] = {w36};
+    iiwa14_real call_in4[1] = {w36};
+    iiwa14_real call_in5[1] = {w37};
+    iiwa14_real call_in6[1] = {w3};
     iiwa14_real call_out[23];
     iiwa14_ik_step_35864eae_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
     w28 = call_out[7];
@@ -14314,7 +14320,7 @@ iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed
     w2 = call_out[15];
     w12 = call_out[16];
     w4 = call_out[19];
-    w3 = call_out[20];
+    w18 = call_out[20];
   }
   q[0] = w28;
   q[1] = w6;
@@ -14326,25 +14332,10 @@ iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed
   *position_error = w2;
   *orientation_error = w12;
   *iterations = w4;
-  *success = w3;
+  *success = w18;
+  if (pose == 0) { return IIWA14_BAD_TARGET; }
   {
   iiwa14_real probe = IIWA14_LIT(0.0);
-  probe = probe + (T_target[0] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[1] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[2] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[3] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[4] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[5] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[6] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[7] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[8] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[9] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[10] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[11] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[12] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[13] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[14] * IIWA14_LIT(0.0));
-  probe = probe + (T_target[15] * IIWA14_LIT(0.0));
   probe = probe + (q_seed[0] * IIWA14_LIT(0.0));
   probe = probe + (q_seed[1] * IIWA14_LIT(0.0));
   probe = probe + (q_seed[2] * IIWA14_LIT(0.0));

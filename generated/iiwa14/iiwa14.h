@@ -177,10 +177,39 @@ IIWA14_TRIG_INLINE void iiwa14_sincos_table(const iiwa14_real *angle, iiwa14_rea
 
 /* Result of the functions that can fail. */
 typedef enum {
-  IIWA14_OK = 0,            /* output is finite */
-  IIWA14_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */
-  IIWA14_NOT_CONVERGED = 2  /* iiwa14_ik only: no q within the tolerances; the outputs hold the closest reached */
+  IIWA14_OK = 0,             /* output is finite */
+  IIWA14_NONFINITE = 1,      /* output holds NaN/inf: a non-finite input, or an overflow */
+  IIWA14_NOT_CONVERGED = 2,  /* iiwa14_ik only: no q within the tolerances; the outputs hold the closest reached */
+  IIWA14_BAD_TARGET = 3      /* iiwa14_ik only: T_target is not a pose (iiwa14_is_pose); no step taken */
 } iiwa14_status;
+
+/* A pose for iiwa14_ik: T (4x4, column-major) with a finite position, last row 0 0 0 1 and a
+ * rotation as its 3x3 part (R^T R = I, det R > 0), each entry of T(3, :) - [0 0 0 1] and of
+ * R^T R - I within IIWA14_POSE_TOL: the default orientation tolerance in double; in float a
+ * product of rotations already carries a few 1e-7 of rounding, hence the float IK tolerance.
+ * 1 for a pose, 0 otherwise (NaN/inf fail every comparison). */
+#if IIWA14_USE_FLOAT
+#define IIWA14_POSE_TOL IIWA14_LIT(0.0001)
+#else
+#define IIWA14_POSE_TOL IIWA14_LIT(1e-06)
+#endif
+static inline int iiwa14_is_pose(const iiwa14_real T[16]) {
+  const iiwa14_real det = ((T[0] * ((T[5] * T[10]) - (T[6] * T[9]))) - (T[4] * ((T[1] * T[10]) - (T[2] * T[9])))) +
+                       (T[8] * ((T[1] * T[6]) - (T[2] * T[5])));
+  int pose = 1;
+  int a;
+  int b;
+  if (!((det > IIWA14_LIT(0.0)) && (IIWA14_FABS(T[15] - IIWA14_LIT(1.0)) <= IIWA14_POSE_TOL))) { pose = 0; }
+  for (a = 0; a < 3; ++a) {
+    if (!((IIWA14_FABS(T[3 + (4 * a)]) <= IIWA14_POSE_TOL) && ((T[12 + a] * IIWA14_LIT(0.0)) == IIWA14_LIT(0.0)))) { pose = 0; }
+    for (b = a; b < 3; ++b) {
+      const iiwa14_real gram = (T[4 * a] * T[4 * b]) + (T[1 + (4 * a)] * T[1 + (4 * b)]) + (T[2 + (4 * a)] * T[2 + (4 * b)]);
+      const iiwa14_real unit = (a == b) ? IIWA14_LIT(1.0) : IIWA14_LIT(0.0);
+      if (!(IIWA14_FABS(gram - unit) <= IIWA14_POSE_TOL)) { pose = 0; }
+    }
+  }
+  return pose;
+}
 
 /* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].
  * Scalar inputs are passed by value, scalar outputs by pointer. Outputs must not overlap
@@ -464,8 +493,8 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
 #define IIWA14_STEP_WGPM_H_COLS 1
 #define IIWA14_STEP_WGPM_WORK_REALS 217
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
-/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 337987 add, 346115 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46362 compare, 56702 select; work: 37 reals. */
+/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached (max_iterations <= 0: no step, iterations 0); BAD_TARGET, no step, for a T_target that is not a pose (is_pose, in the header).
+ * ops: 337987 add, 346115 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46364 compare, 56702 select; work: 38 reals. */
 #define IIWA14_IK_T_TARGET_ROWS 4
 #define IIWA14_IK_T_TARGET_COLS 4
 #define IIWA14_IK_Q_SEED_ROWS 7
@@ -474,7 +503,7 @@ iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_re
 #define IIWA14_IK_Q_REST_COLS 1
 #define IIWA14_IK_Q_ROWS 7
 #define IIWA14_IK_Q_COLS 1
-#define IIWA14_IK_WORK_REALS 37
+#define IIWA14_IK_WORK_REALS 38
 iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed[IIWA14_NDOF], const iiwa14_real q_rest[IIWA14_NDOF], iiwa14_real use_rest, iiwa14_real tol_position, iiwa14_real tol_orientation, iiwa14_real max_iterations, iiwa14_real q[IIWA14_NDOF], iiwa14_real *position_error, iiwa14_real *orientation_error, iiwa14_real *iterations, iiwa14_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if IIWA14_USE_FLOAT

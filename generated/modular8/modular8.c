@@ -16912,9 +16912,12 @@ modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const m
   }
 }
 
-/* ik: 381648 add, 383932 mul, 24750 div, 2700 sqrt, 9465 trig, 23868 minmax, 50412 compare, 62102 select */
+/* ik: 381648 add, 383932 mul, 24750 div, 2700 sqrt, 9465 trig, 23868 minmax, 50414 compare, 62102 select */
 modular8_status modular8_ik(const modular8_real T_target[16], const modular8_real q_seed[MODULAR8_NDOF], const modular8_real q_rest[MODULAR8_NDOF], modular8_real use_rest, modular8_real tol_position, modular8_real tol_orientation, modular8_real max_iterations, modular8_real q[MODULAR8_NDOF], modular8_real *position_error, modular8_real *orientation_error, modular8_real *iterations, modular8_real *success) {
-  modular8_real w36, w37, w38;
+  /* a target that is not a pose takes no step (the loop stops before its first) */
+  const int pose = modular8_is_pose(T_target);
+  const modular8_real iteration_cap = (pose != 0) ? max_iterations : MODULAR8_LIT(0.0);
+  modular8_real w36, w37, w38, w39;
   modular8_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
   modular8_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   modular8_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
@@ -17119,38 +17122,41 @@ modular8_status modular8_ik(const modular8_real T_target[16], const modular8_rea
   w16 = MODULAR8_FMAX(w16, w3);
   w16 = MODULAR8_FMIN(w16, w4);
   w4 = MODULAR8_LIT(1.0e+30);
-  w3 = T_target[0];
-  w2 = T_target[1];
-  w20 = T_target[2];
-  w17 = T_target[3];
-  w30 = T_target[4];
-  w29 = T_target[5];
-  w13 = T_target[6];
-  w28 = T_target[7];
-  w10 = T_target[8];
-  w26 = T_target[9];
-  w24 = T_target[10];
-  w22 = T_target[11];
-  w15 = T_target[15];
-  w19 = q_rest[0];
-  w21 = q_rest[1];
-  w35 = q_rest[2];
-  w12 = q_rest[3];
-  w23 = q_rest[4];
-  w5 = q_rest[5];
-  w33 = q_rest[6];
-  w32 = q_rest[7];
-  w36 = tol_position;
-  w37 = tol_orientation;
-  w38 = max_iterations;
+  w3 = MODULAR8_LIT(1.0);
+  w2 = iteration_cap;
+  w3 = (modular8_real)(w3 <= w2);
+  w3 = (modular8_real)(w3 == MODULAR8_LIT(0.0));
+  w20 = T_target[0];
+  w17 = T_target[1];
+  w30 = T_target[2];
+  w29 = T_target[3];
+  w13 = T_target[4];
+  w28 = T_target[5];
+  w10 = T_target[6];
+  w26 = T_target[7];
+  w24 = T_target[8];
+  w22 = T_target[9];
+  w15 = T_target[10];
+  w19 = T_target[11];
+  w21 = T_target[15];
+  w35 = q_rest[0];
+  w12 = q_rest[1];
+  w23 = q_rest[2];
+  w5 = q_rest[3];
+  w33 = q_rest[4];
+  w32 = q_rest[5];
+  w36 = q_rest[6];
+  w37 = q_rest[7];
+  w38 = tol_position;
+  w39 = tol_orientation;
   {
-    modular8_real call_in0[25] = {w34, w6, w9, w14, w18, w11, w8, w16, w34, w6, w9, w14, w18, w11, w8, w16, w4, w4, w4, w31, w31, w31, w31, w4, w31};
-    modular8_real call_in1[16] = {w3, w2, w20, w17, w30, w29, w13, w28, w10, w26, w24, w22, w1, w25, w7, w15};
-    modular8_real call_in2[8] = {w19, w21, w35, w12, w23, w5, w33, w32};
+    modular8_real call_in0[25] = {w34, w6, w9, w14, w18, w11, w8, w16, w34, w6, w9, w14, w18, w11, w8, w16, w4, w4, w4, w31, w31, w31, w31, w4, w3};
+    modular8_real call_in1[16] = {w20, w17, w30, w29, w13, w28, w10, w26, w24, w22, w15, w19, w1, w25, w7, w21};
+    modular8_real call_in2[8] = {w35, w12, w23, w5, w33, w32, w36, w37};
     modular8_real call_in3[1] = {w27};
-    modular8_real call_in4[1] = {w36};
-    modular8_real call_in5[1] = {w37};
-    modular8_real call_in6[1] = {w38};
+    modular8_real call_in4[1] = {w38};
+    modular8_real call_in5[1] = {w39};
+    modular8_real call_in6[1] = {w2};
     modular8_real call_out[25];
     modular8_ik_step_95c2c3c3_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
     w34 = call_out[8];
@@ -17164,7 +17170,7 @@ modular8_status modular8_ik(const modular8_real T_target[16], const modular8_rea
     w4 = call_out[17];
     w31 = call_out[18];
     w3 = call_out[21];
-    w2 = call_out[22];
+    w20 = call_out[22];
   }
   q[0] = w34;
   q[1] = w6;
@@ -17177,25 +17183,10 @@ modular8_status modular8_ik(const modular8_real T_target[16], const modular8_rea
   *position_error = w4;
   *orientation_error = w31;
   *iterations = w3;
-  *success = w2;
+  *success = w20;
+  if (pose == 0) { return MODULAR8_BAD_TARGET; }
   {
   modular8_real probe = MODULAR8_LIT(0.0);
-  probe = probe + (T_target[0] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[1] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[2] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[3] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[4] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[5] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[6] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[7] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[8] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[9] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[10] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[11] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[12] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[13] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[14] * MODULAR8_LIT(0.0));
-  probe = probe + (T_target[15] * MODULAR8_LIT(0.0));
   probe = probe + (q_seed[0] * MODULAR8_LIT(0.0));
   probe = probe + (q_seed[1] * MODULAR8_LIT(0.0));
   probe = probe + (q_seed[2] * MODULAR8_LIT(0.0));

@@ -178,10 +178,39 @@ MODULAR8_TRIG_INLINE void modular8_sincos_table(const modular8_real *angle, modu
 
 /* Result of the functions that can fail. */
 typedef enum {
-  MODULAR8_OK = 0,            /* output is finite */
-  MODULAR8_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */
-  MODULAR8_NOT_CONVERGED = 2  /* modular8_ik only: no q within the tolerances; the outputs hold the closest reached */
+  MODULAR8_OK = 0,             /* output is finite */
+  MODULAR8_NONFINITE = 1,      /* output holds NaN/inf: a non-finite input, or an overflow */
+  MODULAR8_NOT_CONVERGED = 2,  /* modular8_ik only: no q within the tolerances; the outputs hold the closest reached */
+  MODULAR8_BAD_TARGET = 3      /* modular8_ik only: T_target is not a pose (modular8_is_pose); no step taken */
 } modular8_status;
+
+/* A pose for modular8_ik: T (4x4, column-major) with a finite position, last row 0 0 0 1 and a
+ * rotation as its 3x3 part (R^T R = I, det R > 0), each entry of T(3, :) - [0 0 0 1] and of
+ * R^T R - I within MODULAR8_POSE_TOL: the default orientation tolerance in double; in float a
+ * product of rotations already carries a few 1e-7 of rounding, hence the float IK tolerance.
+ * 1 for a pose, 0 otherwise (NaN/inf fail every comparison). */
+#if MODULAR8_USE_FLOAT
+#define MODULAR8_POSE_TOL MODULAR8_LIT(0.0001)
+#else
+#define MODULAR8_POSE_TOL MODULAR8_LIT(1e-06)
+#endif
+static inline int modular8_is_pose(const modular8_real T[16]) {
+  const modular8_real det = ((T[0] * ((T[5] * T[10]) - (T[6] * T[9]))) - (T[4] * ((T[1] * T[10]) - (T[2] * T[9])))) +
+                       (T[8] * ((T[1] * T[6]) - (T[2] * T[5])));
+  int pose = 1;
+  int a;
+  int b;
+  if (!((det > MODULAR8_LIT(0.0)) && (MODULAR8_FABS(T[15] - MODULAR8_LIT(1.0)) <= MODULAR8_POSE_TOL))) { pose = 0; }
+  for (a = 0; a < 3; ++a) {
+    if (!((MODULAR8_FABS(T[3 + (4 * a)]) <= MODULAR8_POSE_TOL) && ((T[12 + a] * MODULAR8_LIT(0.0)) == MODULAR8_LIT(0.0)))) { pose = 0; }
+    for (b = a; b < 3; ++b) {
+      const modular8_real gram = (T[4 * a] * T[4 * b]) + (T[1 + (4 * a)] * T[1 + (4 * b)]) + (T[2 + (4 * a)] * T[2 + (4 * b)]);
+      const modular8_real unit = (a == b) ? MODULAR8_LIT(1.0) : MODULAR8_LIT(0.0);
+      if (!(MODULAR8_FABS(gram - unit) <= MODULAR8_POSE_TOL)) { pose = 0; }
+    }
+  }
+  return pose;
+}
 
 /* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].
  * Scalar inputs are passed by value, scalar outputs by pointer. Outputs must not overlap
@@ -465,8 +494,8 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_H_COLS 1
 #define MODULAR8_STEP_WGPM_WORK_REALS 248
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
-/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 381648 add, 383932 mul, 24750 div, 2700 sqrt, 9465 trig, 23868 minmax, 50412 compare, 62102 select; work: 39 reals. */
+/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached (max_iterations <= 0: no step, iterations 0); BAD_TARGET, no step, for a T_target that is not a pose (is_pose, in the header).
+ * ops: 381648 add, 383932 mul, 24750 div, 2700 sqrt, 9465 trig, 23868 minmax, 50414 compare, 62102 select; work: 40 reals. */
 #define MODULAR8_IK_T_TARGET_ROWS 4
 #define MODULAR8_IK_T_TARGET_COLS 4
 #define MODULAR8_IK_Q_SEED_ROWS 8
@@ -475,7 +504,7 @@ modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const m
 #define MODULAR8_IK_Q_REST_COLS 1
 #define MODULAR8_IK_Q_ROWS 8
 #define MODULAR8_IK_Q_COLS 1
-#define MODULAR8_IK_WORK_REALS 39
+#define MODULAR8_IK_WORK_REALS 40
 modular8_status modular8_ik(const modular8_real T_target[16], const modular8_real q_seed[MODULAR8_NDOF], const modular8_real q_rest[MODULAR8_NDOF], modular8_real use_rest, modular8_real tol_position, modular8_real tol_orientation, modular8_real max_iterations, modular8_real q[MODULAR8_NDOF], modular8_real *position_error, modular8_real *orientation_error, modular8_real *iterations, modular8_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if MODULAR8_USE_FLOAT

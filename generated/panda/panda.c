@@ -14217,9 +14217,12 @@ panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xd
   }
 }
 
-/* ik: 347449 add, 350180 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46362 compare, 56702 select */
+/* ik: 347449 add, 350180 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46364 compare, 56702 select */
 panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PANDA_NDOF], const panda_real q_rest[PANDA_NDOF], panda_real use_rest, panda_real tol_position, panda_real tol_orientation, panda_real max_iterations, panda_real q[PANDA_NDOF], panda_real *position_error, panda_real *orientation_error, panda_real *iterations, panda_real *success) {
-  panda_real w36;
+  /* a target that is not a pose takes no step (the loop stops before its first) */
+  const int pose = panda_is_pose(T_target);
+  const panda_real iteration_cap = (pose != 0) ? max_iterations : PANDA_LIT(0.0);
+  panda_real w36, w37;
   panda_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
   panda_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   panda_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
@@ -14425,37 +14428,40 @@ panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PAN
   w26 = PANDA_FMAX(w26, w3);
   w26 = PANDA_FMIN(w26, w4);
   w4 = PANDA_LIT(1.0e+30);
-  w3 = T_target[0];
-  w2 = T_target[1];
-  w25 = T_target[2];
-  w28 = T_target[3];
-  w24 = T_target[4];
-  w30 = T_target[5];
-  w32 = T_target[6];
-  w31 = T_target[7];
-  w10 = T_target[8];
-  w7 = T_target[9];
-  w22 = T_target[10];
-  w17 = T_target[11];
-  w15 = T_target[15];
-  w23 = q_rest[0];
-  w13 = q_rest[1];
-  w18 = q_rest[2];
-  w33 = q_rest[3];
-  w11 = q_rest[4];
-  w16 = q_rest[5];
-  w12 = q_rest[6];
-  w34 = tol_position;
-  w35 = tol_orientation;
-  w36 = max_iterations;
+  w3 = PANDA_LIT(1.0);
+  w2 = iteration_cap;
+  w3 = (panda_real)(w3 <= w2);
+  w3 = (panda_real)(w3 == PANDA_LIT(0.0));
+  w25 = T_target[0];
+  w28 = T_target[1];
+  w24 = T_target[2];
+  w30 = T_target[3];
+  w32 = T_target[4];
+  w31 = T_target[5];
+  w10 = T_target[6];
+  w7 = T_target[7];
+  w22 = T_target[8];
+  w17 = T_target[9];
+  w15 = T_target[10];
+  w23 = T_target[11];
+  w13 = T_target[15];
+  w18 = q_rest[0];
+  w33 = q_rest[1];
+  w11 = q_rest[2];
+  w16 = q_rest[3];
+  w12 = q_rest[4];
+  w34 = q_rest[5];
+  w35 = q_rest[6];
+  w36 = tol_position;
+  w37 = tol_orientation;
   {
-    panda_real call_in0[23] = {w5, w6, w9, w14, w20, w8, w26, w5, w6, w9, w14, w20, w8, w26, w4, w4, w4, w27, w27, w27, w27, w4, w27};
-    panda_real call_in1[16] = {w3, w2, w25, w28, w24, w30, w32, w31, w10, w7, w22, w17, w1, w19, w21, w15};
-    panda_real call_in2[7] = {w23, w13, w18, w33, w11, w16, w12};
+    panda_real call_in0[23] = {w5, w6, w9, w14, w20, w8, w26, w5, w6, w9, w14, w20, w8, w26, w4, w4, w4, w27, w27, w27, w27, w4, w3};
+    panda_real call_in1[16] = {w25, w28, w24, w30, w32, w31, w10, w7, w22, w17, w15, w23, w1, w19, w21, w13};
+    panda_real call_in2[7] = {w18, w33, w11, w16, w12, w34, w35};
     panda_real call_in3[1] = {w29};
-    panda_real call_in4[1] = {w34};
-    panda_real call_in5[1] = {w35};
-    panda_real call_in6[1] = {w36};
+    panda_real call_in4[1] = {w36};
+    panda_real call_in5[1] = {w37};
+    panda_real call_in6[1] = {w2};
     panda_real call_out[23];
     panda_ik_step_8a95a0f1_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
     w5 = call_out[7];
@@ -14468,7 +14474,7 @@ panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PAN
     w4 = call_out[15];
     w27 = call_out[16];
     w3 = call_out[19];
-    w2 = call_out[20];
+    w25 = call_out[20];
   }
   q[0] = w5;
   q[1] = w6;
@@ -14480,25 +14486,10 @@ panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PAN
   *position_error = w4;
   *orientation_error = w27;
   *iterations = w3;
-  *success = w2;
+  *success = w25;
+  if (pose == 0) { return PANDA_BAD_TARGET; }
   {
   panda_real probe = PANDA_LIT(0.0);
-  probe = probe + (T_target[0] * PANDA_LIT(0.0));
-  probe = probe + (T_target[1] * PANDA_LIT(0.0));
-  probe = probe + (T_target[2] * PANDA_LIT(0.0));
-  probe = probe + (T_target[3] * PANDA_LIT(0.0));
-  probe = probe + (T_target[4] * PANDA_LIT(0.0));
-  probe = probe + (T_target[5] * PANDA_LIT(0.0));
-  probe = probe + (T_target[6] * PANDA_LIT(0.0));
-  probe = probe + (T_target[7] * PANDA_LIT(0.0));
-  probe = probe + (T_target[8] * PANDA_LIT(0.0));
-  probe = probe + (T_target[9] * PANDA_LIT(0.0));
-  probe = probe + (T_target[10] * PANDA_LIT(0.0));
-  probe = probe + (T_target[11] * PANDA_LIT(0.0));
-  probe = probe + (T_target[12] * PANDA_LIT(0.0));
-  probe = probe + (T_target[13] * PANDA_LIT(0.0));
-  probe = probe + (T_target[14] * PANDA_LIT(0.0));
-  probe = probe + (T_target[15] * PANDA_LIT(0.0));
   probe = probe + (q_seed[0] * PANDA_LIT(0.0));
   probe = probe + (q_seed[1] * PANDA_LIT(0.0));
   probe = probe + (q_seed[2] * PANDA_LIT(0.0));

@@ -178,10 +178,39 @@ PANDA_TRIG_INLINE void panda_sincos_table(const panda_real *angle, panda_real *s
 
 /* Result of the functions that can fail. */
 typedef enum {
-  PANDA_OK = 0,            /* output is finite */
-  PANDA_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */
-  PANDA_NOT_CONVERGED = 2  /* panda_ik only: no q within the tolerances; the outputs hold the closest reached */
+  PANDA_OK = 0,             /* output is finite */
+  PANDA_NONFINITE = 1,      /* output holds NaN/inf: a non-finite input, or an overflow */
+  PANDA_NOT_CONVERGED = 2,  /* panda_ik only: no q within the tolerances; the outputs hold the closest reached */
+  PANDA_BAD_TARGET = 3      /* panda_ik only: T_target is not a pose (panda_is_pose); no step taken */
 } panda_status;
+
+/* A pose for panda_ik: T (4x4, column-major) with a finite position, last row 0 0 0 1 and a
+ * rotation as its 3x3 part (R^T R = I, det R > 0), each entry of T(3, :) - [0 0 0 1] and of
+ * R^T R - I within PANDA_POSE_TOL: the default orientation tolerance in double; in float a
+ * product of rotations already carries a few 1e-7 of rounding, hence the float IK tolerance.
+ * 1 for a pose, 0 otherwise (NaN/inf fail every comparison). */
+#if PANDA_USE_FLOAT
+#define PANDA_POSE_TOL PANDA_LIT(0.0001)
+#else
+#define PANDA_POSE_TOL PANDA_LIT(1e-06)
+#endif
+static inline int panda_is_pose(const panda_real T[16]) {
+  const panda_real det = ((T[0] * ((T[5] * T[10]) - (T[6] * T[9]))) - (T[4] * ((T[1] * T[10]) - (T[2] * T[9])))) +
+                       (T[8] * ((T[1] * T[6]) - (T[2] * T[5])));
+  int pose = 1;
+  int a;
+  int b;
+  if (!((det > PANDA_LIT(0.0)) && (PANDA_FABS(T[15] - PANDA_LIT(1.0)) <= PANDA_POSE_TOL))) { pose = 0; }
+  for (a = 0; a < 3; ++a) {
+    if (!((PANDA_FABS(T[3 + (4 * a)]) <= PANDA_POSE_TOL) && ((T[12 + a] * PANDA_LIT(0.0)) == PANDA_LIT(0.0)))) { pose = 0; }
+    for (b = a; b < 3; ++b) {
+      const panda_real gram = (T[4 * a] * T[4 * b]) + (T[1 + (4 * a)] * T[1 + (4 * b)]) + (T[2 + (4 * a)] * T[2 + (4 * b)]);
+      const panda_real unit = (a == b) ? PANDA_LIT(1.0) : PANDA_LIT(0.0);
+      if (!(PANDA_FABS(gram - unit) <= PANDA_POSE_TOL)) { pose = 0; }
+    }
+  }
+  return pose;
+}
 
 /* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].
  * Scalar inputs are passed by value, scalar outputs by pointer. Outputs must not overlap
@@ -465,8 +494,8 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_H_COLS 1
 #define PANDA_STEP_WGPM_WORK_REALS 217
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
-/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 347449 add, 350180 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46362 compare, 56702 select; work: 37 reals. */
+/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached (max_iterations <= 0: no step, iterations 0); BAD_TARGET, no step, for a T_target that is not a pose (is_pose, in the header).
+ * ops: 347449 add, 350180 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46364 compare, 56702 select; work: 38 reals. */
 #define PANDA_IK_T_TARGET_ROWS 4
 #define PANDA_IK_T_TARGET_COLS 4
 #define PANDA_IK_Q_SEED_ROWS 7
@@ -475,7 +504,7 @@ panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xd
 #define PANDA_IK_Q_REST_COLS 1
 #define PANDA_IK_Q_ROWS 7
 #define PANDA_IK_Q_COLS 1
-#define PANDA_IK_WORK_REALS 37
+#define PANDA_IK_WORK_REALS 38
 panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PANDA_NDOF], const panda_real q_rest[PANDA_NDOF], panda_real use_rest, panda_real tol_position, panda_real tol_orientation, panda_real max_iterations, panda_real q[PANDA_NDOF], panda_real *position_error, panda_real *orientation_error, panda_real *iterations, panda_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if PANDA_USE_FLOAT

@@ -2457,9 +2457,12 @@ planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const plana
   }
 }
 
-/* ik: 113423 add, 99035 mul, 9900 div, 2250 sqrt, 4957 trig, 11708 minmax, 30162 compare, 32402 select */
+/* ik: 113423 add, 99035 mul, 9900 div, 2250 sqrt, 4957 trig, 11708 minmax, 30164 compare, 32402 select */
 planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_seed[PLANAR3_NDOF], const planar3_real q_rest[PLANAR3_NDOF], planar3_real use_rest, planar3_real tol_position, planar3_real tol_orientation, planar3_real max_iterations, planar3_real q[PLANAR3_NDOF], planar3_real *position_error, planar3_real *orientation_error, planar3_real *iterations, planar3_real *success) {
-  planar3_real w24, w25, w26, w27, w28;
+  /* a target that is not a pose takes no step (the loop stops before its first) */
+  const int pose = planar3_is_pose(T_target);
+  const planar3_real iteration_cap = (pose != 0) ? max_iterations : PLANAR3_LIT(0.0);
+  planar3_real w24, w25, w26, w27, w28, w29;
   planar3_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
   planar3_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
   w0 = PLANAR3_LIT(0.0625);
@@ -2565,33 +2568,36 @@ planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_
   w8 = ((w8 != PLANAR3_LIT(0.0)) ? w2 : PLANAR3_LIT(0.0));
   w1 = w1 + w8;
   w8 = PLANAR3_LIT(1.0e+30);
-  w2 = T_target[0];
-  w4 = T_target[1];
-  w3 = T_target[2];
-  w13 = T_target[3];
-  w15 = T_target[4];
-  w5 = T_target[5];
-  w10 = T_target[6];
-  w7 = T_target[7];
-  w18 = T_target[8];
-  w19 = T_target[9];
-  w20 = T_target[10];
-  w21 = T_target[11];
-  w22 = T_target[15];
-  w23 = q_rest[0];
-  w24 = q_rest[1];
-  w25 = q_rest[2];
-  w26 = tol_position;
-  w27 = tol_orientation;
-  w28 = max_iterations;
+  w2 = PLANAR3_LIT(1.0);
+  w4 = iteration_cap;
+  w2 = (planar3_real)(w2 <= w4);
+  w2 = (planar3_real)(w2 == PLANAR3_LIT(0.0));
+  w3 = T_target[0];
+  w13 = T_target[1];
+  w15 = T_target[2];
+  w5 = T_target[3];
+  w10 = T_target[4];
+  w7 = T_target[5];
+  w18 = T_target[6];
+  w19 = T_target[7];
+  w20 = T_target[8];
+  w21 = T_target[9];
+  w22 = T_target[10];
+  w23 = T_target[11];
+  w24 = T_target[15];
+  w25 = q_rest[0];
+  w26 = q_rest[1];
+  w27 = q_rest[2];
+  w28 = tol_position;
+  w29 = tol_orientation;
   {
-    planar3_real call_in0[15] = {w1, w6, w11, w1, w6, w11, w8, w8, w8, w12, w12, w12, w12, w8, w12};
-    planar3_real call_in1[16] = {w2, w4, w3, w13, w15, w5, w10, w7, w18, w19, w20, w21, w14, w9, w17, w22};
-    planar3_real call_in2[3] = {w23, w24, w25};
+    planar3_real call_in0[15] = {w1, w6, w11, w1, w6, w11, w8, w8, w8, w12, w12, w12, w12, w8, w2};
+    planar3_real call_in1[16] = {w3, w13, w15, w5, w10, w7, w18, w19, w20, w21, w22, w23, w14, w9, w17, w24};
+    planar3_real call_in2[3] = {w25, w26, w27};
     planar3_real call_in3[1] = {w16};
-    planar3_real call_in4[1] = {w26};
-    planar3_real call_in5[1] = {w27};
-    planar3_real call_in6[1] = {w28};
+    planar3_real call_in4[1] = {w28};
+    planar3_real call_in5[1] = {w29};
+    planar3_real call_in6[1] = {w4};
     planar3_real call_out[15];
     planar3_ik_step_2f36c519_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
     w1 = call_out[3];
@@ -2600,7 +2606,7 @@ planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_
     w8 = call_out[7];
     w12 = call_out[8];
     w2 = call_out[11];
-    w4 = call_out[12];
+    w3 = call_out[12];
   }
   q[0] = w1;
   q[1] = w6;
@@ -2608,25 +2614,10 @@ planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_
   *position_error = w8;
   *orientation_error = w12;
   *iterations = w2;
-  *success = w4;
+  *success = w3;
+  if (pose == 0) { return PLANAR3_BAD_TARGET; }
   {
   planar3_real probe = PLANAR3_LIT(0.0);
-  probe = probe + (T_target[0] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[1] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[2] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[3] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[4] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[5] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[6] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[7] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[8] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[9] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[10] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[11] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[12] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[13] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[14] * PLANAR3_LIT(0.0));
-  probe = probe + (T_target[15] * PLANAR3_LIT(0.0));
   probe = probe + (q_seed[0] * PLANAR3_LIT(0.0));
   probe = probe + (q_seed[1] * PLANAR3_LIT(0.0));
   probe = probe + (q_seed[2] * PLANAR3_LIT(0.0));

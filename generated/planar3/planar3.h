@@ -177,10 +177,39 @@ PLANAR3_TRIG_INLINE void planar3_sincos_table(const planar3_real *angle, planar3
 
 /* Result of the functions that can fail. */
 typedef enum {
-  PLANAR3_OK = 0,            /* output is finite */
-  PLANAR3_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */
-  PLANAR3_NOT_CONVERGED = 2  /* planar3_ik only: no q within the tolerances; the outputs hold the closest reached */
+  PLANAR3_OK = 0,             /* output is finite */
+  PLANAR3_NONFINITE = 1,      /* output holds NaN/inf: a non-finite input, or an overflow */
+  PLANAR3_NOT_CONVERGED = 2,  /* planar3_ik only: no q within the tolerances; the outputs hold the closest reached */
+  PLANAR3_BAD_TARGET = 3      /* planar3_ik only: T_target is not a pose (planar3_is_pose); no step taken */
 } planar3_status;
+
+/* A pose for planar3_ik: T (4x4, column-major) with a finite position, last row 0 0 0 1 and a
+ * rotation as its 3x3 part (R^T R = I, det R > 0), each entry of T(3, :) - [0 0 0 1] and of
+ * R^T R - I within PLANAR3_POSE_TOL: the default orientation tolerance in double; in float a
+ * product of rotations already carries a few 1e-7 of rounding, hence the float IK tolerance.
+ * 1 for a pose, 0 otherwise (NaN/inf fail every comparison). */
+#if PLANAR3_USE_FLOAT
+#define PLANAR3_POSE_TOL PLANAR3_LIT(0.0001)
+#else
+#define PLANAR3_POSE_TOL PLANAR3_LIT(1e-06)
+#endif
+static inline int planar3_is_pose(const planar3_real T[16]) {
+  const planar3_real det = ((T[0] * ((T[5] * T[10]) - (T[6] * T[9]))) - (T[4] * ((T[1] * T[10]) - (T[2] * T[9])))) +
+                       (T[8] * ((T[1] * T[6]) - (T[2] * T[5])));
+  int pose = 1;
+  int a;
+  int b;
+  if (!((det > PLANAR3_LIT(0.0)) && (PLANAR3_FABS(T[15] - PLANAR3_LIT(1.0)) <= PLANAR3_POSE_TOL))) { pose = 0; }
+  for (a = 0; a < 3; ++a) {
+    if (!((PLANAR3_FABS(T[3 + (4 * a)]) <= PLANAR3_POSE_TOL) && ((T[12 + a] * PLANAR3_LIT(0.0)) == PLANAR3_LIT(0.0)))) { pose = 0; }
+    for (b = a; b < 3; ++b) {
+      const planar3_real gram = (T[4 * a] * T[4 * b]) + (T[1 + (4 * a)] * T[1 + (4 * b)]) + (T[2 + (4 * a)] * T[2 + (4 * b)]);
+      const planar3_real unit = (a == b) ? PLANAR3_LIT(1.0) : PLANAR3_LIT(0.0);
+      if (!(PLANAR3_FABS(gram - unit) <= PLANAR3_POSE_TOL)) { pose = 0; }
+    }
+  }
+  return pose;
+}
 
 /* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].
  * Scalar inputs are passed by value, scalar outputs by pointer. Outputs must not overlap
@@ -464,8 +493,8 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 #define PLANAR3_STEP_WGPM_H_COLS 1
 #define PLANAR3_STEP_WGPM_WORK_REALS 70
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
-/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 113423 add, 99035 mul, 9900 div, 2250 sqrt, 4957 trig, 11708 minmax, 30162 compare, 32402 select; work: 29 reals. */
+/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached (max_iterations <= 0: no step, iterations 0); BAD_TARGET, no step, for a T_target that is not a pose (is_pose, in the header).
+ * ops: 113423 add, 99035 mul, 9900 div, 2250 sqrt, 4957 trig, 11708 minmax, 30164 compare, 32402 select; work: 30 reals. */
 #define PLANAR3_IK_T_TARGET_ROWS 4
 #define PLANAR3_IK_T_TARGET_COLS 4
 #define PLANAR3_IK_Q_SEED_ROWS 3
@@ -474,7 +503,7 @@ planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const plana
 #define PLANAR3_IK_Q_REST_COLS 1
 #define PLANAR3_IK_Q_ROWS 3
 #define PLANAR3_IK_Q_COLS 1
-#define PLANAR3_IK_WORK_REALS 29
+#define PLANAR3_IK_WORK_REALS 30
 planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_seed[PLANAR3_NDOF], const planar3_real q_rest[PLANAR3_NDOF], planar3_real use_rest, planar3_real tol_position, planar3_real tol_orientation, planar3_real max_iterations, planar3_real q[PLANAR3_NDOF], planar3_real *position_error, planar3_real *orientation_error, planar3_real *iterations, planar3_real *success);
 /* bisection_step3_loop: a fixed-count loop the functions above call (not for direct use). */
 #if PLANAR3_USE_FLOAT

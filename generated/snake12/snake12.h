@@ -177,10 +177,39 @@ SNAKE12_TRIG_INLINE void snake12_sincos_table(const snake12_real *angle, snake12
 
 /* Result of the functions that can fail. */
 typedef enum {
-  SNAKE12_OK = 0,            /* output is finite */
-  SNAKE12_NONFINITE = 1,     /* output holds NaN/inf: a non-finite input, or an overflow */
-  SNAKE12_NOT_CONVERGED = 2  /* snake12_ik only: no q within the tolerances; the outputs hold the closest reached */
+  SNAKE12_OK = 0,             /* output is finite */
+  SNAKE12_NONFINITE = 1,      /* output holds NaN/inf: a non-finite input, or an overflow */
+  SNAKE12_NOT_CONVERGED = 2,  /* snake12_ik only: no q within the tolerances; the outputs hold the closest reached */
+  SNAKE12_BAD_TARGET = 3      /* snake12_ik only: T_target is not a pose (snake12_is_pose); no step taken */
 } snake12_status;
+
+/* A pose for snake12_ik: T (4x4, column-major) with a finite position, last row 0 0 0 1 and a
+ * rotation as its 3x3 part (R^T R = I, det R > 0), each entry of T(3, :) - [0 0 0 1] and of
+ * R^T R - I within SNAKE12_POSE_TOL: the default orientation tolerance in double; in float a
+ * product of rotations already carries a few 1e-7 of rounding, hence the float IK tolerance.
+ * 1 for a pose, 0 otherwise (NaN/inf fail every comparison). */
+#if SNAKE12_USE_FLOAT
+#define SNAKE12_POSE_TOL SNAKE12_LIT(0.0001)
+#else
+#define SNAKE12_POSE_TOL SNAKE12_LIT(1e-06)
+#endif
+static inline int snake12_is_pose(const snake12_real T[16]) {
+  const snake12_real det = ((T[0] * ((T[5] * T[10]) - (T[6] * T[9]))) - (T[4] * ((T[1] * T[10]) - (T[2] * T[9])))) +
+                       (T[8] * ((T[1] * T[6]) - (T[2] * T[5])));
+  int pose = 1;
+  int a;
+  int b;
+  if (!((det > SNAKE12_LIT(0.0)) && (SNAKE12_FABS(T[15] - SNAKE12_LIT(1.0)) <= SNAKE12_POSE_TOL))) { pose = 0; }
+  for (a = 0; a < 3; ++a) {
+    if (!((SNAKE12_FABS(T[3 + (4 * a)]) <= SNAKE12_POSE_TOL) && ((T[12 + a] * SNAKE12_LIT(0.0)) == SNAKE12_LIT(0.0)))) { pose = 0; }
+    for (b = a; b < 3; ++b) {
+      const snake12_real gram = (T[4 * a] * T[4 * b]) + (T[1 + (4 * a)] * T[1 + (4 * b)]) + (T[2 + (4 * a)] * T[2 + (4 * b)]);
+      const snake12_real unit = (a == b) ? SNAKE12_LIT(1.0) : SNAKE12_LIT(0.0);
+      if (!(SNAKE12_FABS(gram - unit) <= SNAKE12_POSE_TOL)) { pose = 0; }
+    }
+  }
+  return pose;
+}
 
 /* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].
  * Scalar inputs are passed by value, scalar outputs by pointer. Outputs must not overlap
@@ -464,8 +493,8 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_H_COLS 1
 #define SNAKE12_STEP_WGPM_WORK_REALS 748
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
-/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached.
- * ops: 996750 add, 937800 mul, 47250 div, 2250 sqrt, 22050 trig, 60800 minmax, 111150 compare, 146250 select; work: 73 reals. */
+/* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached (max_iterations <= 0: no step, iterations 0); BAD_TARGET, no step, for a T_target that is not a pose (is_pose, in the header).
+ * ops: 996750 add, 937800 mul, 47250 div, 2250 sqrt, 22050 trig, 60800 minmax, 111152 compare, 146250 select; work: 74 reals. */
 #define SNAKE12_IK_T_TARGET_ROWS 4
 #define SNAKE12_IK_T_TARGET_COLS 4
 #define SNAKE12_IK_Q_SEED_ROWS 25
@@ -474,7 +503,7 @@ snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake
 #define SNAKE12_IK_Q_REST_COLS 1
 #define SNAKE12_IK_Q_ROWS 25
 #define SNAKE12_IK_Q_COLS 1
-#define SNAKE12_IK_WORK_REALS 73
+#define SNAKE12_IK_WORK_REALS 74
 snake12_status snake12_ik(const snake12_real T_target[16], const snake12_real q_seed[SNAKE12_NDOF], const snake12_real q_rest[SNAKE12_NDOF], snake12_real use_rest, snake12_real tol_position, snake12_real tol_orientation, snake12_real max_iterations, snake12_real q[SNAKE12_NDOF], snake12_real *position_error, snake12_real *orientation_error, snake12_real *iterations, snake12_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if SNAKE12_USE_FLOAT

@@ -8,6 +8,7 @@
  */
 #include "controller.h"
 
+#include <float.h>
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
@@ -63,6 +64,24 @@ typedef char ctrl_check_ptp_ncoef[(FW_PTP_NCOEF == CTRL_NCOEF) ? 1 : -1];
 /* It plans with the limits times (1 - this): the guards (qdot_max) then never see rounding. */
 #define MOVE_TO_MARGIN CTRL_LIT(1e-3)
 #define QDDOT_MAX_LIMIT CTRL_LIT(1.0e4)
+/* The longest MOVE_TO, in ticks: 2^24, the largest count a float holds exactly, so that the float
+ * build's time k dt differs at every tick (beyond it neighbouring ticks would share a time and the
+ * command stand still, then jump) and the count converts to uint32_t without overflow. The double
+ * build takes the same bound, so both accept the same configurations: ctrl_init refuses a qdot_max
+ * or qddot_max so low, for its dt, that a MOVE_TO over the joint's whole range would take longer
+ * (4.7 h at 1 kHz, 28 min at 10 kHz): the lower bound of the limits. */
+#define MOVE_TO_MAX_TICKS CTRL_LIT(16777216.0)
+/* MOVE_TO's step guard: the planned step is at most (1 - MOVE_TO_MARGIN) qdot_max dt; the two
+ * commands it compares, each q0 + s delta with s from a few operations, carry rounding of about
+ * eps |q| + a few eps |delta| together (eps: the precision's machine epsilon), so 8 eps (|q0| +
+ * |delta|) is allowed on top: in float what a slow limit at a fast tick needs (a step of a few
+ * ulp of q; measured: at most 1e-7 rad beyond, tests/test_move_to_limits.py), in double ~1e-15 rad. */
+#define MOVE_TO_STEP_ROUNDING CTRL_LIT(8.0)
+#if CTRL_USE_FLOAT
+#define REAL_EPSILON FLT_EPSILON
+#else
+#define REAL_EPSILON DBL_EPSILON
+#endif
 
 /* The spec 30 / 35 modes need generated functions a robot may lack (e.g. without redundancy):
  * the build sets these to 0 then, and ctrl_init rejects the mode. */
@@ -149,6 +168,7 @@ const char *ctrl_fault_name(ctrl_fault f) {
     case CTRL_FAULT_REDUNDANCY: return "REDUNDANCY";
     case CTRL_FAULT_SPEED: return "SPEED";
     case CTRL_FAULT_UNREACHABLE: return "UNREACHABLE";
+    case CTRL_FAULT_BAD_TARGET: return "BAD_TARGET";
     default: break;
   }
   return "?";
@@ -365,6 +385,16 @@ static void null_space_alpha(const ctrl *c, ctrl_real t, const ctrl_real *q, ctr
 }
 
 /* ------------------------------------------------------------------ init */
+
+/* Ticks (not rounded) of the MOVE_TO profile moving joint i by d: the shortest time in which its
+ * peak speed d / ((1 - b) T) and acceleration d / (b (1 - b) T^2) stay within the limits times
+ * (1 - MOVE_TO_MARGIN), over dt. A real, never cast here: compared with MOVE_TO_MAX_TICKS. */
+static ctrl_real move_to_ticks(const ctrl_config *cfg, int i, ctrl_real d) {
+  const ctrl_real b = MOVE_TO_BLEND, keep = CTRL_LIT(1.0) - MOVE_TO_MARGIN;
+  ctrl_real T = max_r(d / ((CTRL_LIT(1.0) - b) * keep * cfg->qdot_max[i]),
+                      CTRL_SQRT(d / (b * (CTRL_LIT(1.0) - b) * keep * cfg->qddot_max[i])));
+  return T / cfg->dt;
+}
 
 static int positive(ctrl_real x) { return finite_r(x) && x > CTRL_LIT(0.0); }
 static int nonneg(ctrl_real x) { return finite_r(x) && x >= CTRL_LIT(0.0); }
@@ -591,7 +621,8 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
     c->q_hold[i] = inside ? q : (limits ? lo + CTRL_LIT(0.5) * (hi - lo) : CTRL_LIT(0.0));
     c->mask[i] = CTRL_LIT(1.0);
     ok = ok && inside && positive(config->qdot_max[i]) && config->qdot_max[i] <= QDOT_MAX_LIMIT &&
-         positive(config->qddot_max[i]) && config->qddot_max[i] <= QDDOT_MAX_LIMIT;
+         positive(config->qddot_max[i]) && config->qddot_max[i] <= QDDOT_MAX_LIMIT &&
+         move_to_ticks(config, i, hi - lo) <= MOVE_TO_MAX_TICKS; /* false for inf and NaN too */
   }
   if (ok) {
     switch (config->mode) {
@@ -1089,36 +1120,34 @@ static void move_to_profile(ctrl_real tau, ctrl_real *s, ctrl_real *ds) {
 }
 
 /* MOVE_TO: solve the IK on board from the held command, then plan the shortest common
- * duration (whole ticks) in which every joint's peak speed |delta_i| / ((1 - b) T) and
- * acceleration |delta_i| / (b (1 - b) T^2) stay within its limits. Returns UNREACHABLE when
+ * duration (whole ticks) in which every joint's peak speed and acceleration stay within its
+ * limits (move_to_ticks). Returns BAD_TARGET for a target that is not a pose, UNREACHABLE when
  * the IK does not converge or its answer lies outside the limits. */
 static ctrl_fault start_move_to(ctrl *c, const ctrl_real *target) {
   const ctrl_config *cfg = &c->cfg;
-  const ctrl_real b = MOVE_TO_BLEND, keep = CTRL_LIT(1.0) - MOVE_TO_MARGIN;
-  ctrl_real q[N], T = CTRL_LIT(0.0);
+  ctrl_real q[N], ticks = CTRL_LIT(0.0);
   uint32_t n;
   int i;
   if (!all_finite(target, 16)) return CTRL_FAULT_NONFINITE_INPUT;
 #if CTRL_HAS_MOVE_TO
   {
     ctrl_real pe, oe, iterations, success;
-    if (ctrl_gen_ik(target, c->q_hold, c->q_hold, CTRL_LIT(1.0), MOVE_TO_TOL, MOVE_TO_TOL, MOVE_TO_ITERATIONS, q,
-                    &pe, &oe, &iterations, &success) != CTRL_GEN_OK || !(success > CTRL_LIT(0.5))) {
-      return CTRL_FAULT_UNREACHABLE;
-    }
+    ctrl_gen_status status = ctrl_gen_ik(target, c->q_hold, c->q_hold, CTRL_LIT(1.0), MOVE_TO_TOL, MOVE_TO_TOL,
+                                         MOVE_TO_ITERATIONS, q, &pe, &oe, &iterations, &success);
+    if (status == CTRL_GEN_BAD_TARGET) return CTRL_FAULT_BAD_TARGET;
+    if (status != CTRL_GEN_OK || !(success > CTRL_LIT(0.5))) return CTRL_FAULT_UNREACHABLE;
   }
 #else
   return CTRL_FAULT_UNREACHABLE;
 #endif
   if (check_command(c, q) != CTRL_FAULT_NONE) return CTRL_FAULT_UNREACHABLE;
   for (i = 0; i < N; ++i) {
-    ctrl_real d = CTRL_FABS(q[i] - c->q_hold[i]);
-    T = max_r(T, d / ((CTRL_LIT(1.0) - b) * keep * cfg->qdot_max[i]));
-    T = max_r(T, CTRL_SQRT(d / (b * (CTRL_LIT(1.0) - b) * keep * cfg->qddot_max[i])));
+    /* |delta_i| within the joint's range, which ctrl_init bounded to MOVE_TO_MAX_TICKS */
+    ticks = max_r(ticks, move_to_ticks(cfg, i, CTRL_FABS(q[i] - c->q_hold[i])));
     c->mt_q0[i] = c->q_hold[i];
     c->mt_delta[i] = q[i] - c->q_hold[i];
   }
-  n = (uint32_t)(T / cfg->dt) + 1u; /* whole ticks, at least one: T only grows */
+  n = (uint32_t)ticks + 1u; /* whole ticks, at least one: the duration only grows */
   c->mt_T = (ctrl_real)n * cfg->dt;
   c->n_ticks = n;
   c->moving_to = 1;
@@ -1138,8 +1167,12 @@ static ctrl_fault tick_move_to(ctrl *c, ctrl_real t, ctrl_output *out) {
   }
   f = check_command(c, q);
   if (f != CTRL_FAULT_NONE) return f;
-  for (i = 0; i < N; ++i) {
-    if (CTRL_FABS(qd[i]) > c->cfg.qdot_max[i]) return CTRL_FAULT_SPEED;
+  for (i = 0; i < N; ++i) { /* the speed, and the step from the last command (the last tick's too) */
+    ctrl_real rounding = MOVE_TO_STEP_ROUNDING * REAL_EPSILON * (CTRL_FABS(c->mt_q0[i]) + CTRL_FABS(c->mt_delta[i]));
+    if (CTRL_FABS(qd[i]) > c->cfg.qdot_max[i] ||
+        CTRL_FABS(q[i] - c->q_hold[i]) > c->cfg.qdot_max[i] * c->cfg.dt + rounding) {
+      return CTRL_FAULT_SPEED;
+    }
   }
   accept(c, t, q, qd, out);
   if (moving(c)) {

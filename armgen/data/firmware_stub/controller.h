@@ -99,11 +99,14 @@ typedef enum {
                                       withdraws a lock (a locked joint cannot come back) */
   CTRL_FAULT_REDUNDANCY = 11,      /* more joints locked than the mode can absorb (NDOF - NTASK
                                       in FAULT_TOLERANT; none in the other modes) */
-  CTRL_FAULT_SPEED = 12,           /* playback: a commanded speed, or the step from the previous
-                                      command, above the joint's qdot_max[i] (e.g. a period that does not fit
-                                      the plan's knots) */
-  CTRL_FAULT_UNREACHABLE = 13      /* MOVE_TO: the on-board IK found no configuration inside the
+  CTRL_FAULT_SPEED = 12,           /* playback or MOVE_TO: a commanded speed, or the step from the
+                                      previous command, above the joint's qdot_max[i] (e.g. a period
+                                      that does not fit the plan's knots) */
+  CTRL_FAULT_UNREACHABLE = 13,     /* MOVE_TO: the on-board IK found no configuration inside the
                                       limits within its tolerances (or the build has no IK) */
+  CTRL_FAULT_BAD_TARGET = 14       /* MOVE_TO: ctrl_input.target is not a pose (its last row not
+                                      0 0 0 1, or its 3x3 part no rotation: zero, scaled, sheared,
+                                      mirrored); the generated IK's <P>_BAD_TARGET */
 } ctrl_fault;
 
 typedef enum {
@@ -214,7 +217,9 @@ typedef struct {
   ctrl_real qdot_max[CTRL_NDOF]; /* speed guard per joint: max |q_dot_i|, rad/s (m/s), (0, 1e3];
                                    the robot file's qdlim where it gives one */
   ctrl_real qddot_max[CTRL_NDOF]; /* MOVE_TO acceleration per joint, rad/s^2 (m/s^2), (0, 1e4];
-                                   the robot file's qddlim where it gives one */
+                                   the robot file's qddlim where it gives one. With qdot_max
+                                   bounded below: MOVE_TO over the joint's whole range
+                                   must take at most 2^24 ticks (docs/firmware.md, MOVE_TO) */
   ctrl_real residual_rel;       /* singular-pose guard: |J q_dot - x_dot|_inf may reach */
   ctrl_real residual_abs;       /*   residual_rel * |x_dot|_inf + residual_abs; each in [0, 1] */
   ctrl_real pos_err_max;        /* tracking guard, m, [0, 1]; 0 disables */

@@ -33,6 +33,7 @@
 #include CTRL_ROBOT_HEADER
 
 typedef CTRL_FN(real) ctrl_real;
+typedef CTRL_FN(status) ctrl_gen_status; /* what the generated steps and the IK return */
 
 #define CTRL_NDOF CTRL_M(NDOF)         /* joints */
 #define CTRL_NTASK CTRL_M(NTASK)       /* task rows the step functions take */
@@ -43,6 +44,7 @@ typedef CTRL_FN(real) ctrl_real;
 #define CTRL_SQRT CTRL_M(SQRT)
 #define CTRL_FABS CTRL_M(FABS)
 #define CTRL_GEN_OK CTRL_M(OK)
+#define CTRL_GEN_BAD_TARGET CTRL_M(BAD_TARGET)
 
 #define ctrl_gen_fk_jacobian CTRL_FN(fk_jacobian)
 #define ctrl_gen_zghal CTRL_FN(zghal)
