@@ -344,3 +344,9 @@ def test_start_pose_beyond_any_reach_is_bad_input(tmp_path):
     result = CliRunner().invoke(cli, ["plan", str(task), "-o", str(tmp_path / "plan.csv")])
     assert result.exit_code == 2, result.output
     assert "field 'start.pose.xyz' is beyond ±1000 m" in result.output
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero")
+def test_poses_device_is_refused_without_reading_it():
+    with pytest.raises(TaskFileError, match="not a regular file"):
+        read_poses(Path("/dev/zero"), "/dev/zero", 1, "task.toml", MM, DEG)
