@@ -8,6 +8,7 @@ that every file loads as a sane robot or fails with one clean error."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -135,6 +136,13 @@ def test_wrapper_sets_speed_acceleration_and_position_limits(tmp_path):
     np.testing.assert_allclose(speed_guard(robot), [2.0, math.radians(60), 2.0], rtol=CONVERSION_RTOL)
     shown = CliRunner().invoke(cli, ["show", str(tmp_path / "arm.toml")])
     assert shown.exit_code == 0 and "qdlim=60 deg/s  qddlim=120 deg/s^2" in shown.output
+    # the generated header's constants, which the firmware compiles in
+    generated = CliRunner().invoke(cli, ["gen", str(tmp_path / "arm.toml"), "-o", str(tmp_path / "gen")])
+    assert generated.exit_code == 0, generated.output
+    header = (tmp_path / "gen" / "planar.h").read_text()
+    qddlim = re.search(r"#define PLANAR_QDDLIM \{(.*)\}", header).group(1)
+    np.testing.assert_allclose([float(v) for v in re.findall(r"LIT\(([^)]*)\)", qddlim)], np.radians([90, 120, 180]),
+                               rtol=CONVERSION_RTOL)
 
 
 @pytest.mark.parametrize("limits, match", [
