@@ -147,20 +147,21 @@ def plan_robot(result: PlanResult, plan_file: str | Path | None = None, robot: s
                             "with --robot FILE or re-run `armgen plan`")
     looked: list[str] = []
     for candidate in _recorded_robot_paths(file or "", plan_file):
+        shown = excerpt(str(candidate), PATH_EXCERPT_CHARS)
         try:
             present = candidate.is_file()
         except (OSError, ValueError):  # a name too long for the file system, a NUL byte (a hand-edited plan.json)
             present = False
         if not present:
-            looked.append(f"{excerpt(str(candidate), PATH_EXCERPT_CHARS)} (not found)")
+            looked.append(f"{shown} (not found)")
             continue
         try:
             found = load_robot(candidate)
         except ArmgenError as exc:
-            looked.append(f"{candidate} (not loadable: {excerpt(str(exc), 120)})")
+            looked.append(f"{shown} (not loadable: {excerpt(str(exc), 120)})")
             continue
         if sha and found.sha256 != sha:
-            looked.append(f"{candidate} (another sha256 {found.sha256[:12]}…: changed since planning)")
+            looked.append(f"{shown} (another sha256 {found.sha256[:12]}…: changed since planning)")
             continue
         return found
     label = name or Path(file).stem
