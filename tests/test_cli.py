@@ -179,7 +179,7 @@ def test_summary_rows_convert_every_unit_and_shorten_long_lists():
     summary = {"max_abs_q_deg": [10.0, -120.0, 30.0, 40.0], "final_tip_mm": [879.47, 300.0, -0.0],
                "peak_velocity_rad_s": {"j1": 1.0, "j2": -2.0, "j3": 0.5, "j4": 0.1},
                "min_clearance_mm": {"wall": 19.96, "disc": 57.12}, "peak_ddq_deg_s2": 180.0,
-               "w_min_mm3": 1e6, "duration_s": 2.5, "tracks": True, "limit_violations": [],
+               "w_min_mm3": 1e6, "duration_s": 2.5, "tracks": True, "limit_violations": [], "H_M_before_lock": 0.25,
                "joint_speed": {"peak_speed_ratio": [0.2, 0.85], "peak_acceleration_ratio": [None, None],
                                "within_speed_limits": True, "beyond_speed_limits": []}}
     rows = {label: (value, unit) for label, value, unit in
@@ -191,7 +191,7 @@ def test_summary_rows_convert_every_unit_and_shorten_long_lists():
     assert rows["peak ddq"] == (f"{math.pi:.4g}", "rad/s²")
     assert rows["w min"] == ("0.001", "m³")  # 1e6 mm³ = 1e-3 m³
     assert rows["duration"] == ("2.5", "s") and rows["tracks"] == ("yes", "")
-    assert rows["limit violations"] == ("none", "")
+    assert rows["limit violations"] == ("none", "") and rows["H_M before lock"] == ("0.25", "")
     assert rows["peak joint speed"] == ("85% of qdlim (joint 2)", "") and "peak joint acceleration" not in rows
     mm = {label: (value, unit) for label, value, unit in
           summary_rows({"task": {"units": {"length": "mm", "angle": "deg"}}, "summary": summary})}

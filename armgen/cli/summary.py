@@ -39,6 +39,14 @@ def file_units(metadata: dict[str, Any]) -> tuple[str, str]:
     return (length if length in FILE_UNIT_SCALE else "m"), (angle if angle in FILE_UNIT_SCALE else "rad")
 
 
+def _label(tokens: list[str]) -> str:
+    """Words of a key, a symbol's subscript kept: H_M_before_lock → "H_M before lock"."""
+    label = tokens[0]
+    for previous, token in zip(tokens, tokens[1:]):
+        label += ("_" if len(previous) == 1 and previous.isupper() else " ") + token
+    return label
+
+
 def _key_unit(key: str) -> tuple[str, tuple[str, float, int] | None, int]:
     """(label, (dimension, SI scale, power) or None, time exponent) of a summary key."""
     tokens = key.split("_")
@@ -47,11 +55,11 @@ def _key_unit(key: str) -> tuple[str, tuple[str, float, int] | None, int]:
         per_time = TIME_TOKENS[tokens.pop()]
     if len(tokens) > 1 and tokens[-1] in UNIT_TOKENS:
         unit = UNIT_TOKENS[tokens.pop()]
-        return " ".join(tokens), unit, per_time
+        return _label(tokens), unit, per_time
     if len(tokens) > 1 and tokens[-1] == "s":  # a time: duration_s, run_time_s
         tokens.pop()
-        return " ".join(tokens), None, -1
-    return " ".join(tokens), None, 0
+        return _label(tokens), None, -1
+    return _label(tokens), None, 0
 
 
 class _Converter:
