@@ -43,7 +43,7 @@ def _label(tokens: list[str]) -> str:
     """Words of a key, a symbol's subscript kept: H_M_before_lock → "H_M before lock"."""
     label = tokens[0]
     for previous, token in zip(tokens, tokens[1:]):
-        label += ("_" if len(previous) == 1 and previous.isupper() else " ") + token
+        label += ("_" if len(previous) == 1 and previous.isupper() and len(token) == 1 else " ") + token
     return label
 
 
