@@ -722,7 +722,7 @@ def mutate_ik_cli(rng: random.Random) -> tuple[list[str], bool]:
         action = rng.choice(["xyz", "rpy", "seed", "q0", "iterations", "units", "drop_rpy", "off_plane"])
         if action in ("xyz", "rpy"):
             text, invalid = rng.choice(IK_CLI_NUMBERS)
-            options[f"--{action}"][rng.randrange(3)] = text
+            options.setdefault(f"--{action}", ["0", "0", "0"])[rng.randrange(3)] = text
         elif action in ("seed", "q0"):
             text, invalid = rng.choice([("nosuch", True), ("1,2", True), (",".join(["nan"] * robot.n), True),
                                         (",".join(["0"] * (robot.n + 1)), True), ("x" * 5000, True),
