@@ -2,8 +2,8 @@
 
 The deviation is the plan's ``pos_err_m``: the tool's distance from where the path puts it at
 that time (an upper bound on its distance from the path), at the written samples. Explicit
-Euler leaves the tool about ``h/2 · Δṡ`` behind at every speed ramp (2–4 mm at 200 mm/s and
-h = 20 ms), so a plan that misses the tolerance is made again with the integrator step halved
+Euler's error is first order, of the order of ``ṡ h`` (4 mm at 200 mm/s and h = 20 ms on the
+seam of tests/test_path_tolerance.py, open loop), so a plan that misses the tolerance is made again with the integrator step halved
 (the same integrator: the controller runs a plan one Euler step per tick) until it meets the
 tolerance, and refused (exit 3) when halving no longer helps.
 
