@@ -133,7 +133,8 @@ def test_bad_program_config_is_refused_at_init(baxter_builder, tmp_path, name, e
 
 def test_plan_from_disk_is_planned_again_and_checked(tmp_path):
     """--plan plan.csv: the program's time law is the task's planned again, which must give the
-    plan's duration; a plan.json that says otherwise is refused (exit 5), nothing written."""
+    plan's samples; a CSV that says otherwise is refused (exit 5), nothing written. The firmware
+    project ships the plan its task gives: a plan.json's other fields never reach it (issue 37)."""
     task = tmp_path / "seam.toml"
     task.write_text(bar_task("cartesian"))
     plan_csv = tmp_path / "plan.csv"
@@ -149,15 +150,20 @@ def test_plan_from_disk_is_planned_again_and_checked(tmp_path):
     lines = csv_text.splitlines(keepends=True)
     cells = lines[5].split(",")
     cells[1] = repr(float(cells[1]) + 1e-6)  # one joint angle 1e-6 rad off: another plan
-    tampered = {"duration": (json.dumps(meta), csv_text),
-                "sample": (meta_text, "".join(lines[:5] + [",".join(cells)] + lines[6:]))}
-    for what, (json_text, plan_text) in tampered.items():
-        plan_csv.with_suffix(".json").write_text(json_text)
-        plan_csv.write_text(plan_text)
-        out = CliRunner().invoke(cli, ["firmware", str(BAXTER), "--plan", str(plan_csv), "--out", str(tmp_path / "fw")])
-        assert out.exit_code == 5, (what, out.output)
-        assert "does not give this plan" in out.output, (what, out.output)
-        assert not (tmp_path / "fw").exists()
+    plan_csv.with_suffix(".json").write_text(meta_text)
+    plan_csv.write_text("".join(lines[:5] + [",".join(cells)] + lines[6:]))
+    out = CliRunner().invoke(cli, ["firmware", str(BAXTER), "--plan", str(plan_csv), "--out", str(tmp_path / "fw")])
+    assert out.exit_code == 5, out.output
+    assert "does not give this plan" in out.output, out.output
+    assert not (tmp_path / "fw").exists()
+    plan_csv.with_suffix(".json").write_text(json.dumps(meta))
+    plan_csv.write_text(csv_text)
+    with pytest.raises(fw.FirmwareError, match="does not give this plan"):
+        fw.task_from_plan(read_plan(plan_csv), str(plan_csv))
+    out = CliRunner().invoke(cli, ["firmware", str(BAXTER), "--plan", str(plan_csv), "--out", str(tmp_path / "fw")])
+    assert out.exit_code == 0, out.output
+    shipped = json.loads((tmp_path / "fw" / "demo" / "plan.json").read_text())
+    assert shipped["path"]["program_duration_s"] == json.loads(meta_text)["path"]["program_duration_s"]
 
 
 @pytest.mark.arm

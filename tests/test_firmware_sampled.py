@@ -213,25 +213,34 @@ def test_snake_plan_for_another_robot_is_refused(tmp_path):
 
 
 def test_snake_plan_runs_in_the_project(tmp_path, monkeypatch):
-    """plan snake_planar → `armgen firmware snake12 --plan` → CMake host build → run →
-    `armgen verify --run`: exact to the SPEED stop."""
+    """plan snake_tank → `armgen firmware snake12 --plan` → CMake host build → run →
+    `armgen verify --run`: every command the plan's sample, exactly, to DONE."""
     require_tool("cmake")
-    plan_path = tmp_path / "planar.csv"
-    assert CliRunner().invoke(cli, ["plan", str(EXAMPLES / "snake_planar.toml"), "-o", str(plan_path)]).exit_code == 0
+    plan_path = tmp_path / "tank.csv"
+    assert CliRunner().invoke(cli, ["plan", str(EXAMPLES / "snake_tank.toml"), "-o", str(plan_path)]).exit_code == 0
     out = CliRunner().invoke(cli, ["firmware", "snake12", "--plan", str(plan_path), "--out", str(tmp_path / "fw")])
     assert out.exit_code == 0, out.output
     project = tmp_path / "fw"
     assert "CTRL_MODE_SAMPLED" in (project / "task" / "task_params.h").read_text()
     run_csv = _build_and_run(project)
-    plan = read_plan(plan_path)
-    q = plan_q(plan)
-    first = int(np.flatnonzero((np.abs(np.diff(q, axis=0)) > SNAKE12_QDLIM * 0.01).any(axis=1))[0])
-    assert np.array_equal(ticks(fw.parse_output(run_csv.read_text()))[:first, 2:27], q[:first])
+    q = plan_q(read_plan(plan_path))
+    assert np.array_equal(ticks(fw.parse_output(run_csv.read_text()))[:, 2:27], q)
     monkeypatch.chdir(project)
     out = CliRunner().invoke(cli, ["verify", "robot.toml", "-o", "generated", "--plan", "demo/plan.csv", "--run",
                                    "run.csv", "--samples", "20", "--precision", "double"])
     assert out.exit_code == 0, out.output
-    assert "== run: PASS" in out.output and f"SPEED at tick {first}" in out.output
+    assert "== run: PASS" in out.output and f"DONE at {len(q) - 1}" in out.output
+
+
+def test_snake_plan_beyond_the_speed_limits_is_not_shipped(tmp_path):
+    """snake_planar asks a12 for 1.29 times its qdlim and says limits = "report" (the paper's
+    speed, written to be inspected): `armgen firmware` refuses it (exit 3), nothing written."""
+    plan_path = tmp_path / "planar.csv"
+    assert CliRunner().invoke(cli, ["plan", str(EXAMPLES / "snake_planar.toml"), "-o", str(plan_path)]).exit_code == 0
+    out = CliRunner().invoke(cli, ["firmware", "snake12", "--plan", str(plan_path), "--out", str(tmp_path / "fw")])
+    assert out.exit_code == 3, out.output
+    assert "'a12'" in out.output and "velocity limit" in out.output and "never to run it" in out.output
+    assert not (tmp_path / "fw").exists()
 
 
 @pytest.mark.arm

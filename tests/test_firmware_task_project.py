@@ -19,9 +19,9 @@ from conftest import require_tool
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLES = REPO / "armgen" / "data" / "examples"
-# A 40-s version of the bundled pinv circle (2 000 ticks at 20 ms); it leaves joint 6's limit at
-# 17.84 s on purpose (the bundled baseline does too), so the run must stop there with JOINT_LIMIT.
-CIRCLE_DURATION_S = 40
+# A small circle of the tool from modular8's q0 (mm), 4 s at 20 ms: 200 ticks, inside the limits
+# (the bundled pinv circle leaves them on purpose, a plan the firmware refuses).
+CIRCLE_VIA_MM, CIRCLE_END_MM = [40.0, 40.0, 0.0], [80.0, 0.0, 0.0]
 
 
 def _build_and_run(project: Path) -> Path:
@@ -48,9 +48,13 @@ def _verify_run(project: Path, monkeypatch) -> str:
 
 def test_task_file_runs_in_the_project(tmp_path, monkeypatch):
     require_tool("cmake")
-    text = (EXAMPLES / "modular8_circle_pinv.toml").read_text()
+    robot = load_robot("modular8")
+    p0 = robot.fk(robot.configuration("q0"))[:3, 3] * 1000
     task = tmp_path / "circle.toml"
-    task.write_text(text.replace("duration = 250", f"duration = {CIRCLE_DURATION_S}"))
+    task.write_text(f'planner = "cartesian"\nrobot = "modular8"\nstart = "q0"\n[units]\nlength = "mm"\n[path]\n'
+                    f'type = "circle"\nvia = {(p0 + CIRCLE_VIA_MM).tolist()}\nend = {(p0 + CIRCLE_END_MM).tolist()}\n'
+                    'orientation = "hold"\n[timing]\nduration = 4\nlaw = "cubic"\n[integrator]\nmethod = "euler"\n'
+                    'step = 0.02\n[method]\nname = "pinv"\n')
     out = CliRunner().invoke(cli, ["firmware", "modular8", "--task", str(task), "--out", str(tmp_path / "fw")])
     assert out.exit_code == 0, out.output
     project = tmp_path / "fw"
@@ -63,8 +67,8 @@ def test_task_file_runs_in_the_project(tmp_path, monkeypatch):
     assert {k: v for k, v in copied.items() if k != "robot"} == {k: v for k, v in original.items() if k != "robot"}
     _build_and_run(project)
     output = _verify_run(project, monkeypatch)
-    # the double run equals the plan to 1e-9 rad and stops where the plan leaves the limits
-    assert "run.csv (double)" in output and "JOINT_LIMIT at tick 892" in output
+    # the double run equals the plan to 1e-9 rad to its end
+    assert "run.csv (double)" in output and "DONE at 200" in output
 
 
 def test_plan_runs_in_the_project(tmp_path, monkeypatch):

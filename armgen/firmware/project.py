@@ -1,11 +1,13 @@
 """``armgen firmware ROBOT --out DIR [--task TASK.toml | --plan plan.csv]``: a self-contained C
 project for any robot, running the user's task or a demo.
 
-The folder holds the robot file, its generated kinematics (as ``armgen gen`` writes them), the
+The folder holds the robot (:func:`project_robot_files`), its generated kinematics (as ``armgen gen`` writes them), the
 controller sources of the firmware stub, a compiled-in demo task with armgen's plan of it, a
 ``CMakeLists.txt`` that builds the host demo out of the box and, with the toolchain file it
 ships, the Cortex-M4F image, and a README. The folder appears complete or not at all: it is
-assembled in a hidden staging folder beside ``DIR`` and renamed into place.
+assembled in a hidden staging folder beside ``DIR`` and renamed into place. Nothing outside
+``DIR`` is written or deleted: a symbolic link on the way to any file the project owns is
+refused (:func:`_check_no_links`).
 
 The task the project's demo runs (:class:`ProjectTask`): the user's task file (planned here) or
 plan, when given; else the built-in demo task (:func:`demo_task`): a straight line of the tool, orientation held, from the
@@ -18,6 +20,7 @@ is tried: the first one the planner completes is used.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import json
 import os
@@ -32,21 +35,32 @@ import numpy as np
 
 from .. import __version__
 from ..codegen.generate import CodegenConfig, generate
-from ..errors import ArmgenError, OutputError, PlanningError, TaskFileError, excerpt
+from ..errors import ArmgenError, OutputError, PlanningError, RobotFileError, TaskFileError, excerpt
+from ..planning.limits import enforce_limits, enforce_speed_limits
 from ..planning.result import PlanResult, read_plan, write_plan
 from ..planning.tasks import load_task, run_task
 from ..planning.toolpath.task import MAX_POSES_FILE_BYTES
 from ..robot import Robot, load_robot, resolve_robot_path
-from ..schemas import read_input_file
+from ..schemas import MAX_INPUT_FILE_BYTES, parse_toml_bounded, read_input_file
 from ..symbolic.model import SymbolicModel
-from .configuration import FirmwareTask, refusal, task_from_plan, task_source, write_task_files
+from .configuration import (REPLANNED_SAMPLE_TOL, FirmwareTask, refusal, task_from_plan, task_source,
+                            write_task_files)
 from .errors import FirmwareError
 
 DEMO_DURATION_S = 1.0
 DEMO_STEP_S = 0.01  # the controller's tick: 100 ticks, a short demo and a small CSV
 DEMO_DISTANCES_M = (0.05, 0.02)
 DEMO_DIRECTIONS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
-PROJECT_ROBOT_FILE = "robot.toml"  # the project's copy of the robot file; tasks name it so
+# A plan given with --plan is planned again from its task; each sample must come back to
+# REPLANNED_SAMPLE_TOL (configuration.py: the CSV holds the doubles exactly) plus this
+# fraction of its size: columns far from 1 (condition numbers ~1e6) round differently by
+# ~1e-15 relative on another machine's BLAS, while an edited sample differs by far more.
+REPLANNED_SAMPLE_RTOL = 1e-9
+PROJECT_ROBOT_FILE = "robot.toml"  # the project's robot file (DH, or a URDF's wrapper); tasks name it so
+PROJECT_URDF_FILE = "robot.urdf"  # the project's copy of a URDF: the robot file itself, or the one its wrapper names
+# The first line of the project's copy of a URDF's wrapper (the same every time, so that
+# regenerating the project from its own robot.toml gives the same bytes).
+WRAPPER_COMMENT = "# The robot file of this project, written by `armgen firmware`: urdf names the project's copy."
 MANIFEST = ".armgen-firmware"  # the files this command wrote there, with their SHA-256 (JSON)
 
 # The stub's files the project needs, by their place in the project.
@@ -96,9 +110,13 @@ def plan_demo(robot: Robot, robot_ref: str, source: str = "demo task"):
                 start = task["start"] if isinstance(task["start"], str) else "mid-range of the limits"
                 return task, result, (f"a {distance * 100:g} cm line along {sign}{axis} in {DEMO_DURATION_S:g} s "
                                       f"from configuration {start}, orientation held")
+    fix = ("add a named configuration q0 away from the limits and singular poses to the robot file" if not robot.urdf
+           else "a URDF holds no named configuration: write a robot file that references it (urdf = "
+                f"\"{Path(robot.urdf['file']).name}\") with [configurations] q0 = [...] away from the limits and "
+                "singular poses, and give that file (or give --task with a start of your own)")
     raise PlanningError(f"robot '{robot.name}': no demo line (±x, ±y, ±z; 5 or 2 cm) can be planned from its "
-                        f"start configuration; add a named configuration q0 away from the limits and singular "
-                        f"poses to the robot file (last reason: {reasons[-1] if reasons else '?'})")
+                        f"start configuration ({demo_start(robot)[0] or 'mid-range of the limits'}); "
+                        f"{fix} (last reason: {reasons[-1] if reasons else '?'})")
 
 
 @dataclass
@@ -114,25 +132,36 @@ class ProjectTask:
     folder: Path | None = None  # the folder the task's own files (a program's poses) are relative to
 
 
-def _own_robot(job: ProjectTask, robot: Robot) -> ProjectTask:
-    if job.firmware.robot.sha256 != robot.sha256:
-        raise FirmwareError(f"{job.source}: the task is for robot '{job.firmware.robot.name}' (robot file sha256 "
-                            f"{job.firmware.robot.sha256[:12]}…), the project for '{robot.name}' "
-                            f"({robot.sha256[:12]}…); give the task's robot file to armgen firmware, or a task for "
-                            "this robot")
-    return job
+def _within_limits(result: PlanResult, source: str) -> None:
+    """Refuse a plan that leaves a joint's position, speed or acceleration limits, whatever its
+    task's ``[check] limits`` says: "report" writes such a plan to inspect it, never to run it."""
+    summary = result.metadata.get("summary") or {}
+    try:
+        enforce_limits(summary.get("limit_violations") or [], "enforce", source)
+        enforce_speed_limits(summary.get("joint_speed"), "enforce", source, str(result.metadata.get("planner", "")))
+    except PlanningError as exc:
+        raise PlanningError(f"{exc}. The firmware runs only plans within the joint limits, whatever [check] limits "
+                            "says (\"report\" writes a plan to inspect it, never to run it)") from None
 
 
 def _runnable(result: PlanResult, source: str, robot: Robot) -> FirmwareTask:
+    """The controller's task of a plan for ``robot`` that the controller reproduces and that
+    stays within the joint limits; else the error that says why not."""
     reason = refusal(result)
     if reason is not None:
         raise FirmwareError(f"{source}: the controller cannot reproduce this plan: {reason}")
-    return task_from_plan(result, source, robot)
+    firmware = task_from_plan(result, source, robot)
+    if firmware.robot.sha256 != robot.sha256:
+        raise FirmwareError(f"{source}: the task is for robot '{firmware.robot.name}' (robot file sha256 "
+                            f"{firmware.robot.sha256[:12]}…), the project for '{robot.name}' ({robot.sha256[:12]}…); "
+                            "give the task's robot file to armgen firmware, or a task for this robot")
+    _within_limits(result, source)
+    return firmware
 
 
 def demo_project_task(robot: Robot, robot_ref: str) -> ProjectTask:
     planned, result, description = plan_demo(robot, robot_ref, "demo/demo.toml")
-    return ProjectTask(planned, result, task_from_plan(result, "demo/demo.toml", robot), description, "demo task")
+    return ProjectTask(planned, result, _runnable(result, "demo/demo.toml", robot), description, "demo task")
 
 
 def task_file_project_task(robot: Robot, task_path: str | Path) -> ProjectTask:
@@ -140,26 +169,85 @@ def task_file_project_task(robot: Robot, task_path: str | Path) -> ProjectTask:
     task, sha = load_task(task_path)
     source = str(task_path)
     result = run_task(task, source, sha)
-    job = ProjectTask(task, result, _runnable(result, source, robot),
-                      f"the task of {Path(task_path).name} (planner {task.get('planner')})", source,
-                      Path(task_path).parent)
-    return _own_robot(job, robot)
+    return ProjectTask(task, result, _runnable(result, source, robot),
+                       f"the task of {Path(task_path).name} (planner {task.get('planner')})", source,
+                       Path(task_path).parent)
+
+
+def _differing_sample(recorded: PlanResult, replanned: PlanResult) -> str | None:
+    """Where the recorded plan differs from its task planned again (None: nowhere beyond
+    :data:`REPLANNED_SAMPLE_TOL` + :data:`REPLANNED_SAMPLE_RTOL` · |sample|)."""
+    if replanned.columns != recorded.columns or replanned.data.shape != recorded.data.shape:
+        return (f"{replanned.data.shape[0]} samples of {len(replanned.columns)} columns, the CSV has "
+                f"{recorded.data.shape[0]} of {len(recorded.columns)}")
+    close = np.isclose(recorded.data, replanned.data, rtol=REPLANNED_SAMPLE_RTOL, atol=REPLANNED_SAMPLE_TOL)
+    if close.all():
+        return None
+    row, col = (int(k) for k in np.argwhere(~close)[0])
+    return (f"line {row + 2}, column '{recorded.columns[col]}': {recorded.data[row, col]!r} in the CSV, "
+            f"{replanned.data[row, col]!r} planned")
 
 
 def plan_project_task(robot: Robot, plan_path: str | Path) -> ProjectTask:
-    """A plan made already by ``armgen plan`` (its CSV and plan.json)."""
+    """A plan made already by ``armgen plan`` (its CSV and plan.json). Its recorded task is
+    planned again and must give the CSV's samples (a hand-edited CSV, or a plan.json whose task
+    was changed, is refused); the project uses that new plan, never the file's metadata."""
     source = str(plan_path)
-    result = read_plan(plan_path)
-    task = result.metadata.get("task") or None
-    job = ProjectTask(task, result, _runnable(result, source, robot),
-                      f"the plan {Path(plan_path).name} (planner {result.metadata.get('planner')})", source,
-                      Path(task_source(result, source)).parent)
-    return _own_robot(job, robot)
+    recorded = read_plan(plan_path)
+    task = recorded.metadata.get("task")
+    if not isinstance(task, dict) or not task:
+        raise FirmwareError(f"{source}: its plan.json holds no task, and the firmware runs only a plan it can "
+                            "reproduce from its task; keep the plan.json `armgen plan` wrote beside the CSV, or give "
+                            "the task file (--task)")
+    result = run_task(json.loads(json.dumps(task)), task_source(recorded, source),
+                      str(recorded.metadata.get("task_sha256") or ""))
+    differs = _differing_sample(recorded, result)
+    if differs is not None:
+        raise FirmwareError(f"{source}: planning the task recorded in its plan.json again does not give this plan "
+                            f"({differs}): the CSV or plan.json was edited, or made by another armgen, robot file or "
+                            "poses file; plan the task again with `armgen plan` and give that plan, or give the task "
+                            "file (--task)")
+    return ProjectTask(task, result, _runnable(result, source, robot),
+                       f"the plan {Path(plan_path).name} (planner {result.metadata.get('planner')})", source,
+                       Path(task_source(recorded, source)).parent)
+
+
+def project_robot_files(robot_path: Path, robot: Robot) -> tuple[str, dict[str, bytes]]:
+    """The project's copy of the robot: (the file tasks and the README name, {file: bytes}).
+
+    A DH robot file is ``robot.toml`` and a URDF ``robot.urdf``, byte for byte (the same
+    SHA-256, so the robot is the same one for every check). A robot file that references a URDF
+    becomes ``robot.toml`` with ``urdf = "robot.urdf"`` beside the URDF's copy: every other
+    field as the user wrote it (comments are not kept), since its own reference may point
+    anywhere (``../urdf/arm.urdf``, a ROS package) and the project must stand alone."""
+    data = read_input_file(robot_path, MAX_INPUT_FILE_BYTES, "robot file", RobotFileError)
+    if not robot.urdf:
+        return PROJECT_ROBOT_FILE, {PROJECT_ROBOT_FILE: data}
+    if robot_path.suffix.lower() == ".urdf":  # the URDF itself (as load_robot tells them apart)
+        return PROJECT_URDF_FILE, {PROJECT_URDF_FILE: data}
+    urdf_path = Path(robot.urdf["file"])
+    urdf = read_input_file(urdf_path, MAX_INPUT_FILE_BYTES, "URDF file", RobotFileError)
+    doc = dict(parse_toml_bounded(data, str(robot_path), RobotFileError), urdf=PROJECT_URDF_FILE)
+    text = "\n".join([WRAPPER_COMMENT, *_toml_table(doc, "")]) + "\n"
+    return PROJECT_ROBOT_FILE, {PROJECT_ROBOT_FILE: text.encode("utf-8"), PROJECT_URDF_FILE: urdf}
+
+
+def _project_robot(stage: Path, robot_file: str) -> Robot:
+    """The robot as the project's own copy describes it, named by its place in the project."""
+    return dataclasses.replace(load_robot(stage / robot_file), source=robot_file)
+
+
+def _relocate_robot(metadata: dict[str, Any], robot: Robot) -> None:
+    """The plan's record of its robot names the project's copy (the plan was made from the
+    user's file: the same robot, which a URDF wrapper's copy gives another SHA-256)."""
+    recorded = metadata.get("robot")
+    if isinstance(recorded, dict):
+        metadata["robot"] = dict(recorded, file=robot.source, sha256=robot.sha256)
 
 
 def _toml_value(value: Any) -> str:
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, str):  # a JSON string is a TOML basic string once DEL is escaped too
+        return json.dumps(value, ensure_ascii=False).replace("\x7f", "\\u007f")
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     if isinstance(value, dict):  # a table inside an array (a program's moves): inline
@@ -202,11 +290,13 @@ def _digest(path: Path) -> str:
 
 def _owned_files(out: Path) -> dict[str, str]:
     """The files (relative path → SHA-256) the manifest of an earlier project lists; {} for a
-    new or empty folder. A folder without a readable manifest is refused."""
+    new or empty folder. A folder without a readable manifest is refused, and so is a project
+    with a symbolic link on the way to the manifest or to a file it lists."""
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out}: is a file; give a folder for the firmware project (nothing was written)")
     if not out.is_dir() or not any(out.iterdir()):
         return {}
+    _check_no_links(out, [MANIFEST])
     try:
         manifest = json.loads((out / MANIFEST).read_text(encoding="utf-8"))
         files = manifest["files"]
@@ -216,10 +306,36 @@ def _owned_files(out: Path) -> dict[str, str]:
         raise OutputError(f"--out {out}: the folder exists and was not written by `armgen firmware` (no readable "
                           f"{MANIFEST} manifest); give a new or empty folder (nothing was written)") from None
     for name in files:
-        if Path(name).is_absolute() or ".." in Path(name).parts:
+        if not name or Path(name).is_absolute() or ".." in Path(name).parts:
             raise OutputError(f"--out {out}: {MANIFEST} lists {excerpt(name)!r}, not a file of the project; "
                               "give a new or empty folder (nothing was written)")
+    _check_no_links(out, files)
     return files
+
+
+def _link_on_the_way(out: Path, name: str) -> Path | None:
+    """The first symbolic link among the folders and the file of ``out / name`` (``out`` itself
+    is the user's choice), or None: the path then resolves to itself inside ``out``."""
+    path = out
+    for part in Path(name).parts:
+        path = path / part
+        if path.is_symlink():
+            return path
+    return None
+
+
+def _check_no_links(out: Path, names) -> None:
+    """Refuse to write or delete ``out / name`` for any of ``names`` through a symbolic link: a
+    linked folder or file of the project would make this command touch what the link points to,
+    outside --out."""
+    for name in names:
+        link = _link_on_the_way(out, name)
+        if link is not None:
+            what = "file" if link == out / name else "folder"
+            raise OutputError(f"--out {out}: {link} is a symbolic link (to {excerpt(os.readlink(link))}), and "
+                              f"`armgen firmware` writes and deletes the project's files ({excerpt(name)}) only inside "
+                              f"--out, never through a link; replace {link} by a real {what} of the project (or "
+                              "remove it) and run again (nothing was written)")
 
 
 def _conflicts(out: Path, owned: dict[str, str], new: list[str]) -> list[str]:
@@ -264,9 +380,11 @@ def _copy_poses_files(task: dict[str, Any], folder: Path | None, demo: Path) -> 
     return dict(task, path=dict(path, moves=moves))
 
 
-def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, job: ProjectTask) -> None:
+def _assemble(stage: Path, robot_file: str, robot_files: dict[str, bytes], job: ProjectTask) -> None:
     stub = resources.files("armgen.data") / "firmware_stub"
-    (stage / PROJECT_ROBOT_FILE).write_bytes(robot_bytes)
+    for name, data in robot_files.items():
+        (stage / name).write_bytes(data)
+    robot = _project_robot(stage, robot_file)
     code = generate(CodegenConfig(robot))
     (stage / "generated").mkdir()
     for name, text in code.files.items():
@@ -281,15 +399,16 @@ def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, job: ProjectTask) -
     if job.task is not None:
         # The project names its own copy of the robot file, so it plans and verifies in place:
         # demo.toml relative to itself (as every task file), the plan's task from the project.
-        task = _copy_poses_files(dict(job.task, robot=PROJECT_ROBOT_FILE), job.folder, stage / "demo")
-        toml_text = task_toml(dict(task, robot=f"../{PROJECT_ROBOT_FILE}"),
+        task = _copy_poses_files(dict(job.task, robot=robot_file), job.folder, stage / "demo")
+        toml_text = task_toml(dict(task, robot=f"../{robot_file}"),
                               f"The task of robot '{robot.name}' the demo runs: {job.description}.")
         (stage / "demo" / "demo.toml").write_text(toml_text, encoding="utf-8")
         result.metadata["task"] = task
         result.metadata["task_sha256"] = hashlib.sha256(toml_text.encode()).hexdigest()
         result.metadata["task_file"] = "demo/demo.toml"
+    _relocate_robot(result.metadata, robot)
     write_plan(result, stage / "demo" / "plan.csv")
-    values = {"ROBOT": robot.name, "NDOF": str(robot.n), "PREFIX": code.prefix, "PREFIX_UC": code.prefix.upper(),
+    values = {"ROBOT": robot.name, "ROBOT_FILE": robot_file, "ROBOT_FILES": _robot_rows(robot_files), "NDOF": str(robot.n), "PREFIX": code.prefix, "PREFIX_UC": code.prefix.upper(),
               "MAX_SEGMENTS": str(job.firmware.max_segments), "VERSION": __version__, "SHA256": robot.sha256,
               "DEMO": job.description}
     project = stub / "project"
@@ -302,6 +421,16 @@ def _assemble(stage: Path, robot: Robot, robot_bytes: bytes, job: ProjectTask) -
         (project / "cmake" / "arm-none-eabi-cortex-m4.cmake").read_bytes())
 
 
+def _robot_rows(robot_files: dict[str, bytes]) -> str:
+    """The README's rows for the project's robot files."""
+    if PROJECT_URDF_FILE not in robot_files:
+        return f"| `{PROJECT_ROBOT_FILE}` | the robot file the code was generated from (byte for byte) |"
+    if PROJECT_ROBOT_FILE not in robot_files:
+        return f"| `{PROJECT_URDF_FILE}` | the URDF the code was generated from (byte for byte) |"
+    return (f"| `{PROJECT_ROBOT_FILE}` | the robot file the code was generated from, its `urdf` naming `{PROJECT_URDF_FILE}` |\n"
+            f"| `{PROJECT_URDF_FILE}` | the URDF it references (byte for byte) |")
+
+
 def write_firmware_project(robot_ref: str, out: str | Path, task: str | Path | None = None,
                            plan: str | Path | None = None) -> tuple[Robot, list[Path]]:
     """Write the project into ``out`` (new, empty, or a project this command wrote earlier:
@@ -311,9 +440,8 @@ def write_firmware_project(robot_ref: str, out: str | Path, task: str | Path | N
     out = Path(out)
     owned = _owned_files(out)
     _check_writable(out)
-    robot_path = resolve_robot_path(robot_ref)
     robot = load_robot(robot_ref)
-    robot_bytes = robot_path.read_bytes()
+    robot_file, robot_files = project_robot_files(resolve_robot_path(robot_ref), robot)
     if task is not None:
         job = task_file_project_task(robot, task)
     elif plan is not None:
@@ -328,9 +456,10 @@ def write_firmware_project(robot_ref: str, out: str | Path, task: str | Path | N
         raise OutputError(f"--out {out}: cannot write in {parent}: {exc.strerror or exc}; choose a writable "
                           "folder (nothing was written)") from None
     try:
-        _assemble(stage, robot, robot_bytes, job)
+        _assemble(stage, robot_file, robot_files, job)
         _apply_umask(stage)
         new = sorted(p.relative_to(stage).as_posix() for p in stage.rglob("*") if p.is_file())
+        _check_no_links(out, new)
         conflicts = _conflicts(out, owned, new)
         if conflicts:
             raise OutputError(f"--out {out}: these files were changed or added by hand and the new project would "
@@ -358,6 +487,7 @@ def _move_in(stage: Path, out: Path, names: list[str], dropped: list[str]) -> No
     done: list[tuple[str, bool]] = []  # (name, an old version was set aside)
     try:
         for name in names + dropped:
+            _check_no_links(out, [name])  # again: the folder may have changed since the first check
             target = out / name
             kept = aside / name
             had_old = target.is_file()
@@ -368,7 +498,7 @@ def _move_in(stage: Path, out: Path, names: list[str], dropped: list[str]) -> No
             if name in names:
                 target.parent.mkdir(parents=True, exist_ok=True)
                 os.replace(stage / name, target)
-    except OSError:
+    except (OSError, OutputError):
         for name, had_old in reversed(done):
             with contextlib.suppress(OSError):
                 if name in names and (out / name).is_file():
