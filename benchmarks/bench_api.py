@@ -61,7 +61,8 @@ def main() -> None:
     parser.add_argument("--robot", default="modular8")
     parser.add_argument("--batch", type=int, default=100_000)
     parser.add_argument("--out", type=Path, default=None, help="also write the figures as JSON")
-    parser.add_argument("--quick", action="store_true", help="a smoke run in about a second (small batch, bar not judged)")
+    parser.add_argument("--quick", action="store_true",
+                        help="a smoke run in about a second (small batch, bar not judged)")
     args = parser.parse_args()
     repeats, per_call_samples = (QUICK_REPEATS, QUICK_PER_CALL_SAMPLES) if args.quick else (REPEATS, PER_CALL_SAMPLES)
     if args.quick:
