@@ -53,8 +53,9 @@ URDF_JOINT_TYPES = MOVING_TYPES + ("fixed",) + UNSUPPORTED_TYPES
 _DECLARATION = re.compile(r"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
 # The robot-file bounds hold for URDF robots too: a moving joint's name is an identifier (it
 # names the joint in the generated C and the CSV columns), at most MAX_DOF moving joints on
-# the chain, origins and limits within MAX_ABS_LENGTH_M / MAX_ABS_ANGLE_RAD. Link and fixed
-# joint names only appear in messages: any text up to this length.
+# the chain, origins within MAX_ABS_LENGTH_M / MAX_ABS_ANGLE_RAD, prismatic limits within
+# MAX_ABS_LENGTH_M and revolute ones within MAX_REVOLUTE_LIMIT_RAD, speed limits from
+# MIN_JOINT_RATE. Link and fixed joint names only appear in messages: any text up to this length.
 MAX_URDF_NAME_CHARS = 256
 _IDENTIFIER = re.compile(IDENTIFIER_PATTERN)
 
@@ -332,16 +333,15 @@ def _limits(p: _Parser, raw: _RawJoint, where: str) -> tuple[float, float]:
     (upper,) = p.numbers(limit, "upper", f"{where} <limit>", 1, None)
     if not lower < upper:
         raise p.fail(f"{where} <limit>", f"lower = {lower} is not below upper = {upper}")
-    if raw.type == "revolute" and max(abs(lower), abs(upper)) > MAX_REVOLUTE_LIMIT_RAD:
-        raise p.fail(f"{where} <limit>", revolute_limit_message(lower, upper))
-    bound, unit = (MAX_ABS_LENGTH_M, "m") if raw.type == "prismatic" else (MAX_ABS_ANGLE_RAD, "rad")
-    if max(abs(lower), abs(upper)) > bound:
-        raise p.fail(f"{where} <limit>", f"lower = {lower:g}, upper = {upper:g} reach beyond ±{bound:g} {unit}; "
+    if raw.type == "prismatic" and max(abs(lower), abs(upper)) > MAX_ABS_LENGTH_M:
+        raise p.fail(f"{where} <limit>", f"lower = {lower:g}, upper = {upper:g} reach beyond ±{MAX_ABS_LENGTH_M:g} m; "
                                          "check the values (URDF is in m and rad)")
+    if raw.type == "revolute" and max(abs(lower), abs(upper)) > MAX_REVOLUTE_LIMIT_RAD:
+        raise p.fail(f"{where} <limit>", _revolute_limit_message(lower, upper))
     return (lower, upper)
 
 
-def revolute_limit_message(lower: float, upper: float) -> str:
+def _revolute_limit_message(lower: float, upper: float) -> str:
     """Why revolute limits beyond ``MAX_REVOLUTE_LIMIT_RAD`` are refused, and the fix: URDF
     angles are radians, and limits written in degrees read as radians protect nothing."""
     message = (f"lower = {lower:g}, upper = {upper:g} reach beyond ±{MAX_REVOLUTE_LIMIT_RAD:.4g} rad (two turns "
