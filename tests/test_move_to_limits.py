@@ -162,7 +162,9 @@ def setup(tmp_path_factory):
                           "theta": {j.name: [float(q), float(q)] for j, q in zip(robot.joints, q0)}}}
     ftask = fw.task_from_plan(run_task(task, "hold"), "hold", robot)  # holds q0: MOVE_TO starts there
     reachable = robot.fk(q0 + SLOW_MOVE_RAD)
-    targets = {"reachable": reachable, **non_poses(reachable)}
+    # joints through 0, where the commands' ulp is smallest and the profile's rounding
+    # (a few eps |delta|) is what the step guard must allow for
+    targets = {"reachable": reachable, "across_zero": robot.fk(-0.5 * q0), **non_poses(reachable)}
     for name, factor in (("inside_double", 0.5), ("outside_double", 2.0)):
         targets[name] = off_by(reachable, factor * ik.POSE_TOL)
     for name, factor in (("inside_float", 0.5), ("outside_float", 2.0)):
@@ -259,6 +261,15 @@ def test_slow_limits_at_a_fast_tick_keep_every_step_within_qdot_max_dt(setup, pr
     reached = robot.fk(q)
     assert np.linalg.norm(reached[:3, 3] - robot.fk(robot.configuration("q0") + SLOW_MOVE_RAD)[:3, 3]) <= \
         (1e-8 if precision == "double" else 1e-4)
+
+
+@pytest.mark.parametrize("precision", PRECISIONS)
+def test_a_slow_move_across_zero_keeps_every_step_within_qdot_max_dt(setup, precision):
+    robot = setup[2]
+    out = run(setup, precision, "move", index(setup, precision, "across_zero"), FAST_DT, 0.01, 0.01, -1)
+    assert out[1:3] == ["NONE", "DONE"] and float(out[4]) <= STEP_TOL[precision] and float(out[5]) <= 1.0
+    q = np.array([float(v) for v in out[6:]])
+    assert np.sum(np.sign(q) != np.sign(robot.configuration("q0"))) >= 3  # joints through 0 (the IK picks which)
 
 
 @pytest.mark.parametrize("precision", PRECISIONS)

@@ -41,9 +41,9 @@ typedef char ctrl_check_ptp_ncoef[(FW_PTP_NCOEF == CTRL_NCOEF) ? 1 : -1];
 #define POS_ERR_MAX_LIMIT CTRL_LIT(1.0)
 /* A playback plan must start where the arm is: |theta(t0) - q_start| below this, rad. */
 #define PLAYBACK_START_TOL CTRL_LIT(1e-5)
-/* Playback: a joint's speed may reach qdot_max, and one tick's step qdot_max * dt, times (1 +
- * this): the planners accept a plan up to 1e-9 above a limit, and a float table value (or a
- * polynomial's chord) carries a few 1e-5 of rounding relative to a step; this covers both. */
+/* Playback (and MOVE_TO): a joint's speed may reach qdot_max, and one tick's step qdot_max * dt,
+ * times (1 + this): the planners accept a plan up to 1e-9 above a limit, and a float table value
+ * (or a polynomial's chord) carries a few 1e-5 of rounding relative to a step; this covers both. */
 #define PLAYBACK_STEP_RTOL CTRL_LIT(1e-3)
 /* MOVE_TO. The IK's tolerances: float cannot resolve 1e-6 m on a ~1 m arm (its FK carries a
  * few 1e-7 of rounding), so 5e-5 m / rad there (half the 1e-4 the target is checked to);
@@ -71,12 +71,13 @@ typedef char ctrl_check_ptp_ncoef[(FW_PTP_NCOEF == CTRL_NCOEF) ? 1 : -1];
  * or qddot_max so low, for its dt, that a MOVE_TO over the joint's whole range would take longer
  * (4.7 h at 1 kHz, 28 min at 10 kHz): the lower bound of the limits. */
 #define MOVE_TO_MAX_TICKS CTRL_LIT(16777216.0)
-/* MOVE_TO's step guard: the planned step is at most (1 - MOVE_TO_MARGIN) qdot_max dt; the two
- * commands it compares, each q0 + s delta with s from a few operations, carry rounding of about
- * eps |q| + a few eps |delta| together (eps: the precision's machine epsilon), so 8 eps (|q0| +
- * |delta|) is allowed on top: in float what a slow limit at a fast tick needs (a step of a few
- * ulp of q; measured: at most 1e-7 rad beyond, tests/test_move_to_limits.py), in double ~1e-15 rad. */
-#define MOVE_TO_STEP_ROUNDING CTRL_LIT(8.0)
+/* The step guard of played-back commands (emit_played) allows, beyond PLAYBACK_STEP_RTOL, the
+ * rounding of the two commands it compares: an ulp of each (eps |q|, eps the precision's machine
+ * epsilon) and, for MOVE_TO's q0 + s delta with s from a few operations, a few eps |delta|
+ * (mt_delta, 0 in the other modes); 8 eps (|q| + |q_prev| + |delta|) covers both. A slow limit at
+ * a fast tick in float needs it (a step of a few ulp of q; measured at most 1e-7 rad beyond,
+ * tests/test_move_to_limits.py); in double it is ~1e-15 rad. */
+#define STEP_ROUNDING CTRL_LIT(8.0)
 #if CTRL_USE_FLOAT
 #define REAL_EPSILON FLT_EPSILON
 #else
@@ -1014,9 +1015,10 @@ static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, 
 }
 #endif
 
-/* A played-back command (PLAYBACK, SAMPLED) through the checks of playback: the limits, finite
- * velocities, and each joint's speed: |q_dot_i| <= qdot_max[i] and one tick's step at most
- * qdot_max[i] * dt (a little more for rounding); then emitted, and the next tick due. */
+/* A played-back command (PLAYBACK, SAMPLED, MOVE_TO) through the checks of playback: the limits,
+ * finite velocities, and each joint's speed: |q_dot_i| <= qdot_max[i] and one tick's step at most
+ * qdot_max[i] * dt (a little more for rounding: PLAYBACK_STEP_RTOL, STEP_ROUNDING); then emitted,
+ * and the next tick due. */
 static ctrl_fault emit_played(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd, ctrl_output *out) {
   const ctrl_config *cfg = &c->cfg;
   ctrl_fault f = check_command(c, q);
@@ -1025,7 +1027,13 @@ static ctrl_fault emit_played(ctrl *c, ctrl_real t, const ctrl_real *q, const ct
   if (f != CTRL_FAULT_NONE) return f;
   for (i = 0; i < N; ++i) {
     ctrl_real speed_max = cfg->qdot_max[i] * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
-    if (CTRL_FABS(qd[i]) > speed_max || CTRL_FABS(q[i] - c->q_hold[i]) > speed_max * cfg->dt) return CTRL_FAULT_SPEED;
+    ctrl_real step = CTRL_FABS(q[i] - c->q_hold[i]), step_max = speed_max * cfg->dt;
+    /* the rounding allowance only for a step beyond step_max (rare): no cost on a tick that passes */
+    if (CTRL_FABS(qd[i]) > speed_max ||
+        (step > step_max && step - step_max > STEP_ROUNDING * REAL_EPSILON *
+                                                  (CTRL_FABS(q[i]) + CTRL_FABS(c->q_hold[i]) + CTRL_FABS(c->mt_delta[i])))) {
+      return CTRL_FAULT_SPEED;
+    }
   }
   accept(c, t, q, qd, out);
   if (moving(c)) {
@@ -1156,29 +1164,17 @@ static ctrl_fault start_move_to(ctrl *c, const ctrl_real *target) {
   return CTRL_FAULT_NONE;
 }
 
+/* MOVE_TO, tick k: the profile's command, through the checks of a played-back command (limits,
+ * speed, and the step from the last command: the last tick's too, whose q_dot is 0). */
 static ctrl_fault tick_move_to(ctrl *c, ctrl_real t, ctrl_output *out) {
   ctrl_real q[N], qd[N], s, ds;
-  ctrl_fault f;
   int i;
   move_to_profile(t / c->mt_T, &s, &ds);
   for (i = 0; i < N; ++i) {
     q[i] = (c->k >= c->n_ticks) ? c->mt_q0[i] + c->mt_delta[i] : c->mt_q0[i] + s * c->mt_delta[i];
     qd[i] = (c->k >= c->n_ticks) ? CTRL_LIT(0.0) : ds * c->mt_delta[i] / c->mt_T;
   }
-  f = check_command(c, q);
-  if (f != CTRL_FAULT_NONE) return f;
-  for (i = 0; i < N; ++i) { /* the speed, and the step from the last command (the last tick's too) */
-    ctrl_real rounding = MOVE_TO_STEP_ROUNDING * REAL_EPSILON * (CTRL_FABS(c->mt_q0[i]) + CTRL_FABS(c->mt_delta[i]));
-    if (CTRL_FABS(qd[i]) > c->cfg.qdot_max[i] ||
-        CTRL_FABS(q[i] - c->q_hold[i]) > c->cfg.qdot_max[i] * c->cfg.dt + rounding) {
-      return CTRL_FAULT_SPEED;
-    }
-  }
-  accept(c, t, q, qd, out);
-  if (moving(c)) {
-    ++c->k;
-  }
-  return CTRL_FAULT_NONE;
+  return emit_played(c, t, q, qd, out);
 }
 
 static ctrl_fault tick_mode(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_output *out) {
