@@ -83,8 +83,13 @@ def test_wide_real_ranges_still_load(tmp_path, limit):
 
 
 def test_a_prismatic_joint_is_not_bound_by_turns(tmp_path):
-    path = write(tmp_path, "arm.urdf", planar_urdf(jtype="prismatic", limits=(("-20", "20"),) * 3))
+    path = write(tmp_path, "planar.urdf", planar_urdf(jtype="prismatic", limits=(("-20", "20"),) * 3))
     assert load_robot(path).qmax.tolist() == [20.0] * 3
+    # a robot file's limits of a prismatic joint are in its length unit
+    robot = load_robot(write(tmp_path, "arm.toml", WRAPPER + '[units]\nlength = "mm"\nangle = "deg"\n[limits]\n'
+                             'j1 = { qlim = [-500, 500], qdlim = 250, qddlim = 1000 }\n'))
+    assert robot.joints[0].qlim == pytest.approx((-0.5, 0.5), rel=CONVERSION_RTOL)
+    assert (robot.qdlim[0], robot.qddlim[0]) == pytest.approx((0.25, 1.0), rel=CONVERSION_RTOL)
 
 
 def test_dh_file_with_degree_limits_in_radians_is_refused():
