@@ -36,7 +36,8 @@ the next point of a deterministic sequence (a Kronecker sequence over the joint 
 steps on with the others (all move when none was held, and at every FULL_RESEED_EVERY-th
 attempt), up to ATTEMPTS attempts.
 The state carries the closest configuration seen (smallest ``½‖e‖²``), so a miss returns the
-closest one reached. ``max_iterations`` (≤ MAX_ITERATIONS) stops earlier: a bound on the time
+closest one reached. ``max_iterations`` (≤ MAX_ITERATIONS) stops earlier (≤ 0 takes no step: the
+initial state is already stopped): a bound on the time
 a call may take (on a Cortex-M4F, ~2.6k instructions per step of a 7-DOF arm, counting the
 restart and turn code once every five steps, the most often they run: the float C lets the
 compiler fuse the step's multiply–adds, ``Loop.fused_float``, and computes what only a restart
