@@ -30,6 +30,10 @@ REACHED_TOL = {"double": 1e-8, "float": 1e-4}
 # difference of float commands carries rounding of ~ulp(q)/dt² on the acceleration.
 LIMIT_RTOL = {"double": 1e-9, "float": 1e-3}
 ACC_ABS = {"double": 1e-6, "float": 0.5}  # rad/s²: 2 ulp(3 rad) / (0.01 s)² in float
+# Every tick's step from the previous command within qdot_max dt (the profile plans 1 - 1e-3 of
+# it), up to the rounding of the two commands: ~1e-16 rad in double, an ulp of |q| < 4 rad at
+# each end in float.
+STEP_ABS = {"double": 1e-14, "float": 2 * float(np.spacing(np.float32(4.0)))}
 
 DRIVER = r"""
 #include <stdio.h>
@@ -44,8 +48,10 @@ int main(void) {
   long k;
   for (p = 0; p < N_TARGETS; ++p) {
     ctrl_real prev[CTRL_NDOF] = {0}, speed = 0, acc = 0, outside = 0;
+    double last[CTRL_NDOF], step = 0.0;
     if (ctrl_init(&c, &fw_task) != CTRL_FAULT_NONE) return 3;
     for (i = 0; i < 16; ++i) in.target[i] = targets[p][i];
+    for (i = 0; i < CTRL_NDOF; ++i) last[i] = (double)fw_task.q_start[i];
     in.command = CTRL_CMD_MOVE_TO;
     for (k = 0; k < MAX_TICKS; ++k) {
       (void)ctrl_tick(&c, &in, &out);
@@ -60,11 +66,17 @@ int main(void) {
         if (a_neg > acc) acc = a_neg;
         if (out.q[i] < fw_task.q_min[i] || out.q[i] > fw_task.q_max[i]) outside += 1;
         prev[i] = out.qd[i];
+        {
+          double d = (double)out.q[i] - last[i];
+          d = (d < 0 ? -d : d) - (double)fw_task.qdot_max[i] * (double)fw_task.dt;
+          if (d > step) step = d;
+          last[i] = (double)out.q[i];
+        }
       }
       if (out.state == CTRL_STATE_DONE || out.state == CTRL_STATE_FAULT) break;
     }
-    printf("%d %s %ld %.17g %.17g %.0f", p, ctrl_fault_name(out.fault), k, (double)speed, (double)acc,
-           (double)outside);
+    printf("%d %s %ld %.17g %.17g %.0f %.17g", p, ctrl_fault_name(out.fault), k, (double)speed, (double)acc,
+           (double)outside, step);
     for (i = 0; i < CTRL_NDOF; ++i) printf(" %.17g", (double)out.q[i]);
     printf("\n");
   }
@@ -119,17 +131,18 @@ def test_move_to_reaches_random_poses_within_the_limits(setup, precision):
     rows = _run(setup, precision)
     assert len(rows) == N_POSES + 1
     for row, target in zip(rows[:N_POSES], targets[:N_POSES]):
-        fault, speed, acc, outside = row[1], float(row[3]), float(row[4]), float(row[5])
-        assert outside == 0 and speed <= 1 + LIMIT_RTOL[precision] and acc <= ACC_ABS[precision], row[:6]
-        assert fault == "NONE", row[:6]  # every pose is reachable
-        q = np.array([float(v) for v in row[6:]])
+        fault, speed, acc, outside, step = row[1], float(row[3]), float(row[4]), float(row[5]), float(row[6])
+        assert outside == 0 and speed <= 1 + LIMIT_RTOL[precision] and acc <= ACC_ABS[precision], row[:7]
+        assert step <= STEP_ABS[precision], row[:7]
+        assert fault == "NONE", row[:7]  # every pose is reachable
+        q = np.array([float(v) for v in row[7:]])
         pose = robot.fk(q)
         assert np.linalg.norm(pose[:3, 3] - target[:3, 3]) <= REACHED_TOL[precision]
         rot = Rotation.from_matrix(pose[:3, :3]).inv() * Rotation.from_matrix(target[:3, :3])
         assert rot.magnitude() <= REACHED_TOL[precision]
     # the unreachable pose: the fault, and the arm holds where it was
     fault, ticks = rows[N_POSES][1], int(rows[N_POSES][2])
-    q_held = np.array([float(v) for v in rows[N_POSES][6:]])
+    q_held = np.array([float(v) for v in rows[N_POSES][7:]])
     assert fault == "UNREACHABLE" and ticks == 0
     q0 = robot.configuration("q0")
     assert np.max(np.abs(q_held - q0)) <= (0 if precision == "double" else 1e-6)
