@@ -2,11 +2,15 @@
 and file references generated from the code), and every ``sh``/``python`` block in README.md
 and docs/*.md runs.
 
-A block that is not meant to run (it installs packages, builds inside the source tree, or runs
-for minutes) says so on its first line: ``# docs-test: skip (reason)``; it is reported as
-skipped with that reason, never as passed. The blocks of one page run in order in one scratch
-directory that holds the repository's examples, robots, firmware stub and benchmarks, with an
-``armgen`` on PATH that runs this checkout.
+A block that calls an external tool says so on its first line, ``# docs-test: needs TOOL …``:
+it runs wherever the tools are, is skipped with the install command where they are missing,
+and fails where they are missing in CI (which installs them all, .ci/run). A block that cannot
+run in a test at all says why, ``# docs-test: skip (reason)``; it is reported as skipped with
+that reason, never as passed, and only the blocks in SKIPPED_BLOCKS may say so. The blocks of
+one page run in order, in one test, as one reader types them into one terminal (a ``cd``
+carries over to the next block), in a scratch directory laid out as the repository: its
+examples, robots, benchmarks and generated code, a copy of the firmware stub (its Makefile
+builds in place), and ``armgen``/``python`` on PATH that run this checkout.
 """
 
 from __future__ import annotations
@@ -14,74 +18,131 @@ from __future__ import annotations
 import importlib.util
 import os
 import re
+import resource
+import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
-from doc_blocks import blocks, skip_reason
+from doc_blocks import Block, blocks, command, needed_tools, next_cwd, skip_reason
 from conftest import require_tool
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
-LINKED = ("examples", "robots", "firmware_stub", "benchmarks")
-BLOCK_TIMEOUT_S = 600  # a block that runs longer is marked skip (CI machines are 2-core)
+# The blocks that cannot run in a test (page, the start of the block's first command), and why
+# that is so; every other block runs.
+SKIPPED_BLOCKS = {
+    # it installs armgen into the running environment and runs the whole test suite, this test included
+    ("README.md", "pip install -e '.[test,docs]'"),
+    # pip and apt-get install into the system; tests/test_install.py installs the wheel itself
+    ("getting-started.md", "pip install armgen-*.whl"),
+}
+LINKED = ("examples", "robots", "benchmarks", "generated")  # read-only in the scratch directory
+BLOCK_TIMEOUT_S = 900  # the longest block (firmware.md: a project built, run, verified) takes ~3 min on 2 busy cores
 DOCS_PACKAGES = ("mkdocs", "material", "mkdocstrings", "mkdocstrings_handlers")
 DOCS_HINT = "pip install '.[docs]' (mkdocs, mkdocs-material, mkdocstrings[python])"
 
 
-def _blocks():
-    for page in PAGES:
-        for k, block in enumerate(blocks(page.read_text(encoding="utf-8"))):
-            yield pytest.param(page, k, block.lang, block.code, id=f"{page.relative_to(ROOT)}:{block.line}")
+def _page_blocks(page: Path) -> list[Block]:
+    return blocks(page.read_text(encoding="utf-8"))
 
 
-_sandboxes: dict[Path, tuple[Path, list[int]]] = {}
+def _first_command(code: str) -> str:
+    return next(line.strip() for line in code.splitlines() if line.strip() and not line.lstrip().startswith("#"))
 
 
-def _sandbox(page: Path, tmp_path_factory) -> tuple[Path, list[int]]:
-    if page not in _sandboxes:
-        work = tmp_path_factory.mktemp(page.stem.replace(".", "_"))
-        for name in LINKED:
+def _scratch(work: Path) -> None:
+    """The repository's layout: firmware_stub/ is armgen/data/firmware_stub (its Makefile finds
+    the generated code at ../../../generated), examples/ and robots/ beside it."""
+    data = work / "armgen" / "data"
+    data.mkdir(parents=True)
+    shutil.copytree(ROOT / "armgen" / "data" / "firmware_stub", data / "firmware_stub",
+                    ignore=shutil.ignore_patterns("build"))
+    for name in ("examples", "robots"):
+        (data / name).symlink_to(ROOT / "armgen" / "data" / name)
+    (work / "firmware_stub").symlink_to(Path("armgen") / "data" / "firmware_stub")
+    for name in LINKED:
+        if not (work / name).exists():
             (work / name).symlink_to(ROOT / name)
-        bin_dir = work / ".bin"
-        bin_dir.mkdir()
-        shim = bin_dir / "armgen"
-        shim.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m armgen.cli.main "$@"\n')
+    bin_dir = work / ".bin"
+    bin_dir.mkdir()
+    for name, run in (("armgen", f'"{sys.executable}" -m armgen.cli.main'), ("python", f'"{sys.executable}"'),
+                      ("python3", f'"{sys.executable}"')):
+        shim = bin_dir / name
+        shim.write_text(f'#!/bin/sh\nexec {run} "$@"\n')
         shim.chmod(0o755)
-        _sandboxes[page] = (work, [])
-    return _sandboxes[page]
 
 
-def _run(work: Path, lang: str, code: str) -> subprocess.CompletedProcess:
+def _children_cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _run(work: Path, cwd: Path, block: Block) -> tuple[subprocess.CompletedProcess, Path]:
+    """One block, from ``cwd``; and the folder the next block starts in."""
     env = dict(os.environ, PYTHONPATH=str(ROOT), ARMGEN_NO_PROGRESS="1", MPLBACKEND="Agg",
                PATH=f"{work / '.bin'}{os.pathsep}{os.environ.get('PATH', '')}")
-    if lang == "python":
-        command = [sys.executable, "-c", code]
-    else:
-        command = ["bash", "-e", "-o", "pipefail", "-c", code]
-    return subprocess.run(command, cwd=work, env=env, capture_output=True, text=True, timeout=BLOCK_TIMEOUT_S)
+    record = work / ".cwd"
+    started, cpu = time.perf_counter(), _children_cpu_s()
+    run = subprocess.run(command(block.lang, block.code, sys.executable, record), cwd=cwd, env=env,
+                         capture_output=True, text=True, timeout=BLOCK_TIMEOUT_S)
+    print(f"line {block.line}: {time.perf_counter() - started:.1f} s wall, {_children_cpu_s() - cpu:.1f} s CPU, "
+          f"exit {run.returncode}")
+    return run, next_cwd(cwd, record)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("page, index, lang, code", list(_blocks()))
-def test_code_block_runs(page, index, lang, code, tmp_path_factory):
-    reason = skip_reason(code)
-    if reason:
-        pytest.skip(f"marked not to run: {reason}")
-    work, done = _sandbox(page, tmp_path_factory)
-    # earlier blocks of the page first (they write the files later ones use), once per worker
-    for k, (_, _, earlier_lang, earlier) in enumerate(b.values for b in _blocks() if b.values[0] == page):
-        if k >= index:
-            break
-        if k not in done and not skip_reason(earlier):
-            run = _run(work, earlier_lang, earlier)
-            assert run.returncode == 0, f"earlier block {k} of {page.name} failed:\n{run.stdout}\n{run.stderr}"
-            done.append(k)
-    run = _run(work, lang, code)
-    assert run.returncode == 0, f"{page.name} block {index} failed (exit {run.returncode}):\n{run.stdout}\n{run.stderr}"
-    done.append(index)
+@pytest.mark.parametrize("page", PAGES, ids=lambda page: str(page.relative_to(ROOT)))
+def test_page_blocks_run(page, tmp_path):
+    """Every block of the page not marked skip, in order, in one scratch directory."""
+    work = tmp_path / "work"
+    work.mkdir()
+    _scratch(work)
+    cwd = work
+    for block in _page_blocks(page):
+        if skip_reason(block.code):
+            continue  # reported by test_marked_block_is_skipped; later blocks do not use it
+        for tool in needed_tools(block.code):
+            require_tool(tool)  # missing here: the rest of the page (which may use it) is skipped
+        run, cwd = _run(work, cwd, block)
+        assert run.returncode == 0, \
+            f"{page.name}:{block.line} failed (exit {run.returncode}):\n{run.stdout[-4000:]}\n{run.stderr[-6000:]}"
+
+
+def _marked_skip():
+    for page in PAGES:
+        for block in _page_blocks(page):
+            if skip_reason(block.code):
+                yield pytest.param(page, block, id=f"{page.relative_to(ROOT)}:{block.line}")
+
+
+@pytest.mark.parametrize("page, block", list(_marked_skip()))
+def test_marked_block_is_skipped(page, block):
+    pytest.skip(f"marked not to run: {skip_reason(block.code)}")
+
+
+def test_only_blocks_that_cannot_run_are_skipped():
+    """A block is skipped only when no test can run it (SKIPPED_BLOCKS says why for each);
+    one that needs a tool says which (``needs``), so CI runs it."""
+    skipped = [(page.name, block.line, _first_command(block.code)) for page in PAGES for block in _page_blocks(page)
+               if skip_reason(block.code)]
+    unexplained = [(name, line) for name, line, first in skipped
+                   if not any(name == page and first.startswith(start) for page, start in SKIPPED_BLOCKS)]
+    assert not unexplained, f"skipped blocks that a test can run (remove their skip marker): {unexplained}"
+    assert len(skipped) == len(SKIPPED_BLOCKS), f"SKIPPED_BLOCKS lists blocks that are gone or run: {skipped}"
+
+
+def test_no_block_takes_a_build_log_for_a_run_csv():
+    """The firmware project's ``qemu`` target writes the run's CSV to build-m4/run-m4.csv itself;
+    the getting-started page redirected the target's output (the build's lines) to run-m4.csv,
+    and `armgen verify --run` of that file failed."""
+    for page in PAGES:
+        for block in _page_blocks(page):
+            for line in block.code.splitlines():
+                assert not re.search(r"--target\s+qemu\b[^#]*>", line), f"{page.name}:{block.line}: {line.strip()}"
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@
   examples at build time and appended to the planner's method page (a "Figures" section);
 - the tables of ``results.md`` (markers ``<!-- armgen:NAME -->``), measured on the example plans.
 
-Two edits to every page: the ``# docs-test: skip (…)`` first lines of code blocks (for
+Two edits to every page: the ``# docs-test: …`` first lines of code blocks (for
 tests/test_docs.py, not for readers) are left out of the rendered page, and a page's figures go
 where ``<!-- armgen:figures -->`` stands (in the first screen of the weighted-GPM page), else
 at its end.
@@ -46,8 +46,9 @@ FAULT_EXAMPLES = [("iiwa14", "iiwa14_fault_circle_gpm", "iiwa14_fault_circle_wln
                   ("modular8", "modular8_fault_circle_gpm", "modular8_fault_circle_wln")]
 ANIMATION = ("modular8_circle_combined", 10.0, 4.0)  # example, fps, seconds: 40 frames on the home page
 
-# The first line of a code block that tests/test_docs.py skips (its SKIP pattern, as a line).
-DOCS_TEST_MARKER = re.compile(r"^[ \t]*#\s*docs-test:\s*skip\b.*\n", re.M)
+# The first line of a code block that tells tests/test_docs.py what it needs or why it is
+# skipped (tests/doc_blocks.py's NEEDS and SKIP patterns, as a line).
+DOCS_TEST_MARKER = re.compile(r"^[ \t]*#\s*docs-test:\s*(skip|needs)\b.*\n", re.M)
 FIGURES_MARKER = "<!-- armgen:figures -->"
 SAME_AT_DISPLAY_PRECISION = 0.05  # deg/s or deg/s²: the tables print one decimal
 _plans: dict = {}
