@@ -8,7 +8,6 @@ import subprocess
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from armgen import firmware as fw
 from armgen.codegen import toolchain
@@ -28,7 +27,7 @@ MARGIN = 1e-3
 # of the joint value at each end (|q| < 4 rad here: 2 ulp of 4 rad, 9.5e-7 rad).
 STEP_TOL = {"double": 1e-14, "float": 2 * float(np.spacing(np.float32(4.0)))}
 # The slow but real limits of the fast-tick move (rad/s, rad/s², s): a step of 2 µrad per tick,
-# ~20 ulp of a float joint value near 1 rad; the move takes ~1.7e4 ticks.
+# ~20 ulp of a float joint value near 1 rad; the move takes ~2e4 ticks.
 SLOW_QDOT, SLOW_QDDOT, FAST_DT = 0.002, 0.002, 1e-3
 SLOW_MOVE_RAD = 0.025  # the target is FK(q0 + this on every joint)
 
@@ -118,10 +117,6 @@ int main(int argc, char **argv) {
   return 0;
 }
 """
-
-
-def rotation_about(axis, angle):
-    return Rotation.from_rotvec(np.asarray(axis, dtype=float) * angle).as_matrix()
 
 
 def non_poses(pose: np.ndarray) -> dict[str, np.ndarray]:

@@ -1015,6 +1015,12 @@ static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, 
 }
 #endif
 
+/* What the rounding of joint i's two commands, q and the held one, may add to their step
+ * (STEP_ROUNDING; mt_delta is 0 outside MOVE_TO). */
+static ctrl_real step_rounding(const ctrl *c, const ctrl_real *q, int i) {
+  return STEP_ROUNDING * REAL_EPSILON * (CTRL_FABS(q[i]) + CTRL_FABS(c->q_hold[i]) + CTRL_FABS(c->mt_delta[i]));
+}
+
 /* A played-back command (PLAYBACK, SAMPLED, MOVE_TO) through the checks of playback: the limits,
  * finite velocities, and each joint's speed: |q_dot_i| <= qdot_max[i] and one tick's step at most
  * qdot_max[i] * dt (a little more for rounding: PLAYBACK_STEP_RTOL, STEP_ROUNDING); then emitted,
@@ -1029,9 +1035,7 @@ static ctrl_fault emit_played(ctrl *c, ctrl_real t, const ctrl_real *q, const ct
     ctrl_real speed_max = cfg->qdot_max[i] * (CTRL_LIT(1.0) + PLAYBACK_STEP_RTOL);
     ctrl_real step = CTRL_FABS(q[i] - c->q_hold[i]), step_max = speed_max * cfg->dt;
     /* the rounding allowance only for a step beyond step_max (rare): no cost on a tick that passes */
-    if (CTRL_FABS(qd[i]) > speed_max ||
-        (step > step_max && step - step_max > STEP_ROUNDING * REAL_EPSILON *
-                                                  (CTRL_FABS(q[i]) + CTRL_FABS(c->q_hold[i]) + CTRL_FABS(c->mt_delta[i])))) {
+    if (CTRL_FABS(qd[i]) > speed_max || (step > step_max && step - step_max > step_rounding(c, q, i))) {
       return CTRL_FAULT_SPEED;
     }
   }
