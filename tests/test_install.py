@@ -27,7 +27,7 @@ from armgen import fileio
 from armgen.cli.main import cli
 
 from conftest import require_tool
-from doc_blocks import blocks, command, needed_tools, next_cwd, skip_reason
+from doc_blocks import blocks, skip_reason
 
 REPO = Path(__file__).resolve().parent.parent
 WHEEL_BLOCK_INTRO = "From an installed wheel"  # the README paragraph just above the wheel block
@@ -96,6 +96,18 @@ qlim = [-360, 360]
 
 [configurations]
 q0 = [10, -100, 80, -70, -90, 20]
+"""
+
+
+# A 7-DOF URDF arm that is not bundled, and a robot file in another folder that references it
+# and names the start a URDF cannot hold (its middle of the limits is the stretched pose).
+URDF_ARM = REPO / "tests" / "data" / "iiwa7.urdf"
+URDF_ARM_START = [0.0, 0.6, 0.0, -1.2, 0.0, 0.9, 0.0]
+URDF_WRAPPER = f"""# The URDF arm, with a named start.
+urdf = "../urdf/iiwa7.urdf"
+
+[configurations]
+q0 = {URDF_ARM_START}
 """
 
 
@@ -216,13 +228,16 @@ def test_the_venv_is_bare_and_consistent(venv):
     assert check.returncode == 0, check.stdout + check.stderr
 
 
-def _run_block(venv, work: Path, lang: str, code: str, cwd_record: Path) -> subprocess.CompletedProcess:
+def _run_block(venv, work: Path, lang: str, code: str) -> subprocess.CompletedProcess:
     """A docs block as the user types it, in ``work``, with the venv activated: bash stops at the
-    first command that exits non-zero (and traces each command, so the report names it); the
-    folder it ends in goes to ``cwd_record`` (the next block of the page starts there)."""
+    first command that exits non-zero (and traces each command, so the report names it)."""
+    if lang == "python":
+        command = [str(venv["python"]), "-c", code]
+    else:
+        command = ["bash", "-e", "-o", "pipefail", "-x", "-c", code]
     started = time.perf_counter()
-    run = subprocess.run(command(lang, code, str(venv["python"]), cwd_record, trace=True), cwd=work, env=_env(venv),
-                         capture_output=True, text=True, timeout=BLOCK_TIMEOUT_S, preexec_fn=lambda: os.umask(0o022))
+    run = subprocess.run(command, cwd=work, env=_env(venv), capture_output=True, text=True, timeout=BLOCK_TIMEOUT_S,
+                         preexec_fn=lambda: os.umask(0o022))
     print(f"{lang} block, {time.perf_counter() - started:.1f} s, exit {run.returncode}")
     return run
 
@@ -237,7 +252,7 @@ def test_readme_wheel_block_from_an_empty_folder(venv, tmp_path):
     text = (REPO / "README.md").read_text(encoding="utf-8")
     block = blocks(text, text.index(WHEEL_BLOCK_INTRO))[0]
     assert block.lang == "sh" and skip_reason(block.code) is None and "armgen " in block.code, block
-    run = _run_block(venv, _empty_folder(tmp_path), block.lang, block.code, tmp_path / "cwd")
+    run = _run_block(venv, _empty_folder(tmp_path), block.lang, block.code)
     assert run.returncode == 0, f"README.md:{block.line} exit {run.returncode}\n{run.stdout[-3000:]}\n{run.stderr[-5000:]}"
 
 
@@ -245,15 +260,11 @@ def test_getting_started_from_an_empty_folder(venv, tmp_path):
     page = REPO / "docs" / "getting-started.md"
     to_run = [b for b in blocks(page.read_text(encoding="utf-8")) if skip_reason(b.code) is None]
     assert len(to_run) >= 5 and {b.lang for b in to_run} == {"sh", "python"}, to_run
-    cwd = _empty_folder(tmp_path)
-    record = tmp_path / "cwd"
-    for block in to_run:  # in order, as in one terminal: later blocks use what earlier ones wrote, and their folder
-        for tool in needed_tools(block.code):
-            require_tool(tool)
-        run = _run_block(venv, cwd, block.lang, block.code, record)
+    work = _empty_folder(tmp_path)
+    for block in to_run:  # in order, in one folder: later blocks use what earlier ones wrote
+        run = _run_block(venv, work, block.lang, block.code)
         assert run.returncode == 0, \
             f"{page.name}:{block.line} exit {run.returncode}\n{run.stdout[-3000:]}\n{run.stderr[-5000:]}"
-        cwd = next_cwd(cwd, record)
 
 
 def test_readme_quick_start_is_what_ci_runs():
@@ -329,6 +340,57 @@ def test_wheel_install_from_an_empty_folder(venv, tmp_path):
     else:  # the firmware project is written by this helper's own staging, already umask-true
         for path in (fw / "generated" / "arm6.c", fw / "CMakeLists.txt", fw / "demo" / "plan.csv"):
             assert _mode(path) == 0o644, (path, oct(_mode(path)))
+
+
+def _project_readme_blocks(venv, project: Path) -> str:
+    """Every sh block of a firmware project's README but the Cortex-M4F one (its toolchain and
+    QEMU: test_firmware_project_cortex_m4_under_qemu), run literally, in order, in the project,
+    as a user types them; their output."""
+    readme = (project / "README.md").read_text(encoding="utf-8")
+    to_run = [b for b in blocks(readme) if "arm-none-eabi" not in b.code]
+    assert len(to_run) == len(blocks(readme)) - 1 >= 4, to_run
+    output = ""
+    for block in to_run:
+        started = time.perf_counter()
+        run = subprocess.run(["bash", "-e", "-o", "pipefail", "-x", "-c", block.code], cwd=project, env=_env(venv),
+                             capture_output=True, text=True, timeout=BLOCK_TIMEOUT_S, preexec_fn=lambda: os.umask(0o022))
+        print(f"{project.name}/README.md:{block.line}: {time.perf_counter() - started:.1f} s, exit {run.returncode}")
+        assert run.returncode == 0, \
+            f"{project.name}/README.md:{block.line} exit {run.returncode}\n{run.stdout[-3000:]}\n{run.stderr[-5000:]}"
+        output += run.stdout
+    return output
+
+
+def test_firmware_project_readme_of_a_urdf_arm(venv, tmp_path):
+    """Issue 37: the project of a URDF arm is verified as its README says. Through a robot file
+    that references the URDF from another folder: every README command (build, run, verify,
+    show, plan the demo again, regenerate in place, firmware-task) from the wheel. The URDF
+    alone: the project holds it as robot.urdf, byte for byte, and show and plan work in it."""
+    from armgen.robot import load_robot
+
+    work = _empty_folder(tmp_path)
+    (work / "urdf").mkdir()
+    (work / "urdf" / "iiwa7.urdf").write_bytes(URDF_ARM.read_bytes())
+    (work / "robots").mkdir()
+    (work / "robots" / "iiwa7.toml").write_text(URDF_WRAPPER)
+    _run(venv, work, "firmware", "robots/iiwa7.toml", "--out", "fw")
+    fw = work / "fw"
+    assert (fw / "robot.urdf").read_bytes() == URDF_ARM.read_bytes()
+    out = _project_readme_blocks(venv, fw)
+    assert "== fresh: PASS" in out and "== run: PASS" in out and "FAIL" not in out, out[-3000:]
+
+    robot = load_robot(URDF_ARM)
+    end = robot.fk(URDF_ARM_START)[:3, 3] + [0.0, 0.0, 0.05]
+    (work / "line.toml").write_text(
+        f'planner = "cartesian"\nrobot = "urdf/iiwa7.urdf"\nstart = {URDF_ARM_START}\n[path]\ntype = "line"\n'
+        f'end = {end.tolist()}\norientation = "hold"\n[timing]\nduration = 1.0\nlaw = "cubic"\n'
+        '[integrator]\nmethod = "euler"\nstep = 0.01\n[method]\nname = "pinv"\n')
+    _run(venv, work, "firmware", "urdf/iiwa7.urdf", "--task", "line.toml", "--out", "fw-urdf")
+    alone = work / "fw-urdf"
+    assert (alone / "robot.urdf").read_bytes() == URDF_ARM.read_bytes() and not (alone / "robot.toml").exists()
+    assert "7 joints" in _run(venv, alone, "show", "robot.urdf").stdout
+    _run(venv, alone, "plan", "demo/demo.toml", "-o", "replan.csv")
+    assert (alone / "replan.csv").read_text() == (alone / "demo" / "plan.csv").read_text()
 
 
 @pytest.mark.arm
