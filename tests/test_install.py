@@ -27,7 +27,7 @@ from armgen import fileio
 from armgen.cli.main import cli
 
 from conftest import require_tool
-from doc_blocks import blocks, skip_reason
+from doc_blocks import blocks, command, needed_tools, next_cwd, skip_reason
 
 REPO = Path(__file__).resolve().parent.parent
 WHEEL_BLOCK_INTRO = "From an installed wheel"  # the README paragraph just above the wheel block
@@ -228,16 +228,13 @@ def test_the_venv_is_bare_and_consistent(venv):
     assert check.returncode == 0, check.stdout + check.stderr
 
 
-def _run_block(venv, work: Path, lang: str, code: str) -> subprocess.CompletedProcess:
+def _run_block(venv, work: Path, lang: str, code: str, cwd_record: Path) -> subprocess.CompletedProcess:
     """A docs block as the user types it, in ``work``, with the venv activated: bash stops at the
-    first command that exits non-zero (and traces each command, so the report names it)."""
-    if lang == "python":
-        command = [str(venv["python"]), "-c", code]
-    else:
-        command = ["bash", "-e", "-o", "pipefail", "-x", "-c", code]
+    first command that exits non-zero (and traces each command, so the report names it); the
+    folder it ends in goes to ``cwd_record`` (the next block of the page starts there)."""
     started = time.perf_counter()
-    run = subprocess.run(command, cwd=work, env=_env(venv), capture_output=True, text=True, timeout=BLOCK_TIMEOUT_S,
-                         preexec_fn=lambda: os.umask(0o022))
+    run = subprocess.run(command(lang, code, str(venv["python"]), cwd_record, trace=True), cwd=work, env=_env(venv),
+                         capture_output=True, text=True, timeout=BLOCK_TIMEOUT_S, preexec_fn=lambda: os.umask(0o022))
     print(f"{lang} block, {time.perf_counter() - started:.1f} s, exit {run.returncode}")
     return run
 
@@ -252,7 +249,7 @@ def test_readme_wheel_block_from_an_empty_folder(venv, tmp_path):
     text = (REPO / "README.md").read_text(encoding="utf-8")
     block = blocks(text, text.index(WHEEL_BLOCK_INTRO))[0]
     assert block.lang == "sh" and skip_reason(block.code) is None and "armgen " in block.code, block
-    run = _run_block(venv, _empty_folder(tmp_path), block.lang, block.code)
+    run = _run_block(venv, _empty_folder(tmp_path), block.lang, block.code, tmp_path / "cwd")
     assert run.returncode == 0, f"README.md:{block.line} exit {run.returncode}\n{run.stdout[-3000:]}\n{run.stderr[-5000:]}"
 
 
@@ -260,11 +257,15 @@ def test_getting_started_from_an_empty_folder(venv, tmp_path):
     page = REPO / "docs" / "getting-started.md"
     to_run = [b for b in blocks(page.read_text(encoding="utf-8")) if skip_reason(b.code) is None]
     assert len(to_run) >= 5 and {b.lang for b in to_run} == {"sh", "python"}, to_run
-    work = _empty_folder(tmp_path)
-    for block in to_run:  # in order, in one folder: later blocks use what earlier ones wrote
-        run = _run_block(venv, work, block.lang, block.code)
+    cwd = _empty_folder(tmp_path)
+    record = tmp_path / "cwd"
+    for block in to_run:  # in order, as in one terminal: later blocks use what earlier ones wrote, and their folder
+        for tool in needed_tools(block.code):
+            require_tool(tool)
+        run = _run_block(venv, cwd, block.lang, block.code, record)
         assert run.returncode == 0, \
             f"{page.name}:{block.line} exit {run.returncode}\n{run.stdout[-3000:]}\n{run.stderr[-5000:]}"
+        cwd = next_cwd(cwd, record)
 
 
 def test_readme_quick_start_is_what_ci_runs():
