@@ -18,15 +18,18 @@ from .options import out_option
 @click.option("--task", "task_file", type=click.Path(exists=True, dir_okay=False), default=None,
               help="a task file for ROBOT: planned here, and the project's demo runs it")
 @click.option("--plan", "plan_csv", type=click.Path(exists=True, dir_okay=False), default=None,
-              help="a plan CSV (with its plan.json) made by `armgen plan`: the project's demo runs it")
+              help="a plan CSV (with its plan.json) made by `armgen plan`: its task is planned again, must give "
+                   "the CSV's samples, and the project's demo runs it")
 @handle_errors
 def firmware_cmd(robot: str, out_dir: str, task_file: str | None, plan_csv: str | None) -> None:
     """Write a firmware project for ROBOT (a bundled name or a robot file) into --out; its demo
     runs --task or --plan, else a short built-in line.
 
     Exit codes: 2 bad robot, task or plan file, 3 the task (or, without one, the demo) cannot
-    be planned, 4 the folder cannot be written (a file, a foreign non-empty folder, read-only),
-    5 the controller cannot run the task (e.g. another robot's, or a mode it does not have)."""
+    be planned or its plan leaves the joint limits (also under [check] limits = "report"), 4 the
+    folder cannot be written (a file, a foreign non-empty folder, read-only, a symbolic link in
+    the project's paths), 5 the controller cannot run the task (e.g. another robot's, or a mode
+    it does not have) or a --plan its recorded task does not plan to."""
     from ..errors import OptionError
     from ..firmware.project import write_firmware_project
 
