@@ -1,10 +1,11 @@
 """``armgen firmware ROBOT --out DIR [--task TASK.toml | --plan plan.csv]``: a self-contained C
 project for any robot, running the user's task or a demo.
 
-The folder holds the robot (:func:`project_robot_files`), its generated kinematics (as ``armgen gen`` writes them), the
-controller sources of the firmware stub, a compiled-in demo task with armgen's plan of it, a
-``CMakeLists.txt`` that builds the host demo out of the box and, with the toolchain file it
-ships, the Cortex-M4F image, and a README. The folder appears complete or not at all: it is
+The folder holds the robot (:func:`project_robot_files`), its generated kinematics (as ``armgen
+gen`` writes them), the controller sources of the firmware stub, a compiled-in demo task with
+armgen's plan of it (a ``--plan`` is planned again from its task and must match; only plans
+within the joint limits are shipped), a ``CMakeLists.txt`` that builds the host demo out of
+the box and, with the toolchain file it ships, the Cortex-M4F image, and a README. The folder appears complete or not at all: it is
 assembled in a hidden staging folder beside ``DIR`` and renamed into place. Nothing outside
 ``DIR`` is written or deleted: a symbolic link on the way to any file the project owns is
 refused (:func:`_check_no_links`).
@@ -408,7 +409,8 @@ def _assemble(stage: Path, robot_file: str, robot_files: dict[str, bytes], job: 
         result.metadata["task_file"] = "demo/demo.toml"
     _relocate_robot(result.metadata, robot)
     write_plan(result, stage / "demo" / "plan.csv")
-    values = {"ROBOT": robot.name, "ROBOT_FILE": robot_file, "ROBOT_FILES": _robot_rows(robot_files), "NDOF": str(robot.n), "PREFIX": code.prefix, "PREFIX_UC": code.prefix.upper(),
+    values = {"ROBOT": robot.name, "ROBOT_FILE": robot_file, "ROBOT_FILES": _robot_rows(robot_files),
+              "NDOF": str(robot.n), "PREFIX": code.prefix, "PREFIX_UC": code.prefix.upper(),
               "MAX_SEGMENTS": str(job.firmware.max_segments), "VERSION": __version__, "SHA256": robot.sha256,
               "DEMO": job.description}
     project = stub / "project"
@@ -427,8 +429,8 @@ def _robot_rows(robot_files: dict[str, bytes]) -> str:
         return f"| `{PROJECT_ROBOT_FILE}` | the robot file the code was generated from (byte for byte) |"
     if PROJECT_ROBOT_FILE not in robot_files:
         return f"| `{PROJECT_URDF_FILE}` | the URDF the code was generated from (byte for byte) |"
-    return (f"| `{PROJECT_ROBOT_FILE}` | the robot file the code was generated from, its `urdf` naming `{PROJECT_URDF_FILE}` |\n"
-            f"| `{PROJECT_URDF_FILE}` | the URDF it references (byte for byte) |")
+    return (f"| `{PROJECT_ROBOT_FILE}` | the robot file the code was generated from, its `urdf` naming "
+            f"`{PROJECT_URDF_FILE}` |\n| `{PROJECT_URDF_FILE}` | the URDF it references (byte for byte) |")
 
 
 def write_firmware_project(robot_ref: str, out: str | Path, task: str | Path | None = None,
