@@ -68,7 +68,7 @@ def _joint_start_task(tmp_path: Path, robot_file: Path) -> Path:
     return path
 
 
-def _readme_commands_work(project: Path, robot_file: str, monkeypatch) -> None:
+def _readme_commands_work(project: Path, robot_file: str, monkeypatch, joints: int = 7) -> None:
     """The README's commands that need no compiler: show, plan the demo again, regenerate."""
     readme = (project / "README.md").read_text()
     for command in (f"armgen show {robot_file}", "armgen plan demo/demo.toml -o replan.csv",
@@ -76,7 +76,7 @@ def _readme_commands_work(project: Path, robot_file: str, monkeypatch) -> None:
                     f"armgen verify {robot_file} -o generated --plan demo/plan.csv --run run.csv"):
         assert command in readme, command
     out = run("show", robot_file, cwd=project, monkeypatch=monkeypatch)
-    assert out.exit_code == 0 and "7 joints" in out.output, out.output
+    assert out.exit_code == 0 and f"{joints} joints" in out.output, out.output
     out = run("plan", "demo/demo.toml", "-o", "replan.csv", cwd=project, monkeypatch=monkeypatch)
     assert out.exit_code == 0, out.output
     assert np.array_equal(read_plan(project / "replan.csv").data, read_plan(project / "demo" / "plan.csv").data)
@@ -90,8 +90,9 @@ def _readme_commands_work(project: Path, robot_file: str, monkeypatch) -> None:
     assert out.exit_code == 0, out.output
     after = tree(project)
     assert after.keys() == before.keys()
-    for name in (robot_file, "robot.urdf", "generated/manifest.json", "demo/plan.csv", "task/robot_fw.c"):
+    for name in (robot_file, "generated/manifest.json", "demo/plan.csv", "task/robot_fw.c"):
         assert after[name] == before[name], f"regenerating in place changed {name}"
+    assert after.get("robot.urdf") == before.get("robot.urdf")
 
 
 def test_urdf_project_holds_the_urdf_byte_for_byte(tmp_path, monkeypatch):
@@ -118,6 +119,16 @@ def test_urdf_wrapper_project_copies_the_urdf_it_references(tmp_path, monkeypatc
     assert theirs.name == mine.name == "iiwa7_job"
     q = np.array(URDF_START)
     assert np.array_equal(theirs.fk(q), mine.fk(q)) and np.array_equal(theirs.qmax, mine.qmax)
+    _readme_commands_work(project, "robot.toml", monkeypatch)
+
+
+def test_dh_project_readme_commands_work_alike(tmp_path, monkeypatch):
+    """The same README commands for a DH robot file (robot.toml, byte for byte)."""
+    out = run("firmware", REPO / "tests" / "data" / "baxter_arm.toml", "--out", tmp_path / "fw")
+    assert out.exit_code == 0, out.output
+    project = tmp_path / "fw"
+    assert (project / "robot.toml").read_bytes() == (REPO / "tests" / "data" / "baxter_arm.toml").read_bytes()
+    assert not (project / "robot.urdf").exists()
     _readme_commands_work(project, "robot.toml", monkeypatch)
 
 
