@@ -135,6 +135,21 @@ def test_only_blocks_that_cannot_run_are_skipped():
     assert len(skipped) == len(SKIPPED_BLOCKS), f"SKIPPED_BLOCKS lists blocks that are gone or run: {skipped}"
 
 
+# What a block calls that needs the ARM toolchain and QEMU (so it must say ``needs`` them).
+CALLS_THE_ARM_TOOLS = ("arm-none-eabi", "--target qemu", "--target cortex-m4", "make -C firmware_stub")
+
+
+def test_blocks_that_call_the_arm_tools_say_so():
+    """Without its ``needs`` line a block that builds for the M4 would fail where the toolchain
+    is missing instead of being skipped with the install command."""
+    for page in PAGES:
+        for block in _page_blocks(page):
+            if skip_reason(block.code) or not any(call in block.code for call in CALLS_THE_ARM_TOOLS):
+                continue
+            assert {"arm-none-eabi-gcc", "qemu-system-arm"} <= set(needed_tools(block.code)), \
+                f"{page.name}:{block.line}: add '# docs-test: needs arm-none-eabi-gcc qemu-system-arm …'"
+
+
 def test_no_block_takes_a_build_log_for_a_run_csv():
     """The firmware project's ``qemu`` target writes the run's CSV to build-m4/run-m4.csv itself;
     the getting-started page redirected the target's output (the build's lines) to run-m4.csv,
