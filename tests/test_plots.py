@@ -186,7 +186,7 @@ def urdf_plan(tmp_path_factory):
 
 def pinocchio_frames(model, robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(joint origins (samples, n, 3), tool poses (samples, 4, 4)) of ``robot``'s joint vectors by Pinocchio."""
-    import pinocchio as pin
+    pin = pytest.importorskip("pinocchio")
 
     data = model.createData()
     ids = [model.getJointId(joint.name) for joint in robot.joints]
