@@ -27,7 +27,7 @@ import numpy as np
 
 from ..codegen.generate import GENERATED_DIR
 from ..codegen.ptp_c import generate_ptp_evaluator
-from ..errors import excerpt
+from ..errors import RobotFileError, excerpt
 from ..fileio import write_text_atomic
 from ..planning.result import PlanResult, read_plan
 from ..planning.tasks import apply_overrides, load_task, run_task
@@ -51,6 +51,14 @@ DEFAULT_QDOT_MAX = 3.0
 # rad/s²: MOVE_TO's acceleration of a joint whose robot file gives no qddlim (a moderate
 # industrial-arm figure: 0 → 3 rad/s in 0.3 s).
 DEFAULT_QDDOT_MAX = 10.0
+# ctrl_init's bounds of the limits (controller.c, same names): a joint's speed and acceleration
+# limits at most these, and a MOVE_TO over its whole range (profile accelerating over
+# MOVE_TO_BLEND of the time at the limits times 1 - MOVE_TO_MARGIN) within 2^24 ticks.
+QDOT_MAX_LIMIT = 1.0e3
+QDDOT_MAX_LIMIT = 1.0e4
+MOVE_TO_BLEND = 0.25
+MOVE_TO_MARGIN = 1e-3
+MOVE_TO_MAX_TICKS = 2.0 ** 24
 # The playback guards' slack (controller.c PLAYBACK_STEP_RTOL): a joint's speed may reach its
 # guard times (1 + this) before SPEED.
 PLAYBACK_SPEED_RTOL = 1e-3
@@ -141,7 +149,27 @@ def acceleration_limit(robot: Robot) -> np.ndarray:
     return np.where(np.isfinite(robot.qddlim), robot.qddlim, DEFAULT_QDDOT_MAX)
 
 
+def check_controller_limits(robot: Robot, dt: float) -> None:
+    """Refuse, while writing the project, the speed and acceleration limits that the controller's
+    ``ctrl_init`` would refuse at run time (BAD_CONFIG): its bounds, mirrored from controller.c."""
+    b, keep = MOVE_TO_BLEND, 1.0 - MOVE_TO_MARGIN
+    qdot, qddot = speed_guard(robot), acceleration_limit(robot)
+    for i, joint in enumerate(robot.joints):
+        travel = float(robot.qmax[i] - robot.qmin[i])
+        if not np.isfinite(travel):
+            raise RobotFileError(f"robot '{robot.name}', joint {joint.name}: no finite position limits; the controller "
+                                 f"needs them: give the joint a qlim in the robot file")
+        ticks = max(travel / ((1.0 - b) * keep * qdot[i]), np.sqrt(travel / (b * (1.0 - b) * keep * qddot[i]))) / dt
+        if qdot[i] > QDOT_MAX_LIMIT or qddot[i] > QDDOT_MAX_LIMIT or not ticks <= MOVE_TO_MAX_TICKS:
+            raise RobotFileError(
+                f"robot '{robot.name}', joint {joint.name}: qdlim = {qdot[i]:.6g}, qddlim = {qddot[i]:.6g} (SI) at a "
+                f"{dt:g} s tick are outside what the controller takes (qdlim ≤ {QDOT_MAX_LIMIT:g}, qddlim ≤ "
+                f"{QDDOT_MAX_LIMIT:g}, and a move over the joint's whole range within {MOVE_TO_MAX_TICKS:.0f} "
+                f"ticks: here {ticks:.3g}); raise the limits in the robot file or lengthen the tick")
+
+
 def _common_fields(robot: Robot, mode: str, dt: float, q_start: np.ndarray) -> list[str]:
+    check_controller_limits(robot, dt)
     return [
         f".mode = {mode},",
         f".dt = {c_real(dt)},",
