@@ -334,7 +334,8 @@ static inline {p}_real {p}_sqrt({p}_real x) {{
 #define {P}_TRIG_INLINE static inline
 #endif
 #if {P}_USE_FLOAT && {P}_BOUNDED_TRIG
-/* sin and cos of x without a branch, always inlined (gcc/clang), also at -Os: x = k pi/2 + r,
+/* sin and cos of x without a branch, always inlined (gcc/clang) into the sin/cos table loop,
+ * also at -Os: x = k pi/2 + r,
  * |r| <= pi/4, the polynomials of r, then the rotation by j pi/2 (j = k mod 4 in -2..2) as
  * exact factors a = cos(j pi/2), b = sin(j pi/2) in {{-1, 0, 1}}, so that a loop over angles
  * runs four lanes wide where the compiler vectorises (x86 SSE). |x| beyond {BOUNDED_TRIG_RANGE} rad is
@@ -354,12 +355,14 @@ static inline {p}_real {p}_sqrt({p}_real x) {{
   *s = a * sp + b * cp;
   *c = a * cp - b * sp;
 }}
-{P}_TRIG_INLINE float {p}_sin_bounded(float x) {{
+/* A sin or cos outside the table (a solver's computed angle): the compiler's choice to inline
+ * or call, a call at -Os (inlined, each of the IK's took ~170 B of flash). */
+static inline float {p}_sin_bounded(float x) {{
   float s, c;
   {p}_sincos_bounded(x, &s, &c);
   return s;
 }}
-{P}_TRIG_INLINE float {p}_cos_bounded(float x) {{
+static inline float {p}_cos_bounded(float x) {{
   float s, c;
   {p}_sincos_bounded(x, &s, &c);
   return c;
@@ -369,7 +372,7 @@ static inline {p}_real {p}_sqrt({p}_real x) {{
  * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
  * and the quadrant by selects. Error <= {BOUNDED_ATAN2_ULP} ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
  * or +-pi); NaN or inf in give NaN. */
-{P}_TRIG_INLINE float {p}_atan2_bounded(float y, float x) {{
+static inline float {p}_atan2_bounded(float y, float x) {{
   float ax = fabsf(x), ay = fabsf(y);
   float hi = (ay > ax) ? ay : ax;
   float lo = (ay > ax) ? ax : ay;

@@ -111,7 +111,8 @@ static inline float iiwa14_floorf(float x) {
 #define IIWA14_TRIG_INLINE static inline
 #endif
 #if IIWA14_USE_FLOAT && IIWA14_BOUNDED_TRIG
-/* sin and cos of x without a branch, always inlined (gcc/clang), also at -Os: x = k pi/2 + r,
+/* sin and cos of x without a branch, always inlined (gcc/clang) into the sin/cos table loop,
+ * also at -Os: x = k pi/2 + r,
  * |r| <= pi/4, the polynomials of r, then the rotation by j pi/2 (j = k mod 4 in -2..2) as
  * exact factors a = cos(j pi/2), b = sin(j pi/2) in {-1, 0, 1}, so that a loop over angles
  * runs four lanes wide where the compiler vectorises (x86 SSE). |x| beyond 100 rad is
@@ -131,12 +132,14 @@ IIWA14_TRIG_INLINE void iiwa14_sincos_bounded(float x, float *s, float *c) {
   *s = a * sp + b * cp;
   *c = a * cp - b * sp;
 }
-IIWA14_TRIG_INLINE float iiwa14_sin_bounded(float x) {
+/* A sin or cos outside the table (a solver's computed angle): the compiler's choice to inline
+ * or call, a call at -Os (inlined, each of the IK's took ~170 B of flash). */
+static inline float iiwa14_sin_bounded(float x) {
   float s, c;
   iiwa14_sincos_bounded(x, &s, &c);
   return s;
 }
-IIWA14_TRIG_INLINE float iiwa14_cos_bounded(float x) {
+static inline float iiwa14_cos_bounded(float x) {
   float s, c;
   iiwa14_sincos_bounded(x, &s, &c);
   return c;
@@ -146,7 +149,7 @@ IIWA14_TRIG_INLINE float iiwa14_cos_bounded(float x) {
  * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
  * and the quadrant by selects. Error <= 4 ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
  * or +-pi); NaN or inf in give NaN. */
-IIWA14_TRIG_INLINE float iiwa14_atan2_bounded(float y, float x) {
+static inline float iiwa14_atan2_bounded(float y, float x) {
   float ax = fabsf(x), ay = fabsf(y);
   float hi = (ay > ax) ? ay : ax;
   float lo = (ay > ax) ? ax : ay;
@@ -216,41 +219,41 @@ static inline int iiwa14_is_pose(const iiwa14_real T[16]) {
  * inputs. No heap, no globals, reentrant; locals are the WORK_REALS scalars listed. */
 
 /* fk: tool pose T (4x4 homogeneous) in the base frame.
- * ops: 36 add, 71 mul, 14 trig; work: 38 reals. */
+ * ops: 36 add, 71 mul, 14 trig; work: 35 reals. */
 #define IIWA14_FK_Q_ROWS 7
 #define IIWA14_FK_Q_COLS 1
 #define IIWA14_FK_T_ROWS 4
 #define IIWA14_FK_T_COLS 4
-#define IIWA14_FK_WORK_REALS 38
+#define IIWA14_FK_WORK_REALS 35
 void iiwa14_fk(const iiwa14_real q[IIWA14_NDOF], iiwa14_real T[16]);
 /* jacobian: geometric Jacobian J (6xn, rows [v; w] of the tool origin, base frame).
- * ops: 58 add, 87 mul, 12 trig; work: 46 reals. */
+ * ops: 58 add, 87 mul, 12 trig; work: 41 reals. */
 #define IIWA14_JACOBIAN_Q_ROWS 7
 #define IIWA14_JACOBIAN_Q_COLS 1
 #define IIWA14_JACOBIAN_J_ROWS 6
 #define IIWA14_JACOBIAN_J_COLS 7
-#define IIWA14_JACOBIAN_WORK_REALS 46
+#define IIWA14_JACOBIAN_WORK_REALS 41
 void iiwa14_jacobian(const iiwa14_real q[IIWA14_NDOF], iiwa14_real J[42]);
 /* fk_jacobian: tool pose T and geometric Jacobian J in one call (shared trig).
- * ops: 68 add, 105 mul, 14 trig; work: 44 reals. */
+ * ops: 68 add, 105 mul, 14 trig; work: 42 reals. */
 #define IIWA14_FK_JACOBIAN_Q_ROWS 7
 #define IIWA14_FK_JACOBIAN_Q_COLS 1
 #define IIWA14_FK_JACOBIAN_T_ROWS 4
 #define IIWA14_FK_JACOBIAN_T_COLS 4
 #define IIWA14_FK_JACOBIAN_J_ROWS 6
 #define IIWA14_FK_JACOBIAN_J_COLS 7
-#define IIWA14_FK_JACOBIAN_WORK_REALS 44
+#define IIWA14_FK_JACOBIAN_WORK_REALS 42
 void iiwa14_fk_jacobian(const iiwa14_real q[IIWA14_NDOF], iiwa14_real T[16], iiwa14_real J[42]);
 /* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 620 add, 928 mul, 13 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 135 reals. */
+ * ops: 620 add, 928 mul, 13 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 92 reals. */
 #define IIWA14_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_MANIPULABILITY_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 7
 #define IIWA14_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_COLS 1
-#define IIWA14_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 135
+#define IIWA14_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 92
 void iiwa14_manipulability_from_jacobian(const iiwa14_real J[42], iiwa14_real delta, iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
 /* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 754 add, 1150 mul, 13 div, 13 sqrt, 7 minmax, 12 compare, 12 select; work: 149 reals. */
+ * ops: 754 add, 1150 mul, 13 div, 13 sqrt, 7 minmax, 12 compare, 12 select; work: 106 reals. */
 #define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_A_ROWS 7
@@ -259,10 +262,10 @@ void iiwa14_manipulability_from_jacobian(const iiwa14_real J[42], iiwa14_real de
 #define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_OMEGA_COLS 1
 #define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_ROWS 7
 #define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_COLS 1
-#define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 149
+#define IIWA14_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 106
 void iiwa14_joint_manipulability_from_jacobian(const iiwa14_real J[42], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF]);
 /* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 879 add, 1407 mul, 20 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 165 reals. */
+ * ops: 879 add, 1407 mul, 20 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 113 reals. */
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 7
@@ -275,10 +278,10 @@ void iiwa14_joint_manipulability_from_jacobian(const iiwa14_real J[42], const ii
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_COLS 1
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_GRAD_W_ROWS 7
 #define IIWA14_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
-#define IIWA14_FT_INDEX_FROM_JACOBIAN_WORK_REALS 165
+#define IIWA14_FT_INDEX_FROM_JACOBIAN_WORK_REALS 113
 void iiwa14_ft_index_from_jacobian(const iiwa14_real J[42], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF], iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
 /* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 258 add, 304 mul, 21 div, 6 minmax; work: 80 reals. */
+ * ops: 258 add, 304 mul, 21 div, 6 minmax; work: 32 reals. */
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_XDOT_ROWS 6
@@ -287,10 +290,10 @@ void iiwa14_ft_index_from_jacobian(const iiwa14_real J[42], const iiwa14_real ma
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_ALPHA_COLS 1
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_QDOT_ROWS 7
 #define IIWA14_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
-#define IIWA14_STEP_GPM_FROM_JACOBIAN_WORK_REALS 80
+#define IIWA14_STEP_GPM_FROM_JACOBIAN_WORK_REALS 32
 iiwa14_status iiwa14_step_gpm_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
 /* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 213 add, 267 mul, 66 div, 13 minmax; work: 96 reals. */
+ * ops: 213 add, 267 mul, 66 div, 13 minmax; work: 52 reals. */
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_XDOT_ROWS 6
@@ -299,10 +302,10 @@ iiwa14_status iiwa14_step_gpm_from_jacobian(const iiwa14_real J[42], const iiwa1
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_W_COLS 1
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_QDOT_ROWS 7
 #define IIWA14_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
-#define IIWA14_STEP_WLN_FROM_JACOBIAN_WORK_REALS 96
+#define IIWA14_STEP_WLN_FROM_JACOBIAN_WORK_REALS 52
 iiwa14_status iiwa14_step_wln_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real W[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
 /* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 1656 add, 733 mul, 273 div, 6 sqrt, 327 minmax, 48 compare; work: 108 reals. */
+ * ops: 1656 add, 733 mul, 273 div, 6 sqrt, 327 minmax, 48 compare; work: 65 reals. */
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -315,10 +318,10 @@ iiwa14_status iiwa14_step_wln_from_jacobian(const iiwa14_real J[42], const iiwa1
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 7
 #define IIWA14_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define IIWA14_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 108
+#define IIWA14_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 65
 iiwa14_status iiwa14_step_fault_from_jacobian(const iiwa14_real J[42], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 2652 add, 2068 mul, 331 div, 20 sqrt, 2 exp, 387 minmax, 67 compare, 19 select; work: 175 reals. */
+ * ops: 2652 add, 2068 mul, 331 div, 20 sqrt, 2 exp, 387 minmax, 67 compare, 19 select; work: 111 reals. */
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_J_COLS 7
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 7
@@ -345,28 +348,28 @@ iiwa14_status iiwa14_step_fault_from_jacobian(const iiwa14_real J[42], const iiw
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
 #define IIWA14_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
-#define IIWA14_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 175
+#define IIWA14_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 111
 iiwa14_status iiwa14_step_wgpm_from_jacobian(const iiwa14_real J[42], const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 34 add, 28 mul, 14 div, 7 minmax, 7 compare, 7 select; work: 19 reals. */
+ * ops: 34 add, 28 mul, 14 div, 7 minmax, 7 compare, 7 select; work: 3 reals. */
 #define IIWA14_ZGHAL_Q_ROWS 7
 #define IIWA14_ZGHAL_Q_COLS 1
 #define IIWA14_ZGHAL_GRAD_H_L_ROWS 7
 #define IIWA14_ZGHAL_GRAD_H_L_COLS 1
-#define IIWA14_ZGHAL_WORK_REALS 19
+#define IIWA14_ZGHAL_WORK_REALS 3
 void iiwa14_zghal(const iiwa14_real q[IIWA14_NDOF], iiwa14_real *H_L, iiwa14_real grad_H_L[IIWA14_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
- * ops: 13 add, 8 mul; work: 10 reals. */
+ * ops: 13 add, 8 mul; work: 2 reals. */
 #define IIWA14_REPETITIVE_Q_ROWS 7
 #define IIWA14_REPETITIVE_Q_COLS 1
 #define IIWA14_REPETITIVE_Q_INIT_ROWS 7
 #define IIWA14_REPETITIVE_Q_INIT_COLS 1
 #define IIWA14_REPETITIVE_GRAD_H_R_ROWS 7
 #define IIWA14_REPETITIVE_GRAD_H_R_COLS 1
-#define IIWA14_REPETITIVE_WORK_REALS 10
+#define IIWA14_REPETITIVE_WORK_REALS 2
 void iiwa14_repetitive(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real q_init[IIWA14_NDOF], iiwa14_real *H_R, iiwa14_real grad_H_R[IIWA14_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 812 add, 1237 mul, 13 div, 13 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls iiwa14_jacobian and iiwa14_joint_manipulability_from_jacobian); work: 191 reals. */
+ * ops: 812 add, 1237 mul, 13 div, 13 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls iiwa14_jacobian and iiwa14_joint_manipulability_from_jacobian); work: 148 reals. */
 #define IIWA14_JOINT_MANIPULABILITY_Q_ROWS 7
 #define IIWA14_JOINT_MANIPULABILITY_Q_COLS 1
 #define IIWA14_JOINT_MANIPULABILITY_A_ROWS 7
@@ -375,26 +378,26 @@ void iiwa14_repetitive(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real q_ini
 #define IIWA14_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define IIWA14_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 7
 #define IIWA14_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define IIWA14_JOINT_MANIPULABILITY_WORK_REALS 191
+#define IIWA14_JOINT_MANIPULABILITY_WORK_REALS 148
 void iiwa14_joint_manipulability(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 678 add, 1015 mul, 13 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls iiwa14_jacobian and iiwa14_manipulability_from_jacobian); work: 177 reals. */
+ * ops: 678 add, 1015 mul, 13 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls iiwa14_jacobian and iiwa14_manipulability_from_jacobian); work: 134 reals. */
 #define IIWA14_MANIPULABILITY_Q_ROWS 7
 #define IIWA14_MANIPULABILITY_Q_COLS 1
 #define IIWA14_MANIPULABILITY_GRAD_W_ROWS 7
 #define IIWA14_MANIPULABILITY_GRAD_W_COLS 1
-#define IIWA14_MANIPULABILITY_WORK_REALS 177
+#define IIWA14_MANIPULABILITY_WORK_REALS 134
 void iiwa14_manipulability(const iiwa14_real q[IIWA14_NDOF], iiwa14_real delta, iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
- * ops: 63 add, 49 mul, 14 div, 29 minmax; work: 14 reals. */
+ * ops: 63 add, 49 mul, 14 div, 29 minmax; work: 4 reals. */
 #define IIWA14_CONTINUOUS_WEIGHTS_Q_ROWS 7
 #define IIWA14_CONTINUOUS_WEIGHTS_Q_COLS 1
 #define IIWA14_CONTINUOUS_WEIGHTS_W_C_ROWS 7
 #define IIWA14_CONTINUOUS_WEIGHTS_W_C_COLS 1
-#define IIWA14_CONTINUOUS_WEIGHTS_WORK_REALS 14
+#define IIWA14_CONTINUOUS_WEIGHTS_WORK_REALS 4
 void iiwa14_continuous_weights(const iiwa14_real q[IIWA14_NDOF], iiwa14_real band, iiwa14_real w_c[IIWA14_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 937 add, 1494 mul, 20 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls iiwa14_jacobian and iiwa14_ft_index_from_jacobian); work: 207 reals. */
+ * ops: 937 add, 1494 mul, 20 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls iiwa14_jacobian and iiwa14_ft_index_from_jacobian); work: 155 reals. */
 #define IIWA14_FT_INDEX_Q_ROWS 7
 #define IIWA14_FT_INDEX_Q_COLS 1
 #define IIWA14_FT_INDEX_MASK_ROWS 7
@@ -407,10 +410,10 @@ void iiwa14_continuous_weights(const iiwa14_real q[IIWA14_NDOF], iiwa14_real ban
 #define IIWA14_FT_INDEX_GRAD_H_M_COLS 1
 #define IIWA14_FT_INDEX_GRAD_W_ROWS 7
 #define IIWA14_FT_INDEX_GRAD_W_COLS 1
-#define IIWA14_FT_INDEX_WORK_REALS 207
+#define IIWA14_FT_INDEX_WORK_REALS 155
 void iiwa14_ft_index(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real a[IIWA14_NDOF], iiwa14_real delta, iiwa14_real omega[IIWA14_NDOF], iiwa14_real *H_M, iiwa14_real grad_H_M[IIWA14_NDOF], iiwa14_real *w, iiwa14_real grad_w[IIWA14_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
- * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 24 reals. */
+ * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 7 reals. */
 #define IIWA14_WLN_WEIGHTS_GRAD_H_ROWS 7
 #define IIWA14_WLN_WEIGHTS_GRAD_H_COLS 1
 #define IIWA14_WLN_WEIGHTS_OMEGA_ROWS 7
@@ -423,10 +426,10 @@ void iiwa14_ft_index(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real mask[II
 #define IIWA14_WLN_WEIGHTS_W_COLS 1
 #define IIWA14_WLN_WEIGHTS_ACTIVE_ROWS 7
 #define IIWA14_WLN_WEIGHTS_ACTIVE_COLS 1
-#define IIWA14_WLN_WEIGHTS_WORK_REALS 24
+#define IIWA14_WLN_WEIGHTS_WORK_REALS 7
 void iiwa14_wln_weights(const iiwa14_real grad_H[IIWA14_NDOF], const iiwa14_real omega[IIWA14_NDOF], const iiwa14_real qdot_prev[IIWA14_NDOF], const iiwa14_real mask[IIWA14_NDOF], iiwa14_real b, iiwa14_real omega_floor, iiwa14_real v_band, iiwa14_real W[IIWA14_NDOF], iiwa14_real active[IIWA14_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
- * ops: 316 add, 391 mul, 21 div, 12 trig, 6 minmax (calls iiwa14_jacobian and iiwa14_step_gpm_from_jacobian); work: 122 reals. */
+ * ops: 316 add, 391 mul, 21 div, 12 trig, 6 minmax (calls iiwa14_jacobian and iiwa14_step_gpm_from_jacobian); work: 74 reals. */
 #define IIWA14_STEP_GPM_Q_ROWS 7
 #define IIWA14_STEP_GPM_Q_COLS 1
 #define IIWA14_STEP_GPM_XDOT_ROWS 6
@@ -435,10 +438,10 @@ void iiwa14_wln_weights(const iiwa14_real grad_H[IIWA14_NDOF], const iiwa14_real
 #define IIWA14_STEP_GPM_ALPHA_COLS 1
 #define IIWA14_STEP_GPM_QDOT_ROWS 7
 #define IIWA14_STEP_GPM_QDOT_COLS 1
-#define IIWA14_STEP_GPM_WORK_REALS 122
+#define IIWA14_STEP_GPM_WORK_REALS 74
 iiwa14_status iiwa14_step_gpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 271 add, 354 mul, 66 div, 12 trig, 13 minmax (calls iiwa14_jacobian and iiwa14_step_wln_from_jacobian); work: 138 reals. */
+ * ops: 271 add, 354 mul, 66 div, 12 trig, 13 minmax (calls iiwa14_jacobian and iiwa14_step_wln_from_jacobian); work: 94 reals. */
 #define IIWA14_STEP_WLN_Q_ROWS 7
 #define IIWA14_STEP_WLN_Q_COLS 1
 #define IIWA14_STEP_WLN_XDOT_ROWS 6
@@ -447,10 +450,10 @@ iiwa14_status iiwa14_step_gpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_WLN_W_COLS 1
 #define IIWA14_STEP_WLN_QDOT_ROWS 7
 #define IIWA14_STEP_WLN_QDOT_COLS 1
-#define IIWA14_STEP_WLN_WORK_REALS 138
+#define IIWA14_STEP_WLN_WORK_REALS 94
 iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real W[IIWA14_NDOF], iiwa14_real damping, iiwa14_real qdot[IIWA14_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 1714 add, 820 mul, 273 div, 6 sqrt, 12 trig, 327 minmax, 48 compare (calls iiwa14_jacobian and iiwa14_step_fault_from_jacobian); work: 150 reals. */
+ * ops: 1714 add, 820 mul, 273 div, 6 sqrt, 12 trig, 327 minmax, 48 compare (calls iiwa14_jacobian and iiwa14_step_fault_from_jacobian); work: 107 reals. */
 #define IIWA14_STEP_FAULT_Q_ROWS 7
 #define IIWA14_STEP_FAULT_Q_COLS 1
 #define IIWA14_STEP_FAULT_XDOT_ROWS 6
@@ -463,10 +466,10 @@ iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
 #define IIWA14_STEP_FAULT_ALPHA_COLS 1
 #define IIWA14_STEP_FAULT_QDOT_ROWS 7
 #define IIWA14_STEP_FAULT_QDOT_COLS 1
-#define IIWA14_STEP_FAULT_WORK_REALS 150
+#define IIWA14_STEP_FAULT_WORK_REALS 107
 iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], const iiwa14_real mask[IIWA14_NDOF], const iiwa14_real W[IIWA14_NDOF], const iiwa14_real alpha[IIWA14_NDOF], iiwa14_real epsilon, iiwa14_real lambda_max, iiwa14_real qdot[IIWA14_NDOF], iiwa14_real *damping, iiwa14_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 2710 add, 2155 mul, 331 div, 20 sqrt, 12 trig, 2 exp, 387 minmax, 67 compare, 19 select (calls iiwa14_jacobian and iiwa14_step_wgpm_from_jacobian); work: 217 reals. */
+ * ops: 2710 add, 2155 mul, 331 div, 20 sqrt, 12 trig, 2 exp, 387 minmax, 67 compare, 19 select (calls iiwa14_jacobian and iiwa14_step_wgpm_from_jacobian); work: 153 reals. */
 #define IIWA14_STEP_WGPM_Q_ROWS 7
 #define IIWA14_STEP_WGPM_Q_COLS 1
 #define IIWA14_STEP_WGPM_XDOT_ROWS 6
@@ -491,10 +494,10 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
 #define IIWA14_STEP_WGPM_GAINS_COLS 1
 #define IIWA14_STEP_WGPM_H_ROWS 4
 #define IIWA14_STEP_WGPM_H_COLS 1
-#define IIWA14_STEP_WGPM_WORK_REALS 217
+#define IIWA14_STEP_WGPM_WORK_REALS 153
 iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_real xdot[IIWA14_NTASK], iiwa14_real band, iiwa14_real t_rmax, iiwa14_real epsilon, iiwa14_real rho_max, iiwa14_real delta, iiwa14_real ramp, const iiwa14_real H_lo[4], const iiwa14_real H_hi[4], const iiwa14_real k_hi[4], const iiwa14_real k_lo[4], const iiwa14_real u_th[4], const iiwa14_real u_band[4], iiwa14_real qdot[IIWA14_NDOF], iiwa14_real w_c[IIWA14_NDOF], iiwa14_real *rho, iiwa14_real *sigma_min, iiwa14_real gains[4], iiwa14_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached (max_iterations <= 0: no step, iterations 0); BAD_TARGET, no step, for a T_target that is not a pose (is_pose, in the header).
- * ops: 337987 add, 346115 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46364 compare, 56702 select; work: 38 reals. */
+ * ops: 337987 add, 346115 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46364 compare, 56702 select; work: 23 reals. */
 #define IIWA14_IK_T_TARGET_ROWS 4
 #define IIWA14_IK_T_TARGET_COLS 4
 #define IIWA14_IK_Q_SEED_ROWS 7
@@ -503,7 +506,7 @@ iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_re
 #define IIWA14_IK_Q_REST_COLS 1
 #define IIWA14_IK_Q_ROWS 7
 #define IIWA14_IK_Q_COLS 1
-#define IIWA14_IK_WORK_REALS 38
+#define IIWA14_IK_WORK_REALS 23
 iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed[IIWA14_NDOF], const iiwa14_real q_rest[IIWA14_NDOF], iiwa14_real use_rest, iiwa14_real tol_position, iiwa14_real tol_orientation, iiwa14_real max_iterations, iiwa14_real q[IIWA14_NDOF], iiwa14_real *position_error, iiwa14_real *orientation_error, iiwa14_real *iterations, iiwa14_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if IIWA14_USE_FLOAT

@@ -112,7 +112,8 @@ static inline float modular8_floorf(float x) {
 #define MODULAR8_TRIG_INLINE static inline
 #endif
 #if MODULAR8_USE_FLOAT && MODULAR8_BOUNDED_TRIG
-/* sin and cos of x without a branch, always inlined (gcc/clang), also at -Os: x = k pi/2 + r,
+/* sin and cos of x without a branch, always inlined (gcc/clang) into the sin/cos table loop,
+ * also at -Os: x = k pi/2 + r,
  * |r| <= pi/4, the polynomials of r, then the rotation by j pi/2 (j = k mod 4 in -2..2) as
  * exact factors a = cos(j pi/2), b = sin(j pi/2) in {-1, 0, 1}, so that a loop over angles
  * runs four lanes wide where the compiler vectorises (x86 SSE). |x| beyond 100 rad is
@@ -132,12 +133,14 @@ MODULAR8_TRIG_INLINE void modular8_sincos_bounded(float x, float *s, float *c) {
   *s = a * sp + b * cp;
   *c = a * cp - b * sp;
 }
-MODULAR8_TRIG_INLINE float modular8_sin_bounded(float x) {
+/* A sin or cos outside the table (a solver's computed angle): the compiler's choice to inline
+ * or call, a call at -Os (inlined, each of the IK's took ~170 B of flash). */
+static inline float modular8_sin_bounded(float x) {
   float s, c;
   modular8_sincos_bounded(x, &s, &c);
   return s;
 }
-MODULAR8_TRIG_INLINE float modular8_cos_bounded(float x) {
+static inline float modular8_cos_bounded(float x) {
   float s, c;
   modular8_sincos_bounded(x, &s, &c);
   return c;
@@ -147,7 +150,7 @@ MODULAR8_TRIG_INLINE float modular8_cos_bounded(float x) {
  * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
  * and the quadrant by selects. Error <= 4 ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
  * or +-pi); NaN or inf in give NaN. */
-MODULAR8_TRIG_INLINE float modular8_atan2_bounded(float y, float x) {
+static inline float modular8_atan2_bounded(float y, float x) {
   float ax = fabsf(x), ay = fabsf(y);
   float hi = (ay > ax) ? ay : ax;
   float lo = (ay > ax) ? ax : ay;
@@ -217,41 +220,41 @@ static inline int modular8_is_pose(const modular8_real T[16]) {
  * inputs. No heap, no globals, reentrant; locals are the WORK_REALS scalars listed. */
 
 /* fk: tool pose T (4x4 homogeneous) in the base frame.
- * ops: 48 add, 88 mul, 16 trig; work: 46 reals. */
+ * ops: 48 add, 88 mul, 16 trig; work: 40 reals. */
 #define MODULAR8_FK_Q_ROWS 8
 #define MODULAR8_FK_Q_COLS 1
 #define MODULAR8_FK_T_ROWS 4
 #define MODULAR8_FK_T_COLS 4
-#define MODULAR8_FK_WORK_REALS 46
+#define MODULAR8_FK_WORK_REALS 40
 void modular8_fk(const modular8_real q[MODULAR8_NDOF], modular8_real T[16]);
 /* jacobian: geometric Jacobian J (6xn, rows [v; w] of the tool origin, base frame).
- * ops: 90 add, 110 mul, 14 trig; work: 55 reals. */
+ * ops: 90 add, 110 mul, 14 trig; work: 49 reals. */
 #define MODULAR8_JACOBIAN_Q_ROWS 8
 #define MODULAR8_JACOBIAN_Q_COLS 1
 #define MODULAR8_JACOBIAN_J_ROWS 6
 #define MODULAR8_JACOBIAN_J_COLS 8
-#define MODULAR8_JACOBIAN_WORK_REALS 55
+#define MODULAR8_JACOBIAN_WORK_REALS 49
 void modular8_jacobian(const modular8_real q[MODULAR8_NDOF], modular8_real J[48]);
 /* fk_jacobian: tool pose T and geometric Jacobian J in one call (shared trig).
- * ops: 99 add, 128 mul, 16 trig; work: 53 reals. */
+ * ops: 99 add, 128 mul, 16 trig; work: 49 reals. */
 #define MODULAR8_FK_JACOBIAN_Q_ROWS 8
 #define MODULAR8_FK_JACOBIAN_Q_COLS 1
 #define MODULAR8_FK_JACOBIAN_T_ROWS 4
 #define MODULAR8_FK_JACOBIAN_T_COLS 4
 #define MODULAR8_FK_JACOBIAN_J_ROWS 6
 #define MODULAR8_FK_JACOBIAN_J_COLS 8
-#define MODULAR8_FK_JACOBIAN_WORK_REALS 53
+#define MODULAR8_FK_JACOBIAN_WORK_REALS 49
 void modular8_fk_jacobian(const modular8_real q[MODULAR8_NDOF], modular8_real T[16], modular8_real J[48]);
 /* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 736 add, 1057 mul, 14 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 150 reals. */
+ * ops: 736 add, 1057 mul, 14 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 101 reals. */
 #define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 8
 #define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_COLS 1
-#define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 150
+#define MODULAR8_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 101
 void modular8_manipulability_from_jacobian(const modular8_real J[48], modular8_real delta, modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
 /* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 1035 add, 1486 mul, 14 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 174 reals. */
+ * ops: 1035 add, 1486 mul, 14 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 125 reals. */
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_A_ROWS 8
@@ -260,10 +263,10 @@ void modular8_manipulability_from_jacobian(const modular8_real J[48], modular8_r
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_OMEGA_COLS 1
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_ROWS 8
 #define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_COLS 1
-#define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 174
+#define MODULAR8_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 125
 void modular8_joint_manipulability_from_jacobian(const modular8_real J[48], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF]);
 /* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 1183 add, 1786 mul, 22 div, 15 sqrt, 7 minmax, 12 compare, 12 select; work: 204 reals. */
+ * ops: 1183 add, 1786 mul, 22 div, 15 sqrt, 7 minmax, 12 compare, 12 select; work: 145 reals. */
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 8
@@ -276,10 +279,10 @@ void modular8_joint_manipulability_from_jacobian(const modular8_real J[48], cons
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_COLS 1
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_GRAD_W_ROWS 8
 #define MODULAR8_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
-#define MODULAR8_FT_INDEX_FROM_JACOBIAN_WORK_REALS 204
+#define MODULAR8_FT_INDEX_FROM_JACOBIAN_WORK_REALS 145
 void modular8_ft_index_from_jacobian(const modular8_real J[48], const modular8_real mask[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF], modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
 /* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 291 add, 337 mul, 21 div, 6 minmax; work: 87 reals. */
+ * ops: 291 add, 337 mul, 21 div, 6 minmax; work: 32 reals. */
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_XDOT_ROWS 6
@@ -288,10 +291,10 @@ void modular8_ft_index_from_jacobian(const modular8_real J[48], const modular8_r
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_ALPHA_COLS 1
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_QDOT_ROWS 8
 #define MODULAR8_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
-#define MODULAR8_STEP_GPM_FROM_JACOBIAN_WORK_REALS 87
+#define MODULAR8_STEP_GPM_FROM_JACOBIAN_WORK_REALS 32
 modular8_status modular8_step_gpm_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real alpha[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
 /* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 239 add, 294 mul, 73 div, 14 minmax; work: 107 reals. */
+ * ops: 239 add, 294 mul, 73 div, 14 minmax; work: 57 reals. */
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_XDOT_ROWS 6
@@ -300,10 +303,10 @@ modular8_status modular8_step_gpm_from_jacobian(const modular8_real J[48], const
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_W_COLS 1
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_QDOT_ROWS 8
 #define MODULAR8_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
-#define MODULAR8_STEP_WLN_FROM_JACOBIAN_WORK_REALS 107
+#define MODULAR8_STEP_WLN_FROM_JACOBIAN_WORK_REALS 57
 modular8_status modular8_step_wln_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real W[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
 /* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 1689 add, 774 mul, 274 div, 6 sqrt, 328 minmax, 48 compare; work: 116 reals. */
+ * ops: 1689 add, 774 mul, 274 div, 6 sqrt, 328 minmax, 48 compare; work: 67 reals. */
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -316,10 +319,10 @@ modular8_status modular8_step_wln_from_jacobian(const modular8_real J[48], const
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 8
 #define MODULAR8_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define MODULAR8_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 116
+#define MODULAR8_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 67
 modular8_status modular8_step_fault_from_jacobian(const modular8_real J[48], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 2997 add, 2467 mul, 345 div, 21 sqrt, 2 exp, 392 minmax, 68 compare, 20 select; work: 200 reals. */
+ * ops: 2997 add, 2467 mul, 345 div, 21 sqrt, 2 exp, 392 minmax, 68 compare, 20 select; work: 130 reals. */
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_J_COLS 8
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 8
@@ -346,28 +349,28 @@ modular8_status modular8_step_fault_from_jacobian(const modular8_real J[48], con
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
 #define MODULAR8_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
-#define MODULAR8_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 200
+#define MODULAR8_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 130
 modular8_status modular8_step_wgpm_from_jacobian(const modular8_real J[48], const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 39 add, 32 mul, 16 div, 8 minmax, 8 compare, 8 select; work: 15 reals. */
+ * ops: 39 add, 32 mul, 16 div, 8 minmax, 8 compare, 8 select; work: 3 reals. */
 #define MODULAR8_ZGHAL_Q_ROWS 8
 #define MODULAR8_ZGHAL_Q_COLS 1
 #define MODULAR8_ZGHAL_GRAD_H_L_ROWS 8
 #define MODULAR8_ZGHAL_GRAD_H_L_COLS 1
-#define MODULAR8_ZGHAL_WORK_REALS 15
+#define MODULAR8_ZGHAL_WORK_REALS 3
 void modular8_zghal(const modular8_real q[MODULAR8_NDOF], modular8_real *H_L, modular8_real grad_H_L[MODULAR8_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
- * ops: 15 add, 9 mul; work: 11 reals. */
+ * ops: 15 add, 9 mul; work: 2 reals. */
 #define MODULAR8_REPETITIVE_Q_ROWS 8
 #define MODULAR8_REPETITIVE_Q_COLS 1
 #define MODULAR8_REPETITIVE_Q_INIT_ROWS 8
 #define MODULAR8_REPETITIVE_Q_INIT_COLS 1
 #define MODULAR8_REPETITIVE_GRAD_H_R_ROWS 8
 #define MODULAR8_REPETITIVE_GRAD_H_R_COLS 1
-#define MODULAR8_REPETITIVE_WORK_REALS 11
+#define MODULAR8_REPETITIVE_WORK_REALS 2
 void modular8_repetitive(const modular8_real q[MODULAR8_NDOF], const modular8_real q_init[MODULAR8_NDOF], modular8_real *H_R, modular8_real grad_H_R[MODULAR8_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 1125 add, 1596 mul, 14 div, 14 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_joint_manipulability_from_jacobian); work: 222 reals. */
+ * ops: 1125 add, 1596 mul, 14 div, 14 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_joint_manipulability_from_jacobian); work: 173 reals. */
 #define MODULAR8_JOINT_MANIPULABILITY_Q_ROWS 8
 #define MODULAR8_JOINT_MANIPULABILITY_Q_COLS 1
 #define MODULAR8_JOINT_MANIPULABILITY_A_ROWS 8
@@ -376,26 +379,26 @@ void modular8_repetitive(const modular8_real q[MODULAR8_NDOF], const modular8_re
 #define MODULAR8_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define MODULAR8_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 8
 #define MODULAR8_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define MODULAR8_JOINT_MANIPULABILITY_WORK_REALS 222
+#define MODULAR8_JOINT_MANIPULABILITY_WORK_REALS 173
 void modular8_joint_manipulability(const modular8_real q[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 826 add, 1167 mul, 14 div, 7 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_manipulability_from_jacobian); work: 198 reals. */
+ * ops: 826 add, 1167 mul, 14 div, 7 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_manipulability_from_jacobian); work: 149 reals. */
 #define MODULAR8_MANIPULABILITY_Q_ROWS 8
 #define MODULAR8_MANIPULABILITY_Q_COLS 1
 #define MODULAR8_MANIPULABILITY_GRAD_W_ROWS 8
 #define MODULAR8_MANIPULABILITY_GRAD_W_COLS 1
-#define MODULAR8_MANIPULABILITY_WORK_REALS 198
+#define MODULAR8_MANIPULABILITY_WORK_REALS 149
 void modular8_manipulability(const modular8_real q[MODULAR8_NDOF], modular8_real delta, modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
- * ops: 72 add, 56 mul, 16 div, 33 minmax; work: 11 reals. */
+ * ops: 72 add, 56 mul, 16 div, 33 minmax; work: 4 reals. */
 #define MODULAR8_CONTINUOUS_WEIGHTS_Q_ROWS 8
 #define MODULAR8_CONTINUOUS_WEIGHTS_Q_COLS 1
 #define MODULAR8_CONTINUOUS_WEIGHTS_W_C_ROWS 8
 #define MODULAR8_CONTINUOUS_WEIGHTS_W_C_COLS 1
-#define MODULAR8_CONTINUOUS_WEIGHTS_WORK_REALS 11
+#define MODULAR8_CONTINUOUS_WEIGHTS_WORK_REALS 4
 void modular8_continuous_weights(const modular8_real q[MODULAR8_NDOF], modular8_real band, modular8_real w_c[MODULAR8_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 1273 add, 1896 mul, 22 div, 15 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_ft_index_from_jacobian); work: 252 reals. */
+ * ops: 1273 add, 1896 mul, 22 div, 15 sqrt, 14 trig, 7 minmax, 12 compare, 12 select (calls modular8_jacobian and modular8_ft_index_from_jacobian); work: 193 reals. */
 #define MODULAR8_FT_INDEX_Q_ROWS 8
 #define MODULAR8_FT_INDEX_Q_COLS 1
 #define MODULAR8_FT_INDEX_MASK_ROWS 8
@@ -408,10 +411,10 @@ void modular8_continuous_weights(const modular8_real q[MODULAR8_NDOF], modular8_
 #define MODULAR8_FT_INDEX_GRAD_H_M_COLS 1
 #define MODULAR8_FT_INDEX_GRAD_W_ROWS 8
 #define MODULAR8_FT_INDEX_GRAD_W_COLS 1
-#define MODULAR8_FT_INDEX_WORK_REALS 252
+#define MODULAR8_FT_INDEX_WORK_REALS 193
 void modular8_ft_index(const modular8_real q[MODULAR8_NDOF], const modular8_real mask[MODULAR8_NDOF], const modular8_real a[MODULAR8_NDOF], modular8_real delta, modular8_real omega[MODULAR8_NDOF], modular8_real *H_M, modular8_real grad_H_M[MODULAR8_NDOF], modular8_real *w, modular8_real grad_w[MODULAR8_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
- * ops: 40 add, 64 mul, 16 div, 34 minmax, 18 compare, 16 select; work: 26 reals. */
+ * ops: 40 add, 64 mul, 16 div, 34 minmax, 18 compare, 16 select; work: 7 reals. */
 #define MODULAR8_WLN_WEIGHTS_GRAD_H_ROWS 8
 #define MODULAR8_WLN_WEIGHTS_GRAD_H_COLS 1
 #define MODULAR8_WLN_WEIGHTS_OMEGA_ROWS 8
@@ -424,10 +427,10 @@ void modular8_ft_index(const modular8_real q[MODULAR8_NDOF], const modular8_real
 #define MODULAR8_WLN_WEIGHTS_W_COLS 1
 #define MODULAR8_WLN_WEIGHTS_ACTIVE_ROWS 8
 #define MODULAR8_WLN_WEIGHTS_ACTIVE_COLS 1
-#define MODULAR8_WLN_WEIGHTS_WORK_REALS 26
+#define MODULAR8_WLN_WEIGHTS_WORK_REALS 7
 void modular8_wln_weights(const modular8_real grad_H[MODULAR8_NDOF], const modular8_real omega[MODULAR8_NDOF], const modular8_real qdot_prev[MODULAR8_NDOF], const modular8_real mask[MODULAR8_NDOF], modular8_real b, modular8_real omega_floor, modular8_real v_band, modular8_real W[MODULAR8_NDOF], modular8_real active[MODULAR8_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
- * ops: 381 add, 447 mul, 21 div, 14 trig, 6 minmax (calls modular8_jacobian and modular8_step_gpm_from_jacobian); work: 135 reals. */
+ * ops: 381 add, 447 mul, 21 div, 14 trig, 6 minmax (calls modular8_jacobian and modular8_step_gpm_from_jacobian); work: 80 reals. */
 #define MODULAR8_STEP_GPM_Q_ROWS 8
 #define MODULAR8_STEP_GPM_Q_COLS 1
 #define MODULAR8_STEP_GPM_XDOT_ROWS 6
@@ -436,10 +439,10 @@ void modular8_wln_weights(const modular8_real grad_H[MODULAR8_NDOF], const modul
 #define MODULAR8_STEP_GPM_ALPHA_COLS 1
 #define MODULAR8_STEP_GPM_QDOT_ROWS 8
 #define MODULAR8_STEP_GPM_QDOT_COLS 1
-#define MODULAR8_STEP_GPM_WORK_REALS 135
+#define MODULAR8_STEP_GPM_WORK_REALS 80
 modular8_status modular8_step_gpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real alpha[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 329 add, 404 mul, 73 div, 14 trig, 14 minmax (calls modular8_jacobian and modular8_step_wln_from_jacobian); work: 155 reals. */
+ * ops: 329 add, 404 mul, 73 div, 14 trig, 14 minmax (calls modular8_jacobian and modular8_step_wln_from_jacobian); work: 105 reals. */
 #define MODULAR8_STEP_WLN_Q_ROWS 8
 #define MODULAR8_STEP_WLN_Q_COLS 1
 #define MODULAR8_STEP_WLN_XDOT_ROWS 6
@@ -448,10 +451,10 @@ modular8_status modular8_step_gpm(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_WLN_W_COLS 1
 #define MODULAR8_STEP_WLN_QDOT_ROWS 8
 #define MODULAR8_STEP_WLN_QDOT_COLS 1
-#define MODULAR8_STEP_WLN_WORK_REALS 155
+#define MODULAR8_STEP_WLN_WORK_REALS 105
 modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real W[MODULAR8_NDOF], modular8_real damping, modular8_real qdot[MODULAR8_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 1779 add, 884 mul, 274 div, 6 sqrt, 14 trig, 328 minmax, 48 compare (calls modular8_jacobian and modular8_step_fault_from_jacobian); work: 164 reals. */
+ * ops: 1779 add, 884 mul, 274 div, 6 sqrt, 14 trig, 328 minmax, 48 compare (calls modular8_jacobian and modular8_step_fault_from_jacobian); work: 115 reals. */
 #define MODULAR8_STEP_FAULT_Q_ROWS 8
 #define MODULAR8_STEP_FAULT_Q_COLS 1
 #define MODULAR8_STEP_FAULT_XDOT_ROWS 6
@@ -464,10 +467,10 @@ modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const mo
 #define MODULAR8_STEP_FAULT_ALPHA_COLS 1
 #define MODULAR8_STEP_FAULT_QDOT_ROWS 8
 #define MODULAR8_STEP_FAULT_QDOT_COLS 1
-#define MODULAR8_STEP_FAULT_WORK_REALS 164
+#define MODULAR8_STEP_FAULT_WORK_REALS 115
 modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], const modular8_real mask[MODULAR8_NDOF], const modular8_real W[MODULAR8_NDOF], const modular8_real alpha[MODULAR8_NDOF], modular8_real epsilon, modular8_real lambda_max, modular8_real qdot[MODULAR8_NDOF], modular8_real *damping, modular8_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 3087 add, 2577 mul, 345 div, 21 sqrt, 14 trig, 2 exp, 392 minmax, 68 compare, 20 select (calls modular8_jacobian and modular8_step_wgpm_from_jacobian); work: 248 reals. */
+ * ops: 3087 add, 2577 mul, 345 div, 21 sqrt, 14 trig, 2 exp, 392 minmax, 68 compare, 20 select (calls modular8_jacobian and modular8_step_wgpm_from_jacobian); work: 178 reals. */
 #define MODULAR8_STEP_WGPM_Q_ROWS 8
 #define MODULAR8_STEP_WGPM_Q_COLS 1
 #define MODULAR8_STEP_WGPM_XDOT_ROWS 6
@@ -492,10 +495,10 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
 #define MODULAR8_STEP_WGPM_GAINS_COLS 1
 #define MODULAR8_STEP_WGPM_H_ROWS 4
 #define MODULAR8_STEP_WGPM_H_COLS 1
-#define MODULAR8_STEP_WGPM_WORK_REALS 248
+#define MODULAR8_STEP_WGPM_WORK_REALS 178
 modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const modular8_real xdot[MODULAR8_NTASK], modular8_real band, modular8_real t_rmax, modular8_real epsilon, modular8_real rho_max, modular8_real delta, modular8_real ramp, const modular8_real H_lo[4], const modular8_real H_hi[4], const modular8_real k_hi[4], const modular8_real k_lo[4], const modular8_real u_th[4], const modular8_real u_band[4], modular8_real qdot[MODULAR8_NDOF], modular8_real w_c[MODULAR8_NDOF], modular8_real *rho, modular8_real *sigma_min, modular8_real gains[4], modular8_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached (max_iterations <= 0: no step, iterations 0); BAD_TARGET, no step, for a T_target that is not a pose (is_pose, in the header).
- * ops: 381648 add, 383932 mul, 24750 div, 2700 sqrt, 9465 trig, 23868 minmax, 50414 compare, 62102 select; work: 40 reals. */
+ * ops: 381648 add, 383932 mul, 24750 div, 2700 sqrt, 9465 trig, 23868 minmax, 50414 compare, 62102 select; work: 26 reals. */
 #define MODULAR8_IK_T_TARGET_ROWS 4
 #define MODULAR8_IK_T_TARGET_COLS 4
 #define MODULAR8_IK_Q_SEED_ROWS 8
@@ -504,7 +507,7 @@ modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const m
 #define MODULAR8_IK_Q_REST_COLS 1
 #define MODULAR8_IK_Q_ROWS 8
 #define MODULAR8_IK_Q_COLS 1
-#define MODULAR8_IK_WORK_REALS 40
+#define MODULAR8_IK_WORK_REALS 26
 modular8_status modular8_ik(const modular8_real T_target[16], const modular8_real q_seed[MODULAR8_NDOF], const modular8_real q_rest[MODULAR8_NDOF], modular8_real use_rest, modular8_real tol_position, modular8_real tol_orientation, modular8_real max_iterations, modular8_real q[MODULAR8_NDOF], modular8_real *position_error, modular8_real *orientation_error, modular8_real *iterations, modular8_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if MODULAR8_USE_FLOAT

@@ -112,7 +112,8 @@ static inline float panda_floorf(float x) {
 #define PANDA_TRIG_INLINE static inline
 #endif
 #if PANDA_USE_FLOAT && PANDA_BOUNDED_TRIG
-/* sin and cos of x without a branch, always inlined (gcc/clang), also at -Os: x = k pi/2 + r,
+/* sin and cos of x without a branch, always inlined (gcc/clang) into the sin/cos table loop,
+ * also at -Os: x = k pi/2 + r,
  * |r| <= pi/4, the polynomials of r, then the rotation by j pi/2 (j = k mod 4 in -2..2) as
  * exact factors a = cos(j pi/2), b = sin(j pi/2) in {-1, 0, 1}, so that a loop over angles
  * runs four lanes wide where the compiler vectorises (x86 SSE). |x| beyond 100 rad is
@@ -132,12 +133,14 @@ PANDA_TRIG_INLINE void panda_sincos_bounded(float x, float *s, float *c) {
   *s = a * sp + b * cp;
   *c = a * cp - b * sp;
 }
-PANDA_TRIG_INLINE float panda_sin_bounded(float x) {
+/* A sin or cos outside the table (a solver's computed angle): the compiler's choice to inline
+ * or call, a call at -Os (inlined, each of the IK's took ~170 B of flash). */
+static inline float panda_sin_bounded(float x) {
   float s, c;
   panda_sincos_bounded(x, &s, &c);
   return s;
 }
-PANDA_TRIG_INLINE float panda_cos_bounded(float x) {
+static inline float panda_cos_bounded(float x) {
   float s, c;
   panda_sincos_bounded(x, &s, &c);
   return c;
@@ -147,7 +150,7 @@ PANDA_TRIG_INLINE float panda_cos_bounded(float x) {
  * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
  * and the quadrant by selects. Error <= 4 ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
  * or +-pi); NaN or inf in give NaN. */
-PANDA_TRIG_INLINE float panda_atan2_bounded(float y, float x) {
+static inline float panda_atan2_bounded(float y, float x) {
   float ax = fabsf(x), ay = fabsf(y);
   float hi = (ay > ax) ? ay : ax;
   float lo = (ay > ax) ? ax : ay;
@@ -217,41 +220,41 @@ static inline int panda_is_pose(const panda_real T[16]) {
  * inputs. No heap, no globals, reentrant; locals are the WORK_REALS scalars listed. */
 
 /* fk: tool pose T (4x4 homogeneous) in the base frame.
- * ops: 49 add, 80 mul, 14 trig; work: 42 reals. */
+ * ops: 49 add, 80 mul, 14 trig; work: 38 reals. */
 #define PANDA_FK_Q_ROWS 7
 #define PANDA_FK_Q_COLS 1
 #define PANDA_FK_T_ROWS 4
 #define PANDA_FK_T_COLS 4
-#define PANDA_FK_WORK_REALS 42
+#define PANDA_FK_WORK_REALS 38
 void panda_fk(const panda_real q[PANDA_NDOF], panda_real T[16]);
 /* jacobian: geometric Jacobian J (6xn, rows [v; w] of the tool origin, base frame).
- * ops: 80 add, 102 mul, 12 trig; work: 53 reals. */
+ * ops: 80 add, 102 mul, 12 trig; work: 47 reals. */
 #define PANDA_JACOBIAN_Q_ROWS 7
 #define PANDA_JACOBIAN_Q_COLS 1
 #define PANDA_JACOBIAN_J_ROWS 6
 #define PANDA_JACOBIAN_J_COLS 7
-#define PANDA_JACOBIAN_WORK_REALS 53
+#define PANDA_JACOBIAN_WORK_REALS 47
 void panda_jacobian(const panda_real q[PANDA_NDOF], panda_real J[42]);
 /* fk_jacobian: tool pose T and geometric Jacobian J in one call (shared trig).
- * ops: 88 add, 114 mul, 14 trig; work: 54 reals. */
+ * ops: 88 add, 114 mul, 14 trig; work: 48 reals. */
 #define PANDA_FK_JACOBIAN_Q_ROWS 7
 #define PANDA_FK_JACOBIAN_Q_COLS 1
 #define PANDA_FK_JACOBIAN_T_ROWS 4
 #define PANDA_FK_JACOBIAN_T_COLS 4
 #define PANDA_FK_JACOBIAN_J_ROWS 6
 #define PANDA_FK_JACOBIAN_J_COLS 7
-#define PANDA_FK_JACOBIAN_WORK_REALS 54
+#define PANDA_FK_JACOBIAN_WORK_REALS 48
 void panda_fk_jacobian(const panda_real q[PANDA_NDOF], panda_real T[16], panda_real J[42]);
 /* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 620 add, 928 mul, 13 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 135 reals. */
+ * ops: 620 add, 928 mul, 13 div, 7 sqrt, 7 minmax, 12 compare, 12 select; work: 92 reals. */
 #define PANDA_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_MANIPULABILITY_FROM_JACOBIAN_J_COLS 7
 #define PANDA_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 7
 #define PANDA_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_COLS 1
-#define PANDA_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 135
+#define PANDA_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 92
 void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta, panda_real *w, panda_real grad_w[PANDA_NDOF]);
 /* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 754 add, 1150 mul, 13 div, 13 sqrt, 7 minmax, 12 compare, 12 select; work: 149 reals. */
+ * ops: 754 add, 1150 mul, 13 div, 13 sqrt, 7 minmax, 12 compare, 12 select; work: 106 reals. */
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_COLS 7
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_A_ROWS 7
@@ -260,10 +263,10 @@ void panda_manipulability_from_jacobian(const panda_real J[42], panda_real delta
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_OMEGA_COLS 1
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_ROWS 7
 #define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_COLS 1
-#define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 149
+#define PANDA_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 106
 void panda_joint_manipulability_from_jacobian(const panda_real J[42], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF]);
 /* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 879 add, 1407 mul, 20 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 165 reals. */
+ * ops: 879 add, 1407 mul, 20 div, 14 sqrt, 7 minmax, 12 compare, 12 select; work: 113 reals. */
 #define PANDA_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_FT_INDEX_FROM_JACOBIAN_J_COLS 7
 #define PANDA_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 7
@@ -276,10 +279,10 @@ void panda_joint_manipulability_from_jacobian(const panda_real J[42], const pand
 #define PANDA_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_COLS 1
 #define PANDA_FT_INDEX_FROM_JACOBIAN_GRAD_W_ROWS 7
 #define PANDA_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
-#define PANDA_FT_INDEX_FROM_JACOBIAN_WORK_REALS 165
+#define PANDA_FT_INDEX_FROM_JACOBIAN_WORK_REALS 113
 void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF], panda_real *w, panda_real grad_w[PANDA_NDOF]);
 /* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 258 add, 304 mul, 21 div, 6 minmax; work: 80 reals. */
+ * ops: 258 add, 304 mul, 21 div, 6 minmax; work: 32 reals. */
 #define PANDA_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_GPM_FROM_JACOBIAN_J_COLS 7
 #define PANDA_STEP_GPM_FROM_JACOBIAN_XDOT_ROWS 6
@@ -288,10 +291,10 @@ void panda_ft_index_from_jacobian(const panda_real J[42], const panda_real mask[
 #define PANDA_STEP_GPM_FROM_JACOBIAN_ALPHA_COLS 1
 #define PANDA_STEP_GPM_FROM_JACOBIAN_QDOT_ROWS 7
 #define PANDA_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
-#define PANDA_STEP_GPM_FROM_JACOBIAN_WORK_REALS 80
+#define PANDA_STEP_GPM_FROM_JACOBIAN_WORK_REALS 32
 panda_status panda_step_gpm_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real alpha[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
 /* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 213 add, 267 mul, 66 div, 13 minmax; work: 96 reals. */
+ * ops: 213 add, 267 mul, 66 div, 13 minmax; work: 52 reals. */
 #define PANDA_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_WLN_FROM_JACOBIAN_J_COLS 7
 #define PANDA_STEP_WLN_FROM_JACOBIAN_XDOT_ROWS 6
@@ -300,10 +303,10 @@ panda_status panda_step_gpm_from_jacobian(const panda_real J[42], const panda_re
 #define PANDA_STEP_WLN_FROM_JACOBIAN_W_COLS 1
 #define PANDA_STEP_WLN_FROM_JACOBIAN_QDOT_ROWS 7
 #define PANDA_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
-#define PANDA_STEP_WLN_FROM_JACOBIAN_WORK_REALS 96
+#define PANDA_STEP_WLN_FROM_JACOBIAN_WORK_REALS 52
 panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real W[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
 /* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 1656 add, 733 mul, 273 div, 6 sqrt, 327 minmax, 48 compare; work: 108 reals. */
+ * ops: 1656 add, 733 mul, 273 div, 6 sqrt, 327 minmax, 48 compare; work: 65 reals. */
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_J_COLS 7
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -316,10 +319,10 @@ panda_status panda_step_wln_from_jacobian(const panda_real J[42], const panda_re
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 7
 #define PANDA_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define PANDA_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 108
+#define PANDA_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 65
 panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 2656 add, 2068 mul, 331 div, 20 sqrt, 2 exp, 387 minmax, 67 compare, 19 select; work: 175 reals. */
+ * ops: 2656 add, 2068 mul, 331 div, 20 sqrt, 2 exp, 387 minmax, 67 compare, 19 select; work: 111 reals. */
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_J_COLS 7
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 7
@@ -346,28 +349,28 @@ panda_status panda_step_fault_from_jacobian(const panda_real J[42], const panda_
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
 #define PANDA_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
-#define PANDA_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 175
+#define PANDA_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 111
 panda_status panda_step_wgpm_from_jacobian(const panda_real J[42], const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 38 add, 28 mul, 14 div, 7 minmax, 7 compare, 7 select; work: 25 reals. */
+ * ops: 38 add, 28 mul, 14 div, 7 minmax, 7 compare, 7 select; work: 3 reals. */
 #define PANDA_ZGHAL_Q_ROWS 7
 #define PANDA_ZGHAL_Q_COLS 1
 #define PANDA_ZGHAL_GRAD_H_L_ROWS 7
 #define PANDA_ZGHAL_GRAD_H_L_COLS 1
-#define PANDA_ZGHAL_WORK_REALS 25
+#define PANDA_ZGHAL_WORK_REALS 3
 void panda_zghal(const panda_real q[PANDA_NDOF], panda_real *H_L, panda_real grad_H_L[PANDA_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
- * ops: 13 add, 8 mul; work: 10 reals. */
+ * ops: 13 add, 8 mul; work: 2 reals. */
 #define PANDA_REPETITIVE_Q_ROWS 7
 #define PANDA_REPETITIVE_Q_COLS 1
 #define PANDA_REPETITIVE_Q_INIT_ROWS 7
 #define PANDA_REPETITIVE_Q_INIT_COLS 1
 #define PANDA_REPETITIVE_GRAD_H_R_ROWS 7
 #define PANDA_REPETITIVE_GRAD_H_R_COLS 1
-#define PANDA_REPETITIVE_WORK_REALS 10
+#define PANDA_REPETITIVE_WORK_REALS 2
 void panda_repetitive(const panda_real q[PANDA_NDOF], const panda_real q_init[PANDA_NDOF], panda_real *H_R, panda_real grad_H_R[PANDA_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 834 add, 1252 mul, 13 div, 13 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_joint_manipulability_from_jacobian); work: 191 reals. */
+ * ops: 834 add, 1252 mul, 13 div, 13 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_joint_manipulability_from_jacobian); work: 148 reals. */
 #define PANDA_JOINT_MANIPULABILITY_Q_ROWS 7
 #define PANDA_JOINT_MANIPULABILITY_Q_COLS 1
 #define PANDA_JOINT_MANIPULABILITY_A_ROWS 7
@@ -376,26 +379,26 @@ void panda_repetitive(const panda_real q[PANDA_NDOF], const panda_real q_init[PA
 #define PANDA_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define PANDA_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 7
 #define PANDA_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define PANDA_JOINT_MANIPULABILITY_WORK_REALS 191
+#define PANDA_JOINT_MANIPULABILITY_WORK_REALS 148
 void panda_joint_manipulability(const panda_real q[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 700 add, 1030 mul, 13 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_manipulability_from_jacobian); work: 177 reals. */
+ * ops: 700 add, 1030 mul, 13 div, 7 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_manipulability_from_jacobian); work: 134 reals. */
 #define PANDA_MANIPULABILITY_Q_ROWS 7
 #define PANDA_MANIPULABILITY_Q_COLS 1
 #define PANDA_MANIPULABILITY_GRAD_W_ROWS 7
 #define PANDA_MANIPULABILITY_GRAD_W_COLS 1
-#define PANDA_MANIPULABILITY_WORK_REALS 177
+#define PANDA_MANIPULABILITY_WORK_REALS 134
 void panda_manipulability(const panda_real q[PANDA_NDOF], panda_real delta, panda_real *w, panda_real grad_w[PANDA_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
- * ops: 63 add, 49 mul, 14 div, 29 minmax; work: 12 reals. */
+ * ops: 63 add, 49 mul, 14 div, 29 minmax; work: 4 reals. */
 #define PANDA_CONTINUOUS_WEIGHTS_Q_ROWS 7
 #define PANDA_CONTINUOUS_WEIGHTS_Q_COLS 1
 #define PANDA_CONTINUOUS_WEIGHTS_W_C_ROWS 7
 #define PANDA_CONTINUOUS_WEIGHTS_W_C_COLS 1
-#define PANDA_CONTINUOUS_WEIGHTS_WORK_REALS 12
+#define PANDA_CONTINUOUS_WEIGHTS_WORK_REALS 4
 void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, panda_real w_c[PANDA_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 959 add, 1509 mul, 20 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_ft_index_from_jacobian); work: 207 reals. */
+ * ops: 959 add, 1509 mul, 20 div, 14 sqrt, 12 trig, 7 minmax, 12 compare, 12 select (calls panda_jacobian and panda_ft_index_from_jacobian); work: 155 reals. */
 #define PANDA_FT_INDEX_Q_ROWS 7
 #define PANDA_FT_INDEX_Q_COLS 1
 #define PANDA_FT_INDEX_MASK_ROWS 7
@@ -408,10 +411,10 @@ void panda_continuous_weights(const panda_real q[PANDA_NDOF], panda_real band, p
 #define PANDA_FT_INDEX_GRAD_H_M_COLS 1
 #define PANDA_FT_INDEX_GRAD_W_ROWS 7
 #define PANDA_FT_INDEX_GRAD_W_COLS 1
-#define PANDA_FT_INDEX_WORK_REALS 207
+#define PANDA_FT_INDEX_WORK_REALS 155
 void panda_ft_index(const panda_real q[PANDA_NDOF], const panda_real mask[PANDA_NDOF], const panda_real a[PANDA_NDOF], panda_real delta, panda_real omega[PANDA_NDOF], panda_real *H_M, panda_real grad_H_M[PANDA_NDOF], panda_real *w, panda_real grad_w[PANDA_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
- * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 24 reals. */
+ * ops: 35 add, 56 mul, 14 div, 30 minmax, 16 compare, 14 select; work: 7 reals. */
 #define PANDA_WLN_WEIGHTS_GRAD_H_ROWS 7
 #define PANDA_WLN_WEIGHTS_GRAD_H_COLS 1
 #define PANDA_WLN_WEIGHTS_OMEGA_ROWS 7
@@ -424,10 +427,10 @@ void panda_ft_index(const panda_real q[PANDA_NDOF], const panda_real mask[PANDA_
 #define PANDA_WLN_WEIGHTS_W_COLS 1
 #define PANDA_WLN_WEIGHTS_ACTIVE_ROWS 7
 #define PANDA_WLN_WEIGHTS_ACTIVE_COLS 1
-#define PANDA_WLN_WEIGHTS_WORK_REALS 24
+#define PANDA_WLN_WEIGHTS_WORK_REALS 7
 void panda_wln_weights(const panda_real grad_H[PANDA_NDOF], const panda_real omega[PANDA_NDOF], const panda_real qdot_prev[PANDA_NDOF], const panda_real mask[PANDA_NDOF], panda_real b, panda_real omega_floor, panda_real v_band, panda_real W[PANDA_NDOF], panda_real active[PANDA_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
- * ops: 338 add, 406 mul, 21 div, 12 trig, 6 minmax (calls panda_jacobian and panda_step_gpm_from_jacobian); work: 122 reals. */
+ * ops: 338 add, 406 mul, 21 div, 12 trig, 6 minmax (calls panda_jacobian and panda_step_gpm_from_jacobian); work: 74 reals. */
 #define PANDA_STEP_GPM_Q_ROWS 7
 #define PANDA_STEP_GPM_Q_COLS 1
 #define PANDA_STEP_GPM_XDOT_ROWS 6
@@ -436,10 +439,10 @@ void panda_wln_weights(const panda_real grad_H[PANDA_NDOF], const panda_real ome
 #define PANDA_STEP_GPM_ALPHA_COLS 1
 #define PANDA_STEP_GPM_QDOT_ROWS 7
 #define PANDA_STEP_GPM_QDOT_COLS 1
-#define PANDA_STEP_GPM_WORK_REALS 122
+#define PANDA_STEP_GPM_WORK_REALS 74
 panda_status panda_step_gpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real alpha[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 293 add, 369 mul, 66 div, 12 trig, 13 minmax (calls panda_jacobian and panda_step_wln_from_jacobian); work: 138 reals. */
+ * ops: 293 add, 369 mul, 66 div, 12 trig, 13 minmax (calls panda_jacobian and panda_step_wln_from_jacobian); work: 94 reals. */
 #define PANDA_STEP_WLN_Q_ROWS 7
 #define PANDA_STEP_WLN_Q_COLS 1
 #define PANDA_STEP_WLN_XDOT_ROWS 6
@@ -448,10 +451,10 @@ panda_status panda_step_gpm(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_WLN_W_COLS 1
 #define PANDA_STEP_WLN_QDOT_ROWS 7
 #define PANDA_STEP_WLN_QDOT_COLS 1
-#define PANDA_STEP_WLN_WORK_REALS 138
+#define PANDA_STEP_WLN_WORK_REALS 94
 panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real W[PANDA_NDOF], panda_real damping, panda_real qdot[PANDA_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 1736 add, 835 mul, 273 div, 6 sqrt, 12 trig, 327 minmax, 48 compare (calls panda_jacobian and panda_step_fault_from_jacobian); work: 150 reals. */
+ * ops: 1736 add, 835 mul, 273 div, 6 sqrt, 12 trig, 327 minmax, 48 compare (calls panda_jacobian and panda_step_fault_from_jacobian); work: 107 reals. */
 #define PANDA_STEP_FAULT_Q_ROWS 7
 #define PANDA_STEP_FAULT_Q_COLS 1
 #define PANDA_STEP_FAULT_XDOT_ROWS 6
@@ -464,10 +467,10 @@ panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdo
 #define PANDA_STEP_FAULT_ALPHA_COLS 1
 #define PANDA_STEP_FAULT_QDOT_ROWS 7
 #define PANDA_STEP_FAULT_QDOT_COLS 1
-#define PANDA_STEP_FAULT_WORK_REALS 150
+#define PANDA_STEP_FAULT_WORK_REALS 107
 panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], const panda_real mask[PANDA_NDOF], const panda_real W[PANDA_NDOF], const panda_real alpha[PANDA_NDOF], panda_real epsilon, panda_real lambda_max, panda_real qdot[PANDA_NDOF], panda_real *damping, panda_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 2736 add, 2170 mul, 331 div, 20 sqrt, 12 trig, 2 exp, 387 minmax, 67 compare, 19 select (calls panda_jacobian and panda_step_wgpm_from_jacobian); work: 217 reals. */
+ * ops: 2736 add, 2170 mul, 331 div, 20 sqrt, 12 trig, 2 exp, 387 minmax, 67 compare, 19 select (calls panda_jacobian and panda_step_wgpm_from_jacobian); work: 153 reals. */
 #define PANDA_STEP_WGPM_Q_ROWS 7
 #define PANDA_STEP_WGPM_Q_COLS 1
 #define PANDA_STEP_WGPM_XDOT_ROWS 6
@@ -492,10 +495,10 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
 #define PANDA_STEP_WGPM_GAINS_COLS 1
 #define PANDA_STEP_WGPM_H_ROWS 4
 #define PANDA_STEP_WGPM_H_COLS 1
-#define PANDA_STEP_WGPM_WORK_REALS 217
+#define PANDA_STEP_WGPM_WORK_REALS 153
 panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xdot[PANDA_NTASK], panda_real band, panda_real t_rmax, panda_real epsilon, panda_real rho_max, panda_real delta, panda_real ramp, const panda_real H_lo[4], const panda_real H_hi[4], const panda_real k_hi[4], const panda_real k_lo[4], const panda_real u_th[4], const panda_real u_band[4], panda_real qdot[PANDA_NDOF], panda_real w_c[PANDA_NDOF], panda_real *rho, panda_real *sigma_min, panda_real gains[4], panda_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached (max_iterations <= 0: no step, iterations 0); BAD_TARGET, no step, for a T_target that is not a pose (is_pose, in the header).
- * ops: 347449 add, 350180 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46364 compare, 56702 select; work: 38 reals. */
+ * ops: 347449 add, 350180 mul, 23400 div, 2700 sqrt, 8563 trig, 21616 minmax, 46364 compare, 56702 select; work: 24 reals. */
 #define PANDA_IK_T_TARGET_ROWS 4
 #define PANDA_IK_T_TARGET_COLS 4
 #define PANDA_IK_Q_SEED_ROWS 7
@@ -504,7 +507,7 @@ panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xd
 #define PANDA_IK_Q_REST_COLS 1
 #define PANDA_IK_Q_ROWS 7
 #define PANDA_IK_Q_COLS 1
-#define PANDA_IK_WORK_REALS 38
+#define PANDA_IK_WORK_REALS 24
 panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PANDA_NDOF], const panda_real q_rest[PANDA_NDOF], panda_real use_rest, panda_real tol_position, panda_real tol_orientation, panda_real max_iterations, panda_real q[PANDA_NDOF], panda_real *position_error, panda_real *orientation_error, panda_real *iterations, panda_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if PANDA_USE_FLOAT

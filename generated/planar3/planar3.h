@@ -111,7 +111,8 @@ static inline float planar3_floorf(float x) {
 #define PLANAR3_TRIG_INLINE static inline
 #endif
 #if PLANAR3_USE_FLOAT && PLANAR3_BOUNDED_TRIG
-/* sin and cos of x without a branch, always inlined (gcc/clang), also at -Os: x = k pi/2 + r,
+/* sin and cos of x without a branch, always inlined (gcc/clang) into the sin/cos table loop,
+ * also at -Os: x = k pi/2 + r,
  * |r| <= pi/4, the polynomials of r, then the rotation by j pi/2 (j = k mod 4 in -2..2) as
  * exact factors a = cos(j pi/2), b = sin(j pi/2) in {-1, 0, 1}, so that a loop over angles
  * runs four lanes wide where the compiler vectorises (x86 SSE). |x| beyond 100 rad is
@@ -131,12 +132,14 @@ PLANAR3_TRIG_INLINE void planar3_sincos_bounded(float x, float *s, float *c) {
   *s = a * sp + b * cp;
   *c = a * cp - b * sp;
 }
-PLANAR3_TRIG_INLINE float planar3_sin_bounded(float x) {
+/* A sin or cos outside the table (a solver's computed angle): the compiler's choice to inline
+ * or call, a call at -Os (inlined, each of the IK's took ~170 B of flash). */
+static inline float planar3_sin_bounded(float x) {
   float s, c;
   planar3_sincos_bounded(x, &s, &c);
   return s;
 }
-PLANAR3_TRIG_INLINE float planar3_cos_bounded(float x) {
+static inline float planar3_cos_bounded(float x) {
   float s, c;
   planar3_sincos_bounded(x, &s, &c);
   return c;
@@ -146,7 +149,7 @@ PLANAR3_TRIG_INLINE float planar3_cos_bounded(float x) {
  * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
  * and the quadrant by selects. Error <= 4 ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
  * or +-pi); NaN or inf in give NaN. */
-PLANAR3_TRIG_INLINE float planar3_atan2_bounded(float y, float x) {
+static inline float planar3_atan2_bounded(float y, float x) {
   float ax = fabsf(x), ay = fabsf(y);
   float hi = (ay > ax) ? ay : ax;
   float lo = (ay > ax) ? ax : ay;
@@ -216,41 +219,41 @@ static inline int planar3_is_pose(const planar3_real T[16]) {
  * inputs. No heap, no globals, reentrant; locals are the WORK_REALS scalars listed. */
 
 /* fk: tool pose T (4x4 homogeneous) in the base frame.
- * ops: 13 add, 22 mul, 6 trig; work: 18 reals. */
+ * ops: 13 add, 22 mul, 6 trig; work: 17 reals. */
 #define PLANAR3_FK_Q_ROWS 3
 #define PLANAR3_FK_Q_COLS 1
 #define PLANAR3_FK_T_ROWS 4
 #define PLANAR3_FK_T_COLS 4
-#define PLANAR3_FK_WORK_REALS 18
+#define PLANAR3_FK_WORK_REALS 17
 void planar3_fk(const planar3_real q[PLANAR3_NDOF], planar3_real T[16]);
 /* jacobian: geometric Jacobian J (6xn, rows [v; w] of the tool origin, base frame).
- * ops: 15 add, 18 mul, 6 trig; work: 20 reals. */
+ * ops: 15 add, 18 mul, 6 trig; work: 15 reals. */
 #define PLANAR3_JACOBIAN_Q_ROWS 3
 #define PLANAR3_JACOBIAN_Q_COLS 1
 #define PLANAR3_JACOBIAN_J_ROWS 6
 #define PLANAR3_JACOBIAN_J_COLS 3
-#define PLANAR3_JACOBIAN_WORK_REALS 20
+#define PLANAR3_JACOBIAN_WORK_REALS 15
 void planar3_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real J[18]);
 /* fk_jacobian: tool pose T and geometric Jacobian J in one call (shared trig).
- * ops: 18 add, 22 mul, 6 trig; work: 18 reals. */
+ * ops: 18 add, 22 mul, 6 trig; work: 17 reals. */
 #define PLANAR3_FK_JACOBIAN_Q_ROWS 3
 #define PLANAR3_FK_JACOBIAN_Q_COLS 1
 #define PLANAR3_FK_JACOBIAN_T_ROWS 4
 #define PLANAR3_FK_JACOBIAN_T_COLS 4
 #define PLANAR3_FK_JACOBIAN_J_ROWS 6
 #define PLANAR3_FK_JACOBIAN_J_COLS 3
-#define PLANAR3_FK_JACOBIAN_WORK_REALS 18
+#define PLANAR3_FK_JACOBIAN_WORK_REALS 17
 void planar3_fk_jacobian(const planar3_real q[PLANAR3_NDOF], planar3_real T[16], planar3_real J[18]);
 /* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 69 add, 106 mul, 6 div, 4 sqrt, 4 minmax, 6 compare, 6 select; work: 29 reals. */
+ * ops: 69 add, 106 mul, 6 div, 4 sqrt, 4 minmax, 6 compare, 6 select; work: 17 reals. */
 #define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 3
 #define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_COLS 1
-#define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 29
+#define PLANAR3_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 17
 void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real delta, planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
 /* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 2 add, 3 mul, 4 minmax; work: 4 reals. */
+ * ops: 2 add, 3 mul, 4 minmax; work: 3 reals. */
 #define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_A_ROWS 3
@@ -259,10 +262,10 @@ void planar3_manipulability_from_jacobian(const planar3_real J[18], planar3_real
 #define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_OMEGA_COLS 1
 #define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_ROWS 3
 #define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_COLS 1
-#define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 4
+#define PLANAR3_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 3
 void planar3_joint_manipulability_from_jacobian(const planar3_real J[18], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF]);
 /* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 71 add, 130 mul, 6 div, 4 sqrt, 7 minmax, 6 compare, 6 select; work: 35 reals. */
+ * ops: 71 add, 130 mul, 6 div, 4 sqrt, 7 minmax, 6 compare, 6 select; work: 19 reals. */
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 3
@@ -275,10 +278,10 @@ void planar3_joint_manipulability_from_jacobian(const planar3_real J[18], const 
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_COLS 1
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_GRAD_W_ROWS 3
 #define PLANAR3_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
-#define PLANAR3_FT_INDEX_FROM_JACOBIAN_WORK_REALS 35
+#define PLANAR3_FT_INDEX_FROM_JACOBIAN_WORK_REALS 19
 void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real mask[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF], planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
 /* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 44 add, 39 mul, 6 div, 3 minmax; work: 23 reals. */
+ * ops: 44 add, 39 mul, 6 div, 3 minmax; work: 11 reals. */
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_XDOT_ROWS 3
@@ -287,10 +290,10 @@ void planar3_ft_index_from_jacobian(const planar3_real J[18], const planar3_real
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_ALPHA_COLS 1
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_QDOT_ROWS 3
 #define PLANAR3_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
-#define PLANAR3_STEP_GPM_FROM_JACOBIAN_WORK_REALS 23
+#define PLANAR3_STEP_GPM_FROM_JACOBIAN_WORK_REALS 11
 planar3_status planar3_step_gpm_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real alpha[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
 /* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 34 add, 33 mul, 18 div, 6 minmax; work: 25 reals. */
+ * ops: 34 add, 33 mul, 18 div, 6 minmax; work: 14 reals. */
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_XDOT_ROWS 3
@@ -299,10 +302,10 @@ planar3_status planar3_step_gpm_from_jacobian(const planar3_real J[18], const pl
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_W_COLS 1
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_QDOT_ROWS 3
 #define PLANAR3_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
-#define PLANAR3_STEP_WLN_FROM_JACOBIAN_WORK_REALS 25
+#define PLANAR3_STEP_WLN_FROM_JACOBIAN_WORK_REALS 14
 planar3_status planar3_step_wln_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real W[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
 /* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 663 add, 194 mul, 107 div, 3 sqrt, 161 minmax, 48 compare; work: 35 reals. */
+ * ops: 663 add, 194 mul, 107 div, 3 sqrt, 161 minmax, 48 compare; work: 24 reals. */
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 3
@@ -315,10 +318,10 @@ planar3_status planar3_step_wln_from_jacobian(const planar3_real J[18], const pl
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 3
 #define PLANAR3_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define PLANAR3_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 35
+#define PLANAR3_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 24
 planar3_status planar3_step_fault_from_jacobian(const planar3_real J[18], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 836 add, 383 mul, 135 div, 7 sqrt, 2 exp, 203 minmax, 57 compare, 9 select; work: 52 reals. */
+ * ops: 836 add, 383 mul, 135 div, 7 sqrt, 2 exp, 203 minmax, 57 compare, 9 select; work: 25 reals. */
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_J_COLS 3
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 3
@@ -345,28 +348,28 @@ planar3_status planar3_step_fault_from_jacobian(const planar3_real J[18], const 
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
 #define PLANAR3_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
-#define PLANAR3_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 52
+#define PLANAR3_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 25
 planar3_status planar3_step_wgpm_from_jacobian(const planar3_real J[18], const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 14 add, 12 mul, 6 div, 3 minmax, 3 compare, 3 select; work: 10 reals. */
+ * ops: 14 add, 12 mul, 6 div, 3 minmax, 3 compare, 3 select; work: 3 reals. */
 #define PLANAR3_ZGHAL_Q_ROWS 3
 #define PLANAR3_ZGHAL_Q_COLS 1
 #define PLANAR3_ZGHAL_GRAD_H_L_ROWS 3
 #define PLANAR3_ZGHAL_GRAD_H_L_COLS 1
-#define PLANAR3_ZGHAL_WORK_REALS 10
+#define PLANAR3_ZGHAL_WORK_REALS 3
 void planar3_zghal(const planar3_real q[PLANAR3_NDOF], planar3_real *H_L, planar3_real grad_H_L[PLANAR3_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
- * ops: 5 add, 4 mul; work: 6 reals. */
+ * ops: 5 add, 4 mul; work: 2 reals. */
 #define PLANAR3_REPETITIVE_Q_ROWS 3
 #define PLANAR3_REPETITIVE_Q_COLS 1
 #define PLANAR3_REPETITIVE_Q_INIT_ROWS 3
 #define PLANAR3_REPETITIVE_Q_INIT_COLS 1
 #define PLANAR3_REPETITIVE_GRAD_H_R_ROWS 3
 #define PLANAR3_REPETITIVE_GRAD_H_R_COLS 1
-#define PLANAR3_REPETITIVE_WORK_REALS 6
+#define PLANAR3_REPETITIVE_WORK_REALS 2
 void planar3_repetitive(const planar3_real q[PLANAR3_NDOF], const planar3_real q_init[PLANAR3_NDOF], planar3_real *H_R, planar3_real grad_H_R[PLANAR3_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 17 add, 21 mul, 6 trig, 4 minmax (calls planar3_jacobian and planar3_joint_manipulability_from_jacobian); work: 22 reals. */
+ * ops: 17 add, 21 mul, 6 trig, 4 minmax (calls planar3_jacobian and planar3_joint_manipulability_from_jacobian); work: 21 reals. */
 #define PLANAR3_JOINT_MANIPULABILITY_Q_ROWS 3
 #define PLANAR3_JOINT_MANIPULABILITY_Q_COLS 1
 #define PLANAR3_JOINT_MANIPULABILITY_A_ROWS 3
@@ -375,26 +378,26 @@ void planar3_repetitive(const planar3_real q[PLANAR3_NDOF], const planar3_real q
 #define PLANAR3_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define PLANAR3_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 3
 #define PLANAR3_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define PLANAR3_JOINT_MANIPULABILITY_WORK_REALS 22
+#define PLANAR3_JOINT_MANIPULABILITY_WORK_REALS 21
 void planar3_joint_manipulability(const planar3_real q[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 84 add, 124 mul, 6 div, 4 sqrt, 6 trig, 4 minmax, 6 compare, 6 select (calls planar3_jacobian and planar3_manipulability_from_jacobian); work: 47 reals. */
+ * ops: 84 add, 124 mul, 6 div, 4 sqrt, 6 trig, 4 minmax, 6 compare, 6 select (calls planar3_jacobian and planar3_manipulability_from_jacobian); work: 35 reals. */
 #define PLANAR3_MANIPULABILITY_Q_ROWS 3
 #define PLANAR3_MANIPULABILITY_Q_COLS 1
 #define PLANAR3_MANIPULABILITY_GRAD_W_ROWS 3
 #define PLANAR3_MANIPULABILITY_GRAD_W_COLS 1
-#define PLANAR3_MANIPULABILITY_WORK_REALS 47
+#define PLANAR3_MANIPULABILITY_WORK_REALS 35
 void planar3_manipulability(const planar3_real q[PLANAR3_NDOF], planar3_real delta, planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
- * ops: 27 add, 21 mul, 6 div, 13 minmax; work: 11 reals. */
+ * ops: 27 add, 21 mul, 6 div, 13 minmax; work: 4 reals. */
 #define PLANAR3_CONTINUOUS_WEIGHTS_Q_ROWS 3
 #define PLANAR3_CONTINUOUS_WEIGHTS_Q_COLS 1
 #define PLANAR3_CONTINUOUS_WEIGHTS_W_C_ROWS 3
 #define PLANAR3_CONTINUOUS_WEIGHTS_W_C_COLS 1
-#define PLANAR3_CONTINUOUS_WEIGHTS_WORK_REALS 11
+#define PLANAR3_CONTINUOUS_WEIGHTS_WORK_REALS 4
 void planar3_continuous_weights(const planar3_real q[PLANAR3_NDOF], planar3_real band, planar3_real w_c[PLANAR3_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 86 add, 148 mul, 6 div, 4 sqrt, 6 trig, 7 minmax, 6 compare, 6 select (calls planar3_jacobian and planar3_ft_index_from_jacobian); work: 53 reals. */
+ * ops: 86 add, 148 mul, 6 div, 4 sqrt, 6 trig, 7 minmax, 6 compare, 6 select (calls planar3_jacobian and planar3_ft_index_from_jacobian); work: 37 reals. */
 #define PLANAR3_FT_INDEX_Q_ROWS 3
 #define PLANAR3_FT_INDEX_Q_COLS 1
 #define PLANAR3_FT_INDEX_MASK_ROWS 3
@@ -407,10 +410,10 @@ void planar3_continuous_weights(const planar3_real q[PLANAR3_NDOF], planar3_real
 #define PLANAR3_FT_INDEX_GRAD_H_M_COLS 1
 #define PLANAR3_FT_INDEX_GRAD_W_ROWS 3
 #define PLANAR3_FT_INDEX_GRAD_W_COLS 1
-#define PLANAR3_FT_INDEX_WORK_REALS 53
+#define PLANAR3_FT_INDEX_WORK_REALS 37
 void planar3_ft_index(const planar3_real q[PLANAR3_NDOF], const planar3_real mask[PLANAR3_NDOF], const planar3_real a[PLANAR3_NDOF], planar3_real delta, planar3_real omega[PLANAR3_NDOF], planar3_real *H_M, planar3_real grad_H_M[PLANAR3_NDOF], planar3_real *w, planar3_real grad_w[PLANAR3_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
- * ops: 15 add, 24 mul, 6 div, 14 minmax, 8 compare, 6 select; work: 16 reals. */
+ * ops: 15 add, 24 mul, 6 div, 14 minmax, 8 compare, 6 select; work: 7 reals. */
 #define PLANAR3_WLN_WEIGHTS_GRAD_H_ROWS 3
 #define PLANAR3_WLN_WEIGHTS_GRAD_H_COLS 1
 #define PLANAR3_WLN_WEIGHTS_OMEGA_ROWS 3
@@ -423,10 +426,10 @@ void planar3_ft_index(const planar3_real q[PLANAR3_NDOF], const planar3_real mas
 #define PLANAR3_WLN_WEIGHTS_W_COLS 1
 #define PLANAR3_WLN_WEIGHTS_ACTIVE_ROWS 3
 #define PLANAR3_WLN_WEIGHTS_ACTIVE_COLS 1
-#define PLANAR3_WLN_WEIGHTS_WORK_REALS 16
+#define PLANAR3_WLN_WEIGHTS_WORK_REALS 7
 void planar3_wln_weights(const planar3_real grad_H[PLANAR3_NDOF], const planar3_real omega[PLANAR3_NDOF], const planar3_real qdot_prev[PLANAR3_NDOF], const planar3_real mask[PLANAR3_NDOF], planar3_real b, planar3_real omega_floor, planar3_real v_band, planar3_real W[PLANAR3_NDOF], planar3_real active[PLANAR3_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
- * ops: 59 add, 57 mul, 6 div, 6 trig, 3 minmax (calls planar3_jacobian and planar3_step_gpm_from_jacobian); work: 41 reals. */
+ * ops: 59 add, 57 mul, 6 div, 6 trig, 3 minmax (calls planar3_jacobian and planar3_step_gpm_from_jacobian); work: 29 reals. */
 #define PLANAR3_STEP_GPM_Q_ROWS 3
 #define PLANAR3_STEP_GPM_Q_COLS 1
 #define PLANAR3_STEP_GPM_XDOT_ROWS 3
@@ -435,10 +438,10 @@ void planar3_wln_weights(const planar3_real grad_H[PLANAR3_NDOF], const planar3_
 #define PLANAR3_STEP_GPM_ALPHA_COLS 1
 #define PLANAR3_STEP_GPM_QDOT_ROWS 3
 #define PLANAR3_STEP_GPM_QDOT_COLS 1
-#define PLANAR3_STEP_GPM_WORK_REALS 41
+#define PLANAR3_STEP_GPM_WORK_REALS 29
 planar3_status planar3_step_gpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real alpha[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 49 add, 51 mul, 18 div, 6 trig, 6 minmax (calls planar3_jacobian and planar3_step_wln_from_jacobian); work: 43 reals. */
+ * ops: 49 add, 51 mul, 18 div, 6 trig, 6 minmax (calls planar3_jacobian and planar3_step_wln_from_jacobian); work: 32 reals. */
 #define PLANAR3_STEP_WLN_Q_ROWS 3
 #define PLANAR3_STEP_WLN_Q_COLS 1
 #define PLANAR3_STEP_WLN_XDOT_ROWS 3
@@ -447,10 +450,10 @@ planar3_status planar3_step_gpm(const planar3_real q[PLANAR3_NDOF], const planar
 #define PLANAR3_STEP_WLN_W_COLS 1
 #define PLANAR3_STEP_WLN_QDOT_ROWS 3
 #define PLANAR3_STEP_WLN_QDOT_COLS 1
-#define PLANAR3_STEP_WLN_WORK_REALS 43
+#define PLANAR3_STEP_WLN_WORK_REALS 32
 planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real W[PLANAR3_NDOF], planar3_real damping, planar3_real qdot[PLANAR3_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 678 add, 212 mul, 107 div, 3 sqrt, 6 trig, 161 minmax, 48 compare (calls planar3_jacobian and planar3_step_fault_from_jacobian); work: 53 reals. */
+ * ops: 678 add, 212 mul, 107 div, 3 sqrt, 6 trig, 161 minmax, 48 compare (calls planar3_jacobian and planar3_step_fault_from_jacobian); work: 42 reals. */
 #define PLANAR3_STEP_FAULT_Q_ROWS 3
 #define PLANAR3_STEP_FAULT_Q_COLS 1
 #define PLANAR3_STEP_FAULT_XDOT_ROWS 3
@@ -463,10 +466,10 @@ planar3_status planar3_step_wln(const planar3_real q[PLANAR3_NDOF], const planar
 #define PLANAR3_STEP_FAULT_ALPHA_COLS 1
 #define PLANAR3_STEP_FAULT_QDOT_ROWS 3
 #define PLANAR3_STEP_FAULT_QDOT_COLS 1
-#define PLANAR3_STEP_FAULT_WORK_REALS 53
+#define PLANAR3_STEP_FAULT_WORK_REALS 42
 planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], const planar3_real mask[PLANAR3_NDOF], const planar3_real W[PLANAR3_NDOF], const planar3_real alpha[PLANAR3_NDOF], planar3_real epsilon, planar3_real lambda_max, planar3_real qdot[PLANAR3_NDOF], planar3_real *damping, planar3_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 851 add, 401 mul, 135 div, 7 sqrt, 6 trig, 2 exp, 203 minmax, 57 compare, 9 select (calls planar3_jacobian and planar3_step_wgpm_from_jacobian); work: 70 reals. */
+ * ops: 851 add, 401 mul, 135 div, 7 sqrt, 6 trig, 2 exp, 203 minmax, 57 compare, 9 select (calls planar3_jacobian and planar3_step_wgpm_from_jacobian); work: 43 reals. */
 #define PLANAR3_STEP_WGPM_Q_ROWS 3
 #define PLANAR3_STEP_WGPM_Q_COLS 1
 #define PLANAR3_STEP_WGPM_XDOT_ROWS 3
@@ -491,10 +494,10 @@ planar3_status planar3_step_fault(const planar3_real q[PLANAR3_NDOF], const plan
 #define PLANAR3_STEP_WGPM_GAINS_COLS 1
 #define PLANAR3_STEP_WGPM_H_ROWS 4
 #define PLANAR3_STEP_WGPM_H_COLS 1
-#define PLANAR3_STEP_WGPM_WORK_REALS 70
+#define PLANAR3_STEP_WGPM_WORK_REALS 43
 planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const planar3_real xdot[PLANAR3_NTASK], planar3_real band, planar3_real t_rmax, planar3_real epsilon, planar3_real rho_max, planar3_real delta, planar3_real ramp, const planar3_real H_lo[4], const planar3_real H_hi[4], const planar3_real k_hi[4], const planar3_real k_lo[4], const planar3_real u_th[4], const planar3_real u_band[4], planar3_real qdot[PLANAR3_NDOF], planar3_real w_c[PLANAR3_NDOF], planar3_real *rho, planar3_real *sigma_min, planar3_real gains[4], planar3_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached (max_iterations <= 0: no step, iterations 0); BAD_TARGET, no step, for a T_target that is not a pose (is_pose, in the header).
- * ops: 113423 add, 99035 mul, 9900 div, 2250 sqrt, 4957 trig, 11708 minmax, 30164 compare, 32402 select; work: 30 reals. */
+ * ops: 113423 add, 99035 mul, 9900 div, 2250 sqrt, 4957 trig, 11708 minmax, 30164 compare, 32402 select; work: 12 reals. */
 #define PLANAR3_IK_T_TARGET_ROWS 4
 #define PLANAR3_IK_T_TARGET_COLS 4
 #define PLANAR3_IK_Q_SEED_ROWS 3
@@ -503,7 +506,7 @@ planar3_status planar3_step_wgpm(const planar3_real q[PLANAR3_NDOF], const plana
 #define PLANAR3_IK_Q_REST_COLS 1
 #define PLANAR3_IK_Q_ROWS 3
 #define PLANAR3_IK_Q_COLS 1
-#define PLANAR3_IK_WORK_REALS 30
+#define PLANAR3_IK_WORK_REALS 12
 planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_seed[PLANAR3_NDOF], const planar3_real q_rest[PLANAR3_NDOF], planar3_real use_rest, planar3_real tol_position, planar3_real tol_orientation, planar3_real max_iterations, planar3_real q[PLANAR3_NDOF], planar3_real *position_error, planar3_real *orientation_error, planar3_real *iterations, planar3_real *success);
 /* bisection_step3_loop: a fixed-count loop the functions above call (not for direct use). */
 #if PLANAR3_USE_FLOAT

@@ -111,7 +111,8 @@ static inline float snake12_floorf(float x) {
 #define SNAKE12_TRIG_INLINE static inline
 #endif
 #if SNAKE12_USE_FLOAT && SNAKE12_BOUNDED_TRIG
-/* sin and cos of x without a branch, always inlined (gcc/clang), also at -Os: x = k pi/2 + r,
+/* sin and cos of x without a branch, always inlined (gcc/clang) into the sin/cos table loop,
+ * also at -Os: x = k pi/2 + r,
  * |r| <= pi/4, the polynomials of r, then the rotation by j pi/2 (j = k mod 4 in -2..2) as
  * exact factors a = cos(j pi/2), b = sin(j pi/2) in {-1, 0, 1}, so that a loop over angles
  * runs four lanes wide where the compiler vectorises (x86 SSE). |x| beyond 100 rad is
@@ -131,12 +132,14 @@ SNAKE12_TRIG_INLINE void snake12_sincos_bounded(float x, float *s, float *c) {
   *s = a * sp + b * cp;
   *c = a * cp - b * sp;
 }
-SNAKE12_TRIG_INLINE float snake12_sin_bounded(float x) {
+/* A sin or cos outside the table (a solver's computed angle): the compiler's choice to inline
+ * or call, a call at -Os (inlined, each of the IK's took ~170 B of flash). */
+static inline float snake12_sin_bounded(float x) {
   float s, c;
   snake12_sincos_bounded(x, &s, &c);
   return s;
 }
-SNAKE12_TRIG_INLINE float snake12_cos_bounded(float x) {
+static inline float snake12_cos_bounded(float x) {
   float s, c;
   snake12_sincos_bounded(x, &s, &c);
   return c;
@@ -146,7 +149,7 @@ SNAKE12_TRIG_INLINE float snake12_cos_bounded(float x) {
  * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
  * and the quadrant by selects. Error <= 4 ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
  * or +-pi); NaN or inf in give NaN. */
-SNAKE12_TRIG_INLINE float snake12_atan2_bounded(float y, float x) {
+static inline float snake12_atan2_bounded(float y, float x) {
   float ax = fabsf(x), ay = fabsf(y);
   float hi = (ay > ax) ? ay : ax;
   float lo = (ay > ax) ? ax : ay;
@@ -216,41 +219,41 @@ static inline int snake12_is_pose(const snake12_real T[16]) {
  * inputs. No heap, no globals, reentrant; locals are the WORK_REALS scalars listed. */
 
 /* fk: tool pose T (4x4 homogeneous) in the base frame.
- * ops: 166 add, 302 mul, 48 trig; work: 151 reals. */
+ * ops: 166 add, 302 mul, 48 trig; work: 129 reals. */
 #define SNAKE12_FK_Q_ROWS 25
 #define SNAKE12_FK_Q_COLS 1
 #define SNAKE12_FK_T_ROWS 4
 #define SNAKE12_FK_T_COLS 4
-#define SNAKE12_FK_WORK_REALS 151
+#define SNAKE12_FK_WORK_REALS 129
 void snake12_fk(const snake12_real q[SNAKE12_NDOF], snake12_real T[16]);
 /* jacobian: geometric Jacobian J (6xn, rows [v; w] of the tool origin, base frame).
- * ops: 335 add, 432 mul, 48 trig; work: 194 reals. */
+ * ops: 335 add, 432 mul, 48 trig; work: 190 reals. */
 #define SNAKE12_JACOBIAN_Q_ROWS 25
 #define SNAKE12_JACOBIAN_Q_COLS 1
 #define SNAKE12_JACOBIAN_J_ROWS 6
 #define SNAKE12_JACOBIAN_J_COLS 25
-#define SNAKE12_JACOBIAN_WORK_REALS 194
+#define SNAKE12_JACOBIAN_WORK_REALS 190
 void snake12_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real J[150]);
 /* fk_jacobian: tool pose T and geometric Jacobian J in one call (shared trig).
- * ops: 339 add, 438 mul, 48 trig; work: 191 reals. */
+ * ops: 339 add, 438 mul, 48 trig; work: 190 reals. */
 #define SNAKE12_FK_JACOBIAN_Q_ROWS 25
 #define SNAKE12_FK_JACOBIAN_Q_COLS 1
 #define SNAKE12_FK_JACOBIAN_T_ROWS 4
 #define SNAKE12_FK_JACOBIAN_T_COLS 4
 #define SNAKE12_FK_JACOBIAN_J_ROWS 6
 #define SNAKE12_FK_JACOBIAN_J_COLS 25
-#define SNAKE12_FK_JACOBIAN_WORK_REALS 191
+#define SNAKE12_FK_JACOBIAN_WORK_REALS 190
 void snake12_fk_jacobian(const snake12_real q[SNAKE12_NDOF], snake12_real T[16], snake12_real J[150]);
 /* manipulability_from_jacobian: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 2652 add, 3186 mul, 30 div, 7 sqrt, 7 minmax, 10 compare, 10 select; work: 399 reals. */
+ * ops: 2652 add, 3186 mul, 30 div, 7 sqrt, 7 minmax, 10 compare, 10 select; work: 254 reals. */
 #define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_ROWS 25
 #define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_GRAD_W_COLS 1
-#define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 399
+#define SNAKE12_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 254
 void snake12_manipulability_from_jacobian(const snake12_real J[150], snake12_real delta, snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* joint_manipulability_from_jacobian: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 4740 add, 5502 mul, 31 div, 31 sqrt, 32 minmax, 10 compare, 10 select; work: 543 reals. */
+ * ops: 4740 add, 5502 mul, 31 div, 31 sqrt, 32 minmax, 10 compare, 10 select; work: 402 reals. */
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_A_ROWS 25
@@ -259,10 +262,10 @@ void snake12_manipulability_from_jacobian(const snake12_real J[150], snake12_rea
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_OMEGA_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_GRAD_H_M_COLS 1
-#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 543
+#define SNAKE12_JOINT_MANIPULABILITY_FROM_JACOBIAN_WORK_REALS 402
 void snake12_joint_manipulability_from_jacobian(const snake12_real J[150], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
 /* ft_index_from_jacobian: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 5258 add, 6494 mul, 55 div, 32 sqrt, 32 minmax, 12 compare, 12 select; work: 627 reals. */
+ * ops: 5258 add, 6494 mul, 55 div, 32 sqrt, 32 minmax, 12 compare, 12 select; work: 453 reals. */
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_MASK_ROWS 25
@@ -275,10 +278,10 @@ void snake12_joint_manipulability_from_jacobian(const snake12_real J[150], const
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_H_M_COLS 1
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_W_ROWS 25
 #define SNAKE12_FT_INDEX_FROM_JACOBIAN_GRAD_W_COLS 1
-#define SNAKE12_FT_INDEX_FROM_JACOBIAN_WORK_REALS 627
+#define SNAKE12_FT_INDEX_FROM_JACOBIAN_WORK_REALS 453
 void snake12_ft_index_from_jacobian(const snake12_real J[150], const snake12_real mask[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF], snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* step_gpm_from_jacobian: damped gradient projection qdot = J# xdot + (I - J# J) alpha; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 822 add, 865 mul, 21 div, 6 minmax; work: 201 reals. */
+ * ops: 822 add, 865 mul, 21 div, 6 minmax; work: 32 reals. */
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_XDOT_ROWS 6
@@ -287,10 +290,10 @@ void snake12_ft_index_from_jacobian(const snake12_real J[150], const snake12_rea
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_ALPHA_COLS 1
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_QDOT_ROWS 25
 #define SNAKE12_STEP_GPM_FROM_JACOBIAN_QDOT_COLS 1
-#define SNAKE12_STEP_GPM_FROM_JACOBIAN_WORK_REALS 201
+#define SNAKE12_STEP_GPM_FROM_JACOBIAN_WORK_REALS 32
 snake12_status snake12_step_gpm_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real alpha[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
 /* step_wln_from_jacobian: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 656 add, 726 mul, 187 div, 31 minmax; work: 284 reals. */
+ * ops: 656 add, 726 mul, 187 div, 31 minmax; work: 138 reals. */
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_XDOT_ROWS 6
@@ -299,10 +302,10 @@ snake12_status snake12_step_gpm_from_jacobian(const snake12_real J[150], const s
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_W_COLS 1
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_QDOT_ROWS 25
 #define SNAKE12_STEP_WLN_FROM_JACOBIAN_QDOT_COLS 1
-#define SNAKE12_STEP_WLN_FROM_JACOBIAN_WORK_REALS 284
+#define SNAKE12_STEP_WLN_FROM_JACOBIAN_WORK_REALS 138
 snake12_status snake12_step_wln_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real W[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
 /* step_fault_from_jacobian: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30); from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 2220 add, 1432 mul, 291 div, 6 sqrt, 345 minmax, 48 compare; work: 246 reals. */
+ * ops: 2220 add, 1432 mul, 291 div, 6 sqrt, 345 minmax, 48 compare; work: 101 reals. */
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_XDOT_ROWS 6
@@ -315,10 +318,10 @@ snake12_status snake12_step_wln_from_jacobian(const snake12_real J[150], const s
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_ALPHA_COLS 1
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_QDOT_ROWS 25
 #define SNAKE12_STEP_FAULT_FROM_JACOBIAN_QDOT_COLS 1
-#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 246
+#define SNAKE12_STEP_FAULT_FROM_JACOBIAN_WORK_REALS 101
 snake12_status snake12_step_fault_from_jacobian(const snake12_real J[150], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
 /* step_wgpm_from_jacobian: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains; from a given Jacobian J (jacobian's output, 6xn; its entries that are constant for this robot are not read).
- * ops: 7747 add, 7548 mul, 564 div, 38 sqrt, 2 exp, 502 minmax, 83 compare, 35 select; work: 598 reals. */
+ * ops: 7747 add, 7548 mul, 564 div, 38 sqrt, 2 exp, 502 minmax, 83 compare, 35 select; work: 410 reals. */
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_J_ROWS 6
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_J_COLS 25
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_Q_ROWS 25
@@ -345,28 +348,28 @@ snake12_status snake12_step_fault_from_jacobian(const snake12_real J[150], const
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_GAINS_COLS 1
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_ROWS 4
 #define SNAKE12_STEP_WGPM_FROM_JACOBIAN_H_COLS 1
-#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 598
+#define SNAKE12_STEP_WGPM_FROM_JACOBIAN_WORK_REALS 410
 snake12_status snake12_step_wgpm_from_jacobian(const snake12_real J[150], const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 /* zghal: Zghal joint-limit criterion H_L and its gradient (rad).
- * ops: 124 add, 100 mul, 50 div, 25 minmax, 25 compare, 25 select; work: 35 reals. */
+ * ops: 124 add, 100 mul, 50 div, 25 minmax, 25 compare, 25 select; work: 3 reals. */
 #define SNAKE12_ZGHAL_Q_ROWS 25
 #define SNAKE12_ZGHAL_Q_COLS 1
 #define SNAKE12_ZGHAL_GRAD_H_L_ROWS 25
 #define SNAKE12_ZGHAL_GRAD_H_L_COLS 1
-#define SNAKE12_ZGHAL_WORK_REALS 35
+#define SNAKE12_ZGHAL_WORK_REALS 3
 void snake12_zghal(const snake12_real q[SNAKE12_NDOF], snake12_real *H_L, snake12_real grad_H_L[SNAKE12_NDOF]);
 /* repetitive: repetitive criterion H_R = 1/2 |q - q_init|^2 and its gradient.
- * ops: 49 add, 26 mul; work: 28 reals. */
+ * ops: 49 add, 26 mul; work: 2 reals. */
 #define SNAKE12_REPETITIVE_Q_ROWS 25
 #define SNAKE12_REPETITIVE_Q_COLS 1
 #define SNAKE12_REPETITIVE_Q_INIT_ROWS 25
 #define SNAKE12_REPETITIVE_Q_INIT_COLS 1
 #define SNAKE12_REPETITIVE_GRAD_H_R_ROWS 25
 #define SNAKE12_REPETITIVE_GRAD_H_R_COLS 1
-#define SNAKE12_REPETITIVE_WORK_REALS 28
+#define SNAKE12_REPETITIVE_WORK_REALS 2
 void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q_init[SNAKE12_NDOF], snake12_real *H_R, snake12_real grad_H_R[SNAKE12_NDOF]);
 /* joint_manipulability: joint manipulability omega_i = sqrt(det(J_-i J_-i^T) + delta^2), H_M = sum a_i omega_i and its gradient.
- * ops: 5075 add, 5934 mul, 31 div, 31 sqrt, 48 trig, 32 minmax, 10 compare, 10 select (calls snake12_jacobian and snake12_joint_manipulability_from_jacobian); work: 693 reals. */
+ * ops: 5075 add, 5934 mul, 31 div, 31 sqrt, 48 trig, 32 minmax, 10 compare, 10 select (calls snake12_jacobian and snake12_joint_manipulability_from_jacobian); work: 552 reals. */
 #define SNAKE12_JOINT_MANIPULABILITY_Q_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_Q_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_A_ROWS 25
@@ -375,26 +378,26 @@ void snake12_repetitive(const snake12_real q[SNAKE12_NDOF], const snake12_real q
 #define SNAKE12_JOINT_MANIPULABILITY_OMEGA_COLS 1
 #define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_ROWS 25
 #define SNAKE12_JOINT_MANIPULABILITY_GRAD_H_M_COLS 1
-#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 693
+#define SNAKE12_JOINT_MANIPULABILITY_WORK_REALS 552
 void snake12_joint_manipulability(const snake12_real q[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF]);
 /* manipulability: manipulability w = sqrt(det(J J^T) + delta^2) and its gradient.
- * ops: 2987 add, 3618 mul, 30 div, 7 sqrt, 48 trig, 7 minmax, 10 compare, 10 select (calls snake12_jacobian and snake12_manipulability_from_jacobian); work: 549 reals. */
+ * ops: 2987 add, 3618 mul, 30 div, 7 sqrt, 48 trig, 7 minmax, 10 compare, 10 select (calls snake12_jacobian and snake12_manipulability_from_jacobian); work: 404 reals. */
 #define SNAKE12_MANIPULABILITY_Q_ROWS 25
 #define SNAKE12_MANIPULABILITY_Q_COLS 1
 #define SNAKE12_MANIPULABILITY_GRAD_W_ROWS 25
 #define SNAKE12_MANIPULABILITY_GRAD_W_COLS 1
-#define SNAKE12_MANIPULABILITY_WORK_REALS 549
+#define SNAKE12_MANIPULABILITY_WORK_REALS 404
 void snake12_manipulability(const snake12_real q[SNAKE12_NDOF], snake12_real delta, snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* continuous_weights: continuous joint-limit weights w_c (spec 35), band = damping-band fraction.
- * ops: 224 add, 175 mul, 50 div, 101 minmax; work: 11 reals. */
+ * ops: 224 add, 175 mul, 50 div, 101 minmax; work: 4 reals. */
 #define SNAKE12_CONTINUOUS_WEIGHTS_Q_ROWS 25
 #define SNAKE12_CONTINUOUS_WEIGHTS_Q_COLS 1
 #define SNAKE12_CONTINUOUS_WEIGHTS_W_C_ROWS 25
 #define SNAKE12_CONTINUOUS_WEIGHTS_W_C_COLS 1
-#define SNAKE12_CONTINUOUS_WEIGHTS_WORK_REALS 11
+#define SNAKE12_CONTINUOUS_WEIGHTS_WORK_REALS 4
 void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real band, snake12_real w_c[SNAKE12_NDOF]);
 /* ft_index: joint manipulability on the healthy columns (mask 1 = healthy, 0 = locked; spec 30): omega_i, H_M = sum mask_i a_i omega_i, w = sqrt(det(J_h J_h^T) + delta^2) and gradients.
- * ops: 5593 add, 6926 mul, 55 div, 32 sqrt, 48 trig, 32 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_ft_index_from_jacobian); work: 777 reals. */
+ * ops: 5593 add, 6926 mul, 55 div, 32 sqrt, 48 trig, 32 minmax, 12 compare, 12 select (calls snake12_jacobian and snake12_ft_index_from_jacobian); work: 603 reals. */
 #define SNAKE12_FT_INDEX_Q_ROWS 25
 #define SNAKE12_FT_INDEX_Q_COLS 1
 #define SNAKE12_FT_INDEX_MASK_ROWS 25
@@ -407,10 +410,10 @@ void snake12_continuous_weights(const snake12_real q[SNAKE12_NDOF], snake12_real
 #define SNAKE12_FT_INDEX_GRAD_H_M_COLS 1
 #define SNAKE12_FT_INDEX_GRAD_W_ROWS 25
 #define SNAKE12_FT_INDEX_GRAD_W_COLS 1
-#define SNAKE12_FT_INDEX_WORK_REALS 777
+#define SNAKE12_FT_INDEX_WORK_REALS 603
 void snake12_ft_index(const snake12_real q[SNAKE12_NDOF], const snake12_real mask[SNAKE12_NDOF], const snake12_real a[SNAKE12_NDOF], snake12_real delta, snake12_real omega[SNAKE12_NDOF], snake12_real *H_M, snake12_real grad_H_M[SNAKE12_NDOF], snake12_real *w, snake12_real grad_w[SNAKE12_NDOF]);
 /* wln_weights: WLN weights W_i = 1 + b |dH/dq_i| / max(omega_i, omega_floor) * active_i; plain on/off rule for v_band <= 0, smooth ramp over v_band > 0 (spec 30).
- * ops: 125 add, 200 mul, 50 div, 102 minmax, 52 compare, 50 select; work: 60 reals. */
+ * ops: 125 add, 200 mul, 50 div, 102 minmax, 52 compare, 50 select; work: 7 reals. */
 #define SNAKE12_WLN_WEIGHTS_GRAD_H_ROWS 25
 #define SNAKE12_WLN_WEIGHTS_GRAD_H_COLS 1
 #define SNAKE12_WLN_WEIGHTS_OMEGA_ROWS 25
@@ -423,10 +426,10 @@ void snake12_ft_index(const snake12_real q[SNAKE12_NDOF], const snake12_real mas
 #define SNAKE12_WLN_WEIGHTS_W_COLS 1
 #define SNAKE12_WLN_WEIGHTS_ACTIVE_ROWS 25
 #define SNAKE12_WLN_WEIGHTS_ACTIVE_COLS 1
-#define SNAKE12_WLN_WEIGHTS_WORK_REALS 60
+#define SNAKE12_WLN_WEIGHTS_WORK_REALS 7
 void snake12_wln_weights(const snake12_real grad_H[SNAKE12_NDOF], const snake12_real omega[SNAKE12_NDOF], const snake12_real qdot_prev[SNAKE12_NDOF], const snake12_real mask[SNAKE12_NDOF], snake12_real b, snake12_real omega_floor, snake12_real v_band, snake12_real W[SNAKE12_NDOF], snake12_real active[SNAKE12_NDOF]);
 /* step_gpm: damped gradient projection qdot = J# xdot + (I - J# J) alpha.
- * ops: 1157 add, 1297 mul, 21 div, 48 trig, 6 minmax (calls snake12_jacobian and snake12_step_gpm_from_jacobian); work: 351 reals. */
+ * ops: 1157 add, 1297 mul, 21 div, 48 trig, 6 minmax (calls snake12_jacobian and snake12_step_gpm_from_jacobian); work: 182 reals. */
 #define SNAKE12_STEP_GPM_Q_ROWS 25
 #define SNAKE12_STEP_GPM_Q_COLS 1
 #define SNAKE12_STEP_GPM_XDOT_ROWS 6
@@ -435,10 +438,10 @@ void snake12_wln_weights(const snake12_real grad_H[SNAKE12_NDOF], const snake12_
 #define SNAKE12_STEP_GPM_ALPHA_COLS 1
 #define SNAKE12_STEP_GPM_QDOT_ROWS 25
 #define SNAKE12_STEP_GPM_QDOT_COLS 1
-#define SNAKE12_STEP_GPM_WORK_REALS 351
+#define SNAKE12_STEP_GPM_WORK_REALS 182
 snake12_status snake12_step_gpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real alpha[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
 /* step_wln: damped weighted least norm qdot = W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 xdot.
- * ops: 991 add, 1158 mul, 187 div, 48 trig, 31 minmax (calls snake12_jacobian and snake12_step_wln_from_jacobian); work: 434 reals. */
+ * ops: 991 add, 1158 mul, 187 div, 48 trig, 31 minmax (calls snake12_jacobian and snake12_step_wln_from_jacobian); work: 288 reals. */
 #define SNAKE12_STEP_WLN_Q_ROWS 25
 #define SNAKE12_STEP_WLN_Q_COLS 1
 #define SNAKE12_STEP_WLN_XDOT_ROWS 6
@@ -447,10 +450,10 @@ snake12_status snake12_step_gpm(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_WLN_W_COLS 1
 #define SNAKE12_STEP_WLN_QDOT_ROWS 25
 #define SNAKE12_STEP_WLN_QDOT_COLS 1
-#define SNAKE12_STEP_WLN_WORK_REALS 434
+#define SNAKE12_STEP_WLN_WORK_REALS 288
 snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real W[SNAKE12_NDOF], snake12_real damping, snake12_real qdot[SNAKE12_NDOF]);
 /* step_fault: masked weighted GPM qdot = mask*alpha + S J^T (J S J^T + lambda^2 I)^-1 (xdot - J mask*alpha), S = mask/W, variable damping from sigma_min (tridiagonal bisection) (spec 30).
- * ops: 2555 add, 1864 mul, 291 div, 6 sqrt, 48 trig, 345 minmax, 48 compare (calls snake12_jacobian and snake12_step_fault_from_jacobian); work: 396 reals. */
+ * ops: 2555 add, 1864 mul, 291 div, 6 sqrt, 48 trig, 345 minmax, 48 compare (calls snake12_jacobian and snake12_step_fault_from_jacobian); work: 251 reals. */
 #define SNAKE12_STEP_FAULT_Q_ROWS 25
 #define SNAKE12_STEP_FAULT_Q_COLS 1
 #define SNAKE12_STEP_FAULT_XDOT_ROWS 6
@@ -463,10 +466,10 @@ snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake1
 #define SNAKE12_STEP_FAULT_ALPHA_COLS 1
 #define SNAKE12_STEP_FAULT_QDOT_ROWS 25
 #define SNAKE12_STEP_FAULT_QDOT_COLS 1
-#define SNAKE12_STEP_FAULT_WORK_REALS 396
+#define SNAKE12_STEP_FAULT_WORK_REALS 251
 snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], const snake12_real mask[SNAKE12_NDOF], const snake12_real W[SNAKE12_NDOF], const snake12_real alpha[SNAKE12_NDOF], snake12_real epsilon, snake12_real lambda_max, snake12_real qdot[SNAKE12_NDOF], snake12_real *damping, snake12_real *sigma_min);
 /* step_wgpm: multi-constraint weighted GPM (spec 35): continuous weights, repulsive field, damping from sigma_min(J W_b) (tridiagonal bisection), oblique projector, normalised criteria, online gains.
- * ops: 8082 add, 7980 mul, 564 div, 38 sqrt, 48 trig, 2 exp, 502 minmax, 83 compare, 35 select (calls snake12_jacobian and snake12_step_wgpm_from_jacobian); work: 748 reals. */
+ * ops: 8082 add, 7980 mul, 564 div, 38 sqrt, 48 trig, 2 exp, 502 minmax, 83 compare, 35 select (calls snake12_jacobian and snake12_step_wgpm_from_jacobian); work: 560 reals. */
 #define SNAKE12_STEP_WGPM_Q_ROWS 25
 #define SNAKE12_STEP_WGPM_Q_COLS 1
 #define SNAKE12_STEP_WGPM_XDOT_ROWS 6
@@ -491,10 +494,10 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
 #define SNAKE12_STEP_WGPM_GAINS_COLS 1
 #define SNAKE12_STEP_WGPM_H_ROWS 4
 #define SNAKE12_STEP_WGPM_H_COLS 1
-#define SNAKE12_STEP_WGPM_WORK_REALS 748
+#define SNAKE12_STEP_WGPM_WORK_REALS 560
 snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake12_real xdot[SNAKE12_NTASK], snake12_real band, snake12_real t_rmax, snake12_real epsilon, snake12_real rho_max, snake12_real delta, snake12_real ramp, const snake12_real H_lo[4], const snake12_real H_hi[4], const snake12_real k_hi[4], const snake12_real k_lo[4], const snake12_real u_th[4], const snake12_real u_band[4], snake12_real qdot[SNAKE12_NDOF], snake12_real w_c[SNAKE12_NDOF], snake12_real *rho, snake12_real *sigma_min, snake12_real gains[4], snake12_real H[4]);
 /* ik: inverse kinematics: q reaching the pose T_target (damped least squares from q_seed, limits clamped, deterministic restarts; self-motion toward q_rest if use_rest = 1, else away from the limits and q_seed first turned about the first joint's axis toward the target); success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else NOT_CONVERGED with the closest q reached (max_iterations <= 0: no step, iterations 0); BAD_TARGET, no step, for a T_target that is not a pose (is_pose, in the header).
- * ops: 996750 add, 937800 mul, 47250 div, 2250 sqrt, 22050 trig, 60800 minmax, 111152 compare, 146250 select; work: 74 reals. */
+ * ops: 996750 add, 937800 mul, 47250 div, 2250 sqrt, 22050 trig, 60800 minmax, 111152 compare, 146250 select; work: 29 reals. */
 #define SNAKE12_IK_T_TARGET_ROWS 4
 #define SNAKE12_IK_T_TARGET_COLS 4
 #define SNAKE12_IK_Q_SEED_ROWS 25
@@ -503,7 +506,7 @@ snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake
 #define SNAKE12_IK_Q_REST_COLS 1
 #define SNAKE12_IK_Q_ROWS 25
 #define SNAKE12_IK_Q_COLS 1
-#define SNAKE12_IK_WORK_REALS 74
+#define SNAKE12_IK_WORK_REALS 29
 snake12_status snake12_ik(const snake12_real T_target[16], const snake12_real q_seed[SNAKE12_NDOF], const snake12_real q_rest[SNAKE12_NDOF], snake12_real use_rest, snake12_real tol_position, snake12_real tol_orientation, snake12_real max_iterations, snake12_real q[SNAKE12_NDOF], snake12_real *position_error, snake12_real *orientation_error, snake12_real *iterations, snake12_real *success);
 /* bisection_step6_loop: a fixed-count loop the functions above call (not for direct use). */
 #if SNAKE12_USE_FLOAT
