@@ -7,10 +7,12 @@ Two stages, in this order:
    self-motion ``q̇_n = q̇ − q̇_t`` (``J q̇_n = 0``). When a joint would exceed its limit,
    the self-motion is scaled by the largest ``c ∈ [0, 1]`` that keeps every joint whose
    tool part alone is within its limit inside it: the tool's twist is unchanged.
-2. **Then the tool slows down.** Where the tool part alone asks for more (or a joint's
-   acceleration exceeds ``qddlim``), the path speed there is capped at what the limits allow
-   and the plan is made again with the new time law, until it fits. The tool never leaves
-   the path; only its timing changes. A joint over its limit where the tool is at rest (which
+2. **Then the tool slows down.** Where the tool part alone asks for more, the path speed
+   there is capped at what ``qdlim`` allows. Where a joint's acceleration exceeds ``qddlim``,
+   the joint path's derivatives ``q′``, ``q″`` along s are measured from the plan and bound
+   the time law everywhere (``|q′ s̈| + |q″| ṡ² ≤ qddlim``, :class:`JointAccelerationBounds`).
+   The plan is made again with the new time law until it fits. The tool never leaves the
+   path; only its timing changes. A joint over its limit where the tool is at rest (which
    slowing cannot help) makes the plan infeasible.
 
 Both are active only for programs (time comes from the program's speed); a circle or line
@@ -28,11 +30,17 @@ from ...errors import PlanningError
 from ...robot import Robot
 from ..limits import RATIO_TOL, acceleration_ratios, speed_ratios, speed_report
 from .accuracy import PathAccuracy, plan_accurately
-from .timelaw import ProgramMotion, program_profile
+from .timelaw import PathProfile, ProgramMotion, program_profile
 
 # The slowed speed is this fraction of what the measured ratio allows: q̇ is sampled at the
 # steps and the closed loop adds its correction, so a small margin saves a round.
 SLOWDOWN_MARGIN = 0.95
+# Path speeds below this fraction of the plan's fastest are too slow to measure q′ = q̇ / ṡ
+# from (the closed loop's correction over a small ṡ); the cell takes the neighbouring samples'.
+MEASURE_SPEED_FRACTION = 0.05
+# The share of a joint's acceleration budget the ṡ² part may take at the speed cap (in a
+# curve of the joint path); the rest stays for speeding up and slowing down there.
+CENTRIPETAL_SHARE = 0.8
 # Rounds of "plan, measure, slow down" before the plan is declared infeasible; each round
 # at least removes the worst excess, and the bundled examples need at most three.
 MAX_SLOWDOWN_ROUNDS = 8
@@ -78,34 +86,85 @@ class SelfMotionLimiter:
         return out
 
 
-def _at_nodes(grid: np.ndarray, s: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """The smallest of ``values`` (given at path lengths ``s``) over each grid node's neighbouring samples."""
-    k = np.clip(np.searchsorted(s, grid), 1, len(s) - 1)
-    return np.minimum(values[k - 1], values[k])
+def _sample_cells(profile, s: np.ndarray, k: int) -> tuple[int, int]:
+    """The grid cells (first, last) that decide the measure at sample ``k``: q̈ there is the
+    difference of q̇ at samples k−1 and k, each of which depends on the speed around it, so
+    the cells from sample k−2 to sample k+1."""
+    last = len(profile.s) - 2
+    lo = int(np.clip(np.searchsorted(profile.s, s[max(k - 2, 0)], side="right") - 1, 0, last))
+    hi = int(np.clip(np.searchsorted(profile.s, s[min(k + 1, len(s) - 1)], side="left") - 1, lo, last))
+    return lo, hi
 
 
-def _ramp_scale(profile, s: np.ndarray, ratio_a: np.ndarray) -> np.ndarray:
-    """Per grid cell, the factor on the path acceleration that an acceleration excess asks for:
-    the whole speed ramp (the run of cells accelerating, or decelerating, together) that holds
-    an excessive sample, and the stretch the gentler ramp will then take (the ramp's length
-    over the factor, either side), is scaled by ``SLOWDOWN_MARGIN / ratio``; scaling only the
-    cells at the sample would move the excess along the ramp, round after round."""
-    sign = np.sign(np.round(profile.cell_acc, 12))
-    run = np.concatenate([[0], np.cumsum(sign[1:] != sign[:-1])])
-    mid = 0.5 * (profile.s[1:] + profile.s[:-1])
-    scale = np.ones(sign.size)
-    bad = np.flatnonzero(ratio_a > RATIO_TOL)
-    cells = np.clip(np.searchsorted(profile.s, s[bad]) - 1, 0, sign.size - 1)
-    for k, c in zip(bad, cells):
-        if sign[c] == 0:  # a cruising cell's excess comes from the speed (curvature): the speed cap handles it
-            continue
-        factor = SLOWDOWN_MARGIN / ratio_a[k]
-        ramp = np.flatnonzero(run == run[c])
-        start, end = profile.s[ramp[0]], profile.s[ramp[-1] + 1]
-        reach = (end - start) / factor
-        within = (mid >= start - reach) & (mid <= end + reach)
-        scale[within] = np.minimum(scale[within], factor)
-    return scale
+def _speed_caps(profile, s: np.ndarray, ratio_v: np.ndarray) -> np.ndarray:
+    """Speed caps at the grid nodes that slow the stretch of each sample over a speed limit to
+    ``SLOWDOWN_MARGIN / ratio`` of its current speed (q̇ of the tool's motion scales with ṡ)."""
+    cap = np.full(profile.s.size, np.inf)
+    for k in np.flatnonzero(ratio_v > RATIO_TOL):
+        lo, hi = _sample_cells(profile, s, k)
+        cap[lo:hi + 2] = np.minimum(cap[lo:hi + 2], profile.v[lo:hi + 2] * SLOWDOWN_MARGIN / ratio_v[k])
+    return cap
+
+
+def _cell_max(grid: np.ndarray, at: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Per grid cell, the largest of ``values`` (rows given at sorted path lengths ``at``) over
+    the samples inside the cell and the nearest one either side."""
+    last = at.size - 1
+    lo = np.clip(np.searchsorted(at, grid[:-1], side="right") - 1, 0, last)
+    hi = np.clip(np.searchsorted(at, grid[1:], side="left"), 0, last)
+    return np.array([values[a:b + 1].max(axis=0) for a, b in zip(lo, hi)])
+
+
+class JointAccelerationBounds:
+    """The joint accelerations along the path, ``q̈ = q′ s̈ + q″ ṡ²`` (``q′ = dq/ds``,
+    ``q″ = d²q/ds²``), turned into bounds on the time law. ``|q′|`` and ``|q″|`` are measured
+    per grid cell from each round's plan (``q′ = q̇ / ṡ``, ``q″`` its differences along s) and
+    kept at their largest over the rounds. With the budget ``b ≤ SLOWDOWN_MARGIN`` of
+    ``qddlim`` per cell, the speed is capped at ``ṡ² ≤ CENTRIPETAL_SHARE · b·qddlim / |q″|``
+    and the path acceleration at ``(b·qddlim − |q″| ṡ²_max) / |q′|``, so that
+    ``|q′ s̈| + |q″| ṡ² ≤ b·qddlim`` on every joint: a bound on the whole stretch, so the
+    slowdown does not move the excess to the ramps next to it as a local cap would. A cell
+    whose samples still exceed a limit (the measure was coarse there) lowers its budget by the
+    excess for the next round."""
+
+    def __init__(self, nominal: PathProfile, qddlim: np.ndarray, stops: np.ndarray):
+        self.nominal, self.qddlim = nominal, qddlim
+        cells = nominal.s.size - 1
+        self.dq = np.zeros((cells, qddlim.size))
+        self.ddq = np.zeros((cells, qddlim.size))
+        self.budget = np.full(cells, SLOWDOWN_MARGIN)
+        self.stops = stops
+
+    def measure(self, profile: PathProfile, t: np.ndarray, qd: np.ndarray, ratio_a: np.ndarray) -> None:
+        s, sdot, _ = profile(t)
+        for k in np.flatnonzero(ratio_a > RATIO_TOL):
+            lo, hi = _sample_cells(profile, s, k)
+            self.budget[lo:hi + 1] /= ratio_a[k]
+        fast = sdot >= max(MEASURE_SPEED_FRACTION * sdot.max(), REST_SPEED)
+        s, dq = s[fast], qd[fast] / sdot[fast, None]
+        order = np.argsort(s, kind="stable")
+        s, dq = s[order], dq[order]
+        grid = self.nominal.s
+        self.dq = np.maximum(self.dq, _cell_max(grid, s, np.abs(dq)))
+        ds = np.diff(s)
+        # not across a stop (an unrounded corner turns q′ there) nor between samples at one s
+        pairs = (ds > 0) & ~np.any((self.stops[None, :] > s[:-1, None]) & (self.stops[None, :] < s[1:, None]), axis=1)
+        if pairs.any():
+            ddq = np.abs(np.diff(dq, axis=0)[pairs] / ds[pairs, None])
+            self.ddq = np.maximum(self.ddq, _cell_max(grid, 0.5 * (s[1:] + s[:-1])[pairs], ddq))
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(speed caps at the grid nodes, factors on the nominal path acceleration per cell)."""
+        limit = self.budget[:, None] * self.qddlim
+        with np.errstate(divide="ignore"):
+            u_cell = CENTRIPETAL_SHARE * np.min(np.where(self.ddq > 0, limit / self.ddq, np.inf), axis=1)
+        u_node = np.minimum(np.concatenate([u_cell[:1], u_cell]), np.concatenate([u_cell, u_cell[-1:]]))
+        cap = np.sqrt(u_node)
+        nominal_u = np.maximum(self.nominal.cap[1:], self.nominal.cap[:-1]) ** 2
+        u_max = np.minimum(u_cell, nominal_u)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            acc = np.min(np.where(self.dq > 0, (limit - self.ddq * u_max[:, None]) / self.dq, np.inf), axis=1)
+        return cap, np.minimum(1.0, acc / self.nominal.acceleration)
 
 
 def _move_named(motion: ProgramMotion, result, k: int) -> str:
@@ -123,7 +182,7 @@ def plan_within_limits(plan: Callable[[ProgramMotion, float], Any], motion: Prog
     program = motion.program
     grid = motion.profile.s
     cap = np.full(grid.shape, np.inf)
-    acc_scale = np.ones(grid.size - 1)
+    joint_acc = JointAccelerationBounds(nominal.profile, robot.qddlim, program.stops)
     step = None  # the step the tolerance asked for: a slower time law needs no coarser one
     for _ in range(MAX_SLOWDOWN_ROUNDS):
         current = motion
@@ -136,9 +195,7 @@ def plan_within_limits(plan: Callable[[ProgramMotion, float], Any], motion: Prog
         if ratio_v.max() <= RATIO_TOL and ratio_a.max() <= RATIO_TOL:
             return result, motion, _report(robot, t, qd, nominal, motion), accurate
         s, sdot, _ = motion.profile(t)
-        over = np.maximum(ratio_v, np.sqrt(ratio_a))  # ṡ² drives the centripetal part of q̈
-        bad = over > RATIO_TOL
-        at_rest = bad & (sdot < REST_SPEED) & (ratio_v > RATIO_TOL)
+        at_rest = (sdot < REST_SPEED) & (ratio_v > RATIO_TOL)
         if at_rest.any():
             k = int(np.argmax(at_rest))
             joint = int(np.argmax(speed_ratios(robot, qd[k])))
@@ -146,10 +203,13 @@ def plan_within_limits(plan: Callable[[ProgramMotion, float], Any], motion: Prog
                 f"{source}: joint {robot.joints[joint].name} needs {ratio_v[k]:.2f}× its speed limit at t = {t[k]:.2f} s "
                 f"while the tool is at rest (move {int(program.move_at(s[k])[0])}): slowing the tool cannot help; "
                 "lower the method's gains or the closed-loop gain")
-        allowed = np.where(bad, sdot / over * SLOWDOWN_MARGIN, np.inf)
-        cap = np.minimum(cap, _at_nodes(grid, s, allowed))
-        acc_scale = np.minimum(acc_scale, _ramp_scale(motion.profile, s, ratio_a))
-        motion = ProgramMotion(program, program_profile(program, angular_speed, cap, acc_scale))
+        cap = np.minimum(cap, _speed_caps(motion.profile, s, ratio_v))
+        slowdown, acc_scale = cap, None
+        if ratio_a.max() > RATIO_TOL:
+            joint_acc.measure(motion.profile, t, qd, ratio_a)
+            acc_cap, acc_scale = joint_acc.bounds()
+            slowdown = np.minimum(cap, acc_cap)
+        motion = ProgramMotion(program, program_profile(program, angular_speed, slowdown, acc_scale))
     worst = int(np.argmax(np.maximum(ratio_v, ratio_a)))
     raise PlanningError(f"{source}: the plan still exceeds a joint limit ({max(ratio_v.max(), ratio_a.max()):.2f}× "
                         f"at t = {t[worst]:.2f} s) after {MAX_SLOWDOWN_ROUNDS} rounds of slowing the tool; lower "
