@@ -30,7 +30,7 @@ from ...errors import PlanningError
 from ...robot import Robot
 from ..limits import RATIO_TOL, acceleration_ratios, speed_ratios, speed_report
 from .accuracy import PathAccuracy, plan_accurately
-from .timelaw import PathProfile, ProgramMotion, program_profile
+from .timelaw import JointBounds, PathProfile, ProgramMotion, program_profile
 
 # The slowed speed is this fraction of what the measured ratio allows: q̇ is sampled at the
 # steps and the closed loop adds its correction, so a small margin saves a round.
@@ -38,11 +38,8 @@ SLOWDOWN_MARGIN = 0.95
 # Path speeds below this fraction of the plan's fastest are too slow to measure q′ = q̇ / ṡ
 # from (the closed loop's correction over a small ṡ); the cell takes the neighbouring samples'.
 MEASURE_SPEED_FRACTION = 0.05
-# The share of a joint's acceleration budget the ṡ² part may take at the speed cap (in a
-# curve of the joint path); the rest stays for speeding up and slowing down there.
-CENTRIPETAL_SHARE = 0.8
-# Rounds of "plan, measure, slow down" before the plan is declared infeasible; each round
-# at least removes the worst excess, and the bundled examples need at most three.
+# Rounds of "plan, measure, slow down" before the plan is declared infeasible: the bundled
+# examples need at most three, tests/test_acceleration_slowdown.py's programs two to four.
 MAX_SLOWDOWN_ROUNDS = 8
 # A plan whose tool leaves the program by more than this is infeasible (the Cartesian
 # planner's bound for its circle and line: closed-loop tracking stays far below it).
@@ -117,54 +114,44 @@ def _cell_max(grid: np.ndarray, at: np.ndarray, values: np.ndarray) -> np.ndarra
 
 class JointAccelerationBounds:
     """The joint accelerations along the path, ``q̈ = q′ s̈ + q″ ṡ²`` (``q′ = dq/ds``,
-    ``q″ = d²q/ds²``), turned into bounds on the time law. ``|q′|`` and ``|q″|`` are measured
-    per grid cell from each round's plan (``q′ = q̇ / ṡ``, ``q″`` its differences along s) and
-    kept at their largest over the rounds. With the budget ``b ≤ SLOWDOWN_MARGIN`` of
-    ``qddlim`` per cell, the speed is capped at ``ṡ² ≤ CENTRIPETAL_SHARE · b·qddlim / |q″|``
-    and the path acceleration at ``(b·qddlim − |q″| ṡ²_max) / |q′|``, so that
-    ``|q′ s̈| + |q″| ṡ² ≤ b·qddlim`` on every joint: a bound on the whole stretch, so the
-    slowdown does not move the excess to the ramps next to it as a local cap would. A cell
-    whose samples still exceed a limit (the measure was coarse there) lowers its budget by the
-    excess for the next round."""
+    ``q″ = d²q/ds²``), as bounds on the time law (:class:`timelaw.JointBounds`):
+    ``|q′ s̈| + |q″| ṡ² ≤ b · qddlim`` on every joint and grid cell, with the budget ``b``
+    starting at ``SLOWDOWN_MARGIN``. ``|q′|`` and ``|q″|`` are measured per cell from each
+    round's plan (``q′ = q̇ / ṡ``, ``q″`` its differences along s) and kept at their largest
+    over the rounds. The bound holds along the whole path, so the slowdown does not move the
+    excess to the ramps beside a slowed stretch, as capping the speed there would; a cell
+    whose samples still exceed a limit under the bound (the measure was coarse there) lowers
+    its budget by the excess for the next round."""
 
-    def __init__(self, nominal: PathProfile, qddlim: np.ndarray, stops: np.ndarray):
-        self.nominal, self.qddlim = nominal, qddlim
-        cells = nominal.s.size - 1
+    def __init__(self, grid: np.ndarray, qddlim: np.ndarray, stops: np.ndarray):
+        self.grid, self.qddlim, self.stops = grid, qddlim, stops
+        cells = grid.size - 1
         self.dq = np.zeros((cells, qddlim.size))
         self.ddq = np.zeros((cells, qddlim.size))
         self.budget = np.full(cells, SLOWDOWN_MARGIN)
-        self.stops = stops
+        self.bounding = False  # whether the measured plan was made under these bounds
 
     def measure(self, profile: PathProfile, t: np.ndarray, qd: np.ndarray, ratio_a: np.ndarray) -> None:
         s, sdot, _ = profile(t)
-        for k in np.flatnonzero(ratio_a > RATIO_TOL):
-            lo, hi = _sample_cells(profile, s, k)
-            self.budget[lo:hi + 1] /= ratio_a[k]
+        if self.bounding:
+            for k in np.flatnonzero(ratio_a > RATIO_TOL):
+                lo, hi = _sample_cells(profile, s, k)
+                self.budget[lo:hi + 1] /= ratio_a[k]
         fast = sdot >= max(MEASURE_SPEED_FRACTION * sdot.max(), REST_SPEED)
         s, dq = s[fast], qd[fast] / sdot[fast, None]
         order = np.argsort(s, kind="stable")
         s, dq = s[order], dq[order]
-        grid = self.nominal.s
-        self.dq = np.maximum(self.dq, _cell_max(grid, s, np.abs(dq)))
+        self.dq = np.maximum(self.dq, _cell_max(self.grid, s, np.abs(dq)))
         ds = np.diff(s)
         # not across a stop (an unrounded corner turns q′ there) nor between samples at one s
         pairs = (ds > 0) & ~np.any((self.stops[None, :] > s[:-1, None]) & (self.stops[None, :] < s[1:, None]), axis=1)
         if pairs.any():
             ddq = np.abs(np.diff(dq, axis=0)[pairs] / ds[pairs, None])
-            self.ddq = np.maximum(self.ddq, _cell_max(grid, 0.5 * (s[1:] + s[:-1])[pairs], ddq))
+            self.ddq = np.maximum(self.ddq, _cell_max(self.grid, 0.5 * (s[1:] + s[:-1])[pairs], ddq))
 
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """(speed caps at the grid nodes, factors on the nominal path acceleration per cell)."""
-        limit = self.budget[:, None] * self.qddlim
-        with np.errstate(divide="ignore"):
-            u_cell = CENTRIPETAL_SHARE * np.min(np.where(self.ddq > 0, limit / self.ddq, np.inf), axis=1)
-        u_node = np.minimum(np.concatenate([u_cell[:1], u_cell]), np.concatenate([u_cell, u_cell[-1:]]))
-        cap = np.sqrt(u_node)
-        nominal_u = np.maximum(self.nominal.cap[1:], self.nominal.cap[:-1]) ** 2
-        u_max = np.minimum(u_cell, nominal_u)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            acc = np.min(np.where(self.dq > 0, (limit - self.ddq * u_max[:, None]) / self.dq, np.inf), axis=1)
-        return cap, np.minimum(1.0, acc / self.nominal.acceleration)
+    def bounds(self) -> JointBounds:
+        self.bounding = True
+        return JointBounds(self.dq, self.ddq, self.budget[:, None] * self.qddlim)
 
 
 def _move_named(motion: ProgramMotion, result, k: int) -> str:
@@ -182,7 +169,8 @@ def plan_within_limits(plan: Callable[[ProgramMotion, float], Any], motion: Prog
     program = motion.program
     grid = motion.profile.s
     cap = np.full(grid.shape, np.inf)
-    joint_acc = JointAccelerationBounds(nominal.profile, robot.qddlim, program.stops)
+    joint_acc = JointAccelerationBounds(grid, robot.qddlim, program.stops)
+    bounds = None  # no joint acceleration bounds until a joint exceeds its qddlim
     step = None  # the step the tolerance asked for: a slower time law needs no coarser one
     for _ in range(MAX_SLOWDOWN_ROUNDS):
         current = motion
@@ -204,12 +192,10 @@ def plan_within_limits(plan: Callable[[ProgramMotion, float], Any], motion: Prog
                 f"while the tool is at rest (move {int(program.move_at(s[k])[0])}): slowing the tool cannot help; "
                 "lower the method's gains or the closed-loop gain")
         cap = np.minimum(cap, _speed_caps(motion.profile, s, ratio_v))
-        slowdown, acc_scale = cap, None
         if ratio_a.max() > RATIO_TOL:
             joint_acc.measure(motion.profile, t, qd, ratio_a)
-            acc_cap, acc_scale = joint_acc.bounds()
-            slowdown = np.minimum(cap, acc_cap)
-        motion = ProgramMotion(program, program_profile(program, angular_speed, slowdown, acc_scale))
+            bounds = joint_acc.bounds()
+        motion = ProgramMotion(program, program_profile(program, angular_speed, cap, bounds))
     worst = int(np.argmax(np.maximum(ratio_v, ratio_a)))
     raise PlanningError(f"{source}: the plan still exceeds a joint limit ({max(ratio_v.max(), ratio_a.max()):.2f}× "
                         f"at t = {t[worst]:.2f} s) after {MAX_SLOWDOWN_ROUNDS} rounds of slowing the tool; lower "

@@ -3,7 +3,8 @@ trapezoidal (bounded speed and acceleration), rest to rest.
 
 On a grid over ``s`` each node has a speed cap (the move's ``speed``, the ``angular_speed``
 cap ``ω_max / |ω_s|``, 0 at a corner without a blend, and any slow-down the joint limits
-asked for) and each cell an acceleration bound. A forward pass accelerates as fast as
+asked for) and each cell an acceleration bound (the move's, and where the joints' acceleration
+limits asked for it, ``|q′ s̈| + |q″| ṡ² ≤ q̈_max`` per joint). A forward pass accelerates as fast as
 allowed, a backward pass decelerates in time for every cap; between two nodes the path
 acceleration is constant, so ``s(t)`` is piecewise quadratic and evaluated exactly.
 """
@@ -11,6 +12,7 @@ acceleration is constant, so ``s(t)`` is piecewise quadratic and evaluated exact
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -44,18 +46,51 @@ def program_grid(program: Program) -> np.ndarray:
     return np.unique(np.concatenate(parts))
 
 
-class PathProfile:
-    """``ṡ(s)`` from caps at the grid nodes ``s`` and accelerations per cell; ``(s, ṡ, s̈)`` at times."""
+class JointBounds(NamedTuple):
+    """Joint acceleration bounds on a time law, per grid cell and joint: ``|q′ s̈| + |q″| ṡ² ≤
+    limit`` with ``dq = |q′|`` (rad or m per m of path) and ``ddq = |q″|`` (per m²) the joint
+    path's derivatives along the path length."""
 
-    def __init__(self, s: np.ndarray, cap: np.ndarray, acceleration: np.ndarray):
+    dq: np.ndarray
+    ddq: np.ndarray
+    limit: np.ndarray
+
+
+def _joint_step(u: float, beta: np.ndarray, limit: np.ndarray, ddq: np.ndarray) -> float:
+    """The largest ṡ² at the far end of a cell from ``u`` at its near end: with s̈ = Δu / 2ds
+    constant over the cell and u largest at the far end, ``β |Δu| + |q″| u_far ≤ limit``
+    (``β = |q′| / 2ds`` per joint) gives ``u_far ≤ (β u + limit) / (β + |q″|)``."""
+    with np.errstate(divide="ignore"):  # a joint that does not move along the cell bounds nothing
+        return float(np.min((beta * u + limit) / (beta + ddq)))
+
+
+class PathProfile:
+    """``ṡ(s)`` from caps at the grid nodes ``s`` and accelerations per cell (and, optionally,
+    joint acceleration bounds per cell); ``(s, ṡ, s̈)`` at times."""
+
+    def __init__(self, s: np.ndarray, cap: np.ndarray, acceleration: np.ndarray, joints: JointBounds | None = None):
         self.s, self.cap, self.acceleration = s, cap, acceleration
         ds = np.diff(s)
         v = np.array(cap, dtype=float)
+        beta = None
+        if joints is not None:
+            with np.errstate(divide="ignore"):
+                # ṡ² ≤ limit / |q″| in a cell, or no s̈ would keep q̈ within the limit: a cap at its nodes
+                u_cell = np.min(np.where(joints.ddq > 0, joints.limit / joints.ddq, np.inf), axis=1)
+            beta = joints.dq / (2 * ds[:, None])
+            u_node = np.minimum(np.concatenate([u_cell[:1], u_cell]), np.concatenate([u_cell, u_cell[-1:]]))
+            v = np.minimum(v, np.sqrt(u_node))
         v[0] = v[-1] = 0.0
         for k in range(len(s) - 1):  # forward: accelerate as allowed
-            v[k + 1] = min(v[k + 1], math.sqrt(v[k] * v[k] + 2 * acceleration[k] * ds[k]))
+            u = min(v[k + 1] ** 2, v[k] * v[k] + 2 * acceleration[k] * ds[k])
+            if beta is not None:
+                u = min(u, _joint_step(v[k] * v[k], beta[k], joints.limit[k], joints.ddq[k]))
+            v[k + 1] = math.sqrt(u)
         for k in range(len(s) - 2, -1, -1):  # backward: decelerate in time
-            v[k] = min(v[k], math.sqrt(v[k + 1] * v[k + 1] + 2 * acceleration[k] * ds[k]))
+            u = min(v[k] ** 2, v[k + 1] * v[k + 1] + 2 * acceleration[k] * ds[k])
+            if beta is not None:
+                u = min(u, _joint_step(v[k + 1] * v[k + 1], beta[k], joints.limit[k], joints.ddq[k]))
+            v[k] = math.sqrt(u)
         self.v = v
         self.cell_acc = (v[1:] ** 2 - v[:-1] ** 2) / (2 * ds)
         self.t = np.concatenate([[0.0], np.cumsum(2 * ds / (v[1:] + v[:-1]))])
@@ -99,11 +134,11 @@ def _centripetal_cap(program: Program, s: np.ndarray, acc: np.ndarray) -> np.nda
 
 
 def program_profile(program: Program, angular_speed: float | None, slowdown: np.ndarray | None = None,
-                    acceleration_scale: np.ndarray | None = None) -> PathProfile:
+                    joints: JointBounds | None = None) -> PathProfile:
     """The program's time law: each move's speed and acceleration (also bounding the normal
     acceleration ṡ²κ on curves), the angular-speed cap, rest
     at every corner without a blend, and, from the joint limits, ``slowdown`` (extra speed caps
-    at the grid nodes) and ``acceleration_scale`` (factors ≤ 1 per cell); None: none."""
+    at the grid nodes) and ``joints`` (joint acceleration bounds per cell); None: none."""
     s = program_grid(program)
     piece = program.piece_index(s)
     moves = program.moves
@@ -127,9 +162,7 @@ def program_profile(program: Program, angular_speed: float | None, slowdown: np.
         cap[np.argmin(np.abs(s - stop))] = 0.0
     if slowdown is not None:
         cap = np.minimum(cap, slowdown)
-    if acceleration_scale is not None:
-        acc = acc * acceleration_scale
-    return PathProfile(s, cap, acc)
+    return PathProfile(s, cap, acc, joints)
 
 
 class ProgramMotion:
