@@ -6,8 +6,8 @@
 For the joint controller of firmware_stub/ running spec 20's combined plan on modular8
 (12 500 Euler ticks, h = 0.02 s, from examples/modular8_circle_combined.toml):
 
-1. Cortex-M4F (arm-none-eabi-gcc, float, the build armgen verify --target uses: controller
-   -O3, generated kinematics -Os, sinf/cosf from arm/fw_fastmath.c): flash and RAM of the
+1. Cortex-M4F (arm-none-eabi-gcc, float, the build armgen verify --target uses: optimisation
+   per source as fw.ARM_VARIANT, generated kinematics -Os): flash and RAM of the
    controller and of each generated function it links (arm-none-eabi-size -A, nm -S), the
    image, sizeof(ctrl); stack use: -fstack-usage per function, the worst call chain from
    ctrl_tick (-fcallgraph-info=su), and the measured peak (the firmware paints its stack).
@@ -400,7 +400,7 @@ def main(argv=None) -> int:
         rep.row("split (trace of a 5-s plan, every operator on)", split["instr_per_tick"], "instr/tick",
                 ", ".join(f"{k} {v:g}" for k, v in list(split["by_function_per_tick"].items())[:9]))
 
-    rep.section("sizes", "1. Cortex-M4F sizes and stack (controller -O3, kinematics -Os, float):", sizes)
+    rep.section("sizes", "1. Cortex-M4F sizes and stack (fw.ARM_VARIANT, float):", sizes)
     rep.section("qemu", "2. Cortex-M4F executed instructions per tick (QEMU -icount shift=0, SysTick):", qemu_counts)
 
     host = rep.data.setdefault("host", {})

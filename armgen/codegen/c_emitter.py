@@ -516,10 +516,14 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
     if angle_input is not None:  # the angles are an input vector, entry by entry: no copy
         entry = {f"{angle_input}[{i}]": i for i in range(len(angles))}
         table = {k: entry[angles[slot]] for k, slot in table.items()}
-        lines.append(f"{p}_sincos_table({angle_input}, trig_sin, trig_cos, {len(angles)});")
     elif angles:
         lines += [f"trig_angle[{slot}] = {angle};" for slot, angle in enumerate(angles)]
-        lines.append(f"{p}_sincos_table(trig_angle, trig_sin, trig_cos, {len(angles)});")
+    source = angle_input or "trig_angle"
+    if angles and branches:  # a loop step: entry by entry, no loop (a loop over the angles cost
+        # the IK ~100 instructions a step on the M4, 3 steps of its 1 ms budget)
+        lines += [f"{p}_sincos_table(&{source}[{i}], &trig_sin[{i}], &trig_cos[{i}], 1);" for i in range(len(angles))]
+    elif angles:
+        lines.append(f"{p}_sincos_table({source}, trig_sin, trig_cos, {len(angles)});")
     statements: list[_Statement] = []
     for k in range(func.n_instructions()):
         op = func.instruction_id(k)

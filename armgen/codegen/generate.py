@@ -372,7 +372,7 @@ static inline float {p}_cos_bounded(float x) {{
  * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
  * and the quadrant by selects. Error <= {BOUNDED_ATAN2_ULP} ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
  * or +-pi); NaN or inf in give NaN. */
-static inline float {p}_atan2_bounded(float y, float x) {{
+{P}_TRIG_INLINE float {p}_atan2_bounded(float y, float x) {{
   float ax = fabsf(x), ay = fabsf(y);
   float hi = (ay > ax) ? ay : ax;
   float lo = (ay > ax) ? ax : ay;

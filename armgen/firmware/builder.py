@@ -55,14 +55,15 @@ class Variant:
 
 # The Cortex-M4F build's optimisation per source, where it is not -O3 (flash against executed
 # instructions; docs/firmware.md, "Builds"). The controller: -O2 with its fixed-length loops
-# unrolled up to 160 instructions (the tick's short loops over the joints; -O3 unrolled every
-# loop, the cold ones of ctrl_init too) and three of -O3's passes that the ticks gain from
-# (inlining functions not declared inline, loop unswitching, cloning for constant arguments):
-# ~20 KB instead of 25 KB, ~35 instructions a tick more than -O3 (measured). The CSV
+# unrolled up to 120 instructions (the tick's short loops over the joints; -O3 unrolled every
+# loop, the cold ones of ctrl_init too) and two of -O3's passes that the ticks gain from
+# (inlining functions not declared inline, loop unswitching): 20 KB instead of 26 KB, ~65
+# instructions a resolved-rate tick more than -O3 (measured; 160 and cloning for constant
+# arguments gained 65 back for 2 KB, which the 100 KB image does not have). The CSV
 # printer and the runner (main, semihosting, startup) run outside the timed tick: -Os. So does
 # the program evaluator (6.4 KB at -O3, 4.6 KB at -Os), which only a program's tick calls.
-ARM_CONTROLLER_FLAGS = ("-O2", "-fpeel-loops", "-finline-functions", "-funswitch-loops", "-fipa-cp-clone",
-                        "--param=max-completely-peeled-insns=160")
+ARM_CONTROLLER_FLAGS = ("-O2", "-fpeel-loops", "-finline-functions", "-funswitch-loops",
+                        "--param=max-completely-peeled-insns=120")
 ARM_SOURCE_OPTS = (("controller.c", ARM_CONTROLLER_FLAGS),
                    *((name, ("-Os",)) for name in ("fw_program.c", "fw_csv.c", "fw_main.c", "semihost.c", "startup.c")))
 

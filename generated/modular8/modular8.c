@@ -16637,7 +16637,14 @@ void modular8_ik_step_95c2c3c3_loop(const modular8_real state[25], const modular
     modular8_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
     modular8_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
     modular8_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-    modular8_sincos_table(current, trig_sin, trig_cos, 8);
+    modular8_sincos_table(&current[0], &trig_sin[0], &trig_cos[0], 1);
+    modular8_sincos_table(&current[1], &trig_sin[1], &trig_cos[1], 1);
+    modular8_sincos_table(&current[2], &trig_sin[2], &trig_cos[2], 1);
+    modular8_sincos_table(&current[3], &trig_sin[3], &trig_cos[3], 1);
+    modular8_sincos_table(&current[4], &trig_sin[4], &trig_cos[4], 1);
+    modular8_sincos_table(&current[5], &trig_sin[5], &trig_cos[5], 1);
+    modular8_sincos_table(&current[6], &trig_sin[6], &trig_cos[6], 1);
+    modular8_sincos_table(&current[7], &trig_sin[7], &trig_cos[7], 1);
     w0 = current[0];
     w1 = MODULAR8_LIT(14.0);
     w2 = current[19];

@@ -2439,7 +2439,9 @@ void planar3_ik_step_2f36c519_loop(const planar3_real state[15], const planar3_r
     planar3_real w24, w25, w26, w27, w28, w29, w30, w31, w32, w33, w34, w35;
     planar3_real w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23;
     planar3_real w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11;
-    planar3_sincos_table(current, trig_sin, trig_cos, 3);
+    planar3_sincos_table(&current[0], &trig_sin[0], &trig_cos[0], 1);
+    planar3_sincos_table(&current[1], &trig_sin[1], &trig_cos[1], 1);
+    planar3_sincos_table(&current[2], &trig_sin[2], &trig_cos[2], 1);
     w0 = current[0];
     w1 = PLANAR3_LIT(14.0);
     w2 = current[9];
