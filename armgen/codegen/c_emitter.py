@@ -24,6 +24,7 @@ otherwise).
 from __future__ import annotations
 
 import heapq
+import itertools
 import re
 from collections import Counter
 from dataclasses import dataclass, field
@@ -525,6 +526,7 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
     elif angles:
         lines.append(f"{p}_sincos_table({source}, trig_sin, trig_cos, {len(angles)});")
     statements: list[_Statement] = []
+    holds: dict[int, tuple[int, int]] = {}  # register -> (argument, entry) of the input it holds
     for k in range(func.n_instructions()):
         op = func.instruction_id(k)
         ins = func.instruction_input(k)
@@ -540,6 +542,7 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
         elif op == ca.OP_INPUT:
             counts["input"] += 1
             statements.append(_Statement([f"w{outs[0]} = {_input_text(arg_names, arg_scalar, ins)};"], (outs[0],), ()))
+            holds[outs[0]] = (ins[0], ins[1])
         elif op == ca.OP_OUTPUT:
             counts["output"] += 1
             target = f"*{res_names[outs[0]]}" if res_scalar[outs[0]] else f"{res_names[outs[0]]}[{outs[1]}]"
@@ -563,10 +566,19 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
             loop = _called_loop(func, next(callees))
             counts.update({category: n * loop.count for category, n in _step_counts(loop).items()})
             loops.add(loop.function.name())
-            statements.append(_Statement(_loop_call(loop, ins, outs, macro_prefix), tuple(o for o in outs if o >= 0),
-                                         tuple(i for i in ins if i >= 0)))
+            sizes = [loop.function.sparsity_in(j).nnz() for j in range(loop.function.n_in())]
+            whole = _whole_arrays(list(ins), sizes, holds, arg_names, arg_scalar,
+                                  [func.sparsity_in(j).nnz() for j in range(func.n_in())])
+            passed = {i for j, (start, size) in enumerate(zip(itertools.accumulate([0, *sizes]), sizes)) if j in whole
+                      for i in ins[start:start + size]}
+            statements.append(_Statement(_loop_call(loop, ins, outs, macro_prefix, whole),
+                                         tuple(o for o in outs if o >= 0),
+                                         tuple(i for i in ins if i >= 0 and i not in passed)))
         else:
             raise ArmgenError(f"function {func.name()}: CasADi operation {op} has no C translation in armgen")
+        if op != ca.OP_INPUT:  # after the instruction: a call's results may reuse its arguments' registers
+            for o in outs:
+                holds.pop(o, None)
     if branches:
         branched, registers = _reused_registers(_branched(_fused_selects(_live(statements), macro_prefix),
                                                           macro_prefix))
@@ -641,15 +653,36 @@ def _called_loop(func: ca.Function, callee: ca.Function) -> Loop:
     return loop
 
 
-def _loop_call(loop: Loop, ins: list[int], outs: list[int], macro_prefix: str) -> list[str]:
-    """A block passing the call's work registers to the loop function and reading its result."""
+def _whole_arrays(ins: list[int], sizes: list[int], holds: dict[int, tuple[int, int]], arg_names: list[str],
+                  arg_scalar: list[bool], arg_nnz: list[int]) -> dict[int, str]:
+    """{call input: caller's argument} for each call input whose registers hold a whole
+    array argument of the caller, entry by entry (``holds``: register -> (argument, entry) of
+    the input read it still holds): the call takes that array as it is, with no copy."""
+    whole, start = {}, 0
+    for k, size in enumerate(sizes):
+        first = holds.get(ins[start]) if ins[start] >= 0 else None
+        if first is not None and not arg_scalar[first[0]] and arg_nnz[first[0]] == size and \
+                all(i >= 0 and holds.get(i) == (first[0], j) for j, i in enumerate(ins[start:start + size])):
+            whole[k] = arg_names[first[0]]
+        start += size
+    return whole
+
+
+def _loop_call(loop: Loop, ins: list[int], outs: list[int], macro_prefix: str,
+               whole: dict[int, str]) -> list[str]:
+    """A block passing the call's work registers to the loop function and reading its result;
+    an input that is a whole array of the caller (``whole``) is passed as that array (copying
+    the IK's target and rest configuration cost ~200 B of flash and ~50 instructions a call)."""
     p = macro_prefix.lower()
     fn = loop.function
     lines, args, start = ["{"], [], 0
     for k in range(fn.n_in()):
         size = fn.sparsity_in(k).nnz()
-        lines.append(f"  {p}_real call_in{k}[{size}] = {{{', '.join(f'w{i}' for i in ins[start:start + size])}}};")
-        args.append(f"call_in{k}")
+        if k in whole:
+            args.append(whole[k])
+        else:
+            lines.append(f"  {p}_real call_in{k}[{size}] = {{{', '.join(f'w{i}' for i in ins[start:start + size])}}};")
+            args.append(f"call_in{k}")
         start += size
     lines.append(f"  {p}_real call_out[{len(outs)}];")
     lines.append(f"  {p}_{fn.name()}({', '.join(args)}, call_out);")

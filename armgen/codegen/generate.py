@@ -122,11 +122,35 @@ def _size_macros(func: ca.Function, P: str) -> list[str]:
     return lines
 
 
-def _finite_probe(values: list[str], p: str, P: str) -> list[str]:
+def _finite_probe(values: list[str], p: str, P: str, loops: bool = False) -> list[str]:
     """Statements folding each value into ``probe``: x * 0 is ±0 for a finite x and NaN for
-    NaN/inf, and a NaN survives the sum. Straight-line (a load and a multiply-add per value on
-    a Cortex-M4, no loop or call), so ``probe == probe`` is 1 iff every value is finite."""
-    return [f"  {p}_real probe = {P}_LIT(0.0);", *(f"  probe = probe + ({v} * {P}_LIT(0.0));" for v in values)]
+    NaN/inf, and a NaN survives the sum, so ``probe == probe`` is 1 iff every value is finite.
+    Straight-line by default (a load and a multiply-add per value on a Cortex-M4, no loop or
+    call: a tick's step runs it). With ``loops``, a whole array (name[0] … name[n-1], n of at
+    least PROBE_LOOP_MIN) is one loop: the q twins of the steps, which the firmware's ticks do
+    not call (they take the *_from_jacobian twins), where the flash counts and a few
+    instructions do not. The IK's stays straight-line: a loop cost ~50 M4 instructions a solve,
+    which took iiwa14's 1 ms budget from 68 steps to 67."""
+    body, k = [], 0
+    while k < len(values):
+        match = re.fullmatch(r"(\w+)\[0\]", values[k]) if loops else None
+        n = 1
+        if match:
+            while k + n < len(values) and values[k + n] == f"{match.group(1)}[{n}]":
+                n += 1
+        if n >= PROBE_LOOP_MIN:
+            body.append(f"  for (entry = 0; entry < {n}; ++entry) {{ probe = probe + ({match.group(1)}[entry] * {P}_LIT(0.0)); }}")
+            k += n
+        else:
+            body.append(f"  probe = probe + ({values[k]} * {P}_LIT(0.0));")
+            k += 1
+    looped = any(line.startswith("  for (entry") for line in body)
+    return [*(["  int entry;"] if looped else []), f"  {p}_real probe = {P}_LIT(0.0);", *body]
+
+
+# The shortest array a looped probe scans by a loop (-Os: a loop of 4 is as long as 4 loads
+# and multiply-adds, longer arrays are shorter as loops).
+PROBE_LOOP_MIN = 4
 
 
 def _values(names: list[str], scalars: list[bool], sizes: list[int], pointer: str) -> list[str]:
@@ -199,7 +223,7 @@ def _through_jacobian_body(func: ca.Function, twin: ca.Function, n: int, p: str,
     lines = [f"  {p}_real J[6 * {P}_NDOF];"]
     if func.name() in STEP_FUNCTIONS:
         lines += [f"  {p}_status status;", f"  {p}_jacobian(q, J);", f"  status = {call};", "  {",
-                  *_finite_probe([f"q[{k}]" for k in range(n)], p, P),
+                  *_finite_probe([f"q[{k}]" for k in range(n)], p, P, loops=True),
                   f"  return (probe == probe) ? status : {P}_NONFINITE;", "  }"]
     else:
         lines += [f"  {p}_jacobian(q, J);", f"  {call};"]
@@ -355,24 +379,23 @@ static inline {p}_real {p}_sqrt({p}_real x) {{
   *s = a * sp + b * cp;
   *c = a * cp - b * sp;
 }}
-/* A sin or cos outside the table (a solver's computed angle): the compiler's choice to inline
- * or call, a call at -Os (inlined, each of the IK's took ~170 B of flash). */
-static inline float {p}_sin_bounded(float x) {{
+/* A sin or cos outside the table (a solver's computed angle, the IK's seed and restarts): both
+ * through one body, which -Os keeps out of line (inlined, each of the IK's took ~170 B of flash,
+ * and separate sin and cos bodies ~240 B each). */
+static inline float {p}_sincos_pick(float x, int want_cos) {{
   float s, c;
   {p}_sincos_bounded(x, &s, &c);
-  return s;
+  return (want_cos != 0) ? c : s;
 }}
-static inline float {p}_cos_bounded(float x) {{
-  float s, c;
-  {p}_sincos_bounded(x, &s, &c);
-  return c;
-}}
+static inline float {p}_sin_bounded(float x) {{ return {p}_sincos_pick(x, 0); }}
+static inline float {p}_cos_bounded(float x) {{ return {p}_sincos_pick(x, 1); }}
 /* atan2(y, x) without a library call (newlib's atan2f costs a call and its branches in a step
- * with a time budget, the IK's): t = min(|x|, |y|)/max(|x|, |y|) in [0, 1], reduced above
+ * with a time budget, the IK's; the compiler's choice to inline or call: a call at -Os, ~10
+ * instructions against ~120 B of flash per inlined copy): t = min(|x|, |y|)/max(|x|, |y|) in [0, 1], reduced above
  * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
  * and the quadrant by selects. Error <= {BOUNDED_ATAN2_ULP} ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
  * or +-pi); NaN or inf in give NaN. */
-{P}_TRIG_INLINE float {p}_atan2_bounded(float y, float x) {{
+static inline float {p}_atan2_bounded(float y, float x) {{
   float ax = fabsf(x), ay = fabsf(y);
   float hi = (ay > ax) ? ay : ax;
   float lo = (ay > ax) ? ax : ay;

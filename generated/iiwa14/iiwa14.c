@@ -13438,14 +13438,9 @@ iiwa14_status iiwa14_step_gpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
   iiwa14_jacobian(q, J);
   status = iiwa14_step_gpm_from_jacobian(J, xdot, alpha, damping, qdot);
   {
+  int entry;
   iiwa14_real probe = IIWA14_LIT(0.0);
-  probe = probe + (q[0] * IIWA14_LIT(0.0));
-  probe = probe + (q[1] * IIWA14_LIT(0.0));
-  probe = probe + (q[2] * IIWA14_LIT(0.0));
-  probe = probe + (q[3] * IIWA14_LIT(0.0));
-  probe = probe + (q[4] * IIWA14_LIT(0.0));
-  probe = probe + (q[5] * IIWA14_LIT(0.0));
-  probe = probe + (q[6] * IIWA14_LIT(0.0));
+  for (entry = 0; entry < 7; ++entry) { probe = probe + (q[entry] * IIWA14_LIT(0.0)); }
   return (probe == probe) ? status : IIWA14_NONFINITE;
   }
 }
@@ -13457,14 +13452,9 @@ iiwa14_status iiwa14_step_wln(const iiwa14_real q[IIWA14_NDOF], const iiwa14_rea
   iiwa14_jacobian(q, J);
   status = iiwa14_step_wln_from_jacobian(J, xdot, W, damping, qdot);
   {
+  int entry;
   iiwa14_real probe = IIWA14_LIT(0.0);
-  probe = probe + (q[0] * IIWA14_LIT(0.0));
-  probe = probe + (q[1] * IIWA14_LIT(0.0));
-  probe = probe + (q[2] * IIWA14_LIT(0.0));
-  probe = probe + (q[3] * IIWA14_LIT(0.0));
-  probe = probe + (q[4] * IIWA14_LIT(0.0));
-  probe = probe + (q[5] * IIWA14_LIT(0.0));
-  probe = probe + (q[6] * IIWA14_LIT(0.0));
+  for (entry = 0; entry < 7; ++entry) { probe = probe + (q[entry] * IIWA14_LIT(0.0)); }
   return (probe == probe) ? status : IIWA14_NONFINITE;
   }
 }
@@ -13476,14 +13466,9 @@ iiwa14_status iiwa14_step_fault(const iiwa14_real q[IIWA14_NDOF], const iiwa14_r
   iiwa14_jacobian(q, J);
   status = iiwa14_step_fault_from_jacobian(J, xdot, mask, W, alpha, epsilon, lambda_max, qdot, damping, sigma_min);
   {
+  int entry;
   iiwa14_real probe = IIWA14_LIT(0.0);
-  probe = probe + (q[0] * IIWA14_LIT(0.0));
-  probe = probe + (q[1] * IIWA14_LIT(0.0));
-  probe = probe + (q[2] * IIWA14_LIT(0.0));
-  probe = probe + (q[3] * IIWA14_LIT(0.0));
-  probe = probe + (q[4] * IIWA14_LIT(0.0));
-  probe = probe + (q[5] * IIWA14_LIT(0.0));
-  probe = probe + (q[6] * IIWA14_LIT(0.0));
+  for (entry = 0; entry < 7; ++entry) { probe = probe + (q[entry] * IIWA14_LIT(0.0)); }
   return (probe == probe) ? status : IIWA14_NONFINITE;
   }
 }
@@ -13495,14 +13480,9 @@ iiwa14_status iiwa14_step_wgpm(const iiwa14_real q[IIWA14_NDOF], const iiwa14_re
   iiwa14_jacobian(q, J);
   status = iiwa14_step_wgpm_from_jacobian(J, q, xdot, band, t_rmax, epsilon, rho_max, delta, ramp, H_lo, H_hi, k_hi, k_lo, u_th, u_band, qdot, w_c, rho, sigma_min, gains, H);
   {
+  int entry;
   iiwa14_real probe = IIWA14_LIT(0.0);
-  probe = probe + (q[0] * IIWA14_LIT(0.0));
-  probe = probe + (q[1] * IIWA14_LIT(0.0));
-  probe = probe + (q[2] * IIWA14_LIT(0.0));
-  probe = probe + (q[3] * IIWA14_LIT(0.0));
-  probe = probe + (q[4] * IIWA14_LIT(0.0));
-  probe = probe + (q[5] * IIWA14_LIT(0.0));
-  probe = probe + (q[6] * IIWA14_LIT(0.0));
+  for (entry = 0; entry < 7; ++entry) { probe = probe + (q[entry] * IIWA14_LIT(0.0)); }
   return (probe == probe) ? status : IIWA14_NONFINITE;
   }
 }
@@ -13663,14 +13643,12 @@ iiwa14_status iiwa14_ik(const iiwa14_real T_target[16], const iiwa14_real q_seed
   w3 = (iiwa14_real)(w3 == IIWA14_LIT(0.0));
   {
     iiwa14_real call_in0[23] = {w0, w2, w5, w10, w16, w12, w1, w0, w2, w5, w10, w16, w12, w1, IIWA14_LIT(1.0e+30), IIWA14_LIT(1.0e+30), IIWA14_LIT(1.0e+30), IIWA14_LIT(0.0), IIWA14_LIT(0.0), IIWA14_LIT(0.0), IIWA14_LIT(0.0), IIWA14_LIT(1.0e+30), w3};
-    iiwa14_real call_in1[16] = {T_target[0], T_target[1], T_target[2], T_target[3], T_target[4], T_target[5], T_target[6], T_target[7], T_target[8], T_target[9], T_target[10], T_target[11], T_target[12], T_target[13], T_target[14], T_target[15]};
-    iiwa14_real call_in2[7] = {q_rest[0], q_rest[1], q_rest[2], q_rest[3], q_rest[4], q_rest[5], q_rest[6]};
     iiwa14_real call_in3[1] = {use_rest};
     iiwa14_real call_in4[1] = {tol_position};
     iiwa14_real call_in5[1] = {tol_orientation};
     iiwa14_real call_in6[1] = {iteration_cap};
     iiwa14_real call_out[23];
-    iiwa14_ik_step_35864eae_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
+    iiwa14_ik_step_35864eae_loop(call_in0, T_target, q_rest, call_in3, call_in4, call_in5, call_in6, call_out);
     w0 = call_out[7];
     w1 = call_out[8];
     w2 = call_out[9];

@@ -16207,15 +16207,9 @@ modular8_status modular8_step_gpm(const modular8_real q[MODULAR8_NDOF], const mo
   modular8_jacobian(q, J);
   status = modular8_step_gpm_from_jacobian(J, xdot, alpha, damping, qdot);
   {
+  int entry;
   modular8_real probe = MODULAR8_LIT(0.0);
-  probe = probe + (q[0] * MODULAR8_LIT(0.0));
-  probe = probe + (q[1] * MODULAR8_LIT(0.0));
-  probe = probe + (q[2] * MODULAR8_LIT(0.0));
-  probe = probe + (q[3] * MODULAR8_LIT(0.0));
-  probe = probe + (q[4] * MODULAR8_LIT(0.0));
-  probe = probe + (q[5] * MODULAR8_LIT(0.0));
-  probe = probe + (q[6] * MODULAR8_LIT(0.0));
-  probe = probe + (q[7] * MODULAR8_LIT(0.0));
+  for (entry = 0; entry < 8; ++entry) { probe = probe + (q[entry] * MODULAR8_LIT(0.0)); }
   return (probe == probe) ? status : MODULAR8_NONFINITE;
   }
 }
@@ -16227,15 +16221,9 @@ modular8_status modular8_step_wln(const modular8_real q[MODULAR8_NDOF], const mo
   modular8_jacobian(q, J);
   status = modular8_step_wln_from_jacobian(J, xdot, W, damping, qdot);
   {
+  int entry;
   modular8_real probe = MODULAR8_LIT(0.0);
-  probe = probe + (q[0] * MODULAR8_LIT(0.0));
-  probe = probe + (q[1] * MODULAR8_LIT(0.0));
-  probe = probe + (q[2] * MODULAR8_LIT(0.0));
-  probe = probe + (q[3] * MODULAR8_LIT(0.0));
-  probe = probe + (q[4] * MODULAR8_LIT(0.0));
-  probe = probe + (q[5] * MODULAR8_LIT(0.0));
-  probe = probe + (q[6] * MODULAR8_LIT(0.0));
-  probe = probe + (q[7] * MODULAR8_LIT(0.0));
+  for (entry = 0; entry < 8; ++entry) { probe = probe + (q[entry] * MODULAR8_LIT(0.0)); }
   return (probe == probe) ? status : MODULAR8_NONFINITE;
   }
 }
@@ -16247,15 +16235,9 @@ modular8_status modular8_step_fault(const modular8_real q[MODULAR8_NDOF], const 
   modular8_jacobian(q, J);
   status = modular8_step_fault_from_jacobian(J, xdot, mask, W, alpha, epsilon, lambda_max, qdot, damping, sigma_min);
   {
+  int entry;
   modular8_real probe = MODULAR8_LIT(0.0);
-  probe = probe + (q[0] * MODULAR8_LIT(0.0));
-  probe = probe + (q[1] * MODULAR8_LIT(0.0));
-  probe = probe + (q[2] * MODULAR8_LIT(0.0));
-  probe = probe + (q[3] * MODULAR8_LIT(0.0));
-  probe = probe + (q[4] * MODULAR8_LIT(0.0));
-  probe = probe + (q[5] * MODULAR8_LIT(0.0));
-  probe = probe + (q[6] * MODULAR8_LIT(0.0));
-  probe = probe + (q[7] * MODULAR8_LIT(0.0));
+  for (entry = 0; entry < 8; ++entry) { probe = probe + (q[entry] * MODULAR8_LIT(0.0)); }
   return (probe == probe) ? status : MODULAR8_NONFINITE;
   }
 }
@@ -16267,15 +16249,9 @@ modular8_status modular8_step_wgpm(const modular8_real q[MODULAR8_NDOF], const m
   modular8_jacobian(q, J);
   status = modular8_step_wgpm_from_jacobian(J, q, xdot, band, t_rmax, epsilon, rho_max, delta, ramp, H_lo, H_hi, k_hi, k_lo, u_th, u_band, qdot, w_c, rho, sigma_min, gains, H);
   {
+  int entry;
   modular8_real probe = MODULAR8_LIT(0.0);
-  probe = probe + (q[0] * MODULAR8_LIT(0.0));
-  probe = probe + (q[1] * MODULAR8_LIT(0.0));
-  probe = probe + (q[2] * MODULAR8_LIT(0.0));
-  probe = probe + (q[3] * MODULAR8_LIT(0.0));
-  probe = probe + (q[4] * MODULAR8_LIT(0.0));
-  probe = probe + (q[5] * MODULAR8_LIT(0.0));
-  probe = probe + (q[6] * MODULAR8_LIT(0.0));
-  probe = probe + (q[7] * MODULAR8_LIT(0.0));
+  for (entry = 0; entry < 8; ++entry) { probe = probe + (q[entry] * MODULAR8_LIT(0.0)); }
   return (probe == probe) ? status : MODULAR8_NONFINITE;
   }
 }
@@ -16469,14 +16445,12 @@ modular8_status modular8_ik(const modular8_real T_target[16], const modular8_rea
   w3 = (modular8_real)(w3 == MODULAR8_LIT(0.0));
   {
     modular8_real call_in0[25] = {w0, w2, w5, w10, w16, w14, w7, w1, w0, w2, w5, w10, w16, w14, w7, w1, MODULAR8_LIT(1.0e+30), MODULAR8_LIT(1.0e+30), MODULAR8_LIT(1.0e+30), MODULAR8_LIT(0.0), MODULAR8_LIT(0.0), MODULAR8_LIT(0.0), MODULAR8_LIT(0.0), MODULAR8_LIT(1.0e+30), w3};
-    modular8_real call_in1[16] = {T_target[0], T_target[1], T_target[2], T_target[3], T_target[4], T_target[5], T_target[6], T_target[7], T_target[8], T_target[9], T_target[10], T_target[11], T_target[12], T_target[13], T_target[14], T_target[15]};
-    modular8_real call_in2[8] = {q_rest[0], q_rest[1], q_rest[2], q_rest[3], q_rest[4], q_rest[5], q_rest[6], q_rest[7]};
     modular8_real call_in3[1] = {use_rest};
     modular8_real call_in4[1] = {tol_position};
     modular8_real call_in5[1] = {tol_orientation};
     modular8_real call_in6[1] = {iteration_cap};
     modular8_real call_out[25];
-    modular8_ik_step_95c2c3c3_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
+    modular8_ik_step_95c2c3c3_loop(call_in0, T_target, q_rest, call_in3, call_in4, call_in5, call_in6, call_out);
     w0 = call_out[8];
     w1 = call_out[9];
     w2 = call_out[10];

@@ -13534,14 +13534,9 @@ panda_status panda_step_gpm(const panda_real q[PANDA_NDOF], const panda_real xdo
   panda_jacobian(q, J);
   status = panda_step_gpm_from_jacobian(J, xdot, alpha, damping, qdot);
   {
+  int entry;
   panda_real probe = PANDA_LIT(0.0);
-  probe = probe + (q[0] * PANDA_LIT(0.0));
-  probe = probe + (q[1] * PANDA_LIT(0.0));
-  probe = probe + (q[2] * PANDA_LIT(0.0));
-  probe = probe + (q[3] * PANDA_LIT(0.0));
-  probe = probe + (q[4] * PANDA_LIT(0.0));
-  probe = probe + (q[5] * PANDA_LIT(0.0));
-  probe = probe + (q[6] * PANDA_LIT(0.0));
+  for (entry = 0; entry < 7; ++entry) { probe = probe + (q[entry] * PANDA_LIT(0.0)); }
   return (probe == probe) ? status : PANDA_NONFINITE;
   }
 }
@@ -13553,14 +13548,9 @@ panda_status panda_step_wln(const panda_real q[PANDA_NDOF], const panda_real xdo
   panda_jacobian(q, J);
   status = panda_step_wln_from_jacobian(J, xdot, W, damping, qdot);
   {
+  int entry;
   panda_real probe = PANDA_LIT(0.0);
-  probe = probe + (q[0] * PANDA_LIT(0.0));
-  probe = probe + (q[1] * PANDA_LIT(0.0));
-  probe = probe + (q[2] * PANDA_LIT(0.0));
-  probe = probe + (q[3] * PANDA_LIT(0.0));
-  probe = probe + (q[4] * PANDA_LIT(0.0));
-  probe = probe + (q[5] * PANDA_LIT(0.0));
-  probe = probe + (q[6] * PANDA_LIT(0.0));
+  for (entry = 0; entry < 7; ++entry) { probe = probe + (q[entry] * PANDA_LIT(0.0)); }
   return (probe == probe) ? status : PANDA_NONFINITE;
   }
 }
@@ -13572,14 +13562,9 @@ panda_status panda_step_fault(const panda_real q[PANDA_NDOF], const panda_real x
   panda_jacobian(q, J);
   status = panda_step_fault_from_jacobian(J, xdot, mask, W, alpha, epsilon, lambda_max, qdot, damping, sigma_min);
   {
+  int entry;
   panda_real probe = PANDA_LIT(0.0);
-  probe = probe + (q[0] * PANDA_LIT(0.0));
-  probe = probe + (q[1] * PANDA_LIT(0.0));
-  probe = probe + (q[2] * PANDA_LIT(0.0));
-  probe = probe + (q[3] * PANDA_LIT(0.0));
-  probe = probe + (q[4] * PANDA_LIT(0.0));
-  probe = probe + (q[5] * PANDA_LIT(0.0));
-  probe = probe + (q[6] * PANDA_LIT(0.0));
+  for (entry = 0; entry < 7; ++entry) { probe = probe + (q[entry] * PANDA_LIT(0.0)); }
   return (probe == probe) ? status : PANDA_NONFINITE;
   }
 }
@@ -13591,14 +13576,9 @@ panda_status panda_step_wgpm(const panda_real q[PANDA_NDOF], const panda_real xd
   panda_jacobian(q, J);
   status = panda_step_wgpm_from_jacobian(J, q, xdot, band, t_rmax, epsilon, rho_max, delta, ramp, H_lo, H_hi, k_hi, k_lo, u_th, u_band, qdot, w_c, rho, sigma_min, gains, H);
   {
+  int entry;
   panda_real probe = PANDA_LIT(0.0);
-  probe = probe + (q[0] * PANDA_LIT(0.0));
-  probe = probe + (q[1] * PANDA_LIT(0.0));
-  probe = probe + (q[2] * PANDA_LIT(0.0));
-  probe = probe + (q[3] * PANDA_LIT(0.0));
-  probe = probe + (q[4] * PANDA_LIT(0.0));
-  probe = probe + (q[5] * PANDA_LIT(0.0));
-  probe = probe + (q[6] * PANDA_LIT(0.0));
+  for (entry = 0; entry < 7; ++entry) { probe = probe + (q[entry] * PANDA_LIT(0.0)); }
   return (probe == probe) ? status : PANDA_NONFINITE;
   }
 }
@@ -13786,14 +13766,12 @@ panda_status panda_ik(const panda_real T_target[16], const panda_real q_seed[PAN
   w3 = (panda_real)(w3 == PANDA_LIT(0.0));
   {
     panda_real call_in0[23] = {w0, w2, w5, w10, w16, w18, w1, w0, w2, w5, w10, w16, w18, w1, PANDA_LIT(1.0e+30), PANDA_LIT(1.0e+30), PANDA_LIT(1.0e+30), PANDA_LIT(0.0), PANDA_LIT(0.0), PANDA_LIT(0.0), PANDA_LIT(0.0), PANDA_LIT(1.0e+30), w3};
-    panda_real call_in1[16] = {T_target[0], T_target[1], T_target[2], T_target[3], T_target[4], T_target[5], T_target[6], T_target[7], T_target[8], T_target[9], T_target[10], T_target[11], T_target[12], T_target[13], T_target[14], T_target[15]};
-    panda_real call_in2[7] = {q_rest[0], q_rest[1], q_rest[2], q_rest[3], q_rest[4], q_rest[5], q_rest[6]};
     panda_real call_in3[1] = {use_rest};
     panda_real call_in4[1] = {tol_position};
     panda_real call_in5[1] = {tol_orientation};
     panda_real call_in6[1] = {iteration_cap};
     panda_real call_out[23];
-    panda_ik_step_8a95a0f1_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
+    panda_ik_step_8a95a0f1_loop(call_in0, T_target, q_rest, call_in3, call_in4, call_in5, call_in6, call_out);
     w0 = call_out[7];
     w1 = call_out[8];
     w2 = call_out[9];

@@ -133,24 +133,23 @@ PANDA_TRIG_INLINE void panda_sincos_bounded(float x, float *s, float *c) {
   *s = a * sp + b * cp;
   *c = a * cp - b * sp;
 }
-/* A sin or cos outside the table (a solver's computed angle): the compiler's choice to inline
- * or call, a call at -Os (inlined, each of the IK's took ~170 B of flash). */
-static inline float panda_sin_bounded(float x) {
+/* A sin or cos outside the table (a solver's computed angle, the IK's seed and restarts): both
+ * through one body, which -Os keeps out of line (inlined, each of the IK's took ~170 B of flash,
+ * and separate sin and cos bodies ~240 B each). */
+static inline float panda_sincos_pick(float x, int want_cos) {
   float s, c;
   panda_sincos_bounded(x, &s, &c);
-  return s;
+  return (want_cos != 0) ? c : s;
 }
-static inline float panda_cos_bounded(float x) {
-  float s, c;
-  panda_sincos_bounded(x, &s, &c);
-  return c;
-}
+static inline float panda_sin_bounded(float x) { return panda_sincos_pick(x, 0); }
+static inline float panda_cos_bounded(float x) { return panda_sincos_pick(x, 1); }
 /* atan2(y, x) without a library call (newlib's atan2f costs a call and its branches in a step
- * with a time budget, the IK's): t = min(|x|, |y|)/max(|x|, |y|) in [0, 1], reduced above
+ * with a time budget, the IK's; the compiler's choice to inline or call: a call at -Os, ~10
+ * instructions against ~120 B of flash per inlined copy): t = min(|x|, |y|)/max(|x|, |y|) in [0, 1], reduced above
  * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
  * and the quadrant by selects. Error <= 4 ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
  * or +-pi); NaN or inf in give NaN. */
-PANDA_TRIG_INLINE float panda_atan2_bounded(float y, float x) {
+static inline float panda_atan2_bounded(float y, float x) {
   float ax = fabsf(x), ay = fabsf(y);
   float hi = (ay > ax) ? ay : ax;
   float lo = (ay > ax) ? ax : ay;

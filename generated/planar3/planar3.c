@@ -2326,14 +2326,12 @@ planar3_status planar3_ik(const planar3_real T_target[16], const planar3_real q_
   w1 = (planar3_real)(w1 == PLANAR3_LIT(0.0));
   {
     planar3_real call_in0[15] = {w0, w2, w7, w0, w2, w7, PLANAR3_LIT(1.0e+30), PLANAR3_LIT(1.0e+30), PLANAR3_LIT(1.0e+30), PLANAR3_LIT(0.0), PLANAR3_LIT(0.0), PLANAR3_LIT(0.0), PLANAR3_LIT(0.0), PLANAR3_LIT(1.0e+30), w1};
-    planar3_real call_in1[16] = {T_target[0], T_target[1], T_target[2], T_target[3], T_target[4], T_target[5], T_target[6], T_target[7], T_target[8], T_target[9], T_target[10], T_target[11], T_target[12], T_target[13], T_target[14], T_target[15]};
-    planar3_real call_in2[3] = {q_rest[0], q_rest[1], q_rest[2]};
     planar3_real call_in3[1] = {use_rest};
     planar3_real call_in4[1] = {tol_position};
     planar3_real call_in5[1] = {tol_orientation};
     planar3_real call_in6[1] = {iteration_cap};
     planar3_real call_out[15];
-    planar3_ik_step_2f36c519_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
+    planar3_ik_step_2f36c519_loop(call_in0, T_target, q_rest, call_in3, call_in4, call_in5, call_in6, call_out);
     w0 = call_out[3];
     w1 = call_out[4];
     w2 = call_out[5];

@@ -53766,32 +53766,9 @@ snake12_status snake12_step_gpm(const snake12_real q[SNAKE12_NDOF], const snake1
   snake12_jacobian(q, J);
   status = snake12_step_gpm_from_jacobian(J, xdot, alpha, damping, qdot);
   {
+  int entry;
   snake12_real probe = SNAKE12_LIT(0.0);
-  probe = probe + (q[0] * SNAKE12_LIT(0.0));
-  probe = probe + (q[1] * SNAKE12_LIT(0.0));
-  probe = probe + (q[2] * SNAKE12_LIT(0.0));
-  probe = probe + (q[3] * SNAKE12_LIT(0.0));
-  probe = probe + (q[4] * SNAKE12_LIT(0.0));
-  probe = probe + (q[5] * SNAKE12_LIT(0.0));
-  probe = probe + (q[6] * SNAKE12_LIT(0.0));
-  probe = probe + (q[7] * SNAKE12_LIT(0.0));
-  probe = probe + (q[8] * SNAKE12_LIT(0.0));
-  probe = probe + (q[9] * SNAKE12_LIT(0.0));
-  probe = probe + (q[10] * SNAKE12_LIT(0.0));
-  probe = probe + (q[11] * SNAKE12_LIT(0.0));
-  probe = probe + (q[12] * SNAKE12_LIT(0.0));
-  probe = probe + (q[13] * SNAKE12_LIT(0.0));
-  probe = probe + (q[14] * SNAKE12_LIT(0.0));
-  probe = probe + (q[15] * SNAKE12_LIT(0.0));
-  probe = probe + (q[16] * SNAKE12_LIT(0.0));
-  probe = probe + (q[17] * SNAKE12_LIT(0.0));
-  probe = probe + (q[18] * SNAKE12_LIT(0.0));
-  probe = probe + (q[19] * SNAKE12_LIT(0.0));
-  probe = probe + (q[20] * SNAKE12_LIT(0.0));
-  probe = probe + (q[21] * SNAKE12_LIT(0.0));
-  probe = probe + (q[22] * SNAKE12_LIT(0.0));
-  probe = probe + (q[23] * SNAKE12_LIT(0.0));
-  probe = probe + (q[24] * SNAKE12_LIT(0.0));
+  for (entry = 0; entry < 25; ++entry) { probe = probe + (q[entry] * SNAKE12_LIT(0.0)); }
   return (probe == probe) ? status : SNAKE12_NONFINITE;
   }
 }
@@ -53803,32 +53780,9 @@ snake12_status snake12_step_wln(const snake12_real q[SNAKE12_NDOF], const snake1
   snake12_jacobian(q, J);
   status = snake12_step_wln_from_jacobian(J, xdot, W, damping, qdot);
   {
+  int entry;
   snake12_real probe = SNAKE12_LIT(0.0);
-  probe = probe + (q[0] * SNAKE12_LIT(0.0));
-  probe = probe + (q[1] * SNAKE12_LIT(0.0));
-  probe = probe + (q[2] * SNAKE12_LIT(0.0));
-  probe = probe + (q[3] * SNAKE12_LIT(0.0));
-  probe = probe + (q[4] * SNAKE12_LIT(0.0));
-  probe = probe + (q[5] * SNAKE12_LIT(0.0));
-  probe = probe + (q[6] * SNAKE12_LIT(0.0));
-  probe = probe + (q[7] * SNAKE12_LIT(0.0));
-  probe = probe + (q[8] * SNAKE12_LIT(0.0));
-  probe = probe + (q[9] * SNAKE12_LIT(0.0));
-  probe = probe + (q[10] * SNAKE12_LIT(0.0));
-  probe = probe + (q[11] * SNAKE12_LIT(0.0));
-  probe = probe + (q[12] * SNAKE12_LIT(0.0));
-  probe = probe + (q[13] * SNAKE12_LIT(0.0));
-  probe = probe + (q[14] * SNAKE12_LIT(0.0));
-  probe = probe + (q[15] * SNAKE12_LIT(0.0));
-  probe = probe + (q[16] * SNAKE12_LIT(0.0));
-  probe = probe + (q[17] * SNAKE12_LIT(0.0));
-  probe = probe + (q[18] * SNAKE12_LIT(0.0));
-  probe = probe + (q[19] * SNAKE12_LIT(0.0));
-  probe = probe + (q[20] * SNAKE12_LIT(0.0));
-  probe = probe + (q[21] * SNAKE12_LIT(0.0));
-  probe = probe + (q[22] * SNAKE12_LIT(0.0));
-  probe = probe + (q[23] * SNAKE12_LIT(0.0));
-  probe = probe + (q[24] * SNAKE12_LIT(0.0));
+  for (entry = 0; entry < 25; ++entry) { probe = probe + (q[entry] * SNAKE12_LIT(0.0)); }
   return (probe == probe) ? status : SNAKE12_NONFINITE;
   }
 }
@@ -53840,32 +53794,9 @@ snake12_status snake12_step_fault(const snake12_real q[SNAKE12_NDOF], const snak
   snake12_jacobian(q, J);
   status = snake12_step_fault_from_jacobian(J, xdot, mask, W, alpha, epsilon, lambda_max, qdot, damping, sigma_min);
   {
+  int entry;
   snake12_real probe = SNAKE12_LIT(0.0);
-  probe = probe + (q[0] * SNAKE12_LIT(0.0));
-  probe = probe + (q[1] * SNAKE12_LIT(0.0));
-  probe = probe + (q[2] * SNAKE12_LIT(0.0));
-  probe = probe + (q[3] * SNAKE12_LIT(0.0));
-  probe = probe + (q[4] * SNAKE12_LIT(0.0));
-  probe = probe + (q[5] * SNAKE12_LIT(0.0));
-  probe = probe + (q[6] * SNAKE12_LIT(0.0));
-  probe = probe + (q[7] * SNAKE12_LIT(0.0));
-  probe = probe + (q[8] * SNAKE12_LIT(0.0));
-  probe = probe + (q[9] * SNAKE12_LIT(0.0));
-  probe = probe + (q[10] * SNAKE12_LIT(0.0));
-  probe = probe + (q[11] * SNAKE12_LIT(0.0));
-  probe = probe + (q[12] * SNAKE12_LIT(0.0));
-  probe = probe + (q[13] * SNAKE12_LIT(0.0));
-  probe = probe + (q[14] * SNAKE12_LIT(0.0));
-  probe = probe + (q[15] * SNAKE12_LIT(0.0));
-  probe = probe + (q[16] * SNAKE12_LIT(0.0));
-  probe = probe + (q[17] * SNAKE12_LIT(0.0));
-  probe = probe + (q[18] * SNAKE12_LIT(0.0));
-  probe = probe + (q[19] * SNAKE12_LIT(0.0));
-  probe = probe + (q[20] * SNAKE12_LIT(0.0));
-  probe = probe + (q[21] * SNAKE12_LIT(0.0));
-  probe = probe + (q[22] * SNAKE12_LIT(0.0));
-  probe = probe + (q[23] * SNAKE12_LIT(0.0));
-  probe = probe + (q[24] * SNAKE12_LIT(0.0));
+  for (entry = 0; entry < 25; ++entry) { probe = probe + (q[entry] * SNAKE12_LIT(0.0)); }
   return (probe == probe) ? status : SNAKE12_NONFINITE;
   }
 }
@@ -53877,32 +53808,9 @@ snake12_status snake12_step_wgpm(const snake12_real q[SNAKE12_NDOF], const snake
   snake12_jacobian(q, J);
   status = snake12_step_wgpm_from_jacobian(J, q, xdot, band, t_rmax, epsilon, rho_max, delta, ramp, H_lo, H_hi, k_hi, k_lo, u_th, u_band, qdot, w_c, rho, sigma_min, gains, H);
   {
+  int entry;
   snake12_real probe = SNAKE12_LIT(0.0);
-  probe = probe + (q[0] * SNAKE12_LIT(0.0));
-  probe = probe + (q[1] * SNAKE12_LIT(0.0));
-  probe = probe + (q[2] * SNAKE12_LIT(0.0));
-  probe = probe + (q[3] * SNAKE12_LIT(0.0));
-  probe = probe + (q[4] * SNAKE12_LIT(0.0));
-  probe = probe + (q[5] * SNAKE12_LIT(0.0));
-  probe = probe + (q[6] * SNAKE12_LIT(0.0));
-  probe = probe + (q[7] * SNAKE12_LIT(0.0));
-  probe = probe + (q[8] * SNAKE12_LIT(0.0));
-  probe = probe + (q[9] * SNAKE12_LIT(0.0));
-  probe = probe + (q[10] * SNAKE12_LIT(0.0));
-  probe = probe + (q[11] * SNAKE12_LIT(0.0));
-  probe = probe + (q[12] * SNAKE12_LIT(0.0));
-  probe = probe + (q[13] * SNAKE12_LIT(0.0));
-  probe = probe + (q[14] * SNAKE12_LIT(0.0));
-  probe = probe + (q[15] * SNAKE12_LIT(0.0));
-  probe = probe + (q[16] * SNAKE12_LIT(0.0));
-  probe = probe + (q[17] * SNAKE12_LIT(0.0));
-  probe = probe + (q[18] * SNAKE12_LIT(0.0));
-  probe = probe + (q[19] * SNAKE12_LIT(0.0));
-  probe = probe + (q[20] * SNAKE12_LIT(0.0));
-  probe = probe + (q[21] * SNAKE12_LIT(0.0));
-  probe = probe + (q[22] * SNAKE12_LIT(0.0));
-  probe = probe + (q[23] * SNAKE12_LIT(0.0));
-  probe = probe + (q[24] * SNAKE12_LIT(0.0));
+  for (entry = 0; entry < 25; ++entry) { probe = probe + (q[entry] * SNAKE12_LIT(0.0)); }
   return (probe == probe) ? status : SNAKE12_NONFINITE;
   }
 }
@@ -53969,14 +53877,12 @@ snake12_status snake12_ik(const snake12_real T_target[16], const snake12_real q_
   w25 = (snake12_real)(w25 == SNAKE12_LIT(0.0));
   {
     snake12_real call_in0[59] = {w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11, w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23, w24, w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11, w12, w13, w14, w15, w16, w17, w18, w19, w20, w21, w22, w23, w24, SNAKE12_LIT(1.0e+30), SNAKE12_LIT(1.0e+30), SNAKE12_LIT(1.0e+30), SNAKE12_LIT(0.0), SNAKE12_LIT(0.0), SNAKE12_LIT(0.0), SNAKE12_LIT(0.0), SNAKE12_LIT(1.0e+30), w25};
-    snake12_real call_in1[16] = {T_target[0], T_target[1], T_target[2], T_target[3], T_target[4], T_target[5], T_target[6], T_target[7], T_target[8], T_target[9], T_target[10], T_target[11], T_target[12], T_target[13], T_target[14], T_target[15]};
-    snake12_real call_in2[25] = {q_rest[0], q_rest[1], q_rest[2], q_rest[3], q_rest[4], q_rest[5], q_rest[6], q_rest[7], q_rest[8], q_rest[9], q_rest[10], q_rest[11], q_rest[12], q_rest[13], q_rest[14], q_rest[15], q_rest[16], q_rest[17], q_rest[18], q_rest[19], q_rest[20], q_rest[21], q_rest[22], q_rest[23], q_rest[24]};
     snake12_real call_in3[1] = {use_rest};
     snake12_real call_in4[1] = {tol_position};
     snake12_real call_in5[1] = {tol_orientation};
     snake12_real call_in6[1] = {iteration_cap};
     snake12_real call_out[59];
-    snake12_ik_step_8e27ca69_loop(call_in0, call_in1, call_in2, call_in3, call_in4, call_in5, call_in6, call_out);
+    snake12_ik_step_8e27ca69_loop(call_in0, T_target, q_rest, call_in3, call_in4, call_in5, call_in6, call_out);
     w0 = call_out[25];
     w1 = call_out[26];
     w2 = call_out[27];
