@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from ..description.files import ANGLE_UNITS, LENGTH_UNITS
+
 # Summary-key unit tokens (the last "_"-separated token, before any time exponent "s"/"s2"):
 # dimension, SI scale of the token's unit, and power of the dimension.
 UNIT_TOKENS = {
@@ -20,7 +22,7 @@ UNIT_TOKENS = {
     "rad": ("angle", 1.0, 1), "deg": ("angle", math.pi / 180, 1), "rad2": ("angle", 1.0, 2),
 }
 TIME_TOKENS = {"s": 1, "s2": 2, "s3": 3}
-FILE_UNIT_SCALE = {"m": 1.0, "mm": 1e-3, "rad": 1.0, "deg": math.pi / 180}
+FILE_UNIT_SCALE = {**LENGTH_UNITS, **ANGLE_UNITS}  # the robot and task files' units, to SI
 SUPERSCRIPTS = {1: "", 2: "²", 3: "³"}
 SHOWN_IN_FULL = 3  # a list or table of at most this many values is printed whole (xyz, a range, two obstacles)
 SIGNIFICANT = 4  # digits of a figure in the table: enough to compare runs, short enough to scan

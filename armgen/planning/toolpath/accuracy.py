@@ -21,6 +21,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ...description.files import LENGTH_UNITS
 from ...errors import PlanningError
 
 # The default tolerance (m): a welding or gluing seam wants the torch within a tenth of a mm.
@@ -33,7 +34,6 @@ MAX_STEP_HALVINGS = 8
 CONVERGENCE_RATIO = 0.75
 # Steps of a refined plan at most: the default cap on a plan's samples (planning.tasks).
 MAX_REFINED_STEPS = 1_000_000
-LENGTH_SCALE = {"m": 1.0, "mm": 1e-3}
 
 
 @dataclass
@@ -62,7 +62,7 @@ def path_accuracy(task: dict[str, Any], step: float, program: bool, unset_step_a
     applies = program or stated is not None or (unset_step_applies and "step" not in task.get("integrator", {}))
     tolerance = None
     if applies:
-        tolerance = DEFAULT_PATH_TOLERANCE if stated is None else float(stated) * LENGTH_SCALE[unit]
+        tolerance = DEFAULT_PATH_TOLERANCE if stated is None else float(stated) * LENGTH_UNITS[unit]
     return PathAccuracy(tolerance, step, task, unit)
 
 
@@ -97,7 +97,7 @@ def plan_accurately(run: Callable[[float], Any], accuracy: PathAccuracy, duratio
         result, step, deviation, k = refined, finer, new_deviation, new_k
     check(result)
     if deviation > accuracy.tolerance:
-        scale = LENGTH_SCALE[accuracy.length_unit]
+        scale = LENGTH_UNITS[accuracy.length_unit]
         unit = accuracy.length_unit
         t = result.column("t_s")[k]
         raise PlanningError(
