@@ -14,7 +14,6 @@ from __future__ import annotations
 import contextlib
 import copy
 import functools
-import importlib
 import json
 import random
 import signal
@@ -25,7 +24,7 @@ from typing import Any, Callable, Iterator
 
 from armgen.errors import ArmgenError
 from armgen.planning.result import write_plan
-from armgen.planning.tasks import PLANNERS, ResourceCaps, load_task, run_task, validate_task
+from armgen.planning.tasks import ResourceCaps, configure_task, load_task, run_task
 from armgen.robot import BUNDLED_DIR, parse_robot
 
 EXAMPLES_DIR = BUNDLED_DIR.parent / "examples"
@@ -186,16 +185,10 @@ def mutate_task(rng: random.Random, bases: tuple[str, ...] | None = None) -> tup
     return name, task, invalid
 
 
-PARSERS = {"ptp": "parse_ptp_task", "cartesian": "parse_cartesian_task",
-           "fault_tolerant": "parse_fault_tolerant_task", "wgpm": "parse_wgpm_task", "snake": "parse_snake_task"}
-
-
 def parse_task(task: dict[str, Any]) -> Any:
-    """The schema, then the planner's own parser (robot, joint names, cross-field rules),
-    everything before planning."""
-    validate_task(task, "fuzz.toml")
-    module = importlib.import_module(PLANNERS[task["planner"]] + ".planner")
-    return getattr(module, PARSERS[task["planner"]])(task, "fuzz.toml")
+    """Everything before planning: the schema, the robot, the planner's configure (units,
+    joint names, cross-field rules)."""
+    return configure_task(task, "fuzz.toml").config
 
 
 @dataclass

@@ -3,7 +3,6 @@ complete and check TOML (e.g. Taplo / Even Better TOML, with a ``#:schema`` dire
 
 from __future__ import annotations
 
-import importlib
 import json
 from typing import Annotated, Union
 
@@ -16,14 +15,14 @@ def schema_of(kind: str, planner: str | None = None) -> dict:
     """JSON Schema of the robot file, one planner's task file, or any task file."""
     from pydantic import Field, TypeAdapter
 
-    from ..planning.tasks import PLANNERS, SCHEMAS
+    from ..planning.registry import PLANNER_NAMES, planner as planner_named
     from ..description.schema import RobotFile, UrdfRobotFile
 
     if kind == "robot":
         schema = TypeAdapter(Union[RobotFile, UrdfRobotFile]).json_schema()
         schema["title"] = "armgen robot file (DH table, or a URDF reference)"
         return schema
-    models = {name: getattr(importlib.import_module(PLANNERS[name] + ".schema"), SCHEMAS[name]) for name in PLANNERS}
+    models = {name: planner_named(name).schema for name in PLANNER_NAMES}
     if planner is not None:
         return models[planner].model_json_schema()
     union = Annotated[Union[tuple(models.values())], Field(discriminator="planner")]

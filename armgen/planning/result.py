@@ -29,6 +29,11 @@ class PlanResult:
     columns: list[str]
     data: np.ndarray  # shape (samples, len(columns))
     metadata: dict[str, Any] = field(default_factory=dict)
+    # The planner's typed SI configuration the plan was made with (e.g. after the integrator
+    # step was refined to meet the path tolerance): the firmware's controller task is made
+    # from it. In memory only (plan.json records the task it came from); None for a plan read
+    # from disk.
+    config: Any = field(default=None, repr=False, compare=False)
     # A program plan's final motion (toolpath.timelaw.ProgramMotion: its geometry and the time
     # law after any slowing down), in memory only: the controller's program table is made
     # from it. Not written to the CSV or plan.json; None for every other plan.

@@ -29,7 +29,6 @@ from __future__ import annotations
 import contextlib
 import copy
 import datetime
-import importlib
 import io
 import itertools
 import json
@@ -49,7 +48,8 @@ from ..errors import ArmgenError, Interrupted, TaskFileError, ToolchainError, ex
 from ..fileio import atomic_open
 from ..progress import progress
 from ..schemas import closest_key
-from .tasks import PLANNERS, SCHEMAS, parse_value, planner_module, run_task, set_field, validate_task
+from .registry import PLANNER_NAMES, planner
+from .tasks import parse_value, run_task, set_field, validate_task
 
 FORMATS = (".csv", ".parquet")
 FIXED_COLUMNS = ("run", "status", "exit_code", "message", "overrides")
@@ -144,7 +144,7 @@ def check_fields(task: dict[str, Any], spec: SweepSpec, source: str) -> None:
     first = copy.deepcopy(task)
     for option, key, value in fields:
         set_field(first, key, value, f"{option} {excerpt(repr(key))}")
-    if planner_module(first) is None:
+    if first.get("planner") not in PLANNER_NAMES:
         validate_task(first, source)  # names the unknown planner (exit 2)
     known = _unknown_fields(task)
     for option, key, value in fields:
@@ -161,12 +161,10 @@ def check_fields(task: dict[str, Any], spec: SweepSpec, source: str) -> None:
 def _unknown_fields(task: dict[str, Any]) -> set[tuple[str, str, tuple[str, ...]]]:
     """(table, key, allowed keys) of each key of ``task`` its planner's schema does not know
     (none when the planner is unknown: no schema to ask)."""
-    if planner_module(task) is None:
+    if task.get("planner") not in PLANNER_NAMES:
         return set()
-    planner = task["planner"]
-    schema = getattr(importlib.import_module(PLANNERS[planner] + ".schema"), SCHEMAS[planner])
     try:
-        schema.model_validate(task)
+        planner(task["planner"]).schema.model_validate(task)
     except ValidationError as exc:
         return {(_table_name(task, err["loc"]), name, tuple(err["ctx"]["allowed"]))
                 for err in exc.errors(include_url=False) if err["type"] == "unknown_field"
@@ -427,7 +425,8 @@ def _execute(task, source, sha256, todo, backend, workers, scheduler) -> Iterato
                 yield row
     else:
         # The planner's modules, imported once here, are inherited by forked workers.
-        planner_module(task)
+        if task.get("planner") in PLANNER_NAMES:
+            planner(task["planner"])
         batches = _batches(todo, workers)
         pool = multiprocessing.Pool(min(workers, len(batches)), initializer=_ignore_sigint)
         try:

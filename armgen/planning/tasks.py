@@ -1,41 +1,29 @@
-"""Task files (TOML): loading, ``--set`` overrides, and dispatch to the planner named by
-the file's ``planner`` field. Each planner module exposes ``plan_task(task, source)``
-returning a :class:`PlanResult`; it parses the task dict into its own typed config."""
+"""Task files (TOML): loading, ``--set`` overrides, and the one path from a task's bytes to its
+plan: the planner's schema validates the document (:func:`validate_task`), the task's robot is
+loaded once, the planner's ``configure`` turns both into its typed SI config
+(:func:`configure_task` → :class:`Task`), and its ``plan`` plans that (:func:`plan_configured`).
+The planners are found through :mod:`.registry`."""
 
 from __future__ import annotations
 
 import hashlib
-import importlib
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from pydantic import ValidationError
 
-from .. import __version__
+from .._version import __version__
 from ..errors import PlanFileError, PlanningError, TaskFileError, excerpt
-from ..description import bundled_robots
-from ..schemas import (MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, closest_key, format_validation_error, parse_toml_bounded,
+from ..description import bundled_robots, resolve_robot_path
+from ..schemas import (MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, format_validation_error, parse_toml_bounded,
                        read_input_file)
 from .limits import enforce_limits, enforce_speed_limits
+from ..robot import Robot, load_robot
+from .registry import Planner, planner
 from .result import PlanResult, first_invalid_sample
-
-# planner name -> its package: ``planner.plan_task(task: dict, source: str, backend: str)`` and
-# ``plots.<function>(result) -> Figure``
-PLANNERS = {
-    "ptp": "armgen.planning.ptp",
-    "cartesian": "armgen.planning.cartesian",
-    "fault_tolerant": "armgen.planning.fault_tolerant",
-    "wgpm": "armgen.planning.wgpm",
-    "snake": "armgen.planning.snake",
-}
-SCHEMAS = {"ptp": "PtpTaskFile", "cartesian": "CartesianTaskFile", "fault_tolerant": "FaultTolerantTaskFile",
-           "wgpm": "WgpmTaskFile", "snake": "SnakeTaskFile"}
-PLOT_FUNCTIONS = {"ptp": "plot_ptp", "cartesian": "plot_resolved_rate", "fault_tolerant": "plot_fault_tolerant",
-                  "wgpm": "plot_wgpm", "snake": "plot_snake"}
-
 
 # Resource caps, checked from the validated task before any planning starts. Each can be
 # raised for one run with the CLI option named in the error (``armgen plan --max-steps N``).
@@ -140,25 +128,18 @@ def _check_magnitudes(value: Any, where: str, source: str) -> None:
 
 def validate_task(task: dict[str, Any], source: str) -> Any:
     """The task checked against its planner's schema (keys, types, ranges); returns the model."""
-    planner = task.get("planner") if isinstance(task, dict) else None
-    if not isinstance(planner, str) or planner not in PLANNERS:
-        near = closest_key(planner, list(PLANNERS)) if isinstance(planner, str) else None
-        raise TaskFileError(
-            f"{source}: field 'planner' = {excerpt(repr(planner))} is not one of {', '.join(sorted(PLANNERS))}"
-            + (f" (did you mean `{near}`?)" if near else "")
-            + "; set planner = \"<name>\" at the top of the task file")
-    schema = importlib.import_module(PLANNERS[planner] + ".schema")
+    spec = planner(task.get("planner") if isinstance(task, dict) else None, source)
     try:
-        model = getattr(schema, SCHEMAS[planner]).model_validate(task)
+        model = spec.schema.model_validate(task)
     except ValidationError as exc:
         raise TaskFileError(format_validation_error(exc, source, task)) from None
     _check_magnitudes(task, "", source)
     return model
 
 
-def check_caps(planner: str, model: Any, caps: ResourceCaps, source: str) -> None:
+def check_caps(spec: Planner, model: Any, caps: ResourceCaps, source: str) -> None:
     """Refuse, before planning, a task whose steps or samples exceed the caps."""
-    steps, samples = importlib.import_module(PLANNERS[planner] + ".schema").workload(model)
+    steps, samples = spec.workload(model)
     if steps > caps.max_steps:
         raise TaskFileError(f"{source}: the task needs {steps:.3g} integration steps, more than the cap of "
                             f"{caps.max_steps}; raise integrator.step (or shorten the duration), or lift the cap "
@@ -169,24 +150,53 @@ def check_caps(planner: str, model: Any, caps: ResourceCaps, source: str) -> Non
                             "lift the cap with --max-samples N")
 
 
-def planner_module(task: dict[str, Any]):
-    """The module of the task's planner (None for an unknown planner: validation reports it)."""
-    planner = task.get("planner") if isinstance(task, dict) else None
-    known = isinstance(planner, str) and planner in PLANNERS
-    return importlib.import_module(PLANNERS[planner] + ".planner") if known else None
+@dataclass(frozen=True)
+class Task:
+    """A task file read once and checked: its planner, the validated document (file units), the
+    planner's typed SI configuration, and where it came from."""
+
+    planner: Planner
+    model: Any
+    config: Any
+    source: str
+    sha256: str = ""
+    document: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
-def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: str = "symbolic",
-             caps: ResourceCaps = ResourceCaps()) -> PlanResult:
-    """Validate ``task`` (schema, caps), plan it, and reject a plan with a non-finite sample."""
+def task_robot(model: Any, source: str, robot: Robot | None = None) -> Robot | None:
+    """The robot the task names, loaded once; with ``robot`` given (a firmware's), the task must
+    name that robot (checked here, before anything is planned) and it is used as it is."""
+    reference = getattr(model, "robot", None)
+    if reference is None:
+        return robot
+    if robot is None:
+        return load_robot(reference)
+    if resolve_robot_path(reference).resolve() != Path(robot.source).resolve():
+        named = load_robot(reference)  # another path may hold the same file
+        if named.sha256 != robot.sha256:
+            raise TaskFileError(f"{source}: the task is for robot '{named.name}' ({reference}), not '{robot.name}' "
+                                f"({robot.source}); give the task's robot, or set the task's robot = the robot given")
+    return robot
+
+
+def configure_task(task: dict[str, Any], source: str, sha256: str = "", robot: Robot | None = None) -> Task:
+    """Validate ``task`` (a task file's document, overrides applied), load its robot once (or
+    check it names ``robot``) and make its planner's typed SI configuration."""
     model = validate_task(task, source)
-    planner = task["planner"]
-    check_caps(planner, model, caps, source)
-    module = planner_module(task)
+    spec = planner(task["planner"], source)
+    config = spec.configure(model, task_robot(model, source, robot), source)
+    return Task(spec, model, config, source, sha256, task)
+
+
+def plan_configured(task: Task, backend: str = "symbolic", caps: ResourceCaps = ResourceCaps()) -> PlanResult:
+    """Plan a configured task (caps checked first), and reject a plan with a non-finite sample
+    or (policy ``[check] limits = "error"``) one that leaves the joints' limits."""
+    source = task.source
+    check_caps(task.planner, task.model, caps, source)
     started = time.perf_counter()
     try:
         with np.errstate(all="ignore"):  # a non-finite result is reported below, as an infeasible plan
-            result: PlanResult = module.plan_task(task, source, backend)
+            result: PlanResult = task.planner.plan(task.config, backend)
     except OverflowError as exc:
         raise PlanningError(f"{source}: the plan overflowed ({exc}); the task's numbers are too large for a "
                             "physical motion (check durations, steps and gains)") from None
@@ -198,20 +208,28 @@ def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: 
                             f"{result.data[row, col]} at sample {row}; nothing was written (check the timing "
                             "and the numbers of the task)")
     summary = result.metadata.get("summary", {})  # every planner's task has [check] limits
-    enforce_limits(summary.get("limit_violations", []), model.check.limits, source)
-    enforce_speed_limits(summary.get("joint_speed"), model.check.limits, source, planner)
+    enforce_limits(summary.get("limit_violations", []), task.model.check.limits, source)
+    enforce_speed_limits(summary.get("joint_speed"), task.model.check.limits, source, task.planner.name)
     meta = {
         "armgen_version": __version__,
         "task_file": source,
-        "task_sha256": task_sha256,
-        "planner": planner,
+        "task_sha256": task.sha256,
+        "planner": task.planner.name,
         "backend": backend,
-        "task": task,
+        "task": getattr(task.config, "task", task.document),  # TRANSITIONAL: the legacy config's dict
     }
     meta.update(result.metadata)
     meta.setdefault("summary", {})["run_time_s"] = elapsed
     result.metadata = meta
+    if result.config is None:
+        result.config = task.config
     return result
+
+
+def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: str = "symbolic",
+             caps: ResourceCaps = ResourceCaps(), robot: Robot | None = None) -> PlanResult:
+    """Configure ``task`` (:func:`configure_task`) and plan it (:func:`plan_configured`)."""
+    return plan_configured(configure_task(task, source, task_sha256, robot), backend, caps)
 
 
 def plot_plan(result: PlanResult, source: str, robot=None):
@@ -219,16 +237,16 @@ def plot_plan(result: PlanResult, source: str, robot=None):
     module; write it with :func:`armgen.planning.plotting.save_figure`. An arm is drawn through
     ``robot``'s kinematics (a :class:`~armgen.robot.Robot`; default: the one ``plan.json``
     records, :func:`armgen.planning.plotting.plan_robot`); a PTP figure draws no arm."""
-    planner = result.metadata.get("planner")
-    if planner not in PLANNERS:
-        raise PlanFileError(f"{source}: no plot for planner {excerpt(repr(planner))} (plan.json missing or unknown planner); "
-                            "keep the plan.json that armgen plan wrote beside the CSV")
-    module = importlib.import_module(PLANNERS[planner] + ".plots")
+    name = result.metadata.get("planner")
     try:
-        arm = {} if planner == "ptp" or robot is None else {"robot": robot}
-        return getattr(module, PLOT_FUNCTIONS[planner])(result, **arm)
+        spec = planner(name, source)
+    except TaskFileError:
+        raise PlanFileError(f"{source}: no plot for planner {excerpt(repr(name))} (plan.json missing or unknown planner); "
+                            "keep the plan.json that armgen plan wrote beside the CSV") from None
+    try:
+        return spec.plot(result, robot=robot)
     except (KeyError, IndexError, TypeError, ValueError) as exc:
         # A plan.json that validates but lacks a block the figure needs (hand-edited, from
         # another version) is a PlanFileError, not a crash.
-        raise PlanFileError(f"{source}: the plan and its plan.json do not fit the {planner} figure "
+        raise PlanFileError(f"{source}: the plan and its plan.json do not fit the {name} figure "
                             f"({type(exc).__name__}: {str(exc)[:120]}); regenerate them with armgen plan") from None

@@ -1,61 +1,17 @@
-"""Schema of ``planner = "cartesian"`` task files (spec 20), and the tables every
-resolved-rate task shares (robot, start, units, path, timing, integrator, damping), which the
-``fault_tolerant`` and ``wgpm`` schemas extend. Values are in the file's units; the planner's
-parser converts them to SI. Ranges the parser explains in more detail (e.g. why a gain must
-not be negative) are left to it."""
+"""Schema of ``planner = "cartesian"`` task files (spec 20): the shared vocabulary
+(:mod:`armgen.planning.common.schema`) plus the integrator and the method. Values are in the
+file's units; :mod:`.config` converts them to SI."""
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Optional, Union
+from typing import Annotated, Literal, Optional
 
-from pydantic import Field, StringConstraints
+from pydantic import Field
 
 from ...schemas import StrictModel
-from ..toolpath.schema import ProgramPath, path_union
-
-
-class Target(StrictModel):
-    xyz: Vector3 = Field(description="position (length unit)")
-    rpy: Vector3 = Field(description="roll, pitch, yaw (angle unit): R = Rz(yaw) Ry(pitch) Rx(roll)")
-
-# A path or bundled name; longer text is not a file name.
-RobotReference = Annotated[str, StringConstraints(min_length=1, max_length=4096)]
-Description = Annotated[str, StringConstraints(max_length=2000)]
-Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
-Positive = Annotated[float, Field(gt=0)]
-NonNegative = Annotated[float, Field(ge=0)]
-JointValues = Annotated[list[float], Field(min_length=1, max_length=64)]
-ConfigurationName = Annotated[str, StringConstraints(min_length=1, max_length=64)]
-
-
-class StartPose(StrictModel):
-    """A start given as a tool pose, solved by the robot's inverse kinematics."""
-
-    pose: Target = Field(description="the start tool pose (xyz, rpy) in the file's units")
-    seed: Union[ConfigurationName, JointValues] = Field(
-        "q0", description="the configuration the IK starts from (a name or joint values)")
-
-
-Start = Union[ConfigurationName, JointValues, StartPose]
-
-
-class Units(StrictModel):
-    length: Literal["m", "mm"] = "m"
-    angle: Literal["rad", "deg"] = "rad"
-
-
-class Path(StrictModel):
-    type: Literal["circle", "line"] = "circle"
-    via: Optional[Vector3] = Field(None, description="circle: the second point (start → via → end → start)")
-    end: Vector3
-    orientation: Literal["hold", "interpolate"] = "hold"
-    end_rpy: Optional[Vector3] = Field(None, description="line with orientation = 'interpolate': final roll, pitch, yaw")
-
-
-class Timing(StrictModel):
-    duration: Positive = Field(description="s")
-    law: Literal["cubic", "trapezoidal", "constant"] = "cubic"
-    blend: float = Field(0.2, description="trapezoidal: fraction of the duration spent accelerating, (0, 0.5]")
+from ..common.schema import (Check, Damping, Description, NonNegative, Path, Positive, RobotReference, Start, Timing,
+                             Units, resolved_rate_workload)
+from ..toolpath.schema import path_union
 
 
 class Integrator(StrictModel):
@@ -63,11 +19,6 @@ class Integrator(StrictModel):
     step: Positive = Field(0.02, description="s")
     clik_gain: NonNegative = Field(0.0, description="closed-loop gain K_p, 1/s (0 = open loop)")
     output_every: Annotated[int, Field(ge=1)] = Field(1, description="write every k-th step to the CSV")
-
-
-class Damping(StrictModel):
-    epsilon: Positive = 0.01
-    lambda_max: NonNegative = 0.05
 
 
 class Method(StrictModel):
@@ -79,25 +30,6 @@ class Method(StrictModel):
     T_smo_L: Positive = 40.0
     T_sum_L: Positive = 80.0
     gamma_R_ramp: Positive = 20.0
-
-
-class Check(StrictModel):
-    limits: Literal["error", "report"] = Field(
-        "error", description="a plan that leaves a joint's limits: 'error' (exit 3, nothing written) or 'report' "
-                             "(written; listed in the summary's limit_violations)")
-    path_tolerance: Optional[Positive] = Field(
-        None, description="length unit: the most the tool may deviate from the path (default 0.1 mm for programs and "
-                          "for cartesian circles/lines that leave integrator.step unset); the step is halved to meet it, else "
-                          "exit 3")
-
-
-class SpeedCheck(StrictModel):
-    """``[check]`` of the planners that never leave the position limits (ptp, snake): only the
-    joints' speed limits are left to the policy."""
-
-    limits: Literal["error", "report"] = Field(
-        "error", description="a plan beyond a joint's speed limit (the robot file's qdlim or qddlim): 'error' (exit 3, "
-                             "nothing written) or 'report' (written; listed in summary.joint_speed.beyond_speed_limits)")
 
 
 class CartesianTaskFile(StrictModel):
@@ -116,26 +48,5 @@ class CartesianTaskFile(StrictModel):
     check: Check = Field(default_factory=Check)
 
 
-def program_duration_estimate(path: ProgramPath) -> float:
-    """A program's duration (s) before its geometry is built: the straight distances between the
-    line and arc targets at each move's speed (a poses move's file is not read yet: 0)."""
-    total, previous = 0.0, None
-    for move in path.moves:
-        if move.to is not None:
-            if previous is not None:
-                distance = sum((a - b) ** 2 for a, b in zip(move.to.xyz, previous)) ** 0.5
-                total += distance / (move.speed or path.speed)
-            previous = move.to.xyz
-    return total
-
-
-def workload(task: CartesianTaskFile) -> tuple[float, float]:
-    """(integration steps, CSV samples) the task asks for, estimated before planning."""
-    if isinstance(task.path, ProgramPath):
-        duration = program_duration_estimate(task.path)
-    elif task.timing is None:
-        return 0.0, 0.0  # the planner reports the missing [timing]
-    else:
-        duration = task.timing.duration
-    steps = duration / task.integrator.step
-    return steps, steps / task.integrator.output_every + 1
+# (integration steps, CSV samples), estimated before planning
+workload = resolved_rate_workload

@@ -8,26 +8,13 @@ from pydantic import Field
 
 from ...schemas import StrictModel
 from ..toolpath.schema import path_union
-from ..cartesian import schema as cartesian_schema
-from ..cartesian.schema import Damping, Description, NonNegative, Path, Positive, RobotReference, Start, Timing, Units
+from ..common import schema as common
+from ..common.schema import (Damping, Description, EulerIntegrator, Positive, RelativePath, RobotReference, Start, Timing,
+                             Units)
 
 JointRef = Union[Annotated[int, Field(ge=1)], Annotated[str, Field(min_length=1, max_length=64)]]
 JointList = Annotated[list[JointRef], Field(max_length=64)]
 Gains = Annotated[list[float], Field(min_length=1, max_length=64)]
-
-
-class RelativePath(Path):
-    relative: bool = Field(False, description="via/end are offsets from the start tool position")
-    turns: Positive = Field(1.0, description="circle: turns over the duration")
-
-
-class EulerIntegrator(StrictModel):
-    method: str = Field("euler", description="'euler' only: the weights use the previous step's velocity",
-                        json_schema_extra={"enum": ["euler"]})
-    step: Positive = Field(0.02, description="s")
-    clik: bool = True
-    clik_gain: NonNegative = 10.0
-    output_every: Annotated[int, Field(ge=1)] = 1
 
 
 class Fault(StrictModel):
@@ -62,7 +49,7 @@ class Sweep(StrictModel):
     fine_step: Positive = 0.005
 
 
-class Check(cartesian_schema.Check):
+class Check(common.Check):
     reach: Literal["error", "report"] = "error"
 
 
@@ -86,4 +73,4 @@ class FaultTolerantTaskFile(StrictModel):
 
 
 # (integration steps, CSV samples): the same timing and integrator fields as a Cartesian task
-workload = cartesian_schema.workload
+workload = common.resolved_rate_workload

@@ -9,7 +9,7 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import Field
 
 from ...schemas import StrictModel
-from ..cartesian.schema import Description, Positive, RobotReference, SpeedCheck
+from ..common.schema import Description, Positive, RobotReference, SpeedCheck
 
 MAX_WAYPOINTS = 10_000
 Values = Annotated[list[float], Field(max_length=MAX_WAYPOINTS)]

@@ -7,7 +7,7 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import Field, StringConstraints
 
 from ...schemas import StrictModel
-from ..cartesian.schema import Description, NonNegative, Positive, RobotReference, SpeedCheck, Vector3
+from ..common.schema import Description, NonNegative, Positive, RobotReference, SpeedCheck, Vector3
 
 MAX_WAYPOINTS = 10_000
 MAX_OBSTACLES = 1_000

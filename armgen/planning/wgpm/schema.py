@@ -8,9 +8,8 @@ from pydantic import Field
 
 from ...schemas import StrictModel
 from ..toolpath.schema import path_union
-from ..cartesian import schema as cartesian_schema
-from ..cartesian.schema import Check, Damping, Description, NonNegative, Positive, RobotReference, Start, Timing, Units
-from ..fault_tolerant.schema import EulerIntegrator, RelativePath
+from ..common.schema import (Check, Damping, Description, EulerIntegrator, NonNegative, Positive, RelativePath, RobotReference,
+                             Start, Timing, Units, resolved_rate_workload)
 
 
 class Criterion(StrictModel):
@@ -62,4 +61,4 @@ class WgpmTaskFile(StrictModel):
 
 
 # (integration steps, CSV samples): the same timing and integrator fields as a Cartesian task
-workload = cartesian_schema.workload
+workload = resolved_rate_workload
