@@ -26,8 +26,9 @@ if TYPE_CHECKING:  # heavy imports only for type checkers
     from matplotlib.figure import Figure
 
     from .planning.result import PlanResult
+    from .planning.tasks import Task
 
-__all__ = ["Robot", "load_robot", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport"]
+__all__ = ["Robot", "load_robot", "read_task", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport"]
 
 
 # -- planning -------------------------------------------------------------------------------
@@ -58,6 +59,11 @@ class Plan:
     def metadata(self) -> dict[str, Any]:
         """Everything ``plan.json`` holds: task, robot, planner settings, summary."""
         return self.result.metadata
+
+    @property
+    def config(self) -> Any:
+        """The planner's typed SI configuration the plan was made with (None for a plan read from disk)."""
+        return self.result.config
 
     @property
     def summary(self) -> dict[str, Any]:
@@ -124,19 +130,61 @@ class Plan:
         return animate_plan(self.result, path, DEFAULT_FPS if fps is None else fps, duration)
 
 
-def plan(task: str | Path | dict[str, Any], backend: str = "symbolic", *, max_steps: int | None = None,
+def read_task(task: str | Path | dict[str, Any] | Task, robot: Robot | None = None, **overrides: Any) -> Task:
+    """Read a task once: the file (or dict) with its overrides, validated by its planner's
+    schema, its robot loaded, and the planner's typed SI configuration made.
+
+    Parameters
+    ----------
+    task
+        A task file path, the task as a dict (the parsed TOML), or a task read already
+        (returned as it is; overrides are not allowed then).
+    robot
+        The robot the task must name (e.g. a firmware's): checked before anything is planned,
+        and used instead of loading the task's robot file again.
+    **overrides
+        Task fields to replace, with dotted keys for tables: ``**{"timing.duration": 4.0}``,
+        or ``timing__duration=4.0`` (``__`` stands for the dot). Values are Python values.
+
+    Returns
+    -------
+    Task
+        ``planner`` (the registry entry), ``model`` (the validated file, its units),
+        ``config`` (SI), ``document`` (the TOML as read, overrides applied), ``source``, ``sha256``.
+
+    Raises
+    ------
+    TaskFileError, RobotFileError
+        The task or its robot file is malformed, or the task names another robot (exit code 2).
+    """
+    from .planning.tasks import Task, configure_task, load_task, set_field
+
+    if isinstance(task, Task):
+        if overrides:
+            raise OptionError("overrides change a task file: give the file or its dict, not a task read already")
+        return task
+    if isinstance(task, dict):
+        document, sha, source = copy.deepcopy(task), "", "<task dict>"
+    else:
+        document, sha = load_task(task)
+        source = str(task)
+    for key, value in overrides.items():
+        set_field(document, key.replace("__", "."), value, f"override {excerpt(repr(key))}")
+    return configure_task(document, source, sha, robot)
+
+
+def plan(task: str | Path | dict[str, Any] | Task, backend: str = "symbolic", *, max_steps: int | None = None,
          max_samples: int | None = None, **overrides: Any) -> Plan:
     """Plan a task, as ``armgen plan`` does (without writing files).
 
     Parameters
     ----------
     task
-        A task file path, or the task as a dict (the parsed TOML).
+        A task file path, the task as a dict (the parsed TOML), or a task from :func:`read_task`.
     backend
         ``"symbolic"`` (CasADi) or ``"c"`` (the generated C through ctypes).
     **overrides
-        Task fields to replace, with dotted keys for tables: ``**{"timing.duration": 4.0}``,
-        or ``timing__duration=4.0`` (``__`` stands for the dot). Values are Python values.
+        Task fields to replace, as in :func:`read_task`.
     max_steps, max_samples
         Caps on integration steps and output rows, checked before planning (default:
         :data:`~armgen.planning.tasks.MAX_INTEGRATION_STEPS`, ``MAX_OUTPUT_SAMPLES``).
@@ -152,18 +200,12 @@ def plan(task: str | Path | dict[str, Any], backend: str = "symbolic", *, max_st
     PlanningError
         The task is infeasible (exit code 3).
     """
-    from .planning.tasks import ResourceCaps, load_task, run_task, set_field
+    from .planning.tasks import ResourceCaps, plan_configured
 
-    if isinstance(task, dict):
-        parsed, sha, source = copy.deepcopy(task), "", "<task dict>"
-    else:
-        parsed, sha = load_task(task)
-        source = str(task)
-    for key, value in overrides.items():
-        set_field(parsed, key.replace("__", "."), value, f"override {excerpt(repr(key))}")
+    configured = read_task(task, **overrides)
     caps = ResourceCaps()
     caps = ResourceCaps(max_steps or caps.max_steps, max_samples or caps.max_samples)
-    return Plan(run_task(parsed, source, sha, backend, caps))
+    return Plan(plan_configured(configured, backend, caps))
 
 
 # -- code generation ----------------------------------------------------------------------------
@@ -282,7 +324,7 @@ def verify(robot: Robot | str | Path, plan: str | Path | None = None, samples: i
     VerifyReport
         Check ``report.passed``; the command line exits with code 5 when it is false.
     """
-    from .verify.pipeline import VerifyConfig, run_pipeline
+    from .verification.pipeline import VerifyConfig, run_pipeline
 
     if run is not None and plan is None:
         raise OptionError("--run needs --plan: the plan the firmware ran (e.g. demo/plan.csv of `armgen firmware`)")

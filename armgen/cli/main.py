@@ -9,7 +9,7 @@ from pathlib import Path
 
 import click
 
-from .. import __version__
+from .._version import __version__
 from .handling import handle_errors
 from .options import out_option, plan_robot_option, plan_with_metadata
 
@@ -129,18 +129,14 @@ def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[
              max_steps: int | None, max_samples: int | None, as_json: bool) -> None:
     """Plan a task file to CSV plus JSON metadata (written together or not at all), and print a
     summary table in the task file's units."""
-    from ..api import plan
-    from ..errors import excerpt
-    from ..planning.tasks import load_task, parse_override, set_field
+    from ..api import plan, read_task
+    from ..planning.tasks import parse_override
     from .summary import summary_table, units_hints
 
-    fields = dict(parse_override(item) for item in overrides)
-    task, _ = load_task(task_file)  # the task as planned (overrides applied), for the [units] hint
-    for key, value in fields.items():
-        set_field(task, key, value, f"override {excerpt(repr(key))}")
-    for hint in units_hints(task, task_file):
+    task = read_task(task_file, **dict(parse_override(item) for item in overrides))  # read once
+    for hint in units_hints(task.document, task_file):
         click.echo(f"warning: {hint}", err=True)
-    planned = plan(task_file, backend, max_steps=max_steps, max_samples=max_samples, **fields)
+    planned = plan(task, backend, max_steps=max_steps, max_samples=max_samples)
     out = Path(output) if output else Path(Path(task_file).stem + ".csv")
     csv_path, json_path = planned.save(out, units)
     start = planned.metadata.get("start", {}).get("label", "")
