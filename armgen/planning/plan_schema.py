@@ -1,11 +1,15 @@
 """Schema of a plan's metadata (``plan.json``) as :func:`armgen.planning.result.read_plan`
-reads it. The fields every plan has are typed; each planner adds its own result blocks
-(``summary``, ``robot``, ``comparison``, ...), which are kept as they are because only that
-planner's figure reads them."""
+reads it. The fields every plan has are typed, and so are the summary's figures that every
+planner reports (joint limits, joint speeds, run time, path accuracy); each planner adds its
+own result blocks (``robot``, ``comparison``, ...) and summary figures, kept as they are because
+only that planner's figure and the firmware's adapter of that planner read them.
+
+Formats (``format``): 1 — no ``format`` field (armgen before issue 36); 2 — ``format = 2``,
+otherwise the same blocks. A reader takes every format up to :data:`PLAN_FORMAT`."""
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal, Optional
+from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import BaseModel, ConfigDict, Field, StrictInt, StrictStr
 
@@ -19,14 +23,74 @@ class CsvInfo(StrictModel):
     angle_units: Literal["rad", "deg"]
 
 
+# The plan.json format this armgen writes.
+PLAN_FORMAT = 2
+
+
+# plan.json writes a non-finite float as a string (JSON has no inf/nan); a joint without a
+# limit has null in the per-joint lists.
+JsonFloat = Union[float, Literal["inf", "-inf", "nan"]]
+PerJoint = list[Optional[JsonFloat]]
+
+
+class _Block(BaseModel):
+    # Numbers as JSON gives them (an integral float may be written as 0); a planner may add fields.
+    model_config = ConfigDict(extra="allow", protected_namespaces=())
+
+
+class LimitViolation(_Block):
+    """A joint beyond its position limits (one entry of ``summary.limit_violations``)."""
+
+    joint: StrictStr
+    first_t_s: float
+    last_t_s: float
+    worst_t_s: float
+    worst_deg: float
+    limit_deg: float
+    max_abs_deg: float
+
+
+class JointSpeed(_Block):
+    """The plan against the joints' speed and acceleration limits (``summary.joint_speed``)."""
+
+    qdlim: PerJoint
+    peak_speed_ratio: PerJoint
+    max_speed_ratio: Optional[JsonFloat]
+    within_speed_limits: bool
+    enforced: bool
+    qddlim: Optional[PerJoint] = None
+    peak_acceleration_ratio: Optional[PerJoint] = None
+    beyond_speed_limits: list[dict[str, Any]] = Field(default_factory=list)
+
+
+class PathAccuracy(_Block):
+    """How far the tool left its path, and the integrator step that kept it within the tolerance."""
+
+    tolerance_mm: Optional[float]
+    max_deviation_mm: float
+    step_s: float
+    task_step_s: float
+    step_halvings: StrictInt
+
+
+class PlanSummary(_Block):
+    """The figures of merit every planner reports, typed; a planner's own figures are extra fields."""
+
+    run_time_s: Optional[float] = None
+    limit_violations: list[LimitViolation] = Field(default_factory=list)
+    joint_speed: Optional[JointSpeed] = None
+    path_accuracy: Optional[PathAccuracy] = None
+
+
 class PlanMetadata(BaseModel):
     model_config = ConfigDict(extra="allow", strict=True, protected_namespaces=())
 
+    format: Annotated[StrictInt, Field(ge=1, le=PLAN_FORMAT)] = 1
     planner: Literal["ptp", "cartesian", "fault_tolerant", "wgpm", "snake"]
     armgen_version: Optional[StrictStr] = None
     task_file: Optional[StrictStr] = None
     task_sha256: Optional[StrictStr] = None
     backend: Optional[Literal["symbolic", "c"]] = None
     task: Optional[dict[str, Any]] = None
-    summary: Optional[dict[str, Any]] = None
+    summary: Optional[PlanSummary] = None
     csv: Optional[CsvInfo] = None

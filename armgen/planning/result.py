@@ -16,10 +16,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import ValidationError
 
 from ..errors import OutputError, PlanFileError, excerpt
 from ..fileio import write_file_set
-from ..schemas import read_input_file
+from ..schemas import format_validation_error, read_input_file
+from .plan_schema import PLAN_FORMAT, PlanMetadata, PlanSummary
 
 ANGLE_UNITS = ("rad", "deg")
 
@@ -46,6 +48,11 @@ class PlanResult:
 
     def column(self, name: str) -> np.ndarray:
         return self.data[:, self.columns.index(name)]
+
+    @property
+    def summary(self) -> PlanSummary:
+        """The planner's figures of merit (``metadata["summary"]``), typed."""
+        return PlanSummary.model_validate(_plain(self.metadata.get("summary", {})))
 
 
 # Columns whose +inf is a value, not a failure: the clearance to obstacles of a task that has
@@ -89,25 +96,24 @@ def convert_angle_units(columns: list[str], data: np.ndarray, units: str) -> tup
     return out, data
 
 
-def _json_default(value: Any) -> Any:
+def _plain(value: Any) -> Any:
+    """``value`` as plain JSON data: NumPy arrays and scalars become lists and Python numbers,
+    tuples lists, and non-finite floats strings ("inf", "nan"), since JSON has no inf/NaN."""
     if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
+        return _plain(value.tolist())
     if isinstance(value, np.bool_):
         return bool(value)
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
-
-
-def _finite_json(value: Any) -> Any:
-    """JSON has no NaN/inf: write them as strings so the file stays standard JSON."""
+    if isinstance(value, (np.floating, np.integer)):
+        value = value.item()
     if isinstance(value, float) and not math.isfinite(value):
         return str(value)
     if isinstance(value, dict):
-        return {k: _finite_json(v) for k, v in value.items()}
+        return {k: _plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_finite_json(v) for v in value]
-    return value
+        return [_plain(v) for v in value]
+    if value is None or isinstance(value, (str, int, float, bool)):
+        return value
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
 def metadata_path(csv_path: str | Path) -> Path:
@@ -122,12 +128,12 @@ def write_plan(result: PlanResult, csv_path: str | Path, units: str = "rad") -> 
     csv.writer(table, lineterminator="\n").writerow(columns)
     # Python floats: repr is the shortest round-trip text, and no number needs CSV quoting
     table.writelines(",".join(map(repr, row)) + "\n" for row in data.tolist())
-    meta = dict(result.metadata)
+    meta = {"format": PLAN_FORMAT, **result.metadata}
     meta["csv"] = {"file": csv_path.name, "columns": columns, "samples": int(data.shape[0]), "angle_units": units}
     json_path = metadata_path(csv_path)
     if json_path == csv_path:
         raise OutputError(f"{csv_path}: the plan CSV needs a name ending in .csv (its plan.json goes beside it)")
-    meta_text = json.dumps(_finite_json(json.loads(json.dumps(meta, default=_json_default))), indent=2) + "\n"
+    meta_text = json.dumps(_plain(meta), indent=2) + "\n"
     write_file_set({csv_path: table.getvalue(), json_path: meta_text})
     return csv_path, json_path
 
@@ -199,16 +205,16 @@ def _is_float(text: str) -> bool:
 
 
 def read_plan_metadata(path: Path, columns: list[str], samples: int) -> dict[str, Any]:
-    """plan.json, checked against :class:`PlanMetadata` and against its CSV."""
-    from pydantic import ValidationError
-
-    from ..schemas import format_validation_error
-    from .plan_schema import PlanMetadata
-
+    """plan.json (any format up to :data:`PLAN_FORMAT`), checked against :class:`PlanMetadata`
+    and against its CSV."""
     try:
         raw = json.loads(read_input_file(path, MAX_PLAN_FILE_BYTES, "plan.json", PlanFileError).decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise PlanFileError(f"{path}: not valid JSON ({exc}); regenerate it with armgen plan") from None
+    written = raw.get("format") if isinstance(raw, dict) else None
+    if isinstance(written, int) and not isinstance(written, bool) and written > PLAN_FORMAT:
+        raise PlanFileError(f"{path}: field 'format' = {written}: written by a newer armgen (this one reads plan.json "
+                            f"formats 1 to {PLAN_FORMAT}); upgrade armgen, or plan the task again with this one")
     try:
         meta = PlanMetadata.model_validate(raw)
     except ValidationError as exc:
