@@ -1,11 +1,13 @@
-"""The robot: the description (:mod:`armgen.description`) with NumPy kinematics on it.
+"""The robot: the description (:mod:`armgen.description`), its models and NumPy kinematics on them.
 
 :class:`Robot` is a :class:`~armgen.description.RobotDescription` (joints, limits, base, tool,
-configurations) plus the methods that evaluate the symbolic core (:mod:`armgen.symbolic`):
-forward kinematics, Jacobians, the redundancy criteria and the inverse kinematics. It sits
-above the symbolic core, which takes the description and never this module (Pinocchio's split:
-a model, and algorithms on it). :func:`load_robot`, :func:`parse_robot` and
-:meth:`Robot.from_urdf` read a description and return it as a :class:`Robot`.
+configurations) plus the models derived from it and the methods that evaluate them: forward
+kinematics, Jacobians, the redundancy criteria and the inverse kinematics. The models (the
+symbolic model of :mod:`armgen.symbolic` with its IK definition, the NumPy evaluators) are
+built on first use and held here, never by the description, which stays plain data. This
+module sits above the symbolic core, which takes the description and never this module
+(Pinocchio's split: a model, and algorithms on it). :func:`load_robot`, :func:`parse_robot`
+and :meth:`Robot.from_urdf` read a description and return it as a :class:`Robot`.
 
 The description's public names (``Joint``, ``rpy_matrix``, ``matrix_rpy``, ``BUNDLED_DIR``,
 ``bundled_robots``, ``resolve_robot_path``, ``describe``) stay importable from here.
@@ -14,7 +16,9 @@ The description's public names (``Joint``, ``rpy_matrix``, ``matrix_rpy``, ``BUN
 from __future__ import annotations
 
 from dataclasses import fields
+from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -23,6 +27,11 @@ from .description import (BUNDLED_DIR, Joint, RobotDescription, bundled_robots, 
                           matrix_rpy, parse_description, read_urdf, resolve_robot_path, rpy_matrix)
 from .description.model import MAX_ABS_LENGTH_M
 from .errors import excerpt
+
+if TYPE_CHECKING:
+    from .symbolic.model import SymbolicModel
+    from .symbolic.numeric import NumericModel
+    from .symbolic.replay import BatchFunction
 
 __all__ = ["BUNDLED_DIR", "Joint", "Robot", "bundled_robots", "describe", "load_robot", "load_robot_any",
            "matrix_rpy", "parse_robot", "resolve_robot_path", "rpy_matrix"]
@@ -36,7 +45,9 @@ class Robot(RobotDescription):
     :meth:`Robot.from_urdf`. The NumPy methods (:meth:`fk`, :meth:`jacobian`, …) take ``q``
     of shape ``(n,)`` or ``(..., n)`` and evaluate a batch in one vectorised pass; named
     configurations are attributes (``robot.q0``). The fields are those of
-    :class:`~armgen.description.RobotDescription`.
+    :class:`~armgen.description.RobotDescription`; the models derived from them
+    (:attr:`symbolic`, the NumPy evaluators) are built on first use and kept by the robot, not
+    pickled (a copy sent to a worker process rebuilds them).
     """
 
     @classmethod
@@ -52,15 +63,42 @@ class Robot(RobotDescription):
         (:func:`armgen.description.read_urdf`: parameters, result and errors)."""
         return cls.from_description(read_urdf(path, base_link, tip_link))
 
-    # -- NumPy evaluation (vectorised over leading batch axes) -------------------------
-    def _numeric(self):
-        # The numeric methods are a facade over the symbolic layer, imported on first use so
-        # that loading a robot needs no CasADi; the evaluator is cached per robot.
-        if "numeric" not in self._cache:
-            from .symbolic.numeric import NumericModel
+    def __getstate__(self) -> dict[str, Any]:
+        # The description's fields only: the models hold CasADi SX functions, which do not
+        # pickle, and are rebuilt on first use.
+        return {f.name: self.__dict__[f.name] for f in fields(self)}
 
-            self._cache["numeric"] = NumericModel(self)
-        return self._cache["numeric"]
+    # -- the models, built on first use (the symbolic layer is imported then, so that loading
+    # a robot needs no CasADi) -----------------------------------------------------------
+    @cached_property
+    def symbolic(self) -> SymbolicModel:
+        """The symbolic model (:class:`armgen.symbolic.model.SymbolicModel`): every function as
+        a ``casadi.Function`` (``symbolic.function("fk")``) and the IK definition
+        (``symbolic.ik_definition``), the ones the NumPy methods evaluate."""
+        from .symbolic.model import SymbolicModel
+
+        return SymbolicModel(self)
+
+    @cached_property
+    def _numeric(self) -> NumericModel:
+        from .symbolic.numeric import NumericModel
+
+        return NumericModel(self.symbolic)
+
+    @cached_property
+    def _frames(self) -> BatchFunction:
+        """(q) → the base, joint and tool frames stacked (4 (n + 2) × 4), replayed in NumPy."""
+        import casadi as ca
+
+        from .symbolic.kinematics import chain
+        from .symbolic.replay import BatchFunction
+
+        symbols = ca.SX.sym("q", self.n)
+        _, joint_frames, tool = chain(self, symbols)
+        stacked = ca.vertcat(*[ca.densify(frame) for frame in [ca.SX(ca.DM(self.base)), *joint_frames, tool]])
+        return BatchFunction(ca.Function("frames", [symbols], [stacked], ["q"], ["T"]))
+
+    # -- NumPy evaluation (vectorised over leading batch axes) -------------------------
 
     def fk(self, q: ArrayLike) -> np.ndarray:
         """Tool pose in the base frame.
@@ -75,7 +113,7 @@ class Robot(RobotDescription):
         numpy.ndarray
             Homogeneous transforms, shape ``(4, 4)`` or ``(..., 4, 4)``.
         """
-        return self._numeric().evaluate("fk", q)["T"]
+        return self._numeric.evaluate("fk", q)["T"]
 
     def frames(self, q: ArrayLike) -> np.ndarray:
         """The base frame, the frame after each joint and the tool pose, in the base frame: the
@@ -98,19 +136,9 @@ class Robot(RobotDescription):
         q = np.asarray(q, dtype=float)
         if q.ndim == 0 or q.shape[-1] != self.n:
             raise ValueError(f"q must have shape ({self.n},) or (..., {self.n}) for robot '{self.name}', got {q.shape}")
-        if "frames" not in self._cache:
-            import casadi as ca
-
-            from .symbolic.kinematics import chain
-            from .symbolic.numeric import BatchFunction
-
-            symbols = ca.SX.sym("q", self.n)
-            _, joint_frames, tool = chain(self, symbols)
-            stacked = ca.vertcat(*[ca.densify(frame) for frame in [ca.SX(ca.DM(self.base)), *joint_frames, tool]])
-            self._cache["frames"] = BatchFunction(ca.Function("frames", [symbols], [stacked], ["q"], ["T"]))
         batch_shape = q.shape[:-1]
         samples = q.reshape(-1, self.n)
-        (stacked,) = self._cache["frames"]([np.ascontiguousarray(samples.T)], samples.shape[0])
+        (stacked,) = self._frames([np.ascontiguousarray(samples.T)], samples.shape[0])
         # column-major (4 (n + 2)) × 4 entries per sample → (samples, n + 2, 4, 4)
         count = self.n + 2
         return stacked.reshape(4, count, 4, -1).transpose(3, 1, 2, 0).reshape(batch_shape + (count, 4, 4))
@@ -128,11 +156,11 @@ class Robot(RobotDescription):
         numpy.ndarray
             Shape ``(6, n)`` or ``(..., 6, n)`` (all six rows, whatever ``task_rows`` says).
         """
-        return self._numeric().evaluate("jacobian", q)["J"]
+        return self._numeric.evaluate("jacobian", q)["J"]
 
     def fk_jacobian(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`fk` and :meth:`jacobian` in one pass (shared trigonometry)."""
-        out = self._numeric().evaluate("fk_jacobian", q)
+        out = self._numeric.evaluate("fk_jacobian", q)
         return out["T"], out["J"]
 
     def manipulability(self, q: ArrayLike, delta: float = 0.0) -> np.ndarray:
@@ -150,29 +178,29 @@ class Robot(RobotDescription):
         numpy.ndarray
             Shape ``()`` or ``(...)``.
         """
-        return self._numeric().evaluate("manipulability", q, delta=delta)["w"]
+        return self._numeric.evaluate("manipulability", q, delta=delta)["w"]
 
     def manipulability_gradient(self, q: ArrayLike, delta: float = 0.0) -> np.ndarray:
         """Gradient of :meth:`manipulability` with respect to ``q``, shape ``(n,)`` or ``(..., n)``.
         Use ``delta > 0`` near singular poses, where ``w`` is not differentiable."""
-        return self._numeric().evaluate("manipulability", q, delta=delta)["grad_w"]
+        return self._numeric.evaluate("manipulability", q, delta=delta)["grad_w"]
 
     def joint_limit_criterion(self, q: ArrayLike) -> np.ndarray:
         """Zghal's joint-limit criterion ``H_L = Σ (q_max − q_min)² / ((q_max − q)(q − q_min))``,
         shape ``()`` or ``(...)``; ``2n`` at mid-range, growing without bound at a limit."""
-        return self._numeric().evaluate("zghal", q)["H_L"]
+        return self._numeric.evaluate("zghal", q)["H_L"]
 
     def joint_limit_gradient(self, q: ArrayLike) -> np.ndarray:
         """Gradient of :meth:`joint_limit_criterion`, shape ``(n,)`` or ``(..., n)``."""
-        return self._numeric().evaluate("zghal", q)["grad_H_L"]
+        return self._numeric.evaluate("zghal", q)["grad_H_L"]
 
     def repetitive_criterion(self, q: ArrayLike, q_init: ArrayLike) -> np.ndarray:
         """Repetitive criterion ``H_R = ½‖q − q_init‖²``, shape ``()`` or ``(...)``."""
-        return self._numeric().evaluate("repetitive", q, q_init=q_init)["H_R"]
+        return self._numeric.evaluate("repetitive", q, q_init=q_init)["H_R"]
 
     def repetitive_gradient(self, q: ArrayLike, q_init: ArrayLike) -> np.ndarray:
         """Gradient of :meth:`repetitive_criterion` (``q − q_init``), shape ``(n,)`` or ``(..., n)``."""
-        return self._numeric().evaluate("repetitive", q, q_init=q_init)["grad_H_R"]
+        return self._numeric.evaluate("repetitive", q, q_init=q_init)["grad_H_R"]
 
     def joint_manipulability(self, q: ArrayLike, weights: ArrayLike | None = None,
                              delta: float = 0.0) -> dict[str, np.ndarray]:
@@ -193,7 +221,7 @@ class Robot(RobotDescription):
             ``omega`` ``(..., n)``, ``H_M`` ``(...)`` and ``grad_H_M`` ``(..., n)``.
         """
         a = np.ones(self.n) if weights is None else weights
-        return self._numeric().evaluate("joint_manipulability", q, a=a, delta=delta)
+        return self._numeric.evaluate("joint_manipulability", q, a=a, delta=delta)
 
     def within_limits(self, q: ArrayLike) -> np.ndarray:
         """True where every joint value is finite and inside ``[qmin, qmax]``.
@@ -296,7 +324,7 @@ class Robot(RobotDescription):
             start = joints(seed, "seed")
         else:
             start = rest
-        outputs = ik.solve(self, targets, np.ascontiguousarray(start), np.ascontiguousarray(rest),
+        outputs = ik.solve(self.symbolic.ik_definition, targets, np.ascontiguousarray(start), np.ascontiguousarray(rest),
                            0.0 if q0 is None else 1.0,
                            tol_p, tol_o, int(cap))
         q, pos, ori, iterations, success = outputs

@@ -6,7 +6,7 @@
 In one run, on ``--batch`` seeded configurations inside the joint limits:
 
 1. ``robot.fk(q) + robot.jacobian(q)`` on the whole batch (the vectorised replay of the SX
-   functions, see ``armgen/symbolic/numeric.py``): wall and CPU time, best of 5 after a warm-up
+   functions, see ``armgen/symbolic/replay.py``): wall and CPU time, best of 5 after a warm-up
    (the first call builds the model; its time is printed separately).
 2. ``robot.fk_jacobian(q)`` likewise (one pass for both).
 3. The reference: the symbolic ``fk`` and ``jacobian`` ``casadi.Function`` called once per
@@ -78,7 +78,7 @@ def main() -> None:
     batch_wall, batch_cpu = best_of(lambda: (robot.fk(q), robot.jacobian(q)), repeats)
     fused_wall, fused_cpu = best_of(lambda: robot.fk_jacobian(q), repeats)
 
-    symbolic = robot._numeric().model  # the same casadi.Functions the API evaluates
+    symbolic = robot.symbolic  # the same casadi.Functions the API evaluates
     fk, jac = symbolic.function("fk"), symbolic.function("jacobian")
     sample = q[:per_call_samples]
 

@@ -12,7 +12,7 @@ construction of the manipulability family, before issue 12), built and measured 
    function under ``qemu-system-arm -M mps2-an386 -icount shift=0`` (SysTick on the CPU clock,
    calibrated in the same run; the bench_kinematics method). Each function is called through a
    volatile pointer from a wrapper that reads one of 16 seeded input sets
-   (``armgen.verify.samples.function_inputs``, the inputs of the compiled-vs-interpreter
+   (``armgen.verification.samples.function_inputs``, the inputs of the compiled-vs-interpreter
    comparison); the same wrapper calling a stub of the same signature is subtracted, and the
    stub's own instructions (``bx lr``, plus ``movs r0, #0`` for a status) added back. The
    current code is measured with newlib's ``sinf``/``cosf`` and with ``<P>_BOUNDED_TRIG=1``.
@@ -61,7 +61,7 @@ from armgen.codegen.generate import CodegenConfig, generate, write  # noqa: E402
 from armgen.codegen.toolchain import STRICT_FLAGS  # noqa: E402
 from armgen.robot import load_robot, parse_robot  # noqa: E402
 from armgen.symbolic.model import SymbolicModel  # noqa: E402
-from armgen.verify.samples import function_inputs, joint_samples  # noqa: E402
+from armgen.verification.samples import function_inputs, joint_samples  # noqa: E402
 
 PREVIOUS_REV = "85a2322"  # main before issue 12: the Cauchy–Binet criteria
 # Issue 12's bars (modular8 unless named); reported against, never asserted.

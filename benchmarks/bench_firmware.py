@@ -66,7 +66,7 @@ from bench_kinematics import Report, Skip, bar_note, finish  # noqa: E402
 from armgen.planning.result import write_plan  # noqa: E402
 from armgen.planning.tasks import apply_overrides, load_task, run_task  # noqa: E402
 from armgen import firmware as fw  # noqa: E402
-from armgen.verify import firmware_compare as fwcmp  # noqa: E402
+from armgen.verification import firmware_compare as fwcmp  # noqa: E402
 
 EXAMPLE = REPO / "examples" / "modular8_circle_combined.toml"
 PAPER_SECONDS = 0.12

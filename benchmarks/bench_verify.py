@@ -43,9 +43,9 @@ os.environ.setdefault("ARMGEN_NO_PROGRESS", "1")
 from armgen.codegen.compiled import CompiledModel  # noqa: E402
 from armgen.robot import load_robot  # noqa: E402
 from armgen.symbolic.model import SymbolicModel  # noqa: E402
-from armgen.verify import pipeline  # noqa: E402
-from armgen.verify.compare import _batched_reference, _per_sample, reference_samples  # noqa: E402
-from armgen.verify.samples import batch_inputs, function_inputs, joint_samples  # noqa: E402
+from armgen.verification import pipeline  # noqa: E402
+from armgen.verification.compare import _batched_reference, _per_sample, reference_samples  # noqa: E402
+from armgen.verification.samples import batch_inputs, function_inputs, joint_samples  # noqa: E402
 
 BAR_SECONDS = 15.0
 PER_SAMPLE_SUBSET = 2000  # samples timed one at a time, scaled to --samples

@@ -14,7 +14,7 @@ import pytest
 from armgen.robot import Robot, load_robot, parse_robot
 from armgen.symbolic import criteria
 from armgen.symbolic.model import FROM_JACOBIAN, JACOBIAN_FUNCTIONS, SymbolicModel
-from armgen.verify.samples import function_inputs, joint_samples
+from armgen.verification.samples import function_inputs, joint_samples
 from test_urdf import OBLIQUE_URDF
 
 # Both sides are double evaluations of the same derivative by different operation sequences:

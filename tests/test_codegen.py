@@ -16,9 +16,9 @@ from armgen.codegen.toolchain import ARM_CPU_FLAGS, STRICT_FLAGS
 from armgen.errors import ArmgenError
 from armgen.robot import load_robot
 from armgen.symbolic.model import SymbolicModel
-from armgen.verify.compare import compare_model
+from armgen.verification.compare import compare_model
 from armgen.codegen.compiled import CompiledModel, build_library
-from armgen.verify.harness import run_sanitized
+from armgen.verification.harness import run_sanitized
 
 from conftest import KINEMATIC_ROBOTS, require_tool
 

@@ -211,7 +211,7 @@ def test_float_determinants_scale_with_kappa_not_kappa_squared(name, tmp_path):
     from pathlib import Path
 
     from armgen.codegen.compiled import CompiledModel, build_library
-    from armgen.verify.samples import joint_samples
+    from armgen.verification.samples import joint_samples
     from conftest import require_tool
 
     require_tool("gcc")

@@ -21,8 +21,8 @@ from armgen.planning.result import write_plan
 from armgen.planning.tasks import apply_overrides, load_task, run_task
 from armgen.robot import load_robot
 from armgen import firmware as fw
-from armgen.verify import firmware_compare as fwcmp
-from armgen.verify.pipeline import VerifyConfig, stage_replay, stage_target
+from armgen.verification import firmware_compare as fwcmp
+from armgen.verification.pipeline import VerifyConfig, stage_replay, stage_target
 
 from conftest import require_tool
 

@@ -22,7 +22,7 @@ from armgen.cli.main import cli
 from armgen.planning.result import read_plan
 from armgen.planning.tasks import run_task
 from armgen.robot import load_robot
-from armgen.verify.firmware_compare import FW_DOUBLE_BOUND_RAD, compare_with_plan
+from armgen.verification.firmware_compare import FW_DOUBLE_BOUND_RAD, compare_with_plan
 from conftest import require_tool
 from test_firmware_task_project import _build_and_run, _verify_run
 from test_programs import BAXTER, EXAMPLES, bar_task

@@ -23,7 +23,7 @@ from armgen.firmware.configuration import sampled_task
 from armgen.firmware.errors import FirmwareError
 from armgen.planning.result import PlanResult, read_plan
 from armgen.planning.tasks import load_task, run_task
-from armgen.verify import firmware_compare as fwcmp
+from armgen.verification import firmware_compare as fwcmp
 
 from conftest import require_tool
 from test_firmware_task_project import _build_and_run

@@ -317,12 +317,12 @@ def test_python_refuses_exactly_the_targets_that_are_not_poses():
     for name, target, defect in candidate_targets(robot):
         if defect <= ik.POSE_TOL:
             assert robot.ik(target).q.shape == (robot.n,), name
-            ik.solve(robot, target[None], seeds, seeds, 0.0, 1e-6, 1e-6)
+            ik.solve(robot.symbolic.ik_definition, target[None], seeds, seeds, 0.0, 1e-6, 1e-6)
         else:
             with pytest.raises(ValueError, match="NaN|rotation|last row"):
                 robot.ik(target)
             with pytest.raises(ValueError, match="NaN|rotation|last row"):
-                ik.solve(robot, target[None], seeds, seeds, 0.0, 1e-6, 1e-6)
+                ik.solve(robot.symbolic.ik_definition, target[None], seeds, seeds, 0.0, 1e-6, 1e-6)
     batch = np.stack([target for _, target, _ in candidate_targets(robot)[:3]])
     with pytest.raises(ValueError, match="pose 1 of the batch"):
         robot.ik(batch)
@@ -356,7 +356,8 @@ def test_max_iterations_of_zero_or_less_takes_no_step(compiled_ik, cap):
                                                        1e-6, cap)
     assert (status, iterations, success) == (2, 0, 0) and pos == ori == ik.ERROR_START
     np.testing.assert_array_equal(q, seed)
-    outputs = [np.asarray(x).ravel() for x in ik.definition(robot).function(pose, seed, seed, 1, 1e-6, 1e-6, cap)]
+    solve = robot.symbolic.ik_definition.function
+    outputs = [np.asarray(x).ravel() for x in solve(pose, seed, seed, 1, 1e-6, 1e-6, cap)]
     np.testing.assert_array_equal(outputs[0], seed)
     assert [float(x[0]) for x in outputs[1:]] == [ik.ERROR_START, ik.ERROR_START, 0.0, 0.0]
 
@@ -494,7 +495,7 @@ def test_the_seed_turns_about_the_first_axis_toward_the_target(name):
     by the NumPy FK; the other joints are unchanged; with use_rest = 1 the seed is kept, and so
     is a seed whose tool point lies on that axis (iiwa14 stretched upright)."""
     robot = load_robot(name)
-    definition = ik.definition(robot)
+    definition = robot.symbolic.ik_definition
     turn = _symbolic(definition.aligned_seed, (robot.n, 1), (4, 4), (1, 1))
     upright = np.zeros(robot.n)
     if name == "iiwa14":

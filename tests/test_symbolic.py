@@ -254,7 +254,7 @@ def test_loop_calls_found_in_order_and_replayed():
     import casadi as ca
 
     from armgen.symbolic.loops import calls_in_order, fixed_loop
-    from armgen.symbolic.numeric import BatchFunction
+    from armgen.symbolic.replay import BatchFunction
 
     state, c = ca.SX.sym("state", 2), ca.SX.sym("c")
     halving = fixed_loop(ca.Function("test_halving_step", [state, c], [ca.vertcat(0.5 * state[0] + c, state[1] * state[0])],

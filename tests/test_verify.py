@@ -12,8 +12,8 @@ from click.testing import CliRunner
 from armgen import fileio
 from armgen.cli.main import cli
 from armgen.robot import load_robot
-from armgen.verify import pipeline
-from armgen.verify.pipeline import Stage, VerifyConfig, stage_callbacks, stage_fresh, stage_replay
+from armgen.verification import pipeline
+from armgen.verification.pipeline import Stage, VerifyConfig, stage_callbacks, stage_fresh, stage_replay
 
 from test_cartesian import EXAMPLES
 
@@ -193,8 +193,8 @@ def test_callbacks_batched_entry_is_the_per_sample_call_and_catches_a_wrong_func
 
     from armgen.codegen.compiled import CompiledModel, build_library
     from armgen.symbolic.model import SymbolicModel
-    from armgen.verify.compare import DOUBLE_REL_BOUND, _per_sample, compare_model
-    from armgen.verify.samples import batch_inputs, joint_samples
+    from armgen.verification.compare import DOUBLE_REL_BOUND, _per_sample, compare_model
+    from armgen.verification.samples import batch_inputs, joint_samples
 
     robot = load_robot("planar3")
     functions = SymbolicModel(robot).functions()
@@ -262,12 +262,12 @@ def test_float_ik_is_judged_by_its_pose_except_for_a_miss_the_double_solver_shar
     from armgen.codegen.compiled import CompiledModel, build_library
     from armgen.codegen.generate import CodegenConfig, generate, write
     from armgen.symbolic import ik
-    from armgen.verify.compare import FLOAT_BOUNDS, _ik_reference, _per_sample, float_ik_errors
+    from armgen.verification.compare import FLOAT_BOUNDS, _ik_reference, _per_sample, float_ik_errors
 
     robot = load_robot(getting_started_arm(tmp_path))
     assert robot.task_rows == (0, 1, 2)  # vx vy vz
     write(generate(CodegenConfig(robot, functions=("ik",))), tmp_path / "gen")
-    func = ik.definition(robot).function
+    func = robot.symbolic.ik_definition.function
     compiled = CompiledModel(build_library(tmp_path / "gen", "myarm", "float", tmp_path, batch={"ik": func}),
                              "myarm", {"ik": func}, "float")
     pose = np.eye(4)

@@ -28,7 +28,7 @@ from pathlib import Path
 import casadi as ca
 import sympy
 
-from .. import __version__
+from .._version import __version__
 from ..errors import OptionError, excerpt
 from ..fileio import write_file_set
 from ..robot import Robot, load_robot_any

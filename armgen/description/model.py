@@ -3,8 +3,9 @@ base and tool transforms, named configurations and task rows, in SI units.
 
 This is the model the rest of armgen works on (Pinocchio's split: a model here, algorithms on
 it in :mod:`armgen.symbolic` and the NumPy façade :class:`armgen.robot.Robot`). It imports
-nothing above itself; :mod:`armgen.description.files` and :mod:`armgen.description.urdf` read
-it from files.
+nothing above itself and holds nothing built there: it is plain data, and the models derived
+from it live in the :class:`~armgen.robot.Robot`. :mod:`armgen.description.files` and
+:mod:`armgen.description.urdf` read it from files.
 """
 
 from __future__ import annotations
@@ -112,9 +113,6 @@ class RobotDescription:
     units: dict[str, str] = field(default_factory=dict)
     # file, base_link, tip_link of a URDF robot; continuous: its continuous joints given ±π
     urdf: dict[str, Any] = field(default_factory=dict)
-    # Objects derived by the layers above (numeric evaluators, the IK definition), built on
-    # first use and never pickled; the description itself stays plain data.
-    _cache: dict[str, Any] = field(default_factory=dict, init=False, compare=False, repr=False)
 
     @property
     def n(self) -> int:
@@ -204,13 +202,6 @@ class RobotDescription:
 
     def __dir__(self) -> list[str]:
         return sorted(set(super().__dir__()) | set(self.configurations))
-
-    def __getstate__(self) -> dict[str, Any]:
-        # The evaluator cache holds CasADi SX functions, which do not pickle; it is rebuilt on use.
-        return {**self.__dict__, "_cache": {}}
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
 
     def configuration(self, name: str) -> np.ndarray:
         """A copy of the named configuration; a clear error names the known ones."""

@@ -7,7 +7,7 @@ concept per module —
 - :mod:`.runners` and :mod:`.output`: running a build and parsing what it printed;
 - :mod:`.project`: the self-contained project ``armgen firmware`` writes.
 
-``armgen.verify`` compares the runs with the plans (:mod:`armgen.verify.firmware_compare`).
+``armgen.verification`` compares the runs with the plans (:mod:`armgen.verification.firmware_compare`).
 """
 
 from .builder import APT_PACKAGES, ARM_VARIANT, FirmwareBuilder, Variant, arm_tools

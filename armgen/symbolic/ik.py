@@ -60,6 +60,7 @@ import numpy as np
 from . import criteria
 from .kinematics import chain, geometric_jacobian
 from .loops import fixed_loop
+from .replay import BatchFunction
 from .steps import ldl_factor, ldl_solve, weighted_gram
 
 # Evaluations per attempt and attempts (the first from the caller's seed): the worst case is
@@ -441,23 +442,14 @@ class IKDefinition:
                            ["position_error", "orientation_error"])
 
     @cached_property
-    def batch(self):
-        """The NumPy replay of ``function`` (numeric.BatchFunction)."""
-        from .numeric import BatchFunction
-
+    def batch(self) -> BatchFunction:
+        """The NumPy replay of ``function`` (:mod:`armgen.symbolic.replay`)."""
         return BatchFunction(self.function)
 
 
 STEP_CONSTANTS = ["T_target", "q_rest", "use_rest", "tol_position", "tol_orientation", "max_iterations"]
 OUTPUT_NAMES = ["q", "position_error", "orientation_error", "iterations", "success"]
 INPUT_NAMES = ["T_target", "q_seed", "q_rest", "use_rest", "tol_position", "tol_orientation", "max_iterations"]
-
-
-def definition(robot) -> IKDefinition:
-    """The (cached) IK definition of a robot."""
-    if "ik" not in robot._cache:
-        robot._cache["ik"] = IKDefinition(robot)
-    return robot._cache["ik"]
 
 
 @dataclass(frozen=True)
@@ -511,14 +503,14 @@ def check_targets(targets: np.ndarray) -> None:
                              "det R = +1); build it e.g. with scipy.spatial.transform.Rotation")
 
 
-def solve(robot, targets: np.ndarray, seeds: np.ndarray, q_rest: np.ndarray, use_rest: float,
+def solve(ik: IKDefinition, targets: np.ndarray, seeds: np.ndarray, q_rest: np.ndarray, use_rest: float,
           tol_position: float, tol_orientation: float, max_iterations: int = MAX_ITERATIONS) -> list[np.ndarray]:
     """Evaluate ``ik`` for ``targets`` (B, 4, 4) from ``seeds`` (B, n) with ``q_rest`` (B, n):
     the outputs (OUTPUT_NAMES), each (rows, B). One pose goes through CasADi's evaluator, a
     batch through the NumPy replay of the same SX (which stops stepping finished samples).
-    A target that is not a pose raises ValueError (check_targets)."""
+    A target that is not a pose raises ValueError (check_targets). The caller holds ``ik``
+    (a robot's is ``robot.symbolic.ik_definition``), so its functions are built once."""
     check_targets(targets)
-    ik = definition(robot)
     batch = targets.shape[0]
     scalars = [float(use_rest), float(tol_position), float(tol_orientation), float(max_iterations)]
     if batch == 1:

@@ -90,6 +90,11 @@ class SymbolicModel:
 
     # -- shared expressions -------------------------------------------------------
     @cached_property
+    def ik_definition(self) -> ik.IKDefinition:
+        """The IK's step, loop and functions (the ``ik`` function is its ``function``)."""
+        return ik.IKDefinition(self.robot)
+
+    @cached_property
     def _kinematics(self) -> tuple[ca.SX, ca.SX]:
         axis_frames, _, tool = chain(self.robot, self.q)
         return tool, geometric_jacobian(self.robot, axis_frames, tool)
@@ -151,7 +156,7 @@ class SymbolicModel:
         qmin, qmax = robot.qmin.tolist(), robot.qmax.tolist()
         dense = ca.densify
         if name == "ik":
-            return ik.definition(robot).function
+            return self.ik_definition.function
         if name == "fk":
             return ca.Function("fk", [q], [dense(self.tool)], ["q"], ["T"])
         if name == "jacobian":

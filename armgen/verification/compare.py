@@ -101,7 +101,7 @@ def _ik_reference(robot: Robot, func: ca.Function, inputs: list[np.ndarray]) -> 
     converged samples, where CasADi's map runs every iteration), shaped as _batched_reference's."""
     n = len(inputs[0])
     columns = [_per_sample(values, func.sparsity_in(k).shape).T for k, values in enumerate(inputs)]
-    return [out.T[:, :, None] for out in ik.definition(robot).batch(columns, n)]
+    return [out.T[:, :, None] for out in robot.symbolic.ik_definition.batch(columns, n)]
 
 
 def float_ik_errors(robot: Robot, inputs: list[np.ndarray], got: list[np.ndarray],
@@ -115,7 +115,7 @@ def float_ik_errors(robot: Robot, inputs: list[np.ndarray], got: list[np.ndarray
     reached, e.g. one beside a joint limit), not a float error; a float miss where double
     converges, and a claimed success that the double FK does not confirm, are errors."""
     success = ik.OUTPUT_NAMES.index("success")
-    reached = _batched_reference(ik.definition(robot).errors, [got[0][:, :, 0], inputs[0]])
+    reached = _batched_reference(robot.symbolic.ik_definition.errors, [got[0][:, :, 0], inputs[0]])
     err = np.nan_to_num(np.maximum(reached[0], reached[1]).reshape(-1), nan=np.inf)
     claimed = got[success].reshape(-1) != 0
     double_converged = refs[success].reshape(-1) != 0
@@ -124,7 +124,7 @@ def float_ik_errors(robot: Robot, inputs: list[np.ndarray], got: list[np.ndarray
 
 @dataclass
 class ReferenceSamples:
-    """One function's seeded inputs (as :func:`~armgen.verify.samples.batch_inputs` gives
+    """One function's seeded inputs (as :func:`~armgen.verification.samples.batch_inputs` gives
     them; float-rounded for float) and the interpreter's outputs there (samples, rows, cols)."""
 
     inputs: list[np.ndarray]

@@ -30,7 +30,7 @@ A stage that compared nothing is never a PASS: it is a FAIL, or SKIPPED when the
 ask for it (replay without ``--plan``); skipped stages do not fail the run. Temporary build
 folders are removed however the run ends.
 
-Bounds of the firmware comparisons and why: :mod:`armgen.verify.firmware_compare`.
+Bounds of the firmware comparisons and why: :mod:`armgen.verification.firmware_compare`.
 """
 
 from __future__ import annotations
