@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
+from hypothesis import given, settings, strategies as st
 
 from armgen.cli.main import cli
 from armgen.firmware.project import task_toml
@@ -103,6 +104,26 @@ def test_task_toml_round_trips_a_program():
     task, _ = load_task(EXAMPLES / "iiwa14_weld_seam_program.toml")
     text = task_toml(task, "a program")
     assert tomllib.loads(text) == task
+
+
+# What a parsed TOML document holds: keys of any text, scalars, arrays and tables at any depth
+# (tables inside arrays included: a program's moves).
+TOML_SCALARS = st.one_of(st.booleans(), st.integers(-2 ** 63, 2 ** 63 - 1), st.floats(allow_nan=False),
+                         st.text(max_size=8))
+TOML_VALUES = st.recursive(TOML_SCALARS, lambda inner: st.one_of(st.lists(inner, max_size=3),
+                                                                 st.dictionaries(st.text(max_size=6), inner, max_size=3)),
+                           max_leaves=10)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.dictionaries(st.text(max_size=6), TOML_VALUES, max_size=5))
+def test_task_toml_round_trips_any_document(doc):
+    """Any document a TOML file can hold comes back from the project's copy (tomllib), under its
+    comment lines; odd keys (empty, dotted, spaces, non-ASCII) and strings (quotes, control
+    characters, DEL) included."""
+    text = task_toml(doc, "any")
+    assert text.startswith("# any\n# Written by `armgen firmware`")
+    assert tomllib.loads(text) == doc
 
 
 @pytest.mark.arm

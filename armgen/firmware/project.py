@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import tomli_w
 
 from .._version import __version__
 from ..codegen.generate import CodegenConfig, generate
@@ -229,7 +230,7 @@ def project_robot_files(robot_path: Path, robot: Robot) -> tuple[str, dict[str, 
     urdf_path = Path(robot.urdf["file"])
     urdf = read_input_file(urdf_path, MAX_INPUT_FILE_BYTES, "URDF file", RobotFileError)
     doc = dict(parse_toml_bounded(data, str(robot_path), RobotFileError), urdf=PROJECT_URDF_FILE)
-    text = "\n".join([WRAPPER_COMMENT, *_toml_table(doc, "")]) + "\n"
+    text = f"{WRAPPER_COMMENT}\n{tomli_w.dumps(doc)}"
     return PROJECT_ROBOT_FILE, {PROJECT_ROBOT_FILE: text.encode("utf-8"), PROJECT_URDF_FILE: urdf}
 
 
@@ -246,37 +247,10 @@ def _relocate_robot(metadata: dict[str, Any], robot: Robot) -> None:
         metadata["robot"] = dict(recorded, file=robot.source, sha256=robot.sha256)
 
 
-def _toml_value(value: Any) -> str:
-    if isinstance(value, str):  # a JSON string is a TOML basic string once DEL is escaped too
-        return json.dumps(value, ensure_ascii=False).replace("\x7f", "\\u007f")
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, dict):  # a table inside an array (a program's moves): inline
-        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + "}"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return repr(float(value)) if isinstance(value, float) else repr(value)
-
-
-def _toml_key(key: str) -> str:
-    return key if key.replace("_", "").replace("-", "").isalnum() and key.isascii() else _toml_value(key)
-
-
-def _toml_table(table: dict[str, Any], name: str) -> list[str]:
-    """``[name]`` with its scalars and arrays, then its sub-tables as ``[name.key]``."""
-    lines = [f"[{name}]"] if name else []
-    lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in table.items() if not isinstance(v, dict)]
-    for key, sub in table.items():
-        if isinstance(sub, dict):
-            lines += ["", *_toml_table(sub, f"{name}.{_toml_key(key)}" if name else _toml_key(key))]
-    return lines
-
-
 def task_toml(task: dict[str, Any], comment: str) -> str:
-    """A task dict (as a task file parses) as TOML text."""
-    lines = [f"# {comment}", "# Written by `armgen firmware`; plan it with `armgen plan demo/demo.toml` in the project.",
-             *_toml_table(task, "")]
-    return "\n".join(lines) + "\n"
+    """A task dict (as a task file parses) as TOML text, under a comment saying where it came from."""
+    header = f"# {comment}\n# Written by `armgen firmware`; plan it with `armgen plan demo/demo.toml` in the project.\n"
+    return header + tomli_w.dumps(task)
 
 
 def _fill(template: str, values: dict[str, str]) -> str:
