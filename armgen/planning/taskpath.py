@@ -14,7 +14,7 @@ speed: ``via = [0, R, −R]``, ``end = [0, 2R, 0]`` relative, ``law = "constant"
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import casadi as ca
@@ -22,20 +22,22 @@ import numpy as np
 
 from ..errors import PlanningError, TaskFileError, excerpt
 from ..robot import Robot
-from .cartesian.planner import (_number, _table, parse_path_and_timing, parse_robot_and_start, sym_orientation_error,
-                                sym_rpy)
-from .toolpath.paths import CirclePath, LinePath, TimeLaw
-from .toolpath.task import ProgramSpec, parse_program, program_motion, reach_radius
+from .common.path import PathGeometry, check_step, path_geometry, program_task, timing_law
+from .common.start import start_configuration, unit_scales
+from .common.symbolic import sym_orientation_error, sym_rpy
+from .toolpath.accuracy import PathAccuracy, path_tolerance
+from .toolpath.paths import TimeLaw
+from .toolpath.schema import ProgramPath
+from .toolpath.task import ProgramSpec, reach_radius
 from .toolpath.timelaw import ProgramMotion
-
-# Default closed-loop gain K_p (1/s) of ẋ + K_p e: spec 30 wants CLIK on by default. With
-# explicit Euler the error contracts by (1 − K_p h) per step, so K_p h = 0.2 at h = 0.02 s.
-DEFAULT_CLIK_GAIN = 10.0
 
 
 @dataclass(frozen=True)
 class PathTask:
-    """The fields every resolved-rate task shares (SI units)."""
+    """The fields every resolved-rate task of specs 30 and 35 shares (SI units). ``tolerance``:
+    the path tolerance (m) a plan must meet (None: the deviation is only reported; a circle or
+    line of these planners gets one only by stating ``[check] path_tolerance``, as they leave
+    the path on purpose after a joint locks); ``length_unit``: the file's, for messages."""
 
     robot: Robot
     q_start: np.ndarray
@@ -54,9 +56,8 @@ class PathTask:
     damping_epsilon: float
     damping_max: float
     output_every: int
-    length_scale: float
-    angle_scale: float
-    raw: dict[str, Any] = field(default_factory=dict)
+    tolerance: float | None
+    length_unit: str
     program: ProgramSpec | None = None  # path.type = "program": the moves, and
     motion: ProgramMotion | None = None  # their geometry and time law from the start pose
 
@@ -64,85 +65,56 @@ class PathTask:
     def steps(self) -> int:
         return int(round(self.duration / self.step))
 
+    @property
+    def geometry(self) -> PathGeometry:
+        """The circle or line (not for a program)."""
+        return PathGeometry(self.path_type, self.via, self.end, self.end_rotation, self.relative, self.turns)
+
+    @property
+    def accuracy(self) -> PathAccuracy:
+        """The tolerance a plan of this task must meet, from its step."""
+        return PathAccuracy(self.tolerance, self.step, self.length_unit)
+
     def with_motion(self, motion: ProgramMotion) -> PathTask:
         """This task driven by ``motion`` (a program's new time law): the plan's duration is the
         motion's, rounded up to whole steps (the tool rests at its end for the remainder)."""
         return replace(self, motion=motion, duration=math.ceil(motion.duration / self.step - 1e-9) * self.step)
 
 
-def _bool(table: dict, key: str, where: str, source: str, default: bool) -> bool:
-    value = table.get(key, default)
-    if not isinstance(value, bool):
-        raise TaskFileError(f"{source}: field '{where}.{key}' = {excerpt(repr(value))} must be true or false")
-    return value
-
-
-def parse_path_task(task: dict, source: str, known_top: set[str]) -> PathTask:
-    unknown = set(task) - known_top
-    if unknown:
-        raise TaskFileError(f"{source}: unknown field(s) {', '.join(sorted(unknown))}; allowed: "
-                            f"{', '.join(sorted(known_top))}")
-    robot, q_start, label, ls, as_ = parse_robot_and_start(task, source)
-    path = _table(task, "path", source)
-    if path.get("type") == "program":
-        return _parse_program_task(task, source, robot, q_start, label, ls, as_)
-    path_type, via, end, end_rotation, duration, law = parse_path_and_timing(task, source, ls, as_)
-    relative = _bool(path, "relative", "path", source, False)
-    turns = _number(path, "turns", "path", source, 1.0, positive=True)
-    if path_type == "line" and turns != 1.0:
-        raise TaskFileError(f"{source}: path.turns = {turns} is for circles only; remove it or set path.type = 'circle'")
-
-    integ, step = _euler_step(task, source)
-    if step > duration:
-        raise TaskFileError(f"{source}: integrator.step = {step} is longer than timing.duration = {duration}")
+def configure_path_task(model: Any, robot: Robot, source: str) -> PathTask:
+    """The shared part of a validated fault_tolerant or wgpm task (its ``start``, ``units``,
+    ``path``, ``timing``, ``integrator``, ``damping`` and ``check.path_tolerance``) in SI on the
+    task's loaded ``robot``; errors name ``source``'s field and the fix."""
+    q_start, label = start_configuration(model.start, model.units, robot, source, "start" in model.model_fields_set)
+    ls, as_ = unit_scales(model.units)
+    integ = model.integrator
+    if integ.method != "euler":
+        raise TaskFileError(f"{source}: integrator.method = {excerpt(repr(integ.method))}: this planner integrates with "
+                            "explicit Euler only (its weights use the previous step's velocity); remove the field or "
+                            "set 'euler'")
+    step = integ.step
+    is_program = isinstance(model.path, ProgramPath)
+    shared = dict(robot=robot, q_start=q_start, start_label=label, step=step, clik=integ.clik,
+                  clik_gain=integ.clik_gain, damping_epsilon=model.damping.epsilon,
+                  damping_max=model.damping.lambda_max, output_every=integ.output_every,
+                  tolerance=path_tolerance(model.check.path_tolerance, model.units.length, is_program),
+                  length_unit=model.units.length)
+    if is_program:  # its time comes from the program (no [timing])
+        program = program_task(model.path, model.timing, robot, q_start, ls, as_, source)
+        blank = PathTask(path_type="program", via=None, end=np.zeros(3), relative=False, turns=1.0, end_rotation=None,
+                         duration=0.0, law=TimeLaw("constant"), program=program.spec, **shared)
+        return blank.with_motion(program.motion)
+    geometry = path_geometry(model.path, ls, as_, source)
+    duration, law = timing_law(model.timing, source)
+    check_step(step, duration, source)
     if not math.isfinite(duration / step):
         raise TaskFileError(f"{source}: integrator.step = {step:g} s is too small for timing.duration = {duration:g} s; "
                             "give a step of at least a microsecond")
     steps = int(round(duration / step))
     if abs(steps * step - duration) > 1e-9 * duration:
         raise TaskFileError(f"{source}: timing.duration = {duration} s is not a multiple of integrator.step = {step} s")
-    return PathTask(
-        robot=robot, q_start=q_start, start_label=label, path_type=path_type, via=via, end=end, relative=relative,
-        turns=turns, end_rotation=end_rotation, duration=duration, law=law, step=step,
-        length_scale=ls, angle_scale=as_, raw=task, **_loop_fields(task, source, integ),
-    )
-
-
-def _euler_step(task: dict, source: str) -> tuple[dict, float]:
-    integ = _table(task, "integrator", source)
-    method = integ.get("method", "euler")
-    if method != "euler":
-        raise TaskFileError(f"{source}: integrator.method = {excerpt(repr(method))}: this planner integrates with explicit Euler "
-                            "only (its weights use the previous step's velocity); remove the field or set 'euler'")
-    return integ, _number(integ, "step", "integrator", source, 0.02, positive=True)
-
-
-def _loop_fields(task: dict, source: str, integ: dict) -> dict[str, Any]:
-    """The closed loop, damping and output fields of a PathTask."""
-    damping = _table(task, "damping", source)
-    return dict(
-        clik=_bool(integ, "clik", "integrator", source, True),
-        clik_gain=_number(integ, "clik_gain", "integrator", source, DEFAULT_CLIK_GAIN, nonneg=True),
-        damping_epsilon=_number(damping, "epsilon", "damping", source, 0.01, positive=True),
-        damping_max=_number(damping, "lambda_max", "damping", source, 0.05, nonneg=True),
-        output_every=int(_number(integ, "output_every", "integrator", source, 1, positive=True)),
-    )
-
-
-def _parse_program_task(task: dict, source: str, robot: Robot, q_start: np.ndarray, label: str, ls: float,
-                        as_: float) -> PathTask:
-    """A PathTask whose path is a program: its time comes from the program (no [timing])."""
-    if "timing" in task:
-        raise TaskFileError(f"{source}: [timing] is not used with path.type = 'program' (time comes from path.speed "
-                            "and path.acceleration); remove [timing]")
-    integ, step = _euler_step(task, source)
-    spec = parse_program(task["path"], source, ls, as_)
-    motion = program_motion(spec, robot.fk(q_start), robot, source)
-    blank = PathTask(
-        robot=robot, q_start=q_start, start_label=label, path_type="program", via=None, end=np.zeros(3),
-        relative=False, turns=1.0, end_rotation=None, duration=0.0, law=TimeLaw("constant"), step=step,
-        length_scale=ls, angle_scale=as_, raw=task, program=spec, **_loop_fields(task, source, integ))
-    return blank.with_motion(motion)
+    return PathTask(path_type=geometry.type, via=geometry.via, end=geometry.end, relative=geometry.relative,
+                    turns=geometry.turns, end_rotation=geometry.end_rotation, duration=duration, law=law, **shared)
 
 
 class TaskPath:
@@ -154,12 +126,7 @@ class TaskPath:
         if task.motion is not None:  # a program: built, and its reach checked, when parsed
             self.path = task.motion.program
             return
-        offset = self.p0 if task.relative else np.zeros(3)
-        if task.path_type == "circle":
-            self.path = CirclePath(self.p0, task.via + offset, task.end + offset, self.r0)
-        else:
-            r_end = task.end_rotation if task.end_rotation is not None else self.r0
-            self.path = LinePath(self.p0, task.end + offset, self.r0, r_end)
+        self.path = task.geometry.build(start_pose)
         points = self.path.sample_points()
         dist = np.linalg.norm(points - task.robot.base[:3, 3], axis=1)
         reach = reach_radius(task.robot)

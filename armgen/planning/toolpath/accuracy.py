@@ -36,34 +36,24 @@ CONVERGENCE_RATIO = 0.75
 MAX_REFINED_STEPS = 1_000_000
 
 
-@dataclass
+def path_tolerance(stated: float | None, length_unit: str, default_applies: bool) -> float | None:
+    """The tolerance (m) a plan must meet: the task's ``[check] path_tolerance`` (``stated``, in
+    the file's ``length_unit``), else :data:`DEFAULT_PATH_TOLERANCE` where the default applies
+    (a program; a Cartesian circle or line that leaves ``integrator.step`` unset); None: the
+    deviation is only reported."""
+    if stated is not None:
+        return float(stated) * LENGTH_UNITS[length_unit]
+    return DEFAULT_PATH_TOLERANCE if default_applies else None
+
+
+@dataclass(frozen=True)
 class PathAccuracy:
-    """The tolerance a plan must meet (None: only reported), the task's step, and the task dict
-    (the step the plan used is recorded in it, so that the recorded task reproduces the plan)."""
+    """The tolerance a plan must meet (m; None: only reported), the task's integrator step (s)
+    and the file's length unit (errors quote the deviation in it)."""
 
     tolerance: float | None
     step: float
-    task: dict[str, Any]
     length_unit: str
-
-    def record(self, step: float) -> None:
-        if step != self.step:
-            self.task.setdefault("integrator", {})["step"] = step
-
-
-def path_accuracy(task: dict[str, Any], step: float, program: bool, unset_step_applies: bool = True) -> PathAccuracy:
-    """The accuracy a task asks for (its ``[check]``, ``[integrator]`` and ``[units]`` tables
-    validated by its schema). ``unset_step_applies`` False: a circle or line gets a tolerance
-    only by stating one (the fault-tolerant and WGPM planners' circles leave the path on
-    purpose after a joint locks)."""
-    check = task.get("check", {})
-    unit = task.get("units", {}).get("length", "m")
-    stated = check.get("path_tolerance")
-    applies = program or stated is not None or (unset_step_applies and "step" not in task.get("integrator", {}))
-    tolerance = None
-    if applies:
-        tolerance = DEFAULT_PATH_TOLERANCE if stated is None else float(stated) * LENGTH_UNITS[unit]
-    return PathAccuracy(tolerance, step, task, unit)
 
 
 def _deviation(result) -> tuple[float, int]:

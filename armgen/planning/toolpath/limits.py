@@ -243,16 +243,16 @@ def plan_samples(result, n: int) -> tuple[np.ndarray, np.ndarray]:
 
 def plan_with_speed_limits(run: Callable[[ProgramMotion | None, float], Any], motion: ProgramMotion | None,
                            angular_speed: float | None, robot: Robot, source: str, accuracy: PathAccuracy,
-                           duration: float, check_path: Callable[[Any], None] = lambda result: None):
-    """``run(motion, step)`` → PlanResult within the path tolerance (``accuracy``; the step is
-    halved as needed and recorded in the task), for a program within the joint limits (stage
+                           duration: float, check_path: Callable[[Any], None] = lambda result: None) -> tuple[Any, float]:
+    """``run(motion, step)`` → (PlanResult, the step it used) within the path tolerance
+    (``accuracy``; the step is halved as needed), for a program within the joint limits (stage
     2), with ``summary.joint_speed``: the report, the time added and where, and whether it was
     enforced (programs) or only measured (a fixed-duration circle or line of ``duration`` s:
     ``run(None, step)``, ``check_path`` refusing a plan whose tool left it), and
     ``summary.path_accuracy``: the tolerance, the deviation and the step used."""
     if motion is None:
-        result, step, accurate = plan_accurately(lambda h: run(None, h), accuracy, duration, source,
-                                                 lambda r, k: "the path", check_path)
+        result, _, accurate = plan_accurately(lambda h: run(None, h), accuracy, duration, source,
+                                              lambda r, k: "the path", check_path)
         report = speed_report(robot, *plan_samples(result, robot.n)) | {"enforced": False}
     else:
         result, final, report, accurate = plan_within_limits(run, motion, angular_speed, robot, source,
@@ -260,11 +260,10 @@ def plan_with_speed_limits(run: Callable[[ProgramMotion | None, float], Any], mo
         report |= {"enforced": True}
         result.metadata.setdefault("path", {}).update(program_metadata(final))
         result.motion = final
-    accuracy.record(accurate["step_s"])
     summary = result.metadata.setdefault("summary", {})
     summary["joint_speed"] = report
     summary["path_accuracy"] = accurate
-    return result
+    return result, accurate["step_s"]
 
 
 def program_metadata(motion: ProgramMotion) -> dict[str, Any]:

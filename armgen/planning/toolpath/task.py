@@ -1,5 +1,6 @@
-"""``[path] type = "program"`` of a task file → SI move specs (:class:`ProgramSpec`), the CSV of
-a ``poses`` move, and the program from the start pose. Errors name the task file (or the
+"""``[path] type = "program"`` of a task file (validated: :class:`.schema.ProgramPath`) → SI
+move specs (:class:`ProgramSpec`), the CSV of a ``poses`` move, and the program from the start
+pose. Errors name the task file (or the
 CSV), the move (``path.moves[k]``, 0-based as TOML tools count) and the fix."""
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from ...description.model import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M
 from ...robot import Robot
 from ...schemas import read_input_file
 from .geometry import GeometryError, MoveSpec, Program
+from .schema import Move, ProgramPath
 from .timelaw import ProgramMotion, program_profile
 
 # A poses CSV of ~500 000 rows: far beyond a CAD/CAM contour, small enough to read at once.
@@ -49,46 +51,48 @@ def _where(k: int, kind: str) -> str:
     return f"path.moves[{k}] ({kind})"
 
 
-def _fields(move: dict, k: int, source: str, needed: set[str], allowed: set[str]) -> None:
-    kind = move["kind"]
-    missing = needed - set(move)
+def _fields(move: Move, k: int, source: str, needed: set[str]) -> None:
+    """A move of ``kind`` gives exactly the targets it uses (``needed`` of to, via, file)."""
+    given = {name for name in ("to", "via", "file") if getattr(move, name) is not None}
+    missing = needed - given
     if missing:
-        raise TaskFileError(f"{source}: {_where(k, kind)}: missing {', '.join(sorted(missing))}; a {kind} move needs "
-                            f"{' and '.join(sorted(needed))}")
-    extra = set(move) & ({"to", "via", "file"} - allowed)
+        raise TaskFileError(f"{source}: {_where(k, move.kind)}: missing {', '.join(sorted(missing))}; a {move.kind} move "
+                            f"needs {' and '.join(sorted(needed))}")
+    extra = given - needed
     if extra:
-        raise TaskFileError(f"{source}: {_where(k, kind)}: {', '.join(sorted(extra))} is not used by a {kind} move; "
-                            "remove it")
+        raise TaskFileError(f"{source}: {_where(k, move.kind)}: {', '.join(sorted(extra))} is not used by a {move.kind} "
+                            "move; remove it")
 
 
-def parse_program(path: dict, source: str, ls: float, as_: float) -> ProgramSpec:
-    """The program of a validated ``[path]`` table; ``ls``/``as_`` scale the file's units to SI."""
+def program_spec(path: ProgramPath, source: str, ls: float, as_: float) -> ProgramSpec:
+    """The program of a validated ``[path]`` table (``type = "program"``) in SI; ``ls``/``as_``
+    scale the file's units to SI. A ``poses`` move's CSV is read here, relative to the task
+    file's folder."""
     task_dir = Path(source).parent
     moves, files = [], []
-    for k, move in enumerate(path["moves"]):
-        kind = move["kind"]
-        common = {"speed": move.get("speed", path["speed"]) * ls,
-                  "acceleration": move.get("acceleration", path["acceleration"]) * ls,
-                  "blend": move.get("blend", path.get("blend", 0.0)) * ls}
+    for k, move in enumerate(path.moves):
+        kind = move.kind
+        common = {"speed": (path.speed if move.speed is None else move.speed) * ls,
+                  "acceleration": (path.acceleration if move.acceleration is None else move.acceleration) * ls,
+                  "blend": (path.blend if move.blend is None else move.blend) * ls}
         if kind == "poses":
-            _fields(move, k, source, {"file"}, {"file"})
-            points, rotations, name, digest = read_poses(task_dir / move["file"], move["file"], k, source, ls, as_)
+            _fields(move, k, source, {"file"})
+            points, rotations, name, digest = read_poses(task_dir / move.file, move.file, k, source, ls, as_)
             files.append((name, digest))
             moves.append(MoveSpec(kind, points=points, rotations=rotations, **common))
             continue
-        _fields(move, k, source, {"to", "via"} if kind == "arc" else {"to"}, {"to", "via"} if kind == "arc" else {"to"})
-        to = move["to"]
-        rotation = None if to.get("rpy") is None else Rotation.from_matrix(
-            rpy_matrix(*(np.asarray(to["rpy"], dtype=float) * as_)))
+        _fields(move, k, source, {"to", "via"} if kind == "arc" else {"to"})
+        rotation = None if move.to.rpy is None else Rotation.from_matrix(
+            rpy_matrix(*(np.asarray(move.to.rpy, dtype=float) * as_)))
         via = None
         if kind == "arc":
-            if move["via"].get("rpy") is not None:
+            if move.via.rpy is not None:
                 raise TaskFileError(f"{source}: {_where(k, kind)}: via.rpy is not used (the orientation turns from the "
                                     "start to `to`); remove it")
-            via = np.asarray(move["via"]["xyz"], dtype=float) * ls
-        moves.append(MoveSpec(kind, position=np.asarray(to["xyz"], dtype=float) * ls, rotation=rotation, via=via,
+            via = np.asarray(move.via.xyz, dtype=float) * ls
+        moves.append(MoveSpec(kind, position=np.asarray(move.to.xyz, dtype=float) * ls, rotation=rotation, via=via,
                               **common))
-    angular = path.get("angular_speed")
+    angular = path.angular_speed
     return ProgramSpec(tuple(moves), None if angular is None else angular * as_, tuple(files))
 
 

@@ -1,0 +1,104 @@
+"""Path + timing: a task's circle or line (``[path]``) and ``[timing]``, validated by
+:mod:`.schema`, → SI geometry and a time law; a program path (``type = "program"``) → its moves
+and the motion from the start pose (:mod:`armgen.planning.toolpath.task`). The cross-field
+rules a schema does not state (a circle needs ``via``; interpolating the orientation needs a
+line and ``end_rpy``; a program takes no ``[timing]``) are checked here, naming the field."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional, Union
+
+import numpy as np
+
+from ...description import rpy_matrix
+from ...errors import TaskFileError
+from ...robot import Robot
+from ..toolpath.paths import CirclePath, LinePath, TimeLaw
+from ..toolpath.schema import ProgramPath
+from ..toolpath.task import ProgramSpec, program_motion, program_spec
+from ..toolpath.timelaw import ProgramMotion
+from .schema import Path, RelativePath, Timing
+
+
+@dataclass(frozen=True)
+class PathGeometry:
+    """A circle (start → via → end → start) or a line (start → end) in SI. ``end_rotation``:
+    the line's final orientation (None: the start's is held). ``relative``: via/end are offsets
+    from the start tool position; ``turns``: circle turns over the duration."""
+
+    type: str
+    via: Optional[np.ndarray]
+    end: np.ndarray
+    end_rotation: Optional[np.ndarray] = None
+    relative: bool = False
+    turns: float = 1.0
+
+    def build(self, start_pose: np.ndarray) -> Union[CirclePath, LinePath]:
+        """The path from the start pose (4×4)."""
+        p0, r0 = start_pose[:3, 3].copy(), start_pose[:3, :3].copy()
+        via, end = self.via, self.end
+        if self.relative:
+            via, end = (None if via is None else via + p0), end + p0
+        if self.type == "circle":
+            return CirclePath(p0, via, end, r0)
+        return LinePath(p0, end, r0, self.end_rotation if self.end_rotation is not None else r0)
+
+
+def path_geometry(path: Path, length_scale: float, angle_scale: float, source: str) -> PathGeometry:
+    """The circle or line of a validated ``[path]`` table (a :class:`RelativePath` may be
+    relative and turn several times) in SI."""
+    via = None
+    if path.type == "circle":
+        if path.via is None:
+            raise TaskFileError(f"{source}: missing field 'path.via'; a circle runs start → via → end → start: add "
+                                "via = [x, y, z] (or set path.type = 'line')")
+        via = np.array(path.via, dtype=float) * length_scale
+    end = np.array(path.end, dtype=float) * length_scale
+    end_rotation = None
+    if path.orientation == "interpolate":
+        if path.type != "line":
+            raise TaskFileError(f"{source}: path.orientation = 'interpolate' needs path.type = 'line'")
+        if path.end_rpy is None:
+            raise TaskFileError(f"{source}: missing field 'path.end_rpy'; path.orientation = 'interpolate' turns the "
+                                "tool to it: add end_rpy = [roll, pitch, yaw] (or set path.orientation = 'hold')")
+        end_rotation = rpy_matrix(*(np.array(path.end_rpy, dtype=float) * angle_scale))
+    relative, turns = (path.relative, path.turns) if isinstance(path, RelativePath) else (False, 1.0)
+    if path.type == "line" and turns != 1.0:
+        raise TaskFileError(f"{source}: path.turns = {turns} is for circles only; remove it or set path.type = 'circle'")
+    return PathGeometry(path.type, via, end, end_rotation, relative, turns)
+
+
+def timing_law(timing: Optional[Timing], source: str) -> tuple[float, TimeLaw]:
+    """(duration in s, time law) of a circle's or line's ``[timing]``."""
+    if timing is None:
+        raise TaskFileError(f"{source}: missing field 'timing.duration'; a circle or line needs [timing] duration = "
+                            "<seconds>")
+    return float(timing.duration), TimeLaw(timing.law, float(timing.blend))
+
+
+def check_step(step: float, duration: float, source: str) -> None:
+    """The integrator step must fit the circle's or line's duration."""
+    if step > duration:
+        raise TaskFileError(f"{source}: integrator.step = {step} is longer than timing.duration = {duration}")
+
+
+@dataclass(frozen=True)
+class ProgramTask:
+    """A program path: its moves (SI) and its motion (geometry and nominal time law) from the
+    start pose, its reach checked."""
+
+    spec: ProgramSpec
+    motion: ProgramMotion
+
+
+def program_task(path: ProgramPath, timing: Optional[Timing], robot: Robot, q_start: np.ndarray, length_scale: float,
+                 angle_scale: float, source: str) -> ProgramTask:
+    """A validated program ``[path]`` → its moves and motion from the start configuration's tool
+    pose; a program's time comes from its speeds, so a ``[timing]`` table is an error."""
+    if timing is not None:
+        raise TaskFileError(f"{source}: [timing] is not used with path.type = 'program' (time comes from path.speed "
+                            "and path.acceleration); remove [timing]")
+    spec = program_spec(path, source, length_scale, angle_scale)
+    return ProgramTask(spec, program_motion(spec, robot.fk(q_start), robot, source))
+
