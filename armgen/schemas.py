@@ -71,6 +71,18 @@ class StrictModel(BaseModel):
         return data
 
 
+# The error type of a rule across fields that a model validator checks (a duplicate name, a
+# field only one kind of entry may have): its message is complete, in the file's words.
+RULE_ERROR = "armgen_rule"
+
+
+def rule_error(message: str, at: tuple = ()) -> PydanticCustomError:
+    """A model validator's failure of a rule across fields, for :func:`format_validation_error`
+    to print as ``<source>: <place>: <message>``; ``at`` (keys below the validated model, e.g.
+    ``("joints", 1)``) narrows the place to the entry at fault."""
+    return PydanticCustomError(RULE_ERROR, "{message}", {"message": message, "at": at})
+
+
 def _unknown_message(err: dict[str, Any], loc: tuple, label: str | None) -> str:
     """'<table>' has unknown field(s) k (table.k; did you mean `key`?); allowed: ..."""
     allowed = err["ctx"]["allowed"]
@@ -186,6 +198,8 @@ def describe_error(err: dict[str, Any], quoted: str) -> str:
     if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
         op = {"greater_than": ">", "greater_than_equal": "≥", "less_than": "<", "less_than_equal": "≤"}[kind]
         return f"field {quoted} = {_render(value)} must be {op} {next(iter(ctx.values()))}"
+    if kind == "string_too_short" and ctx.get("min_length") == 1:
+        return f"field {quoted} must be a non-empty string, got {_render(value)}"
     if kind == "string_pattern_mismatch":
         return f"field {quoted} = {_render(value)} is not a valid name: {IDENTIFIER_HELP}"
     return f"field {quoted} = {_render(value)}: {err['msg'].removeprefix('Value error, ')}"
@@ -213,6 +227,10 @@ def format_validation_error(exc: ValidationError, source: str, data: Any, fix: s
     names the table holding the field (e.g. ``joint 2 ('elbow')``) and the field its key."""
     err = exc.errors(include_url=False)[0]
     loc = _loc_in_data(tuple(err["loc"]), data)
+    if err["type"] == RULE_ERROR:
+        loc += tuple(err["ctx"]["at"])
+        place = where(loc) if where else _dotted(loc)
+        return f"{source}: {place + ': ' if place else ''}{err['ctx']['message']}" + (f"; {fix}" if fix else "")
     unknown = err["type"] == "unknown_field"
     field_loc = loc[:-1] if loc and isinstance(loc[-1], int) else loc  # an array entry: name the array
     index = f"[{loc[-1]}]" if loc and isinstance(loc[-1], int) else ""

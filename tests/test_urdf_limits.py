@@ -105,7 +105,7 @@ def test_dh_file_with_degree_limits_in_radians_is_refused():
 def test_wrapper_limits_in_degrees_under_radians_are_refused(tmp_path):
     write(tmp_path, "planar.urdf", planar_urdf())
     path = write(tmp_path, "arm.toml", WRAPPER + "[limits]\nj2 = [-150, 150]\n")
-    with pytest.raises(RobotFileError, match=r"arm.toml: \[limits\]: j2 = \[-150, 150\] rad reaches beyond"):
+    with pytest.raises(RobotFileError, match=r"arm.toml: \[limits\]: j2 = \[-150.0, 150.0\] rad reaches beyond"):
         load_robot(path)
     path = write(tmp_path, "arm.toml", WRAPPER + '[units]\nangle = "deg"\n[limits]\nj3 = { qlim = [-1e3, 1e3] }\n')
     with pytest.raises(RobotFileError, match=r"j3.qlim = \[-1000.0, 1000.0\] deg reaches beyond.*check the values"):
@@ -155,7 +155,7 @@ def test_wrapper_sets_speed_acceleration_and_position_limits(tmp_path):
     ("j1 = { qdlim = -2 }", r"\[limits.j1\]: field 'qdlim' = -2 must be > 0"),
     ("j1 = { qdlim = 1e-9 }", r"\[limits\] j1: field 'qdlim' = 1e-09 is below 1e-06"),
     ("j1 = { qddlim = nan }", r"qddlim"),
-    ("j1 = { qlim = [1, -1] }", r"j1.qlim = \[1, -1\] is empty or reversed"),
+    ("j1 = { qlim = [1, -1] }", r"j1.qlim = \[1.0, -1.0\] is empty or reversed"),
     ("j1 = { acceleration = 3 }", r"unknown field.*acceleration"),
     ("j9 = { qdlim = 1 }", r"no joint named j9"),
 ])

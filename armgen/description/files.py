@@ -1,7 +1,12 @@
 """Robot description files (TOML, or a URDF alone): loading, validation, conversion to SI.
 
 A robot file holds a serial chain in standard or modified (Craig) DH, or references a URDF.
-Every length is converted to metres and every angle to radians on load; the returned
+One path per file: its bytes (read once) -> TOML -> the pydantic model of
+:mod:`armgen.description.schema` (types, ranges, defaults, rules across fields) -> one pure
+function per file kind, :func:`dh_description` or :func:`urdf_description`, which converts
+every length to metres and every angle to radians and cross-checks what needs the units or
+the URDF's chain (limits in order and within two turns, speed limits, magnitudes,
+configurations' lengths and limits, ``[limits]`` joint names). The returned
 :class:`~armgen.description.model.RobotDescription` is SI-only. Errors name the file, the
 joint and the field, and say how to fix them.
 
@@ -34,7 +39,7 @@ import math
 import re
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 
@@ -44,120 +49,22 @@ from ..errors import RobotFileError, excerpt
 from ..schemas import (IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded,
                        read_input_file)
 from .frames import rpy_matrix, snap_quarter_turn
-from .model import (JOINT_TYPES, MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, MAX_REVOLUTE_LIMIT_RAD, MIN_JOINT_RATE,
-                    TASK_ROWS, Joint, RobotDescription)
-from .schema import RobotFile, UrdfRobotFile
-from .urdf import parse_urdf
+from .model import (MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, MAX_REVOLUTE_LIMIT_RAD, MIN_JOINT_RATE, TASK_ROWS, Joint,
+                    RobotDescription)
+from .schema import JointEntry, JointLimits, RobotFile, Transform, UrdfRobotFile
+from .urdf import UrdfChain, UrdfJoint, parse_urdf
 
 BUNDLED_DIR = Path(str(resources.files("armgen.data") / "robots"))
 
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
 ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
-CONVENTIONS = ("standard", "modified")
+
+# A robot name becomes the default C prefix and output directory: letters, digits, _ and -.
+_ROBOT_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
 
 
-class _Reader:
-    """Field access with errors that say where (file, table, field) and what to do."""
-
-    def __init__(self, source: str):
-        self.source = source
-
-    def fail(self, where: str, message: str) -> RobotFileError:
-        return RobotFileError(f"{self.source}: {where}: {message}")
-
-    def number(self, table: dict, key: str, where: str, default: float | None = None) -> float:
-        if key not in table:
-            if default is not None:
-                return default
-            raise self.fail(where, f"missing field '{key}'; add '{key} = <number>'")
-        value = table[key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(where, f"field '{key}' must be a number, got {type(value).__name__} {excerpt(repr(value))}")
-        if not math.isfinite(value):
-            raise self.fail(where, f"field '{key}' is {value}; give a finite number")
-        return float(value)
-
-    def string(self, table: dict, key: str, where: str, choices: tuple[str, ...] | None = None,
-               default: str | None = None) -> str:
-        if key not in table:
-            if default is not None:
-                return default
-            raise self.fail(where, f"missing field '{key}'")
-        value = table[key]
-        if not isinstance(value, str) or not value:
-            raise self.fail(where, f"field '{key}' must be a non-empty string, got {excerpt(repr(value))}")
-        if choices is not None and value not in choices:
-            raise self.fail(where, f"field '{key}' = {excerpt(repr(value))} is not one of {', '.join(choices)}")
-        return value
-
-    def vector(self, table: dict, key: str, where: str, length: int | None = None,
-               default: list[float] | None = None) -> list[float]:
-        if key not in table:
-            if default is not None:
-                return list(default)
-            raise self.fail(where, f"missing field '{key}'")
-        value = table[key]
-        if not isinstance(value, list):
-            raise self.fail(where, f"field '{key}' must be an array of numbers, got {type(value).__name__}")
-        if length is not None and len(value) != length:
-            raise self.fail(where, f"field '{key}' must have {length} entries, got {len(value)}")
-        out = []
-        for k, item in enumerate(value):
-            if isinstance(item, bool) or not isinstance(item, (int, float)):
-                raise self.fail(where, f"field '{key}'[{k}] must be a number, got {excerpt(repr(item))}")
-            if not math.isfinite(item):
-                raise self.fail(where, f"field '{key}'[{k}] is {item}; give a finite number")
-            out.append(float(item))
-        return out
-
-    def table(self, doc: dict, key: str, where: str, required: bool = False) -> dict:
-        if key not in doc:
-            if required:
-                raise self.fail(where, f"missing table [{key}]")
-            return {}
-        value = doc[key]
-        if not isinstance(value, dict):
-            raise self.fail(where, f"'{key}' must be a table ([{key}])")
-        return value
-
-
-def _transform(reader: _Reader, doc: dict, key: str, length_scale: float, angle_scale: float) -> np.ndarray:
-    table = reader.table(doc, key, "file")
-    where = f"[{key}]"
-    unknown = set(table) - {"xyz", "rpy"}
-    if unknown:
-        raise reader.fail(where, f"unknown field(s) {', '.join(sorted(unknown))}; allowed: xyz, rpy")
-    xyz = np.array(reader.vector(table, "xyz", where, 3, [0.0, 0.0, 0.0])) * length_scale
-    if np.max(np.abs(xyz)) > MAX_ABS_LENGTH_M:
-        raise reader.fail(where, f"field 'xyz' is beyond ±{MAX_ABS_LENGTH_M:g} m; check [units] length and the value")
-    rpy = [snap_quarter_turn(v * angle_scale) for v in reader.vector(table, "rpy", where, 3, [0.0, 0.0, 0.0])]
-    out = np.eye(4)
-    out[:3, :3] = rpy_matrix(*rpy)
-    out[:3, 3] = xyz
-    return out
-
-
-_JOINT_FIELDS = {"name", "type", "a", "d", "alpha", "offset", "qlim", "theta", "qdlim", "qddlim"}
-
-
-def _beyond_turns(angle_unit: str) -> str:
-    """Why revolute limits beyond ``MAX_REVOLUTE_LIMIT_RAD`` are refused, and the fix."""
-    hint = ('if these are degrees, set [units] angle = "deg"' if angle_unit == "rad"
-            else "check the values")
-    return (f"reaches beyond ±{MAX_REVOLUTE_LIMIT_RAD:.4g} rad (two turns either side of zero, more than any arm's "
-            f"joint turns); the file's angles are in {angle_unit} ([units] angle): {hint}")
-
-
-def _rate(reader: _Reader, table: dict, key: str, where: str, scale: float, default: float) -> float:
-    """A joint's speed (``qdlim``) or acceleration (``qddlim``) limit in SI; ``default`` where
-    ``table`` gives none (unlimited, or a URDF's velocity)."""
-    if key not in table:
-        return default
-    value = reader.number(table, key, where) * scale
-    if not value >= MIN_JOINT_RATE:
-        raise reader.fail(where, f"field '{key}' = {table[key]} is below {MIN_JOINT_RATE:g} SI units (rad or m per "
-                                 "s, per s²): a unit slip; check the value and [units]")
-    return value
+def _fail(source: str, where: str, message: str) -> RobotFileError:
+    return RobotFileError(f"{source}: {where}: {message}")
 
 
 def _robot_place(doc: dict[str, Any], loc: tuple) -> str:
@@ -174,117 +81,215 @@ def _robot_place(doc: dict[str, Any], loc: tuple) -> str:
 
 
 def validate_robot_document(doc: dict[str, Any], source: str) -> RobotFile | UrdfRobotFile:
-    """Check a parsed robot file against :class:`RobotFile`, or :class:`UrdfRobotFile` when it
-    references a URDF (keys, types, finite numbers, name rules)."""
+    """The model of a parsed robot file: :class:`RobotFile`, or :class:`UrdfRobotFile` when it
+    references a URDF (keys, types, finite numbers, name rules, rules across fields)."""
     try:
         return (UrdfRobotFile if "urdf" in doc else RobotFile).model_validate(doc)
     except ValidationError as exc:
         raise RobotFileError(format_validation_error(exc, source, doc, where=lambda loc: _robot_place(doc, loc))) from None
 
 
-def _task_rows(reader: _Reader, doc: dict) -> tuple[int, ...]:
-    task_rows_raw = doc.get("task_rows", list(TASK_ROWS))
-    if not isinstance(task_rows_raw, list) or not task_rows_raw or any(r not in TASK_ROWS for r in task_rows_raw) \
-            or len(set(task_rows_raw)) != len(task_rows_raw):
-        raise reader.fail("file", f"task_rows = {excerpt(repr(task_rows_raw))} must be a non-empty list of distinct names from {', '.join(TASK_ROWS)}")
-    return tuple(sorted(TASK_ROWS.index(r) for r in task_rows_raw))
+# -- conversion to SI and cross-checks ----------------------------------------------------
+
+
+def _beyond_turns(angle_unit: str) -> str:
+    """Why revolute limits beyond ``MAX_REVOLUTE_LIMIT_RAD`` are refused, and the fix."""
+    hint = ('if these are degrees, set [units] angle = "deg"' if angle_unit == "rad"
+            else "check the values")
+    return (f"reaches beyond ±{MAX_REVOLUTE_LIMIT_RAD:.4g} rad (two turns either side of zero, more than any arm's "
+            f"joint turns); the file's angles are in {angle_unit} ([units] angle): {hint}")
+
+
+def _rate(value: Optional[float], key: str, where: str, scale: float, default: float, source: str) -> float:
+    """A joint's speed (``qdlim``) or acceleration (``qddlim``) limit in SI; ``default`` where
+    the file gives none (unlimited, or a URDF's velocity)."""
+    if value is None:
+        return default
+    si = value * scale
+    if not si >= MIN_JOINT_RATE:
+        raise _fail(source, where, f"field '{key}' = {value} is below {MIN_JOINT_RATE:g} SI units (rad or m per s, "
+                                   "per s²): a unit slip; check the value and [units]")
+    return si
+
+
+def _transform(table: Transform, key: str, length_scale: float, angle_scale: float, source: str) -> np.ndarray:
+    """The ``[base]`` or ``[tool]`` table as a 4×4 transform (m)."""
+    xyz = np.array(table.xyz) * length_scale
+    if np.max(np.abs(xyz)) > MAX_ABS_LENGTH_M:
+        raise _fail(source, f"[{key}]", f"field 'xyz' is beyond ±{MAX_ABS_LENGTH_M:g} m; check [units] length and the "
+                                        "value")
+    out = np.eye(4)
+    out[:3, :3] = rpy_matrix(*(snap_quarter_turn(v * angle_scale) for v in table.rpy))
+    out[:3, 3] = xyz
+    return out
+
+
+def _configurations(given: dict[str, list[float]], q_scales: np.ndarray, source: str) -> dict[str, np.ndarray]:
+    """The ``[configurations]`` table in SI, one value per joint."""
+    out = {}
+    for name, values in given.items():
+        if len(values) != len(q_scales):
+            raise _fail(source, "[configurations]", f"field '{name}' must have {len(q_scales)} entries, got {len(values)}")
+        out[name] = np.array(values) * q_scales
+    return out
+
+
+def _dh_joint(entry: JointEntry, name: str, where: str, length: float, angle: float, angle_unit: str,
+              source: str) -> Joint:
+    """One ``[[joints]]`` entry in SI, its limits in order and every value within the physical bounds."""
+    revolute = entry.type == "revolute"
+    q_scale = angle if revolute else length
+    lo, hi = entry.qlim[0] * q_scale, entry.qlim[1] * q_scale
+    if not lo < hi:
+        raise _fail(source, where, f"qlim = {entry.qlim} is empty or reversed; write [lower, upper] with lower < upper")
+    if revolute and max(abs(lo), abs(hi)) > MAX_REVOLUTE_LIMIT_RAD:
+        raise _fail(source, where, f"qlim = {entry.qlim} {angle_unit} {_beyond_turns(angle_unit)}")
+    for key in ("a", "d", "alpha", "offset", "theta", "qlim"):
+        is_angle = key in ("alpha", "theta") or (key in ("offset", "qlim") and revolute)
+        scale, bound, unit = (angle, MAX_ABS_ANGLE_RAD, "rad") if is_angle else (length, MAX_ABS_LENGTH_M, "m")
+        values = getattr(entry, key)
+        for value in values if isinstance(values, list) else [values]:
+            if abs(value * scale) > bound:
+                raise _fail(source, where, f"field '{key}' = {value} is beyond ±{bound:g} {unit}; check the units "
+                                           "([units] length/angle) and the value")
+    return Joint(
+        name=name,
+        type=entry.type,
+        a=entry.a * length,
+        d=entry.d * length,
+        alpha=snap_quarter_turn(entry.alpha * angle),
+        offset=(snap_quarter_turn if revolute else float)(entry.offset * q_scale),
+        qlim=(lo, hi),
+        theta=snap_quarter_turn(entry.theta * angle),
+        qdlim=_rate(entry.qdlim, "qdlim", where, q_scale, math.inf, source),
+        qddlim=_rate(entry.qddlim, "qddlim", where, q_scale, math.inf, source),
+    )
+
+
+def dh_description(model: RobotFile, source: str, sha256: str) -> RobotDescription:
+    """A DH robot file's model in SI, cross-checked (see :func:`_dh_joint`; configurations of
+    one value per joint, within the limits). ``source`` names the file in errors."""
+    length, angle = LENGTH_UNITS[model.units.length], ANGLE_UNITS[model.units.angle]
+    joints = tuple(_dh_joint(entry, name, f"joint {i + 1} ('{name}')", length, angle, model.units.angle, source)
+                   for i, (entry, name) in enumerate(zip(model.joints, model.joint_names)))
+    q_scales = np.array([angle if j.revolute else length for j in joints])
+    configurations = _configurations(model.configurations, q_scales, source)
+    robot = RobotDescription(
+        name=model.name,
+        convention=model.convention,
+        joints=joints,
+        base=_transform(model.base, "base", length, angle, source),
+        tool=_transform(model.tool, "tool", length, angle, source),
+        configurations=configurations,
+        task_rows=tuple(sorted(TASK_ROWS.index(r) for r in model.task_rows)),
+        source=source,
+        sha256=sha256,
+        description=model.description,
+        units={"length": model.units.length, "angle": model.units.angle},
+    )
+    for name, q in configurations.items():
+        robot.check_within_limits(q, f"{source}: [configurations] {name}")
+    return robot
+
+
+def _limit_override(qlim: list[float], field: str, scale: float, revolute: bool, angle_unit: str,
+                    source: str) -> tuple[float, float]:
+    """A robot file's position limits of a URDF joint in SI, in order and within the bounds."""
+    lo, hi = qlim[0] * scale, qlim[1] * scale
+    if not lo < hi:
+        raise _fail(source, "[limits]", f"{field} = {qlim} is empty or reversed; write [lower, upper]")
+    if revolute and max(abs(lo), abs(hi)) > MAX_REVOLUTE_LIMIT_RAD:
+        raise _fail(source, "[limits]", f"{field} = {qlim} {angle_unit} {_beyond_turns(angle_unit)}")
+    if not revolute and max(abs(lo), abs(hi)) > MAX_ABS_LENGTH_M:
+        raise _fail(source, "[limits]", f"{field} = {qlim} is beyond ±{MAX_ABS_LENGTH_M:g} m; check [units] length "
+                                        "and the values")
+    return (lo, hi)
+
+
+def _urdf_joint(joint: UrdfJoint, entry: list[float] | JointLimits | None, scale: float, angle_unit: str,
+                source: str) -> Joint:
+    """A URDF chain's joint with the robot file's ``[limits]`` entry applied (SI)."""
+    # `joint = [lower, upper]` is short for `joint = { qlim = [lower, upper] }`
+    limits, field = (JointLimits(qlim=entry), joint.name) if isinstance(entry, list) else \
+        (entry or JointLimits(), f"{joint.name}.qlim")
+    revolute = joint.type != "prismatic"
+    qlim = joint.qlim if limits.qlim is None else _limit_override(limits.qlim, field, scale, revolute, angle_unit,
+                                                                  source)
+    where = f"[limits] {joint.name}"
+    return Joint(name=joint.name, type="revolute" if revolute else "prismatic",
+                 a=0.0, d=0.0, alpha=0.0, offset=0.0, origin=joint.origin, axis=joint.axis, qlim=qlim,
+                 qdlim=_rate(limits.qdlim, "qdlim", where, scale, joint.qdlim, source),
+                 qddlim=_rate(limits.qddlim, "qddlim", where, scale, math.inf, source))
+
+
+def urdf_description(model: UrdfRobotFile, chain: UrdfChain, source: str, sha256: str,
+                     urdf_file: Path) -> RobotDescription:
+    """A URDF's chain with what its robot file adds (name, units, ``[limits]``, base, tool,
+    configurations, task rows), in SI and cross-checked. ``source`` names the robot file in
+    errors (the URDF itself for a URDF read alone); configurations ``qmid`` (the middle of the
+    limits) and ``qz`` (zeros, when inside the limits) come first."""
+    name = model.name or chain.robot_name
+    if not _ROBOT_NAME.fullmatch(name):
+        raise _fail(source, "file", f"robot name {excerpt(repr(name))} must be a letter then letters, digits, _ or - "
+                                    "(at most 64); set name = \"…\" in a robot file that references the URDF")
+    length, angle = LENGTH_UNITS[model.units.length], ANGLE_UNITS[model.units.angle]
+    names = [j.name for j in chain.joints]
+    unknown = set(model.limits) - set(names)
+    if unknown:
+        raise _fail(source, "[limits]", f"no joint named {', '.join(sorted(unknown))} on the chain "
+                                        f"(joints: {', '.join(names)})")
+    q_scales = np.array([length if j.type == "prismatic" else angle for j in chain.joints])
+    joints = tuple(_urdf_joint(j, model.limits.get(j.name), scale, model.units.angle, source)
+                   for j, scale in zip(chain.joints, q_scales))
+    qmin, qmax = np.array([j.qlim[0] for j in joints]), np.array([j.qlim[1] for j in joints])
+    configurations: dict[str, np.ndarray] = {"qmid": 0.5 * (qmin + qmax)}
+    if np.all((qmin <= 0.0) & (qmax >= 0.0)):
+        configurations["qz"] = np.zeros(len(joints))
+    configurations.update(_configurations(model.configurations, q_scales, source))
+    robot = RobotDescription(
+        name=name,
+        convention="urdf",
+        joints=joints,
+        base=_transform(model.base, "base", length, angle, source),
+        tool=chain.tip @ _transform(model.tool, "tool", length, angle, source),
+        configurations=configurations,
+        task_rows=tuple(sorted(TASK_ROWS.index(r) for r in model.task_rows)),
+        source=source,
+        sha256=sha256,
+        description=(f"URDF {urdf_file.name}: {chain.base_link} -> {chain.tip_link}" if model.description is None
+                     else model.description),
+        units={"length": model.units.length, "angle": model.units.angle},
+        urdf={"file": str(urdf_file), "base_link": chain.base_link, "tip_link": chain.tip_link,
+              "continuous": [j.name for j, joint in zip(chain.joints, joints)
+                             if j.type == "continuous" and joint.qlim == j.qlim]},
+    )
+    for cname, q in configurations.items():
+        robot.check_within_limits(q, f"{source}: [configurations] {cname}")
+    return robot
+
+
+# -- reading files ------------------------------------------------------------------------
+
+
+def _parse(data: bytes | str, source: str, sha256: str, directory: Path) -> RobotDescription:
+    """A robot file's bytes (or text) to its description; a URDF it references is read once."""
+    model = validate_robot_document(parse_toml_bounded(data, source, RobotFileError), source)
+    if isinstance(model, RobotFile):
+        return dh_description(model, source, sha256)
+    urdf_path = directory / model.urdf
+    if not urdf_path.is_file():
+        raise _fail(source, "urdf", f"URDF file {urdf_path} not found (the path is relative to the robot file)")
+    urdf_data = _read_bounded(urdf_path)
+    chain = parse_urdf(_decode(urdf_path, urdf_data), str(urdf_path), model.base_link, model.tip_link)
+    combined = hashlib.sha256((sha256 + hashlib.sha256(urdf_data).hexdigest()).encode()).hexdigest()
+    return urdf_description(model, chain, source, combined, urdf_path)
 
 
 def parse_description(text: str, source: str, sha256: str | None = None,
                       directory: Path | None = None) -> RobotDescription:
     """Parse robot TOML text. ``source`` names the file in error messages; ``directory``
     resolves a relative ``urdf`` reference (default: the current directory)."""
-    reader = _Reader(source)
-    doc = parse_toml_bounded(text, source, RobotFileError)
-    sha256 = sha256 or hashlib.sha256(text.encode()).hexdigest()
-    validate_robot_document(doc, source)
-    if "urdf" in doc:
-        return _parse_urdf_robot_file(reader, doc, sha256, directory or Path("."))
-    name = reader.string(doc, "name", "file")
-    description = reader.string(doc, "description", "file", default="-")
-    convention = reader.string(doc, "convention", "file", CONVENTIONS)
-    units = reader.table(doc, "units", "file")
-    unknown_units = set(units) - {"length", "angle"}
-    if unknown_units:
-        raise reader.fail("[units]", f"unknown field(s) {', '.join(sorted(unknown_units))}; allowed: length, angle")
-    length_unit = reader.string(units, "length", "[units]", tuple(LENGTH_UNITS), default="m")
-    angle_unit = reader.string(units, "angle", "[units]", tuple(ANGLE_UNITS), default="rad")
-    ls, as_ = LENGTH_UNITS[length_unit], ANGLE_UNITS[angle_unit]
-
-    raw_joints = doc.get("joints")
-    if not isinstance(raw_joints, list) or not raw_joints:
-        raise reader.fail("file", "missing or empty [[joints]] array; add one [[joints]] table per joint")
-    joints: list[Joint] = []
-    seen: set[str] = set()
-    for i, raw in enumerate(raw_joints):
-        label = f"joint {i + 1}"
-        if not isinstance(raw, dict):
-            raise reader.fail(label, "each [[joints]] entry must be a table")
-        jname = reader.string(raw, "name", label, default=f"j{i + 1}")
-        where = f"joint {i + 1} ('{jname}')"
-        unknown_j = set(raw) - _JOINT_FIELDS
-        if unknown_j:
-            raise reader.fail(where, f"unknown field(s) {', '.join(sorted(unknown_j))}; allowed: {', '.join(sorted(_JOINT_FIELDS))}")
-        if jname in seen:
-            raise reader.fail(where, f"duplicate joint name '{jname}'; joint names must be unique")
-        seen.add(jname)
-        jtype = reader.string(raw, "type", where, JOINT_TYPES)
-        q_scale = as_ if jtype == "revolute" else ls
-        if jtype == "revolute" and "theta" in raw:
-            raise reader.fail(where, "field 'theta' is only for prismatic joints (a revolute joint's angle is q + offset)")
-        qlim = reader.vector(raw, "qlim", where, 2)
-        lo, hi = qlim[0] * q_scale, qlim[1] * q_scale
-        if not lo < hi:
-            raise reader.fail(where, f"qlim = {qlim} is empty or reversed; write [lower, upper] with lower < upper")
-        if jtype == "revolute" and max(abs(lo), abs(hi)) > MAX_REVOLUTE_LIMIT_RAD:
-            raise reader.fail(where, f"qlim = {qlim} {angle_unit} {_beyond_turns(angle_unit)}")
-        q_is_angle = jtype == "revolute"
-        for key in ("a", "d", "alpha", "offset", "theta", "qlim"):
-            is_angle = key in ("alpha", "theta") or (key in ("offset", "qlim") and q_is_angle)
-            scale, bound, unit = (as_, MAX_ABS_ANGLE_RAD, "rad") if is_angle else (ls, MAX_ABS_LENGTH_M, "m")
-            values = raw.get(key, 0.0)
-            for value in values if isinstance(values, list) else [values]:
-                if abs(value * scale) > bound:
-                    raise reader.fail(where, f"field '{key}' = {value} is beyond ±{bound:g} {unit}; check the units "
-                                             "([units] length/angle) and the value")
-        joints.append(Joint(
-            name=jname,
-            type=jtype,
-            a=reader.number(raw, "a", where) * ls,
-            d=reader.number(raw, "d", where) * ls,
-            alpha=snap_quarter_turn(reader.number(raw, "alpha", where) * as_),
-            offset=(snap_quarter_turn if jtype == "revolute" else float)(
-                reader.number(raw, "offset", where, default=0.0) * q_scale),
-            qlim=(lo, hi),
-            theta=snap_quarter_turn(reader.number(raw, "theta", where, default=0.0) * as_),
-            qdlim=_rate(reader, raw, "qdlim", where, q_scale, math.inf),
-            qddlim=_rate(reader, raw, "qddlim", where, q_scale, math.inf),
-        ))
-
-    q_scales = np.array([as_ if j.revolute else ls for j in joints])
-    configurations: dict[str, np.ndarray] = {}
-    for cname, values in reader.table(doc, "configurations", "file").items():
-        vec = np.array(reader.vector({cname: values}, cname, "[configurations]", len(joints))) * q_scales
-        configurations[cname] = vec
-
-    task_rows = _task_rows(reader, doc)
-
-    robot = RobotDescription(
-        name=name,
-        convention=convention,
-        joints=tuple(joints),
-        base=_transform(reader, doc, "base", ls, as_),
-        tool=_transform(reader, doc, "tool", ls, as_),
-        configurations=configurations,
-        task_rows=task_rows,
-        source=source,
-        sha256=sha256,
-        description=description,
-        units={"length": length_unit, "angle": angle_unit},
-    )
-    for cname, vec in configurations.items():
-        robot.check_within_limits(vec, f"{source}: [configurations] {cname}")
-    return robot
+    return _parse(text, source, sha256 or hashlib.sha256(text.encode()).hexdigest(), directory or Path("."))
 
 
 def bundled_robots() -> list[str]:
@@ -320,7 +325,7 @@ def load_description(name_or_path: str | Path) -> RobotDescription:
     path = resolve_robot_path(name_or_path)
     data = _read_bounded(path)
     source = path.name if path.parent == BUNDLED_DIR else str(path)
-    return parse_description(_decode(path, data), source, hashlib.sha256(data).hexdigest(), path.parent)
+    return _parse(data, source, hashlib.sha256(data).hexdigest(), path.parent)
 
 
 def _read_bounded(path: Path) -> bytes:
@@ -358,105 +363,7 @@ def read_urdf(path: str | Path, base_link: str | None = None, tip_link: str | No
     """
     path = Path(path)
     data = _read_bounded(path)
-    return _urdf_robot(path, data, base_link, tip_link, hashlib.sha256(data).hexdigest())
-
-
-# -- URDF robots ------------------------------------------------------------------------
-
-# A robot name becomes the default C prefix and output directory: letters, digits, _ and -.
-_ROBOT_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
-
-
-def _urdf_robot(path: Path, data: bytes, base_link: str | None, tip_link: str | None, sha256: str,
-                reader: _Reader | None = None, doc: dict | None = None) -> RobotDescription:
-    """A description from URDF bytes; ``doc`` is the referencing robot file's table (None: URDF alone)."""
     chain = parse_urdf(_decode(path, data), str(path), base_link, tip_link)
-    doc = doc or {}
-    reader = reader or _Reader(str(path))
-    name = reader.string(doc, "name", "file", default=chain.robot_name)
-    if not _ROBOT_NAME.fullmatch(name):
-        raise reader.fail("file", f"robot name {excerpt(repr(name))} must be a letter then letters, digits, _ or - "
-                                  "(at most 64); set name = \"…\" in a robot file that references the URDF")
-    units = reader.table(doc, "units", "file")
-    unknown_units = set(units) - {"length", "angle"}
-    if unknown_units:
-        raise reader.fail("[units]", f"unknown field(s) {', '.join(sorted(unknown_units))}; allowed: length, angle")
-    length_unit = reader.string(units, "length", "[units]", tuple(LENGTH_UNITS), default="m")
-    angle_unit = reader.string(units, "angle", "[units]", tuple(ANGLE_UNITS), default="rad")
-    ls, as_ = LENGTH_UNITS[length_unit], ANGLE_UNITS[angle_unit]
-    q_scales = np.array([ls if j.type == "prismatic" else as_ for j in chain.joints])
-
-    limits = reader.table(doc, "limits", "file")
-    names = [j.name for j in chain.joints]
-    unknown_limits = set(limits) - set(names)
-    if unknown_limits:
-        raise reader.fail("[limits]", f"no joint named {', '.join(sorted(unknown_limits))} on the chain "
-                                      f"(joints: {', '.join(names)})")
-    joints = []
-    for j, scale in zip(chain.joints, q_scales):
-        # `joint = [lower, upper]` is short for `joint = { qlim = [lower, upper] }`
-        entry = limits.get(j.name, {})
-        entry, field = ({"qlim": entry}, j.name) if isinstance(entry, list) else (entry, f"{j.name}.qlim")
-        revolute = j.type != "prismatic"
-        joints.append(Joint(name=j.name, type="revolute" if revolute else "prismatic",
-                            a=0.0, d=0.0, alpha=0.0, offset=0.0, origin=j.origin, axis=j.axis,
-                            qlim=_limit_override(reader, entry, field, scale, revolute, angle_unit) or j.qlim,
-                            qdlim=_rate(reader, entry, "qdlim", f"[limits] {j.name}", scale, j.qdlim),
-                            qddlim=_rate(reader, entry, "qddlim", f"[limits] {j.name}", scale, math.inf)))
-
-    qmin, qmax = np.array([j.qlim[0] for j in joints]), np.array([j.qlim[1] for j in joints])
-    configurations: dict[str, np.ndarray] = {"qmid": 0.5 * (qmin + qmax)}
-    if np.all((qmin <= 0.0) & (qmax >= 0.0)):
-        configurations["qz"] = np.zeros(len(joints))
-    for cname, values in reader.table(doc, "configurations", "file").items():
-        configurations[cname] = np.array(reader.vector({cname: values}, cname, "[configurations]", len(joints))) * q_scales
-
-    robot = RobotDescription(
-        name=name,
-        convention="urdf",
-        joints=tuple(joints),
-        base=_transform(reader, doc, "base", ls, as_),
-        tool=chain.tip @ _transform(reader, doc, "tool", ls, as_),
-        configurations=configurations,
-        task_rows=_task_rows(reader, doc),
-        source=reader.source,
-        sha256=sha256,
-        description=reader.string(doc, "description", "file", default=f"URDF {path.name}: {chain.base_link} -> {chain.tip_link}"),
-        units={"length": length_unit, "angle": angle_unit},
-        urdf={"file": str(path), "base_link": chain.base_link, "tip_link": chain.tip_link,
-              "continuous": [j.name for j, joint in zip(chain.joints, joints)
-                             if j.type == "continuous" and joint.qlim == j.qlim]},
-    )
-    for cname, vec in configurations.items():
-        robot.check_within_limits(vec, f"{reader.source}: [configurations] {cname}")
-    return robot
-
-
-def _limit_override(reader: _Reader, entry: dict, field: str, scale: float, revolute: bool,
-                    angle_unit: str) -> tuple[float, float] | None:
-    """A robot file's position limits of a URDF joint (SI), or None where it keeps the URDF's."""
-    if "qlim" not in entry:
-        return None
-    lo, hi = (v * scale for v in reader.vector(entry, "qlim", "[limits]", 2))
-    if not lo < hi:
-        raise reader.fail("[limits]", f"{field} = {entry['qlim']} is empty or reversed; write [lower, upper]")
-    if revolute and max(abs(lo), abs(hi)) > MAX_REVOLUTE_LIMIT_RAD:
-        raise reader.fail("[limits]", f"{field} = {entry['qlim']} {angle_unit} {_beyond_turns(angle_unit)}")
-    if not revolute and max(abs(lo), abs(hi)) > MAX_ABS_LENGTH_M:
-        raise reader.fail("[limits]", f"{field} = {entry['qlim']} is beyond ±{MAX_ABS_LENGTH_M:g} m; check [units] "
-                                      "length and the values")
-    return (lo, hi)
-
-
-def _parse_urdf_robot_file(reader: _Reader, doc: dict, sha256: str, directory: Path) -> RobotDescription:
-    """A robot file that references a URDF (validated as :class:`UrdfRobotFile`): ``urdf``,
-    ``base_link``, ``tip_link`` plus the usual name, units, base, tool, configurations,
-    task_rows and a ``[limits]`` table."""
-    urdf_path = directory / reader.string(doc, "urdf", "file")
-    if not urdf_path.is_file():
-        raise reader.fail("urdf", f"URDF file {urdf_path} not found (the path is relative to the robot file)")
-    data = _read_bounded(urdf_path)
-    base_link = reader.string(doc, "base_link", "file") if "base_link" in doc else None
-    tip_link = reader.string(doc, "tip_link", "file") if "tip_link" in doc else None
-    combined = hashlib.sha256((sha256 + hashlib.sha256(data).hexdigest()).encode()).hexdigest()
-    return _urdf_robot(urdf_path, data, base_link, tip_link, combined, reader, doc)
+    # a URDF read alone is a robot file that only names it
+    alone = UrdfRobotFile.model_construct(urdf=str(path), base_link=base_link, tip_link=tip_link)
+    return urdf_description(alone, chain, str(path), hashlib.sha256(data).hexdigest(), path)

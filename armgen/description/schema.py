@@ -1,14 +1,19 @@
-"""The robot file's schema (pydantic): keys, types, finiteness, sizes and name rules, in the
-file's own units. :func:`armgen.description.files.parse_description` validates a file with it before converting
-to SI; ``armgen schema robot`` prints it as JSON Schema for editors."""
+"""The robot file's schema (pydantic), the parser of robot files: keys, types, finiteness,
+sizes, defaults, name rules and the rules across fields that need no units (unique joint
+names, ``theta`` on prismatic joints only, distinct task rows), in the file's own units.
+:mod:`armgen.description.files` validates a file into these models, then one function per
+file kind converts the model to SI and cross-checks what needs the units or the URDF's chain;
+``armgen schema robot`` prints the schema as JSON Schema for editors."""
 
 from __future__ import annotations
 
 from typing import Annotated, Literal, Optional, Union
 
-from pydantic import Discriminator, Field, StringConstraints, Tag
+from pydantic import Discriminator, Field, StringConstraints, Tag, model_validator
 
-from ..schemas import IDENTIFIER_PATTERN, StrictModel
+from ..errors import excerpt
+from ..schemas import IDENTIFIER_PATTERN, StrictModel, rule_error
+from .model import TASK_ROWS
 
 # Degrees of freedom a robot file may declare: the bundled snake has 25; the generated C
 # stores n×n matrices on the stack of a microcontroller, so 64 is far beyond any use.
@@ -43,6 +48,12 @@ class JointEntry(StrictModel):
     qddlim: Optional[Annotated[Number, Field(gt=0)]] = Field(
         None, description="acceleration limit (angle or length unit per s^2); absent = unlimited")
 
+    @model_validator(mode="after")
+    def _theta_of_prismatic_only(self) -> JointEntry:
+        if self.type == "revolute" and "theta" in self.model_fields_set:
+            raise rule_error("field 'theta' is only for prismatic joints (a revolute joint's angle is q + offset)")
+        return self
+
 
 class Transform(StrictModel):
     xyz: Vector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
@@ -52,14 +63,21 @@ class Transform(StrictModel):
 class _RobotFileCommon(StrictModel):
     """The fields every robot file has, whatever describes its chain."""
 
-    description: Annotated[str, StringConstraints(max_length=MAX_DESCRIPTION_CHARS)] = "-"
+    description: Annotated[str, StringConstraints(min_length=1, max_length=MAX_DESCRIPTION_CHARS)] = "-"
     units: Units = Field(default_factory=Units)
     base: Transform = Field(default_factory=Transform)
     tool: Transform = Field(default_factory=Transform)
     configurations: Annotated[dict[Identifier, list[Number]], Field(max_length=MAX_CONFIGURATIONS)] = Field(
         default_factory=dict)
-    task_rows: Annotated[list[TaskRow], Field(min_length=1, max_length=6)] = Field(
-        default_factory=lambda: ["vx", "vy", "vz", "wx", "wy", "wz"])
+    task_rows: Annotated[list[TaskRow], Field(min_length=1, max_length=6, json_schema_extra={"uniqueItems": True})] = \
+        Field(default_factory=lambda: list(TASK_ROWS))
+
+    @model_validator(mode="after")
+    def _distinct_task_rows(self) -> _RobotFileCommon:
+        if len(set(self.task_rows)) != len(self.task_rows):
+            raise rule_error(f"task_rows = {excerpt(repr(self.task_rows))} must be a non-empty list of distinct names "
+                             f"from {', '.join(TASK_ROWS)}")
+        return self
 
 
 class RobotFile(_RobotFileCommon):
@@ -68,6 +86,20 @@ class RobotFile(_RobotFileCommon):
     name: Identifier
     convention: Literal["standard", "modified"]
     joints: Annotated[list[JointEntry], Field(min_length=1, max_length=MAX_DOF)]
+
+    @property
+    def joint_names(self) -> list[str]:
+        """Each joint's name, ``j<i>`` (from 1) where the file gives none."""
+        return [joint.name or f"j{i + 1}" for i, joint in enumerate(self.joints)]
+
+    @model_validator(mode="after")
+    def _unique_joint_names(self) -> RobotFile:
+        seen: set[str] = set()
+        for i, name in enumerate(self.joint_names):
+            if name in seen:
+                raise rule_error(f"duplicate joint name '{name}'; joint names must be unique", at=("joints", i))
+            seen.add(name)
+        return self
 
 
 Limits = Annotated[list[Number], Field(min_length=2, max_length=2, description="[lower, upper]")]
@@ -100,6 +132,8 @@ class UrdfRobotFile(_RobotFileCommon):
     urdf: Annotated[str, StringConstraints(min_length=1, max_length=4096)] = Field(
         description="path of the URDF file, relative to this robot file")
     name: Optional[Identifier] = Field(None, description="robot name (default: the URDF's robot name)")
+    description: Optional[Annotated[str, StringConstraints(min_length=1, max_length=MAX_DESCRIPTION_CHARS)]] = Field(
+        None, description="one line of text (default: 'URDF <file>: <base_link> -> <tip_link>')")
     base_link: Optional[Annotated[str, StringConstraints(min_length=1, max_length=256)]] = None
     tip_link: Optional[Annotated[str, StringConstraints(min_length=1, max_length=256)]] = None
     limits: Annotated[dict[str, LimitsEntry],
