@@ -29,6 +29,7 @@ import casadi as ca
 import sympy
 
 from .._version import __version__
+from ..data import render_template
 from ..errors import OptionError, excerpt
 from ..fileio import write_file_set
 from ..robot import Robot, load_robot_any
@@ -38,7 +39,7 @@ from ..symbolic import ik
 from ..symbolic.loops import find_loop
 from .c_emitter import (MATH_MACROS, EmittedFunction, carried_entries, describe_counts, emit_body, emit_loop,
                         read_entries)
-from .stamp import c_preamble, comment_safe
+from .stamp import c_file, c_preamble, comment_safe
 
 PRECISIONS = ("double", "float")
 # Identifiers a prefix must not be (or, for the generated <prefix>_<name> and <PREFIX>_…
@@ -99,30 +100,32 @@ def _arg_decl(func: ca.Function, k: int, is_input: bool, model: SymbolicModel, p
     name = func.name_in(k) if is_input else func.name_out(k)
     numel = sp.numel()
     if numel == 1:
-        return (f"{p}_real {name}" if is_input else f"{p}_real *{name}"), True
+        template = "codegen/input_scalar.c" if is_input else "codegen/output_scalar.c"
+        return render_template(template, p=p, name=name), True
     if name == "xdot":
         size = f"{p.upper()}_NTASK"
     elif sp.size2() == 1 and numel == model.n:
         size = f"{p.upper()}_NDOF"
     else:
         size = str(numel)
-    return (f"const {p}_real {name}[{size}]" if is_input else f"{p}_real {name}[{size}]"), False
+    template = "codegen/input_array.c" if is_input else "codegen/output_array.c"
+    return render_template(template, p=p, name=name, size=size), False
 
 
 def _size_macros(func: ca.Function, P: str) -> list[str]:
-    lines = []
+    """<P>_<FUNCTION>_<ARGUMENT>_ROWS and _COLS of each matrix argument, inputs first."""
+    blocks = []
     for is_input in (True, False):
         for k in range(func.n_in() if is_input else func.n_out()):
             sp = func.sparsity_in(k) if is_input else func.sparsity_out(k)
             name = (func.name_in(k) if is_input else func.name_out(k)).upper()
             if sp.numel() > 1:
-                base = f"{P}_{func.name().upper()}_{name}"
-                lines.append(f"#define {base}_ROWS {sp.size1()}")
-                lines.append(f"#define {base}_COLS {sp.size2()}")
-    return lines
+                blocks.append(render_template("codegen/size_macros.h", P=P, function=func.name().upper(), argument=name,
+                                              rows=sp.size1(), cols=sp.size2()))
+    return blocks
 
 
-def _finite_probe(values: list[str], p: str, P: str, loops: bool = False) -> list[str]:
+def _finite_probe(values: list[str], p: str, P: str, loops: bool = False) -> str:
     """Statements folding each value into ``probe``: x * 0 is ±0 for a finite x and NaN for
     NaN/inf, and a NaN survives the sum, so ``probe == probe`` is 1 iff every value is finite.
     Straight-line by default (a load and a multiply-add per value on a Cortex-M4, no loop or
@@ -131,7 +134,7 @@ def _finite_probe(values: list[str], p: str, P: str, loops: bool = False) -> lis
     not call (they take the *_from_jacobian twins), where the flash counts and a few
     instructions do not. The IK's stays straight-line: a loop cost ~50 M4 instructions a solve,
     which took iiwa14's 1 ms budget from 68 steps to 67."""
-    body, k = [], 0
+    body, k, looped = [], 0, False
     while k < len(values):
         match = re.fullmatch(r"(\w+)\[0\]", values[k]) if loops else None
         n = 1
@@ -139,13 +142,14 @@ def _finite_probe(values: list[str], p: str, P: str, loops: bool = False) -> lis
             while k + n < len(values) and values[k + n] == f"{match.group(1)}[{n}]":
                 n += 1
         if n >= PROBE_LOOP_MIN:
-            body.append(f"  for (entry = 0; entry < {n}; ++entry) {{ probe = probe + ({match.group(1)}[entry] * {P}_LIT(0.0)); }}")
+            body.append(render_template("codegen/probe_array.c", P=P, count=n, array=match.group(1)))
+            looped = True
             k += n
         else:
-            body.append(f"  probe = probe + ({values[k]} * {P}_LIT(0.0));")
+            body.append(render_template("codegen/probe_value.c", P=P, value=values[k]))
             k += 1
-    looped = any(line.startswith("  for (entry") for line in body)
-    return [*(["  int entry;"] if looped else []), f"  {p}_real probe = {P}_LIT(0.0);", *body]
+    start = render_template("codegen/probe_start_looped.c" if looped else "codegen/probe_start.c", p=p, P=P)
+    return "\n".join([start, *body])
 
 
 # The shortest array a looped probe scans by a loop (-Os: a loop of 4 is as long as 4 loads
@@ -179,7 +183,7 @@ def _status_check(func: ca.Function, arg_names: list[str], arg_scalar: list[bool
         else:
             values += [f"{name}[{e}]" for e in scanned]
     values += _values(res_names, res_scalar, [func.sparsity_out(k).numel() for k in range(func.n_out())], "*")
-    return "\n".join(["  {", *_finite_probe(values, p, P), f"  return (probe == probe) ? {P}_OK : {P}_NONFINITE;", "  }"])
+    return render_template("codegen/status_check.c", P=P, probe=_finite_probe(values, p, P))
 
 
 # The ik's cap on its steps inside its body: max_iterations, or 0 (no step) for a target that is
@@ -204,14 +208,7 @@ def _ik_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], re
     values = _values(probed, [s for k, s in enumerate(arg_scalar) if k != target],
                      [func.sparsity_in(k).numel() for k in range(func.n_in()) if k != target], "")
     values += _values(res_names, res_scalar, [func.sparsity_out(k).numel() for k in range(func.n_out())], "*")
-    em.body = "\n".join([
-        "  /* a target that is not a pose takes no step (the loop stops before its first) */",
-        "  const int pose = " + f"{p}_is_pose(T_target);",
-        f"  const {p}_real {IK_CAP} = (pose != 0) ? max_iterations : {P}_LIT(0.0);",
-        em.body,
-        f"  if (pose == 0) {{ return {P}_BAD_TARGET; }}",
-        "  {", *_finite_probe(values, p, P), f"  if (probe != probe) {{ return {P}_NONFINITE; }}", "  }",
-        f"  return (*success != {P}_LIT(0.0)) ? {P}_OK : {P}_NOT_CONVERGED;"])
+    em.body = render_template("codegen/ik_body.c", p=p, P=P, cap=IK_CAP, body=em.body, probe=_finite_probe(values, p, P))
     return em
 
 
@@ -219,15 +216,11 @@ def _through_jacobian_body(func: ca.Function, twin: ca.Function, n: int, p: str,
     """The body of a function of J: J = <p>_jacobian(q), then the twin (same operations as the
     function's SX, which is the twin applied to jacobian(q)). A step's status also covers q: a
     non-finite q need not reach J (a prismatic joint's value only moves points)."""
-    call = f"{p}_{twin.name()}({', '.join(twin.name_in() + twin.name_out())})"
-    lines = [f"  {p}_real J[6 * {P}_NDOF];"]
+    values = {"p": p, "P": P, "twin": twin.name(), "arguments": ", ".join(twin.name_in() + twin.name_out())}
     if func.name() in STEP_FUNCTIONS:
-        lines += [f"  {p}_status status;", f"  {p}_jacobian(q, J);", f"  status = {call};", "  {",
-                  *_finite_probe([f"q[{k}]" for k in range(n)], p, P, loops=True),
-                  f"  return (probe == probe) ? status : {P}_NONFINITE;", "  }"]
-    else:
-        lines += [f"  {p}_jacobian(q, J);", f"  {call};"]
-    return "\n".join(lines)
+        probe = _finite_probe([f"q[{k}]" for k in range(n)], p, P, loops=True)
+        return render_template("codegen/through_jacobian_step.c", **values, probe=probe)
+    return render_template("codegen/through_jacobian.c", **values)
 
 
 def generate(config: CodegenConfig) -> GeneratedCode:
@@ -246,45 +239,47 @@ def generate(config: CodegenConfig) -> GeneratedCode:
         in_decls = [_arg_decl(func, k, True, model, p) for k in range(func.n_in())]
         out_decls = [_arg_decl(func, k, False, model, p) for k in range(func.n_out())]
         returns_status = name in STEP_FUNCTIONS or name in IK_FUNCTIONS
-        ret = f"{p}_status" if returns_status else "void"
-        signature = f"{ret} {p}_{name}({', '.join(d for d, _ in in_decls + out_decls)})"
+        signature = render_template("codegen/signature.c", returns=f"{p}_status" if returns_status else "void", p=p,
+                                    function=name, parameters=", ".join(d for d, _ in in_decls + out_decls))
         if name in JACOBIAN_FUNCTIONS:
             twin = next(em for em in emitted if em.name == name + FROM_JACOBIAN)
             kinematics = next(em for em in emitted if em.name == "jacobian")
             em = EmittedFunction(name, _through_jacobian_body(func, functions[name + FROM_JACOBIAN], model.n, p, P),
                                  kinematics.op_counts + twin.op_counts, twin.work_reals + 6 * model.n)
-            calls = f"calls {p}_jacobian and {p}_{twin.name}"
+            through = twin.name  # the twin it calls after <p>_jacobian
         elif name in IK_FUNCTIONS:
             em = _ik_body(func, arg_names, [s for _, s in in_decls], res_names, [s for _, s in out_decls], p, P)
-            calls = ""
+            through = ""
         else:
             em = emit_body(func, arg_names, [s for _, s in in_decls], res_names, [s for _, s in out_decls], P,
                            trig_table=True)
-            calls = ""
+            through = ""
             if returns_status:
                 em.body += "\n" + _status_check(func, arg_names, [s for _, s in in_decls], res_names,
                                                  [s for _, s in out_decls], p, P)
         emitted.append(em)
-        doc = (f"/* {name}: {DESCRIPTIONS[name]}.\n"
-               f" * ops: {describe_counts(em.op_counts)}{' (' + calls + ')' if calls else ''}; "
-               f"work: {em.work_reals} reals. */")
-        protos.append("\n".join([doc, *_size_macros(func, P), f"#define {P}_{name.upper()}_WORK_REALS {em.work_reals}",
-                                 signature + ";"]))
-        definitions.append(f"/* {name}: {describe_counts(em.op_counts)}{'; ' + calls if calls else ''} */\n"
-                           f"{signature} {{\n{em.body}\n}}\n")
+        ops = describe_counts(em.op_counts)
+        if through:
+            doc = render_template("codegen/prototype_doc_through_jacobian.h", p=p, function=name, twin=through,
+                                  description=DESCRIPTIONS[name], ops=ops, work_reals=em.work_reals)
+            definition = render_template("codegen/definition_through_jacobian.c", p=p, function=name, twin=through,
+                                         ops=ops, signature=signature, body=em.body)
+        else:
+            doc = render_template("codegen/prototype_doc.h", function=name, description=DESCRIPTIONS[name], ops=ops,
+                                  work_reals=em.work_reals)
+            definition = render_template("codegen/definition.c", function=name, ops=ops, signature=signature,
+                                         body=em.body)
+        protos.append("\n".join([doc, *_size_macros(func, P), render_template(
+            "codegen/prototype.h", P=P, FUNCTION=name.upper(), work_reals=em.work_reals, signature=signature)]))
+        definitions.append(definition)
     for loop_name in sorted({name for em in emitted for name in em.loops}):
         prototype, definition = emit_loop(find_loop(loop_name), P)
-        protos.append(f"/* {loop_name}: a fixed-count loop the functions above call (not for direct use). */\n"
-                      f"{prototype}")
-        definitions.append(definition)
+        protos.append(render_template("codegen/loop_prototype.h", loop=loop_name, prototype=prototype))
+        definitions.append(definition.removesuffix("\n"))
     robot = config.robot
     preamble = c_preamble(robot.source, robot.sha256,
-                          f"armgen kinematics of robot '{comment_safe(robot.name)}' ({robot.n} DOF)")
-    source = (f"{preamble}\n#include \"{p}.h\"\n\n#include <math.h>\n\n"
-              "/* Every function below is straight-line code from the SX algorithm (fixed-count loops\n"
-              " * are kept once, as for loops, at the end); w<k> are the algorithm's work registers.\n"
-              " * Literals and math calls go through the precision macros. */\n\n"
-              + "\n".join(definitions))
+                          render_template("codegen/robot_title.txt", robot=comment_safe(robot.name), dof=robot.n))
+    source = c_file(preamble, render_template("codegen/robot.c", p=p, definitions="\n\n".join(definitions)))
     math = [m for m in MATH_MACROS if m in HEADER_MATH_MACROS or f"{P}_{m}(" in source]
     header = _render_header(config, model, protos, preamble, math)
     files = {f"{p}.h": header, f"{p}.c": source}
@@ -321,127 +316,27 @@ def _lean_math(p: str, P: str, math: list[str]) -> str:
     (when the source calls floor) by a conversion to an integer, exact (the call and its spills
     cost more than the arithmetic on a Cortex-M4F); the optional branch-free bounded-range
     sin/cos, and the sin/cos table the kinematics fill first. Everything else goes to libm."""
-    floor = "" if "FLOOR" not in math else f"""#if {P}_USE_FLOAT
-/* floor(x) by a conversion to an integer (exact: |x| >= 2^23 is already integral, and NaN,
- * inf and -0 are their own floor): no library call, whose spills cost more on a Cortex-M4F. */
-static inline float {p}_floorf(float x) {{
-  float r = x;
-  if ((fabsf(x) < 8388608.0f) && (x != 0.0f)) {{
-    const float t = (float)(long)x;
-    if (t > x) {{
-      r = t - 1.0f;
-    }} else {{
-      r = t;
-    }}
-  }}
-  return r;
-}}
-#endif
-"""
-    return f"""/* Lean math (no library calls where the FPU or a comparison does the job). */
-static inline {p}_real {p}_fmin({p}_real a, {p}_real b) {{ return ((a < b) || (b != b)) ? a : b; }}
-static inline {p}_real {p}_fmax({p}_real a, {p}_real b) {{ return ((a > b) || (b != b)) ? a : b; }}
-static inline {p}_real {p}_sqrt({p}_real x) {{
-#if {P}_USE_FLOAT && defined(__GNUC__) && defined(__ARM_FP) && ((__ARM_FP & 4) != 0)
-  {p}_real r;
-  __asm__("vsqrt.f32 %0, %1" : "=t"(r) : "t"(x));
-  return r;
-#elif {P}_USE_FLOAT
-  return sqrtf(x);
-#else
-  return sqrt(x);
-#endif
-}}
-{floor}#if defined(__GNUC__)
-#define {P}_TRIG_INLINE static inline __attribute__((always_inline))
-#else
-#define {P}_TRIG_INLINE static inline
-#endif
-#if {P}_USE_FLOAT && {P}_BOUNDED_TRIG
-/* sin and cos of x without a branch, always inlined (gcc/clang) into the sin/cos table loop,
- * also at -Os: x = k pi/2 + r,
- * |r| <= pi/4, the polynomials of r, then the rotation by j pi/2 (j = k mod 4 in -2..2) as
- * exact factors a = cos(j pi/2), b = sin(j pi/2) in {{-1, 0, 1}}, so that a loop over angles
- * runs four lanes wide where the compiler vectorises (x86 SSE). |x| beyond {BOUNDED_TRIG_RANGE} rad is
- * outside the documented range; NaN/inf give NaN. */
-{P}_TRIG_INLINE void {p}_sincos_bounded(float x, float *s, float *c) {{
-  const float shifter = 12582912.0f; /* 1.5 * 2^23: adding it rounds to an integer */
-  float k = (x * 0.636619772367581343f + shifter) - shifter;
-  float r = ((x - k * 1.5703125f) - k * 4.837512969970703125e-4f) - k * 7.54978995489188216e-8f;
-  float z = r * r;
-  float sp = r + r * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
-  float cp = 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
-  float j = k - 4.0f * ((k * 0.25f + shifter) - shifter);
-  float aj = fabsf(j);
-  float odd = aj * (2.0f - aj);                         /* 1 for j = +-1, else 0 */
-  float a = (1.0f - odd) * (1.0f - aj * (aj - 1.0f));   /* 1, 0, -1 for |j| = 0, 1, 2 */
-  float b = j * odd;
-  *s = a * sp + b * cp;
-  *c = a * cp - b * sp;
-}}
-/* A sin or cos outside the table (a solver's computed angle, the IK's seed and restarts): both
- * through one body, which -Os keeps out of line (inlined, each of the IK's took ~170 B of flash,
- * and separate sin and cos bodies ~240 B each). */
-static inline float {p}_sincos_pick(float x, int want_cos) {{
-  float s, c;
-  {p}_sincos_bounded(x, &s, &c);
-  return (want_cos != 0) ? c : s;
-}}
-static inline float {p}_sin_bounded(float x) {{ return {p}_sincos_pick(x, 0); }}
-static inline float {p}_cos_bounded(float x) {{ return {p}_sincos_pick(x, 1); }}
-/* atan2(y, x) without a library call (newlib's atan2f costs a call and its branches in a step
- * with a time budget, the IK's; the compiler's choice to inline or call: a call at -Os, ~10
- * instructions against ~120 B of flash per inlined copy): t = min(|x|, |y|)/max(|x|, |y|) in [0, 1], reduced above
- * tan(pi/8) by u = (t - 1)/(t + 1) (+ pi/4), Cephes' atanf polynomial of u, then the octant
- * and the quadrant by selects. Error <= {BOUNDED_ATAN2_ULP} ulp (tested); atan2(+-0, +-0) is 0 (libm: +-0
- * or +-pi); NaN or inf in give NaN. */
-static inline float {p}_atan2_bounded(float y, float x) {{
-  float ax = fabsf(x), ay = fabsf(y);
-  float hi = (ay > ax) ? ay : ax;
-  float lo = (ay > ax) ? ax : ay;
-  float t = lo / ((hi > 0.0f) ? hi : 1.0f);
-  float u = (t > 0.41421356237f) ? ((t - 1.0f) / (t + 1.0f)) : t;
-  float z = u * u;
-  float r = ((((8.05374449538e-2f * z) - 1.38776856032e-1f) * z + 1.99777106478e-1f) * z - 3.33329491539e-1f) * z * u + u;
-  r = (t > 0.41421356237f) ? (r + 0.785398163397f) : r;
-  r = (ay > ax) ? (1.57079632679f - r) : r;
-  r = (x < 0.0f) ? (3.14159265359f - r) : r;
-  r = (y < 0.0f) ? (-r) : r;
-  return r + 0.0f * (x + y); /* x + y is NaN or inf for a NaN or inf input: the product NaN */
-}}
-#endif
-/* The sin and cos of a function's n angles, in one loop before its straight-line code (the
- * generated kinematics call it): branch-free bodies, so the loop vectorises where it can. */
-{P}_TRIG_INLINE void {p}_sincos_table(const {p}_real *angle, {p}_real *s, {p}_real *c, int n) {{
-  int i;
-  for (i = 0; i < n; ++i) {{
-#if {P}_USE_FLOAT && {P}_BOUNDED_TRIG
-    {p}_sincos_bounded(angle[i], &s[i], &c[i]);
-#else
-    s[i] = {P}_SIN(angle[i]);
-    c[i] = {P}_COS(angle[i]);
-#endif
-  }}
-}}
-
-"""
-
+    blocks = [render_template("codegen/lean_math.h", p=p, P=P)]
+    if "FLOOR" in math:
+        blocks.append(render_template("codegen/floorf.h", p=p, P=P))
+    blocks.append(render_template("codegen/trig.h", p=p, P=P, trig_range=BOUNDED_TRIG_RANGE, atan2_ulp=BOUNDED_ATAN2_ULP))
+    return "\n".join(blocks)
 
 def _speed_limit_macros(robot, P: str) -> str:
     """``<P>_QDLIM`` / ``<P>_QDDLIM``: the joints' speed limits (SI: rad/s or m/s, per s²) as array
     initialisers, ``static const {p}_real qdlim[{P}_NDOF] = {P}_QDLIM;``. A limit the robot file
     does not give for every joint is left out (a comment says so) rather than stood in for by a
     number the drive does not have."""
-    lines = []
-    for name, values, what in (("QDLIM", robot.qdlim, "velocity"), ("QDDLIM", robot.qddlim, "acceleration")):
+    blocks = []
+    for macro, values, quantity, per in (("QDLIM", robot.qdlim, "velocity", "s"),
+                                         ("QDDLIM", robot.qddlim, "acceleration", "s^2")):
         if all(math.isfinite(v) for v in values):
-            items = ", ".join(f"{P}_LIT({float(v)!r})" for v in values)
-            lines.append(f"/* joint {what} limits, rad or m per s{'^2' if name == 'QDDLIM' else ''} */\n"
-                         f"#define {P}_{name} {{ {items} }}")
+            limits = ", ".join(render_template("codegen/literal.c", P=P, value=repr(float(v))) for v in values)
+            blocks.append(render_template("codegen/speed_limits.h", P=P, macro=macro, quantity=quantity, per=per,
+                                          limits=limits))
         else:
-            lines.append(f"/* no {P}_{name}: the robot file gives no joint {what} limit for every joint */")
-    return "\n".join(lines)
-
+            blocks.append(render_template("codegen/no_speed_limits.h", P=P, macro=macro, quantity=quantity))
+    return "\n".join(blocks)
 
 # The math macros every header defines: sin and cos (the header's own sin/cos table) and what
 # the firmware stub reads through them (ctrl_robot.h: SIN, COS, SQRT, FABS). Any other is
@@ -453,121 +348,32 @@ def _pose_check(p: str, P: str) -> str:
     """``<p>_is_pose`` and its tolerance ``<P>_POSE_TOL`` (armgen.symbolic.ik.POSE_TOL, the
     float build's FLOAT_POSE_TOL): the target check of ``<p>_ik``, the same conditions as the
     Python side's ``ik.check_targets``."""
-    return f"""
-/* A pose for {p}_ik: T (4x4, column-major) with a finite position, last row 0 0 0 1 and a
- * rotation as its 3x3 part (R^T R = I, det R > 0), each entry of T(3, :) - [0 0 0 1] and of
- * R^T R - I within {P}_POSE_TOL: the default orientation tolerance in double; in float a
- * product of rotations already carries a few 1e-7 of rounding, hence the float IK tolerance.
- * 1 for a pose, 0 otherwise (NaN/inf fail every comparison). */
-#if {P}_USE_FLOAT
-#define {P}_POSE_TOL {P}_LIT({ik.FLOAT_POSE_TOL!r})
-#else
-#define {P}_POSE_TOL {P}_LIT({ik.POSE_TOL!r})
-#endif
-static inline int {p}_is_pose(const {p}_real T[16]) {{
-  const {p}_real det = ((T[0] * ((T[5] * T[10]) - (T[6] * T[9]))) - (T[4] * ((T[1] * T[10]) - (T[2] * T[9])))) +
-                       (T[8] * ((T[1] * T[6]) - (T[2] * T[5])));
-  int pose = 1;
-  int a;
-  int b;
-  if (!((det > {P}_LIT(0.0)) && ({P}_FABS(T[15] - {P}_LIT(1.0)) <= {P}_POSE_TOL))) {{ pose = 0; }}
-  for (a = 0; a < 3; ++a) {{
-    if (!(({P}_FABS(T[3 + (4 * a)]) <= {P}_POSE_TOL) && ((T[12 + a] * {P}_LIT(0.0)) == {P}_LIT(0.0)))) {{ pose = 0; }}
-    for (b = a; b < 3; ++b) {{
-      const {p}_real gram = (T[4 * a] * T[4 * b]) + (T[1 + (4 * a)] * T[1 + (4 * b)]) + (T[2 + (4 * a)] * T[2 + (4 * b)]);
-      const {p}_real unit = (a == b) ? {P}_LIT(1.0) : {P}_LIT(0.0);
-      if (!({P}_FABS(gram - unit) <= {P}_POSE_TOL)) {{ pose = 0; }}
-    }}
-  }}
-  return pose;
-}}
-"""
-
+    return render_template("codegen/pose_check.h", p=p, P=P, pose_tolerance=repr(ik.POSE_TOL),
+                           float_pose_tolerance=repr(ik.FLOAT_POSE_TOL))
 
 def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str], preamble: str,
                    math: list[str]) -> str:
     p, P = config.prefix, config.prefix.upper()
-    guard = f"{P}_H"
-    float_default = 1 if config.precision == "float" else 0
     lean = {"FMIN": f"{p}_fmin", "FMAX": f"{p}_fmax", "SQRT": f"{p}_sqrt"}
     lean_float = lean | {"FLOOR": f"{p}_floorf"}
-    macros_f = "\n".join(f"#define {P}_{m} {lean_float.get(m, m.lower() + 'f')}" for m in math
-                         if m not in ("SIN", "COS", "ATAN2"))
-    atan2_bounded, atan2_libm = (f"\n#define {P}_ATAN2 {p}_atan2_bounded", f"\n#define {P}_ATAN2 atan2f") \
-        if "ATAN2" in math else ("", "")
-    macros_d = "\n".join(f"#define {P}_{m} {lean.get(m, m.lower())}" for m in math)
-    return f"""{preamble}
-#ifndef {guard}
-#define {guard}
+    trig = ["SIN", "COS", *(["ATAN2"] if "ATAN2" in math else [])]
 
-#ifdef __cplusplus
-extern "C" {{
-#endif
+    def macros(functions: dict[str, str]) -> str:
+        return "\n".join(render_template("codegen/math_macro.h", P=P, macro=m, function=f) for m, f in functions.items())
 
-#define {P}_NDOF {model.n}  /* joints */
-#define {P}_NTASK {model.m}  /* task-space rows used by criteria and steps */
-#define {P}_ROBOT_SHA256 "{config.robot.sha256}"
-
-/* The status probes (x * 0 is NaN only for NaN/inf), fmin/fmax and the Sturm counts rely on
- * IEEE 754 arithmetic, which -ffast-math / -ffinite-math-only give up. */
-#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && (__FINITE_MATH_ONLY__ != 0))
-#error "{p}.h needs IEEE 754 semantics: compile without -ffast-math and -ffinite-math-only"
-#endif
-
-/* The one precision switch: {P}_USE_FLOAT 1 is true single precision (sinf, f literals,
- * no promotion); 0 is double. The generator's default is below; -D{P}_USE_FLOAT=… overrides. */
-#ifndef {P}_USE_FLOAT
-#define {P}_USE_FLOAT {float_default}
-#endif
-/* {P}_BOUNDED_TRIG 1 (float only): sin/cos by the generated bounded-range polynomials
- * ({p}_sin_bounded/{p}_cos_bounded below: error <= {BOUNDED_TRIG_ULP} ulp for |x| <= {BOUNDED_TRIG_RANGE} rad,
- * tested; NaN/inf in give NaN out) instead of newlib's sinf/cosf, and atan2 by {p}_atan2_bounded
- * (<= {BOUNDED_ATAN2_ULP} ulp) instead of atan2f. Default 0. */
-#ifndef {P}_BOUNDED_TRIG
-#define {P}_BOUNDED_TRIG 0
-#endif
-#if {P}_USE_FLOAT
-typedef float {p}_real;
-#define {P}_LIT(x) x##f
-{macros_f}
-#if {P}_BOUNDED_TRIG
-#define {P}_SIN {p}_sin_bounded
-#define {P}_COS {p}_cos_bounded{atan2_bounded}
-#else
-#define {P}_SIN sinf
-#define {P}_COS cosf{atan2_libm}
-#endif
-#else
-typedef double {p}_real;
-#define {P}_LIT(x) x
-{macros_d}
-#endif
-
-#include <math.h>
-
-{_speed_limit_macros(config.robot, P)}
-
-{_lean_math(p, P, math)}/* Result of the functions that can fail. */
-typedef enum {{
-  {P}_OK = 0,             /* output is finite */
-  {P}_NONFINITE = 1,      /* output holds NaN/inf: a non-finite input, or an overflow */
-  {P}_NOT_CONVERGED = 2,  /* {p}_ik only: no q within the tolerances; the outputs hold the closest reached */
-  {P}_BAD_TARGET = 3      /* {p}_ik only: T_target is not a pose ({p}_is_pose); no step taken */
-}} {p}_status;
-{_pose_check(p, P) if any(name in IK_FUNCTIONS for name in model.selected()) else ""}
-/* Matrices are column-major: element (r, c) of an R x C matrix M is M[r + R*c].
- * Scalar inputs are passed by value, scalar outputs by pointer. Outputs must not overlap
- * inputs. No heap, no globals, reentrant; locals are the WORK_REALS scalars listed. */
-
-{chr(10).join(protos)}
-
-#ifdef __cplusplus
-}}
-#endif
-
-#endif /* {guard} */
-"""
-
+    # a blank line either side of the pose check, which only an arm with the IK has
+    pose_check = "\n" + _pose_check(p, P) + "\n" if any(name in IK_FUNCTIONS for name in model.selected()) else ""
+    body = render_template(
+        "codegen/robot.h", p=p, P=P, ndof=model.n, ntask=model.m, robot_sha256=config.robot.sha256,
+        float_default=1 if config.precision == "float" else 0, trig_ulp=BOUNDED_TRIG_ULP, trig_range=BOUNDED_TRIG_RANGE,
+        atan2_ulp=BOUNDED_ATAN2_ULP,
+        float_math_macros=macros({m: lean_float.get(m, m.lower() + "f") for m in math if m not in ("SIN", "COS", "ATAN2")}),
+        bounded_trig_macros=macros({m: f"{p}_{m.lower()}_bounded" for m in trig}),
+        libm_trig_macros=macros({m: m.lower() + "f" for m in trig}),
+        double_math_macros=macros({m: lean.get(m, m.lower()) for m in math}),
+        speed_limits=_speed_limit_macros(config.robot, P), lean_math=_lean_math(p, P, math), pose_check=pose_check,
+        prototypes="\n".join(protos))
+    return c_file(preamble, body)
 
 def write(code: GeneratedCode, out_dir: str | Path) -> list[Path]:
     out_dir = Path(out_dir)

@@ -1,0 +1,1 @@
+const ${p}_real *in$k

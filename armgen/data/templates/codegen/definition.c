@@ -1,0 +1,4 @@
+/* $function: $ops */
+$signature {
+$body
+}

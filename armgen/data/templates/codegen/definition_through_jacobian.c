@@ -1,0 +1,4 @@
+/* $function: $ops; calls ${p}_jacobian and ${p}_$twin */
+$signature {
+$body
+}

@@ -1,0 +1,1 @@
+#define ${P}_$macro $function

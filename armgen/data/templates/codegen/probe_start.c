@@ -1,0 +1,1 @@
+  ${p}_real probe = ${P}_LIT(0.0);

@@ -1,0 +1,2 @@
+  int entry;
+  ${p}_real probe = ${P}_LIT(0.0);

@@ -1,0 +1,1 @@
+  probe = probe + ($value * ${P}_LIT(0.0));

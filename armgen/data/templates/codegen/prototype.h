@@ -1,0 +1,2 @@
+#define ${P}_${FUNCTION}_WORK_REALS $work_reals
+$signature;

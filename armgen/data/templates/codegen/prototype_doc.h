@@ -1,0 +1,2 @@
+/* $function: $description.
+ * ops: $ops; work: $work_reals reals. */

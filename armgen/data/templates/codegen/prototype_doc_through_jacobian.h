@@ -1,0 +1,2 @@
+/* $function: $description.
+ * ops: $ops (calls ${p}_jacobian and ${p}_$twin); work: $work_reals reals. */

@@ -1,0 +1,1 @@
+$returns ${p}_$function($parameters)

@@ -1,0 +1,2 @@
+#define ${P}_${function}_${argument}_ROWS $rows
+#define ${P}_${function}_${argument}_COLS $cols

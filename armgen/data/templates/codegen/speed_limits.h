@@ -1,0 +1,2 @@
+/* joint $quantity limits, rad or m per $per */
+#define ${P}_$macro { $limits }

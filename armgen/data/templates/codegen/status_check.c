@@ -1,0 +1,4 @@
+  {
+$probe
+  return (probe == probe) ? ${P}_OK : ${P}_NONFINITE;
+  }
