@@ -126,6 +126,9 @@ def test_urdf_description_applies_the_robot_files_additions():
 @pytest.mark.parametrize("edit, message", [
     (('type = "prismatic"', 'name = "shoulder"\ntype = "prismatic"'),
      "two.toml: joint 2 ('shoulder'): duplicate joint name 'shoulder'; joint names must be unique"),
+    (('name = "shoulder"', 'name = "j2"'),
+     "two.toml: joint 2: duplicate joint name 'j2' (the default name of joint 2, which has none); joint names must be "
+     "unique"),
     (("qlim = [-90, 90]", "qlim = [-90, 90]\ntheta = 3"),
      "two.toml: joint 1 ('shoulder'): field 'theta' is only for prismatic joints (a revolute joint's angle is q + "
      "offset)"),
@@ -160,7 +163,8 @@ def test_dh_file_messages(edit, message):
      "urdf: URDF file {dir}/missing.urdf not found (the path is relative to the robot file)"),
     (("a1 = [-160, 160]", "a9 = [-160, 160]"),
      "[limits]: no joint named a9 on the chain (joints: a1, a2, a3, a4, a5, a6, a7)"),
-    (("a1 = [-160, 160]", "a1 = [160, -160]"), "[limits]: a1 = [160.0, -160.0] is empty or reversed; write [lower, upper]"),
+    (("a1 = [-160, 160]", "a1 = [160, -160]"),
+     "[limits]: a1 = [160.0, -160.0] is empty or reversed; write [lower, upper]"),
     (("qdlim = 50", "qdlim = 1e-7"),
      "[limits] a2: field 'qdlim' = 1e-07 is below 1e-06 SI units (rad or m per s, per s²): a unit slip; check the "
      "value and [units]"),

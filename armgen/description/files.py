@@ -129,7 +129,8 @@ def _configurations(given: dict[str, list[float]], q_scales: np.ndarray, source:
     out = {}
     for name, values in given.items():
         if len(values) != len(q_scales):
-            raise _fail(source, "[configurations]", f"field '{name}' must have {len(q_scales)} entries, got {len(values)}")
+            raise _fail(source, "[configurations]",
+                        f"field '{name}' must have {len(q_scales)} entries, got {len(values)}")
         out[name] = np.array(values) * q_scales
     return out
 

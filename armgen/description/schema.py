@@ -97,7 +97,8 @@ class RobotFile(_RobotFileCommon):
         seen: set[str] = set()
         for i, name in enumerate(self.joint_names):
             if name in seen:
-                raise rule_error(f"duplicate joint name '{name}'; joint names must be unique", at=("joints", i))
+                default = "" if self.joints[i].name else f" (the default name of joint {i + 1}, which has none)"
+                raise rule_error(f"duplicate joint name '{name}'{default}; joint names must be unique", at=("joints", i))
             seen.add(name)
         return self
 
