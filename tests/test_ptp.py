@@ -8,6 +8,7 @@ differences of the sampled CSV, exact rational arithmetic for the C evaluator.
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import math
 import subprocess
 from fractions import Fraction
@@ -21,10 +22,9 @@ from hypothesis import strategies as st
 from armgen.codegen.ptp_c import generate_ptp_evaluator, render_ptp_evaluator
 from armgen.codegen.toolchain import SANITIZER_FLAGS, STRICT_FLAGS, compile_shared, host_cc, run_tool
 from armgen.errors import PlanningError, TaskFileError
-from armgen.planning.ptp.config import parse_ptp_task
+from armgen.planning.ptp.config import PtpConfig
 from armgen.planning.ptp.families import METHODS, segment_shape
 from armgen.planning.ptp import planner as ptp
-from armgen.planning.ptp.planner import plan_task
 from armgen.planning.ptp.plans import plan_with_times
 from armgen.planning.ptp.segments import SegmentShape
 from armgen.planning.ptp.summary import compare_methods
@@ -32,7 +32,7 @@ from armgen.planning.ptp.timing import FEAS_RTOL, choose_duration, segment_feasi
 from armgen.planning.plotting import save_figure
 from armgen.planning.ptp.plots import plot_ptp
 from armgen.planning.result import read_plan, write_plan
-from armgen.planning.tasks import load_task, run_task
+from armgen.planning.tasks import configure_task, load_task, plan_configured, run_task
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 DEG = math.pi / 180.0
@@ -82,9 +82,18 @@ def dense_peak(coeffs: np.ndarray, T: float, order: int) -> float:
     return float(np.max(np.abs(d(coeffs, np.linspace(0.0, T, SCAN_POINTS), order))))
 
 
+def configured(task: dict, source: str):
+    """The task's PtpConfig, through the task pipeline (schema, robot, configure)."""
+    return configure_task(task, source).config
+
+
+def planned(task: dict, source: str):
+    return ptp.plan(configured(task, source))
+
+
 def plan_of(task: dict):
-    config = parse_ptp_task(task, "test")
-    return config, ptp.plan(config)[0]
+    config = configured(task, "test")
+    return config, ptp.plan_splines(config)[0]
 
 
 # --------------------------------------------------------------------------- worked example
@@ -173,7 +182,7 @@ def test_worked_example_comparison_table():
 
 
 def test_paper_times_checked_against_bounds():
-    result = plan_task(example("ptp_single_joint.toml"), "x")
+    result = planned(example("ptp_single_joint.toml"), "x")
     checks = result.metadata["timing"]["bound_check"]
     # segment 1 at the paper's 5 s: the spec's cubic peaks at (90-8T)²/(3T(60-8T)) = 25/3 deg/s > 8
     assert abs(checks[0]["peak_omega_rad_s"] / DEG - 25 / 3) <= 1e-9
@@ -232,15 +241,15 @@ def test_timed_example_on_paper_grid_is_infeasible_at_segment_3():
     task = example("ptp_single_joint_timed.toml")
     task["timing"]["grid"] = 1.0
     with pytest.raises(PlanningError, match=r"segment 3 \(C→D\).*1 s grid"):
-        plan_task(task, "timed")
+        planned(task, "timed")
 
 
 def test_eps_max_bounds_the_acceleration():
     task = example("ptp_single_joint_timed.toml")
     del task["timing"]["grid"]
-    free = plan_task(task, "x").metadata
+    free = planned(task, "x").metadata
     task["timing"]["eps_max"] = 2.0  # deg/s², below the 3.36 deg/s² peak of the ω-only plan
-    bounded = plan_task(task, "x").metadata
+    bounded = planned(task, "x").metadata
     assert free["summary"]["peak_abs_acceleration_rad_s2"]["j1"] / DEG > 3.0
     assert bounded["summary"]["peak_abs_acceleration_rad_s2"]["j1"] / DEG <= 2.0 * (1 + 1e-9)
     assert bounded["summary"]["bound_violations"] == 0
@@ -355,7 +364,7 @@ def test_every_method_meets_waypoints_and_its_continuity(wps, with_eps):
     if with_eps:
         task["waypoints"]["eps"] = eps.tolist()
     methods = [m for m in METHODS if m != "3-5-3" or len(theta) >= 4]
-    config = parse_ptp_task(task, "prop")
+    config = configured(task, "prop")
     for method in methods:
         plan = plan_with_times(config, method, t)
         c = plan.coeffs[0]
@@ -390,7 +399,7 @@ def test_shared_knot_times_are_minimal_on_the_grid(steps, inner_speed, method):
     task = {"planner": "ptp", "robot": "planar3", "method": method,
             "waypoints": {"theta": {**theta, "j3": [0.0] * n}, "omega": {**omega, "j3": [0.0] * n}},
             "timing": {"omega_max": 1.0, "grid": grid}}
-    config = parse_ptp_task(task, "prop")
+    config = configured(task, "prop")
     try:
         knots, report = ptp.compute_knot_times(config)
     except PlanningError as exc:
@@ -458,7 +467,7 @@ def test_robot_task_plans_every_joint_on_shared_knots():
             "waypoints": {"theta": {"j1": [0, 30, 60], "j2": [0, -20, 10], "j3": [10, 10, 10]},
                           "omega": {"j1": [0, 5, 0], "j2": [0, 0, 0], "j3": [0, 0, 0]}},
             "timing": {"omega_max": {"j1": 10, "j2": [6, 8], "j3": 1}, "grid": 0.1}}
-    result = plan_task(task, "robot")
+    result = planned(task, "robot")
     meta = result.metadata
     assert meta["joints"] == ["j1", "j2", "j3"]
     assert [c for c in result.columns if c.startswith("theta_")] == ["theta_j1_rad", "theta_j2_rad", "theta_j3_rad"]
@@ -477,13 +486,13 @@ def test_robot_limits_are_checked():
             "waypoints": {"t": [0, 1], "theta": {"j1": [0, 175], "j2": [0, 0], "j3": [0, 0]},
                           "omega": {"j1": [0, 0], "j2": [0, 0], "j3": [0, 0]}}}
     with pytest.raises(TaskFileError, match=r"waypoints.theta.j1\[1\].*outside joint 'j1' limits"):
-        parse_ptp_task(task, "lim")
+        configured(task, "lim")
     # both waypoints inside [-170, 170] deg, but leaving 150 deg at 120 deg/s to stop at 165 deg
     # one second later overshoots: the cubic 150 + 120τ − 195τ² + 90τ³ peaks at 172.716 deg (at τ = 4/9 s)
     task["waypoints"]["theta"]["j1"] = [150, 165]
     task["waypoints"]["omega"]["j1"] = [120, 0]
     with pytest.raises(PlanningError, match=r"joint 'j1' reaches 172.716 deg .* above its limit 170 deg.*add a waypoint"):
-        plan_task(task, "lim")
+        planned(task, "lim")
 
 
 GOOD = {"planner": "ptp", "units": {"angle": "deg"},
@@ -508,14 +517,14 @@ def _with(path: str, value):
     ("waypoints.t", [0, 5, 5], r"'waypoints.t\[2\]' = 5 s is not after waypoints.t\[1\].*strictly increasing"),
     ("waypoints.t", [0, 6, 5], r"'waypoints.t\[2\]'.*strictly increasing"),
     ("waypoints.theta", [0], r"'waypoints.theta' must list at least two waypoints"),
-    ("waypoints.theta", [0, float("nan"), 90], r"'waypoints.theta\[1\]' is nan; give a finite number"),
-    ("waypoints.omega", [0, float("inf"), 0], r"'waypoints.omega\[1\]' is inf"),
+    ("waypoints.theta", [0, float("nan"), 90], r"'waypoints.theta'\[1\] is nan; give a finite number"),
+    ("waypoints.omega", [0, float("inf"), 0], r"'waypoints.omega'\[1\] is inf"),
     ("waypoints.omega", [0, 8], r"'waypoints.omega' has 2 entries but there are 3 waypoints"),
     ("waypoints.omega", None, r"'waypoints.omega' is missing"),
     ("waypoints.t", None, r"'waypoints.t' is missing and there is no timing.omega_max"),
     ("timing.omega_max", 0, r"'timing.omega_max' = 0 must be > 0"),
     ("timing.omega_max", -3, r"'timing.omega_max' = -3 must be > 0"),
-    ("timing.omega_max", [8, float("nan")], r"'timing.omega_max\[1\]' is nan"),
+    ("timing.omega_max", [8, float("nan")], r"'timing.omega_max'\[1\] is nan"),
     ("timing.omega_max", 7,
      r"'timing.omega_max' for segment 1 \(A→B\) is 7 deg/s, below \|waypoints.omega\[1\]\| = 8 deg/s.*raise omega_max"),
     ("timing.omega_max", [8, 8, 8], r"'timing.omega_max' has 3 entries but there are 2 segments"),
@@ -531,7 +540,7 @@ def _with(path: str, value):
 def test_bad_input_names_field_and_fix(path, value, message):
     task = _with(path, value)
     with pytest.raises(TaskFileError, match=message):
-        parse_ptp_task(task, "bad.toml")
+        configured(task, "bad.toml")
 
 
 def test_infeasible_segment_is_a_planning_error():
@@ -541,25 +550,42 @@ def test_infeasible_segment_is_a_planning_error():
             "timing": {"omega_max": [20, 20], "eps_max": [100, 0.05], "grid": 0.1}}
     with pytest.raises(PlanningError, match=r"segment 2 \(B→C\): no duration on the 0.1 s grid keeps .*"
                                             r"starts with ε = .* deg/s² from the segment before.*raise the bounds"):
-        plan_task(task, "infeasible")
+        planned(task, "infeasible")
 
 
 def test_zero_motion_segment_needs_a_grid():
     task = {"planner": "ptp", "waypoints": {"theta": [0, 1, 1], "omega": [0, 0, 0]}, "timing": {"omega_max": 1.0}}
     with pytest.raises(PlanningError, match=r"segment 2 \(B→C\) keeps the bounds for arbitrarily short durations"):
-        plan_task(task, "still")
+        planned(task, "still")
     task["timing"]["grid"] = 0.5
-    assert np.diff(plan_task(task, "still").metadata["knot_times_s"])[1] == 0.5
+    assert np.diff(planned(task, "still").metadata["knot_times_s"])[1] == 0.5
 
 
 def test_timed_5_waypoint_3_5_3_needs_times_or_eps():
     task = example("ptp_single_joint_timed.toml")
     task["method"] = "3-5-3"
     with pytest.raises(TaskFileError, match=r"'waypoints.t' is missing, but the 5-waypoint 3-5-3 plan"):
-        parse_ptp_task(task, "x")
+        configured(task, "x")
     task["waypoints"]["eps"] = [0, 0, 0, 0, 0]
-    times = plan_task(task, "x").metadata["knot_times_s"]
+    times = planned(task, "x").metadata["knot_times_s"]
     assert len(times) == 5 and np.all(np.diff(times) > 0)
+
+
+def test_the_plan_carries_the_typed_config_it_was_made_from():
+    """configure turns the validated task into a frozen SI PtpConfig (no task dict in it) and the
+    plan result carries that config; a single-joint task beside a firmware's robot stays one joint."""
+    task = configure_task(example("modular8_ptp_two_segments.toml"), "two.toml")
+    config = task.config
+    assert isinstance(config, PtpConfig) and dataclasses.is_dataclass(config)
+    assert not any(isinstance(getattr(config, f.name), dict) for f in dataclasses.fields(config))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        config.step = 1.0
+    assert [jw.name for jw in config.joints] == [f"j{k}" for k in range(1, 9)]
+    np.testing.assert_allclose(config.joints[0].theta, np.radians([-57, -40, -30]), rtol=0, atol=1e-15)
+    assert config.robot_model is not None and config.robot_model.name == "modular8"
+    assert plan_configured(task).config is config
+    single = configure_task(example("ptp_single_joint.toml"), "one.toml", robot=config.robot_model).config
+    assert [jw.name for jw in single.joints] == ["j1"] and single.robot_model is None
 
 
 def test_sample_times_end_on_last_knot():
@@ -580,7 +606,7 @@ def test_plot_comparison_and_multi_joint(tmp_path):
     image = mpimg.imread(png)
     assert image.shape[1] > 1.3 * image.shape[0]  # three method columns side by side
     assert image[..., :3].std() > 0.05
-    multi = plan_task({"planner": "ptp", "robot": "planar3",
+    multi = planned({"planner": "ptp", "robot": "planar3",
                        "waypoints": {"t": [0, 1, 2], "theta": {"j1": [0, 1, 0], "j2": [0, -1, 0], "j3": [0, 0.5, 1]},
                                      "omega": {"j1": [0, 0, 0], "j2": [0, 0, 0], "j3": [0, 1, 0]}}}, "multi")
     png2 = save_figure(plot_ptp(multi), tmp_path / "multi.png")

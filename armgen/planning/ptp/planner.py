@@ -2,8 +2,8 @@
 
 Every joint passes waypoints ``θ_k`` with velocities ``ω_k`` at shared knot times ``t_k``.
 The methods, selected by name (:data:`~armgen.planning.ptp.families.METHODS`), are the spline
-families of :mod:`~armgen.planning.ptp.families`; :mod:`~armgen.planning.ptp.config` reads the
-task file, the time solver of :mod:`~armgen.planning.ptp.timing` finds the segment durations
+families of :mod:`~armgen.planning.ptp.families`; :mod:`~armgen.planning.ptp.config` holds the
+task (SI), the time solver of :mod:`~armgen.planning.ptp.timing` finds the segment durations
 and :mod:`~armgen.planning.ptp.summary` writes the metrics and the plan metadata. This module
 plans: knot times, the limit checks, the sampled CSV. With a robot, the plan's joint speeds and
 accelerations (the polynomials' own derivatives at the CSV's samples, as the controller's
@@ -22,7 +22,7 @@ import numpy as np
 from ...errors import PlanningError, TaskFileError
 from ..limits import speed_report
 from ..result import PlanResult
-from .config import ANGLE_SCALE, PtpConfig, parse_ptp_task, segment_label
+from .config import PtpConfig, segment_label
 from .families import segment_shape, timing_order
 from .plans import PtpPlan, plan_with_times
 from .segments import SegmentShape, peak_abs
@@ -66,7 +66,7 @@ def _infeasible_message(config: PtpConfig, k: int, common: list[tuple[float, flo
     if common and common[0][0] == 0.0 and config.grid is None:
         return (f"{config.source}: {segment_label(k)} keeps the bounds for arbitrarily short durations (θ ends where it "
                 "starts), so timing.omega_max does not fix its duration; give waypoints.t or a timing.grid")
-    scale, unit = ANGLE_SCALE[config.angle_unit], config.angle_unit
+    scale, unit = config.angle_scale, config.angle_unit
     details = []
     for (name, rep), shape in zip(joints.items(), shapes):
         start = (f", starts with ε = {shape.eps0 / scale:.6g} {unit}/s² from the segment before"
@@ -105,7 +105,7 @@ MAX_PLANNED_SPEED_RAD_S = 1e3
 
 def _check_given_times(config: PtpConfig, plan: PtpPlan) -> None:
     """Refuse given knot times whose plan is absurdly fast or far beyond the task's own bounds."""
-    scale, unit = ANGLE_SCALE[config.angle_unit], config.angle_unit
+    scale, unit = config.angle_scale, config.angle_unit
     for j, name in enumerate(plan.joint_names):
         for k, (c, d) in enumerate(zip(plan.coeffs[j], np.diff(plan.knots))):
             peak = peak_abs(c, d, 1)
@@ -119,7 +119,7 @@ def _check_given_times(config: PtpConfig, plan: PtpPlan) -> None:
                     "space the knot times further apart, or remove waypoints.t to compute them from timing.omega_max")
 
 
-def plan(config: PtpConfig) -> tuple[PtpPlan, list[dict[str, Any]]]:
+def plan_splines(config: PtpConfig) -> tuple[PtpPlan, list[dict[str, Any]]]:
     """The task's plan (knots given or computed) and the time solver's report (empty if given)."""
     if config.times is not None:
         knots, report = np.asarray(config.times, dtype=float), []
@@ -134,7 +134,7 @@ def plan(config: PtpConfig) -> tuple[PtpPlan, list[dict[str, Any]]]:
         m = joint_metrics(result, j)
         for value, limit, side in ((m["theta_min_rad"], jw.qlim[0], "below"), (m["theta_max_rad"], jw.qlim[1], "above")):
             if (side == "below" and value < limit) or (side == "above" and value > limit):
-                scale = ANGLE_SCALE[config.angle_unit]
+                scale = config.angle_scale
                 raise PlanningError(
                     f"{config.source}: joint '{jw.name}' reaches {value / scale:.6g} {config.angle_unit} between waypoints "
                     f"with method '{config.method}', {side} its limit {limit / scale:.6g} {config.angle_unit}; "
@@ -142,11 +142,10 @@ def plan(config: PtpConfig) -> tuple[PtpPlan, list[dict[str, Any]]]:
     return result, report
 
 
-def plan_task(task: dict[str, Any], source: str, backend: str = "symbolic") -> PlanResult:
-    """``armgen plan`` entry: parse, plan, sample θ, ω, ε, jerk at ``step`` (``backend`` unused)."""
+def plan(config: PtpConfig, backend: str = "symbolic") -> PlanResult:
+    """``armgen plan`` entry: plan, sample θ, ω, ε, jerk at ``step`` (``backend`` unused)."""
     del backend  # the polynomials are evaluated the same way by both backends
-    config = parse_ptp_task(task, source)
-    result, report = plan(config)
+    result, report = plan_splines(config)
     t = sample_times(result.knots, config.step)
     columns = ["t_s"]
     blocks = [t[:, None]]
@@ -158,4 +157,4 @@ def plan_task(task: dict[str, Any], source: str, backend: str = "symbolic") -> P
     if config.robot_model is not None:
         meta["summary"]["joint_speed"] = speed_report(config.robot_model, t, values[1], values[2]) | {
             "enforced": False, "rate_rule": "the polynomials' derivatives at the samples"}
-    return PlanResult(columns, np.hstack(blocks), meta)
+    return PlanResult(columns, np.hstack(blocks), meta, config=config)

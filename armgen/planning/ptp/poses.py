@@ -3,21 +3,21 @@ solved by the inverse kinematics (:meth:`armgen.robot.Robot.ik`) from the previo
 solution, with the self-motion pulled toward it (nearest in joint space, so the arm does not
 change branch between waypoints); the first from ``waypoints.seed`` (a configuration name or
 joint values; default the middle of the limits). The joint splines are then planned as for
-``waypoints.theta``; plan.json records the solved configurations (``ik``)."""
+``waypoints.theta``; plan.json records the solved configurations (``ik``). The schema
+checks the fields' shapes and magnitudes (:mod:`.schema`)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ...errors import PlanningError, TaskFileError
 from ...description import rpy_matrix
-from ...description.model import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, TASK_ROWS
+from ...description.model import TASK_ROWS
 from ...robot import Robot
 from ...symbolic.ik import TOL_ORIENTATION, TOL_POSITION
-
-POSE_FIELDS = ("xyz", "rpy", "seed")
 
 
 def uncontrolled_error(robot: Robot, pose: np.ndarray, q: np.ndarray) -> tuple[list[str], float, float]:
@@ -35,43 +35,48 @@ def uncontrolled_error(robot: Robot, pose: np.ndarray, q: np.ndarray) -> tuple[l
     return [TASK_ROWS[k] for k in free], float(position), float(orientation)
 
 
-def _rows(source: str, value: Any, field: str, count: int | None) -> np.ndarray:
-    array = np.asarray(value, dtype=float) if isinstance(value, list) else np.zeros((0,))
-    if array.ndim != 2 or array.shape[1] != 3 or not np.all(np.isfinite(array)) or (count and len(array) != count):
-        want = f"{count} " if count else ""
-        raise TaskFileError(f"{source}: field 'waypoints.{field}' must be a list of {want}[x, y, z] triples of finite "
-                            "numbers (one per waypoint)")
-    return array
+@dataclass(frozen=True)
+class SolvedPoses:
+    """Tool-pose waypoints solved by the inverse kinematics: the configurations (waypoints × n,
+    rad) and, per waypoint, the IK's position and orientation errors and its iterations."""
+
+    q: np.ndarray
+    position_error_m: tuple[float, ...]
+    orientation_error_rad: tuple[float, ...]
+    iterations: tuple[int, ...]
+
+    def record(self) -> dict[str, Any]:
+        """The record plan.json keeps under ``ik``."""
+        return {"waypoints": self.q.tolist(), "position_error_m": list(self.position_error_m),
+                "orientation_error_rad": list(self.orientation_error_rad), "iterations": list(self.iterations)}
 
 
-def solve_pose_waypoints(robot: Robot, waypoints: dict[str, Any], source: str, scale: float) -> tuple[np.ndarray, dict]:
-    """(q per waypoint (waypoints × n, rad), the record for plan.json) of ``waypoints.xyz``
-    (m) and ``waypoints.rpy`` (the task's angle unit, ``scale`` rad per unit)."""
-    if "theta" in waypoints:
-        raise TaskFileError(f"{source}: field 'waypoints': give either theta (joint angles) or xyz/rpy (tool poses), "
-                            "not both")
-    xyz = _rows(source, waypoints.get("xyz"), "xyz", None)
-    rpy = _rows(source, waypoints["rpy"], "rpy", len(xyz)) * scale if "rpy" in waypoints else np.zeros_like(xyz)
-    for field, values, bound, unit in (("xyz", xyz, MAX_ABS_LENGTH_M, "m"), ("rpy", rpy, MAX_ABS_ANGLE_RAD, "rad")):
-        beyond = np.abs(values) > bound
-        if beyond.any():
-            k = int(np.argwhere(beyond)[0][0])
-            raise TaskFileError(f"{source}: field 'waypoints.{field}[{k}]' is beyond ±{bound:g} {unit}; no pose of an "
-                                "arm needs that: check the value and [units]")
-    seed = waypoints.get("seed")
+def _seed_configuration(robot: Robot, seed: str | list[float] | None, source: str, scale: float) -> np.ndarray:
+    """The configuration the first pose is solved from: a name, joint values (angles in the task's
+    unit, ``scale`` rad per unit; lengths in m), or the middle of the limits."""
     try:
         if isinstance(seed, str):
-            q = robot.configuration(seed)
-        elif seed is not None:
+            return robot.configuration(seed)
+        if seed is not None:
             q = np.asarray(seed, dtype=float) * np.array([scale if j.revolute else 1.0 for j in robot.joints])
             robot.check_within_limits(q, f"{source}: field 'waypoints.seed'")
-        else:
-            q = robot.qmid
+            return q
+        return robot.qmid
     except (ValueError, TypeError) as exc:
         raise TaskFileError(f"{source}: field 'waypoints.seed': {exc}; give a configuration name or "
                             f"{robot.n} joint values") from None
-    solved, record = [], {"waypoints": [], "position_error_m": [], "orientation_error_rad": [], "iterations": []}
-    for k, (position, angles) in enumerate(zip(xyz, rpy)):
+
+
+def solve_pose_waypoints(robot: Robot, xyz: np.ndarray, rpy: np.ndarray | None, seed: str | list[float] | None,
+                         source: str, scale: float) -> SolvedPoses:
+    """The configurations of tool-pose waypoints: positions ``xyz`` (waypoints × 3, m) and
+    orientations ``rpy`` (waypoints × 3, rad; None: the base frame's, and the orientation is
+    free where the robot does not control it), each solved from the one before, the first from
+    ``seed`` (a configuration name or joint values in the task's angle unit, ``scale`` rad per
+    unit)."""
+    q = _seed_configuration(robot, seed, source, scale)
+    solved, position_errors, orientation_errors, iterations = [], [], [], []
+    for k, (position, angles) in enumerate(zip(xyz, rpy if rpy is not None else np.zeros_like(xyz))):
         pose = np.eye(4)
         pose[:3, :3] = rpy_matrix(*angles)
         pose[:3, 3] = position
@@ -82,7 +87,7 @@ def solve_pose_waypoints(robot: Robot, waypoints: dict[str, Any], source: str, s
                                 f"configuration found is {float(result.position_error):.3g} m / "
                                 f"{float(result.orientation_error):.3g} rad away; move the pose within reach")
         free, off_position, off_orientation = uncontrolled_error(robot, pose, result.q)
-        if off_position > TOL_POSITION or ("rpy" in waypoints and off_orientation > TOL_ORIENTATION):
+        if off_position > TOL_POSITION or (rpy is not None and off_orientation > TOL_ORIENTATION):
             controlled = ", ".join(TASK_ROWS[r] for r in robot.task_rows)
             raise PlanningError(f"{source}: waypoint {k} (waypoints.xyz[{k}] = {position.tolist()}) asks robot "
                                 f"'{robot.name}' for other values in the rows it does not control "
@@ -90,8 +95,7 @@ def solve_pose_waypoints(robot: Robot, waypoints: dict[str, Any], source: str, s
                                 f"controls only {controlled}: give poses the arm takes there (a planar arm: its plane)")
         q = result.q
         solved.append(q)
-        record["waypoints"].append(q.tolist())
-        record["position_error_m"].append(float(result.position_error))
-        record["orientation_error_rad"].append(float(result.orientation_error))
-        record["iterations"].append(int(result.iterations))
-    return np.array(solved), record
+        position_errors.append(float(result.position_error))
+        orientation_errors.append(float(result.orientation_error))
+        iterations.append(int(result.iterations))
+    return SolvedPoses(np.array(solved), tuple(position_errors), tuple(orientation_errors), tuple(iterations))

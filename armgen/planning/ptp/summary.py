@@ -109,7 +109,7 @@ def plan_metadata(config: PtpConfig, result: PtpPlan, report: list[dict[str, Any
     }
     if config.solved_poses is not None:
         meta["ik"] = {"note": "waypoints given as tool poses, solved each from the previous one (rad)",
-                      **config.solved_poses}
+                      **config.solved_poses.record()}
     if config.compare:
         plans = {m: plan_with_times(config, m, result.knots) for m in config.compare}
         meta["comparison"] = {
