@@ -43,9 +43,8 @@ for path in (REPO, REPO / "tests"):  # a checkout without `pip install -e .`; th
 
 from armgen.codegen.toolchain import ARM_CPU_FLAGS, STRICT_FLAGS  # noqa: E402
 from armgen.firmware.program_table import program_table_c  # noqa: E402
-from armgen.planning.cartesian.planner import parse_cartesian_task  # noqa: E402
 from armgen.planning.toolpath.geometry import Trimmed  # noqa: E402
-from armgen.planning.tasks import load_task  # noqa: E402
+from armgen.planning.tasks import configure_task, load_task  # noqa: E402
 from test_programs import EXAMPLES, bar_task  # noqa: E402
 
 STUB = REPO / "armgen" / "data" / "firmware_stub"
@@ -116,8 +115,8 @@ def programs() -> dict:
     polishing contour on the panda), each as the planner parses it."""
     polish = EXAMPLES / "panda_polish_contour_program.toml"
     task, _ = load_task(polish)
-    return {"bar": parse_cartesian_task(tomllib.loads(bar_task("cartesian")), "bar.toml"),
-            "polish (poses)": parse_cartesian_task(task, str(polish))}
+    return {"bar": configure_task(tomllib.loads(bar_task("cartesian")), "bar.toml").config,
+            "polish (poses)": configure_task(task, str(polish)).config}
 
 
 def measure(label: str, task, work: Path, quick: bool = False) -> dict:

@@ -35,7 +35,8 @@ if str(REPO) not in sys.path:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(REPO))
 
 from armgen.planning.tasks import run_task  # noqa: E402
-from armgen.planning.toolpath.task import build_program, parse_program  # noqa: E402
+from armgen.planning.toolpath.schema import ProgramPath  # noqa: E402
+from armgen.planning.toolpath.task import build_program, program_spec  # noqa: E402
 from armgen.planning.toolpath.timelaw import program_profile  # noqa: E402
 from armgen.robot import load_robot, rpy_matrix  # noqa: E402
 
@@ -101,7 +102,7 @@ def main() -> int:
         poses_path.write_text(poses_text)
         poses_task = tomllib.loads(poses_text)
         # the line of the same length: the program's length, measured once
-        spec = parse_program(poses_task["path"], str(poses_path), 1e-3, math.pi / 180)
+        spec = program_spec(ProgramPath.model_validate(poses_task["path"]), str(poses_path), 1e-3, math.pi / 180)
         pose = np.eye(4)
         pose[:3, 3] = np.array(xyz) * 1e-3
         pose[:3, :3] = rpy_matrix(*np.radians(rpy))
@@ -118,8 +119,9 @@ def main() -> int:
             samples = len(run_task(task, str(path)).data)
             seconds = best_of(lambda: run_task(task, str(path)), repeats)
             results[name] = {"seconds": seconds, "samples": samples, "ms_per_sample": seconds / samples * 1e3}
-        build = best_of(lambda: program_profile(build_program(parse_program(poses_task["path"], str(poses_path), 1e-3,
-                                                                            math.pi / 180), pose, "bench"), None),
+        poses_model = ProgramPath.model_validate(poses_task["path"])
+        build = best_of(lambda: program_profile(build_program(program_spec(poses_model, str(poses_path), 1e-3,
+                                                                           math.pi / 180), pose, "bench"), None),
                         repeats)
     ratio = results["poses"]["ms_per_sample"] / results["line"]["ms_per_sample"]
     robot = load_robot("iiwa14")

@@ -557,7 +557,8 @@ def poses_case(data: bytes) -> Outcome:
 
     import numpy as np
 
-    from armgen.planning.toolpath.task import parse_program, program_motion
+    from armgen.planning.toolpath.schema import ProgramPath
+    from armgen.planning.toolpath.task import program_motion, program_spec
     from armgen.robot import load_robot, rpy_matrix
 
     task = TASK_BASES[POSES_TASK]
@@ -567,7 +568,8 @@ def poses_case(data: bytes) -> Outcome:
     with tempfile.TemporaryDirectory(prefix="armgen-fuzz-") as tmp:
         source = str(Path(tmp) / "fuzz.toml")
         (Path(tmp) / "panda_polish_contour.csv").write_bytes(data)
-        outcome = _classify(lambda: program_motion(parse_program(task["path"], source, 1e-3, math.pi / 180), start,
+        path = ProgramPath.model_validate(task["path"])
+        outcome = _classify(lambda: program_motion(program_spec(path, source, 1e-3, math.pi / 180), start,
                                                    load_robot(task["robot"]), source), PLAN_LIMIT_S, (2,))
         if outcome.kind == "clean" and not (outcome.detail.startswith(source)
                                             and len(outcome.detail) <= MAX_MESSAGE_CHARS):

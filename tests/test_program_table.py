@@ -24,8 +24,7 @@ from scipy.spatial.transform import Rotation
 from armgen.codegen.toolchain import SANITIZER_FLAGS, STRICT_FLAGS, host_cc
 from armgen.firmware.errors import FirmwareError
 from armgen.firmware.program_table import MERGE_TOL, merge_segments, program_table_c
-from armgen.planning.cartesian.planner import parse_cartesian_task
-from armgen.planning.tasks import load_task
+from armgen.planning.tasks import configure_task, load_task
 from armgen.planning.toolpath.geometry import GeometryError, MoveSpec, Program
 from armgen.planning.toolpath.timelaw import ProgramMotion, program_profile
 
@@ -158,7 +157,7 @@ def sample_times(motion: ProgramMotion, ticks: np.ndarray) -> np.ndarray:
 
 def parsed_task(text: str, source: str):
     """The planner's own parse of a cartesian task: its motion (geometry and time law)."""
-    return parse_cartesian_task(tomllib.loads(text), source)
+    return configure_task(tomllib.loads(text), source).config
 
 
 @pytest.fixture(scope="module")
@@ -182,7 +181,7 @@ def test_poses_program_with_stops_matches_the_planner(tmp_path):
     """The bundled polishing example: a line, a sampled contour (pose spline, the tool tilting
     with the surface) and a line, stopping at both corners (blend = 0)."""
     task, _ = load_task(EXAMPLES / "panda_polish_contour_program.toml")
-    parsed = parse_cartesian_task(task, str(EXAMPLES / "panda_polish_contour_program.toml"))
+    parsed = configure_task(task, str(EXAMPLES / "panda_polish_contour_program.toml")).config
     motion = parsed.motion
     assert len(motion.program.stops) == 2
     compare(motion, sample_times(motion, ticks_of(parsed)), tmp_path)

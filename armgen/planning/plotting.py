@@ -27,11 +27,17 @@ from matplotlib.axes import Axes
 from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
+from pydantic import ValidationError
 
 from ..errors import ArmgenError, PlanFileError, excerpt
 from ..fileio import atomic_open
 from ..robot import Robot, bundled_robots, load_robot, load_robot_any
+from .common.path import path_geometry
+from .common.schema import RelativePath, Units
+from .common.start import unit_scales
 from .result import PlanResult
+from .toolpath.schema import ProgramPath
+from .toolpath.task import build_program, program_spec
 
 FORMATS = {".png": "png", ".svg": "svg", ".pdf": "pdf"}
 DPI = 110  # raster output: legible 8-pt legends at the figure sizes used here
@@ -293,37 +299,26 @@ def task_error_panel(ax: Axes, result: PlanResult, t: np.ndarray) -> None:
 
 
 def planned_tool_path(result: PlanResult, robot: Robot) -> np.ndarray | None:
-    """The task's geometric path (m), rebuilt from the task stored in ``plan.json`` and the
-    start configuration by ``robot``'s forward kinematics; ``None`` when the plan holds no
-    resolved-rate path task."""
-    from .cartesian.planner import ANGLE_SCALE, LENGTH_SCALE, parse_path_and_timing
-    from .toolpath.paths import CirclePath, LinePath
-    from .toolpath.task import build_program, parse_program
-
+    """The task's geometric path (m), rebuilt from the task stored in ``plan.json`` (validated
+    by the shared path vocabulary) and the start configuration by ``robot``'s forward
+    kinematics; ``None`` when the plan holds no resolved-rate path task."""
     meta = result.metadata
     task = meta.get("task")
-    if not isinstance(task, dict) or "path" not in task:
+    if not isinstance(task, dict) or not isinstance(task.get("path"), dict):
         return None
     q_start = np.asarray((meta.get("start") or {}).get("q_rad", []), dtype=float)
-    units = task.get("units", {})
-    if q_start.shape != (robot.n,) or not isinstance(units, dict):
+    if q_start.shape != (robot.n,):
         return None
     try:
-        ls, as_ = LENGTH_SCALE[units.get("length", "m")], ANGLE_SCALE[units.get("angle", "rad")]
+        ls, as_ = unit_scales(Units.model_validate(task.get("units", {})))
         pose0 = robot.fk(q_start)
-        if isinstance(task["path"], dict) and task["path"].get("type") == "program":
-            spec = parse_program(task["path"], str(meta.get("task_file", "plan.json")), ls, as_)
+        if task["path"].get("type") == "program":
+            spec = program_spec(ProgramPath.model_validate(task["path"]), str(meta.get("task_file", "plan.json")), ls,
+                                as_)
             return build_program(spec, pose0, "plan.json").sample_points(2000)
-        path_type, via, end, end_rotation, _, _ = parse_path_and_timing(task, "plan.json", ls, as_)
-    except (ArmgenError, KeyError, TypeError):
+        return path_geometry(RelativePath.model_validate(task["path"]), ls, as_, "plan.json").build(pose0).sample_points()
+    except (ArmgenError, ValidationError):
         return None
-    p0, r0 = pose0[:3, 3], pose0[:3, :3]
-    offset = p0 if meta.get("path", {}).get("relative") else np.zeros(3)
-    if path_type == "circle":
-        path = CirclePath(p0, via + offset, end + offset, r0)
-    else:
-        path = LinePath(p0, end + offset, r0, end_rotation if end_rotation is not None else r0)
-    return path.sample_points()
 
 
 def executed_tool_path(result: PlanResult, robot: Robot) -> np.ndarray:

@@ -9,287 +9,30 @@ loop (CLIK). All inputs in SI after loading; the task file may use mm/deg.
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
-from ...errors import PlanningError, TaskFileError, excerpt
+from ...errors import PlanningError, TaskFileError
 from ...progress import progress
-from ...description import rpy_matrix
-from ...description.model import MAX_ABS_LENGTH_M
-from ...robot import Robot, load_robot
 from ...symbolic.steps import min_eigenvalue
 from ..backends import make_backend
-from ..limits import check_start_off_limits, limit_report
-from ..toolpath.paths import CirclePath, LinePath, TimeLaw
+from ..common.path import PathGeometry
+from ..common.symbolic import sym_orientation_error, sym_rpy
+from ..limits import limit_report
 from ..result import PlanResult
-from ..toolpath.accuracy import path_accuracy
 from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
-from ..toolpath.task import ProgramSpec, parse_program, program_motion, reach_radius
-from ..toolpath.timelaw import ProgramMotion
+from ..toolpath.task import reach_radius
+from .config import CartesianTask
 from .windows import JointWindows
 
-METHODS = ("pinv", "repetitive", "zghal", "zghal_improved", "combined")
-# The methods that descend Zghal's joint-limit criterion H_L (with gain rho_L).
-JOINT_LIMIT_METHODS = ("zghal", "zghal_improved", "combined")
-INTEGRATORS = ("euler", "rk4")
-PATH_TYPES = ("circle", "line")
-LENGTH_SCALE = {"m": 1.0, "mm": 1e-3}
-ANGLE_SCALE = {"rad": 1.0, "deg": math.pi / 180}
 # A plan whose tool leaves the path by more than this is reported as not feasible
 # (unreachable target or a singularity the damping could not cross): open-loop Euler drift
 # at h = 0.02 s stays below 0.8 mm on the bundled examples. The path tolerance
 # (toolpath.accuracy, default 0.1 mm) is the accuracy a plan must meet where it applies.
 MAX_PATH_ERROR = 5e-3  # m
-
-
-@dataclass(frozen=True)
-class MethodParams:
-    name: str = "pinv"
-    rho_R: float = 2.8
-    T_smo_R: float = 10.0
-    rho_L: float = 0.025
-    theta_s: float = math.radians(20)
-    T_smo_L: float = 40.0
-    T_sum_L: float = 80.0
-    gamma_R_ramp: float = 20.0
-
-
-@dataclass(frozen=True)
-class CartesianTask:
-    robot: Robot
-    q_start: np.ndarray
-    path_type: str
-    via: np.ndarray | None
-    end: np.ndarray
-    end_rotation: np.ndarray | None
-    duration: float
-    law: TimeLaw
-    method: MethodParams
-    integrator: str = "euler"
-    step: float = 0.02
-    clik_gain: float = 0.0
-    damping_epsilon: float = 0.01
-    damping_max: float = 0.05
-    output_every: int = 1
-    raw: dict[str, Any] = field(default_factory=dict)
-    program: ProgramSpec | None = None  # path.type = "program": the moves, and
-    motion: ProgramMotion | None = None  # their geometry and time law from the start pose
-    start_label: str = ""
-
-    def with_motion(self, motion: ProgramMotion) -> CartesianTask:
-        """This task driven by ``motion``: the duration is the motion's, rounded up to whole steps."""
-        return replace(self, motion=motion, duration=math.ceil(motion.duration / self.step - 1e-9) * self.step)
-
-
-def _table(task: dict, key: str, source: str) -> dict:
-    value = task.get(key, {})
-    if not isinstance(value, dict):
-        raise TaskFileError(f"{source}: '{key}' must be a table ([{key}])")
-    return value
-
-
-def _number(table: dict, key: str, where: str, source: str, default: float | None = None, positive: bool = False,
-            nonneg: bool = False) -> float:
-    if key not in table:
-        if default is None:
-            raise TaskFileError(f"{source}: missing field '{where}.{key}'")
-        return default
-    value = table[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise TaskFileError(f"{source}: field '{where}.{key}' = {excerpt(repr(value))} must be a finite number")
-    if positive and value <= 0:
-        raise TaskFileError(f"{source}: field '{where}.{key}' = {value} must be > 0")
-    if nonneg and value < 0:
-        raise TaskFileError(f"{source}: field '{where}.{key}' = {value} must be ≥ 0")
-    return float(value)
-
-
-def _vector(table: dict, key: str, where: str, source: str, length: int, scale: float) -> np.ndarray:
-    value = table.get(key)
-    if not isinstance(value, list) or len(value) != length or \
-            not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
-        raise TaskFileError(f"{source}: field '{where}.{key}' must be a list of {length} finite numbers, got {excerpt(repr(value))}")
-    return np.array(value, dtype=float) * scale
-
-
-def parse_robot_and_start(task: dict, source: str) -> tuple[Robot, np.ndarray, str, float, float]:
-    """The task's robot, start configuration (SI, checked against the limits), the start's
-    label, and the file's length and angle scales."""
-    robot_name = task.get("robot")
-    if not isinstance(robot_name, str):
-        raise TaskFileError(f"{source}: missing field 'robot' (a bundled name or a robot file path)")
-    robot = load_robot(robot_name)
-    units = _table(task, "units", source)
-    lunit, aunit = units.get("length", "m"), units.get("angle", "rad")
-    if lunit not in LENGTH_SCALE or aunit not in ANGLE_SCALE:
-        raise TaskFileError(f"{source}: [units] length must be m|mm and angle rad|deg, got {excerpt(repr(lunit))}, {excerpt(repr(aunit))}")
-    ls, as_ = LENGTH_SCALE[lunit], ANGLE_SCALE[aunit]
-
-    start = task.get("start", "q0")
-    if isinstance(start, dict):
-        q_start, label = start_from_pose(robot, start, source, ls, as_)
-    elif isinstance(start, str):
-        if start not in robot.configurations:
-            known = ", ".join(sorted(robot.configurations)) or "none"
-            default = " (the default)" if "start" not in task else ""
-            raise TaskFileError(
-                f"{source}: field 'start' = {excerpt(repr(start))}{default} is not a configuration of robot "
-                f"'{robot.name}' (known: {known}); name one of them, give {robot.n} joint values, or give a tool pose "
-                "solved by the IK: start = { pose = { xyz = [...], rpy = [...] } }" + _urdf_hint(robot))
-        q_start, label = robot.configuration(start), start
-    else:
-        q_units = np.array([as_ if j.revolute else ls for j in robot.joints])
-        q_start, label = _vector(task, "start", "task", source, robot.n, 1.0) * q_units, "explicit"
-    robot.check_within_limits(q_start, f"{source}: field 'start'")
-    return robot, q_start, label, ls, as_
-
-
-def _urdf_hint(robot: Robot) -> str:
-    """Where a named configuration of a robot read from a URDF alone goes (a URDF holds none)."""
-    if robot.source != robot.urdf.get("file"):
-        return ""
-    return ("; a URDF holds no named configurations: add one in a robot file that references it "
-            "(urdf = \"...\" and a [configurations] table, docs/urdf.md)")
-
-
-def start_from_pose(robot: Robot, start: dict, source: str, ls: float, as_: float) -> tuple[np.ndarray, str]:
-    """``start = { pose = { xyz, rpy }, seed = … }``: the joint values that reach the pose (the
-    robot's IK, inside the limits, its self-motion away from them), and a label saying which.
-    Without ``seed`` the IK starts from the robot's ``q0``, or, for a robot without one (a URDF
-    holds no configurations), where ``armgen ik`` starts: the middle of the joint limits turned
-    about the first joint's axis toward the pose; the label says so."""
-    pose = _table(start, "pose", source)
-    target = np.eye(4)
-    target[:3, 3] = _vector(pose, "xyz", "start.pose", source, 3, ls)
-    if np.abs(target[:3, 3]).max() > MAX_ABS_LENGTH_M:  # Robot.ik refuses it (a ValueError)
-        raise TaskFileError(f"{source}: field 'start.pose.xyz' is beyond ±{MAX_ABS_LENGTH_M:g} m (after [units]), out "
-                            "of any arm's reach: check the value and [units]")
-    target[:3, :3] = rpy_matrix(*_vector(pose, "rpy", "start.pose", source, 3, as_))
-    seed = start.get("seed", "q0" if "q0" in robot.configurations else None)
-    if isinstance(seed, list):
-        q_units = np.array([as_ if j.revolute else ls for j in robot.joints])
-        seed = _vector(start, "seed", "start", source, robot.n, 1.0) * q_units
-        robot.check_within_limits(seed, f"{source}: field 'start.seed'")
-    elif isinstance(seed, str) and seed not in robot.configurations:
-        known = ", ".join(sorted(robot.configurations)) or "none"
-        raise TaskFileError(
-            f"{source}: field 'start.seed' = {excerpt(repr(seed))} is not a configuration of robot '{robot.name}' "
-            f"(known: {known}); name one of them, give {robot.n} joint values, or leave start.seed out to start the "
-            "IK from the robot's q0 (else from the middle of the joint limits, as armgen ik does)")
-    result = robot.ik(target, seed=seed)
-    seed_label = (f"seed {seed!r}" if isinstance(seed, str) else "seed 'given joint values'" if seed is not None
-                  else "the middle of the joint limits")
-    if not result.success:  # a pose outside the workspace: bad input (exit 2)
-        raise TaskFileError(
-            f"{source}: field 'start.pose' is not reachable: the inverse kinematics from {seed_label} stopped "
-            f"{float(result.position_error) * 1e3:.3g} mm / {math.degrees(float(result.orientation_error)):.3g} deg "
-            "from it; the pose may be outside the workspace or beyond the joint limits: move it, or give a seed "
-            "(start.seed = a configuration name or joint values) closer to the configuration you want")
-    label = (f"pose (IK from {seed_label}: position error {float(result.position_error):.1e} m, "
-             f"orientation error {float(result.orientation_error):.1e} rad, {int(result.iterations)} iterations)")
-    if seed is None:
-        label += (f"; note: robot '{robot.name}' has no configuration q0 and the task gives no start.seed, so the IK "
-                  "started where armgen ik does (the middle of the joint limits, turned toward the pose); set "
-                  "start.seed to choose the configuration")
-    return np.asarray(result.q, dtype=float), label
-
-
-def parse_path_and_timing(task: dict, source: str, ls: float, as_: float):
-    """(path type, via, end, end rotation or None, duration, time law) from [path] and [timing]."""
-    path = _table(task, "path", source)
-    path_type = path.get("type", "circle")
-    if path_type not in PATH_TYPES:
-        raise TaskFileError(f"{source}: field 'path.type' = {excerpt(repr(path_type))} is not one of {', '.join(PATH_TYPES)}")
-    via = _vector(path, "via", "path", source, 3, ls) if path_type == "circle" else None
-    end = _vector(path, "end", "path", source, 3, ls)
-    orientation = path.get("orientation", "hold")
-    if orientation not in ("hold", "interpolate"):
-        raise TaskFileError(f"{source}: field 'path.orientation' = {excerpt(repr(orientation))} must be 'hold' or 'interpolate'")
-    end_rotation = None
-    if orientation == "interpolate":
-        if path_type != "line":
-            raise TaskFileError(f"{source}: path.orientation = 'interpolate' needs path.type = 'line'")
-        end_rotation = rpy_matrix(*_vector(path, "end_rpy", "path", source, 3, as_))
-
-    timing = _table(task, "timing", source)
-    duration = _number(timing, "duration", "timing", source, positive=True)
-    law = TimeLaw(timing.get("law", "cubic"), _number(timing, "blend", "timing", source, 0.2))
-    return path_type, via, end, end_rotation, duration, law
-
-
-def parse_cartesian_task(task: dict, source: str) -> CartesianTask:
-    robot, q_start, start_label, ls, as_ = parse_robot_and_start(task, source)
-    program = motion = None
-    if _table(task, "path", source).get("type") == "program":
-        if "timing" in task:
-            raise TaskFileError(f"{source}: [timing] is not used with path.type = 'program' (time comes from "
-                                "path.speed and path.acceleration); remove [timing]")
-        program = parse_program(task["path"], source, ls, as_)
-        motion = program_motion(program, robot.fk(q_start), robot, source)
-        path_type, via, end, end_rotation, duration, law = ("program", None, np.zeros(3), None, motion.duration,
-                                                            TimeLaw("constant"))
-    else:
-        path_type, via, end, end_rotation, duration, law = parse_path_and_timing(task, source, ls, as_)
-
-    m = _table(task, "method", source)
-    name = m.get("name", "pinv")
-    if name not in METHODS:
-        raise TaskFileError(f"{source}: field 'method.name' = {excerpt(repr(name))} is not one of {', '.join(METHODS)}")
-    defaults = MethodParams(name)
-    if name == "combined":
-        defaults = MethodParams(name, rho_L=1e-4, T_smo_L=20.0, T_sum_L=40.0)
-    elif name == "zghal_improved":
-        defaults = MethodParams(name, rho_L=0.04, T_smo_L=40.0, T_sum_L=80.0)
-    params = MethodParams(
-        name=name,
-        rho_R=_number(m, "rho_R", "method", source, defaults.rho_R, nonneg=True),
-        T_smo_R=_number(m, "T_smo_R", "method", source, defaults.T_smo_R, positive=True),
-        rho_L=_number(m, "rho_L", "method", source, defaults.rho_L, nonneg=True),
-        theta_s=_number(m, "theta_s", "method", source, defaults.theta_s / as_, positive=True) * as_,
-        T_smo_L=_number(m, "T_smo_L", "method", source, defaults.T_smo_L, positive=True),
-        T_sum_L=_number(m, "T_sum_L", "method", source, defaults.T_sum_L, positive=True),
-        gamma_R_ramp=_number(m, "gamma_R_ramp", "method", source, defaults.gamma_R_ramp, positive=True),
-    )
-    if name in JOINT_LIMIT_METHODS and params.rho_L > 0:
-        check_start_off_limits(robot, q_start, f"method '{name}'", source)
-    if params.T_sum_L < params.T_smo_L:
-        raise TaskFileError(f"{source}: method.T_sum_L = {params.T_sum_L} must be ≥ method.T_smo_L = {params.T_smo_L}")
-
-    integ = _table(task, "integrator", source)
-    integrator = integ.get("method", "euler")
-    if integrator not in INTEGRATORS:
-        raise TaskFileError(f"{source}: field 'integrator.method' = {excerpt(repr(integrator))} is not one of {', '.join(INTEGRATORS)}")
-    step = _number(integ, "step", "integrator", source, 0.02, positive=True)
-    if step > duration and motion is None:
-        raise TaskFileError(f"{source}: integrator.step = {step} is longer than timing.duration = {duration}")
-    damping = _table(task, "damping", source)
-    parsed = CartesianTask(
-        robot=robot, q_start=q_start, path_type=path_type, via=via, end=end, end_rotation=end_rotation,
-        duration=duration, law=law, method=params, integrator=integrator, step=step,
-        clik_gain=_number(integ, "clik_gain", "integrator", source, 0.0, nonneg=True),
-        damping_epsilon=_number(damping, "epsilon", "damping", source, 0.01, positive=True),
-        damping_max=_number(damping, "lambda_max", "damping", source, 0.05, nonneg=True),
-        output_every=int(_number(integ, "output_every", "integrator", source, 1, positive=True)),
-        raw=task, program=program, start_label=start_label,
-    )
-    return parsed if motion is None else parsed.with_motion(motion)
-
-
-def sym_orientation_error(r_actual: ca.SX, r_desired: ca.SX) -> ca.SX:
-    """½ Σ r_i × r_d,i over the columns (the usual small-angle orientation error, base frame),
-    computed as ½ vee(R_d Rᵀ − R R_dᵀ)."""
-    s = ca.mtimes(r_desired, r_actual.T)
-    return 0.5 * ca.vertcat(s[2, 1] - s[1, 2], s[0, 2] - s[2, 0], s[1, 0] - s[0, 1])
-
-
-def sym_rpy(rot: ca.SX) -> ca.SX:
-    """:func:`armgen.description.frames.matrix_rpy` in CasADi: [roll, pitch, yaw] of Rz(yaw) Ry(pitch) Rx(roll)."""
-    return ca.vertcat(ca.atan2(rot[2, 1], rot[2, 2]), ca.atan2(-rot[2, 0], ca.hypot(rot[0, 0], rot[1, 0])),
-                      ca.atan2(rot[1, 0], rot[0, 0]))
 
 
 def positive_definite(a: ca.SX) -> ca.SX:
@@ -321,14 +64,10 @@ class CartesianPlanner:
         self.p0, self.r0 = T0[:3, 3].copy(), T0[:3, :3].copy()
         # a program's plan stays within the joint speed limits (self-motion scaled first)
         self.limiter = SelfMotionLimiter(self.robot, self.backend, self.rows) if task.motion is not None else None
-        if task.motion is not None:  # built, and its reach checked, when parsed
+        if task.motion is not None:  # built, and its reach checked, when configured
             self.path = task.motion.program
-        elif task.path_type == "circle":
-            self.path = CirclePath(self.p0, task.via, task.end, self.r0)
         else:
-            r_end = task.end_rotation if task.end_rotation is not None else self.r0
-            self.path = LinePath(self.p0, task.end, self.r0, r_end)
-        if task.motion is None:
+            self.path = PathGeometry(task.path_type, task.via, task.end, task.end_rotation).build(T0)
             self._check_reach()
         mp = task.method
         shape = "linear" if mp.name == "combined" else "quadratic"
@@ -562,17 +301,19 @@ def check_on_circle_or_line(result: PlanResult) -> None:
             "start configuration, or a singularity on the way)")
 
 
-def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
+def plan(config: CartesianTask, backend: str = "symbolic") -> PlanResult:
     """The task's plan within its path tolerance: the integrator step is halved as needed
-    (toolpath.accuracy) and the step used written into ``task`` (so the task records its plan)."""
-    parsed = parse_cartesian_task(task, source)
-    shared = make_backend(parsed.robot, backend)
+    (toolpath.accuracy); ``result.config`` is the task with the step the plan used."""
+    shared = make_backend(config.robot, backend)
 
     def run(motion, step):
-        planned = replace(parsed, step=step)
+        planned = replace(config, step=step)
         planned = planned if motion is None else planned.with_motion(motion)
         return CartesianPlanner(planned, backend=shared, check_path=False).run()
 
-    return plan_with_speed_limits(run, parsed.motion, parsed.program and parsed.program.angular_speed, parsed.robot,
-                                  source, path_accuracy(task, parsed.step, parsed.motion is not None),
-                                  parsed.duration, check_on_circle_or_line)
+    result, step = plan_with_speed_limits(run, config.motion, config.program and config.program.angular_speed,
+                                          config.robot, config.source, config.accuracy, config.duration,
+                                          check_on_circle_or_line)
+    used = replace(config, step=step)
+    result.config = used if result.motion is None else used.with_motion(result.motion)
+    return result

@@ -22,11 +22,14 @@ class Integrator(StrictModel):
 
 
 class Method(StrictModel):
+    """The defaults shown are the plain methods'; ``combined`` and ``zghal_improved`` have their own
+    (docs/cartesian.md), which :func:`.config.method_params` gives the fields a file leaves out."""
+
     name: Literal["pinv", "repetitive", "zghal", "zghal_improved", "combined"] = "pinv"
     rho_R: NonNegative = 2.8
     T_smo_R: Positive = 10.0
     rho_L: NonNegative = 0.025
-    theta_s: Positive = Field(20.0, description="angle unit of the file")
+    theta_s: Positive = Field(20.0, description="angle unit of the file; left out: 20 degrees in any unit")
     T_smo_L: Positive = 40.0
     T_sum_L: Positive = 80.0
     gamma_R_ramp: Positive = 20.0
