@@ -1,6 +1,8 @@
 """C generation for a robot: ``make_consistent → generate → render → write``.
 
-Produces ``<prefix>.h``, ``<prefix>.c`` and ``manifest.json``. Output is deterministic
+Produces ``<prefix>.h``, ``<prefix>.c`` and ``manifest.json``; their fixed C text is in the
+templates ``armgen/data/templates/codegen/`` (filled by ``armgen.data.render_template``), Python
+supplies the names, sizes and the emitted function bodies. Output is deterministic
 (no timestamps, no absolute paths): regenerating gives byte-identical files, which the
 tests and ``armgen verify`` check against the checked-in ``generated/<robot>/``.
 
@@ -322,6 +324,7 @@ def _lean_math(p: str, P: str, math: list[str]) -> str:
     blocks.append(render_template("codegen/trig.h", p=p, P=P, trig_range=BOUNDED_TRIG_RANGE, atan2_ulp=BOUNDED_ATAN2_ULP))
     return "\n".join(blocks)
 
+
 def _speed_limit_macros(robot, P: str) -> str:
     """``<P>_QDLIM`` / ``<P>_QDDLIM``: the joints' speed limits (SI: rad/s or m/s, per s²) as array
     initialisers, ``static const {p}_real qdlim[{P}_NDOF] = {P}_QDLIM;``. A limit the robot file
@@ -338,6 +341,7 @@ def _speed_limit_macros(robot, P: str) -> str:
             blocks.append(render_template("codegen/no_speed_limits.h", P=P, macro=macro, quantity=quantity))
     return "\n".join(blocks)
 
+
 # The math macros every header defines: sin and cos (the header's own sin/cos table) and what
 # the firmware stub reads through them (ctrl_robot.h: SIN, COS, SQRT, FABS). Any other is
 # defined only when the generated source calls it (MISRA 2.5: no unused macro).
@@ -350,6 +354,7 @@ def _pose_check(p: str, P: str) -> str:
     Python side's ``ik.check_targets``."""
     return render_template("codegen/pose_check.h", p=p, P=P, pose_tolerance=repr(ik.POSE_TOL),
                            float_pose_tolerance=repr(ik.FLOAT_POSE_TOL))
+
 
 def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str], preamble: str,
                    math: list[str]) -> str:
@@ -374,6 +379,7 @@ def _render_header(config: CodegenConfig, model: SymbolicModel, protos: list[str
         speed_limits=_speed_limit_macros(config.robot, P), lean_math=_lean_math(p, P, math), pose_check=pose_check,
         prototypes="\n".join(protos))
     return c_file(preamble, body)
+
 
 def write(code: GeneratedCode, out_dir: str | Path) -> list[Path]:
     out_dir = Path(out_dir)
