@@ -206,6 +206,10 @@ def test_distributions_carry_the_package_data_and_the_licence(venv):
                  "armgen/data/firmware_stub/project/CMakeLists.txt.in",
                  "armgen/data/firmware_stub/project/cmake/arm-none-eabi-cortex-m4.cmake"):
         assert name in wheel_names, name
+    # the templates of the generated C text (armgen.data.render_template reads them at run time)
+    templates = {path.relative_to(REPO).as_posix() for path in (REPO / "armgen/data/templates").rglob("*")
+                 if path.is_file() and "__pycache__" not in path.parts}
+    assert templates and templates <= wheel_names, sorted(templates - wheel_names)
     metadata = next(n for n in wheel_names if n.endswith("/METADATA"))
     text = zipfile.ZipFile(venv["wheel"]).read(metadata).decode()
     assert "BSD-3-Clause" in text
