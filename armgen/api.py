@@ -1,7 +1,8 @@
 """The Python API: load a robot, plan a task, generate C, verify it.
 
-Everything here is re-exported from the :mod:`armgen` namespace (``armgen.plan`` …) and is
-what the command line does, minus the printing::
+This module is what the command line does, minus the printing: every ``armgen`` command calls
+the functions here (and the robot description's listing), nothing deeper. The main ones are
+also in the :mod:`armgen` namespace (``armgen.plan`` …)::
 
     import armgen
 
@@ -18,7 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
-from .errors import OptionError, excerpt
+from .errors import (ArmgenError, Interrupted, OptionError, OutputError, PlanFileError, PlanningError,
+                     RobotFileError, TaskFileError, ToolchainError, VerificationError, excerpt)
 from .robot import Robot, load_robot, load_robot_any
 
 if TYPE_CHECKING:  # heavy imports only for type checkers
@@ -28,7 +30,13 @@ if TYPE_CHECKING:  # heavy imports only for type checkers
     from .planning.result import PlanResult
     from .planning.tasks import Task
 
-__all__ = ["Robot", "load_robot", "read_task", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport"]
+__all__ = ["Robot", "load_robot", "read_task", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport",
+           "parse_override", "read_plan", "plan_metadata_path", "figure_format", "save_plot", "parse_frame_size",
+           "animate", "sweep", "solve_ik", "IkSolution", "generate_ptp", "json_schema", "write_text_atomic",
+           "firmware_project", "firmware_task",
+           # the errors every call may raise, each with its command-line exit code
+           "ArmgenError", "RobotFileError", "TaskFileError", "PlanningError", "ToolchainError", "VerificationError",
+           "OutputError", "Interrupted", "PlanFileError", "OptionError", "excerpt"]
 
 
 # -- planning -------------------------------------------------------------------------------
@@ -338,3 +346,333 @@ def verify(robot: Robot | str | Path, plan: str | Path | None = None, samples: i
                           run=Path(run) if run else None)
     stages = run_pipeline(config, Path(report) if report else None, echo or (lambda _line: None))
     return VerifyReport(loaded.name, tuple(stages))
+
+
+
+# -- plan files, figures, videos --------------------------------------------------------------------
+
+def parse_override(item: str) -> tuple[str, Any]:
+    """``key=value`` as given to ``--set`` → (dotted key, value parsed as TOML; a bare word is a
+    string), for ``read_task(task, **{key: value})``. Raises :class:`TaskFileError` (exit 2)."""
+    from .planning.tasks import parse_override as parse
+
+    return parse(item)
+
+
+def read_plan(csv_path: str | Path) -> Plan:
+    """A plan CSV that ``armgen plan`` or :meth:`Plan.save` wrote, with its ``plan.json`` when it
+    is there (:func:`plan_metadata_path`; else ``metadata`` is empty). Angles come back in rad.
+    Raises :class:`PlanFileError` (exit 2) for a malformed CSV or ``plan.json``."""
+    from .planning.result import read_plan as read
+
+    return Plan(read(csv_path))
+
+
+def plan_metadata_path(csv_path: str | Path) -> Path:
+    """The ``plan.json`` beside a plan CSV (the CSV's name with ``.json``)."""
+    from .planning.result import metadata_path
+
+    return metadata_path(csv_path)
+
+
+def figure_format(path: str | Path) -> str:
+    """The figure format of an output name (``"png"``, ``"svg"``, ``"pdf"``), checked before any
+    work. Raises :class:`ArmgenError`: no file name or another extension (exit 2), a folder (exit 4)."""
+    from .planning.plotting import figure_format as check
+
+    return check(path)
+
+
+def save_plot(plan: Plan, out: str | Path, robot: Robot | str | Path | None = None,
+              plan_file: str | Path | None = None) -> Path:
+    """Write a plan's figure, as ``armgen plot`` does; returns the path written.
+
+    Parameters
+    ----------
+    plan
+        From :func:`plan`, or :func:`read_plan` with its ``plan.json``.
+    out
+        ``.png``, ``.svg`` or ``.pdf`` (checked first, written atomically).
+    robot
+        The arm drawn through its own kinematics (default: the one ``plan.json`` records); a
+        PTP figure draws none.
+    plan_file
+        Where the plan was read from: the recorded robot is also looked for beside it, and
+        errors name it (default: the plan's task file).
+    """
+    from .planning.plotting import plan_robot, save_figure
+    from .planning.tasks import plot_plan
+
+    figure_format(out)
+    source = str(plan_file) if plan_file is not None else str(plan.metadata.get("task_file", "plan"))
+    arm = plan_robot(plan.result, plan_file, robot) if plan.metadata.get("planner") != "ptp" else None
+    return save_figure(plot_plan(plan.result, source, arm), out)
+
+
+def parse_frame_size(text: str) -> tuple[int, int]:
+    """A video frame size ``WIDTHxHEIGHT`` in pixels (``"960x720"``): even numbers from 160 to
+    3840, else a :class:`TaskFileError` (exit 2)."""
+    from .planning.animation import parse_size
+
+    return parse_size(text)
+
+
+def animate(plan: Plan, out: str | Path, fps: float | None = None, duration: float | None = None,
+            size: tuple[int, int] | str | None = None, robot: Robot | str | Path | None = None,
+            plan_file: str | Path | None = None) -> Path:
+    """Render the arm moving through a plan, as ``armgen animate`` does; returns the path written.
+
+    Parameters
+    ----------
+    plan
+        From :func:`plan` or :func:`read_plan`.
+    out
+        ``.gif`` (Pillow) or ``.mp4`` (needs ffmpeg), written atomically.
+    fps, duration
+        Frames per second (default 20) and seconds of video (default: the plan's, at most 10 s).
+    size
+        ``(width, height)`` or ``"WxH"`` in pixels (default 960×720).
+    robot, plan_file
+        As in :func:`save_plot`; a plan without ``plan.json`` needs ``robot`` (its joint columns are drawn).
+    """
+    from .planning.animation import DEFAULT_FPS, DEFAULT_SIZE, animate_plan
+    from .planning.plotting import plan_robot
+
+    pixels = parse_frame_size(size) if isinstance(size, str) else size or DEFAULT_SIZE
+    arm = plan_robot(plan.result, plan_file, robot)
+    return animate_plan(plan.result, out, DEFAULT_FPS if fps is None else fps, duration, pixels, arm)
+
+
+# -- sweeps, inverse kinematics -------------------------------------------------------------------
+
+def sweep(task: str | Path | dict[str, Any], out: str | Path, grids: tuple[str, ...] = (), ranges: tuple[str, ...] = (),
+          draws: int = 0, seed: int = 0, overrides: tuple[str, ...] = (), backend: str = "symbolic",
+          workers: int | None = None, scheduler: str | None = None, resume: bool = False,
+          echo: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
+    """Plan a task once per combination of grid values (and per random draw), as ``armgen sweep``.
+
+    Parameters
+    ----------
+    task
+        A task file path, or the task as a dict (the parsed TOML).
+    out
+        The table to write, ``.csv`` or ``.parquet``: one row per run, failed runs included.
+    grids, ranges, overrides
+        Strings as ``--grid KEY=ARRAY``, ``--range KEY=LO:HI`` and ``--set key=value`` take them.
+    draws, seed
+        Random draws over the ranges (per grid combination), and their seed.
+    backend
+        ``"symbolic"`` or ``"c"``.
+    workers, scheduler
+        Local worker processes (default: the CPUs), or a Dask scheduler's address (trusted).
+    resume
+        Skip the runs already in ``out``.
+    echo
+        Called with progress lines (default: silent).
+
+    Returns
+    -------
+    list of dict
+        The table's rows by run (``status`` ``"ok"`` or why not, ``exit_code``, the summary).
+    """
+    import os
+
+    from .planning.sweep import SweepSpec, parse_grid, parse_range, sweep as run_sweep
+    from .planning.tasks import apply_overrides, load_task
+
+    if isinstance(task, dict):
+        document, sha, source = copy.deepcopy(task), "", "<task dict>"
+    else:
+        (document, sha), source = load_task(task), str(task)
+    apply_overrides(document, list(overrides))
+    spec = SweepSpec([parse_grid(g) for g in grids], [parse_range(r) for r in ranges], draws, seed)
+    spec.check()
+    return run_sweep(document, source, sha, spec, out, backend, workers or os.cpu_count() or 1, scheduler, resume,
+                     echo or (lambda _line: None))
+
+
+@dataclass(frozen=True)
+class IkSolution:
+    """The outcome of :func:`solve_ik`: ``q`` (the solution, else the closest configuration
+    reached); ``converged``, ``iterations``, ``position_error`` (m) and ``orientation_error``
+    (rad) in the rows the arm controls; ``free_rows``, the task rows it does not control
+    (``"vz"``, ``"wx"`` … of a planar arm), with the pose's largest error there
+    (``free_position_error`` m, ``free_orientation_error`` rad, a rotation-vector component)
+    and whether both are within the tolerances (``free_rows_match``)."""
+
+    q: Any
+    converged: bool
+    iterations: int
+    position_error: float
+    orientation_error: float
+    free_rows: tuple[str, ...]
+    free_position_error: float
+    free_orientation_error: float
+    free_rows_match: bool
+
+    @property
+    def solved(self) -> bool:
+        """The whole pose is reached: the controlled rows converged and the others match."""
+        return self.converged and self.free_rows_match
+
+
+def solve_ik(robot: Robot | str | Path, pose: Any, q0: Any = None, seed: Any = None, max_iterations: int | None = None,
+             orientation_given: bool = True) -> IkSolution:
+    """Joint values that put the tool at ``pose``, as ``armgen ik`` does (``docs/ik.md``).
+
+    Parameters
+    ----------
+    robot
+        A :class:`Robot`, bundled name, robot TOML or URDF path.
+    pose
+        The tool pose in the base frame, a 4×4 homogeneous matrix (m).
+    q0, seed
+        A configuration to stay near, and the first attempt's start (:meth:`Robot.ik`).
+    max_iterations
+        Stop after this many steps (at most the solver's own cap, the default).
+    orientation_given
+        False: the pose's orientation is not required in the rows the arm does not control.
+    """
+    import numpy as np
+
+    from .planning.ptp.poses import uncontrolled_error
+    from .symbolic.ik import MAX_ITERATIONS, TOL_ORIENTATION, TOL_POSITION
+
+    arm, pose = load_robot_any(robot), np.asarray(pose, dtype=float)
+    result = arm.ik(pose, q0, seed=seed,
+                    max_iterations=None if max_iterations is None else min(max_iterations, MAX_ITERATIONS))
+    free_rows, free_position, free_orientation = uncontrolled_error(arm, pose, result.q)
+    match = free_position <= TOL_POSITION and (not orientation_given or free_orientation <= TOL_ORIENTATION)
+    return IkSolution(result.q, bool(result.success), int(result.iterations), float(result.position_error),
+                      float(result.orientation_error), tuple(free_rows), free_position, free_orientation, match)
+
+
+# -- firmware ---------------------------------------------------------------------------------------
+
+def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None = None,
+                     plan: str | Path | None = None, overrides: tuple[str, ...] | list[str] = ()) -> tuple[Robot, list[Path]]:
+    """Write a self-contained firmware project (``armgen firmware``): the robot's generated C,
+    the controller, a CMake host demo, the Cortex-M4F toolchain file and a README.
+
+    Parameters
+    ----------
+    robot
+        A bundled name or a robot file (TOML or URDF); read once.
+    out
+        The project folder: new, empty, or one this function wrote earlier (its own files are
+        updated, files changed by hand are never overwritten). It appears complete or not at all.
+    task
+        A task file for ``robot`` (read once, its robot checked before it is planned): planned
+        here, and the demo runs it.
+    plan
+        A plan CSV with its plan.json (``armgen plan``): its recorded task is planned again and
+        must give the CSV's samples; the demo runs it.
+    overrides
+        ``key=value`` changes of ``task`` (as ``--set``).
+
+    Returns
+    -------
+    (Robot, list[pathlib.Path])
+        The robot and the files written. Without ``task`` or ``plan`` the demo is a short line
+        of the tool from the robot's ``q0``.
+
+    Raises
+    ------
+    OptionError
+        Both ``task`` and ``plan``, or ``overrides`` without ``task`` (exit 2).
+    RobotFileError, TaskFileError, PlanFileError
+        A bad robot, task or plan file, or a task for another robot (exit 2).
+    PlanningError
+        The task (or the demo) cannot be planned, or its plan leaves the joint limits (exit 3).
+    OutputError
+        ``out`` cannot be written (exit 4).
+    VerificationError
+        The controller cannot run the plan, or a plan its task does not plan to (exit 5).
+    """
+    from .firmware.project import write_firmware_project
+
+    if task is not None and plan is not None:
+        raise OptionError("give --task or --plan, not both (a task is planned here; a plan was made from one)")
+    if overrides and task is None:
+        raise OptionError("--set changes a task file: give --task (a plan was made already; re-plan its task instead)")
+    return write_firmware_project(robot, out, task, plan, tuple(overrides))
+
+
+def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path | None = None,
+                  overrides: tuple[str, ...] | list[str] = (), gen_dir: str | Path | None = None,
+                  lock: str | None = None) -> list[Path]:
+    """Write the controller's task files (``armgen firmware-task``, used by the firmware stub's
+    Makefile): ``task_params.h``, the PTP evaluator ``fw_ptp.{h,c}`` and ``robot_fw.c``.
+
+    Parameters
+    ----------
+    source
+        A task file (planned when the controller needs the plan: programs, ptp, snake) or a plan
+        CSV with its plan.json.
+    out
+        The folder to write into.
+    robot
+        The firmware's robot: the task must name it (default: the task's robot).
+    overrides
+        ``key=value`` changes of a task file (as ``--set``).
+    gen_dir
+        The robot's generated C (default ``generated/<robot>/``).
+    lock
+        ``JOINTS@TIME`` (e.g. ``"5@1.38"``): the runners report these joints locked from TIME s
+        on, a fault the plan does not know.
+
+    Returns
+    -------
+    list[pathlib.Path]
+        The files written.
+    """
+    from .firmware.configuration import schedule_lock, write_task_files
+    from .firmware.tasks import task_from_file
+
+    controller = task_from_file(source, load_robot_any(robot) if robot is not None else None, tuple(overrides))
+    if lock:
+        controller = schedule_lock(controller, lock)
+    return write_task_files(controller, out, gen_dir)
+
+
+# -- C of the PTP playback, input schemas, files --------------------------------------------------
+
+def generate_ptp(out: str | Path | None = None, precision: str = "double", prefix: str = "armgen") -> tuple[Path, ...]:
+    """Write the C evaluator of PTP segment polynomials (the firmware's playback), as ``armgen
+    gen-ptp``: ``<prefix>_ptp.h`` and ``.c`` in ``out`` (default ``./generated/ptp/``), with the
+    real type ``precision`` (``"double"`` or ``"float"``). Returns the paths written."""
+    from .codegen.generate import GENERATED_DIR
+    from .codegen.ptp_c import generate_ptp_evaluator
+
+    return tuple(generate_ptp_evaluator(Path(out) if out else GENERATED_DIR / "ptp", prefix, precision))
+
+
+def json_schema(kind: str, planner: str | None = None) -> dict[str, Any]:
+    """The JSON Schema of the ``"robot"`` file (DH table or URDF reference) or of a ``"task"``
+    file (one ``planner``'s, default any: told apart by its ``planner`` field), for editors."""
+    from typing import Annotated, Union
+
+    from pydantic import Field, TypeAdapter
+
+    from .description.schema import RobotFile, UrdfRobotFile
+    from .planning.registry import PLANNER_NAMES, planner as planner_named
+
+    if kind == "robot":
+        schema = TypeAdapter(Union[RobotFile, UrdfRobotFile]).json_schema()
+        schema["title"] = "armgen robot file (DH table, or a URDF reference)"
+        return schema
+    models = {name: planner_named(name).schema for name in PLANNER_NAMES}
+    if planner is not None:
+        return models[planner].model_json_schema()
+    union = Annotated[Union[tuple(models.values())], Field(discriminator="planner")]
+    schema = TypeAdapter(union).json_schema()
+    schema["title"] = "armgen task file"
+    return schema
+
+
+def write_text_atomic(path: str | Path, text: str) -> None:
+    """Write a text file that appears complete or not at all; an :class:`OutputError` (exit 4)
+    when it cannot be written (a folder in the way, no permission, a full disk)."""
+    from .fileio import write_text_atomic as write
+
+    write(path, text)

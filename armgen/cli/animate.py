@@ -25,12 +25,10 @@ def animate_cmd(plan_csv: str, output: str | None, fps: float, duration: float |
                 robot: str | None) -> None:
     """Draw the arm moving through a plan: links between the joint frames (the arm's own forward
     kinematics), the tool frame, the planned path, snake obstacles, and a time stamp."""
-    from ..planning.animation import animate_plan, parse_size
-    from ..planning.plotting import plan_robot
+    from ..api import animate, parse_frame_size
 
-    pixels = parse_size(size)  # a bad --size fails before any work
+    pixels = parse_frame_size(size)  # a bad --size fails before any work
     out = Path(output) if output is not None else Path(plan_csv).with_suffix(".gif")
-    result = plan_with_metadata(plan_csv, robot, "animate")
-    arm = plan_robot(result, plan_csv, robot)
-    animate_plan(result, output if output is not None else out, fps, duration, pixels, arm)
+    plan = plan_with_metadata(plan_csv, robot, "animate")
+    animate(plan, output if output is not None else out, fps, duration, pixels, robot, plan_csv)
     click.echo(f"wrote {out}")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from ..errors import OptionError, OutputError
+from ..api import OptionError, OutputError, write_text_atomic
 from .handling import handle_errors
 
 
@@ -49,8 +49,6 @@ def _summary(text: str) -> tuple[str, str, str]:
 def copy_examples(names: tuple[str, ...], folder: Path, force: bool) -> list[Path]:
     """Copy the named (default: all) examples into ``folder``; refuses to overwrite a file
     that differs unless ``force``; checks everything before writing anything."""
-    from ..fileio import write_text_atomic
-
     examples = bundled_examples()
     unknown = [n for n in names if n not in examples and f"{n}.toml" not in examples]
     if unknown:

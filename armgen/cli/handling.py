@@ -11,7 +11,7 @@ import sys
 
 import click
 
-from ..errors import ArmgenError, excerpt
+from ..api import ArmgenError, excerpt
 
 
 def handle_errors(func):

@@ -16,7 +16,7 @@ from .handling import handle_errors
 
 def _joints(robot, text: str, option: str, angle_scale: float) -> np.ndarray:
     """A named configuration, or n numbers separated by commas/spaces (angles in --units)."""
-    from ..errors import OptionError, excerpt
+    from ..api import OptionError, excerpt
 
     if text in robot.configurations:
         return robot.configuration(text)
@@ -51,13 +51,10 @@ def _joints(robot, text: str, option: str, angle_scale: float) -> np.ndarray:
 def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float, float] | None, seed: str | None,
            q0: str | None, max_iterations: int | None, units: str) -> None:
     """Inverse kinematics: joint values that put the tool at a pose (exit 3 when none is found)."""
-    from ..errors import OptionError, PlanningError
+    from ..api import OptionError, PlanningError, load_robot, solve_ik
     from ..description import matrix_rpy, rpy_matrix
-    from ..planning.ptp.poses import uncontrolled_error
-    from ..robot import load_robot_any
-    from ..symbolic import ik
 
-    r = load_robot_any(robot)
+    r = load_robot(robot)
     scale = math.pi / 180 if units == "deg" else 1.0
     rpy_given, rpy = rpy, rpy or (0.0, 0.0, 0.0)
     if not all(math.isfinite(v) for v in (*xyz, *rpy)):
@@ -71,16 +68,16 @@ def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float,
     pose = np.eye(4)
     pose[:3, :3] = rpy_matrix(*(v * scale for v in rpy))
     pose[:3, 3] = xyz
-    result = r.ik(pose, None if q0 is None else _joints(r, q0, "--q0", scale),
-                  seed=None if seed is None else _joints(r, seed, "--seed", scale),
-                  max_iterations=None if max_iterations is None else min(max_iterations, ik.MAX_ITERATIONS))
-    rows = ", ".join(TASK_ROWS[k] for k in r.task_rows)
-    free_rows, free_position, free_orientation = uncontrolled_error(r, pose, result.q)
     # the orientation counts where the user gave one (--rpy), the position always (--xyz)
-    free_ok = free_position <= ik.TOL_POSITION and (rpy_given is None or free_orientation <= ik.TOL_ORIENTATION)
-    click.echo(f"{'solved' if result.success and free_ok else 'closest reached'} in {int(result.iterations)} "
-               f"iterations (task rows {rows}): position error {float(result.position_error):.3g} m, "
-               f"orientation error {float(result.orientation_error):.3g} rad")
+    result = solve_ik(r, pose, None if q0 is None else _joints(r, q0, "--q0", scale),
+                      None if seed is None else _joints(r, seed, "--seed", scale), max_iterations,
+                      orientation_given=rpy_given is not None)
+    rows = ", ".join(TASK_ROWS[k] for k in r.task_rows)
+    free_rows, free_position, free_orientation = (result.free_rows, result.free_position_error,
+                                                  result.free_orientation_error)
+    click.echo(f"{'solved' if result.solved else 'closest reached'} in {result.iterations} "
+               f"iterations (task rows {rows}): position error {result.position_error:.3g} m, "
+               f"orientation error {result.orientation_error:.3g} rad")
     if free_rows:
         reached = r.fk(result.q)
         click.echo(f"rows the arm does not control ({', '.join(free_rows)}): position error {free_position:.3g} m, "
@@ -90,12 +87,12 @@ def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float,
     for joint, value in zip(r.joints, result.q):
         shown, unit = (value / scale, units) if joint.revolute else (value, "m")
         click.echo(f"  {joint.name:12s} {shown: .9g} {unit}")
-    if result.success and not free_ok:
+    if result.converged and not result.free_rows_match:
         raise PlanningError(f"robot '{r.name}' controls only the rows {rows} of the tool pose: the configuration "
                             f"found reaches those, but the pose asks for other values in the rows "
                             f"{', '.join(free_rows)} ({free_position:.3g} m / {free_orientation:.3g} rad off); give "
                             "--xyz/--rpy the arm takes there (the tool pose reached is printed above)")
-    if not result.success:
+    if not result.converged:
         raise PlanningError(f"no configuration of robot '{r.name}' within the tolerances was found for this pose "
                             f"(the closest one reached is printed above); check that the pose is within reach, or "
                             f"try another --seed")

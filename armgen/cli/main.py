@@ -25,8 +25,8 @@ def cli() -> None:
 @handle_errors
 def robots_cmd(as_json: bool) -> None:
     """List the bundled robots."""
+    from ..api import load_robot
     from ..description import bundled_robots, describe
-    from ..robot import load_robot
 
     robots = [load_robot(name) for name in bundled_robots()]
     if as_json:
@@ -66,7 +66,7 @@ def _show_data(r) -> dict:
 @handle_errors
 def show_cmd(robot: str, as_json: bool) -> None:
     """Print a robot's joints (DH table or URDF origin/axis), limits, base/tool and configurations (mm, deg)."""
-    from ..robot import load_robot
+    from ..api import load_robot
 
     r = load_robot(robot)
     if as_json:
@@ -103,10 +103,9 @@ def gen_cmd(robot: str, out_dir: str | None, precision: str, prefix: str, functi
 @handle_errors
 def gen_ptp_cmd(out_dir: str | None, precision: str, prefix: str) -> None:
     """Write the C evaluator of PTP segment polynomials (the firmware's playback)."""
-    from ..codegen.generate import GENERATED_DIR
-    from ..codegen.ptp_c import generate_ptp_evaluator
+    from ..api import generate_ptp
 
-    for path in generate_ptp_evaluator(Path(out_dir) if out_dir else GENERATED_DIR / "ptp", prefix, precision):
+    for path in generate_ptp(out_dir, precision, prefix):
         click.echo(f"wrote {path}")
 
 
@@ -129,8 +128,7 @@ def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[
              max_steps: int | None, max_samples: int | None, as_json: bool) -> None:
     """Plan a task file to CSV plus JSON metadata (written together or not at all), and print a
     summary table in the task file's units."""
-    from ..api import plan, read_task
-    from ..planning.tasks import parse_override
+    from ..api import parse_override, plan, read_task
     from .summary import summary_table, units_hints
 
     task = read_task(task_file, **dict(parse_override(item) for item in overrides))  # read once
@@ -171,8 +169,7 @@ def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | 
 
     Exit codes: 0 all stages passed, 2 bad input (no manifest, code generated from another
     robot file, a malformed plan), 4 a missing tool, 5 a stage failed (stale code included)."""
-    from ..api import verify
-    from ..errors import VerificationError
+    from ..api import VerificationError, verify
 
     if not verify(robot, plan_csv, samples, precision, target, report, click.echo, generated, run_csv):
         raise VerificationError("verification failed: see the FAIL stages above")
@@ -188,14 +185,11 @@ def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | 
 def plot_cmd(plan_csv: str, output: str | None, robot: str | None) -> None:
     """Draw a plan: joint angles with limits, velocities with bounds, criteria, task error, tool
     path (the arm's own forward kinematics)."""
-    from ..planning.plotting import figure_format, plan_robot, save_figure
-    from ..planning.tasks import plot_plan
+    from ..api import figure_format, save_plot
 
     out = Path(output) if output is not None else Path(plan_csv).with_suffix(".png")
     figure_format(output if output is not None else out)  # a bad -o fails before any work
-    result = plan_with_metadata(plan_csv, robot, "plot")
-    arm = plan_robot(result, plan_csv, robot) if result.metadata.get("planner") != "ptp" else None
-    save_figure(plot_plan(result, plan_csv, arm), out)
+    save_plot(plan_with_metadata(plan_csv, robot, "plot"), out, robot, plan_csv)
     click.echo(f"wrote {out}")
 
 

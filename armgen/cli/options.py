@@ -40,13 +40,12 @@ def plan_robot_option():
 def plan_with_metadata(plan_csv: str, robot: str | None, command: str):
     """The plan of ``plan_csv`` with its plan.json; without one, an error naming the missing
     file and the fix (``--robot`` draws a plan without it where ``command`` can)."""
-    from ..errors import PlanFileError
-    from ..planning.result import metadata_path, read_plan
+    from ..api import PlanFileError, plan_metadata_path, read_plan
 
-    result = read_plan(plan_csv)
-    if not result.metadata and (robot is None or command == "plot"):
+    plan = read_plan(plan_csv)
+    if not plan.metadata and (robot is None or command == "plot"):
         fix = ", or give the arm with --robot FILE to draw its joint columns" if command == "animate" else ""
-        raise PlanFileError(f"{metadata_path(plan_csv)} not found: `armgen {command}` needs the plan.json that "
+        raise PlanFileError(f"{plan_metadata_path(plan_csv)} not found: `armgen {command}` needs the plan.json that "
                             f"`armgen plan` wrote beside {plan_csv} (it names the planner and the robot); copy it "
                             f"there, or re-run `armgen plan`{fix}")
-    return result
+    return plan

@@ -3,7 +3,6 @@ table row per run (see :mod:`armgen.planning.sweep`)."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import click
@@ -38,17 +37,10 @@ def sweep_cmd(task_file, grids, draws, ranges, seed, overrides, output, backend,
     Exit codes: 0 the table was written (failed runs are rows), 2 bad options or task file,
     3 every run failed, 4 the table or the scheduler cannot be used, 130 interrupted (the
     finished runs are written; --resume runs the rest)."""
-    from ..errors import PlanningError
-    from ..planning.sweep import SweepSpec, parse_grid, parse_range, sweep
-    from ..planning.tasks import apply_overrides, load_task
+    from ..api import PlanningError, sweep
 
-    task, sha = load_task(task_file)
-    apply_overrides(task, list(overrides))
-    spec = SweepSpec([parse_grid(g) for g in grids], [parse_range(r) for r in ranges], draws, seed)
-    spec.check()
     out = Path(output) if output else Path(Path(task_file).stem + "_sweep.csv")
-    rows = sweep(task, task_file, sha, spec, out, backend, workers or os.cpu_count() or 1, scheduler, resume,
-                 click.echo)
+    rows = sweep(task_file, out, grids, ranges, draws, seed, overrides, backend, workers, scheduler, resume, click.echo)
     failed = sum(r["status"] != "ok" for r in rows)
     click.echo(f"wrote {out}: {len(rows)} runs, {len(rows) - failed} ok, {failed} failed")
     if rows and failed == len(rows):
