@@ -33,7 +33,6 @@ if TYPE_CHECKING:  # heavy imports only for type checkers
 __all__ = ["Robot", "load_robot", "read_task", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport",
            "parse_override", "read_plan", "plan_metadata_path", "figure_format", "save_plot", "parse_frame_size",
            "animate", "sweep", "solve_ik", "IkSolution", "generate_ptp", "json_schema", "write_text_atomic",
-           "firmware_project", "firmware_task",
            # the errors every call may raise, each with its command-line exit code
            "ArmgenError", "RobotFileError", "TaskFileError", "PlanningError", "ToolchainError", "VerificationError",
            "OutputError", "Interrupted", "PlanFileError", "OptionError", "excerpt"]
@@ -545,94 +544,6 @@ def solve_ik(robot: Robot | str | Path, pose: Any, q0: Any = None, seed: Any = N
     match = free_position <= TOL_POSITION and (not orientation_given or free_orientation <= TOL_ORIENTATION)
     return IkSolution(result.q, bool(result.success), int(result.iterations), float(result.position_error),
                       float(result.orientation_error), tuple(free_rows), free_position, free_orientation, match)
-
-
-# -- firmware ---------------------------------------------------------------------------------------
-
-def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None = None,
-                     plan: str | Path | None = None, overrides: tuple[str, ...] | list[str] = ()) -> tuple[Robot, list[Path]]:
-    """Write a self-contained firmware project (``armgen firmware``): the robot's generated C,
-    the controller, a CMake host demo, the Cortex-M4F toolchain file and a README.
-
-    Parameters
-    ----------
-    robot
-        A bundled name or a robot file (TOML or URDF); read once.
-    out
-        The project folder: new, empty, or one this function wrote earlier (its own files are
-        updated, files changed by hand are never overwritten). It appears complete or not at all.
-    task
-        A task file for ``robot`` (read once, its robot checked before it is planned): planned
-        here, and the demo runs it.
-    plan
-        A plan CSV with its plan.json (``armgen plan``): its recorded task is planned again and
-        must give the CSV's samples; the demo runs it.
-    overrides
-        ``key=value`` changes of ``task`` (as ``--set``).
-
-    Returns
-    -------
-    (Robot, list[pathlib.Path])
-        The robot and the files written. Without ``task`` or ``plan`` the demo is a short line
-        of the tool from the robot's ``q0``.
-
-    Raises
-    ------
-    OptionError
-        Both ``task`` and ``plan``, or ``overrides`` without ``task`` (exit 2).
-    RobotFileError, TaskFileError, PlanFileError
-        A bad robot, task or plan file, or a task for another robot (exit 2).
-    PlanningError
-        The task (or the demo) cannot be planned, or its plan leaves the joint limits (exit 3).
-    OutputError
-        ``out`` cannot be written (exit 4).
-    VerificationError
-        The controller cannot run the plan, or a plan its task does not plan to (exit 5).
-    """
-    from .firmware.project import write_firmware_project
-
-    if task is not None and plan is not None:
-        raise OptionError("give --task or --plan, not both (a task is planned here; a plan was made from one)")
-    if overrides and task is None:
-        raise OptionError("--set changes a task file: give --task (a plan was made already; re-plan its task instead)")
-    return write_firmware_project(robot, out, task, plan, tuple(overrides))
-
-
-def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path | None = None,
-                  overrides: tuple[str, ...] | list[str] = (), gen_dir: str | Path | None = None,
-                  lock: str | None = None) -> list[Path]:
-    """Write the controller's task files (``armgen firmware-task``, used by the firmware stub's
-    Makefile): ``task_params.h``, the PTP evaluator ``fw_ptp.{h,c}`` and ``robot_fw.c``.
-
-    Parameters
-    ----------
-    source
-        A task file (planned when the controller needs the plan: programs, ptp, snake) or a plan
-        CSV with its plan.json.
-    out
-        The folder to write into.
-    robot
-        The firmware's robot: the task must name it (default: the task's robot).
-    overrides
-        ``key=value`` changes of a task file (as ``--set``).
-    gen_dir
-        The robot's generated C (default ``generated/<robot>/``).
-    lock
-        ``JOINTS@TIME`` (e.g. ``"5@1.38"``): the runners report these joints locked from TIME s
-        on, a fault the plan does not know.
-
-    Returns
-    -------
-    list[pathlib.Path]
-        The files written.
-    """
-    from .firmware.configuration import schedule_lock, write_task_files
-    from .firmware.tasks import task_from_file
-
-    controller = task_from_file(source, load_robot_any(robot) if robot is not None else None, tuple(overrides))
-    if lock:
-        controller = schedule_lock(controller, lock)
-    return write_task_files(controller, out, gen_dir)
 
 
 # -- C of the PTP playback, input schemas, files --------------------------------------------------
