@@ -31,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from armgen.planning.snake import arm as sn_arm, task as sn_task
+from armgen.planning.snake import arm as sn_arm, config as sn_config
 from armgen.planning.snake import planner as sn
-from armgen.planning.tasks import load_task
+from armgen.planning.tasks import configure_task, load_task
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 SCENARIOS = {"planar": EXAMPLES / "snake_planar.toml", "tank": EXAMPLES / "snake_tank.toml"}
@@ -44,17 +44,17 @@ BARS = {"exact": (1e-6, 0.1), "denoised": (0.02, 1.0)}  # tip deviation mm, run 
 QUICK_CAP_S = 1.0  # --quick: wall-clock cap of each h = 0 run
 
 
-def _task(name: str, **solver) -> sn_task.SnakeTask:
+def _task(name: str, **solver) -> sn_config.SnakeTask:
     raw, _ = load_task(SCENARIOS[name])
     raw = copy.deepcopy(raw)
     raw["solver"].update(solver)
-    return sn_task.parse_snake_task(raw, SCENARIOS[name].name)
+    return configure_task(raw, SCENARIOS[name].name).config
 
 
-def _best(task: sn_task.SnakeTask, repeat: int) -> dict:
+def _best(task: sn_config.SnakeTask, repeat: int) -> dict:
     best = None
     for _ in range(repeat):
-        result = sn.plan_snake(task)
+        result = sn.plan(task)
         s = result.metadata["summary"]
         if best is None or s["solver_and_recovery_time_s"] < best["solver_and_recovery_time_s"]:
             best = s

@@ -18,14 +18,14 @@ from hypothesis import strategies as st
 from armgen.codegen.generate import generate_robot
 from armgen.codegen.toolchain import STRICT_FLAGS
 from armgen.errors import PlanningError, TaskFileError
-from armgen.planning.snake import arm as sn_arm, task as sn_task, spline as sn_spline
+from armgen.planning.snake import arm as sn_arm, config as sn_config, spline as sn_spline
 from armgen.planning.snake import planner as sn
 from armgen.planning.result import read_plan
 from armgen.planning.snake.dynamics import BarModel, DenoisedDynamics
 from armgen.planning.snake.exact import joint_rates, solve_exact
 from armgen.planning.snake.obstacles import Obstacle, segment_distance
 from armgen.planning.snake.spline import HermiteSpline
-from armgen.planning.tasks import load_task, run_task
+from armgen.planning.tasks import configure_task, load_task, run_task
 from armgen.robot import load_robot
 from armgen.symbolic.model import ModelOptions, SymbolicModel
 
@@ -219,7 +219,7 @@ def test_spline_misprint_would_break_c2():
 # -- the velocity law ------------------------------------------------------------------------
 def test_velocity_law_is_the_papers():
     v = 0.12
-    law = sn_task.VelocityLaw(v, 10.0, 1.0)
+    law = sn_config.VelocityLaw(v, 10.0, 1.0)
     t = np.linspace(0, 10, 100_001)
     _, sd, sdd = law(t)
     paper = np.where(t <= 1, 0.5 * v * (1 + np.sin((t + 1.5) * np.pi)),
@@ -511,6 +511,47 @@ def test_rail_and_field_errors(tasks):
         run_task(bad, "t.toml")
 
 
+@pytest.mark.parametrize("index, edit, message", [
+    (0, {"diameter": 3}, r"'obstacles\[0\].diameter' is not a field of a box \(it takes min, max\); remove it"),
+    (0, {"min": None}, r"'obstacles\[0\].min' is missing; a box takes min and max"),
+    (0, {"min": [60, 40, -1000]}, r"'obstacles\[0\]' needs min < max in every coordinate"),
+    (2, {"axis": [0, 0, 0]}, r"'obstacles\[2\].axis' is the zero vector; give a direction such as \[1, 0, 0\]$"),
+    (2, {"normal": [1, 0, 0]}, r"'obstacles\[2\].normal' is not a field of a cylinder"),
+])
+def test_obstacle_fields_follow_their_type(tasks, index, edit, message):
+    """Each obstacle type takes its own fields (docs/snake.md): a missing one, one of another type
+    (which the old reader ignored), a zero axis or an empty box is bad input naming the field."""
+    task = copy.deepcopy(tasks["planar"])
+    for key, value in edit.items():
+        if value is None:
+            task["obstacles"][index].pop(key)
+        else:
+            task["obstacles"][index][key] = value
+    with pytest.raises(TaskFileError, match=message):
+        configure_task(task, "t.toml")
+
+
+def test_configure_makes_the_typed_si_task_the_plan_carries(tasks, plans):
+    """The validated file and the robot become a frozen SnakeTask in SI (no task dict in it); the
+    tube's default diameter and wall are 40 mm and 2 mm whatever the file's length unit; the plan
+    carries the task it was made from."""
+    task = copy.deepcopy(tasks["planar"])  # mm
+    del task["links"], task["path"]["start_tangent"]  # the start tangent defaults to the rail's direction, +x
+    task["path"]["end_tangent"] = "natural"
+    config = configure_task(task, "t.toml").config
+    assert isinstance(config, sn_config.SnakeTask)
+    with pytest.raises(AttributeError):
+        config.h = 0.0
+    assert (config.outer_diameter, config.wall, config.tube_radius) == (0.040, 0.002, 0.020)
+    # the paper's tube: ρ π/4 (OD² − ID²) L with L = 104 mm, computed independently
+    assert config.link_mass == pytest.approx(2700.0 * math.pi / 4 * (0.040 ** 2 - 0.036 ** 2) * 0.104, rel=1e-12)
+    np.testing.assert_allclose(config.waypoints, np.array(tasks["planar"]["path"]["waypoints"]) * 1e-3, rtol=0, atol=0)
+    assert config.start_tangent.tolist() == [1.0, 0.0, 0.0] and config.end_tangent is None
+    assert config.integrator == "RK45" and isinstance(config.obstacles, tuple)
+    assert not any(isinstance(getattr(config, f), dict) for f in config.__dataclass_fields__)
+    assert isinstance(plans[("planar", "exact")].config, sn_config.SnakeTask)
+
+
 def test_collision_is_reported(tasks):
     task = copy.deepcopy(tasks["planar"])
     task["obstacles"].append({"name": "post", "type": "cylinder", "centre": [250, 150, 0], "diameter": 20})
@@ -521,7 +562,7 @@ def test_collision_is_reported(tasks):
 def test_dynamics_right_hand_side_on_an_exact_state():
     """On an exact state (chords exact, rates consistent) the elastic force vanishes, M is symmetric
     positive definite on the free coordinates, and both state forms give the same accelerations."""
-    task = sn_task.parse_snake_task(load_task(PLANAR)[0], "t")
+    task = configure_task(load_task(PLANAR)[0], "t").config
     track = sn.build_track(task)
     t = 4.2
     s_c, v_c, _ = task.law.scalar(t)

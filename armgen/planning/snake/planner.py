@@ -1,6 +1,6 @@
 """Snake-arm tip following along a spline (spec 50): planner ``"snake"``.
 
-Pipeline: task file (:mod:`.task`) → robot structure (:mod:`.arm`: rail feed + universal
+Pipeline: task file (:mod:`.schema`, :mod:`.config`) → robot structure (:mod:`.arm`: rail feed + universal
 joints) → path spline and rail (:mod:`.spline`) → joint-centre coordinates over time by the exact geometric solver
 (:mod:`.exact`) or the paper's denoised multi-link dynamics (:mod:`.dynamics`) →
 universal-joint angles (signed form) → forward kinematics on those angles → tip deviation,
@@ -27,7 +27,8 @@ from .dynamics import EXPLICIT_METHODS, BarModel, DenoisedDynamics, DynamicsRun
 from .exact import joint_rates, solve_exact
 from .obstacles import clearances
 from .spline import HermiteSpline, Track
-from .task import RAIL_TOL, SnakeTask, mm, parse_snake_task
+from .config import SnakeTask
+from .schema import RAIL_TOL, mm
 
 # Joint-angle limits are enforced up to this (rounding of atan2 of exact chords).
 ANGLE_LIMIT_TOL = 1e-9  # rad
@@ -160,7 +161,8 @@ def _check_angles(task: SnakeTask, track: Track, sol: SnakeSolution, alpha: np.n
                 "widen that bend (larger radius: move or add waypoints) or use a robot with wider joint limits")
 
 
-def plan_snake(task: SnakeTask, backend: str = "symbolic") -> PlanResult:
+def plan(task: SnakeTask, backend: str = "symbolic") -> PlanResult:
+    """The task's plan (``backend``: the forward kinematics cross-checked against the numpy chain)."""
     arm = task.arm
     started = time.perf_counter()
     track = build_track(task)
@@ -244,7 +246,7 @@ def _result(task, sol, feed, alpha, beta, tip, tip_dev, chord_err, speeds, clear
     cmin = np.min(np.stack([c.min(axis=1) for c in clear.values()]), axis=0) if clear else np.full(feed.size, np.inf)
     data = np.column_stack([sol.t, feed, angles, sol.s, speeds[:, 0], speeds[:, -1], tip, tip_dev,
                             np.max(np.abs(chord_err), axis=1), cmin])
-    return PlanResult(_columns(n, n + 1), data, {})
+    return PlanResult(_columns(n, n + 1), data, {}, config=task)
 
 
 def _metadata(task, track, sol, alpha, beta, feed, tip_dev, tip_to_planned, chord_err, speeds, clear, fk_centres,
@@ -298,6 +300,3 @@ def _metadata(task, track, sol, alpha, beta, feed, tip_dev, tip_to_planned, chor
         "summary": summary,
     }
 
-
-def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
-    return plan_snake(parse_snake_task(task, source), backend)
