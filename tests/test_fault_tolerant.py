@@ -13,8 +13,8 @@ from click.testing import CliRunner
 
 from armgen.cli.main import cli
 from armgen.errors import PlanningError, TaskFileError
-from armgen.planning.fault_tolerant.planner import FaultTolerantPlanner, parse_fault_tolerant_task
-from armgen.planning.tasks import apply_overrides, load_task, run_task
+from armgen.planning.fault_tolerant.planner import FaultTolerantPlanner
+from armgen.planning.tasks import apply_overrides, configure_task, load_task, run_task
 from armgen.robot import load_robot
 from armgen.symbolic.model import SymbolicModel
 
@@ -52,7 +52,7 @@ def plan(name, *overrides, backend="symbolic"):
 def parsed(name, *overrides):
     task, _ = load_task(EXAMPLES / f"{name}.toml")
     apply_overrides(task, list(overrides))
-    return parse_fault_tolerant_task(task, name)
+    return configure_task(task, name).config
 
 
 # -- the index ----------------------------------------------------------------------------
@@ -346,7 +346,7 @@ def test_cli_plan_and_plot(tmp_path):
     ("fault.time=-0.1", "outside the plan"),
     ("method.K=-1", r"method.K' = -1 must be ≥ 0"),
     ("method.b=-0.5", r"method.b' = -0.5 must be ≥ 0"),
-    ("sweep.K=[1, -2]", "sweep.K.*negative"),
+    ("sweep.K=[1, -2]", r"sweep.K'\[1\] = -2 must be ≥ 0"),
     ("method.name=magic", "method.name"),
     ("method.index=volume", "method.index"),
     ("method.delta=0", "method.delta"),

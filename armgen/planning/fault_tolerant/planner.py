@@ -44,10 +44,9 @@ from ..limits import limit_report
 from ..result import PlanResult
 from ..taskpath import (TIMED_WIDTH, TaskPath, base_columns, path_metadata,
                        smoothness, sym_base_row, sym_tracking)
-from ..toolpath.accuracy import path_accuracy
 from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
 from .reach import srs_reach_check
-from .task import FaultMethod, FaultSpec, FaultTolerantTask, parse_fault_tolerant_task
+from .config import FaultMethod, FaultSpec, FaultTolerantTask
 
 # Central-difference step of the σ_min variant's gradient (rad): truncation ~h² and rounding
 # ~eps/h balance near 1e-6 for O(1) singular values.
@@ -205,19 +204,12 @@ class FaultTolerantPlanner:
             bar.update(1)
         return x[slot["q"]].copy(), x[slot["qd_prev"]].copy()
 
-    def lock_step(self) -> int:
-        """First step index at which the fault applies (steps + 1 without a fault)."""
-        f, p = self.task.fault, self.task.path
-        if not f.joints:
-            return p.steps + 1
-        return int(math.ceil(f.time / p.step - 1e-9))
-
     def run_locks(self, method: FaultMethod | None = None,
                   lock_sets: Sequence[tuple[int, ...]] | None = None) -> list[PlanResult]:
         method = method or self.task.method
         p = self.task.path
         lock_sets = [self.task.fault.joints] if lock_sets is None else list(lock_sets)
-        k_f = self.lock_step() if any(lock_sets) else p.steps + 1
+        k_f = self.task.lock_step if any(lock_sets) else p.steps + 1
         healthy = np.ones(self.robot.n)
         kernel = self._kernel(method)
         for key, value in (("a", method.a or (1.0,) * self.robot.n), ("K", method.K), ("b", method.b),
@@ -259,6 +251,7 @@ class FaultTolerantPlanner:
         keep = [k for k in range(len(seg.rows)) if k % p.output_every == 0 or k == len(seg.rows) - 1]
         result = PlanResult(self.columns(), data[keep], {})
         result.metadata = self._metadata(data, seg, method, joints, k_f, elapsed)
+        result.config = replace(self.task, method=method, fault=replace(self.task.fault, joints=joints))
         return result
 
     def verdict(self, data: np.ndarray, seg: Segment, method: FaultMethod, joints: tuple[int, ...],
@@ -366,15 +359,18 @@ class FaultTolerantPlanner:
         return meta
 
 
-def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
-    parsed = parse_fault_tolerant_task(task, source)
-    shared = make_backend(parsed.robot, backend)
+def plan(config: FaultTolerantTask, backend: str = "symbolic") -> PlanResult:
+    """The task's plan; a program is slowed where a joint would exceed its speed limits and the
+    integrator step halved to meet a stated path tolerance (toolpath.accuracy).
+    ``result.config`` is the task as planned (the step and, for a program, the motion used)."""
+    shared = make_backend(config.robot, backend)
+    path = config.path
 
-    def run(motion, step):  # at the step the path tolerance asks for (toolpath.accuracy)
-        path = replace(parsed.path, step=step)
-        planned = replace(parsed, path=path if motion is None else path.with_motion(motion))
+    def run(motion, step):
+        stepped = replace(path, step=step)
+        planned = replace(config, path=stepped if motion is None else stepped.with_motion(motion))
         return FaultTolerantPlanner(planned, backend=shared).run()
 
-    return plan_with_speed_limits(run, parsed.path.motion, parsed.path.program and parsed.path.program.angular_speed,
-                                  parsed.robot, source, path_accuracy(task, parsed.path.step, parsed.path.motion is not None,
-                                                                      unset_step_applies=False), parsed.path.duration)
+    result, _ = plan_with_speed_limits(run, path.motion, path.program and path.program.angular_speed, config.robot,
+                                       config.source, path.accuracy, path.duration)
+    return result

@@ -1,4 +1,10 @@
-"""Schema of ``planner = "fault_tolerant"`` task files (spec 30)."""
+"""Schema of ``planner = "fault_tolerant"`` task files (spec 30).
+
+Values are in the file's units; :func:`armgen.planning.fault_tolerant.config.configure`
+resolves the joints against the robot, checks the fault time against the plan's duration and
+converts to SI. A field whose default is a physical quantity (``v_band``, the completion
+bounds) defaults to None here and to its SI value there, so that the default does not change
+with the file's units."""
 
 from __future__ import annotations
 
@@ -9,35 +15,37 @@ from pydantic import Field
 from ...schemas import StrictModel
 from ..toolpath.schema import path_union
 from ..common import schema as common
-from ..common.schema import (Damping, Description, EulerIntegrator, Positive, RelativePath, RobotReference, Start, Timing,
-                             Units)
+from ..common.schema import (Damping, Description, EulerIntegrator, NonNegative, Positive, RelativePath, RobotReference,
+                             Start, Timing, Units)
 
 JointRef = Union[Annotated[int, Field(ge=1)], Annotated[str, Field(min_length=1, max_length=64)]]
 JointList = Annotated[list[JointRef], Field(max_length=64)]
-Gains = Annotated[list[float], Field(min_length=1, max_length=64)]
+# Gains weigh the index that is maximised: a negative one would drive it down instead of up.
+Gains = Annotated[list[NonNegative], Field(min_length=1, max_length=64)]
 
 
 class Fault(StrictModel):
     joints: JointList = Field(default_factory=list, description="joint numbers (1-based) or names that lock")
-    time: Optional[float] = Field(None, description="s, default: half the duration")
+    time: Optional[float] = Field(None, description="s, within the plan; default: half the duration")
 
 
 class Method(StrictModel):
     name: Literal["gpm", "wln", "pinv"] = "gpm"
     index: Literal["omega", "relative", "sigma_min"] = "omega"
-    K: float = 1.0
-    b: float = 1.0
+    K: NonNegative = Field(1.0, description="GPM gain on ∇H (≥ 0: the index is maximised)")
+    b: NonNegative = Field(1.0, description="WLN weight gain (≥ 0: the index is maximised)")
     weight_rule: Literal["plain", "smooth"] = "smooth"
-    v_band: Positive = 0.2
+    v_band: Optional[Positive] = Field(None, description="angle unit/s: the smooth rule's activation band; "
+                                                         "default 0.2 rad/s")
     omega_floor: Positive = 1e-3
     delta: Positive = 1e-4
-    a: Optional[Gains] = None
+    a: Optional[Gains] = Field(None, description="one weight per joint; default all 1")
 
 
 class Completion(StrictModel):
-    pos_tol: Positive = 1.0
-    ori_tol: Positive = 1.0
-    max_joint_speed: Positive = 120.0
+    pos_tol: Optional[Positive] = Field(None, description="length unit; default 1 mm")
+    ori_tol: Optional[Positive] = Field(None, description="angle unit; default 1 deg")
+    max_joint_speed: Optional[Positive] = Field(None, description="angle unit/s; default 120 deg/s")
 
 
 class Sweep(StrictModel):
@@ -46,7 +54,7 @@ class Sweep(StrictModel):
     rules: Annotated[list[Literal["plain", "smooth"]], Field(min_length=1, max_length=2)] = Field(
         default_factory=lambda: ["plain", "smooth"])
     joints: Union[Literal["all"], JointList] = "all"
-    fine_step: Positive = 0.005
+    fine_step: Positive = Field(0.005, description="s")
 
 
 class Check(common.Check):

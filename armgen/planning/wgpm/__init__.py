@@ -2,35 +2,16 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
-
 from ..registry import Planner
+from .config import configure
+from .planner import plan
 from .schema import WgpmTaskFile, workload
 
 
-# TRANSITIONAL (issue 36, replaced by config.configure / planner.plan): the task dict as the
-# file gave it, for the planner's own reader.
-@dataclass(frozen=True)
-class _LegacyConfig:
-    task: dict[str, Any]
-    source: str
-
-
-def _configure(model: WgpmTaskFile, robot: Any, source: str) -> _LegacyConfig:
-    return _LegacyConfig(model.model_dump(by_alias=True, exclude_unset=True), source)
-
-
-def _plan(config: _LegacyConfig, backend: str = "symbolic"):
-    from .planner import plan_task
-
-    return plan_task(config.task, config.source, backend)
-
-
 def _plot(result, robot=None):
-    from .plots import plot_wgpm
+    from .plots import plot_wgpm  # matplotlib only when a figure is drawn
 
     return plot_wgpm(result, robot=robot)
 
 
-PLANNER = Planner(name="wgpm", schema=WgpmTaskFile, configure=_configure, plan=_plan, plot=_plot, workload=workload)
+PLANNER = Planner(name="wgpm", schema=WgpmTaskFile, configure=configure, plan=plan, plot=_plot, workload=workload)

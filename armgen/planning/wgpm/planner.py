@@ -23,155 +23,23 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
-from ...errors import PlanningError, TaskFileError, excerpt
+from ...errors import PlanningError
 from ...progress import progress
-from ...symbolic.steps import WGPM_CRITERIA, WGPM_SENSE
+from ...symbolic.steps import WGPM_CRITERIA
 from ..backends import Backend, make_backend
-from ..cartesian.planner import _number, _table
-from ..limits import check_start_off_limits, limit_report
+from ..limits import limit_report
 from ..result import PlanResult
-from ..taskpath import (TIMED_WIDTH, PathTask, TaskPath, base_columns, parse_path_task, path_metadata,
-                       smoothness, sym_base_row, sym_tracking)
-from ..toolpath.accuracy import path_accuracy
+from ..taskpath import TIMED_WIDTH, TaskPath, base_columns, path_metadata, smoothness, sym_base_row, sym_tracking
 from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
+from .config import WgpmMethod, WgpmTask
 
-METHODS = ("wgpm", "pinv", "clamp")
-TOP_FIELDS = {"planner", "robot", "start", "units", "path", "timing", "integrator", "damping", "method", "tracking",
-              "check", "description"}
-CRITERION_FIELDS = {"k_hi", "k_lo", "H_lo", "H_hi", "u_th", "u_band"}
 SHORT = {"manipulability": "w", "joint_manipulability": "M", "zghal": "L", "condition": "kappa"}
-# A plan "tracks" when its tool stays within these of the path (spec 35 asks whether the method
-# both respects the limits and tracks); task-file [tracking] overrides them.
-DEFAULT_POS_TOL = 1e-3  # m
-DEFAULT_ORI_TOL = math.radians(1.0)  # rad
-
-
-@dataclass(frozen=True)
-class Criterion:
-    """One normalised criterion: gain k_hi when it is bad (u ≤ u_th), k_lo when good
-    (u ≥ u_th + u_band); off when both gains are 0."""
-
-    k_hi: float = 0.0
-    k_lo: float = 0.0
-    H_lo: float = 0.0
-    H_hi: float = 1.0
-    u_th: float = 0.3
-    u_band: float = 0.4
-
-
-@dataclass(frozen=True)
-class WgpmMethod:
-    name: str = "wgpm"
-    band: float = 0.1  # Ω: damping-band width as a fraction of each joint's range
-    t_rmax: float = math.radians(10.0)  # rad/s
-    delta: float = 1e-4
-    ramp_time: float = 2.0  # s
-    ramp_out: bool = True
-    criteria: tuple[Criterion, ...] = tuple(Criterion() for _ in WGPM_CRITERIA)
-
-    def vectors(self) -> list[np.ndarray]:
-        """The step's H_lo, H_hi, k_hi, k_lo, u_th, u_band inputs."""
-        return [np.array([getattr(c, k) for c in self.criteria]) for k in ("H_lo", "H_hi", "k_hi", "k_lo", "u_th",
-                                                                            "u_band")]
-
-
-@dataclass(frozen=True)
-class WgpmTask:
-    path: PathTask
-    method: WgpmMethod
-    pos_tol: float = DEFAULT_POS_TOL
-    ori_tol: float = DEFAULT_ORI_TOL
-    raw: dict[str, Any] = field(default_factory=dict)
-
-
-def parse_wgpm_task(task: dict, source: str) -> WgpmTask:
-    path = parse_path_task(task, source, TOP_FIELDS)
-    as_ = path.angle_scale
-    m = _table(task, "method", source)
-    unknown = set(m) - {"name", "band", "t_rmax", "delta", "ramp_time", "ramp_out", "criteria"}
-    if unknown:
-        raise TaskFileError(f"{source}: unknown field(s) method.{', method.'.join(sorted(unknown))}; allowed: name, "
-                            "band, t_rmax, delta, ramp_time, ramp_out, criteria")
-    name = m.get("name", "wgpm")
-    if name not in METHODS:
-        raise TaskFileError(f"{source}: field 'method.name' = {excerpt(repr(name))} is not one of {', '.join(METHODS)}")
-    band = _number(m, "band", "method", source, 0.1, positive=True)
-    if band >= 0.5:
-        raise TaskFileError(f"{source}: method.band = {band} must be < 0.5 (two damping bands and a free band share "
-                            "each joint's range)")
-    t_rmax = _number(m, "t_rmax", "method", source, math.radians(10.0) / as_) * as_
-    if t_rmax < 0:
-        raise TaskFileError(f"{source}: method.t_rmax = {t_rmax / as_:g} must be ≥ 0 (the repulsive field pushes "
-                            "joints back into the free band)")
-    ramp_out = m.get("ramp_out", True)
-    if not isinstance(ramp_out, bool):
-        raise TaskFileError(f"{source}: method.ramp_out = {excerpt(repr(ramp_out))} must be true or false")
-    crit_table = m.get("criteria", {})
-    if not isinstance(crit_table, dict):
-        raise TaskFileError(f"{source}: method.criteria must be a table of criteria ({', '.join(WGPM_CRITERIA)})")
-    unknown = set(crit_table) - set(WGPM_CRITERIA)
-    if unknown:
-        raise TaskFileError(f"{source}: unknown criterion/criteria {', '.join(sorted(unknown))} in method.criteria; "
-                            f"offered: {', '.join(WGPM_CRITERIA)}")
-    criteria = []
-    for cname in WGPM_CRITERIA:
-        c = crit_table.get(cname, {})
-        where = f"method.criteria.{cname}"
-        if not isinstance(c, dict):
-            raise TaskFileError(f"{source}: {where} must be a table")
-        bad = set(c) - CRITERION_FIELDS
-        if bad:
-            raise TaskFileError(f"{source}: unknown field(s) {', '.join(sorted(bad))} in {where}; allowed: "
-                                f"{', '.join(sorted(CRITERION_FIELDS))}")
-        for key in ("k_hi", "k_lo"):
-            value = c.get(key, 0.0)
-            if isinstance(value, (int, float)) and not isinstance(value, bool) and value < 0:
-                raise TaskFileError(f"{source}: field '{where}.{key}' = {value} must be ≥ 0: the sign comes from the "
-                                    f"criterion ({cname} is {'maximised' if WGPM_SENSE[WGPM_CRITERIA.index(cname)] > 0 else 'minimised'})")
-        crit = Criterion(
-            k_hi=_number(c, "k_hi", where, source, 0.0, nonneg=True),
-            k_lo=_number(c, "k_lo", where, source, 0.0, nonneg=True),
-            H_lo=_number(c, "H_lo", where, source, 0.0),
-            H_hi=_number(c, "H_hi", where, source, 1.0),
-            u_th=_number(c, "u_th", where, source, 0.3),
-            u_band=_number(c, "u_band", where, source, 0.4, positive=True),
-        )
-        if crit.k_lo > crit.k_hi:
-            raise TaskFileError(f"{source}: {where}.k_lo = {crit.k_lo} exceeds k_hi = {crit.k_hi}; the gain must be "
-                                "largest when the criterion is bad (k_hi ≥ k_lo)")
-        if not crit.H_hi > crit.H_lo:
-            raise TaskFileError(f"{source}: {where}: H_hi = {crit.H_hi} must exceed H_lo = {crit.H_lo} (the range "
-                                "that normalises the criterion to [0, 1])")
-        if not 0.0 <= crit.u_th <= 1.0:
-            raise TaskFileError(f"{source}: {where}.u_th = {crit.u_th} must be in [0, 1]")
-        criteria.append(crit)
-    method = WgpmMethod(
-        name=name, band=band, t_rmax=t_rmax,
-        delta=_number(m, "delta", "method", source, 1e-4, positive=True),
-        ramp_time=_number(m, "ramp_time", "method", source, 2.0, nonneg=True),
-        ramp_out=ramp_out, criteria=tuple(criteria),
-    )
-    zghal = method.criteria[WGPM_CRITERIA.index("zghal")]
-    if name == "wgpm" and zghal.k_hi > 0:
-        check_start_off_limits(path.robot, path.q_start, "method.criteria.zghal", source)
-    if 2 * method.ramp_time > path.duration and method.ramp_out:
-        what = "the program's duration" if path.motion is not None else "timing.duration"
-        raise TaskFileError(f"{source}: method.ramp_time = {method.ramp_time} s is more than half of {what} = "
-                            f"{path.duration:g} s; shorten it or set method.ramp_out = false")
-    tr = _table(task, "tracking", source)
-    return WgpmTask(
-        path=path, method=method,
-        pos_tol=_number(tr, "pos_tol", "tracking", source, DEFAULT_POS_TOL / path.length_scale,
-                        positive=True) * path.length_scale,
-        ori_tol=_number(tr, "ori_tol", "tracking", source, DEFAULT_ORI_TOL / as_, positive=True) * as_,
-        raw=task,
-    )
 
 
 def smoothstep(x):
@@ -279,6 +147,7 @@ class WgpmPlanner:
         keep = [k for k in range(p.steps + 1) if k % p.output_every == 0 or k == p.steps]
         result = PlanResult(self.columns(), data[keep], {})
         result.metadata = self._metadata(data, data[:, 1 + n:1 + 2 * n], method, damped, time.perf_counter() - started)
+        result.config = replace(self.task, method=method)
         return result
 
     def _metadata(self, data: np.ndarray, qd: np.ndarray, method: WgpmMethod, damped: int,
@@ -322,16 +191,18 @@ class WgpmPlanner:
         return meta
 
 
-def plan_task(task: dict, source: str, backend: str = "symbolic") -> PlanResult:
-    parsed = parse_wgpm_task(task, source)
-    shared = make_backend(parsed.path.robot, backend)
+def plan(config: WgpmTask, backend: str = "symbolic") -> PlanResult:
+    """The task's plan; a program is slowed where a joint would exceed its speed limits and the
+    integrator step halved to meet a stated path tolerance (toolpath.accuracy).
+    ``result.config`` is the task as planned (the step and, for a program, the motion used)."""
+    shared = make_backend(config.robot, backend)
+    path = config.path
 
-    def run(motion, step):  # at the step the path tolerance asks for (toolpath.accuracy)
-        path = replace(parsed.path, step=step)
-        planned = replace(parsed, path=path if motion is None else path.with_motion(motion))
+    def run(motion, step):
+        stepped = replace(path, step=step)
+        planned = replace(config, path=stepped if motion is None else stepped.with_motion(motion))
         return WgpmPlanner(planned, backend=shared).run()
 
-    return plan_with_speed_limits(run, parsed.path.motion, parsed.path.program and parsed.path.program.angular_speed,
-                                  parsed.path.robot, source, path_accuracy(task, parsed.path.step, parsed.path.motion is not None,
-                                                                      unset_step_applies=False), parsed.path.duration)
-
+    result, _ = plan_with_speed_limits(run, path.motion, path.program and path.program.angular_speed, config.robot,
+                                       config.source, path.accuracy, path.duration)
+    return result
