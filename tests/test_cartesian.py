@@ -12,7 +12,7 @@ from click.testing import CliRunner
 from armgen.cli.main import cli
 from armgen.errors import PlanningError, TaskFileError
 from armgen.planning.toolpath.paths import CirclePath, LinePath, TimeLaw
-from armgen.planning.tasks import apply_overrides, load_task, run_task
+from armgen.planning.tasks import apply_overrides, configure_task, load_task, run_task
 from armgen.planning.cartesian.windows import JointWindows
 from armgen.robot import rpy_matrix
 
@@ -154,6 +154,47 @@ def test_bad_input_is_a_clear_error(override, error, message):
     exc = getattr(errors, error) if isinstance(error, str) else error
     with pytest.raises(exc, match=message):
         plan("modular8_circle_pinv", override)
+
+
+def _configured(name, *overrides, drop=()):
+    """The example's typed configuration (the pipeline's configure), ``drop`` dotted keys removed."""
+    task, _ = load_task(EXAMPLES / f"{name}.toml")
+    apply_overrides(task, list(overrides))
+    for key in drop:
+        table, field = key.rsplit(".", 1)
+        task[table].pop(field)
+    return configure_task(task, name).config
+
+
+def test_each_method_has_its_own_defaults_and_a_value_given_wins():
+    """A field the file leaves out takes its method's default (combined: rho_L 1e-4, T_smo_L 20,
+    T_sum_L 40; zghal_improved: rho_L 0.04; theta_s 20 deg in any unit, docs/cartesian.md); a
+    value the file gives is used even where it equals the schema's default."""
+    method_keys = [f"method.{k}" for k in ("rho_R", "T_smo_R", "rho_L", "theta_s", "T_smo_L", "T_sum_L",
+                                           "gamma_R_ramp")]
+    combined = _configured("modular8_circle_combined", drop=method_keys).method
+    assert (combined.rho_L, combined.T_smo_L, combined.T_sum_L) == (1e-4, 20.0, 40.0)
+    assert combined.theta_s == math.radians(20) and combined.rho_R == 2.8 and combined.gamma_R_ramp == 20.0
+    improved = _configured("modular8_circle_combined", 'method.name="zghal_improved"', drop=method_keys).method
+    assert (improved.rho_L, improved.T_smo_L, improved.T_sum_L) == (0.04, 40.0, 80.0)
+    in_radians = _configured("modular8_circle_combined", 'units.angle="rad"', "start=[0, 0, 0, 0, 0, 0, 0, 0]",
+                             drop=method_keys).method
+    assert in_radians.theta_s == math.radians(20)
+    given = _configured("modular8_circle_combined", "method.rho_L=0.025", "method.T_smo_L=40", "method.T_sum_L=80").method
+    assert (given.rho_L, given.T_smo_L, given.T_sum_L) == (0.025, 40.0, 80.0)
+    with pytest.raises(TaskFileError, match="method.T_sum_L = 10.0 must be ≥ method.T_smo_L = 20.0"):
+        _configured("modular8_circle_combined", "method.T_sum_L=10", drop=["method.T_smo_L"])
+
+
+def test_start_and_path_errors_name_the_field():
+    """Joint values of the wrong count name the field 'start' (not 'task.start') and the robot's
+    joint count; a circle without via says it is missing and how to add it."""
+    with pytest.raises(TaskFileError, match="field 'start' has 3 joint values but robot 'modular8' has 8 joints"):
+        _configured("modular8_circle_pinv", "start=[0, 0, 0]")
+    with pytest.raises(TaskFileError, match=r"missing field 'path.via'.*add via = \[x, y, z\]"):
+        _configured("modular8_circle_pinv", drop=["path.via"])
+    with pytest.raises(TaskFileError, match=r"missing field 'path.end_rpy'"):
+        _configured("modular8_circle_pinv", "path.type=line", "path.orientation=interpolate")
 
 
 def test_cli_failure_writes_nothing(tmp_path):

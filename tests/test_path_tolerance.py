@@ -74,6 +74,7 @@ def test_defaults_keep_the_tool_on_the_seam(tmp_path):
     step = accuracy["step_s"]
     assert step == pytest.approx(0.02 / 2 ** accuracy["step_halvings"])
     assert np.diff(result.column("t_s")) == pytest.approx(step)
+    assert result.config.step == step  # the typed configuration the plan used
     # the recorded task holds the step the plan used: planning it again gives the same plan
     assert result.metadata["task"]["integrator"]["step"] == step
     again = run_task(copy.deepcopy(result.metadata["task"]), str(tmp_path / "seam.toml"))

@@ -392,3 +392,46 @@ def test_a_hand_edited_robot_record_is_a_clear_error(urdf_plan, tmp_path, record
         run = CliRunner().invoke(cli, [command, str(tmp_path / "plan.csv"), "-o", str(tmp_path / f"x.{command}.png")])
         assert run.exit_code == 2, run.output
         assert "plan.json" in run.output and "--robot" in run.output and "internal error" not in run.output
+
+
+# The planned circle's samples against the circumcircle of its three points: rounding only.
+CIRCLE_TOL = 1e-9  # m
+
+
+def test_planned_circle_is_the_circle_through_the_tasks_points(plans):
+    """The planned path drawn for a circle plan is the circle through the start tool position
+    (the arm's FK of the recorded start) and the task's via and end (mm → m), checked against
+    the circumcircle computed here with NumPy."""
+    from armgen.planning.plotting import planned_tool_path
+
+    result, _ = plans["modular8_circle_combined"]
+    robot = plan_robot(result)
+    start = robot.fk(np.array(result.metadata["start"]["q_rad"]))[:3, 3]
+    task = result.metadata["task"]
+    via, end = (np.array(task["path"][k], dtype=float) * 1e-3 for k in ("via", "end"))
+    normal = np.cross(via - start, end - start)
+    # the circumcentre: equidistant from the three points, in their plane
+    system = np.array([2 * (via - start), 2 * (end - start), normal])
+    rhs = np.array([via @ via - start @ start, end @ end - start @ start, normal @ start])
+    centre = np.linalg.solve(system, rhs)
+    points = planned_tool_path(result, robot)
+    assert points is not None and len(points) >= 100
+    np.testing.assert_allclose(np.linalg.norm(points - centre, axis=1), np.linalg.norm(start - centre),
+                               atol=CIRCLE_TOL, rtol=0)
+    np.testing.assert_allclose((points - centre) @ normal / np.linalg.norm(normal), 0.0, atol=CIRCLE_TOL)
+    np.testing.assert_allclose(points[0], start, atol=CIRCLE_TOL)
+
+
+def test_plotting_imports_no_planner():
+    """plotting rebuilds the planned path through the shared floor (planning.common, toolpath),
+    never through a planner's package (issue 36), deferred imports included."""
+    import ast
+
+    from armgen.planning import plotting
+    from armgen.planning.registry import PLANNER_NAMES
+
+    tree = ast.parse(open(plotting.__file__, encoding="utf-8").read())
+    modules = [node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)]
+    modules += [alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names]
+    planners = [m for m in modules if m.removeprefix("armgen.planning.").split(".")[0] in PLANNER_NAMES]
+    assert not planners, f"plotting imports planner modules: {planners}"
