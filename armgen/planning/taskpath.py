@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import PlanningError, TaskFileError, excerpt
 from ..robot import Robot
-from .common.path import PathGeometry, check_step, path_geometry, program_task, timing_law
+from .common.path import WHOLE_STEP_SLACK, PathGeometry, check_step, path_geometry, program_task, timing_law
 from .common.start import start_configuration, unit_scales
 from .common.symbolic import sym_orientation_error, sym_rpy
 from .toolpath.accuracy import PathAccuracy, path_tolerance
@@ -78,7 +78,7 @@ class PathTask:
     def with_motion(self, motion: ProgramMotion) -> PathTask:
         """This task driven by ``motion`` (a program's new time law): the plan's duration is the
         motion's, rounded up to whole steps (the tool rests at its end for the remainder)."""
-        return replace(self, motion=motion, duration=math.ceil(motion.duration / self.step - 1e-9) * self.step)
+        return replace(self, motion=motion, duration=math.ceil(motion.duration / self.step - WHOLE_STEP_SLACK) * self.step)
 
 
 def configure_path_task(model: Any, robot: Robot, source: str) -> PathTask:
@@ -107,12 +107,6 @@ def configure_path_task(model: Any, robot: Robot, source: str) -> PathTask:
     geometry = path_geometry(model.path, ls, as_, source)
     duration, law = timing_law(model.timing, source)
     check_step(step, duration, source)
-    if not math.isfinite(duration / step):
-        raise TaskFileError(f"{source}: integrator.step = {step:g} s is too small for timing.duration = {duration:g} s; "
-                            "give a step of at least a microsecond")
-    steps = int(round(duration / step))
-    if abs(steps * step - duration) > 1e-9 * duration:
-        raise TaskFileError(f"{source}: timing.duration = {duration} s is not a multiple of integrator.step = {step} s")
     return PathTask(path_type=geometry.type, via=geometry.via, end=geometry.end, relative=geometry.relative,
                     turns=geometry.turns, end_rotation=geometry.end_rotation, duration=duration, law=law, **shared)
 

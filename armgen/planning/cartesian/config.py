@@ -12,7 +12,7 @@ import numpy as np
 
 from ...errors import TaskFileError
 from ...robot import Robot
-from ..common.path import check_step, path_geometry, program_task, timing_law
+from ..common.path import WHOLE_STEP_SLACK, check_step, path_geometry, program_task, timing_law
 from ..common.start import start_configuration, unit_scales
 from ..limits import check_start_off_limits
 from ..toolpath.accuracy import PathAccuracy, path_tolerance
@@ -24,8 +24,6 @@ from .schema import CartesianTaskFile, Method
 
 # The methods that descend Zghal's joint-limit criterion H_L (with gain rho_L).
 JOINT_LIMIT_METHODS = ("zghal", "zghal_improved", "combined")
-# Slack of "the duration is a whole number of steps" (relative): 2.0 / 0.02 is 99.99999999999999.
-STEP_ROUNDING = 1e-9
 
 
 @dataclass(frozen=True)
@@ -89,7 +87,7 @@ class CartesianTask:
     def with_motion(self, motion: ProgramMotion) -> CartesianTask:
         """This task driven by ``motion``: the duration is the motion's, rounded up to whole steps."""
         return replace(self, motion=motion,
-                       duration=math.ceil(motion.duration / self.step - STEP_ROUNDING) * self.step)
+                       duration=math.ceil(motion.duration / self.step - WHOLE_STEP_SLACK) * self.step)
 
 
 def method_params(method: Method, angle_scale: float, source: str) -> MethodParams:

@@ -6,6 +6,7 @@ line and ``end_rpy``; a program takes no ``[timing]``) are checked here, naming 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Optional, Union
 
@@ -77,10 +78,24 @@ def timing_law(timing: Optional[Timing], source: str) -> tuple[float, TimeLaw]:
     return float(timing.duration), TimeLaw(timing.law, float(timing.blend))
 
 
+# Slack of "the duration is a whole number of steps", relative to the duration: time and step
+# are decimal numbers in the file (250 s / 0.02 s is 12 499.999999999998 in binary).
+STEP_ROUNDING = 1e-9
+# Slack (in steps) of rounding a program's duration up to whole steps: a duration within it of
+# a whole number of steps is not given one more step for its rounding error.
+WHOLE_STEP_SLACK = 1e-9
+
+
 def check_step(step: float, duration: float, source: str) -> None:
-    """The integrator step must fit the circle's or line's duration."""
+    """The integrator step must fit the circle's or line's duration a whole number of times."""
     if step > duration:
         raise TaskFileError(f"{source}: integrator.step = {step} is longer than timing.duration = {duration}")
+    if not math.isfinite(duration / step):
+        raise TaskFileError(f"{source}: integrator.step = {step:g} s is too small for timing.duration = {duration:g} s; "
+                            "give a step of at least a microsecond")
+    steps = int(round(duration / step))
+    if abs(steps * step - duration) > STEP_ROUNDING * duration:
+        raise TaskFileError(f"{source}: timing.duration = {duration} s is not a multiple of integrator.step = {step} s")
 
 
 @dataclass(frozen=True)
