@@ -32,6 +32,7 @@ from functools import lru_cache
 
 import casadi as ca
 
+from ..data import render_template
 from ..errors import ArmgenError
 from ..symbolic.loops import Loop, calls_in_order, find_loop
 
@@ -713,42 +714,27 @@ def emit_loop_step(loop: Loop, macro_prefix: str) -> EmittedFunction:
 def emit_loop(loop: Loop, macro_prefix: str) -> tuple[str, str]:
     """(header lines, definition) of the loop function: the step's statements once, in a for
     loop of <P>_<NAME>_COUNT iterations (the float build's count under <P>_USE_FLOAT), left
-    early once the loop's ``stop`` entry is nonzero (the step is the identity from there)."""
+    early once the loop's ``stop`` entry is nonzero (the step is the identity from there).
+    Both are blocks of lines without a last line break (templates/codegen/loop_*)."""
     p = macro_prefix.lower()
     fn, step = loop.function, loop.step
     size = step.sparsity_out(0).nnz()
-    params = [f"const {p}_real {fn.name_in(k)}[{fn.sparsity_in(k).nnz()}]" for k in range(fn.n_in())]
-    signature = f"void {p}_{fn.name()}({', '.join(params)}, {p}_real final[{size}])"
+    params = [render_template("codegen/input_array.c", p=p, name=fn.name_in(k), size=fn.sparsity_in(k).nnz())
+              for k in range(fn.n_in())]
+    signature = render_template("codegen/loop_signature.c", p=p, loop=fn.name(), parameters=", ".join(params), size=size)
     body = emit_loop_step(loop, macro_prefix)
-    first = fn.name_in(0)
     count = f"{macro_prefix}_{fn.name().upper()}_COUNT"
-    definition = "\n".join([
-        f"/* {fn.name()}: {step.name()} {count} times ({describe_counts(body.op_counts)} each) */",
-        f"{signature} {{",
-        f"  {p}_real current[{size}];",
-        f"  {p}_real next[{size}];",
-        "  int k;",
-        "  int i;",
-        f"  for (i = 0; i < {size}; ++i) {{ current[i] = {first}[i]; }}",
-        f"  for (k = 0; k < {count}; ++k) {{",
-        *([f"    if (current[{loop.stop}] != {macro_prefix}_LIT(0.0)) {{ break; }}  /* finished: the rest are the identity */"]
-          if loop.stop is not None else []),
-        body.body,
-        *(f"    current[{i}] = next[{i}];" for i in range(size)),
-        "  }",
-        f"  for (i = 0; i < {size}; ++i) {{ final[i] = current[i]; }}",
-        "}",
-        ""])
+    stop = [] if loop.stop is None else [render_template("codegen/loop_stop.c", P=macro_prefix, stop=loop.stop)]
+    iteration = [*stop, body.body, *(render_template("codegen/loop_next.c", i=i) for i in range(size))]
+    definition = render_template("codegen/loop_function.c", p=p, loop=fn.name(), step=step.name(), count=count,
+                                 ops=describe_counts(body.op_counts), signature=signature, size=size,
+                                 first=fn.name_in(0), body="\n".join(iteration))
     if loop.fused_float:
         # GCC contracts a·b + c across statements only when told to (ISO C modes default to
         # -ffp-contract=off); the float build only, so the double C keeps Python's roundings
-        guard = f"#if {macro_prefix}_USE_FLOAT && defined(__GNUC__) && !defined(__clang__)"
-        definition = "\n".join([
-            f"{guard}  /* fused multiply-adds in this loop (float: one rounding instead of two) */",
-            "#pragma GCC push_options", '#pragma GCC optimize("fp-contract=fast")', "#endif",
-            definition.rstrip("\n"), guard, "#pragma GCC pop_options", "#endif", ""])
-    prototype = "\n".join([f"#if {macro_prefix}_USE_FLOAT", f"#define {count} {loop.float_count}", "#else",
-                           f"#define {count} {loop.count}", "#endif", signature + ";"])
+        definition = render_template("codegen/loop_fused.c", P=macro_prefix, definition=definition)
+    prototype = render_template("codegen/loop_count.h", P=macro_prefix, count=count, float_count=loop.float_count,
+                                double_count=loop.count, signature=signature)
     return prototype, definition
 
 

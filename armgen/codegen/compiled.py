@@ -165,7 +165,7 @@ def kernel_source(func: ca.Function, symbol: str) -> str:
     from .stamp import c_file, c_preamble
 
     em = emit_body(func, ["x"], [False], ["y"], [False], "K")
-    helpers = [prototype + "\n" + definition.removesuffix("\n")
+    helpers = [prototype + "\n" + definition
                for prototype, definition in (emit_loop(find_loop(name), "K") for name in em.loops)]
     macros = "\n".join(render_template("codegen/math_macro.h", P="K", macro=m, function=m.lower()) for m in MATH_MACROS)
     digest = hashlib.sha256(("".join(helper + "\n\n" for helper in helpers) + em.body).encode()).hexdigest()

@@ -277,7 +277,7 @@ def generate(config: CodegenConfig) -> GeneratedCode:
     for loop_name in sorted({name for em in emitted for name in em.loops}):
         prototype, definition = emit_loop(find_loop(loop_name), P)
         protos.append(render_template("codegen/loop_prototype.h", loop=loop_name, prototype=prototype))
-        definitions.append(definition.removesuffix("\n"))
+        definitions.append(definition)
     robot = config.robot
     preamble = c_preamble(robot.source, robot.sha256,
                           render_template("codegen/robot_title.txt", robot=comment_safe(robot.name), dof=robot.n))

@@ -1,0 +1,1 @@
+    current[$i] = next[$i];

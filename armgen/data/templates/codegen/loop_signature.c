@@ -1,0 +1,1 @@
+void ${p}_$loop($parameters, ${p}_real final[$size])
