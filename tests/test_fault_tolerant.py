@@ -373,3 +373,44 @@ def test_sweep_reports_an_infeasible_start_per_row(tmp_path):
     assert list(table["exit_code"]) == [3, 2, 0, 2]
     assert "infeasible" in table.iloc[0]["message"] and "fault.time" in table.iloc[1]["message"]
     assert "infeasible" in table.iloc[2]["infeasible_start"] and table.iloc[2]["status"] == "ok"
+
+
+# -- configuration (issue 36: the validated task and the loaded robot → the typed SI task) --
+
+def test_configure_resolves_the_task_on_the_given_robot():
+    """The task is configured on the robot given (not a second copy of its file): joints by name
+    or number → 0-based indices, the fault at half the duration by default, the file's mm and
+    deg converted (1 mm = 1e-3 m, 1 deg = π/180 rad) and the unit-dependent defaults in SI
+    whatever the file's units."""
+    robot = load_robot("iiwa14")
+    task, _ = load_task(EXAMPLES / "iiwa14_fault_circle_wln.toml")  # mm, deg; v_band = 11.46 deg/s
+    del task["fault"]["time"]
+    apply_overrides(task, ["fault.joints=['a6', 2]", "sweep.joints=[7, 'a1']", "completion.pos_tol=0.5"])
+    config = configure_task(task, "wln", robot=robot).config
+    assert config.robot is robot
+    assert config.fault.joints == (1, 5) and config.sweep.joints == (0, 6)
+    assert config.fault.time == 2.0  # timing.duration = 4 s
+    assert config.method.v_band == pytest.approx(11.46 * math.pi / 180, rel=1e-15)
+    assert config.completion.pos_tol == pytest.approx(0.5e-3, rel=1e-15)
+    assert config.completion.ori_tol == pytest.approx(math.pi / 180, rel=1e-15)  # default 1 deg
+    assert config.completion.max_joint_speed == pytest.approx(120 * math.pi / 180, rel=1e-15)
+    del task["method"]["v_band"]
+    assert configure_task(task, "wln", robot=robot).config.method.v_band == 0.2  # rad/s, not 0.2 deg/s
+
+
+def test_plan_carries_the_config_it_was_made_with():
+    """A stated path tolerance halves the integrator step (no lock: with a4 locked the tool
+    leaves the path on purpose); the plan's config is the task at the step used, and planning
+    that config again gives the same samples with no halving."""
+    from armgen.planning.fault_tolerant import PLANNER
+
+    result = plan("iiwa14_fault_circle_gpm", "fault.joints=[]", "check.path_tolerance=0.05")
+    accuracy = result.metadata["summary"]["path_accuracy"]
+    assert accuracy["step_halvings"] > 0
+    config = result.config
+    assert config.path.step == accuracy["step_s"] == pytest.approx(0.02 / 2 ** accuracy["step_halvings"])
+    assert np.diff(result.column("t_s")) == pytest.approx(config.path.step)
+    assert config.fault.joints == () and config.method.K == 4.0
+    again = PLANNER.plan(config)
+    assert again.metadata["summary"]["path_accuracy"]["step_halvings"] == 0
+    np.testing.assert_array_equal(again.data, result.data)

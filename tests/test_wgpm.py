@@ -384,3 +384,28 @@ def test_bad_input_is_a_clear_error(override, message):
     apply_overrides(task, [override])
     with pytest.raises(TaskFileError, match=message):
         configure_task(task, "demo")
+
+
+def test_configure_gives_si_values_and_defaults_whatever_the_units():
+    """The demo's deg and mm converted (1 deg = π/180 rad, 1 mm = 1e-3 m), a criterion the file
+    leaves out is off, and the unit-dependent defaults are SI: t_rmax 10 deg/s, tracking 1 mm and
+    1 deg, not 10 and 1 in the file's units; the task is configured on the robot given."""
+    robot = load_robot("modular8")
+    task, _ = load_task(EXAMPLES / "modular8_wgpm_demo.toml")
+    config = configure_task(task, "demo", robot=robot).config
+    assert config.robot is robot
+    assert config.method.t_rmax == pytest.approx(20 * math.pi / 180, rel=1e-15)
+    zghal, manipulability = config.method.criteria[2], config.method.criteria[0]  # WGPM_CRITERIA's order
+    assert (zghal.k_hi, zghal.k_lo, zghal.H_lo, zghal.H_hi) == (0.5, 0.05, 32.0, 100.0)
+    assert manipulability.k_hi == manipulability.k_lo == 0.0
+    del task["method"]["t_rmax"], task["tracking"]
+    config = configure_task(task, "demo", robot=robot).config
+    assert config.method.t_rmax == pytest.approx(10 * math.pi / 180, rel=1e-15)
+    assert config.pos_tol == pytest.approx(1e-3, rel=1e-15) and config.ori_tol == pytest.approx(math.pi / 180, rel=1e-15)
+
+
+def test_plan_carries_the_method_it_ran():
+    task = parsed("modular8_wgpm_demo", "timing.duration=6", "method.ramp_time=1")
+    result = WgpmPlanner(task).run(replace(task.method, name="pinv"))
+    assert result.config.method.name == "pinv" and result.config.path.step == task.path.step
+    assert result.metadata["method"] == "pinv"
