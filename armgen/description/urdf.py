@@ -164,6 +164,27 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
         ambiguous tip.
     """
     p = _Parser(source)
+    root = _robot_element(p, text)
+    robot_name = p.name(root, "<robot>")
+    tree = _read_tree(p, root)
+    base_link = _base_link(p, tree, base_link)
+    tip_link = _tip_link(p, tree, base_link, tip_link)
+    path = _chain_path(p, tree, base_link, tip_link)
+    joints, tip = _moving_joints(p, path)
+    if not joints:
+        raise p.fail("tip_link", f"no revolute, continuous or prismatic joint between '{base_link}' and '{tip_link}'")
+    return UrdfChain(robot_name, base_link, tip_link, joints, tip)
+
+
+@dataclass(frozen=True)
+class _Tree:
+    links: set[str]
+    joints: dict[str, _RawJoint]
+    parent_joint: dict[str, _RawJoint]  # child link -> the joint that moves it
+    children: dict[str, list[_RawJoint]]
+
+
+def _robot_element(p: _Parser, text: str) -> ET.Element:
     if _DECLARATION.search(text):
         raise p.fail("file", "DOCTYPE/ENTITY declarations are not accepted in URDF; remove them")
     try:
@@ -172,8 +193,10 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
         raise p.fail("file", f"not well-formed XML ({exc})") from None
     if root.tag != "robot":
         raise p.fail("file", f"root element is <{root.tag}>, expected <robot>")
-    robot_name = p.name(root, "<robot>")
+    return root
 
+
+def _read_links(p: _Parser, root: ET.Element) -> set[str]:
     links: set[str] = set()
     for element in root.findall("link"):
         name = p.name(element, "<link>")
@@ -182,62 +205,84 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
         links.add(name)
     if not links:
         raise p.fail("<robot>", "no <link> elements")
+    return links
 
-    joints: dict[str, _RawJoint] = {}
-    parent_joint: dict[str, _RawJoint] = {}  # child link -> the joint that moves it
-    children: dict[str, list[_RawJoint]] = {}
+
+def _read_tree(p: _Parser, root: ET.Element) -> _Tree:
+    tree = _Tree(_read_links(p, root), {}, {}, {})
     for element in root.findall("joint"):
-        name = p.name(element, "<joint>")
-        where = f"joint '{excerpt(name)}'"
-        if name in joints:
-            raise p.fail(where, "defined twice; joint names must be unique")
-        jtype = element.get("type")
-        if jtype not in URDF_JOINT_TYPES:
-            raise p.fail(where, f"type {excerpt(repr(jtype))} is not a URDF joint type ({', '.join(URDF_JOINT_TYPES)})")
-        parent, child = p.link_of(element, "parent", where), p.link_of(element, "child", where)
-        for role, link in (("parent", parent), ("child", child)):
-            if link not in links:
-                raise p.fail(where, f"{role} link '{link}' is not defined; add <link name=\"{link}\"/> or fix the name")
-        if parent == child:
-            raise p.fail(where, f"parent and child are both '{parent}' (a loop)")
-        if child in parent_joint:
-            raise p.fail(where, f"link '{child}' already has parent joint '{parent_joint[child].name}'; "
-                                "a URDF must be a tree (no loops, one parent per link)")
-        raw = _RawJoint(name, jtype, parent, child, element)
-        joints[name] = raw
-        parent_joint[child] = raw
-        children.setdefault(parent, []).append(raw)
+        raw = _read_joint(p, element, tree)
+        tree.joints[raw.name] = raw
+        tree.parent_joint[raw.child] = raw
+        tree.children.setdefault(raw.parent, []).append(raw)
+    return tree
 
-    roots = sorted(links - set(parent_joint))
+
+def _read_joint(p: _Parser, element: ET.Element, tree: _Tree) -> _RawJoint:
+    name = p.name(element, "<joint>")
+    where = f"joint '{excerpt(name)}'"
+    if name in tree.joints:
+        raise p.fail(where, "defined twice; joint names must be unique")
+    jtype = element.get("type")
+    if jtype not in URDF_JOINT_TYPES:
+        raise p.fail(where, f"type {excerpt(repr(jtype))} is not a URDF joint type ({', '.join(URDF_JOINT_TYPES)})")
+    parent, child = p.link_of(element, "parent", where), p.link_of(element, "child", where)
+    for role, link in (("parent", parent), ("child", child)):
+        if link not in tree.links:
+            raise p.fail(where, f"{role} link '{link}' is not defined; add <link name=\"{link}\"/> or fix the name")
+    if parent == child:
+        raise p.fail(where, f"parent and child are both '{parent}' (a loop)")
+    if child in tree.parent_joint:
+        raise p.fail(where, f"link '{child}' already has parent joint '{tree.parent_joint[child].name}'; "
+                            "a URDF must be a tree (no loops, one parent per link)")
+    return _RawJoint(name, jtype, parent, child, element)
+
+
+def _base_link(p: _Parser, tree: _Tree, base_link: str | None) -> str:
+    """``base_link`` checked, or the tree's one root link when it is None."""
+    roots = sorted(tree.links - set(tree.parent_joint))
     if not roots:
         raise p.fail("<robot>", "every link has a parent joint: the joints form a loop")
     if base_link is None:
         if len(roots) > 1:
             raise p.fail("<robot>", f"several root links ({', '.join(roots)}); choose one with base_link")
-        base_link = roots[0]
-    elif base_link not in links:
+        return roots[0]
+    if base_link not in tree.links:
         raise p.fail("base_link", f"link '{base_link}' is not defined in the file")
+    return base_link
 
+
+def _tip_link(p: _Parser, tree: _Tree, base_link: str, tip_link: str | None) -> str:
+    """``tip_link`` checked, or the end of the chain below ``base_link`` when it is None."""
     if tip_link is None:
-        tip_link = _infer_tip(p, base_link, children)
-    elif tip_link not in links:
+        return _infer_tip(p, base_link, tree.children)
+    if tip_link not in tree.links:
         raise p.fail("tip_link", f"link '{tip_link}' is not defined in the file")
+    return tip_link
 
+
+def _chain_path(p: _Parser, tree: _Tree, base_link: str, tip_link: str) -> list[_RawJoint]:
+    """The joints from ``base_link`` down to ``tip_link``, fixed ones included."""
     path: list[_RawJoint] = []
     link = tip_link
     while link != base_link:
-        if link not in parent_joint:
+        if link not in tree.parent_joint:
             raise p.fail("tip_link", f"link '{tip_link}' is not below base link '{base_link}'")
-        path.append(parent_joint[link])
-        link = parent_joint[link].parent
-        if len(path) > len(joints):  # unreachable for a tree; guards against a cycle above the tip
+        path.append(tree.parent_joint[link])
+        link = tree.parent_joint[link].parent
+        if len(path) > len(tree.joints):  # unreachable for a tree; guards against a cycle above the tip
             raise p.fail(f"link '{link}'", "the joints form a loop")
     path.reverse()
     moving = [raw for raw in path if raw.type != "fixed"]
     if len(moving) > MAX_DOF:
         raise p.fail("tip_link", f"the chain from '{excerpt(base_link)}' to '{excerpt(tip_link)}' has {len(moving)} "
                                  f"moving joints, more than {MAX_DOF}; choose a shorter chain with base_link/tip_link")
+    return path
 
+
+def _moving_joints(p: _Parser, path: list[_RawJoint]) -> tuple[tuple[UrdfJoint, ...], np.ndarray]:
+    """(the moving joints of ``path``, each origin holding the fixed joints before it; the
+    transform of the fixed joints after the last one)."""
     chain: list[UrdfJoint] = []
     pending = np.eye(4)
     for raw in path:
@@ -253,19 +298,21 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
         if not _IDENTIFIER.fullmatch(raw.name):
             raise p.fail(where, "a moving joint's name must be a letter then letters, digits or _ (at most 48): it "
                                 "names the joint in the generated C and the CSV columns; rename the joint")
-        axis = np.array(p.numbers(raw.element.find("axis"), "xyz", f"{where} <axis>", 3, (1.0, 0.0, 0.0)))
-        with np.errstate(over="ignore"):
-            norm = float(np.linalg.norm(axis))
-        if norm == 0.0:
-            raise p.fail(f"{where} <axis>", "xyz is the zero vector; give the joint's axis direction")
-        if not math.isfinite(norm):
-            raise p.fail(f"{where} <axis>", "xyz is so long its length overflows; give the axis as a unit vector")
-        chain.append(UrdfJoint(raw.name, raw.type, pending, tuple(float(v) for v in axis / norm),
+        chain.append(UrdfJoint(raw.name, raw.type, pending, _axis(p, raw, where),
                                _limits(p, raw, where), _velocity(p, raw, where)))
         pending = np.eye(4)
-    if not chain:
-        raise p.fail("tip_link", f"no revolute, continuous or prismatic joint between '{base_link}' and '{tip_link}'")
-    return UrdfChain(robot_name, base_link, tip_link, tuple(chain), pending)
+    return tuple(chain), pending
+
+
+def _axis(p: _Parser, raw: _RawJoint, where: str) -> tuple[float, float, float]:
+    axis = np.array(p.numbers(raw.element.find("axis"), "xyz", f"{where} <axis>", 3, (1.0, 0.0, 0.0)))
+    with np.errstate(over="ignore"):
+        norm = float(np.linalg.norm(axis))
+    if norm == 0.0:
+        raise p.fail(f"{where} <axis>", "xyz is the zero vector; give the joint's axis direction")
+    if not math.isfinite(norm):
+        raise p.fail(f"{where} <axis>", "xyz is so long its length overflows; give the axis as a unit vector")
+    return tuple(float(v) for v in axis / norm)
 
 
 def _subtree(link: str, children: dict[str, list[_RawJoint]]) -> tuple[list[str], bool]:
