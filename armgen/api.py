@@ -417,7 +417,7 @@ def parse_frame_size(text: str) -> tuple[int, int]:
 
 
 def animate(plan: Plan, out: str | Path, fps: float | None = None, duration: float | None = None,
-            size: tuple[int, int] | str | None = None, robot: Robot | str | Path | None = None,
+            size: tuple[int, int] | None = None, robot: Robot | str | Path | None = None,
             plan_file: str | Path | None = None) -> Path:
     """Render the arm moving through a plan, as ``armgen animate`` does; returns the path written.
 
@@ -430,21 +430,20 @@ def animate(plan: Plan, out: str | Path, fps: float | None = None, duration: flo
     fps, duration
         Frames per second (default 20) and seconds of video (default: the plan's, at most 10 s).
     size
-        ``(width, height)`` or ``"WxH"`` in pixels (default 960×720).
+        ``(width, height)`` in pixels (default 960×720; :func:`parse_frame_size` reads ``"WxH"``).
     robot, plan_file
         As in :func:`save_plot`; a plan without ``plan.json`` needs ``robot`` (its joint columns are drawn).
     """
     from .planning.animation import DEFAULT_FPS, DEFAULT_SIZE, animate_plan
     from .planning.plotting import plan_robot
 
-    pixels = parse_frame_size(size) if isinstance(size, str) else size or DEFAULT_SIZE
     arm = plan_robot(plan.result, plan_file, robot)
-    return animate_plan(plan.result, out, DEFAULT_FPS if fps is None else fps, duration, pixels, arm)
+    return animate_plan(plan.result, out, DEFAULT_FPS if fps is None else fps, duration, size or DEFAULT_SIZE, arm)
 
 
 # -- sweeps, inverse kinematics -------------------------------------------------------------------
 
-def sweep(task: str | Path | dict[str, Any], out: str | Path, grids: tuple[str, ...] = (), ranges: tuple[str, ...] = (),
+def sweep(task: str | Path, out: str | Path, grids: tuple[str, ...] = (), ranges: tuple[str, ...] = (),
           draws: int = 0, seed: int = 0, overrides: tuple[str, ...] = (), backend: str = "symbolic",
           workers: int | None = None, scheduler: str | None = None, resume: bool = False,
           echo: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
@@ -453,7 +452,7 @@ def sweep(task: str | Path | dict[str, Any], out: str | Path, grids: tuple[str, 
     Parameters
     ----------
     task
-        A task file path, or the task as a dict (the parsed TOML).
+        The task file.
     out
         The table to write, ``.csv`` or ``.parquet``: one row per run, failed runs included.
     grids, ranges, overrides
@@ -479,14 +478,11 @@ def sweep(task: str | Path | dict[str, Any], out: str | Path, grids: tuple[str, 
     from .planning.sweep import SweepSpec, parse_grid, parse_range, sweep as run_sweep
     from .planning.tasks import apply_overrides, load_task
 
-    if isinstance(task, dict):
-        document, sha, source = copy.deepcopy(task), "", "<task dict>"
-    else:
-        (document, sha), source = load_task(task), str(task)
+    document, sha = load_task(task)
     apply_overrides(document, list(overrides))
     spec = SweepSpec([parse_grid(g) for g in grids], [parse_range(r) for r in ranges], draws, seed)
     spec.check()
-    return run_sweep(document, source, sha, spec, out, backend, workers or os.cpu_count() or 1, scheduler, resume,
+    return run_sweep(document, str(task), sha, spec, out, backend, workers or os.cpu_count() or 1, scheduler, resume,
                      echo or (lambda _line: None))
 
 

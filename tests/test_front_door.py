@@ -111,3 +111,27 @@ def test_the_check_sees_every_kind_of_import(statement, module, ok):
     modules = [m for _, m in imports_of(statement)]
     assert module in modules
     assert allowed(module) is ok
+
+
+def test_solve_ik_reports_the_rows_a_planar_arm_does_not_control():
+    # planar3 moves in the plane z = 0 (base and tool frames identity, joints about z): the
+    # rows it controls are x, y and the rotation about z, so a target 0.3 m above the plane is
+    # reached there and missed by exactly 0.3 m in z, and a target tilted about x by 0.2 rad is
+    # missed by 0.2 rad in that rotation, which counts only when an orientation was asked for.
+    import numpy as np
+
+    from armgen import api
+
+    above = np.eye(4)
+    above[:3, 3] = [0.5, 0.2, 0.3]
+    solution = api.solve_ik("planar3", above)
+    assert solution.converged and not solution.solved
+    assert solution.free_rows == ("vz", "wx", "wy")
+    assert solution.free_position_error == pytest.approx(0.3, abs=1e-9)
+    assert solution.free_orientation_error == pytest.approx(0.0, abs=1e-9)
+    tilted = np.eye(4)
+    tilted[:3, :3] = [[1, 0, 0], [0, np.cos(0.2), -np.sin(0.2)], [0, np.sin(0.2), np.cos(0.2)]]
+    tilted[:3, 3] = [0.5, 0.2, 0.0]
+    given = api.solve_ik("planar3", tilted)
+    assert given.converged and not given.solved and given.free_orientation_error == pytest.approx(0.2, abs=1e-6)
+    assert api.solve_ik("planar3", tilted, orientation_given=False).solved
