@@ -15,7 +15,6 @@ from ..common.start import unit_scales
 from ..taskpath import PathTask, configure_path_task
 from .schema import FaultTolerantTaskFile, JointRef
 
-WEIGHT_RULES = ("plain", "smooth")
 # SI defaults of the fields whose value is a physical quantity (the schema leaves them None).
 DEFAULT_V_BAND = 0.2  # rad/s: the smooth rule's activation band
 DEFAULT_POS_TOL = 1e-3  # m
@@ -28,8 +27,8 @@ LOCK_STEP_SLACK = 1e-9
 
 @dataclass(frozen=True)
 class FaultSpec:
-    joints: tuple[int, ...] = ()  # 0-based, sorted
-    time: float = 0.0  # s
+    joints: tuple[int, ...]  # 0-based, sorted
+    time: float  # s
 
     def mask(self, n: int, locked: bool) -> np.ndarray:
         mask = np.ones(n)
@@ -40,15 +39,15 @@ class FaultSpec:
 
 @dataclass(frozen=True)
 class FaultMethod:
-    name: str = "gpm"
-    index: str = "omega"
-    K: float = 1.0
-    b: float = 1.0
-    weight_rule: str = "smooth"
-    v_band: float = DEFAULT_V_BAND  # rad/s
-    omega_floor: float = 1e-3
-    delta: float = 1e-4
-    a: tuple[float, ...] = ()  # one weight per joint
+    name: str  # gpm, wln, pinv
+    index: str  # omega, relative, sigma_min
+    K: float
+    b: float
+    weight_rule: str  # plain, smooth
+    v_band: float  # rad/s
+    omega_floor: float
+    delta: float
+    a: tuple[float, ...]  # one weight per joint
 
     @property
     def label(self) -> str:
@@ -64,9 +63,9 @@ class Completion:
     """A locked-joint run completes the task when, after the lock, the tool stays within these
     errors, no joint is faster than ``max_joint_speed`` and no joint leaves its limits."""
 
-    pos_tol: float = DEFAULT_POS_TOL  # m
-    ori_tol: float = DEFAULT_ORI_TOL  # rad
-    max_joint_speed: float = DEFAULT_MAX_JOINT_SPEED  # rad/s
+    pos_tol: float  # m
+    ori_tol: float  # rad
+    max_joint_speed: float  # rad/s
 
 
 @dataclass(frozen=True)
@@ -87,8 +86,8 @@ class FaultTolerantTask:
     method: FaultMethod
     completion: Completion
     sweep: SweepSpec
-    check_mode: str = "error"  # check.reach: an infeasible start is an "error" or a "report"
-    source: str = ""  # the task file, named in messages
+    check_mode: str  # check.reach: an infeasible start is an "error" or a "report"
+    source: str  # the task file, named in messages
 
     @property
     def robot(self) -> Robot:

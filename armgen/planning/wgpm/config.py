@@ -14,6 +14,7 @@ from ...symbolic.steps import WGPM_CRITERIA
 from ..limits import check_start_off_limits
 from ..common.start import unit_scales
 from ..taskpath import PathTask, configure_path_task
+from . import schema
 from .schema import WgpmTaskFile
 
 # SI defaults of the fields whose value is a physical quantity (the schema leaves them None).
@@ -29,23 +30,23 @@ class Criterion:
     """One normalised criterion: gain k_hi when it is bad (u ≤ u_th), k_lo when good
     (u ≥ u_th + u_band); off when both gains are 0."""
 
-    k_hi: float = 0.0
-    k_lo: float = 0.0
-    H_lo: float = 0.0
-    H_hi: float = 1.0
-    u_th: float = 0.3
-    u_band: float = 0.4
+    k_hi: float
+    k_lo: float
+    H_lo: float
+    H_hi: float
+    u_th: float
+    u_band: float
 
 
 @dataclass(frozen=True)
 class WgpmMethod:
-    name: str = "wgpm"
-    band: float = 0.1  # Ω: damping-band width as a fraction of each joint's range
-    t_rmax: float = DEFAULT_T_RMAX  # rad/s
-    delta: float = 1e-4
-    ramp_time: float = 2.0  # s
-    ramp_out: bool = True
-    criteria: tuple[Criterion, ...] = tuple(Criterion() for _ in WGPM_CRITERIA)  # in WGPM_CRITERIA's order
+    name: str  # wgpm, pinv, clamp
+    band: float  # Ω: damping-band width as a fraction of each joint's range
+    t_rmax: float  # rad/s
+    delta: float
+    ramp_time: float  # s
+    ramp_out: bool
+    criteria: tuple[Criterion, ...]  # in WGPM_CRITERIA's order
 
     def vectors(self) -> list[np.ndarray]:
         """The step's H_lo, H_hi, k_hi, k_lo, u_th, u_band inputs."""
@@ -57,9 +58,9 @@ class WgpmMethod:
 class WgpmTask:
     path: PathTask
     method: WgpmMethod
-    pos_tol: float = DEFAULT_POS_TOL  # m
-    ori_tol: float = DEFAULT_ORI_TOL  # rad
-    source: str = ""  # the task file, named in messages
+    pos_tol: float  # m
+    ori_tol: float  # rad
+    source: str  # the task file, named in messages
 
     @property
     def robot(self) -> Robot:
@@ -72,8 +73,9 @@ def configure(model: WgpmTaskFile, robot: Robot, source: str) -> WgpmTask:
     path = configure_path_task(model, robot, source)
     length, angle = unit_scales(model.units)
     m = model.method
-    criteria = tuple(Criterion(**c.model_dump()) if c is not None else Criterion()
-                     for c in (getattr(m.criteria, name) for name in WGPM_CRITERIA))
+    # a criterion the file leaves out has the schema's defaults: both gains 0, off
+    criteria = tuple(Criterion(**(getattr(m.criteria, name) or schema.Criterion()).model_dump())
+                     for name in WGPM_CRITERIA)
     method = WgpmMethod(name=m.name, band=m.band, t_rmax=DEFAULT_T_RMAX if m.t_rmax is None else m.t_rmax * angle,
                         delta=m.delta, ramp_time=m.ramp_time, ramp_out=m.ramp_out, criteria=criteria)
     if m.name == "wgpm" and criteria[WGPM_CRITERIA.index("zghal")].k_hi > 0:
