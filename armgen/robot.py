@@ -289,48 +289,39 @@ class Robot(RobotDescription):
         """
         from .symbolic import ik
 
-        pose = _real_array(pose, "pose")
-        if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
-            raise ValueError(f"pose must have shape (4, 4) or (..., 4, 4), got {pose.shape}")
-        batch_shape = pose.shape[:-2]
-        targets = pose.reshape(-1, 4, 4)
-        if np.max(np.abs(np.where(np.isfinite(targets), targets, 0.0)), initial=0.0) > MAX_ABS_LENGTH_M:
-            raise ValueError(f"pose: an entry is beyond ±{MAX_ABS_LENGTH_M:g} (m), far out of any arm's reach; "
-                             "give the position in metres")
-        size = targets.shape[0]
-
-        def joints(value: ArrayLike, what: str) -> np.ndarray:
-            value = _real_array(value, what)
-            if value.ndim == 0 or value.shape[-1] != self.n or not np.all(np.isfinite(value)):
-                raise ValueError(f"{what} must hold {self.n} finite joint values for robot '{self.name}' "
-                                 f"(shape ({self.n},) or (..., {self.n})), got shape {value.shape}")
-            try:
-                return np.broadcast_to(value, batch_shape + (self.n,)).reshape(size, self.n)
-            except ValueError:
-                raise ValueError(f"{what} of shape {value.shape} does not fit the poses' batch shape {batch_shape}: "
-                                 f"give shape ({self.n},) or {batch_shape + (self.n,)}") from None
-
-        cap = ik.MAX_ITERATIONS if max_iterations is None else max_iterations
-        if isinstance(cap, (bool, np.bool_)) or not isinstance(cap, (int, np.integer)):
-            raise TypeError(f"max_iterations must be an integer (not a bool), got {excerpt(repr(max_iterations))}")
-        if not 1 <= cap <= ik.MAX_ITERATIONS:
-            raise ValueError(f"max_iterations must be an integer from 1 to {ik.MAX_ITERATIONS}, got {max_iterations!r}")
+        targets, batch_shape = _pose_targets(pose)
+        cap = _iteration_cap(max_iterations, ik.MAX_ITERATIONS)
         tol_p = _tolerance(tol_position, "tol_position", ik.TOL_POSITION, MAX_TOL_POSITION, "m")
         tol_o = _tolerance(tol_orientation, "tol_orientation", ik.TOL_ORIENTATION, MAX_TOL_ORIENTATION, "rad")
-        rest = joints(q0, "q0") if q0 is not None else np.broadcast_to(self.qmid, (size, self.n))
+        if q0 is not None:
+            rest = self._joints_per_pose(q0, "q0", batch_shape)
+        else:
+            rest = np.broadcast_to(self.qmid, (targets.shape[0], self.n))
         if isinstance(seed, str):
-            start = joints(self.configuration(seed), f"seed '{seed}'")
+            start = self._joints_per_pose(self.configuration(seed), f"seed '{seed}'", batch_shape)
         elif seed is not None:
-            start = joints(seed, "seed")
+            start = self._joints_per_pose(seed, "seed", batch_shape)
         else:
             start = rest
         outputs = ik.solve(self.symbolic.ik_definition, targets, np.ascontiguousarray(start), np.ascontiguousarray(rest),
                            0.0 if q0 is None else 1.0,
-                           tol_p, tol_o, int(cap))
+                           tol_p, tol_o, cap)
         q, pos, ori, iterations, success = outputs
         q = q.T.reshape(batch_shape + (self.n,))
         return ik.IKResult(q, success.reshape(batch_shape) != 0, pos.reshape(batch_shape), ori.reshape(batch_shape),
                            iterations.reshape(batch_shape).astype(int))
+
+    def _joints_per_pose(self, value: ArrayLike, what: str, batch_shape: tuple[int, ...]) -> np.ndarray:
+        """``value`` (``(n,)`` or the poses' ``(..., n)``) as one row of joint values per pose."""
+        value = _real_array(value, what)
+        if value.ndim == 0 or value.shape[-1] != self.n or not np.all(np.isfinite(value)):
+            raise ValueError(f"{what} must hold {self.n} finite joint values for robot '{self.name}' "
+                             f"(shape ({self.n},) or (..., {self.n})), got shape {value.shape}")
+        try:
+            return np.broadcast_to(value, batch_shape + (self.n,)).reshape(-1, self.n)
+        except ValueError:
+            raise ValueError(f"{what} of shape {value.shape} does not fit the poses' batch shape {batch_shape}: "
+                             f"give shape ({self.n},) or {batch_shape + (self.n,)}") from None
 
 
 # The largest success thresholds Robot.ik takes: a solution farther than 1 cm or 0.01 rad
@@ -347,6 +338,28 @@ def _real_array(value: ArrayLike, what: str) -> np.ndarray:
     if array.dtype.kind not in "iuf":
         raise TypeError(f"{what} must hold real numbers (int or float), got an array of dtype {array.dtype}")
     return array.astype(float)
+
+
+def _pose_targets(pose: ArrayLike) -> tuple[np.ndarray, tuple[int, ...]]:
+    """(the poses as a ``(size, 4, 4)`` stack, their batch shape)."""
+    pose = _real_array(pose, "pose")
+    if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
+        raise ValueError(f"pose must have shape (4, 4) or (..., 4, 4), got {pose.shape}")
+    targets = pose.reshape(-1, 4, 4)
+    if np.max(np.abs(np.where(np.isfinite(targets), targets, 0.0)), initial=0.0) > MAX_ABS_LENGTH_M:
+        raise ValueError(f"pose: an entry is beyond ±{MAX_ABS_LENGTH_M:g} (m), far out of any arm's reach; "
+                         "give the position in metres")
+    return targets, pose.shape[:-2]
+
+
+def _iteration_cap(value: object, limit: int) -> int:
+    """``max_iterations``: ``limit`` for None, else an int from 1 to ``limit``."""
+    cap = limit if value is None else value
+    if isinstance(cap, (bool, np.bool_)) or not isinstance(cap, (int, np.integer)):
+        raise TypeError(f"max_iterations must be an integer (not a bool), got {excerpt(repr(value))}")
+    if not 1 <= cap <= limit:
+        raise ValueError(f"max_iterations must be an integer from 1 to {limit}, got {value!r}")
+    return int(cap)
 
 
 def _tolerance(value: object, what: str, default: float, bound: float, unit: str) -> float:
