@@ -414,3 +414,15 @@ def test_plan_carries_the_config_it_was_made_with():
     again = PLANNER.plan(config)
     assert again.metadata["summary"]["path_accuracy"]["step_halvings"] == 0
     np.testing.assert_array_equal(again.data, result.data)
+
+
+def test_fault_time_beyond_a_program_names_the_programs_duration():
+    """A program has no [timing]: a fault after its end is refused naming its duration."""
+    import tomllib
+
+    from test_programs import bar_task
+
+    task = tomllib.loads(bar_task("fault_tolerant") + "\n[fault]\njoints = [2]\ntime = 100.0\n")
+    with pytest.raises(TaskFileError, match=r"fault.time = 100.0 s is outside the plan \[0, [\d.]+\] s; choose a time "
+                                            "within the program's duration"):
+        configure_task(task, "bar")

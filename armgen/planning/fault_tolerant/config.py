@@ -120,15 +120,16 @@ def joint_indices(refs: list[JointRef], robot: Robot, where: str, source: str) -
     return tuple(sorted(out))
 
 
-def _fault(model: FaultTolerantTaskFile, robot: Robot, duration: float, source: str) -> FaultSpec:
+def _fault(model: FaultTolerantTaskFile, robot: Robot, path: PathTask, source: str) -> FaultSpec:
     joints = joint_indices(model.fault.joints, robot, "fault.joints", source)
     if len(joints) == robot.n:
         raise TaskFileError(f"{source}: fault.joints locks all {robot.n} joints of '{robot.name}': nothing could move; "
                             f"lock at most {robot.n - 1} (a single joint reproduces spec 30)")
-    time = duration / 2 if model.fault.time is None else model.fault.time
-    if not 0.0 <= time <= duration:
-        raise TaskFileError(f"{source}: fault.time = {time} s is outside the plan [0, {duration:g}] s; "
-                            "choose a time within timing.duration")
+    time = path.duration / 2 if model.fault.time is None else model.fault.time
+    if not 0.0 <= time <= path.duration:
+        what = "the program's duration" if path.motion is not None else "timing.duration"
+        raise TaskFileError(f"{source}: fault.time = {time} s is outside the plan [0, {path.duration:g}] s; "
+                            f"choose a time within {what}")
     return FaultSpec(joints, time)
 
 
@@ -148,7 +149,7 @@ def configure(model: FaultTolerantTaskFile, robot: Robot, source: str) -> FaultT
     names the field and the fix."""
     path = configure_path_task(model, robot, source)
     length, angle = unit_scales(model.units)
-    fault, method = _fault(model, robot, path.duration, source), _method(model, robot, angle, source)
+    fault, method = _fault(model, robot, path, source), _method(model, robot, angle, source)
     c, s = model.completion, model.sweep
     completion = Completion(
         pos_tol=DEFAULT_POS_TOL if c.pos_tol is None else c.pos_tol * length,

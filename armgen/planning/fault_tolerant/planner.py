@@ -96,7 +96,7 @@ class FaultTolerantPlanner:
     # -- one step -------------------------------------------------------------------------
     def index(self, q: np.ndarray, mask: np.ndarray, method: FaultMethod) -> tuple[float, np.ndarray, np.ndarray, float]:
         """(H, ∇H, per-joint index values, w) on the healthy columns."""
-        a = np.asarray(method.a or (1.0,) * self.robot.n)
+        a = np.asarray(method.a)
         omega, h_m, grad, w, grad_w = self.backend.call("ft_index", q, mask, a, method.delta)
         omega, grad, grad_w = omega.ravel(), grad.ravel(), grad_w.ravel()
         h_m, w = float(h_m.ravel()[0]), float(w.ravel()[0])
@@ -212,7 +212,7 @@ class FaultTolerantPlanner:
         k_f = self.task.lock_step if any(lock_sets) else p.steps + 1
         healthy = np.ones(self.robot.n)
         kernel = self._kernel(method)
-        for key, value in (("a", method.a or (1.0,) * self.robot.n), ("K", method.K), ("b", method.b),
+        for key, value in (("a", method.a), ("K", method.K), ("b", method.b),
                            ("omega_floor", method.omega_floor), ("v_band", method.v_band), ("delta", method.delta),
                            ("clik_gain", p.clik_gain if p.clik else 0.0), ("epsilon", p.damping_epsilon),
                            ("lambda_max", p.damping_max), ("h", p.step)):
