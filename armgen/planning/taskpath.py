@@ -117,7 +117,7 @@ class TaskPath:
     def __init__(self, task: PathTask, start_pose: np.ndarray):
         self.task = task
         self.p0, self.r0 = start_pose[:3, 3].copy(), start_pose[:3, :3].copy()
-        if task.motion is not None:  # a program: built, and its reach checked, when parsed
+        if task.motion is not None:  # a program: built, and its reach checked, when configured
             self.path = task.motion.program
             return
         self.path = task.geometry.build(start_pose)

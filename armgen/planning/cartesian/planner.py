@@ -54,7 +54,7 @@ class CartesianPlanner:
 
     def __init__(self, task: CartesianTask, backend_kind: str = "symbolic", backend=None, check_path: bool = True):
         """``check_path`` False leaves the check that the tool stayed on a circle or line to the
-        caller (plan_task judges it after refining the step)."""
+        caller (plan judges it after refining the step)."""
         self.task = task
         self.check_path = check_path
         self.robot = task.robot

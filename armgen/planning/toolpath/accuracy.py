@@ -10,7 +10,8 @@ tolerance, and refused (exit 3) when halving no longer helps.
 The tolerance applies to every program, to a circle or line whose task states
 ``path_tolerance``, and to a Cartesian circle or line that leaves ``integrator.step`` to armgen;
 any other circle or line (the papers' reproductions pin their step) is planned as given, its
-deviation reported.
+deviation reported. The step a plan used goes back to its planner, whose ``result.config``
+carries it (nothing is written into the task's document).
 """
 
 from __future__ import annotations

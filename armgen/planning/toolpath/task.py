@@ -39,7 +39,7 @@ MAX_QUATERNION_COMPONENT = 1e6
 
 @dataclass(frozen=True)
 class ProgramSpec:
-    """A parsed program (SI): its moves, the angular-speed cap (None: none) and the poses files
+    """A program in SI: its moves, the angular-speed cap (None: none) and the poses files
     read (name, sha256) for the plan's metadata."""
 
     moves: tuple[MoveSpec, ...]
