@@ -543,6 +543,46 @@ def test_bad_input_names_field_and_fix(path, value, message):
         configured(task, "bad.toml")
 
 
+ROBOT_TASK = {"planner": "ptp", "robot": "planar3", "units": {"angle": "deg"},
+              "waypoints": {"t": [0, 1], "theta": {"j1": [0, 10], "j2": [0, 0], "j3": [0, 0]},
+                            "omega": {"j1": [0, 0], "j2": [0, 0], "j3": [0, 0]}}}
+POSES = {"xyz": [[0.5, 0.0, 0.0], [0.4, 0.1, 0.0]]}
+
+
+@pytest.mark.parametrize("edit, message", [
+    ({"waypoints.theta.j9": [0, 0]}, r"'waypoints.theta' names unknown joint\(s\) j9; the robot's joints are j1, j2, j3"),
+    ({"waypoints.theta.j3": None}, r"'waypoints.theta' lacks joint\(s\) j3; give waypoints for every joint"),
+    ({"waypoints.omega": [0, 0]}, r"'waypoints.omega' must be a table with one array per joint of the robot \(j1, j2, j3\)"),
+    ({"robot": None}, r"'waypoints.theta' is a table but the task names no robot; give an array"),
+    ({"robot": "snake12"}, r"'robot' = 'snake12' has prismatic joint\(s\) feed; the ptp planner plans revolute joints"),
+    ({"waypoints.xyz": POSES["xyz"]}, r"'waypoints' gives both theta and xyz; give either theta .* or xyz/rpy"),
+    ({"waypoints.seed": "q0"}, r"'waypoints.seed' needs waypoints.xyz \(the tool positions\); add it, or remove"),
+    ({"waypoints.theta": None, "waypoints.omega": None, "waypoints.xyz": POSES["xyz"], "waypoints.rpy": [[0, 0, 0]]},
+     r"'waypoints.rpy' has 1 entries but there are 2 waypoints \(waypoints.xyz\)"),
+    ({"robot": None, "waypoints.theta": None, "waypoints.omega": None, "waypoints.xyz": POSES["xyz"]},
+     r"'waypoints.xyz' needs a robot \(the task names none\)"),
+    # the seed's count against the robot's joints (was a numpy broadcasting message)
+    ({"waypoints.theta": None, "waypoints.omega": None, "waypoints.xyz": POSES["xyz"], "waypoints.seed": [0, 0]},
+     r"'waypoints.seed' has 2 joint values but robot 'planar3' has 3 joints"),
+    ({"waypoints.theta.j1": [0, 175]}, r"'waypoints.theta.j1\[1\]' = 175 deg is outside joint 'j1' limits \[-170, 170\]"),
+])
+def test_robot_task_input_names_field_and_fix(edit, message):
+    """What configure checks against the robot (and the schema's rules of robot and pose tasks)."""
+    task = {k: (dict(v) if isinstance(v, dict) else v) for k, v in ROBOT_TASK.items()}
+    task["waypoints"] = {k: (dict(v) if isinstance(v, dict) else v) for k, v in ROBOT_TASK["waypoints"].items()}
+    for path, value in edit.items():
+        *parents, leaf = path.split(".")
+        node = task
+        for part in parents:
+            node = node[part]
+        if value is None:
+            node.pop(leaf)
+        else:
+            node[leaf] = value
+    with pytest.raises(TaskFileError, match=message):
+        configured(task, "robot.toml")
+
+
 def test_infeasible_segment_is_a_planning_error():
     # a fast segment 1 (ω_max 20 deg/s) hands B a 3-4 acceleration far above segment 2's ε_max
     task = {"planner": "ptp", "units": {"angle": "deg"},

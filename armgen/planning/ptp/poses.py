@@ -18,6 +18,9 @@ from ...description import rpy_matrix
 from ...description.model import TASK_ROWS
 from ...robot import Robot
 from ...symbolic.ik import TOL_ORIENTATION, TOL_POSITION
+from ..common.start import joint_values
+
+METRES = 1.0  # a ptp task has no [units] length: its tool positions are in m
 
 
 def uncontrolled_error(robot: Robot, pose: np.ndarray, q: np.ndarray) -> tuple[list[str], float, float]:
@@ -58,7 +61,7 @@ def _seed_configuration(robot: Robot, seed: str | list[float] | None, source: st
         if isinstance(seed, str):
             return robot.configuration(seed)
         if seed is not None:
-            q = np.asarray(seed, dtype=float) * np.array([scale if j.revolute else 1.0 for j in robot.joints])
+            q = joint_values(seed, robot, "waypoints.seed", source, METRES, scale)
             robot.check_within_limits(q, f"{source}: field 'waypoints.seed'")
             return q
         return robot.qmid

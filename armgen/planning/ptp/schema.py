@@ -137,8 +137,10 @@ class PtpTaskFile(StrictModel):
                     raise _fail(f"waypoints.{name}[{k}]", f"is beyond ±{bound:g} {unit}; no pose of an arm needs that: "
                                                           "check the value and [units]")
             return
-        if wp.rpy is not None or wp.seed is not None:
-            raise _fail("waypoints.rpy", "and waypoints.seed need waypoints.xyz (the tool positions); add it")
+        for key in ("rpy", "seed"):
+            if getattr(wp, key) is not None:
+                raise _fail(f"waypoints.{key}", "needs waypoints.xyz (the tool positions); add it, or remove "
+                                                f"waypoints.{key} to give joint angles (theta)")
         for key in ("theta", "omega"):
             if getattr(wp, key) is None:
                 raise _fail(f"waypoints.{key}", "is missing; give the waypoint angles (theta) and velocities (omega)")
