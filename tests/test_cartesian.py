@@ -202,6 +202,15 @@ def test_start_and_path_errors_name_the_field():
         _configured("modular8_circle_pinv", "timing.duration=250.01")
 
 
+@pytest.mark.parametrize("example, extra", [("modular8_circle_pinv", ()),
+                                            ("modular8_fault_circle_gpm", ("path.turns=1",))])
+def test_an_unreachable_line_names_the_field_to_move(example, extra):
+    """The reach check every circle or line shares (planning.common): a line ends beyond the
+    arm's reach (5 m, relative or not) → infeasible, naming path.end alone (a circle: via and end)."""
+    with pytest.raises(PlanningError, match=r"unreachable: .* move path\.end closer"):
+        plan(example, "path.type=line", "path.end=[5000, 0, 0]", "check.limits=report", *extra)
+
+
 def test_cli_failure_writes_nothing(tmp_path):
     out = tmp_path / "plan.csv"
     result = CliRunner().invoke(cli, ["plan", str(EXAMPLES / "modular8_circle_pinv.toml"), "-o", str(out),

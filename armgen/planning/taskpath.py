@@ -20,7 +20,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ..errors import PlanningError, TaskFileError, excerpt
+from ..errors import TaskFileError, excerpt
 from ..robot import Robot
 from .common.path import WHOLE_STEP_SLACK, PathGeometry, check_step, path_geometry, program_task, timing_law
 from .common.start import start_configuration, unit_scales
@@ -28,7 +28,7 @@ from .common.symbolic import sym_orientation_error, sym_rpy
 from .toolpath.accuracy import PathAccuracy, path_tolerance
 from .toolpath.paths import TimeLaw
 from .toolpath.schema import ProgramPath
-from .toolpath.task import ProgramSpec, reach_radius
+from .toolpath.task import ProgramSpec
 from .toolpath.timelaw import ProgramMotion
 
 
@@ -120,15 +120,7 @@ class TaskPath:
         if task.motion is not None:  # a program: built, and its reach checked, when configured
             self.path = task.motion.program
             return
-        self.path = task.geometry.build(start_pose)
-        points = self.path.sample_points()
-        dist = np.linalg.norm(points - task.robot.base[:3, 3], axis=1)
-        reach = reach_radius(task.robot)
-        if dist.max() > reach:
-            k = int(np.argmax(dist))
-            raise PlanningError(
-                f"the path is unreachable: point {np.round(points[k] * 1e3, 1).tolist()} mm is {dist[k] * 1e3:.0f} mm "
-                f"from the base, beyond the arm's reach of {reach * 1e3:.0f} mm; move path.via/path.end closer")
+        self.path = task.geometry.build_within_reach(start_pose, task.robot)
 
     def __call__(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(position, rotation, twist [v; ω]) at time t (a number or an array of times)."""

@@ -24,7 +24,6 @@ from ..common.symbolic import sym_orientation_error, sym_rpy
 from ..limits import limit_report
 from ..result import PlanResult
 from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
-from ..toolpath.task import reach_radius
 from .config import CartesianTask
 from .windows import JointWindows
 
@@ -67,28 +66,14 @@ class CartesianPlanner:
         if task.motion is not None:  # built, and its reach checked, when configured
             self.path = task.motion.program
         else:
-            self.path = PathGeometry(task.path_type, task.via, task.end, task.end_rotation).build(T0)
-            self._check_reach()
+            geometry = PathGeometry(task.path_type, task.via, task.end, task.end_rotation)
+            self.path = geometry.build_within_reach(T0, self.robot)
         mp = task.method
         shape = "linear" if mp.name == "combined" else "quadratic"
         self.windows = JointWindows(self.robot.n, mp.T_smo_L, mp.T_sum_L, shape)
         self.damped_steps = 0
         self._band_lo = self.robot.qmin + mp.theta_s
         self._band_hi = self.robot.qmax - mp.theta_s
-
-    def _check_reach(self) -> None:
-        """Reject a path that leaves the sphere the arm can reach (sum of link lengths)."""
-        reach = reach_radius(self.robot)
-        base = self.robot.base[:3, 3]
-        points = self.path.sample_points()
-        dist = np.linalg.norm(points - base, axis=1)
-        if dist.max() > reach:
-            k = int(np.argmax(dist))
-            where = "path.via / path.end" if self.task.path_type == "circle" else "path.end"
-            raise PlanningError(
-                f"the path is unreachable: point {np.round(points[k] * 1e3, 1).tolist()} mm is "
-                f"{dist[k] * 1e3:.0f} mm from the base, beyond the arm's reach of {reach * 1e3:.0f} mm; "
-                f"move {where} closer")
 
     # -- the pieces of the law -------------------------------------------------------
     def desired(self, t):

@@ -13,11 +13,11 @@ from typing import Optional, Union
 import numpy as np
 
 from ...description import rpy_matrix
-from ...errors import TaskFileError
+from ...errors import PlanningError, TaskFileError
 from ...robot import Robot
 from ..toolpath.paths import CirclePath, LinePath, TimeLaw
 from ..toolpath.schema import ProgramPath
-from ..toolpath.task import ProgramSpec, program_motion, program_spec
+from ..toolpath.task import ProgramSpec, program_motion, program_spec, reach_radius
 from ..toolpath.timelaw import ProgramMotion
 from .schema import Path, RelativePath, Timing
 
@@ -44,6 +44,22 @@ class PathGeometry:
         if self.type == "circle":
             return CirclePath(p0, via, end, r0)
         return LinePath(p0, end, r0, self.end_rotation if self.end_rotation is not None else r0)
+
+    def build_within_reach(self, start_pose: np.ndarray, robot: Robot) -> Union[CirclePath, LinePath]:
+        """The path from the start pose; one that leaves the sphere the arm can reach (about its
+        base, :func:`~armgen.planning.toolpath.task.reach_radius`) makes the plan infeasible."""
+        path = self.build(start_pose)
+        points = path.sample_points()
+        dist = np.linalg.norm(points - robot.base[:3, 3], axis=1)
+        reach = reach_radius(robot)
+        if dist.max() > reach:
+            k = int(np.argmax(dist))
+            where = "path.via / path.end" if self.type == "circle" else "path.end"
+            raise PlanningError(
+                f"the path is unreachable: point {np.round(points[k] * 1e3, 1).tolist()} mm is "
+                f"{dist[k] * 1e3:.0f} mm from the base, beyond the arm's reach of {reach * 1e3:.0f} mm; "
+                f"move {where} closer")
+        return path
 
 
 def path_geometry(path: Path, length_scale: float, angle_scale: float, source: str) -> PathGeometry:
