@@ -7,12 +7,14 @@ axes of DH chains built from 0/±90° twists). The other inputs are drawn per fu
 task velocities and null-space vectors ~N(0, 1), damping in {0, 1e-4, 1e-2, 0.1},
 ``δ`` and the band fraction in sensible ranges, WLN weights in [1, 11]; lock masks with up to
 two zeros, variable-damping thresholds, criterion ranges and gains of the spec 30/35 functions
-in their documented ranges (see ``batch_inputs``).
+in their documented ranges (see ``_DRAWS``).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
@@ -67,89 +69,119 @@ def joint_samples(robot: Robot, count: int, seed: int) -> tuple[np.ndarray, np.n
     return q, kind
 
 
+@dataclass(frozen=True)
+class _Batch:
+    """What the draws of one function's inputs share: ``args`` holds the inputs drawn so far."""
+
+    func: ca.Function
+    robot: Robot
+    q: np.ndarray
+    rng: np.random.Generator
+    precision: str
+    args: list[np.ndarray]
+
+    @property
+    def count(self) -> int:
+        return len(self.q)
+
+    def earlier(self, name: str) -> np.ndarray:
+        return self.args[self.func.name_in().index(name)]
+
+    def criterion_scales(self) -> np.ndarray:
+        return np.array(CRITERION_SCALES) * np.where(np.arange(4) == 2, self.robot.n, 1)
+
+
 def batch_inputs(func: ca.Function, robot: Robot, q: np.ndarray, rng: np.random.Generator,
                  precision: str = "double") -> list[np.ndarray]:
     """Inputs of ``func`` for every configuration in ``q`` (samples×n), drawn together:
     entry k has shape ``(samples,)`` for a scalar input, ``(samples, rows)`` for a vector and
     ``(samples, rows, cols)`` for a matrix (the J input of the *_from_jacobian twins)."""
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    count = len(q)
-    args: list[np.ndarray] = []
-    damping = DAMPING_CHOICES if precision == "double" else FLOAT_DAMPING_CHOICES
-    criterion_scales = np.array(CRITERION_SCALES) * np.where(np.arange(4) == 2, robot.n, 1)
-    names = func.name_in()
-    for k, name in enumerate(names):
-        rows = func.sparsity_in(k).shape[0]
-        vector = (count, rows)
-        if name == "q":
-            args.append(q)
-        elif name == "J":  # the robot's Jacobian at q
-            args.append(robot.jacobian(q).reshape(count, 6, robot.n))
-        elif name == "T_target":  # ik: the pose at q, solved from a seed near q (IK_SEED_SPREAD)
-            args.append(robot.fk(q).reshape(count, 4, 4))
-        elif name == "q_seed":
-            args.append(np.clip(q + rng.normal(scale=IK_SEED_SPREAD, size=(count, robot.n)), robot.qmin, robot.qmax))
-        elif name == "q_rest":
-            args.append(rng.uniform(robot.qmin, robot.qmax, size=(count, robot.n)))
-        elif name == "use_rest":
-            args.append(rng.integers(0, 2, size=count).astype(float))
-        elif name == "tol_position":
-            args.append(np.full(count, ik.TOL_POSITION if precision == "double" else ik.FLOAT_TOL))
-        elif name == "tol_orientation":
-            args.append(np.full(count, ik.TOL_ORIENTATION if precision == "double" else ik.FLOAT_TOL))
-        elif name == "max_iterations":  # double also checks the early stop (float is judged by its pose)
-            capped = (rng.random(count) < 0.5) if precision == "double" else np.zeros(count, dtype=bool)
-            args.append(np.where(capped, rng.integers(1, ik.MAX_ITERATIONS + 1, size=count),
-                                 ik.MAX_ITERATIONS).astype(float))
-        elif name == "q_init":
-            args.append(rng.uniform(robot.qmin, robot.qmax, size=(count, robot.n)))
-        elif name == "damping":
-            args.append(rng.choice(damping, size=count))
-        elif name == "delta":
-            lo = FLOAT_WGPM_MIN_LOG_DELTA if (precision == "float" and func.name().removesuffix(FROM_JACOBIAN) == "step_wgpm") else -4
-            args.append(10 ** rng.uniform(lo, -1, size=count))
-        elif name == "band":
-            args.append(rng.uniform(0.02, 0.3, size=count))
-        elif name == "a":
-            args.append(rng.uniform(0.5, 2.0, size=vector))
-        elif name == "W":
-            args.append(1 + rng.uniform(0, 10, size=vector))
-        elif name == "mask":  # 0 = locked; up to two locked joints, at least m healthy when possible
-            locked = rng.integers(0, min(3, rows), size=count)
-            rank = np.argsort(rng.random(vector), axis=1).argsort(axis=1)  # a random order of the joints
-            args.append(np.where(rank < locked[:, None], 0.0, 1.0))
-        elif name == "epsilon":
-            args.append(rng.uniform(*EPSILON_RANGE[precision], size=count))
-        elif name in ("lambda_max", "rho_max"):
-            args.append(rng.uniform(*LAMBDA_MAX_RANGE[precision], size=count))
-        elif name == "t_rmax":
-            args.append(rng.uniform(0, 0.5, size=count))
-        elif name == "ramp":  # off, full, or in between: a third each
-            args.append(np.choose(rng.integers(0, 3, size=count), [np.zeros(count), np.ones(count),
-                                                                    rng.uniform(0, 1, size=count)]))
-        elif name == "H_lo":
-            args.append(rng.uniform(0, 1, size=vector) * criterion_scales)
-        elif name == "H_hi":
-            args.append(args[names.index("H_lo")] + rng.uniform(0.5, 2, size=vector) * criterion_scales)
-        elif name == "k_hi":
-            args.append(rng.uniform(0, 1, size=vector))
-        elif name == "k_lo":
-            args.append(args[names.index("k_hi")] * rng.uniform(0, 1, size=vector))
-        elif name == "u_th":
-            args.append(rng.uniform(0, 0.6, size=vector))
-        elif name == "u_band":
-            args.append(rng.uniform(0.1, 0.5, size=vector))
-        elif name == "omega":
-            args.append(rng.uniform(0, 0.3, size=vector))
-        elif name == "b":
-            args.append(rng.uniform(0, 5, size=count))
-        elif name == "omega_floor":
-            args.append(10 ** rng.uniform(-4, -2, size=count))
-        elif name == "v_band":  # half of them 0, which selects the plain on/off rule
-            args.append(np.where(rng.random(count) < 0.5, 0.0, rng.uniform(0.05, 0.5, size=count)))
-        else:
-            args.append(rng.normal(size=vector))
-    return args
+    batch = _Batch(func, robot, np.atleast_2d(np.asarray(q, dtype=float)), rng, precision, [])
+    for k, name in enumerate(func.name_in()):
+        draw = _DRAWS.get(name, _normal)
+        batch.args.append(draw(batch, func.sparsity_in(k).shape[0]))
+    return batch.args
+
+
+def _normal(b: _Batch, rows: int) -> np.ndarray:
+    return b.rng.normal(size=(b.count, rows))
+
+
+def _iteration_caps(b: _Batch, rows: int) -> np.ndarray:
+    """Double also checks the early stop (float is judged by its pose)."""
+    capped = (b.rng.random(b.count) < 0.5) if b.precision == "double" else np.zeros(b.count, dtype=bool)
+    return np.where(capped, b.rng.integers(1, ik.MAX_ITERATIONS + 1, size=b.count), ik.MAX_ITERATIONS).astype(float)
+
+
+def _delta(b: _Batch, rows: int) -> np.ndarray:
+    float_wgpm = b.precision == "float" and b.func.name().removesuffix(FROM_JACOBIAN) == "step_wgpm"
+    lo = FLOAT_WGPM_MIN_LOG_DELTA if float_wgpm else -4
+    return 10 ** b.rng.uniform(lo, -1, size=b.count)
+
+
+def _lock_mask(b: _Batch, rows: int) -> np.ndarray:
+    """0 = locked; up to two locked joints, at least m healthy when possible."""
+    locked = b.rng.integers(0, min(3, rows), size=b.count)
+    rank = np.argsort(b.rng.random((b.count, rows)), axis=1).argsort(axis=1)  # a random order of the joints
+    return np.where(rank < locked[:, None], 0.0, 1.0)
+
+
+def _ramp(b: _Batch, rows: int) -> np.ndarray:
+    """Off, full, or in between: a third each."""
+    return np.choose(b.rng.integers(0, 3, size=b.count), [np.zeros(b.count), np.ones(b.count),
+                                                          b.rng.uniform(0, 1, size=b.count)])
+
+
+def _ik_tolerance(double: float) -> Callable[[_Batch, int], np.ndarray]:
+    """The ik success threshold: ``double`` for the double build, ``ik.FLOAT_TOL`` for float."""
+    return lambda b, rows: np.full(b.count, double if b.precision == "double" else ik.FLOAT_TOL)
+
+
+# The configuration, what derives from it, and the ik solver's inputs (a seed near q, IK_SEED_SPREAD).
+_CONFIGURATION_DRAWS: dict[str, Callable[[_Batch, int], np.ndarray]] = {
+    "q": lambda b, rows: b.q,
+    "J": lambda b, rows: b.robot.jacobian(b.q).reshape(b.count, 6, b.robot.n),
+    "T_target": lambda b, rows: b.robot.fk(b.q).reshape(b.count, 4, 4),
+    "q_seed": lambda b, rows: np.clip(b.q + b.rng.normal(scale=IK_SEED_SPREAD, size=(b.count, b.robot.n)),
+                                      b.robot.qmin, b.robot.qmax),
+    "q_rest": lambda b, rows: b.rng.uniform(b.robot.qmin, b.robot.qmax, size=(b.count, b.robot.n)),
+    "use_rest": lambda b, rows: b.rng.integers(0, 2, size=b.count).astype(float),
+    "tol_position": _ik_tolerance(ik.TOL_POSITION),
+    "tol_orientation": _ik_tolerance(ik.TOL_ORIENTATION),
+    "max_iterations": _iteration_caps,
+}
+# The resolved-rate steps' parameters, variable damping (step_fault, step_wgpm) included.
+_STEP_DRAWS: dict[str, Callable[[_Batch, int], np.ndarray]] = {
+    "q_init": lambda b, rows: b.rng.uniform(b.robot.qmin, b.robot.qmax, size=(b.count, b.robot.n)),
+    "damping": lambda b, rows: b.rng.choice(DAMPING_CHOICES if b.precision == "double" else FLOAT_DAMPING_CHOICES,
+                                            size=b.count),
+    "delta": _delta,
+    "band": lambda b, rows: b.rng.uniform(0.02, 0.3, size=b.count),
+    "a": lambda b, rows: b.rng.uniform(0.5, 2.0, size=(b.count, rows)),
+    "W": lambda b, rows: 1 + b.rng.uniform(0, 10, size=(b.count, rows)),
+    "mask": _lock_mask,
+    "epsilon": lambda b, rows: b.rng.uniform(*EPSILON_RANGE[b.precision], size=b.count),
+    "lambda_max": lambda b, rows: b.rng.uniform(*LAMBDA_MAX_RANGE[b.precision], size=b.count),
+    "rho_max": lambda b, rows: b.rng.uniform(*LAMBDA_MAX_RANGE[b.precision], size=b.count),
+    "t_rmax": lambda b, rows: b.rng.uniform(0, 0.5, size=b.count),
+    "ramp": _ramp,
+}
+# step_wgpm's criterion bands and gains; H_hi and k_lo are drawn relative to H_lo and k_hi.
+_CRITERION_BAND_DRAWS: dict[str, Callable[[_Batch, int], np.ndarray]] = {
+    "H_lo": lambda b, rows: b.rng.uniform(0, 1, size=(b.count, rows)) * b.criterion_scales(),
+    "H_hi": lambda b, rows: b.earlier("H_lo") + b.rng.uniform(0.5, 2, size=(b.count, rows)) * b.criterion_scales(),
+    "k_hi": lambda b, rows: b.rng.uniform(0, 1, size=(b.count, rows)),
+    "k_lo": lambda b, rows: b.earlier("k_hi") * b.rng.uniform(0, 1, size=(b.count, rows)),
+    "u_th": lambda b, rows: b.rng.uniform(0, 0.6, size=(b.count, rows)),
+    "u_band": lambda b, rows: b.rng.uniform(0.1, 0.5, size=(b.count, rows)),
+    "omega": lambda b, rows: b.rng.uniform(0, 0.3, size=(b.count, rows)),
+    "b": lambda b, rows: b.rng.uniform(0, 5, size=b.count),
+    "omega_floor": lambda b, rows: 10 ** b.rng.uniform(-4, -2, size=b.count),
+    # half of them 0, which selects the plain on/off rule
+    "v_band": lambda b, rows: np.where(b.rng.random(b.count) < 0.5, 0.0, b.rng.uniform(0.05, 0.5, size=b.count)),
+}
+# Any other input (task velocities, null-space vectors, gradients) is ~N(0, 1): _normal.
+_DRAWS = {**_CONFIGURATION_DRAWS, **_STEP_DRAWS, **_CRITERION_BAND_DRAWS}
 
 
 def function_inputs(func: ca.Function, robot: Robot, q: np.ndarray, rng: np.random.Generator,
