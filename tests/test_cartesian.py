@@ -188,14 +188,19 @@ def test_each_method_has_its_own_defaults_and_a_value_given_wins():
 
 def test_start_and_path_errors_name_the_field():
     """Joint values of the wrong count name the field 'start' (not 'task.start') and the robot's
-    joint count; a circle without via says it is missing and how to add it; a duration that is
-    no whole number of steps names the file."""
+    joint count; the path's own rules are the schema's, naming the field (a circle without via,
+    a missing end_rpy, an interpolating circle, turns on a line); a duration that is no whole
+    number of steps names the file."""
     with pytest.raises(TaskFileError, match="field 'start' has 3 joint values but robot 'modular8' has 8 joints"):
         _configured("modular8_circle_pinv", "start=[0, 0, 0]")
-    with pytest.raises(TaskFileError, match=r"missing field 'path.via'.*add via = \[x, y, z\]"):
+    with pytest.raises(TaskFileError, match=r"missing field 'path.via'; add 'via = <value>'"):
         _configured("modular8_circle_pinv", drop=["path.via"])
     with pytest.raises(TaskFileError, match=r"missing field 'path.end_rpy'"):
         _configured("modular8_circle_pinv", "path.type=line", "path.orientation=interpolate")
+    with pytest.raises(TaskFileError, match=r"field 'path.orientation' = 'interpolate': .* along a line only"):
+        _configured("modular8_circle_pinv", "path.orientation=interpolate", "path.end_rpy=[0, 0, 0]")
+    with pytest.raises(TaskFileError, match=r"field 'path.turns' = 2: turns are for circles only"):
+        _configured("modular8_fault_circle_gpm", "path.type=line")
     # refused when configured, naming the file (the planner's loop found it, unnamed)
     with pytest.raises(TaskFileError, match="modular8_circle_pinv: timing.duration = 250.01 s is not a multiple of "
                                             "integrator.step = 0.02 s"):

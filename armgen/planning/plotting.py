@@ -316,7 +316,7 @@ def planned_tool_path(result: PlanResult, robot: Robot) -> np.ndarray | None:
             spec = program_spec(ProgramPath.model_validate(task["path"]), str(meta.get("task_file", "plan.json")), ls,
                                 as_)
             return build_program(spec, pose0, "plan.json").sample_points(2000)
-        return path_geometry(RelativePath.model_validate(task["path"]), ls, as_, "plan.json").build(pose0).sample_points()
+        return path_geometry(RelativePath.model_validate(task["path"]), ls, as_).build(pose0).sample_points()
     except (ArmgenError, ValidationError):
         return None
 

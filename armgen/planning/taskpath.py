@@ -104,7 +104,7 @@ def configure_path_task(model: Any, robot: Robot, source: str) -> PathTask:
         blank = PathTask(path_type="program", via=None, end=np.zeros(3), relative=False, turns=1.0, end_rotation=None,
                          duration=0.0, law=TimeLaw("constant"), program=program.spec, **shared)
         return blank.with_motion(program.motion)
-    geometry = path_geometry(model.path, ls, as_, source)
+    geometry = path_geometry(model.path, ls, as_)
     duration, law = timing_law(model.timing, source)
     check_step(step, duration, source)
     return PathTask(path_type=geometry.type, via=geometry.via, end=geometry.end, relative=geometry.relative,

@@ -114,7 +114,7 @@ def configure(model: CartesianTaskFile, robot: Robot, source: str) -> CartesianT
         path = dict(path_type="program", via=None, end=np.zeros(3), end_rotation=None,
                     duration=program.motion.duration, law=TimeLaw("constant"))
     else:
-        geometry = path_geometry(model.path, ls, as_, source)
+        geometry = path_geometry(model.path, ls, as_)
         duration, law = timing_law(model.timing, source)
         path = dict(path_type=geometry.type, via=geometry.via, end=geometry.end, end_rotation=geometry.end_rotation,
                     duration=duration, law=law)

@@ -1,8 +1,8 @@
 """Path + timing: a task's circle or line (``[path]``) and ``[timing]``, validated by
 :mod:`.schema`, → SI geometry and a time law; a program path (``type = "program"``) → its moves
-and the motion from the start pose (:mod:`armgen.planning.toolpath.task`). The cross-field
-rules a schema does not state (a circle needs ``via``; interpolating the orientation needs a
-line and ``end_rpy``; a program takes no ``[timing]``) are checked here, naming the field."""
+and the motion from the start pose (:mod:`armgen.planning.toolpath.task`). What involves two
+tables (a program takes no ``[timing]``, a circle or line needs it; the step fits the
+duration) is checked here, naming the fields."""
 
 from __future__ import annotations
 
@@ -62,27 +62,16 @@ class PathGeometry:
         return path
 
 
-def path_geometry(path: Path, length_scale: float, angle_scale: float, source: str) -> PathGeometry:
-    """The circle or line of a validated ``[path]`` table (a :class:`RelativePath` may be
-    relative and turn several times) in SI."""
-    via = None
-    if path.type == "circle":
-        if path.via is None:
-            raise TaskFileError(f"{source}: missing field 'path.via'; a circle runs start → via → end → start: add "
-                                "via = [x, y, z] (or set path.type = 'line')")
-        via = np.array(path.via, dtype=float) * length_scale
+def path_geometry(path: Path, length_scale: float, angle_scale: float) -> PathGeometry:
+    """The circle or line of a validated ``[path]`` table (its schema saw to a circle's via and an
+    interpolating line's end_rpy; a :class:`RelativePath` may be relative and turn several
+    times) in SI."""
+    via = None if path.type != "circle" else np.array(path.via, dtype=float) * length_scale
     end = np.array(path.end, dtype=float) * length_scale
     end_rotation = None
     if path.orientation == "interpolate":
-        if path.type != "line":
-            raise TaskFileError(f"{source}: path.orientation = 'interpolate' needs path.type = 'line'")
-        if path.end_rpy is None:
-            raise TaskFileError(f"{source}: missing field 'path.end_rpy'; path.orientation = 'interpolate' turns the "
-                                "tool to it: add end_rpy = [roll, pitch, yaw] (or set path.orientation = 'hold')")
         end_rotation = rpy_matrix(*(np.array(path.end_rpy, dtype=float) * angle_scale))
     relative, turns = (path.relative, path.turns) if isinstance(path, RelativePath) else (False, 1.0)
-    if path.type == "line" and turns != 1.0:
-        raise TaskFileError(f"{source}: path.turns = {turns} is for circles only; remove it or set path.type = 'circle'")
     return PathGeometry(path.type, via, end, end_rotation, relative, turns)
 
 

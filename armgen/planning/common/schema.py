@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal, Optional, Union
 
-from pydantic import Field, StringConstraints
+from pydantic import Field, StringConstraints, ValidationInfo, field_validator
+from pydantic_core import PydanticCustomError
 
 from ...schemas import StrictModel
 from ..toolpath.schema import ProgramPath
@@ -46,10 +47,34 @@ class Units(StrictModel):
 
 class Path(StrictModel):
     type: Literal["circle", "line"] = "circle"
-    via: Optional[Vector3] = Field(None, description="circle: the second point (start → via → end → start)")
+    via: Optional[Vector3] = Field(None, validate_default=True,
+                                   description="circle: the second point (start → via → end → start)")
     end: Vector3
     orientation: Literal["hold", "interpolate"] = "hold"
-    end_rpy: Optional[Vector3] = Field(None, description="line with orientation = 'interpolate': final roll, pitch, yaw")
+    end_rpy: Optional[Vector3] = Field(None, validate_default=True,
+                                       description="line with orientation = 'interpolate': final roll, pitch, yaw")
+
+    @field_validator("via")
+    @classmethod
+    def _circle_needs_via(cls, via: Optional[list[float]], info: ValidationInfo) -> Optional[list[float]]:
+        if via is None and info.data.get("type") == "circle":
+            raise PydanticCustomError("missing", "a circle runs start → via → end → start")
+        return via
+
+    @field_validator("orientation")
+    @classmethod
+    def _interpolate_on_lines(cls, orientation: str, info: ValidationInfo) -> str:
+        if orientation == "interpolate" and info.data.get("type") != "line":
+            raise ValueError("the orientation turns along a line only: set path.type = 'line' or path.orientation = "
+                             "'hold'")
+        return orientation
+
+    @field_validator("end_rpy")
+    @classmethod
+    def _interpolate_needs_end_rpy(cls, end_rpy: Optional[list[float]], info: ValidationInfo) -> Optional[list[float]]:
+        if end_rpy is None and info.data.get("orientation") == "interpolate":
+            raise PydanticCustomError("missing", "orientation = 'interpolate' turns the tool to end_rpy")
+        return end_rpy
 
 
 class Timing(StrictModel):
@@ -85,6 +110,13 @@ class SpeedCheck(StrictModel):
 class RelativePath(Path):
     relative: bool = Field(False, description="via/end are offsets from the start tool position")
     turns: Positive = Field(1.0, description="circle: turns over the duration")
+
+    @field_validator("turns")
+    @classmethod
+    def _turns_of_circles(cls, turns: float, info: ValidationInfo) -> float:
+        if turns != 1.0 and info.data.get("type") == "line":
+            raise ValueError("turns are for circles only; remove path.turns or set path.type = 'circle'")
+        return turns
 
 
 class EulerIntegrator(StrictModel):
