@@ -429,6 +429,10 @@ def _contour(rows: int = 10) -> list[str]:
     ("timing", 2, ["[timing] is not used"]),
     ("missing", 2, ["path.moves[2]", "contour.csv", "not found", "relative to the task file"]),
     ("fifo", 2, ["path.moves[2]", "contour.csv", "not a regular file"]),  # refused, not waited on
+    # each kind of move takes its own targets (the schema's rule): missing, extra, an arc's via.rpy
+    ("no target", 2, ["missing field 'path.moves[2].to'; add 'to = <value>'"]),
+    ("poses with to", 2, ["field 'path.moves[2].to'", "not used by a poses move (it takes file); remove it"]),
+    ("arc via rpy", 2, ["field 'path.moves[2].via'", "via.rpy is not used", "remove it"]),
 ])
 def test_bad_programs_fail_cleanly(case, code, needles, tmp_path):
     first, blend, extra, csv = "[650, 0, 400]", 5, "", None
@@ -450,6 +454,13 @@ def test_bad_programs_fail_cleanly(case, code, needles, tmp_path):
         else:
             rows.insert(3, rows[0])
         extra, csv = POSES_MOVE, "\n".join(text_rows + rows) + "\n"
+    elif case == "no target":
+        extra = '[[path.moves]]\nkind = "line"\n'
+    elif case == "poses with to":
+        extra = POSES_MOVE + "to = { xyz = [650, 0, 400] }\n"
+    elif case == "arc via rpy":
+        extra = ('[[path.moves]]\nkind = "arc"\nto = { xyz = [650, 100, 400] }\n'
+                 'via = { xyz = [680, 50, 400], rpy = [0, 0, 0] }\n')
     elif case in ("missing", "fifo"):
         extra = POSES_MOVE
         if case == "fifo":

@@ -22,7 +22,7 @@ from ...description.model import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M
 from ...robot import Robot
 from ...schemas import read_input_file
 from .geometry import GeometryError, MoveSpec, Program
-from .schema import Move, ProgramPath
+from .schema import ProgramPath
 from .timelaw import ProgramMotion, program_profile
 
 # A poses CSV of ~500 000 rows: far beyond a CAD/CAM contour, small enough to read at once.
@@ -51,23 +51,10 @@ def _where(k: int, kind: str) -> str:
     return f"path.moves[{k}] ({kind})"
 
 
-def _fields(move: Move, k: int, source: str, needed: set[str]) -> None:
-    """A move of ``kind`` gives exactly the targets it uses (``needed`` of to, via, file)."""
-    given = {name for name in ("to", "via", "file") if getattr(move, name) is not None}
-    missing = needed - given
-    if missing:
-        raise TaskFileError(f"{source}: {_where(k, move.kind)}: missing {', '.join(sorted(missing))}; a {move.kind} move "
-                            f"needs {' and '.join(sorted(needed))}")
-    extra = given - needed
-    if extra:
-        raise TaskFileError(f"{source}: {_where(k, move.kind)}: {', '.join(sorted(extra))} is not used by a {move.kind} "
-                            "move; remove it")
-
-
 def program_spec(path: ProgramPath, source: str, ls: float, as_: float) -> ProgramSpec:
     """The program of a validated ``[path]`` table (``type = "program"``) in SI; ``ls``/``as_``
-    scale the file's units to SI. A ``poses`` move's CSV is read here, relative to the task
-    file's folder."""
+    scale the file's units to SI (the schema saw to the targets each kind of move takes). A
+    ``poses`` move's CSV is read here, relative to the task file's folder."""
     task_dir = Path(source).parent
     moves, files = [], []
     for k, move in enumerate(path.moves):
@@ -76,20 +63,13 @@ def program_spec(path: ProgramPath, source: str, ls: float, as_: float) -> Progr
                   "acceleration": (path.acceleration if move.acceleration is None else move.acceleration) * ls,
                   "blend": (path.blend if move.blend is None else move.blend) * ls}
         if kind == "poses":
-            _fields(move, k, source, {"file"})
             points, rotations, name, digest = read_poses(task_dir / move.file, move.file, k, source, ls, as_)
             files.append((name, digest))
             moves.append(MoveSpec(kind, points=points, rotations=rotations, **common))
             continue
-        _fields(move, k, source, {"to", "via"} if kind == "arc" else {"to"})
         rotation = None if move.to.rpy is None else Rotation.from_matrix(
             rpy_matrix(*(np.asarray(move.to.rpy, dtype=float) * as_)))
-        via = None
-        if kind == "arc":
-            if move.via.rpy is not None:
-                raise TaskFileError(f"{source}: {_where(k, kind)}: via.rpy is not used (the orientation turns from the "
-                                    "start to `to`); remove it")
-            via = np.asarray(move.via.xyz, dtype=float) * ls
+        via = None if kind != "arc" else np.asarray(move.via.xyz, dtype=float) * ls
         moves.append(MoveSpec(kind, position=np.asarray(move.to.xyz, dtype=float) * ls, rotation=rotation, via=via,
                               **common))
     angular = path.angular_speed
