@@ -20,6 +20,13 @@ class TaskFileError(ArmgenError):
     exit_code = 2
 
 
+class RobotMismatchError(ArmgenError):
+    """A task or plan for another robot than the one given (e.g. the robot a firmware is built
+    for): nothing of it can run on that robot."""
+
+    exit_code = 5
+
+
 class PlanningError(ArmgenError):
     """A plan cannot be completed (unreachable target, start outside limits, infeasible timing)."""
 

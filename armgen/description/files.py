@@ -35,6 +35,7 @@ Format (validation rules: ``docs/input-files.md``; examples: the bundled files i
 from __future__ import annotations
 
 import hashlib
+from dataclasses import replace
 import math
 import re
 from importlib import resources
@@ -326,7 +327,7 @@ def load_description(name_or_path: str | Path) -> RobotDescription:
     path = resolve_robot_path(name_or_path)
     data = _read_bounded(path)
     source = path.name if path.parent == BUNDLED_DIR else str(path)
-    return _parse(data, source, hashlib.sha256(data).hexdigest(), path.parent)
+    return replace(_parse(data, source, hashlib.sha256(data).hexdigest(), path.parent), path=str(path.resolve()))
 
 
 def _read_bounded(path: Path) -> bytes:
@@ -367,4 +368,5 @@ def read_urdf(path: str | Path, base_link: str | None = None, tip_link: str | No
     chain = parse_urdf(_decode(path, data), str(path), base_link, tip_link)
     # a URDF read alone is a robot file that only names it
     alone = UrdfRobotFile.model_construct(urdf=str(path), base_link=base_link, tip_link=tip_link)
-    return urdf_description(alone, chain, str(path), hashlib.sha256(data).hexdigest(), path)
+    return replace(urdf_description(alone, chain, str(path), hashlib.sha256(data).hexdigest(), path),
+                   path=str(path.resolve()))

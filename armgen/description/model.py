@@ -98,6 +98,9 @@ class RobotDescription:
         Rows of ``[vx, vy, vz, wx, wy, wz]`` the planners track.
     source, sha256
         The file it was read from and the SHA-256 of its bytes (and of the URDF it references).
+    path
+        That file's absolute path ("" for a description made in memory): what tells, without
+        reading the file again, whether a task's robot reference names this robot.
     """
 
     name: str
@@ -113,6 +116,7 @@ class RobotDescription:
     units: dict[str, str] = field(default_factory=dict)
     # file, base_link, tip_link of a URDF robot; continuous: its continuous joints given ±π
     urdf: dict[str, Any] = field(default_factory=dict)
+    path: str = ""
 
     @property
     def n(self) -> int:

@@ -16,7 +16,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from .._version import __version__
-from ..errors import PlanFileError, PlanningError, TaskFileError, excerpt
+from ..errors import PlanFileError, PlanningError, RobotFileError, RobotMismatchError, TaskFileError, excerpt
 from ..description import bundled_robots, resolve_robot_path
 from ..schemas import (MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, format_validation_error, parse_toml_bounded,
                        read_input_file)
@@ -165,18 +165,21 @@ class Task:
 
 def task_robot(model: Any, source: str, robot: Robot | None = None) -> Robot | None:
     """The robot the task names, loaded once; with ``robot`` given (a firmware's), the task must
-    name that robot (checked here, before anything is planned) and it is used as it is."""
+    name that robot (checked here, before anything is planned: a
+    :class:`~armgen.errors.RobotMismatchError` otherwise) and it is used as it is."""
     reference = getattr(model, "robot", None)
     if reference is None:
         return robot
-    if robot is None:
-        return load_robot(reference)
-    if resolve_robot_path(reference).resolve() != Path(robot.source).resolve():
-        named = load_robot(reference)  # another path may hold the same file
-        if named.sha256 != robot.sha256:
-            raise TaskFileError(f"{source}: the task is for robot '{named.name}' ({reference}), not '{robot.name}' "
-                                f"({robot.source}); give the task's robot, or set the task's robot = the robot given")
-    return robot
+    try:
+        if robot is not None and robot.path and resolve_robot_path(reference).resolve() == Path(robot.path):
+            return robot
+        named = load_robot(reference)
+    except RobotFileError as exc:
+        raise RobotFileError(f"{source}: field 'robot' = {excerpt(repr(reference))}: {exc}") from None
+    if robot is not None and named.sha256 != robot.sha256:  # another path may hold the same file
+        raise RobotMismatchError(f"{source}: the task is for robot '{named.name}' ({reference}), not '{robot.name}' "
+                                 f"({robot.source}); give the task's robot, or plan the task for this robot")
+    return robot if robot is not None else named
 
 
 def configure_task(task: dict[str, Any], source: str, sha256: str = "", robot: Robot | None = None) -> Task:
