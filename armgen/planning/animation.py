@@ -3,9 +3,9 @@
 Each frame draws the arm from its own forward kinematics (``robot.frames``, DH or URDF alike, of
 the robot ``plan.json`` records or ``--robot``): links as straight segments between consecutive
 joint-frame origins (base, each joint's frame, the tool), the tool frame's axes (x red, y green,
-z blue), the planned tool path dashed and the executed one so far, and a time stamp. Snake plans
-are drawn in top (and side, when the path leaves the plane) view with their obstacles and plate
-openings. Frames are plan samples picked evenly in time so that the video lasts ``duration``
+z blue), the planned tool path dashed and the executed one so far, and a time stamp. A planner
+whose arm the joint frames do not show draws its own scene (its registry entry's
+``animation_scene``: snake plans in top and side view with their obstacles and plate openings). Frames are plan samples picked evenly in time so that the video lasts ``duration``
 seconds at ``fps`` frames per second.
 """
 
@@ -23,6 +23,7 @@ from ..errors import PlanFileError, TaskFileError, ToolchainError, excerpt
 from ..fileio import atomic_open
 from ..progress import progress
 from ..robot import Robot
+from .registry import PLANNER_NAMES, planner as planner_named
 from .plotting import (FigureOutputError, FigureWriteError, joint_count, new_figure, plan_robot,
                        planned_tool_path)
 from .result import PlanResult
@@ -142,35 +143,6 @@ def _serial_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
     return draw
 
 
-def _snake_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
-    from .snake.plots import PLANAR_TOL, arm_centres, draw_obstacles
-
-    meta = result.metadata
-    centres = arm_centres(result, meta, robot)[frames] * 1e3
-    wp = np.asarray(meta["path"]["waypoints_m"], dtype=float) * 1e3
-    views = [(0, 1)] if np.ptp(wp[:, 2]) < PLANAR_TOL else [(0, 1), (0, 2)]
-    lines = []
-    for v, (i, j) in enumerate(views):
-        ax = fig.add_subplot(len(views), 1, v + 1)
-        everything = np.vstack([centres.reshape(-1, 3), wp])
-        lo, hi = everything.min(axis=0), everything.max(axis=0)
-        pad = SCENE_MARGIN * float(np.max(hi - lo))
-        draw_obstacles(ax, meta.get("obstacles", []), (i, j))
-        ax.plot(wp[:, i], wp[:, j], "k--", lw=0.8, label="path")
-        ax.set(xlim=(lo[i] - pad, hi[i] + pad), ylim=(lo[j] - pad, hi[j] + pad), aspect="equal",
-               xlabel=f"{'xyz'[i]} [mm]", ylabel=f"{'xyz'[j]} [mm]", title=("top view", "side view")[v])
-        ax.tick_params(labelsize=6)
-        arm, = ax.plot([], [], "-o", color="tab:blue", lw=2.5, ms=2.5)
-        tip, = ax.plot([], [], "*", color="tab:red", ms=10)
-        lines.append((arm, tip, i, j))
-
-    def draw(f: int) -> None:
-        for arm, tip, i, j in lines:
-            arm.set_data(centres[f, :, i], centres[f, :, j])
-            tip.set_data([centres[f, -1, i]], [centres[f, -1, j]])
-    return draw
-
-
 def animate_plan(result: PlanResult, out_path: str | Path, fps: float = DEFAULT_FPS,
                  duration: float | None = None, size: tuple[int, int] = DEFAULT_SIZE,
                  robot: Robot | str | Path | None = None) -> Path:
@@ -194,15 +166,13 @@ def animate_plan(result: PlanResult, out_path: str | Path, fps: float = DEFAULT_
     if planner is None and robot is None:
         raise PlanFileError("the plan has no plan.json (it names the planner and the robot); keep the plan.json that "
                             "`armgen plan` wrote beside the CSV, or give the robot (--robot FILE) to draw the joint columns")
-    if planner not in (None, "snake", "cartesian", "fault_tolerant", "wgpm", "ptp"):
+    if planner is not None and planner not in PLANNER_NAMES:
         raise PlanFileError(f"no animation for planner {excerpt(repr(planner))}; plan.json is from another armgen version: "
                             "re-run `armgen plan`")
     if not isinstance(robot, Robot):
         robot = plan_robot(result, robot=robot)
-    if planner == "snake":
-        draw = _snake_scene(fig, result, frames, robot)
-    else:
-        draw = _serial_scene(fig, result, frames, robot)
+    scene = (planner_named(planner).animation_scene if planner is not None else None) or _serial_scene
+    draw = scene(fig, result, frames, robot)
     name = robot.name
     planner = planner or "plan.csv"
     stamp = fig.suptitle("")

@@ -35,7 +35,9 @@ class Planner:
     none) into the planner's typed SI configuration, raising :class:`TaskFileError` naming the
     file, the field and the fix; ``plan(config, backend)`` plans it; ``plot(result, robot)``
     draws the plan's figure (``robot`` None: the one plan.json records); ``workload(model)``
-    estimates (integration steps, CSV samples) before planning."""
+    estimates (integration steps, CSV samples) before planning; ``animation_scene(figure,
+    result, frames, robot)``, for a planner whose arm the joint frames do not show, lays out the
+    animation's scene and returns the function drawing frame ``f`` (None: the serial arm's)."""
 
     name: str
     schema: type[StrictModel]
@@ -43,6 +45,7 @@ class Planner:
     plan: Callable[[Any, str], PlanResult]
     plot: Callable[..., Figure]
     workload: Callable[[Any], tuple[float, float]]
+    animation_scene: Optional[Callable[..., Callable[[int], None]]] = None
 
 
 def planner(name: Any, source: str = "") -> Planner:

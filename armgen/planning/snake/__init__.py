@@ -14,4 +14,11 @@ def _plot(result, robot=None):
     return plot_snake(result, robot=robot)
 
 
-PLANNER = Planner(name="snake", schema=SnakeTaskFile, configure=configure, plan=plan, plot=_plot, workload=workload)
+def _animation_scene(fig, result, frames, robot):
+    from .plots import animation_scene
+
+    return animation_scene(fig, result, frames, robot)
+
+
+PLANNER = Planner(name="snake", schema=SnakeTaskFile, configure=configure, plan=plan, plot=_plot, workload=workload,
+                  animation_scene=_animation_scene)

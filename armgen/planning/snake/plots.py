@@ -17,6 +17,7 @@ from matplotlib.patches import Circle, Rectangle
 
 from ...errors import PlanFileError
 from ...robot import Robot
+from ..animation import SCENE_MARGIN
 from ..plotting import joint_style, limit_lines, new_figure, plan_robot
 from ..result import PlanResult
 from .spline import HermiteSpline
@@ -176,3 +177,33 @@ def plot_snake(result: PlanResult, robot: Robot | None = None) -> Figure:
                  f"driven — max tip deviation {summary.get('max_tip_deviation_mm', float('nan')):.3g} mm — max |angle| "
                  f"{summary.get('max_abs_joint_angle_deg', float('nan')):.1f}°")
     return fig
+
+
+def animation_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
+    """The animation's scene of a snake plan (:func:`armgen.planning.animation.animate_plan`): the
+    arm's centre line in top view (and side view when the path leaves the plane) with the path and
+    the obstacles; returns the function that draws frame ``f``."""
+    meta = result.metadata
+    centres = arm_centres(result, meta, robot)[frames] * 1e3
+    wp = np.asarray(meta["path"]["waypoints_m"], dtype=float) * 1e3
+    views = [(0, 1)] if np.ptp(wp[:, 2]) < PLANAR_TOL else [(0, 1), (0, 2)]
+    lines = []
+    for v, (i, j) in enumerate(views):
+        ax = fig.add_subplot(len(views), 1, v + 1)
+        everything = np.vstack([centres.reshape(-1, 3), wp])
+        lo, hi = everything.min(axis=0), everything.max(axis=0)
+        pad = SCENE_MARGIN * float(np.max(hi - lo))
+        draw_obstacles(ax, meta.get("obstacles", []), (i, j))
+        ax.plot(wp[:, i], wp[:, j], "k--", lw=0.8, label="path")
+        ax.set(xlim=(lo[i] - pad, hi[i] + pad), ylim=(lo[j] - pad, hi[j] + pad), aspect="equal",
+               xlabel=f"{'xyz'[i]} [mm]", ylabel=f"{'xyz'[j]} [mm]", title=("top view", "side view")[v])
+        ax.tick_params(labelsize=6)
+        arm, = ax.plot([], [], "-o", color="tab:blue", lw=2.5, ms=2.5)
+        tip, = ax.plot([], [], "*", color="tab:red", ms=10)
+        lines.append((arm, tip, i, j))
+
+    def draw(f: int) -> None:
+        for arm, tip, i, j in lines:
+            arm.set_data(centres[f, :, i], centres[f, :, j])
+            tip.set_data([centres[f, -1, i]], [centres[f, -1, j]])
+    return draw
