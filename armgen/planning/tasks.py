@@ -219,7 +219,7 @@ def plan_configured(task: Task, backend: str = "symbolic", caps: ResourceCaps = 
         "task_sha256": task.sha256,
         "planner": task.planner.name,
         "backend": backend,
-        "task": getattr(task.config, "task", task.document),  # TRANSITIONAL: the legacy config's dict
+        "task": task.document,  # the task as read (overrides applied): configure_task plans it again
     }
     meta.update(result.metadata)
     meta.setdefault("summary", {})["run_time_s"] = elapsed

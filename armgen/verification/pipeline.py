@@ -349,7 +349,7 @@ def stage_replay(config: VerifyConfig, work: Path | None = None,
     if not task:
         raise ArmgenError(f"{config.plan}: no task in its plan.json; replay needs the JSON sidecar written by `armgen plan`")
     columns = ["run", "quantity", "value", "bound", "ok"]
-    replay = run_task(json.loads(json.dumps(task)), str(config.plan), plan.metadata.get("task_sha256", ""), "c")
+    replay = run_task(task, str(config.plan), plan.metadata.get("task_sha256", ""), "c")
     q_cols = _angle_columns(plan, config.robot)
     rows, passed = [], True
     if replay.data.shape != plan.data.shape:
