@@ -94,3 +94,11 @@ def test_every_planner_configures_a_frozen_typed_config_without_a_dict(name):
     fields = getattr(config, "__dataclass_fields__", {})
     assert fields and config.__dataclass_params__.frozen, f"{type(config).__name__} is not a frozen dataclass"
     assert not any(isinstance(getattr(config, f), dict) for f in fields), "the config holds a dict"
+
+
+def test_no_json_round_trip_copies_in_the_package():
+    # a json.loads(json.dumps(x)) copy was how a task dict crossed the layers to be parsed again
+    hits = [f"{path.relative_to(REPO)}:{k}" for path in sorted((REPO / "armgen").rglob("*.py"))
+            for k, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1)
+            if "json.loads(json.dumps(" in line.replace(" ", "")]
+    assert hits == []
