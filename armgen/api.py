@@ -28,11 +28,12 @@ if TYPE_CHECKING:  # heavy imports only for type checkers
     from matplotlib.figure import Figure
 
     from .planning.result import PlanResult
-    from .planning.tasks import Task
+    from .planning.tasks import Task, TaskDocument
 
-__all__ = ["Robot", "load_robot", "read_task", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport",
+__all__ = ["Robot", "load_robot", "read_task_document", "read_task", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport",
            "parse_override", "read_plan", "plan_metadata_path", "figure_format", "save_plot", "parse_frame_size",
            "animate", "sweep", "solve_ik", "IkSolution", "generate_ptp", "json_schema", "write_text_atomic",
+           "firmware_project", "firmware_task",
            # the errors every call may raise, each with its command-line exit code
            "ArmgenError", "RobotFileError", "TaskFileError", "PlanningError", "ToolchainError", "VerificationError",
            "OutputError", "Interrupted", "PlanFileError", "OptionError", "excerpt"]
@@ -137,21 +138,53 @@ class Plan:
         return animate_plan(self.result, path, DEFAULT_FPS if fps is None else fps, duration)
 
 
-def read_task(task: str | Path | dict[str, Any] | Task, robot: Robot | None = None, **overrides: Any) -> Task:
+def read_task_document(task: str | Path | dict[str, Any], **overrides: Any) -> TaskDocument:
+    """A task file's TOML read once (or a dict copied), its relative file references resolved
+    from its folder, ``overrides`` applied — not yet checked (:func:`read_task` does that).
+
+    Parameters
+    ----------
+    task
+        A task file path, or the task as a dict (the parsed TOML).
+    **overrides
+        Task fields to replace, with dotted keys for tables: ``**{"timing.duration": 4.0}``,
+        or ``timing__duration=4.0`` (``__`` stands for the dot). Values are Python values.
+
+    Raises
+    ------
+    TaskFileError
+        The file cannot be read or is not TOML, or an override names no table (exit code 2).
+    """
+    from .planning.tasks import TaskDocument, load_task, set_field
+
+    if isinstance(task, dict):
+        document, sha, source = copy.deepcopy(task), "", "<task dict>"
+    else:
+        document, sha = load_task(task)
+        source = str(task)
+    for key, value in overrides.items():
+        set_field(document, key.replace("__", "."), value, f"override {excerpt(repr(key))}")
+    return TaskDocument(document, source, sha)
+
+
+def read_task(task: str | Path | dict[str, Any] | TaskDocument | Task, *, for_robot: Robot | None = None,
+              **overrides: Any) -> Task:
     """Read a task once: the file (or dict) with its overrides, validated by its planner's
     schema, its robot loaded, and the planner's typed SI configuration made.
 
     Parameters
     ----------
     task
-        A task file path, the task as a dict (the parsed TOML), or a task read already
-        (returned as it is; overrides are not allowed then).
-    robot
-        The robot the task must name (e.g. a firmware's): checked before anything is planned,
-        and used instead of loading the task's robot file again.
+        A task file path, the task as a dict (the parsed TOML), a document from
+        :func:`read_task_document`, or a task read already (returned as it is; overrides are
+        not allowed with these two).
+    for_robot
+        The robot the task must name (e.g. a firmware's): checked before anything is planned
+        (:class:`~armgen.errors.RobotMismatchError`, exit code 5, otherwise), and used instead of
+        loading the task's robot file again. (Not ``robot``: that is the task field an override
+        may set.)
     **overrides
-        Task fields to replace, with dotted keys for tables: ``**{"timing.duration": 4.0}``,
-        or ``timing__duration=4.0`` (``__`` stands for the dot). Values are Python values.
+        Task fields to replace, as in :func:`read_task_document`.
 
     Returns
     -------
@@ -162,32 +195,33 @@ def read_task(task: str | Path | dict[str, Any] | Task, robot: Robot | None = No
     Raises
     ------
     TaskFileError, RobotFileError
-        The task or its robot file is malformed, or the task names another robot (exit code 2).
+        The task or its robot file is malformed (exit code 2).
+    RobotMismatchError
+        The task names another robot than ``for_robot`` (exit code 5).
     """
-    from .planning.tasks import Task, configure_task, load_task, set_field
+    from .planning.tasks import Task, TaskDocument, configure_task
 
     if isinstance(task, Task):
-        if overrides:
-            raise OptionError("overrides change a task file: give the file or its dict, not a task read already")
+        if overrides or for_robot is not None:
+            raise OptionError("a task read already is used as it is: give its file or dict to change or check it")
         return task
-    if isinstance(task, dict):
-        document, sha, source = copy.deepcopy(task), "", "<task dict>"
-    else:
-        document, sha = load_task(task)
-        source = str(task)
-    for key, value in overrides.items():
-        set_field(document, key.replace("__", "."), value, f"override {excerpt(repr(key))}")
-    return configure_task(document, source, sha, robot)
+    if not isinstance(task, TaskDocument):
+        task = read_task_document(task, **overrides)
+    elif overrides:
+        raise OptionError("overrides change a task file: apply them with read_task_document")
+    return configure_task(task.document, task.source, task.sha256, for_robot)
 
 
-def plan(task: str | Path | dict[str, Any] | Task, backend: str = "symbolic", *, max_steps: int | None = None,
+def plan(task: str | Path | dict[str, Any] | TaskDocument | Task, backend: str = "symbolic", *,
+         max_steps: int | None = None,
          max_samples: int | None = None, **overrides: Any) -> Plan:
     """Plan a task, as ``armgen plan`` does (without writing files).
 
     Parameters
     ----------
     task
-        A task file path, the task as a dict (the parsed TOML), or a task from :func:`read_task`.
+        A task file path, the task as a dict (the parsed TOML), a document from
+        :func:`read_task_document`, or a task from :func:`read_task`.
     backend
         ``"symbolic"`` (CasADi) or ``"c"`` (the generated C through ctypes).
     **overrides
@@ -540,6 +574,104 @@ def solve_ik(robot: Robot | str | Path, pose: Any, q0: Any = None, seed: Any = N
     match = free_position <= TOL_POSITION and (not orientation_given or free_orientation <= TOL_ORIENTATION)
     return IkSolution(result.q, bool(result.success), int(result.iterations), float(result.position_error),
                       float(result.orientation_error), tuple(free_rows), free_position, free_orientation, match)
+
+
+# -- firmware ---------------------------------------------------------------------------------------
+
+def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None = None,
+                     plan: str | Path | None = None, overrides: tuple[str, ...] | list[str] = ()) -> tuple[Robot, list[Path]]:
+    """Write a self-contained firmware project (``armgen firmware``): the robot's generated C,
+    the controller, a CMake host demo, the Cortex-M4F toolchain file and a README.
+
+    Parameters
+    ----------
+    robot
+        A bundled name or a robot file (TOML or URDF); read once.
+    out
+        The project folder: new, empty, or one this function wrote earlier (its own files are
+        updated, files changed by hand are never overwritten). It appears complete or not at all.
+    task
+        A task file for ``robot`` (read once, its robot checked before it is planned): planned
+        here, and the demo runs it.
+    plan
+        A plan CSV with its plan.json (``armgen plan``): its recorded task is planned again and
+        must give the CSV's samples; the demo runs it.
+    overrides
+        ``key=value`` changes of ``task`` (as ``--set``).
+
+    Returns
+    -------
+    (Robot, list[pathlib.Path])
+        The robot and the files written. Without ``task`` or ``plan`` the demo is a short line
+        of the tool from the robot's ``q0``.
+
+    Raises
+    ------
+    OptionError
+        Both ``task`` and ``plan``, or ``overrides`` without ``task`` (exit 2).
+    RobotFileError, TaskFileError, PlanFileError
+        A bad robot, task or plan file, or a task for another robot (exit 2).
+    PlanningError
+        The task (or the demo) cannot be planned, or its plan leaves the joint limits (exit 3).
+    OutputError
+        ``out`` cannot be written (exit 4).
+    ArmgenError
+        ``armgen.firmware.FirmwareError`` (exit 5): the controller cannot run the plan, or a
+        plan its recorded task does not plan to.
+    """
+    from .firmware.project import write_firmware_project
+
+    if task is not None and plan is not None:
+        raise OptionError("give --task or --plan, not both (a task is planned here; a plan was made from one)")
+    if overrides and task is None:
+        raise OptionError("--set changes a task file: give --task (a plan was made already; re-plan its task instead)")
+    return write_firmware_project(robot, out, task, plan, tuple(overrides))
+
+
+def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path | None = None,
+                  overrides: tuple[str, ...] | list[str] = (), gen_dir: str | Path | None = None,
+                  lock: str | None = None) -> list[Path]:
+    """Write the controller's task files (``armgen firmware-task``, used by the firmware stub's
+    Makefile): ``task_params.h``, the PTP evaluator ``fw_ptp.{h,c}`` and ``robot_fw.c``.
+
+    Parameters
+    ----------
+    source
+        A task file (planned when the controller needs the plan: programs, ptp, snake) or a plan
+        CSV with its plan.json.
+    out
+        The folder to write into.
+    robot
+        The firmware's robot: the task must name it (default: the task's robot).
+    overrides
+        ``key=value`` changes of a task file (as ``--set``).
+    gen_dir
+        The robot's generated C (default ``generated/<robot>/``).
+    lock
+        ``JOINTS@TIME`` (e.g. ``"5@1.38"``): the runners report these joints locked from TIME s
+        on, a fault the plan does not know.
+
+    Returns
+    -------
+    list[pathlib.Path]
+        The files written.
+
+    Raises
+    ------
+    TaskFileError, PlanFileError
+        A bad task or plan file, or a task for another robot than ``robot`` (exit 2).
+    OutputError
+        ``out`` cannot be written (exit 4).
+    ArmgenError
+        ``armgen.firmware.FirmwareError`` (exit 5): a task the controller cannot run.
+    """
+    from .firmware.configuration import schedule_lock, write_task_files
+    from .firmware.tasks import task_from_file
+
+    controller = task_from_file(source, load_robot_any(robot) if robot is not None else None, tuple(overrides))
+    if lock:
+        controller = schedule_lock(controller, lock)
+    return write_task_files(controller, out, gen_dir)
 
 
 # -- C of the PTP playback, input schemas, files --------------------------------------------------

@@ -128,13 +128,13 @@ def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[
              max_steps: int | None, max_samples: int | None, as_json: bool) -> None:
     """Plan a task file to CSV plus JSON metadata (written together or not at all), and print a
     summary table in the task file's units."""
-    from ..api import parse_override, plan, read_task
+    from ..api import parse_override, plan, read_task_document
     from .summary import summary_table, units_hints
 
-    task = read_task(task_file, **dict(parse_override(item) for item in overrides))  # read once
-    for hint in units_hints(task.document, task_file):
+    document = read_task_document(task_file, **dict(parse_override(item) for item in overrides))  # read once
+    for hint in units_hints(document.document, task_file):  # before the task is checked: a unit may be why it fails
         click.echo(f"warning: {hint}", err=True)
-    planned = plan(task, backend, max_steps=max_steps, max_samples=max_samples)
+    planned = plan(document, backend, max_steps=max_steps, max_samples=max_samples)
     out = Path(output) if output else Path(Path(task_file).stem + ".csv")
     csv_path, json_path = planned.save(out, units)
     start = planned.metadata.get("start", {}).get("label", "")

@@ -151,6 +151,15 @@ def check_caps(spec: Planner, model: Any, caps: ResourceCaps, source: str) -> No
 
 
 @dataclass(frozen=True)
+class TaskDocument:
+    """A task file's TOML as read (file references resolved, overrides applied), not yet checked."""
+
+    document: dict[str, Any]
+    source: str
+    sha256: str = ""
+
+
+@dataclass(frozen=True)
 class Task:
     """A task file read once and checked: its planner, the validated document (file units), the
     planner's typed SI configuration, and where it came from."""
