@@ -130,15 +130,9 @@ def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, pr
     :func:`_expected_fault_ticks`), holding a finite command inside the limits; otherwise the
     run must end DONE.
     """
-    robot = task.robot
-    n = robot.n
     bound_q, bound_2 = bounds_for(precision, task.mode, task.dt)
     slack = tick_slack if tick_slack is not None else (0 if precision == "double" else 1)
-    t_plan = plan.column("t_s")
-    if task.mode in RESOLVED_MODES:
-        plan_ticks = np.rint(t_plan / task.dt).astype(int)
-    else:
-        plan_ticks = np.arange(len(t_plan))
+    plan_ticks = _plan_ticks(plan, task)
     fw = run.by_tick()
     expected = _expected_fault_ticks(plan, task, plan_ticks)
     fault_ticks = [k for k, row in fw.items() if int(row[-2]) == FAULT_STATE]
@@ -146,56 +140,77 @@ def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, pr
     stop = fault_tick if fault_tick is not None else task.n_ticks + 1
     use = [(r, k) for r, k in enumerate(plan_ticks) if k < stop]
     missing = [k for _, k in use if k not in fw]
-    rows: list[list[Any]] = []
-    passed = True
     if missing:
         return Comparison([[label, "samples", f"{len(missing)} plan samples have no firmware tick (first {missing[0]})",
                             "all", False]], False)
     fw_rows = np.array([fw[k] for _, k in use]) if use else np.zeros((0, len(run.columns)))
-    plan_rows = [r for r, _ in use]
+    (what_q, dq), (what_2, de) = _deviations(plan, run, task, fw_rows, [r for r, _ in use])
+    rows = [[label, what, value, bound, bool(np.isfinite(value) and value <= bound)]
+            for what, value, bound in ((what_q, dq, bound_q), (what_2, de, bound_2))]
+    if expected is None:
+        rows.append(_end_row(run, task, fault_tick, label))
+    else:
+        rows.append(_fault_row(run, task, fw, expected, fault_tick, slack, label))
+    held_ok = bool(np.all(np.isfinite(run.data[:, 2:2 + 2 * task.robot.n])))
+    rows.append([label, "commands finite", "yes" if held_ok else "NO", "yes", held_ok])
+    return Comparison(rows, all(row[-1] for row in rows), dq, de, fault_tick)
+
+
+def _plan_ticks(plan: PlanResult, task: FirmwareTask) -> np.ndarray:
+    """The controller tick of each plan sample: its time over the tick period in the resolved
+    modes, one sample a tick in playback."""
+    t_plan = plan.column("t_s")
+    if task.mode in RESOLVED_MODES:
+        return np.rint(t_plan / task.dt).astype(int)
+    return np.arange(len(t_plan))
+
+
+def _deviations(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, fw_rows: np.ndarray,
+                plan_rows: list[int]) -> tuple[tuple[str, float], tuple[str, float]]:
+    """(what, largest deviation) of the run's ``fw_rows`` from the plan's ``plan_rows``: the
+    joint values and the mode's second quantity (task error, q̇ or ω); 0 for no samples."""
+    n = task.robot.n
     if task.mode in RESOLVED_MODES:
         q_plan = np.column_stack([plan.column(f"q{i + 1}_rad")[plan_rows] for i in range(n)])
-        dq = float(np.max(np.abs(fw_rows[:, 2:2 + n] - q_plan))) if use else 0.0
+        dq = float(np.max(np.abs(fw_rows[:, 2:2 + n] - q_plan))) if plan_rows else 0.0
         e_plan = plan.column("pos_err_m")[plan_rows]
-        de = float(np.max(np.abs(fw_rows[:, run.columns.index("pos_err_m")] - e_plan))) if use else 0.0
-        quantities = (("max |Δq| [rad]", dq, bound_q), ("max |Δ task error| [m]", de, bound_2))
-    elif task.mode == "sampled":
+        de = float(np.max(np.abs(fw_rows[:, run.columns.index("pos_err_m")] - e_plan))) if plan_rows else 0.0
+        return ("max |Δq| [rad]", dq), ("max |Δ task error| [m]", de)
+    if task.mode == "sampled":
         q_plan, qd_plan = _sampled(plan, task)
-        dq = float(np.max(np.abs(fw_rows[:, 2:2 + n] - q_plan[plan_rows]))) if use else 0.0
-        de = float(np.max(np.abs(fw_rows[:, 2 + n:2 + 2 * n] - qd_plan[plan_rows]))) if use else 0.0
-        quantities = (("max |Δq| [rad, m]", dq, bound_q), ("max |Δq̇| [rad/s, m/s]", de, bound_2))
-    else:
-        idx = sorted(task.joints)
-        th = np.column_stack([plan.column(f"theta_{task.joints[i]}_rad")[plan_rows] for i in idx])
-        om = np.column_stack([plan.column(f"omega_{task.joints[i]}_rad_s")[plan_rows] for i in idx])
-        dq = float(np.max(np.abs(fw_rows[:, [2 + i for i in idx]] - th))) if use else 0.0
-        de = float(np.max(np.abs(fw_rows[:, [2 + n + i for i in idx]] - om))) if use else 0.0
-        quantities = (("max |Δθ| [rad]", dq, bound_q), ("max |Δω| [rad/s]", de, bound_2))
-    for what, value, bound in quantities:
-        ok = bool(np.isfinite(value) and value <= bound)
-        rows.append([label, what, value, bound, ok])
-        passed &= ok
-    # how the run ended
+        dq = float(np.max(np.abs(fw_rows[:, 2:2 + n] - q_plan[plan_rows]))) if plan_rows else 0.0
+        de = float(np.max(np.abs(fw_rows[:, 2 + n:2 + 2 * n] - qd_plan[plan_rows]))) if plan_rows else 0.0
+        return ("max |Δq| [rad, m]", dq), ("max |Δq̇| [rad/s, m/s]", de)
+    idx = sorted(task.joints)
+    th = np.column_stack([plan.column(f"theta_{task.joints[i]}_rad")[plan_rows] for i in idx])
+    om = np.column_stack([plan.column(f"omega_{task.joints[i]}_rad_s")[plan_rows] for i in idx])
+    dq = float(np.max(np.abs(fw_rows[:, [2 + i for i in idx]] - th))) if plan_rows else 0.0
+    de = float(np.max(np.abs(fw_rows[:, [2 + n + i for i in idx]] - om))) if plan_rows else 0.0
+    return ("max |Δθ| [rad]", dq), ("max |Δω| [rad/s]", de)
+
+
+def _end_row(run: FirmwareRun, task: FirmwareTask, fault_tick: int | None, label: str) -> list[Any]:
+    """How a run whose plan stays feasible ended: DONE after all its ticks, no fault."""
     last = run.data[-1]
-    held_ok = bool(np.all(np.isfinite(run.data[:, 2:2 + 2 * n])))
-    if expected is None:
-        ok = run.state == "DONE" and run.fault == "NONE" and fault_tick is None
-        rows.append([label, "end", f"{run.state}/{run.fault} after {int(last[0])} ticks", f"DONE at {task.n_ticks}",
-                     ok and int(last[0]) == task.n_ticks])
-        passed &= ok and int(last[0]) == task.n_ticks
-    else:
-        lo, hi, expected_fault = expected
-        ok = run.fault == expected_fault and fault_tick is not None and lo - slack <= fault_tick <= hi + slack
-        if ok and fault_tick in fw and fault_tick - 1 in fw:
-            held = fw[fault_tick][2:2 + n]
-            prev = fw[fault_tick - 1][2:2 + n]
-            ok = bool(np.array_equal(held, prev) and np.all(held <= robot.qmax) and np.all(held >= robot.qmin))
-        where = f"tick {fault_tick}" if fault_tick is not None else "none"
-        span = f"tick {hi}" if lo == hi else f"ticks {lo}..{hi}"
-        why = {"JOINT_LIMIT": "limits", "SPEED": "speed limits"}.get(expected_fault, "tracking guard")
-        rows.append([label, f"end (plan leaves the {why})", f"{run.state}/{run.fault} at {where}",
-                     f"{expected_fault} at {span} (t = {hi * task.dt:.4g} s)", ok])
-        passed &= ok
-    rows.append([label, "commands finite", "yes" if held_ok else "NO", "yes", held_ok])
-    passed &= held_ok
-    return Comparison(rows, passed, dq, de, fault_tick)
+    ok = run.state == "DONE" and run.fault == "NONE" and fault_tick is None
+    return [label, "end", f"{run.state}/{run.fault} after {int(last[0])} ticks", f"DONE at {task.n_ticks}",
+            ok and int(last[0]) == task.n_ticks]
+
+
+def _fault_row(run: FirmwareRun, task: FirmwareTask, fw: dict[int, np.ndarray], expected: tuple[int, int, str],
+               fault_tick: int | None, slack: int, label: str) -> list[Any]:
+    """How a run whose plan leaves the limits (or the tracking guard, or the speed limits)
+    ended: the expected fault within ``slack`` ticks of the expected span, holding the last
+    command, inside the limits."""
+    robot = task.robot
+    lo, hi, expected_fault = expected
+    ok = run.fault == expected_fault and fault_tick is not None and lo - slack <= fault_tick <= hi + slack
+    if ok and fault_tick in fw and fault_tick - 1 in fw:
+        held = fw[fault_tick][2:2 + robot.n]
+        prev = fw[fault_tick - 1][2:2 + robot.n]
+        ok = bool(np.array_equal(held, prev) and np.all(held <= robot.qmax) and np.all(held >= robot.qmin))
+    where = f"tick {fault_tick}" if fault_tick is not None else "none"
+    span = f"tick {hi}" if lo == hi else f"ticks {lo}..{hi}"
+    why = {"JOINT_LIMIT": "limits", "SPEED": "speed limits"}.get(expected_fault, "tracking guard")
+    return [label, f"end (plan leaves the {why})", f"{run.state}/{run.fault} at {where}",
+            f"{expected_fault} at {span} (t = {hi * task.dt:.4g} s)", ok]
