@@ -289,7 +289,6 @@ class IKDefinition:
     def step(self) -> ca.Function:
         """(state, T_target, q_rest, use_rest, tol_position, tol_orientation, max_iterations) → next state."""
         robot, n, lay = self.robot, self.n, self.layout
-        qmin, qmax = robot.qmin, robot.qmax
         state = ca.SX.sym("state", lay.size)
         target = ca.SX.sym("T_target", 4, 4)
         q_rest = ca.SX.sym("q_rest", n)
@@ -303,56 +302,14 @@ class IKDefinition:
         pos, ori = self._errors(e)
         converged = ca.logic_and(pos <= tol_p, ori <= tol_o)
         closer = ca.logic_or(energy < state[lay.best_error], converged)
-        # the first evaluation of a restarted attempt steps from its configuration turned about
-        # the first axis toward the target (as the seed, aligned_seed), without an evaluation of
-        # its own: the turned configuration's J and e are this one's rotated by the turn, so its
-        # step is this one's toward the target turned back; the C computes the turn only then
-        # (a branch of the selects on ``turning``)
         turning = ca.logic_and(ca.logic_and(state[lay.k] == 0, state[lay.attempt] > 0), use_rest == 0)
-        base, e_step = q, e
-        if robot.joints[0].revolute:
-            first, turn = self._turned_first(q, axis_frames, tool, target)
-            first = ca.if_else(turn, first, q[0])  # near the axis: no turn (e_turned is then e)
-            e_turned = pose_error(tool, _turned_back(target, axis_frames[0], first - q[0]))[self.rows]
-            e_step = ca.if_else(turning, e_turned, e)
-            base = ca.vertcat(ca.if_else(turning, first, q[0]), q[1:])
+        base, e_step = self._step_start(q, axis_frames, tool, target, e, turning)
         energy_step = 0.5 * ca.dot(e_step, e_step)
-        # self-motion: descent on the criterion, at most NULL_STEP long
-        grad = ((1 - use_rest) * criteria.zghal_safe_gradient(q, qmin.tolist(), qmax.tolist())
-                + use_rest * (q - q_rest))
-        alpha = -NULL_STEP * ca.fmin(ca.sqrt(2 * energy_step), 1) * grad / ca.fmax(ca.norm_2(grad), 1)
-        damping = DAMPING_SCALE * energy_step + DAMPING_FLOOR
-        factor = ldl_factor(weighted_gram(jac) + damping * ca.SX.eye(len(self.rows)))
-        solved = ldl_solve(factor, e_step - ca.mtimes(jac, alpha))
-        trial = base + alpha + ca.mtimes(jac.T, solved)
-        free = ca.logic_and(trial >= qmin, trial <= qmax)
-        stepped = ca.fmin(ca.fmax(base + held_joint_step(jac, factor, base, trial, alpha, solved, qmin, qmax), qmin), qmax)
-        # a new attempt as soon as this one stalls, or after ITERATIONS evaluations: the joints the
-        # step held at a limit move to the next point of the sequence and the others step on (a
-        # stalled attempt is mostly right but for the joints a limit holds: with STALL_AFTER 3,
-        # reseeding every joint reached 95.1 % of panda's training poses within 45 steps, this
-        # 97.7 %); with none held, all of them move there
-        capped = state[lay.k] >= ITERATIONS - 1
-        restart = ca.logic_or(capped, ca.logic_and(state[lay.k] >= STALL_AFTER,
-                                                   energy > STALL_RATIO * state[lay.previous]))
-        attempt = state[lay.attempt] + 1
-        frac = attempt * ca.DM(_irrational_steps(n)) + 0.5
-        sequence = qmin + (qmax - qmin) * (SEED_MARGIN + (1 - 2 * SEED_MARGIN) * (frac - ca.floor(frac)))
-        held = 1 - free
-        # every FULL_RESEED_EVERY-th attempt starts afresh: moving only the held joints can send
-        # the others back to the same local minimum, attempt after attempt (attempt/5 is exact
-        # for a multiple of 5 and rounds below the next integer otherwise, float included)
-        afresh = ca.logic_or(attempt == FULL_RESEED_EVERY * ca.floor(attempt / FULL_RESEED_EVERY),
-                             ca.logic_and(capped, ca.sum1(held) == 0))
-        # a held joint's neighbours in the chain move with it: they carry the compensation that
-        # keeps the attempt on the branch the limit blocks (panda, 3000 training poses each of
-        # seeds 7, 11 and 13 at 1e-4: +0.24 to +0.33 % within 49 steps; the other arms ±0.1 %)
-        moved = held + ca.vertcat(held[1:], 0) + ca.vertcat(0, held[:-1])  # nonzero: held or beside one
+        alpha = self._self_motion(q, q_rest, use_rest, energy_step)
+        stepped, free = self._limited_step(jac, base, e_step, alpha, energy_step)
+        restart, reseeded, sequence = self._restart(state, energy, free)
         # one select per joint: a converged step's q is never read again (the state stops there
-        # and the answer is best_q, which takes this q); counters by arithmetic, exact on integers.
-        # Which joints to reseed is a select on ``restart`` (not a product), so that the C
-        # works it out only at a restart (a branch)
-        reseeded = ca.if_else(restart, ca.logic_or(moved, afresh), 0)
+        # and the answer is best_q, which takes this q); counters by arithmetic, exact on integers
         new = ca.vertcat(
             ca.if_else(reseeded, sequence, stepped),
             ca.if_else(closer, q, state[lay.best_q]),
@@ -368,6 +325,74 @@ class IKDefinition:
         nxt = ca.if_else(state[lay.stopped], state, new)
         return ca.Function(self._tag, [state, target, q_rest, use_rest, tol_p, tol_o, max_iterations], [nxt],
                            ["state", *STEP_CONSTANTS], ["next"])
+
+    def _step_start(self, q: ca.SX, axis_frames, tool: ca.SX, target: ca.SX, e: ca.SX,
+                    turning: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """(the configuration the step starts from, its pose error). The first evaluation of a
+        restarted attempt (``turning``) steps from its configuration turned about the first axis
+        toward the target (as the seed, aligned_seed), without an evaluation of its own: the
+        turned configuration's J and e are this one's rotated by the turn, so its step is this
+        one's toward the target turned back; the C computes the turn only then (a branch of the
+        selects on ``turning``)."""
+        if not self.robot.joints[0].revolute:
+            return q, e
+        first, turn = self._turned_first(q, axis_frames, tool, target)
+        first = ca.if_else(turn, first, q[0])  # near the axis: no turn (e_turned is then e)
+        e_turned = pose_error(tool, _turned_back(target, axis_frames[0], first - q[0]))[self.rows]
+        e_step = ca.if_else(turning, e_turned, e)
+        return ca.vertcat(ca.if_else(turning, first, q[0]), q[1:]), e_step
+
+    def _self_motion(self, q: ca.SX, q_rest: ca.SX, use_rest: ca.SX, energy_step: ca.SX) -> ca.SX:
+        """α: descent on the criterion (Zghal's index, or ½‖q − q_rest‖² with ``use_rest``), at
+        most NULL_STEP long, fading with the error."""
+        qmin, qmax = self.robot.qmin, self.robot.qmax
+        grad = ((1 - use_rest) * criteria.zghal_safe_gradient(q, qmin.tolist(), qmax.tolist())
+                + use_rest * (q - q_rest))
+        return -NULL_STEP * ca.fmin(ca.sqrt(2 * energy_step), 1) * grad / ca.fmax(ca.norm_2(grad), 1)
+
+    def _limited_step(self, jac: ca.SX, base: ca.SX, e_step: ca.SX, alpha: ca.SX,
+                      energy_step: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """(the damped step from ``base`` with the joint furthest past a limit held there and the
+        rest clamped to the limits; which joints the trial step, before any limit, leaves inside them)."""
+        qmin, qmax = self.robot.qmin, self.robot.qmax
+        damping = DAMPING_SCALE * energy_step + DAMPING_FLOOR
+        factor = ldl_factor(weighted_gram(jac) + damping * ca.SX.eye(len(self.rows)))
+        solved = ldl_solve(factor, e_step - ca.mtimes(jac, alpha))
+        trial = base + alpha + ca.mtimes(jac.T, solved)
+        free = ca.logic_and(trial >= qmin, trial <= qmax)
+        stepped = ca.fmin(ca.fmax(base + held_joint_step(jac, factor, base, trial, alpha, solved, qmin, qmax), qmin), qmax)
+        return stepped, free
+
+    def _restart(self, state: ca.SX, energy: ca.SX, free: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """(whether a new attempt starts, which joints it reseeds, the sequence point they move to).
+
+        A new attempt as soon as this one stalls, or after ITERATIONS evaluations: the joints the
+        step held at a limit move to the next point of the sequence and the others step on (a
+        stalled attempt is mostly right but for the joints a limit holds: with STALL_AFTER 3,
+        reseeding every joint reached 95.1 % of panda's training poses within 45 steps, this
+        97.7 %); with none held, all of them move there."""
+        lay = self.layout
+        qmin, qmax = self.robot.qmin, self.robot.qmax
+        capped = state[lay.k] >= ITERATIONS - 1
+        restart = ca.logic_or(capped, ca.logic_and(state[lay.k] >= STALL_AFTER,
+                                                   energy > STALL_RATIO * state[lay.previous]))
+        attempt = state[lay.attempt] + 1
+        frac = attempt * ca.DM(_irrational_steps(self.n)) + 0.5
+        sequence = qmin + (qmax - qmin) * (SEED_MARGIN + (1 - 2 * SEED_MARGIN) * (frac - ca.floor(frac)))
+        held = 1 - free
+        # every FULL_RESEED_EVERY-th attempt starts afresh: moving only the held joints can send
+        # the others back to the same local minimum, attempt after attempt (attempt/5 is exact
+        # for a multiple of 5 and rounds below the next integer otherwise, float included)
+        afresh = ca.logic_or(attempt == FULL_RESEED_EVERY * ca.floor(attempt / FULL_RESEED_EVERY),
+                             ca.logic_and(capped, ca.sum1(held) == 0))
+        # a held joint's neighbours in the chain move with it: they carry the compensation that
+        # keeps the attempt on the branch the limit blocks (panda, 3000 training poses each of
+        # seeds 7, 11 and 13 at 1e-4: +0.24 to +0.33 % within 49 steps; the other arms ±0.1 %)
+        moved = held + ca.vertcat(held[1:], 0) + ca.vertcat(0, held[:-1])  # nonzero: held or beside one
+        # which joints to reseed is a select on ``restart`` (not a product), so that the C works
+        # it out only at a restart (a branch)
+        reseeded = ca.if_else(restart, ca.logic_or(moved, afresh), 0)
+        return restart, reseeded, sequence
 
     def aligned_seed(self, q_seed: ca.SX, target: ca.SX, use_rest: ca.SX) -> ca.SX:
         """The seed turned about the first joint's axis (a revolute one) so that the tool point
