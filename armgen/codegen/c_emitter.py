@@ -507,88 +507,42 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
     for k in range(func.n_out()):
         if func.sparsity_out(k).nnz() != func.sparsity_out(k).numel():
             raise ArmgenError(f"output {func.name_out(k)} of {func.name()} is sparse; densify it before emitting")
-    counts: Counter = Counter()
-    lines: list[str] = []
-    used = set()
-    loops: set[str] = set()
-    callees = iter(calls_in_order(func))
     table, angles = _trig_table(func, arg_names, arg_scalar, macro_prefix) if trig_table else ({}, [])
-    p = macro_prefix.lower()
     angle_input = _whole_input(func, arg_names, arg_scalar, angles)
     if angle_input is not None:  # the angles are an input vector, entry by entry: no copy
         entry = {f"{angle_input}[{i}]": i for i in range(len(angles))}
         table = {k: entry[angles[slot]] for k, slot in table.items()}
-    elif angles:
-        lines += [f"trig_angle[{slot}] = {angle};" for slot, angle in enumerate(angles)]
+    translator = _Translator(func, arg_names, arg_scalar, res_names, res_scalar, macro_prefix, table, zero_entries)
+    statements, counts, loops = translator.translate()
+    if branches:
+        ordered, used = _reused_registers(_branched(_fused_selects(_live(statements), macro_prefix), macro_prefix))
+    else:
+        ordered, used = _scheduled(_live(statements))
+    lines = (_declarations(func, arg_names, used, angles, angle_input, macro_prefix)
+             + _sincos_lines(angles, angle_input, branches, macro_prefix) + ordered)
+    body = "\n".join(indent + line for line in lines)
+    return EmittedFunction(func.name(), body, counts, len(used) + (2 if angle_input else 3) * len(angles), tuple(sorted(loops)))
+
+
+def _sincos_lines(angles: list[str], angle_input: str | None, branches: bool, macro_prefix: str) -> list[str]:
+    """The lines that fill the sin/cos table: the angles copied into ``trig_angle`` unless an
+    input vector holds them, then the table call."""
+    p = macro_prefix.lower()
+    lines = [f"trig_angle[{slot}] = {angle};" for slot, angle in enumerate(angles)] if angle_input is None else []
     source = angle_input or "trig_angle"
     if angles and branches:  # a loop step: entry by entry, no loop (a loop over the angles cost
         # the IK ~100 instructions a step on the M4, 3 steps of its 1 ms budget)
         lines += [f"{p}_sincos_table(&{source}[{i}], &trig_sin[{i}], &trig_cos[{i}], 1);" for i in range(len(angles))]
     elif angles:
         lines.append(f"{p}_sincos_table({source}, trig_sin, trig_cos, {len(angles)});")
-    statements: list[_Statement] = []
-    holds: dict[int, tuple[int, int]] = {}  # register -> (argument, entry) of the input it holds
-    for k in range(func.n_instructions()):
-        op = func.instruction_id(k)
-        ins = func.instruction_input(k)
-        outs = func.instruction_output(k)
-        if k in table:
-            counts["trig"] += 1
-            statements.append(_Statement([f"w{outs[0]} = trig_{'sin' if op == ca.OP_SIN else 'cos'}[{table[k]}];"],
-                                         (outs[0],), ()))
-        elif op == ca.OP_INPUT and (ins[0], ins[1]) in zero_entries:
-            counts["input"] += 1
-            statements.append(_Statement([f"w{outs[0]} = {c_literal(0.0, macro_prefix)};"], (outs[0],), (),
-                                         ca.OP_CONST, 0.0))
-        elif op == ca.OP_INPUT:
-            counts["input"] += 1
-            statements.append(_Statement([f"w{outs[0]} = {_input_text(arg_names, arg_scalar, ins)};"], (outs[0],), ()))
-            holds[outs[0]] = (ins[0], ins[1])
-        elif op == ca.OP_OUTPUT:
-            counts["output"] += 1
-            target = f"*{res_names[outs[0]]}" if res_scalar[outs[0]] else f"{res_names[outs[0]]}[{outs[1]}]"
-            statements.append(_Statement([f"{target} = w{ins[0]};"], (), (ins[0],)))
-        elif op == ca.OP_CONST:
-            counts["const"] += 1
-            value = func.instruction_constant(k)
-            statements.append(_Statement([f"w{outs[0]} = {c_literal(value, macro_prefix)};"], (outs[0],), (),
-                                         op, value))
-        elif op in _BINARY:
-            category, template = _BINARY[op]
-            counts[category] += 1
-            expr = template.format(a=f"w{ins[0]}", b=f"w{ins[1]}", P=macro_prefix, p=macro_prefix.lower())
-            statements.append(_Statement([f"w{outs[0]} = {expr};"], (outs[0],), (ins[0], ins[1]), op))
-        elif op in _UNARY:
-            category, template = _UNARY[op]
-            counts[category] += 1
-            expr = template.format(a=f"w{ins[0]}", P=macro_prefix, p=macro_prefix.lower())
-            statements.append(_Statement([f"w{outs[0]} = {expr};"], (outs[0],), (ins[0],), op))
-        elif op == ca.OP_CALL:
-            loop = _called_loop(func, next(callees))
-            counts.update({category: n * loop.count for category, n in _step_counts(loop).items()})
-            loops.add(loop.function.name())
-            sizes = [loop.function.sparsity_in(j).nnz() for j in range(loop.function.n_in())]
-            whole = _whole_arrays(list(ins), sizes, holds, arg_names, arg_scalar,
-                                  [func.sparsity_in(j).nnz() for j in range(func.n_in())])
-            passed = {i for j, (start, size) in enumerate(zip(itertools.accumulate([0, *sizes]), sizes)) if j in whole
-                      for i in ins[start:start + size]}
-            statements.append(_Statement(_loop_call(loop, ins, outs, macro_prefix, whole),
-                                         tuple(o for o in outs if o >= 0),
-                                         tuple(i for i in ins if i >= 0 and i not in passed)))
-        else:
-            raise ArmgenError(f"function {func.name()}: CasADi operation {op} has no C translation in armgen")
-        if op != ca.OP_INPUT:  # after the instruction: a call's results may reuse its arguments' registers
-            for o in outs:
-                holds.pop(o, None)
-    if branches:
-        branched, registers = _reused_registers(_branched(_fused_selects(_live(statements), macro_prefix),
-                                                          macro_prefix))
-        lines += branched
-        used.update(registers)
-    else:
-        scheduled, registers = _scheduled(_live(statements))
-        lines += scheduled
-        used.update(registers)
+    return lines
+
+
+def _declarations(func: ca.Function, arg_names: list[str], used: set[int], angles: list[str],
+                  angle_input: str | None, macro_prefix: str) -> list[str]:
+    """The body's locals (the sin/cos table, the work registers ``used``), then a ``(void)``
+    for each input the body does not read."""
+    p = macro_prefix.lower()
     read_args = {func.instruction_input(k)[0] for k in range(func.n_instructions())
                  if func.instruction_id(k) == ca.OP_INPUT}
     # an input the expression does not depend on (e.g. q of a constant criterion) is still
@@ -602,8 +556,90 @@ def emit_body(func: ca.Function, arg_names: list[str], arg_scalar: list[bool], r
         decl.insert(0, f"{p}_real trig_sin[{len(angles)}], trig_cos[{len(angles)}];")
         if angle_input is None:
             decl.insert(0, f"{p}_real trig_angle[{len(angles)}];")
-    body = "\n".join(indent + line for line in decl + lines)
-    return EmittedFunction(func.name(), body, counts, len(used) + (2 if angle_input else 3) * len(angles), tuple(sorted(loops)))
+    return decl
+
+
+@dataclass(frozen=True)
+class _Translator:
+    """One C statement per SX instruction of ``func`` (see :func:`emit_body` for the arguments;
+    ``table``: {sin/cos instruction: its slot in the sin/cos table})."""
+
+    func: ca.Function
+    arg_names: list[str]
+    arg_scalar: list[bool]
+    res_names: list[str]
+    res_scalar: list[bool]
+    macro_prefix: str
+    table: dict[int, int]
+    zero_entries: frozenset
+
+    def translate(self) -> tuple[list[_Statement], Counter, set[str]]:
+        """(the statements in the algorithm's order, the op counts, the loop functions called)."""
+        func = self.func
+        counts: Counter = Counter()
+        loops: set[str] = set()
+        statements: list[_Statement] = []
+        holds: dict[int, tuple[int, int]] = {}  # register -> (argument, entry) of the input it holds
+        callees = iter(calls_in_order(func))
+        for k in range(func.n_instructions()):
+            op = func.instruction_id(k)
+            ins = func.instruction_input(k)
+            outs = func.instruction_output(k)
+            if op == ca.OP_CALL:
+                loop = _called_loop(func, next(callees))
+                counts.update({category: n * loop.count for category, n in _step_counts(loop).items()})
+                loops.add(loop.function.name())
+                statements.append(self._call(loop, ins, outs, holds))
+            else:
+                category, statement = self._instruction(k, op, ins, outs)
+                counts[category] += 1
+                statements.append(statement)
+                if op == ca.OP_INPUT and (ins[0], ins[1]) not in self.zero_entries:
+                    holds[outs[0]] = (ins[0], ins[1])
+            if op != ca.OP_INPUT:  # after the instruction: a call's results may reuse its arguments' registers
+                for o in outs:
+                    holds.pop(o, None)
+        return statements, counts, loops
+
+    def _instruction(self, k: int, op: int, ins: list[int], outs: list[int]) -> tuple[str, _Statement]:
+        """(the op-count category, the statement) of one instruction other than a call."""
+        prefix = self.macro_prefix
+        if k in self.table:
+            return "trig", _Statement([f"w{outs[0]} = trig_{'sin' if op == ca.OP_SIN else 'cos'}[{self.table[k]}];"],
+                                      (outs[0],), ())
+        if op == ca.OP_INPUT and (ins[0], ins[1]) in self.zero_entries:
+            return "input", _Statement([f"w{outs[0]} = {c_literal(0.0, prefix)};"], (outs[0],), (), ca.OP_CONST, 0.0)
+        if op == ca.OP_INPUT:
+            return "input", _Statement([f"w{outs[0]} = {_input_text(self.arg_names, self.arg_scalar, ins)};"],
+                                       (outs[0],), ())
+        if op == ca.OP_OUTPUT:
+            name = self.res_names[outs[0]]
+            target = f"*{name}" if self.res_scalar[outs[0]] else f"{name}[{outs[1]}]"
+            return "output", _Statement([f"{target} = w{ins[0]};"], (), (ins[0],))
+        if op == ca.OP_CONST:
+            value = self.func.instruction_constant(k)
+            return "const", _Statement([f"w{outs[0]} = {c_literal(value, prefix)};"], (outs[0],), (), op, value)
+        if op in _BINARY:
+            category, template = _BINARY[op]
+            expr = template.format(a=f"w{ins[0]}", b=f"w{ins[1]}", P=prefix, p=prefix.lower())
+            return category, _Statement([f"w{outs[0]} = {expr};"], (outs[0],), (ins[0], ins[1]), op)
+        if op in _UNARY:
+            category, template = _UNARY[op]
+            expr = template.format(a=f"w{ins[0]}", P=prefix, p=prefix.lower())
+            return category, _Statement([f"w{outs[0]} = {expr};"], (outs[0],), (ins[0],), op)
+        raise ArmgenError(f"function {self.func.name()}: CasADi operation {op} has no C translation in armgen")
+
+    def _call(self, loop: Loop, ins: list[int], outs: list[int], holds: dict[int, tuple[int, int]]) -> _Statement:
+        """A call of a loop function: an input whose registers hold a whole array argument of
+        the caller is passed as that array, its registers not read."""
+        func = self.func
+        sizes = [loop.function.sparsity_in(j).nnz() for j in range(loop.function.n_in())]
+        whole = _whole_arrays(list(ins), sizes, holds, self.arg_names, self.arg_scalar,
+                              [func.sparsity_in(j).nnz() for j in range(func.n_in())])
+        passed = {i for j, (start, size) in enumerate(zip(itertools.accumulate([0, *sizes]), sizes)) if j in whole
+                  for i in ins[start:start + size]}
+        return _Statement(_loop_call(loop, ins, outs, self.macro_prefix, whole), tuple(o for o in outs if o >= 0),
+                          tuple(i for i in ins if i >= 0 and i not in passed))
 
 
 # The operand positions whose NaN/inf makes the result NaN/inf whatever the other operand
