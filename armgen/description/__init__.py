@@ -15,8 +15,8 @@ verification (``tests/test_layers.py``). The symbolic core builds its models fro
 
 from .files import BUNDLED_DIR, bundled_robots, load_description, parse_description, read_urdf, resolve_robot_path
 from .frames import exact_cos_sin, matrix_rpy, rpy_matrix, snap_quarter_turn
-from .model import TASK_ROWS, Joint, RobotDescription, describe
+from .model import TASK_ROWS, Inertial, Joint, RobotDescription, describe
 
-__all__ = ["BUNDLED_DIR", "TASK_ROWS", "Joint", "RobotDescription", "bundled_robots", "describe", "exact_cos_sin",
+__all__ = ["BUNDLED_DIR", "TASK_ROWS", "Inertial", "Joint", "RobotDescription", "bundled_robots", "describe", "exact_cos_sin",
            "load_description", "matrix_rpy", "parse_description", "read_urdf", "resolve_robot_path", "rpy_matrix",
            "snap_quarter_turn"]

@@ -1,4 +1,5 @@
-"""Frames: roll-pitch-yaw rotations and exact trigonometry at quarter turns.
+"""Frames: roll-pitch-yaw rotations, exact trigonometry at quarter turns, and the alignment
+of a URDF joint's axis with z (which defines that joint's link frame).
 
 The description (robot files, URDF) builds its base, tool and joint origins with these; the
 symbolic core uses :func:`exact_cos_sin` so that multiples of 90° enter as exact 0/±1.
@@ -52,3 +53,29 @@ def matrix_rpy(rot: np.ndarray) -> np.ndarray:
     yaw = math.atan2(rot[1, 0], rot[0, 0])
     roll = math.atan2(rot[2, 1], rot[2, 2])
     return np.array([roll, pitch, yaw])
+
+
+# Rotations taking z onto each signed coordinate axis, exact (entries 0/±1).
+_COORDINATE_ALIGNMENTS = {
+    (0.0, 0.0, 1.0): np.eye(3),
+    (0.0, 0.0, -1.0): np.diag([1.0, -1.0, -1.0]),
+    (1.0, 0.0, 0.0): np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]),
+    (-1.0, 0.0, 0.0): np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),
+    (0.0, 1.0, 0.0): np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]),
+    (0.0, -1.0, 0.0): np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
+}
+
+
+def axis_alignment(axis: tuple[float, float, float]) -> np.ndarray:
+    """A 4×4 rotation whose z column is the unit ``axis`` (exact for coordinate axes)."""
+    out = np.eye(4)
+    key = tuple(float(v) for v in axis)
+    if key in _COORDINATE_ALIGNMENTS:
+        out[:3, :3] = _COORDINATE_ALIGNMENTS[key]
+        return out
+    z = np.array(key)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = helper - helper.dot(z) * z
+    x /= np.linalg.norm(x)
+    out[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    return out

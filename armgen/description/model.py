@@ -36,6 +36,30 @@ MAX_REVOLUTE_LIMIT_RAD = 4 * math.pi
 # needs over two months for a turn, so a smaller value is a unit slip, and the tiniest ones
 # (5e-324 deg/s) would become 0 in SI, a limit every motion exceeds by an infinite ratio.
 MIN_JOINT_RATE = 1e-6
+# Gravity of a robot that gives none (m/s², base frame): standard gravity, the base's z up.
+DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
+
+
+@dataclass(frozen=True)
+class Inertial:
+    """The rigid body a joint moves (its link, with the fixed links lumped into it), SI units.
+
+    Every quantity is in the joint's LINK FRAME: the frame after the joint, which
+    :func:`armgen.symbolic.kinematics.chain` gives as ``joint_frames[i]`` (DH: frame i of
+    either convention; URDF: the joint's child link frame times the axis alignment ``A`` of
+    :func:`armgen.description.frames.axis_alignment`).
+    """
+
+    mass: float  # kg (> 0)
+    com: tuple[float, float, float]  # m, the centre of mass in the link frame
+    inertia: tuple[float, ...]  # kg·m², (ixx, iyy, izz, ixy, ixz, iyz) about the COM, link-frame axes
+    motor_inertia: float = 0.0  # kg·m² (kg for prismatic), reflected through the gear, added to M's diagonal
+
+    @property
+    def inertia_matrix(self) -> np.ndarray:
+        """The 3×3 inertia tensor about the centre of mass (kg·m²), link-frame axes."""
+        ixx, iyy, izz, ixy, ixz, iyz = self.inertia
+        return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
 
 
 @dataclass(frozen=True)
@@ -61,6 +85,8 @@ class Joint:
     qddlim: float = math.inf  # acceleration limit (rad/s² or m/s²); inf: the file gives none
     origin: np.ndarray | None = field(default=None, compare=False)
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    inertial: Inertial | None = None  # the link this joint moves; None: the file gives no inertials
+    taumax: float = math.inf  # torque limit (N·m; N for prismatic); inf: the file gives none
 
     @property
     def revolute(self) -> bool:
@@ -101,6 +127,10 @@ class RobotDescription:
     path
         That file's absolute path ("" for a description made in memory): what tells, without
         reading the file again, whether a task's robot reference names this robot.
+    gravity
+        The gravity vector in the base frame (m/s²), ``DEFAULT_GRAVITY`` unless the file
+        gives one; with every joint's :class:`Inertial` (:attr:`has_dynamics`) it defines the
+        robot's dynamics.
     """
 
     name: str
@@ -117,10 +147,21 @@ class RobotDescription:
     # file, base_link, tip_link of a URDF robot; continuous: its continuous joints given ±π
     urdf: dict[str, Any] = field(default_factory=dict)
     path: str = ""
+    gravity: tuple[float, float, float] = DEFAULT_GRAVITY  # m/s², base frame
 
     @property
     def n(self) -> int:
         return len(self.joints)
+
+    @property
+    def has_dynamics(self) -> bool:
+        """Every joint's link has an inertial: the dynamic functions (gravity, RNEA, M) exist."""
+        return all(j.inertial is not None for j in self.joints)
+
+    @property
+    def taumax(self) -> np.ndarray:
+        """Joint torque limits (N·m, N); ``inf`` where the robot file gives none."""
+        return np.array([j.taumax for j in self.joints])
 
     @property
     def qmin(self) -> np.ndarray:

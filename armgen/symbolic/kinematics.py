@@ -19,6 +19,7 @@ import casadi as ca
 import numpy as np
 
 from ..description import Joint, RobotDescription, exact_cos_sin
+from ..description.frames import axis_alignment
 
 
 def _const(matrix: np.ndarray) -> ca.SX:
@@ -29,32 +30,6 @@ def _rot_x_trans_x(alpha: float, a: float) -> np.ndarray:
     """Rx(alpha) Tx(a) == Tx(a) Rx(alpha) (they commute)."""
     ca_, sa = exact_cos_sin(alpha)
     return np.array([[1.0, 0.0, 0.0, a], [0.0, ca_, -sa, 0.0], [0.0, sa, ca_, 0.0], [0.0, 0.0, 0.0, 1.0]])
-
-
-# Rotations taking z onto each signed coordinate axis, exact (entries 0/±1).
-_COORDINATE_ALIGNMENTS = {
-    (0.0, 0.0, 1.0): np.eye(3),
-    (0.0, 0.0, -1.0): np.diag([1.0, -1.0, -1.0]),
-    (1.0, 0.0, 0.0): np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]),
-    (-1.0, 0.0, 0.0): np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),
-    (0.0, 1.0, 0.0): np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]),
-    (0.0, -1.0, 0.0): np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
-}
-
-
-def axis_alignment(axis: tuple[float, float, float]) -> np.ndarray:
-    """A 4×4 rotation whose z column is the unit ``axis`` (exact for coordinate axes)."""
-    out = np.eye(4)
-    key = tuple(float(v) for v in axis)
-    if key in _COORDINATE_ALIGNMENTS:
-        out[:3, :3] = _COORDINATE_ALIGNMENTS[key]
-        return out
-    z = np.array(key)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = helper - helper.dot(z) * z
-    x /= np.linalg.norm(x)
-    out[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-    return out
 
 
 def _joint_motion(joint: Joint, q_i: ca.SX) -> ca.SX:
