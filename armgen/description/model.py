@@ -85,8 +85,10 @@ class Joint:
     qddlim: float = math.inf  # acceleration limit (rad/s² or m/s²); inf: the file gives none
     origin: np.ndarray | None = field(default=None, compare=False)
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
-    inertial: Inertial | None = None  # the link this joint moves; None: the file gives no inertials
-    taumax: float = math.inf  # torque limit (N·m; N for prismatic); inf: the file gives none
+    # The dynamics: not in the repr, which names the kinematics (the IK loop's C name is a hash
+    # of the joints' repr, and the same chain with or without masses has the same IK).
+    inertial: Inertial | None = field(default=None, repr=False)  # the link this joint moves; None: not given
+    taumax: float = field(default=math.inf, repr=False)  # torque limit (N·m; N for prismatic); inf: not given
 
     @property
     def revolute(self) -> bool:
