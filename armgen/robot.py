@@ -223,6 +223,66 @@ class Robot(RobotDescription):
         a = np.ones(self.n) if weights is None else weights
         return self._numeric.evaluate("joint_manipulability", q, a=a, delta=delta)
 
+    # -- dynamics (docs/dynamics.md): a robot with every link's inertial (has_dynamics) ---------
+
+    def gravity_torques(self, q: ArrayLike) -> np.ndarray:
+        """Gravity torques ``g(q)``: the joint torques that hold the arm still at ``q``.
+
+        Parameters
+        ----------
+        q
+            Joint values (rad / m), shape ``(n,)`` or ``(..., n)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            N·m (N for a prismatic joint), shape ``(n,)`` or ``(..., n)``.
+
+        Raises
+        ------
+        armgen.errors.RobotFileError
+            The robot has no inertials (:attr:`has_dynamics` is False).
+        """
+        return self._dynamics("gravity", q)["tau"]
+
+    def rnea(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike) -> np.ndarray:
+        """Inverse dynamics ``τ = M(q) q̈ + C(q, q̇) q̇ + g(q)`` (recursive Newton–Euler).
+
+        ``q``, ``dq`` (rad/s, m/s) and ``ddq`` (rad/s², m/s²) have shape ``(n,)`` or ``(..., n)``
+        and broadcast against each other; returns τ with the broadcast shape. Raises
+        :class:`~armgen.errors.RobotFileError` for a robot without inertials.
+        """
+        return self._dynamics("rnea", q, dq=dq, ddq=ddq)["tau"]
+
+    def mass_matrix(self, q: ArrayLike) -> np.ndarray:
+        """Joint-space mass matrix ``M(q)`` (composite rigid body; motor inertias on the
+        diagonal), shape ``(n, n)`` or ``(..., n, n)``, symmetric positive definite. Raises
+        :class:`~armgen.errors.RobotFileError` for a robot without inertials."""
+        return self._dynamics("mass_matrix", q)["M"]
+
+    def coriolis(self, q: ArrayLike, dq: ArrayLike) -> np.ndarray:
+        """Coriolis and centrifugal torques ``c = C(q, q̇) q̇``, shape ``(n,)`` or ``(..., n)``
+        (``q`` and ``dq`` broadcast). Raises :class:`~armgen.errors.RobotFileError` for a robot
+        without inertials."""
+        return self._dynamics("coriolis", q, dq=dq)["c"]
+
+    def _dynamics(self, name: str, q: ArrayLike, **rates: ArrayLike) -> dict[str, np.ndarray]:
+        """Evaluate dynamic function ``name``; ``q`` and the rates broadcast to one batch shape."""
+        from .symbolic.dynamics import require_dynamics
+
+        require_dynamics(self)
+        arrays = {"q": np.asarray(q, dtype=float), **{k: np.asarray(v, dtype=float) for k, v in rates.items()}}
+        for label, value in arrays.items():
+            if value.ndim == 0 or value.shape[-1] != self.n:
+                raise ValueError(f"{label} must have shape ({self.n},) or (..., {self.n}) for robot '{self.name}', "
+                                 f"got {value.shape}")
+        try:
+            shaped = dict(zip(arrays, np.broadcast_arrays(*arrays.values())))
+        except ValueError:
+            shapes = ", ".join(f"{k} {v.shape}" for k, v in arrays.items())
+            raise ValueError(f"{name}: the shapes {shapes} do not broadcast to one batch") from None
+        return self._numeric.evaluate(name, shaped.pop("q"), **shaped)
+
     def within_limits(self, q: ArrayLike) -> np.ndarray:
         """True where every joint value is finite and inside ``[qmin, qmax]``.
 

@@ -14,6 +14,7 @@ import casadi as ca
 
 from ..description import RobotDescription
 from . import criteria, ik, steps
+from .dynamics import DYNAMIC_FUNCTIONS, dynamic_function
 from .kinematics import chain, geometric_jacobian
 
 KINEMATIC_FUNCTIONS = ("fk", "jacobian", "fk_jacobian")
@@ -34,6 +35,9 @@ STEP_FUNCTIONS = STEPS + tuple(name + FROM_JACOBIAN for name in STEPS)  # those 
 IK_FUNCTIONS = ("ik",)
 # twins first: the generated functions of J call them (and jacobian)
 ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + TWINS + CRITERION_FUNCTIONS + STEPS + IK_FUNCTIONS
+# The rigid-body dynamics (armgen.symbolic.dynamics), for a robot with every link's inertial
+# (robot.has_dynamics): built by function(name), outside ALL_FUNCTIONS and selected(), so
+# generated code stays kinematic until the dynamics get their C (issue 39, phase 2).
 
 # One-line descriptions, used in the generated header and by `armgen show`.
 DESCRIPTIONS = {
@@ -132,12 +136,19 @@ class SymbolicModel:
         needed = {r for name in wanted for r in requirements(name)}
         return tuple(name for name in self.available() if name in needed)
 
+    def dynamic_functions(self) -> tuple[str, ...]:
+        """The dynamic functions (DYNAMIC_FUNCTIONS) when every link has an inertial, else none."""
+        return DYNAMIC_FUNCTIONS if self.robot.has_dynamics else ()
+
     # -- the functions ---------------------------------------------------------------
     def function(self, name: str) -> ca.Function:
         if name not in self._functions:  # built on first use: a planner needs a few of them
-            if name not in self.available():
+            if name in DYNAMIC_FUNCTIONS:  # a clear error names the joints without an inertial
+                self._functions[name] = dynamic_function(self.robot, name)
+            elif name not in self.available():
                 raise KeyError(name)
-            self._functions[name] = self._build(name)
+            else:
+                self._functions[name] = self._build(name)
         return self._functions[name]
 
     @cached_property
