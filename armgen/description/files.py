@@ -50,8 +50,8 @@ from ..errors import RobotFileError, excerpt
 from ..schemas import (IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded,
                        read_input_file)
 from .frames import rpy_matrix, snap_quarter_turn
-from .model import (MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, MAX_REVOLUTE_LIMIT_RAD, MIN_JOINT_RATE, TASK_ROWS, Joint,
-                    RobotDescription)
+from .model import (MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, MAX_INERTIA_KGM2, MAX_MASS_KG, MAX_REVOLUTE_LIMIT_RAD,
+                    MAX_TORQUE, MIN_JOINT_RATE, MIN_MASS_KG, TASK_ROWS, Inertial, Joint, RobotDescription)
 from .schema import JointEntry, JointLimits, RobotFile, Transform, UrdfRobotFile
 from .urdf import UrdfChain, UrdfJoint, parse_urdf
 
@@ -59,6 +59,7 @@ BUNDLED_DIR = Path(str(resources.files("armgen.data") / "robots"))
 
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
 ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
+MASS_UNITS = {"kg": 1.0, "g": 1e-3}
 
 # A robot name becomes the default C prefix and output directory: letters, digits, _ and -.
 _ROBOT_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
@@ -113,6 +114,44 @@ def _rate(value: Optional[float], key: str, where: str, scale: float, default: f
     return si
 
 
+def _torque(value: Optional[float], where: str, default: float, source: str) -> float:
+    """A joint's torque (force) limit ``taumax`` in N·m (N), always SI; ``default`` where the
+    file gives none (unlimited, or a URDF's effort)."""
+    if value is None:
+        return default
+    if value > MAX_TORQUE:
+        raise _fail(source, where, f"field 'taumax' = {value} is beyond {MAX_TORQUE:g} N·m (N for a prismatic joint), "
+                                   "more than any drive gives; taumax is in N·m whatever [units] says: check the value")
+    return value
+
+
+def _inertial(entry: JointEntry, where: str, length: float, mass_unit: str, source: str) -> Inertial | None:
+    """A joint's ``mass``, ``com``, ``inertia`` and ``motor_inertia`` in SI (kg, m, kg·m²),
+    within the physical bounds; None where the file gives none (the schema checked that
+    they come together and that the tensor is some body's)."""
+    if not entry.has_inertial:
+        return None
+    mass = MASS_UNITS[mass_unit]
+    units = f"[units] mass = \"{mass_unit}\" and length"
+    si_mass = entry.mass * mass
+    if not MIN_MASS_KG <= si_mass <= MAX_MASS_KG:
+        raise _fail(source, where, f"field 'mass' = {entry.mass} {mass_unit} is outside [{MIN_MASS_KG:g}, "
+                                   f"{MAX_MASS_KG:g}] kg, no arm link's mass: check the value and {units}")
+    com = tuple(v * length for v in entry.com)
+    if max(abs(v) for v in com) > MAX_ABS_LENGTH_M:
+        raise _fail(source, where, f"field 'com' = {entry.com} is beyond ±{MAX_ABS_LENGTH_M:g} m; check the value and "
+                                   f"{units}")
+    inertia_scale = mass * length ** 2
+    inertia = tuple(v * inertia_scale for v in entry.inertia)
+    motor_scale = inertia_scale if entry.type == "revolute" else mass
+    motor = (entry.motor_inertia or 0.0) * motor_scale
+    for key, values in (("inertia", inertia), ("motor_inertia", (motor,))):
+        if max(abs(v) for v in values) > MAX_INERTIA_KGM2:
+            raise _fail(source, where, f"field '{key}' is beyond {MAX_INERTIA_KGM2:g} kg·m² (10 t at 1 m); its unit "
+                                       f"is mass × length² ({units}): check the values")
+    return Inertial(mass=si_mass, com=com, inertia=inertia, motor_inertia=motor)
+
+
 def _transform(table: Transform, key: str, length_scale: float, angle_scale: float, source: str) -> np.ndarray:
     """The ``[base]`` or ``[tool]`` table as a 4×4 transform (m)."""
     xyz = np.array(table.xyz) * length_scale
@@ -136,7 +175,7 @@ def _configurations(given: dict[str, list[float]], q_scales: np.ndarray, source:
     return out
 
 
-def _dh_joint(entry: JointEntry, name: str, where: str, length: float, angle: float, angle_unit: str,
+def _dh_joint(entry: JointEntry, name: str, where: str, length: float, angle: float, units: dict[str, str],
               source: str) -> Joint:
     """One ``[[joints]]`` entry in SI, its limits in order and every value within the physical bounds."""
     revolute = entry.type == "revolute"
@@ -145,7 +184,7 @@ def _dh_joint(entry: JointEntry, name: str, where: str, length: float, angle: fl
     if not lo < hi:
         raise _fail(source, where, f"qlim = {entry.qlim} is empty or reversed; write [lower, upper] with lower < upper")
     if revolute and max(abs(lo), abs(hi)) > MAX_REVOLUTE_LIMIT_RAD:
-        raise _fail(source, where, f"qlim = {entry.qlim} {angle_unit} {_beyond_turns(angle_unit)}")
+        raise _fail(source, where, f"qlim = {entry.qlim} {units['angle']} {_beyond_turns(units['angle'])}")
     for key in ("a", "d", "alpha", "offset", "theta", "qlim"):
         is_angle = key in ("alpha", "theta") or (key in ("offset", "qlim") and revolute)
         scale, bound, unit = (angle, MAX_ABS_ANGLE_RAD, "rad") if is_angle else (length, MAX_ABS_LENGTH_M, "m")
@@ -165,6 +204,8 @@ def _dh_joint(entry: JointEntry, name: str, where: str, length: float, angle: fl
         theta=snap_quarter_turn(entry.theta * angle),
         qdlim=_rate(entry.qdlim, "qdlim", where, q_scale, math.inf, source),
         qddlim=_rate(entry.qddlim, "qddlim", where, q_scale, math.inf, source),
+        inertial=_inertial(entry, where, length, units["mass"], source),
+        taumax=_torque(entry.taumax, where, math.inf, source),
     )
 
 
@@ -172,7 +213,8 @@ def dh_description(model: RobotFile, source: str, sha256: str) -> RobotDescripti
     """A DH robot file's model in SI, cross-checked (see :func:`_dh_joint`; configurations of
     one value per joint, within the limits). ``source`` names the file in errors."""
     length, angle = LENGTH_UNITS[model.units.length], ANGLE_UNITS[model.units.angle]
-    joints = tuple(_dh_joint(entry, name, f"joint {i + 1} ('{name}')", length, angle, model.units.angle, source)
+    units = {"length": model.units.length, "angle": model.units.angle, "mass": model.units.mass}
+    joints = tuple(_dh_joint(entry, name, f"joint {i + 1} ('{name}')", length, angle, units, source)
                    for i, (entry, name) in enumerate(zip(model.joints, model.joint_names)))
     q_scales = np.array([angle if j.revolute else length for j in joints])
     configurations = _configurations(model.configurations, q_scales, source)
@@ -187,7 +229,8 @@ def dh_description(model: RobotFile, source: str, sha256: str) -> RobotDescripti
         source=source,
         sha256=sha256,
         description=model.description,
-        units={"length": model.units.length, "angle": model.units.angle},
+        units={"length": model.units.length, "angle": model.units.angle, "mass": model.units.mass},
+        gravity=tuple(model.gravity),
     )
     for name, q in configurations.items():
         robot.check_within_limits(q, f"{source}: [configurations] {name}")
@@ -221,7 +264,8 @@ def _urdf_joint(joint: UrdfJoint, entry: list[float] | JointLimits | None, scale
     return Joint(name=joint.name, type="revolute" if revolute else "prismatic",
                  a=0.0, d=0.0, alpha=0.0, offset=0.0, origin=joint.origin, axis=joint.axis, qlim=qlim,
                  qdlim=_rate(limits.qdlim, "qdlim", where, scale, joint.qdlim, source),
-                 qddlim=_rate(limits.qddlim, "qddlim", where, scale, math.inf, source))
+                 qddlim=_rate(limits.qddlim, "qddlim", where, scale, math.inf, source),
+                 inertial=joint.inertial, taumax=_torque(limits.taumax, where, joint.taumax, source))
 
 
 def urdf_description(model: UrdfRobotFile, chain: UrdfChain, source: str, sha256: str,
@@ -260,10 +304,12 @@ def urdf_description(model: UrdfRobotFile, chain: UrdfChain, source: str, sha256
         sha256=sha256,
         description=(f"URDF {urdf_file.name}: {chain.base_link} -> {chain.tip_link}" if model.description is None
                      else model.description),
-        units={"length": model.units.length, "angle": model.units.angle},
+        units={"length": model.units.length, "angle": model.units.angle, "mass": model.units.mass},
         urdf={"file": str(urdf_file), "base_link": chain.base_link, "tip_link": chain.tip_link,
               "continuous": [j.name for j, joint in zip(chain.joints, joints)
-                             if j.type == "continuous" and joint.qlim == j.qlim]},
+                             if j.type == "continuous" and joint.qlim == j.qlim]}
+        | ({"no_dynamics": chain.no_dynamics} if chain.no_dynamics else {}),
+        gravity=tuple(model.gravity),
     )
     for cname, q in configurations.items():
         robot.check_within_limits(q, f"{source}: [configurations] {cname}")

@@ -36,6 +36,15 @@ MAX_REVOLUTE_LIMIT_RAD = 4 * math.pi
 # needs over two months for a turn, so a smaller value is a unit slip, and the tiniest ones
 # (5e-324 deg/s) would become 0 in SI, a limit every motion exceeds by an infinite ratio.
 MIN_JOINT_RATE = 1e-6
+# Bounds of the inertial parameters (SI). A link of 10 t is beyond any arm (a heavy industrial
+# robot's arm weighs ~1 t) and one below 1 mg is a unit slip (grams given as kg the other way
+# round); a tensor of 1e4 kg·m² is 10 t at 1 m. Together with MAX_ABS_LENGTH_M they keep the
+# dynamics' products far from overflow in single precision.
+MIN_MASS_KG = 1e-6
+MAX_MASS_KG = 1e4
+MAX_INERTIA_KGM2 = 1e4
+# The largest torque (N·m) or force (N) limit: the strongest industrial axes give ~1e5 N·m.
+MAX_TORQUE = 1e7
 # Gravity of a robot that gives none (m/s², base frame): standard gravity, the base's z up.
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 

@@ -13,7 +13,8 @@ from pydantic import Discriminator, Field, StringConstraints, Tag, model_validat
 
 from ..errors import excerpt
 from ..schemas import IDENTIFIER_PATTERN, StrictModel, rule_error
-from .model import TASK_ROWS
+from .inertia import inertia_problem
+from .model import DEFAULT_GRAVITY, TASK_ROWS
 
 # Degrees of freedom a robot file may declare: the bundled snake has 25; the generated C
 # stores n×n matrices on the stack of a microcontroller, so 64 is far beyond any use.
@@ -27,11 +28,20 @@ Identifier = Annotated[str, StringConstraints(pattern=IDENTIFIER_PATTERN)]
 Number = float
 Vector3 = Annotated[list[Number], Field(min_length=3, max_length=3)]
 TaskRow = Literal["vx", "vy", "vz", "wx", "wy", "wz"]
+# The largest gravity a robot file may give (m/s²): 10 g, beyond any test rig; gravity written
+# in mm/s² (9810) is the slip this catches.
+MAX_GRAVITY = 100.0
+GravityComponent = Annotated[Number, Field(ge=-MAX_GRAVITY, le=MAX_GRAVITY)]
+Inertia = Annotated[list[Number], Field(min_length=6, max_length=6, description=(
+    "[ixx, iyy, izz, ixy, ixz, iyz] about the centre of mass, link-frame axes, mass unit x length unit^2; "
+    "ixy = -integral(x y dm) (the tensor entry, as in URDF)"))]
+Torque = Annotated[Number, Field(gt=0, description="torque limit, N m (N for a prismatic joint); absent = none")]
 
 
 class Units(StrictModel):
     length: Literal["m", "mm"] = Field("m", description="unit of a, d, xyz and prismatic values")
     angle: Literal["rad", "deg"] = Field("rad", description="unit of alpha, offset, theta, rpy and revolute values")
+    mass: Literal["kg", "g"] = Field("kg", description="unit of mass, inertia (mass x length^2) and motor_inertia")
 
 
 class JointEntry(StrictModel):
@@ -47,11 +57,39 @@ class JointEntry(StrictModel):
         None, description="velocity limit (angle or length unit per s); absent = unlimited")
     qddlim: Optional[Annotated[Number, Field(gt=0)]] = Field(
         None, description="acceleration limit (angle or length unit per s^2); absent = unlimited")
+    mass: Optional[Annotated[Number, Field(gt=0)]] = Field(
+        None, description="mass of the link this joint moves ([units] mass); with com and inertia")
+    com: Optional[Vector3] = Field(None, description="that link's centre of mass in the joint's link frame (length unit)")
+    inertia: Optional[Inertia] = None
+    motor_inertia: Optional[Annotated[Number, Field(ge=0)]] = Field(
+        None, description="reflected rotor inertia added to the mass matrix's diagonal (mass x length^2; mass unit "
+                          "for a prismatic joint); default 0")
+    taumax: Optional[Torque] = None
 
     @model_validator(mode="after")
     def _theta_of_prismatic_only(self) -> JointEntry:
         if self.type == "revolute" and "theta" in self.model_fields_set:
             raise rule_error("field 'theta' is only for prismatic joints (a revolute joint's angle is q + offset)")
+        return self
+
+    @property
+    def has_inertial(self) -> bool:
+        return self.mass is not None
+
+    @model_validator(mode="after")
+    def _inertial_complete_and_physical(self) -> JointEntry:
+        given = [key for key in ("mass", "com", "inertia") if getattr(self, key) is not None]
+        if given and len(given) < 3:
+            missing = [key for key in ("mass", "com", "inertia") if key not in given]
+            raise rule_error(f"field '{given[0]}' needs {' and '.join(repr(k) for k in missing)} too: a link's "
+                             "inertial is its mass, centre of mass (com) and inertia together; give all three or none")
+        if self.motor_inertia is not None and not given:
+            raise rule_error("field 'motor_inertia' needs the link's mass, com and inertia: give them too, or remove it")
+        problem = inertia_problem(self.inertia) if self.inertia is not None else None
+        if problem:
+            raise rule_error(f"field 'inertia' = {excerpt(repr(self.inertia))} {problem}; give the link's tensor about "
+                             "its centre of mass, [ixx, iyy, izz, ixy, ixz, iyz] with ixy = -∫xy dm (the tensor "
+                             "entry, as in URDF; a CAD tool's product of inertia has the opposite sign)")
         return self
 
 
@@ -71,6 +109,9 @@ class _RobotFileCommon(StrictModel):
         default_factory=dict)
     task_rows: Annotated[list[TaskRow], Field(min_length=1, max_length=6, json_schema_extra={"uniqueItems": True})] = \
         Field(default_factory=lambda: list(TASK_ROWS))
+    gravity: Annotated[list[GravityComponent], Field(min_length=3, max_length=3)] = Field(
+        default_factory=lambda: list(DEFAULT_GRAVITY), description="gravity vector in the base frame, m/s^2 (whatever "
+                                                                   "[units] length is)")
 
     @model_validator(mode="after")
     def _distinct_task_rows(self) -> _RobotFileCommon:
@@ -102,6 +143,16 @@ class RobotFile(_RobotFileCommon):
             seen.add(name)
         return self
 
+    @model_validator(mode="after")
+    def _inertials_on_every_joint_or_none(self) -> RobotFile:
+        with_inertial = [joint.has_inertial for joint in self.joints]
+        if any(with_inertial) and not all(with_inertial):
+            first = with_inertial.index(False)
+            given = ", ".join(name for name, has in zip(self.joint_names, with_inertial) if has)
+            raise rule_error(f"no mass, com and inertia, while joint(s) {given} have them: the dynamics need every "
+                             "link's inertial; give this joint's too, or remove them all", at=("joints", first))
+        return self
+
 
 Limits = Annotated[list[Number], Field(min_length=2, max_length=2, description="[lower, upper]")]
 Rate = Annotated[Number, Field(gt=0)]
@@ -116,6 +167,8 @@ class JointLimits(StrictModel):
         None, description="velocity limit (angle or length unit per s), replacing the URDF's <limit velocity>")
     qddlim: Optional[Rate] = Field(
         None, description="acceleration limit (angle or length unit per s^2); a URDF has none")
+    taumax: Optional[Torque] = Field(None, description="torque limit (N m; N for a prismatic joint), replacing the "
+                                                       "URDF's <limit effort>")
 
 
 # A [limits] entry: `joint = [lower, upper]` (position limits only) or a table; chosen by the
@@ -139,5 +192,5 @@ class UrdfRobotFile(_RobotFileCommon):
     tip_link: Optional[Annotated[str, StringConstraints(min_length=1, max_length=256)]] = None
     limits: Annotated[dict[str, LimitsEntry],
                       Field(max_length=MAX_DOF, description="joint name = [lower, upper], or a table of qlim, qdlim, "
-                                                            "qddlim: the joint's limits for this robot file")] = Field(
+                                                            "qddlim, taumax: the joint's limits for this robot file")] = Field(
         default_factory=dict)

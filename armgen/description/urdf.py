@@ -1,8 +1,10 @@
 """URDF import: the serial chain from a base link to a tip link as armgen joints.
 
-Only what the kinematics needs is read: ``<link name>``, and per ``<joint>`` its ``name``,
-``type``, ``<parent link>``, ``<child link>``, ``<origin xyz rpy>``, ``<axis xyz>`` and
-``<limit lower upper velocity>``. Inertial, visual and collision data are ignored.
+What the kinematics and the dynamics need is read: per ``<link>`` its ``name`` and
+``<inertial>`` (``<origin xyz rpy>``, ``<mass value>``, ``<inertia ixx ixy ixz iyy iyz
+izz>``), and per ``<joint>`` its ``name``, ``type``, ``<parent link>``, ``<child link>``,
+``<origin xyz rpy>``, ``<axis xyz>`` and ``<limit lower upper velocity effort>``. Visual and
+collision data are ignored.
 
 Rules (see ``docs/urdf.md``):
 
@@ -21,6 +23,14 @@ Rules (see ``docs/urdf.md``):
   tree does not branch below the base. Branches that lead only through fixed joints to leaf
   frames (a camera or sensor frame beside the arm) are ignored where another branch moves;
   any other branching is an error naming the branching link and the leaf links below it.
+- Each moving joint's body is its child link with every link fixed to it (through fixed
+  joints, on the chain or beside it: a flange, a hand, a camera), lumped into one inertial
+  expressed in the joint's link frame (the child link frame times the axis alignment of
+  :func:`~armgen.description.frames.axis_alignment`). Links before the first moving joint
+  and links beyond a moving joint off the chain carry no dynamics. A moving joint's child
+  link without ``<inertial>``, a body of mass 0 or a lumped tensor no body has leaves the
+  robot without dynamics (``UrdfChain.no_dynamics`` says why); a fixed link without
+  ``<inertial>`` is massless. ``<limit effort>`` is the torque limit (absent or 0: none).
 - DOCTYPE and entity declarations are refused before parsing (no entity expansion).
 
 Every failure is one :class:`~armgen.errors.RobotFileError` naming the file and element.
@@ -31,14 +41,16 @@ from __future__ import annotations
 import math
 import re
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import RobotFileError, excerpt
 from ..schemas import IDENTIFIER_PATTERN
-from .frames import rpy_matrix, snap_quarter_turn
-from .model import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, MAX_REVOLUTE_LIMIT_RAD, MIN_JOINT_RATE
+from .frames import axis_alignment, rpy_matrix, snap_quarter_turn
+from .inertia import inertia_matrix, inertia_problem, inertia_six, lump
+from .model import (MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, MAX_INERTIA_KGM2, MAX_MASS_KG, MAX_REVOLUTE_LIMIT_RAD,
+                    MAX_TORQUE, MIN_JOINT_RATE, Inertial)
 from .schema import MAX_DOF
 
 # Default range of a continuous joint (rad): one full turn about zero. Criteria and planners
@@ -75,6 +87,8 @@ class UrdfJoint:
     axis: tuple[float, float, float]
     qlim: tuple[float, float]
     qdlim: float = math.inf  # <limit velocity> (rad/s, m/s); inf when absent or 0
+    taumax: float = math.inf  # <limit effort> (N·m, N); inf when absent or 0
+    inertial: Inertial | None = None  # the lumped body it moves, in its link frame; None: not known
 
 
 @dataclass(frozen=True)
@@ -87,6 +101,7 @@ class UrdfChain:
     tip_link: str
     joints: tuple[UrdfJoint, ...]
     tip: np.ndarray  # 4x4
+    no_dynamics: str = ""  # why a joint's body has no inertial ("" when every joint's has one)
 
 
 @dataclass(frozen=True)
@@ -173,12 +188,17 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
     joints, tip = _moving_joints(p, path)
     if not joints:
         raise p.fail("tip_link", f"no revolute, continuous or prismatic joint between '{base_link}' and '{tip_link}'")
-    return UrdfChain(robot_name, base_link, tip_link, joints, tip)
+    bodies = [_body(p, tree, raw, joint) for raw, joint in zip([r for r in path if r.type != "fixed"], joints)]
+    missing = next((reason for _, reason in bodies if reason), "")
+    if missing:  # the dynamics need every body: none at all rather than some
+        return UrdfChain(robot_name, base_link, tip_link, joints, tip, no_dynamics=missing)
+    return UrdfChain(robot_name, base_link, tip_link,
+                     tuple(replace(joint, inertial=inertial) for joint, (inertial, _) in zip(joints, bodies)), tip)
 
 
 @dataclass(frozen=True)
 class _Tree:
-    links: set[str]
+    links: dict[str, ET.Element]
     joints: dict[str, _RawJoint]
     parent_joint: dict[str, _RawJoint]  # child link -> the joint that moves it
     children: dict[str, list[_RawJoint]]
@@ -196,13 +216,13 @@ def _robot_element(p: _Parser, text: str) -> ET.Element:
     return root
 
 
-def _read_links(p: _Parser, root: ET.Element) -> set[str]:
-    links: set[str] = set()
+def _read_links(p: _Parser, root: ET.Element) -> dict[str, ET.Element]:
+    links: dict[str, ET.Element] = {}
     for element in root.findall("link"):
         name = p.name(element, "<link>")
         if name in links:
             raise p.fail(f"link '{excerpt(name)}'", "defined twice; link names must be unique")
-        links.add(name)
+        links[name] = element
     if not links:
         raise p.fail("<robot>", "no <link> elements")
     return links
@@ -240,7 +260,7 @@ def _read_joint(p: _Parser, element: ET.Element, tree: _Tree) -> _RawJoint:
 
 def _base_link(p: _Parser, tree: _Tree, base_link: str | None) -> str:
     """``base_link`` checked, or the tree's one root link when it is None."""
-    roots = sorted(tree.links - set(tree.parent_joint))
+    roots = sorted(set(tree.links) - set(tree.parent_joint))
     if not roots:
         raise p.fail("<robot>", "every link has a parent joint: the joints form a loop")
     if base_link is None:
@@ -298,8 +318,8 @@ def _moving_joints(p: _Parser, path: list[_RawJoint]) -> tuple[tuple[UrdfJoint, 
         if not _IDENTIFIER.fullmatch(raw.name):
             raise p.fail(where, "a moving joint's name must be a letter then letters, digits or _ (at most 48): it "
                                 "names the joint in the generated C and the CSV columns; rename the joint")
-        chain.append(UrdfJoint(raw.name, raw.type, pending, _axis(p, raw, where),
-                               _limits(p, raw, where), _velocity(p, raw, where)))
+        chain.append(UrdfJoint(raw.name, raw.type, pending, _axis(p, raw, where), _limits(p, raw, where),
+                               _rate_limit(p, raw, where, "velocity"), _rate_limit(p, raw, where, "effort")))
         pending = np.eye(4)
     return tuple(chain), pending
 
@@ -399,16 +419,77 @@ def _revolute_limit_message(lower: float, upper: float) -> str:
     return message
 
 
-def _velocity(p: _Parser, raw: _RawJoint, where: str) -> float:
-    """``<limit velocity>``: the joint's speed limit. Absent or 0 (a common exporter placeholder)
-    means unlimited; ``effort`` is not used."""
+# What each <limit> rate attribute limits, its unit, and the smallest value that is no unit slip.
+_RATE_ATTRIBUTES = {"velocity": ("speed limit", "rad/s or m/s", MIN_JOINT_RATE, math.inf),
+                    "effort": ("torque limit", "N·m or N", 0.0, MAX_TORQUE)}
+
+
+def _rate_limit(p: _Parser, raw: _RawJoint, where: str, attribute: str) -> float:
+    """``<limit velocity>`` (the joint's speed limit) or ``<limit effort>`` (its torque or
+    force limit). Absent or 0 (a common exporter placeholder) means unlimited."""
+    what, unit, smallest, largest = _RATE_ATTRIBUTES[attribute]
     limit = raw.element.find("limit")
-    if limit is None or limit.get("velocity") is None:
+    if limit is None or limit.get(attribute) is None:
         return math.inf
-    (velocity,) = p.numbers(limit, "velocity", f"{where} <limit>", 1, None)
-    if velocity < 0:
-        raise p.fail(f"{where} <limit>", f"velocity = {velocity} is negative; give the speed limit (≥ 0, 0 = none)")
-    if 0 < velocity < MIN_JOINT_RATE:
-        raise p.fail(f"{where} <limit>", f"velocity = {velocity:g} is below {MIN_JOINT_RATE:g} (URDF speeds are rad/s "
-                                         "or m/s): a unit slip; check the value (0 = none)")
-    return velocity if velocity > 0 else math.inf
+    (value,) = p.numbers(limit, attribute, f"{where} <limit>", 1, None)
+    if value < 0:
+        raise p.fail(f"{where} <limit>", f"{attribute} = {value} is negative; give the {what} (≥ 0, 0 = none)")
+    if 0 < value < smallest:
+        raise p.fail(f"{where} <limit>", f"{attribute} = {value:g} is below {smallest:g} (URDF {what}s are {unit}): a "
+                                         "unit slip; check the value (0 = none)")
+    if value > largest:
+        raise p.fail(f"{where} <limit>", f"{attribute} = {value:g} is beyond {largest:g} {unit}, more than any drive "
+                                         "gives; check the value (0 = none)")
+    return value if value > 0 else math.inf
+
+
+def _link_inertial(p: _Parser, tree: _Tree, link: str) -> tuple[float, np.ndarray, np.ndarray] | None:
+    """A link's ``<inertial>`` as (mass, centre of mass, 3×3 tensor about it) in the link
+    frame (SI, the ``<origin>`` rotation applied); None when it has none."""
+    where = f"link '{excerpt(link)}' <inertial>"
+    found = tree.links[link].findall("inertial")
+    if not found:
+        return None
+    if len(found) > 1:
+        raise p.fail(where, f"{len(found)} <inertial> elements; give one")
+    element = found[0]
+    origin = _origin(p, element, where)
+    (mass,) = p.numbers(element.find("mass"), "value", f"{where} <mass>", 1, None)
+    if not 0 <= mass <= MAX_MASS_KG:
+        raise p.fail(f"{where} <mass>", f"value = {mass:g} is outside [0, {MAX_MASS_KG:g}] kg (URDF masses are kg); "
+                                        "check the value")
+    inertia = element.find("inertia")
+    six = [p.numbers(inertia, key, f"{where} <inertia>", 1, None)[0] for key in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")]
+    if max(abs(v) for v in six) > MAX_INERTIA_KGM2:
+        raise p.fail(f"{where} <inertia>", f"a value is beyond {MAX_INERTIA_KGM2:g} kg·m² (URDF inertias are kg·m²); "
+                                           "check the values")
+    rotation = origin[:3, :3]
+    return mass, origin[:3, 3], rotation @ inertia_matrix(six) @ rotation.T
+
+
+def _body(p: _Parser, tree: _Tree, raw: _RawJoint, joint: UrdfJoint) -> tuple[Inertial | None, str]:
+    """(the inertial of the body ``raw`` moves, in its link frame; "") or (None, why not).
+
+    The body is the child link and every link fixed to it, lumped in the child link frame,
+    then turned into the link frame ``child · A`` (A: the axis alignment)."""
+    where = f"joint '{excerpt(raw.name)}'"
+    parts, stack = [], [(raw.child, np.eye(4))]
+    while stack:
+        link, pose = stack.pop()  # pose: the link's frame in the child link frame
+        inertial = _link_inertial(p, tree, link)
+        if inertial is None and link == raw.child:
+            return None, f"link '{link}' (moved by {where}) has no <inertial>"
+        if inertial is not None:
+            mass, com, tensor = inertial
+            parts.append((mass, pose[:3, :3] @ com + pose[:3, 3], pose[:3, :3] @ tensor @ pose[:3, :3].T))
+        stack.extend((fixed.child, pose @ _origin(p, fixed.element, f"joint '{excerpt(fixed.name)}'"))
+                     for fixed in tree.children.get(link, []) if fixed.type == "fixed")
+    if sum(mass for mass, _, _ in parts) <= 0:
+        return None, f"the links {where} moves ('{raw.child}' and those fixed to it) have mass 0"
+    mass, com, tensor = lump(parts)
+    problem = inertia_problem(inertia_six(tensor), definite=False)
+    if problem:
+        return None, f"the inertia of the links {where} moves ('{raw.child}' and those fixed to it) {problem}"
+    turn = axis_alignment(joint.axis)[:3, :3]  # the link frame's axes in the child link frame
+    return Inertial(mass=float(mass), com=tuple(float(v) for v in turn.T @ com),
+                    inertia=inertia_six(turn.T @ tensor @ turn)), ""
