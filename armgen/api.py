@@ -610,11 +610,14 @@ def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None
     OptionError
         Both ``task`` and ``plan``, or ``overrides`` without ``task`` (exit 2).
     RobotFileError, TaskFileError, PlanFileError
-        A bad robot, task or plan file, or a task for another robot (exit 2).
+        A bad robot, task or plan file (exit 2).
     PlanningError
         The task (or the demo) cannot be planned, or its plan leaves the joint limits (exit 3).
     OutputError
         ``out`` cannot be written (exit 4).
+    RobotMismatchError
+        The task (or the task the plan records) names another robot, refused before it is
+        planned (exit 5).
     ArmgenError
         ``armgen.firmware.FirmwareError`` (exit 5): the controller cannot run the plan, or a
         plan its recorded task does not plan to.
@@ -659,7 +662,9 @@ def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path
     Raises
     ------
     TaskFileError, PlanFileError
-        A bad task or plan file, or a task for another robot than ``robot`` (exit 2).
+        A bad task or plan file (exit 2).
+    RobotMismatchError
+        A task for another robot than ``robot`` (exit 5).
     OutputError
         ``out`` cannot be written (exit 4).
     ArmgenError

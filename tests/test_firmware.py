@@ -122,7 +122,7 @@ def test_replay_refuses_plans_the_controller_cannot_run(short_plan):
     rk4.metadata["integrator"]["method"] = "rk4"
     assert "Euler" in fw.refusal(rk4)
     with pytest.raises(fw.FirmwareError, match="explicit Euler"):
-        fw.cartesian_task(example("modular8_circle_combined", [*SHORT, "integrator.method=rk4"]), "rk4")
+        fw.task_from_dict(example("modular8_circle_combined", [*SHORT, "integrator.method=rk4"]), "rk4")
 
 
 # --------------------------------------------------------------------------- fault injection

@@ -19,7 +19,6 @@ from hypothesis import strategies as st
 
 import armgen.firmware as fw
 from armgen.cli.main import cli
-from armgen.firmware.configuration import sampled_task
 from armgen.firmware.errors import FirmwareError
 from armgen.planning.result import PlanResult, read_plan
 from armgen.planning.tasks import load_task, run_task
@@ -60,7 +59,7 @@ def with_q(plan: PlanResult, q: np.ndarray) -> PlanResult:
     data = plan.data.copy()
     for j, c in enumerate(SNAKE12_COLUMNS):
         data[:, plan.columns.index(c)] = q[:, j]
-    return PlanResult(list(plan.columns), data, plan.metadata)
+    return PlanResult(list(plan.columns), data, plan.metadata, plan.config)
 
 
 @pytest.fixture(scope="module")
@@ -79,7 +78,7 @@ def builder(tmp_path_factory):
 
 
 def run_plan(builder, plan: PlanResult, name: str, header=None) -> tuple[fw.FirmwareTask, fw.FirmwareRun]:
-    task = sampled_task(plan, name)
+    task = fw.task_from_plan(plan, name)
     if header is not None:
         task = dataclasses.replace(task, header=header(task.header))
     return task, fw.run_host(builder.executable(HOST_SAN, task, name))
@@ -197,17 +196,18 @@ def test_plan_the_controller_cannot_take_is_refused(plans):
     data = plan.data.copy()
     data[10, plan.columns.index("t_s")] += 1e-4  # not on the output step's grid
     with pytest.raises(FirmwareError, match="t_s is not t_0"):
-        sampled_task(PlanResult(list(plan.columns), data, plan.metadata), "uneven.csv")
+        fw.task_from_plan(PlanResult(list(plan.columns), data, plan.metadata, plan.config), "uneven.csv")
     keep = [i for i, c in enumerate(plan.columns) if c != "b12_rad"]
     with pytest.raises(FirmwareError, match="no column b12_rad"):
-        sampled_task(PlanResult([plan.columns[i] for i in keep], plan.data[:, keep], plan.metadata), "short.csv")
+        short = PlanResult([plan.columns[i] for i in keep], plan.data[:, keep], plan.metadata, plan.config)
+        fw.task_from_plan(short, "short.csv")
 
 
 def test_snake_plan_for_another_robot_is_refused(tmp_path):
     plan = tmp_path / "planar.csv"
     assert CliRunner().invoke(cli, ["plan", str(EXAMPLES / "snake_planar.toml"), "-o", str(plan)]).exit_code == 0
     out = CliRunner().invoke(cli, ["firmware", "modular8", "--plan", str(plan), "--out", str(tmp_path / "fw")])
-    assert out.exit_code == 5, out.output
+    assert out.exit_code == 5, out.output  # its task names another robot: refused before it is planned again
     assert "robot 'snake12'" in out.output and "'modular8'" in out.output
     assert not (tmp_path / "fw").exists()
 

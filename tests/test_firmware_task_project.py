@@ -3,7 +3,9 @@ task, and `armgen verify --run` accepts what it printed (issue 26)."""
 
 from __future__ import annotations
 
+import json
 import subprocess
+import sys
 import tomllib
 from pathlib import Path
 
@@ -152,3 +154,34 @@ def test_task_on_an_arm_armgen_does_not_bundle(tmp_path, monkeypatch):
                                    "--target", "cortex-m4", "--samples", "50", "--precision", "float"])
     assert out.exit_code == 0, out.output
     assert "== target: PASS" in out.output
+
+
+OPEN_COUNTER = """
+import json, os, sys
+watch = {os.path.realpath(p): 0 for p in sys.argv[1:3]}
+def hook(event, args):
+    if event == "open" and args and isinstance(args[0], (str, bytes, os.PathLike)):
+        path = os.path.realpath(os.fsdecode(args[0]))
+        if path in watch:
+            watch[path] += 1
+sys.addaudithook(hook)
+import armgen.api
+armgen.api.firmware_project(sys.argv[1], sys.argv[3], task=sys.argv[2])
+print(json.dumps(list(watch.values())))
+"""
+
+
+def test_firmware_project_reads_the_robot_and_the_task_once(tmp_path):
+    """`armgen firmware ROBOT --task TASK`: the robot file and the task file are each opened once
+    (counted by an audit hook on every open of the process; it was 4 and 1), the task's robot
+    being the same file."""
+    robot = tmp_path / "arm.toml"
+    robot.write_bytes((REPO / "armgen" / "data" / "robots" / "modular8.toml").read_bytes())
+    task = tmp_path / "ptp.toml"
+    text = (EXAMPLES / "modular8_ptp_two_segments.toml").read_text()
+    task.write_text(text.replace('robot = "modular8"', 'robot = "arm.toml"'))
+    assert 'robot = "arm.toml"' in task.read_text()
+    done = subprocess.run([sys.executable, "-c", OPEN_COUNTER, str(robot), str(task), str(tmp_path / "fw")],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert json.loads(done.stdout.splitlines()[-1]) == [1, 1]

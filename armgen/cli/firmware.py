@@ -28,14 +28,11 @@ def firmware_cmd(robot: str, out_dir: str, task_file: str | None, plan_csv: str 
     Exit codes: 2 bad robot, task or plan file, 3 the task (or, without one, the demo) cannot
     be planned or its plan leaves the joint limits (also under [check] limits = "report"), 4 the
     folder cannot be written (a file, a foreign non-empty folder, read-only, a symbolic link in
-    the project's paths), 5 the controller cannot run the task (e.g. another robot's, or a mode
-    it does not have) or a --plan its recorded task does not plan to."""
-    from ..errors import OptionError
-    from ..firmware.project import write_firmware_project
+    the project's paths), 5 the controller cannot run the task (another robot's, refused before
+    planning, or a mode it does not have) or a --plan its recorded task does not plan to."""
+    from ..api import firmware_project
 
-    if task_file is not None and plan_csv is not None:
-        raise OptionError("give --task or --plan, not both (a task is planned here; a plan was made from one)")
-    r, paths = write_firmware_project(robot, out_dir, task_file, plan_csv)
+    r, paths = firmware_project(robot, out_dir, task_file, plan_csv)
     click.echo(f"wrote {len(paths)} files of the firmware project of '{r.name}' into {out_dir}")
     click.echo(f"build the host demo:  cmake -S {out_dir} -B {out_dir}/build && cmake --build {out_dir}/build")
     click.echo(f"see {out_dir}/README.md for the Cortex-M4F image and the controller's API")
@@ -58,12 +55,8 @@ def firmware_task_cmd(source: str, out_dir: str, robot: str | None, overrides: t
     evaluator fw_ptp.{h,c} and robot_fw.c (the generated functions the controller calls).
 
     Used by firmware_stub/Makefile. Exit codes: 2 bad task file, 4 unwritable output, 5 a task
-    the controller cannot run."""
-    from ..firmware.configuration import schedule_lock, task_from_file, write_task_files
-    from ..robot import load_robot
+    the controller cannot run (e.g. one for another --robot)."""
+    from ..api import firmware_task
 
-    task = task_from_file(source, load_robot(robot) if robot else None, overrides)
-    if lock:
-        task = schedule_lock(task, lock)
-    for path in write_task_files(task, out_dir, gen_dir):
+    for path in firmware_task(source, out_dir, robot, overrides, gen_dir, lock):
         click.echo(f"wrote {path}")

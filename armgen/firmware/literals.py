@@ -31,3 +31,8 @@ def c_real(x: float, what: str = "task parameter") -> str:
 def c_reals(values, what: str = "task parameter") -> str:
     """A braced initialiser of :func:`c_real` literals, the values flattened in C order."""
     return "{" + ", ".join(c_real(v, what) for v in np.asarray(values, dtype=float).ravel()) + "}"
+
+
+def c_ints(values) -> str:
+    """A braced initialiser of integers (joint flags, task rows)."""
+    return "{" + ", ".join(str(int(v)) for v in values) + "}"

@@ -30,7 +30,7 @@ import tempfile
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 import tomli_w
@@ -40,13 +40,12 @@ from ..codegen.generate import CodegenConfig, generate
 from ..errors import ArmgenError, OutputError, PlanningError, RobotFileError, TaskFileError, excerpt
 from ..planning.limits import enforce_limits, enforce_speed_limits
 from ..planning.result import PlanResult, read_plan, write_plan
-from ..planning.tasks import load_task, run_task
+from ..planning.tasks import apply_overrides, load_task, run_task
 from ..planning.toolpath.task import MAX_POSES_FILE_BYTES
-from ..robot import Robot, load_robot, resolve_robot_path
+from ..robot import BUNDLED_DIR, Robot, load_robot, parse_robot, resolve_robot_path
 from ..schemas import MAX_INPUT_FILE_BYTES, parse_toml_bounded, read_input_file
-from ..symbolic.model import SymbolicModel
-from .configuration import (REPLANNED_SAMPLE_TOL, FirmwareTask, refusal, task_from_plan, task_source,
-                            write_task_files)
+from .configuration import FirmwareTask, write_task_files
+from .tasks import REPLANNED_SAMPLE_TOL, refusal, task_from_plan, task_source
 from .errors import FirmwareError
 
 DEMO_DURATION_S = 1.0
@@ -86,7 +85,7 @@ def demo_task(robot: Robot, robot_ref: str, distance: float = DEMO_DISTANCES_M[0
               direction: tuple[float, float, float] = DEMO_DIRECTIONS[0]) -> dict[str, Any]:
     """A short line of the tool from the demo start, as a cartesian task dict (SI units)."""
     name, q = demo_start(robot)
-    pose = np.array(SymbolicModel(robot).function("fk")(q))
+    pose = np.array(robot.symbolic.function("fk")(q))  # the robot's model, built once for every candidate
     end = pose[:3, 3] + distance * np.asarray(direction, dtype=float)
     return {"planner": "cartesian", "robot": robot_ref, "start": name if name else q.tolist(),
             "path": {"type": "line", "end": end.tolist(), "orientation": "hold"},
@@ -102,7 +101,7 @@ def plan_demo(robot: Robot, robot_ref: str, source: str = "demo task"):
         for direction in DEMO_DIRECTIONS:
             task = demo_task(robot, robot_ref, distance, direction)
             try:
-                result = run_task(task, source)
+                result = run_task(task, source, robot=robot)
             except ArmgenError as exc:
                 reasons.append(str(exc).splitlines()[0])
                 continue
@@ -147,16 +146,13 @@ def _within_limits(result: PlanResult, source: str) -> None:
 
 
 def _runnable(result: PlanResult, source: str, robot: Robot) -> FirmwareTask:
-    """The controller's task of a plan for ``robot`` that the controller reproduces and that
-    stays within the joint limits; else the error that says why not."""
+    """The controller's task of a plan for ``robot`` (its task checked to name it when it was
+    configured) that the controller reproduces and that stays within the joint limits; else the
+    error that says why not."""
     reason = refusal(result)
     if reason is not None:
         raise FirmwareError(f"{source}: the controller cannot reproduce this plan: {reason}")
     firmware = task_from_plan(result, source, robot)
-    if firmware.robot.sha256 != robot.sha256:
-        raise FirmwareError(f"{source}: the task is for robot '{firmware.robot.name}' (robot file sha256 "
-                            f"{firmware.robot.sha256[:12]}…), the project for '{robot.name}' ({robot.sha256[:12]}…); "
-                            "give the task's robot file to armgen firmware, or a task for this robot")
     _within_limits(result, source)
     return firmware
 
@@ -166,11 +162,13 @@ def demo_project_task(robot: Robot, robot_ref: str) -> ProjectTask:
     return ProjectTask(planned, result, _runnable(result, "demo/demo.toml", robot), description, "demo task")
 
 
-def task_file_project_task(robot: Robot, task_path: str | Path) -> ProjectTask:
-    """The user's task file, planned here (``armgen plan``'s planner and checks)."""
+def task_file_project_task(robot: Robot, task_path: str | Path, overrides: Sequence[str] = ()) -> ProjectTask:
+    """The user's task file (``overrides`` as ``--set``), planned here (``armgen plan``'s planner
+    and checks) after checking that it names ``robot``."""
     task, sha = load_task(task_path)
+    apply_overrides(task, list(overrides))
     source = str(task_path)
-    result = run_task(task, source, sha)
+    result = run_task(task, source, sha, robot=robot)
     return ProjectTask(task, result, _runnable(result, source, robot),
                        f"the task of {Path(task_path).name} (planner {task.get('planner')})", source,
                        Path(task_path).parent)
@@ -201,8 +199,8 @@ def plan_project_task(robot: Robot, plan_path: str | Path) -> ProjectTask:
         raise FirmwareError(f"{source}: its plan.json holds no task, and the firmware runs only a plan it can "
                             "reproduce from its task; keep the plan.json `armgen plan` wrote beside the CSV, or give "
                             "the task file (--task)")
-    result = run_task(json.loads(json.dumps(task)), task_source(recorded, source),
-                      str(recorded.metadata.get("task_sha256") or ""))
+    result = run_task(task, task_source(recorded, source), str(recorded.metadata.get("task_sha256") or ""),
+                      robot=robot)
     differs = _differing_sample(recorded, result)
     if differs is not None:
         raise FirmwareError(f"{source}: planning the task recorded in its plan.json again does not give this plan "
@@ -214,15 +212,26 @@ def plan_project_task(robot: Robot, plan_path: str | Path) -> ProjectTask:
                        Path(task_source(recorded, source)).parent)
 
 
-def project_robot_files(robot_path: Path, robot: Robot) -> tuple[str, dict[str, bytes]]:
+def _parse_robot(path: Path, data: bytes) -> Robot:
+    """The robot of the file ``path`` whose bytes are ``data`` (read once for the robot and the
+    project's copy), as :func:`load_robot` gives it (named, and with its ``path``: a task that
+    names the same file is checked without reading it again). A URDF is read by its own parser."""
+    if path.suffix.lower() == ".urdf":
+        return load_robot(path)
+    source = path.name if path.parent == BUNDLED_DIR else str(path)  # load_description's naming
+    robot = parse_robot(data, source, hashlib.sha256(data).hexdigest(), path.parent)
+    return dataclasses.replace(robot, path=str(path.resolve()))
+
+
+def project_robot_files(robot_path: Path, data: bytes, robot: Robot) -> tuple[str, dict[str, bytes]]:
     """The project's copy of the robot: (the file tasks and the README name, {file: bytes}).
 
     A DH robot file is ``robot.toml`` and a URDF ``robot.urdf``, byte for byte (the same
     SHA-256, so the robot is the same one for every check). A robot file that references a URDF
     becomes ``robot.toml`` with ``urdf = "robot.urdf"`` beside the URDF's copy: every other
     field as the user wrote it (comments are not kept), since its own reference may point
-    anywhere (``../urdf/arm.urdf``, a ROS package) and the project must stand alone."""
-    data = read_input_file(robot_path, MAX_INPUT_FILE_BYTES, "robot file", RobotFileError)
+    anywhere (``../urdf/arm.urdf``, a ROS package) and the project must stand alone. ``data``:
+    the robot file's bytes."""
     if not robot.urdf:
         return PROJECT_ROBOT_FILE, {PROJECT_ROBOT_FILE: data}
     if robot_path.suffix.lower() == ".urdf":  # the URDF itself (as load_robot tells them apart)
@@ -407,19 +416,23 @@ def _robot_rows(robot_files: dict[str, bytes]) -> str:
             f"`{PROJECT_URDF_FILE}` |\n| `{PROJECT_URDF_FILE}` | the URDF it references (byte for byte) |")
 
 
-def write_firmware_project(robot_ref: str, out: str | Path, task: str | Path | None = None,
-                           plan: str | Path | None = None) -> tuple[Robot, list[Path]]:
+def write_firmware_project(robot_ref: str | Path, out: str | Path, task: str | Path | None = None,
+                           plan: str | Path | None = None, overrides: Sequence[str] = ()) -> tuple[Robot, list[Path]]:
     """Write the project into ``out`` (new, empty, or a project this command wrote earlier:
     its own files are updated, the user's left alone), its demo running ``task`` (a task file,
-    planned here) or ``plan`` (a plan CSV), else the built-in demo task. Returns the robot and
-    the files written. Give at most one of ``task`` and ``plan``."""
+    planned here, with ``overrides`` as ``--set``) or ``plan`` (a plan CSV), else the built-in
+    demo task. Returns the robot and the files written. Give at most one of ``task`` and
+    ``plan``. The robot file and the task file are each read once; the task must name the robot
+    (checked before it is planned)."""
     out = Path(out)
     owned = _owned_files(out)
     _check_writable(out)
-    robot = load_robot(robot_ref)
-    robot_file, robot_files = project_robot_files(resolve_robot_path(robot_ref), robot)
+    robot_path = resolve_robot_path(robot_ref)
+    data = read_input_file(robot_path, MAX_INPUT_FILE_BYTES, "robot file", RobotFileError)
+    robot = _parse_robot(robot_path, data)
+    robot_file, robot_files = project_robot_files(robot_path, data, robot)
     if task is not None:
-        job = task_file_project_task(robot, task)
+        job = task_file_project_task(robot, task, overrides)
     elif plan is not None:
         job = plan_project_task(robot, plan)
     else:

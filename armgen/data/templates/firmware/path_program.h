@@ -1,0 +1,6 @@
+        .path = CTRL_PATH_PROGRAM,
+        .program = &$table,
+        .duration = $duration,
+        .law = CTRL_LAW_CONSTANT, .blend = CTRL_LIT(0.0),
+        .relative = 0,
+        .turns = CTRL_LIT(1.0),
