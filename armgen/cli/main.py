@@ -3,6 +3,7 @@ maps an :class:`ArmgenError` to its exit code and a one-paragraph message on std
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -45,7 +46,10 @@ def _show_data(r) -> dict:
         entry = {"name": j.name, "type": j.type, "qlim": list(j.qlim),
                  # null: the robot file gives no limit (unlimited)
                  "qdlim": j.qdlim if math.isfinite(j.qdlim) else None,
-                 "qddlim": j.qddlim if math.isfinite(j.qddlim) else None}
+                 "qddlim": j.qddlim if math.isfinite(j.qddlim) else None,
+                 "taumax": j.taumax if math.isfinite(j.taumax) else None,
+                 # the link's mass, com, inertia (ixx, iyy, izz, ixy, ixz, iyz) in its link frame; null: none
+                 "inertial": dataclasses.asdict(j.inertial) if j.inertial else None}
         if j.origin is not None:
             entry |= {"xyz": j.origin[:3, 3].tolist(), "rpy": matrix_rpy(j.origin[:3, :3]).tolist(), "axis": list(j.axis)}
         else:
@@ -53,7 +57,7 @@ def _show_data(r) -> dict:
         joints.append(entry)
     return describe(r) | {
         "description": r.description, "urdf": r.urdf, "joints": joints,
-        "task_rows": list(r.task_rows),
+        "task_rows": list(r.task_rows), "gravity": list(r.gravity),
         "base": {"xyz": r.base[:3, 3].tolist(), "rpy": matrix_rpy(r.base[:3, :3]).tolist()},
         "tool": {"xyz": r.tool[:3, 3].tolist(), "rpy": matrix_rpy(r.tool[:3, :3]).tolist()},
         "configurations": {name: q.tolist() for name, q in r.configurations.items()},

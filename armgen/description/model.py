@@ -238,6 +238,7 @@ class RobotDescription:
             fixed = f"theta={math.degrees(j.theta):8.3f}" if not j.revolute else f"offset={math.degrees(j.offset):7.3f}"
             lines.append(f"  {j.name:8s} {j.type:9s} {fixed}  d={j.d * 1e3:9.3f}  a={j.a * 1e3:9.3f}  "
                          f"alpha={math.degrees(j.alpha):8.3f}  qlim={lim}")
+        lines.append(self._dynamics_line())
         continuous = self.urdf.get("continuous", [])
         if continuous:
             lines.append(f"note: continuous in the URDF, given ±180 deg here: {', '.join(continuous)}; a start or "
@@ -251,6 +252,14 @@ class RobotDescription:
         for name, q in self.configurations.items():
             lines.append(f"configuration {name}: {np.round(q * units, 4).tolist()} (deg / mm)")
         return "\n".join(lines)
+
+    def _dynamics_line(self) -> str:
+        """Whether the robot has dynamics (every link's inertial) and its gravity, for :meth:`show_text`."""
+        if self.has_dynamics:
+            gravity = [round(v, 6) + 0.0 for v in self.gravity]
+            return f"dynamics: inertials for all {self.n} links (gravity {gravity} m/s^2)"
+        why = self.urdf.get("no_dynamics")
+        return "no inertials: no dynamic functions" + (f" ({why})" if why else "")
 
     def show(self) -> None:
         """Print :meth:`show_text` (the whole description; ``repr`` is one line)."""
@@ -289,11 +298,13 @@ class RobotDescription:
 
 
 def _speed_limits(j: Joint) -> str:
-    """``qdlim=… qddlim=…`` of one joint in deg/s(²) or mm/s(²); 'unlimited' where the file gives none."""
+    """``qdlim=… qddlim=…`` of one joint in deg/s(²) or mm/s(²), 'unlimited' where the file gives
+    none; ``taumax=…`` (N·m or N) where it gives one."""
     scale, unit = (180 / math.pi, "deg") if j.revolute else (1e3, "mm")
     vel = f"{j.qdlim * scale:.4g} {unit}/s" if math.isfinite(j.qdlim) else "unlimited"
     acc = f"{j.qddlim * scale:.4g} {unit}/s^2" if math.isfinite(j.qddlim) else "unlimited"
-    return f"qdlim={vel}  qddlim={acc}"
+    torque = f"  taumax={j.taumax:.4g} {'Nm' if j.revolute else 'N'}" if math.isfinite(j.taumax) else ""
+    return f"qdlim={vel}  qddlim={acc}{torque}"
 
 
 def _fmt_joint(joint: Joint, value: float) -> str:
@@ -308,4 +319,5 @@ def describe(robot: RobotDescription) -> dict[str, Any]:
         "dof": robot.n,
         "source": robot.source,
         "sha256": robot.sha256,
+        "dynamics": robot.has_dynamics,
     }
