@@ -66,16 +66,6 @@ def allowed(module: str) -> bool:
 
 
 CLI_MODULES = sorted(CLI_DIR.glob("*.py"))
-# Modules still being moved onto the API, each with who moves it. Strict: the day one of them
-# passes, this test fails until its entry goes, so no exemption outlives its reason.
-IN_TRANSIT: dict[str, str] = {}
-
-
-def _cases():
-    for path in CLI_MODULES:
-        reason = IN_TRANSIT.get(path.name)
-        marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
-        yield pytest.param(path, id=path.name, marks=marks)
 
 
 def test_the_cli_modules_are_found():
@@ -83,7 +73,7 @@ def test_the_cli_modules_are_found():
     assert {"main.py", "options.py", "handling.py", "ik.py", "sweep.py", "animate.py"} <= names
 
 
-@pytest.mark.parametrize("path", list(_cases()))
+@pytest.mark.parametrize("path", CLI_MODULES, ids=lambda p: p.name)
 def test_the_cli_imports_only_the_api_and_the_description(path):
     deeper = [f"{path.name}:{line}: {module}" for line, module in imports_of(path.read_text(encoding="utf-8"))
               if not allowed(module)]
