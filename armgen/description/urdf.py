@@ -454,6 +454,9 @@ def _link_inertial(p: _Parser, tree: _Tree, link: str) -> tuple[float, np.ndarra
         raise p.fail(where, f"{len(found)} <inertial> elements; give one")
     element = found[0]
     origin = _origin(p, element, where)
+    for tag, example in (("mass", 'value="…" (kg)'), ("inertia", 'ixx="…" iyy="…" izz="…" ixy="…" ixz="…" iyz="…" (kg·m²)')):
+        if element.find(tag) is None:
+            raise p.fail(where, f"needs <{tag} {example}/>; add it, or remove the <inertial> of a massless link")
     (mass,) = p.numbers(element.find("mass"), "value", f"{where} <mass>", 1, None)
     if not 0 <= mass <= MAX_MASS_KG:
         raise p.fail(f"{where} <mass>", f"value = {mass:g} is outside [0, {MAX_MASS_KG:g}] kg (URDF masses are kg); "
