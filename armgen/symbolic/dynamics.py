@@ -86,10 +86,11 @@ def require_dynamics(robot: RobotDescription) -> None:
     """Raise a clear error when some joint's link has no inertial."""
     missing = [j.name for j in robot.joints if j.inertial is None]
     if missing:
+        which = "" if len(missing) == robot.n else f" for joint(s) {', '.join(missing)}"
         raise RobotFileError(
-            f"{robot.source or '<in memory>'}: robot '{robot.name}' has no inertials for joint(s) "
-            f"{', '.join(missing)}, so it has no dynamics (gravity, rnea, mass_matrix, coriolis); give every "
-            "joint's link mass, com and inertia in the robot file, or <inertial> in the URDF (docs/dynamics.md)")
+            f"{robot.source or '<in memory>'}: robot '{robot.name}' has no inertials{which}, so it has no dynamics "
+            "(gravity, rnea, mass_matrix, coriolis); give every joint's link mass, com and inertia in the robot file, "
+            "or an <inertial> on every moving link of the URDF (docs/dynamics.md)")
 
 
 def _links(robot: RobotDescription) -> tuple[_Transform, list[_Link]]:
