@@ -277,6 +277,62 @@ def test_planar_dh_arm_gravity_by_hand():
         assert np.abs(robot.gravity_torques(q) - expected).max() <= IDENTITY_TOL
 
 
+PLANAR_ROBOT_FILE = """
+name = "vertical2"
+convention = "standard"
+gravity = [0, -9.81, 0]   # the arm moves in the vertical x-y plane
+
+[units]
+length = "mm"
+angle = "deg"
+mass = "g"
+
+[[joints]]
+name = "shoulder"
+type = "revolute"
+a = 400
+d = 0
+alpha = 0
+qlim = [-170, 170]
+mass = 2000                  # g
+com = [-200, 0, 0]           # mm, halfway back along the link (frame 1 is at its end)
+inertia = [1e5, 3e7, 3e7, 0, 0, 0]   # g mm^2 about the COM: izz = 0.03 kg m^2
+motor_inertia = 1e5            # g mm^2 = 1e-4 kg m^2, reflected
+
+[[joints]]
+name = "elbow"
+type = "revolute"
+a = 300
+d = 0
+alpha = 0
+qlim = [-170, 170]
+mass = 1000
+com = [-100, 0, 0]           # a third back: the heavy wrist end
+inertia = [5e4, 8e6, 8e6, 0, 0, 0]     # izz = 0.008 kg m^2
+"""
+
+
+def test_robot_file_inertials_in_grams_and_millimetres(tmp_path):
+    """A robot file's inertials in g and mm, read in SI: the gravity torques of a 2R arm in a
+    vertical plane by hand (τ_k = g Σ_{i≥k} m_i (x_ci − x_k)), and M at the straight pose with the
+    motor inertia on its diagonal."""
+    path = tmp_path / "vertical2.toml"
+    path.write_text(PLANAR_ROBOT_FILE)
+    robot = load_robot(path)
+    assert robot.has_dynamics
+    for q in np.random.default_rng(SEED).uniform(-2.9, 2.9, (20, 2)):
+        c1, c12 = math.cos(q[0]), math.cos(q[0] + q[1])
+        elbow_x, com1_x, com2_x = 0.4 * c1, 0.2 * c1, 0.4 * c1 + 0.2 * c12
+        expected = [9.81 * (2.0 * com1_x + 1.0 * com2_x), 9.81 * 1.0 * (com2_x - elbow_x)]
+        assert np.abs(robot.gravity_torques(q) - expected).max() <= IDENTITY_TOL
+    # M at q = 0 (the arm straight along x), each link's izz plus its mass at its COM's distance
+    # from the joint (the COMs at x = 0.2 m and 0.6 m; 0.2 m beyond the elbow), motor on M11
+    m22 = 0.008 + 1.0 * 0.2 ** 2
+    m12 = 0.008 + 1.0 * (0.2 ** 2 + 0.4 * 0.2)
+    m11 = 0.03 + 2.0 * 0.2 ** 2 + 0.008 + 1.0 * 0.6 ** 2 + 1e-4
+    assert np.abs(robot.mass_matrix(np.zeros(2)) - [[m11, m12], [m12, m22]]).max() <= IDENTITY_TOL
+
+
 def test_mass_matrix_symmetric_positive_definite(tmp_path):
     for robot in [*_small_arms(tmp_path).values(), _with_inertials(load_robot("iiwa14")),
                   _with_inertials(load_robot("snake12"))]:
