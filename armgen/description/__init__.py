@@ -1,9 +1,12 @@
 """The robot description, below every other layer: what a robot file or URDF says, in SI.
 
 - :mod:`~armgen.description.model`: :class:`Joint` and :class:`RobotDescription` (joints,
-  DH or URDF geometry, limits, speed limits ``qdlim``/``qddlim``, base and tool, named
-  configurations, task rows);
-- :mod:`~armgen.description.frames`: roll-pitch-yaw rotations, exact quarter-turn trigonometry;
+  DH or URDF geometry, limits, speed limits ``qdlim``/``qddlim``, torque limits ``taumax``,
+  base and tool, named configurations, task rows, gravity) and :class:`Inertial` (a link's
+  mass, centre of mass and inertia in its link frame);
+- :mod:`~armgen.description.frames`: roll-pitch-yaw rotations, exact quarter-turn
+  trigonometry, the axis alignment of a URDF joint's link frame;
+- :mod:`~armgen.description.inertia`: the validity of an inertia tensor, lumping bodies;
 - :mod:`~armgen.description.files`: the robot TOML reader and the bundled robots;
 - :mod:`~armgen.description.urdf`: the URDF chain reader; :mod:`~armgen.description.schema`:
   the robot file's pydantic schema.

@@ -6,7 +6,8 @@ One path per file: its bytes (read once) -> TOML -> the pydantic model of
 function per file kind, :func:`dh_description` or :func:`urdf_description`, which converts
 every length to metres and every angle to radians and cross-checks what needs the units or
 the URDF's chain (limits in order and within two turns, speed limits, magnitudes,
-configurations' lengths and limits, ``[limits]`` joint names). The returned
+configurations' lengths and limits, ``[limits]`` joint names); masses to kg and inertias to
+kg·m² (the schema checked that each tensor is some body's, unit-free). The returned
 :class:`~armgen.description.model.RobotDescription` is SI-only. Errors name the file, the
 joint and the field, and say how to fix them.
 
@@ -17,6 +18,7 @@ Format (validation rules: ``docs/input-files.md``; examples: the bundled files i
     [units]
     length = "m"                       # or "mm"
     angle = "deg"                      # or "rad"
+    mass = "kg"                        # or "g"
     [[joints]]
     name = "j1"                        # optional, default "j<i>"
     type = "revolute"                  # or "prismatic"
@@ -25,6 +27,10 @@ Format (validation rules: ``docs/input-files.md``; examples: the bundled files i
     alpha = 0.0
     offset = 0.0                       # optional, default 0
     qlim = [-170, 170]
+    mass = 1.2                         # optional, with com and inertia (on every joint or none)
+    com = [-0.25, 0, 0]                # in the link frame (DH frame i)
+    inertia = [0.001, 0.03, 0.03, 0, 0, 0]  # ixx iyy izz ixy ixz iyz about the COM ([units] mass x length^2)
+    taumax = 20                        # optional, N·m
     [tool]                             # optional, likewise [base]
     xyz = [0, 0, 0.1]
     rpy = [0, 0, 0]                    # R = Rz(yaw) Ry(pitch) Rx(roll)
