@@ -13,6 +13,8 @@ import pytest
 from click.testing import CliRunner
 from hypothesis import given, settings, strategies as st
 
+import armgen.planning.tasks
+from armgen import api
 from armgen.cli.main import cli
 from armgen.firmware.project import task_toml
 from armgen.planning.tasks import load_task
@@ -185,3 +187,33 @@ def test_firmware_project_reads_the_robot_and_the_task_once(tmp_path):
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     assert json.loads(done.stdout.splitlines()[-1]) == [1, 1]
+
+
+def test_a_task_for_another_robot_is_refused_before_it_is_planned(tmp_path, monkeypatch):
+    """The task names modular8, the project is iiwa14's: refused (exit 5, nothing written)
+    before any planning (the old code planned the whole circle first)."""
+    def never(*args, **kwargs):
+        raise AssertionError("planned a task for another robot")
+
+    monkeypatch.setattr(armgen.planning.tasks, "plan_configured", never)
+    out = CliRunner().invoke(cli, ["firmware", "iiwa14", "--task", str(EXAMPLES / "modular8_circle_pinv.toml"),
+                                   "--out", str(tmp_path / "fw")])
+    assert out.exit_code == 5, out.output
+    assert "robot 'modular8'" in out.output and "'iiwa14'" in out.output
+    assert not (tmp_path / "fw").exists()
+
+
+def test_api_firmware_project_takes_overrides_and_refuses_what_does_not_fit(tmp_path):
+    """armgen.api.firmware_project: --set values change the task the demo runs (here the PTP
+    step: 3 s at 20 ms, 150 ticks); both a task and a plan, or overrides without a task, are
+    an OptionError (exit 2) before anything is read."""
+    robot, paths = api.firmware_project("modular8", tmp_path / "fw", task=EXAMPLES / "modular8_ptp_two_segments.toml",
+                                        overrides=["step=0.02"])
+    assert robot.name == "modular8" and tmp_path / "fw" / "task" / "task_params.h" in paths
+    header = (tmp_path / "fw" / "task" / "task_params.h").read_text()
+    assert ".dt = CTRL_LIT(0.02)," in header and ".n_ticks = 150," in header
+    with pytest.raises(api.OptionError, match="--task or --plan"):
+        api.firmware_project("modular8", tmp_path / "x", task="t.toml", plan="p.csv")
+    with pytest.raises(api.OptionError, match="--set changes a task file"):
+        api.firmware_project("modular8", tmp_path / "x", overrides=["step=0.02"])
+    assert not (tmp_path / "x").exists()
