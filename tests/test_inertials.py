@@ -183,6 +183,9 @@ ERRORS = [
     (("com = [0, 5, -40]", "com = [0, 5, -4e7]"), r"joint 2 \('slide'\): field 'com' = .* is beyond ±1000 m"),
     (("com = [0, 5, -40]", "com = [0, 5]"), r"joint 2 \('slide'\): field 'com' must have at least 3 entries, got 2"),
     (("com = [0, 5, -40]", "com = [0, 5, nan]"), r"joint 2 \('slide'\): field 'com'\[2\] is nan; give a finite number"),
+    (("inertia = [1.0e6, 1.0e6, 5.0e5, 0, 0, 0]", "inertia = [3e-316, 3e-316, 2e-316, 0, 0, 0]"),
+     r"joint 2 \('slide'\): field 'inertia' = \[3e-316, 3e-316, 2e-316, 0.0, 0.0, 0.0\] is too small to hold in kg·m² .*"
+     r"\[units\] mass = \"g\" and length"),
     (("taumax = 40", "taumax = 0"), r"joint 1 \('shoulder'\): field 'taumax' = 0 must be > 0"),
     (("taumax = 40", "taumax = 1e9"), r"joint 1 \('shoulder'\): field 'taumax' = 1000000000.0 is beyond 1e\+07 N·m"),
     (("motor_inertia = 1.5e5", "motor_inertia = -1"), r"field 'motor_inertia' = -1 must be ≥ 0"),
@@ -403,3 +406,31 @@ def test_wrapper_sets_taumax_and_gravity(tmp_path):
     wrapper.write_text('urdf = "lumped.urdf"\n[limits]\nlift = { taumax = -1 }\n')
     with pytest.raises(RobotFileError, match=r"arm.toml: \[limits.lift\]: field 'taumax' = -1 must be > 0"):
         load_description(wrapper)
+
+
+_URDF_NUMBER = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([0.0, -0.0, 1e400, 1e-320]),
+                         st.integers(-10, 10)).map(str) | st.sampled_from(["", "x", "1 2", "nan"])
+
+
+@settings(max_examples=300, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(values=st.fixed_dictionaries({key: _URDF_NUMBER for key in ("mass", "ixx", "iyy", "izz", "ixy", "effort")}))
+def test_fuzzed_urdf_inertials_load_or_fail_cleanly(tmp_path_factory, values):
+    text = LUMPED
+    for key, old in (("mass", 'mass value="2"'), ("ixx", 'ixx="0.01"'), ("iyy", 'iyy="0.02"'), ("izz", 'izz="0.02"'),
+                     ("ixy", 'ixy="0" ixz="0" iyz="0"/></inertial></link>\n  <link name="flange"'),
+                     ("effort", 'effort="0"')):
+        head, _, rest = old.split('"', 2)  # the fuzzed value replaces the first attribute's
+        text = _set(text, old, f'{head}"{values[key]}"{rest}')
+    path = tmp_path_factory.mktemp("fuzz") / "lumped.urdf"
+    path.write_text(text)
+    try:
+        robot = read_urdf(path)
+    except RobotFileError as exc:
+        assert str(exc).startswith(str(path))
+        return
+    assert robot.joints[0].taumax > 0
+    if robot.has_dynamics:
+        inertial = robot.joints[0].inertial
+        assert inertial.mass > 0 and all(math.isfinite(v) for v in (*inertial.com, *inertial.inertia))
+    else:
+        assert robot.urdf["no_dynamics"]

@@ -56,6 +56,7 @@ from ..errors import RobotFileError, excerpt
 from ..schemas import (IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded,
                        read_input_file)
 from .frames import rpy_matrix, snap_quarter_turn
+from .inertia import inertia_problem
 from .model import (MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, MAX_INERTIA_KGM2, MAX_MASS_KG, MAX_REVOLUTE_LIMIT_RAD,
                     MAX_TORQUE, MIN_JOINT_RATE, MIN_MASS_KG, TASK_ROWS, Inertial, Joint, RobotDescription)
 from .schema import JointEntry, JointLimits, RobotFile, Transform, UrdfRobotFile
@@ -155,6 +156,9 @@ def _inertial(entry: JointEntry, where: str, length: float, mass_unit: str, sour
         if max(abs(v) for v in values) > MAX_INERTIA_KGM2:
             raise _fail(source, where, f"field '{key}' is beyond {MAX_INERTIA_KGM2:g} kg·m² (10 t at 1 m); its unit "
                                        f"is mass × length² ({units}): check the values")
+    if inertia_problem(inertia):  # the file's tensor is some body's: only an underflow to 0 in SI breaks it
+        raise _fail(source, where, f"field 'inertia' = {entry.inertia} is too small to hold in kg·m² ({inertia}); its "
+                                   f"unit is mass × length² ({units}): check the values")
     return Inertial(mass=si_mass, com=com, inertia=inertia, motor_inertia=motor)
 
 

@@ -48,22 +48,27 @@ def inertia_problem(inertia: Sequence[float], definite: bool = True) -> str | No
     ``definite``: every principal moment must be positive (a robot file's link); otherwise a
     point mass or a thin rod (zero moments, within ``INERTIA_ROUNDING``) is accepted too, as a
     URDF's lumped links may be."""
-    matrix = inertia_matrix(inertia)
+    given = inertia_matrix(inertia)
+    scale = float(np.abs(given).max())
+    if scale == 0.0:
+        return None if not definite else (f"is not positive definite (principal moments {_moments(given, 1.0)}): "
+                                          "every moment of inertia of a body is positive")
+    matrix = given / scale  # the rule is scale-free; this keeps every sum below far from overflow
     trace = float(np.trace(matrix))
-    if not definite and not matrix.any():
-        return None  # a point mass
     slack = INERTIA_ROUNDING * abs(trace) * np.eye(3)
     if not _positive_definite(matrix if definite else matrix + slack):
         return (f"is not positive {'definite' if definite else 'semidefinite'} (principal moments "
-                f"{_moments(matrix)}): every moment of inertia of a body is positive")
+                f"{_moments(matrix, scale)}): every moment of inertia of a body is positive")
     if not _positive_definite(0.5 * trace * np.eye(3) - matrix + 0.5 * slack):
-        return (f"has principal moments {_moments(matrix)}, the largest above the sum of the other two: no body has "
-                "such a tensor (the triangle inequality, e.g. ixx + iyy ≥ izz on the principal axes)")
+        return (f"has principal moments {_moments(matrix, scale)}, the largest above the sum of the other two: no body "
+                "has such a tensor (the triangle inequality, e.g. ixx + iyy ≥ izz on the principal axes)")
     return None
 
 
-def _moments(matrix: np.ndarray) -> str:
-    return "(" + ", ".join(f"{v:.6g}" for v in np.linalg.eigvalsh(matrix)) + ")"
+def _moments(matrix: np.ndarray, scale: float) -> str:
+    """The principal moments of ``scale · matrix``, for a message."""
+    with np.errstate(over="ignore"):
+        return "(" + ", ".join(f"{v * scale:.6g}" for v in np.linalg.eigvalsh(matrix)) + ")"
 
 
 def lump(parts: Sequence[tuple[float, np.ndarray, np.ndarray]]) -> tuple[float, np.ndarray, np.ndarray]:
