@@ -236,23 +236,34 @@ def _oblique_robot(tmp_path) -> Robot:
     return Robot.from_urdf(path)
 
 
+def _prismatic_dh(joint) -> object:
+    """``joint`` made prismatic with every DH parameter in use: a fixed angle θ, d, a, α off the
+    quarter turns and an offset."""
+    return dataclasses.replace(joint, type="prismatic", theta=0.4, d=0.05, a=0.1, alpha=0.7, offset=0.02,
+                               qlim=(-0.2, 0.3))
+
+
 def _small_arms(tmp_path) -> dict[str, Robot]:
-    """Three 3-joint arms: standard DH (planar3), modified DH (the Panda's first three rows),
-    and a URDF chain with an oblique revolute axis, a continuous joint and an oblique prismatic
-    joint (joints j2–j4 of OBLIQUE_URDF)."""
-    panda = load_robot("panda")
-    oblique = _oblique_robot(tmp_path)
-    return {"standard DH": _with_inertials(load_robot("planar3")),
-            "modified DH": _with_inertials(dataclasses.replace(panda, joints=panda.joints[:3])),
+    """Three 3-joint arms: standard DH (modular8's first rows: offsets, d, α = ±90°; a
+    prismatic middle joint; a turned and shifted base), modified DH (the Panda's first rows, a
+    prismatic last joint), and a URDF chain with an oblique revolute axis, a continuous joint
+    and an oblique prismatic joint (joints j2–j4 of OBLIQUE_URDF)."""
+    modular, panda, oblique = load_robot("modular8"), load_robot("panda"), _oblique_robot(tmp_path)
+    base = np.eye(4)
+    base[:3, :3], base[:3, 3] = _rotation(np.random.default_rng(SEED)), [0.1, -0.2, 0.3]
+    standard = dataclasses.replace(modular, joints=(modular.joints[0], _prismatic_dh(modular.joints[1]),
+                                                    modular.joints[2]), base=base)
+    modified = dataclasses.replace(panda, joints=(*panda.joints[:2], _prismatic_dh(panda.joints[2])))
+    return {"standard DH": _with_inertials(standard), "modified DH": _with_inertials(modified),
             "URDF": _with_inertials(dataclasses.replace(oblique, joints=oblique.joints[1:4]))}
 
 
 @pytest.mark.parametrize("kind", ["standard DH", "modified DH", "URDF"])
 def test_small_arms_match_lagrange_in_sympy(tmp_path, kind):
     robot = _small_arms(tmp_path)[kind]
+    assert [j.type for j in robot.joints].count("prismatic") == 1
     reference = sympy_lagrange_dynamics(robot)
     q, dq, ddq = _samples(robot, 20)
-    q = np.random.default_rng(SEED).uniform(-2.5, 2.5, q.shape) if kind != "URDF" else q
     for k in range(len(q)):
         M, c, g = reference(q[k], dq[k])
         assert _relative_error(robot.mass_matrix(q[k]), M) <= SYMPY_TOL
