@@ -36,18 +36,13 @@ import casadi as ca
 import numpy as np
 
 from ..description import RobotDescription
-from ..description.frames import axis_alignment, exact_cos_sin
+from ..description.frames import axis_alignment
 from ..errors import RobotFileError
+from .kinematics import _joint_motion, _rot_x_trans_x  # chain's own factors: the same frames
 
 DYNAMIC_FUNCTIONS = ("gravity", "rnea", "mass_matrix", "coriolis")
 
 _EZ = ca.SX(ca.DM([0.0, 0.0, 1.0]))
-
-
-def _rot_x_trans_x(alpha: float, a: float) -> np.ndarray:
-    """Rx(alpha) Tx(a) == Tx(a) Rx(alpha) (they commute)."""
-    ca_, sa = exact_cos_sin(alpha)
-    return np.array([[1.0, 0.0, 0.0, a], [0.0, ca_, -sa, 0.0], [0.0, sa, ca_, 0.0], [0.0, 0.0, 0.0, 1.0]])
 
 
 @dataclass(frozen=True)
@@ -124,22 +119,9 @@ def _links(robot: RobotDescription) -> tuple[_Transform, list[_Link]]:
 
 
 def _motions(robot: RobotDescription, q: ca.SX) -> list[_Transform]:
-    """Each ``J_i`` in its axis frame: ``Rz(θ) Tz(d)`` of the joint's variable (as in chain)."""
-    out = []
-    for i, joint in enumerate(robot.joints):
-        if joint.revolute:
-            co, so = exact_cos_sin(joint.offset)
-            cq, sq = ca.cos(q[i]), ca.sin(q[i])
-            c, s = cq * co - sq * so, sq * co + cq * so  # cos/sin(q + offset) without a second trig call
-            d = ca.SX(joint.d)
-        else:
-            c, s = exact_cos_sin(joint.theta)
-            c, s = ca.SX(c), ca.SX(s)
-            d = joint.d + joint.offset + q[i]
-        rotation = ca.SX.eye(3)
-        rotation[0, 0], rotation[0, 1], rotation[1, 0], rotation[1, 1] = c, -s, s, c
-        out.append(_Transform(rotation, ca.vertcat(0, 0, d)))
-    return out
+    """Each ``J_i`` in its axis frame: chain's ``Rz(θ) Tz(d)`` of the joint's variable."""
+    motions = [_joint_motion(joint, q[i]) for i, joint in enumerate(robot.joints)]
+    return [_Transform(motion[:3, :3], motion[:3, 3]) for motion in motions]
 
 
 def _child_acceleration(frame: _Transform, omega: ca.SX, domega: ca.SX, acc: ca.SX) -> ca.SX:
