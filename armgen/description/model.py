@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import RobotFileError
 from .frames import matrix_rpy
+from .inertia import inertia_matrix
 
 JOINT_TYPES = ("revolute", "prismatic")
 TASK_ROWS = ("vx", "vy", "vz", "wx", "wy", "wz")
@@ -67,8 +68,7 @@ class Inertial:
     @property
     def inertia_matrix(self) -> np.ndarray:
         """The 3×3 inertia tensor about the centre of mass (kg·m²), link-frame axes."""
-        ixx, iyy, izz, ixy, ixz, iyz = self.inertia
-        return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        return inertia_matrix(self.inertia)
 
 
 @dataclass(frozen=True)
