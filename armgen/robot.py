@@ -2,7 +2,8 @@
 
 :class:`Robot` is a :class:`~armgen.description.RobotDescription` (joints, limits, base, tool,
 configurations) plus the models derived from it and the methods that evaluate them: forward
-kinematics, Jacobians, the redundancy criteria and the inverse kinematics. The models (the
+kinematics, Jacobians, the redundancy criteria, the inverse kinematics and, for a robot with
+inertials, the rigid-body dynamics (docs/dynamics.md). The models (the
 symbolic model of :mod:`armgen.symbolic` with its IK definition, the NumPy evaluators) are
 built on first use and held here, never by the description, which stays plain data. This
 module sits above the symbolic core, which takes the description and never this module
