@@ -115,7 +115,8 @@ def test_task_toml_round_trips_a_program():
 TOML_SCALARS = st.one_of(st.booleans(), st.integers(-2 ** 63, 2 ** 63 - 1), st.floats(allow_nan=False),
                          st.text(max_size=8))
 TOML_VALUES = st.recursive(TOML_SCALARS, lambda inner: st.one_of(st.lists(inner, max_size=3),
-                                                                 st.dictionaries(st.text(max_size=6), inner, max_size=3)),
+                                                                 st.dictionaries(st.text(max_size=6), inner,
+                                                                                 max_size=3)),
                            max_leaves=10)
 
 

@@ -1,6 +1,7 @@
-"""The C text of the controller's task (task_params.h) lives in armgen/data/templates/firmware/
-(issue 36): Python supplies the values only. Every template is one some adapter renders, and
-a template filled with a value missing, or with one it has no place for, is refused."""
+"""The C text of the controller's task (task_params.h, a program's table) lives in
+armgen/data/templates/firmware/ (issue 36): Python supplies the values only. Every template is
+one armgen.firmware renders, and a template filled with a value missing, or with one it has no
+place for, is refused."""
 
 from __future__ import annotations
 
@@ -21,7 +22,9 @@ def test_every_template_is_used_and_ends_with_one_line_break():
     names = sorted(t.name for t in FIRMWARE_TEMPLATES.iterdir() if t.is_file())
     assert "task_params.h" in names
     for name in names:
-        assert f'"{name}"' in python, f"no adapter renders {name}"
+        row = name.startswith("program_") and name.endswith(".c")  # a program table's row: _row("<kind>", ...)
+        used = f'_row("{name[len("program_"):-len(".c")]}"' in python if row else f'{name}"' in python
+        assert used, f"nothing in armgen/firmware renders {name}"
         text = (FIRMWARE_TEMPLATES / name).read_text(encoding="utf-8")
         assert text.endswith("\n") and not text.endswith("\n\n"), name
         assert not re.search(r"\$(?![A-Za-z_{]|\$)", text), f"{name}: a stray $"
@@ -32,4 +35,5 @@ def test_a_missing_or_an_unused_value_is_refused():
         template("task_lock.h", lock_mask=0)
     with pytest.raises(TypeError, match="extra"):
         template("task_lock.h", lock_mask=0, lock_tick=-1, extra=1)
-    assert template("task_lock.h", lock_mask=3, lock_tick=7).endswith("fw_lock_mask = 3u;\nconst int32_t fw_lock_tick = 7;")
+    lines = template("task_lock.h", lock_mask=3, lock_tick=7)
+    assert lines.endswith("fw_lock_mask = 3u;\nconst int32_t fw_lock_tick = 7;")

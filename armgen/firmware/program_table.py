@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..data import render_template
 from ..planning.toolpath.geometry import Arc, Corner, Line, Piece, PoseSpline, Trimmed
 from ..planning.toolpath.timelaw import PathProfile, ProgramMotion
 from .errors import FirmwareError
@@ -78,6 +79,11 @@ def _lits(values) -> str:
     return c_reals(values, "the program table's number")
 
 
+def _row(kind: str, /, **values: object) -> str:
+    """One initialiser of a table's array (``armgen/data/templates/firmware/program_<kind>.c``)."""
+    return render_template(f"firmware/program_{kind}.c", **values)
+
+
 def _nested(values: np.ndarray) -> str:
     """Braced initialiser of a (nested) array."""
     values = np.asarray(values, dtype=float)
@@ -106,7 +112,7 @@ class _Table:
         u, w, slope = curve.map_nodes
         first = len(self.maps)
         self.increasing.append((f"the path-length map of piece {len(self.pieces)}: rows", u))
-        self.maps += [f"{{{_lit(a)}, {_lit(b)}, {_lit(c)}}}" for a, b, c in zip(u, w, slope)]
+        self.maps += [_row("map", u=_lit(a), w=_lit(b), slope=_lit(c)) for a, b, c in zip(u, w, slope)]
         return first, len(self.maps) - first
 
     def add(self, piece: Piece, start: float) -> None:
@@ -114,20 +120,22 @@ class _Table:
         if isinstance(raw, Line):
             kind, index = "line", len(self.lines)
             o = raw.orientation
-            self.lines.append(f"{{{_lits(raw.p0)}, {_lits(raw.direction)}, {_lit(raw.length)}, "
-                              f"{_lits(o.r0.as_quat())}, {_lits(o.rotvec)}, {_lits(o.omega / raw.length)}}}")
+            self.lines.append(_row("line", p0=_lits(raw.p0), direction=_lits(raw.direction), length=_lit(raw.length),
+                                   quaternion=_lits(o.r0.as_quat()), rotvec=_lits(o.rotvec),
+                                   omega=_lits(o.omega / raw.length)))
         elif isinstance(raw, Arc):
             kind, index = "arc", len(self.arcs)
             o = raw.orientation
-            self.arcs.append(f"{{{_lits(raw.centre)}, {_lit(raw.radius)}, {_lits(raw.e1)}, {_lits(raw.e2)}, "
-                             f"{_lit(raw.length)}, {_lits(o.r0.as_quat())}, {_lits(o.rotvec)}, "
-                             f"{_lits(o.omega / raw.length)}}}")
+            self.arcs.append(_row("arc", centre=_lits(raw.centre), radius=_lit(raw.radius), e1=_lits(raw.e1),
+                                  e2=_lits(raw.e2), length=_lit(raw.length), quaternion=_lits(o.r0.as_quat()),
+                                  rotvec=_lits(o.rotvec), omega=_lits(o.omega / raw.length)))
         elif isinstance(raw, Corner):
             kind, index = "corner", len(self.corners)
             o, ctrl = raw.orientation, raw.control
             first, count = self._map(raw)
-            self.corners.append(f"{{{_nested(ctrl)}, {_nested(np.diff(ctrl, axis=0))}, {_lits(o.r0.as_quat())}, "
-                                f"{_lits(o.rotvec)}, {_lits(o.omega)}, {first}, {count}}}")
+            self.corners.append(_row("corner", control=_nested(ctrl), differences=_nested(np.diff(ctrl, axis=0)),
+                                     quaternion=_lits(o.r0.as_quat()), rotvec=_lits(o.rotvec), omega=_lits(o.omega),
+                                     first_map=first, maps=count))
         elif isinstance(raw, PoseSpline):
             kind, index = "spline", len(self.splines)
             first, count = self._map(raw)
@@ -138,15 +146,19 @@ class _Table:
             quats = rot.rotations.as_quat()
             self.increasing.append((f"the pose spline of piece {len(self.pieces)}: knots", spline.x[:-1]))
             for i in range(len(spline.x) - 1):
-                self.knots.append(f"{{{_lit(spline.x[i])}, {_lits(quats[i])}, {_nested(spline.c[:, i, :])}, "
-                                  f"{_nested(rot.interpolator.c[:3, i, :])}}}")
-            self.splines.append(f"{{{first}, {count}, {knot}, {len(self.knots) - knot}}}")
+                self.knots.append(_row("knot", x=_lit(spline.x[i]), quaternion=_lits(quats[i]),
+                                       position=_nested(spline.c[:, i, :]),
+                                       rotvec=_nested(rot.interpolator.c[:3, i, :])))
+            self.splines.append(_row("spline", first_map=first, maps=count, first_knot=knot,
+                                     knots=len(self.knots) - knot))
         else:
             raise FirmwareError(f"the program holds a {type(raw).__name__} piece, which the on-board evaluator "
                                 "cannot encode")
-        self.pieces.append(f"{{{PIECE_KINDS[kind]}, {index}, {_lit(start)}, {_lit(u0)}, {_lit(piece.length)}}}")
+        self.pieces.append(_row("piece", kind=PIECE_KINDS[kind], index=index, start=_lit(start), u0=_lit(u0),
+                                length=_lit(piece.length)))
 
 
+ROW_SEPARATOR = ",\n  "  # one initialiser per line in an array
 _ARRAYS = (  # (attribute of _Table and array suffix, C type, size macro)
     ("pieces", "fw_program_piece", "FW_PROGRAM_PIECES"),
     ("lines", "fw_program_line", "FW_PROGRAM_LINES"),
@@ -189,26 +201,20 @@ def program_table_c(motion: ProgramMotion, name: str = "fw_program_table") -> st
     _check_float_resolution(name, [("time-law segments", np.append(seg.t, profile.duration)),
                                    ("time-law segments (path length)", np.append(seg.s, program.length)),
                                    ("pieces", program.starts), *table.increasing])
-    out = [f"/* Program table {name}: {len(program.moves)} moves, {len(program.pieces)} pieces, "
-           f"{len(profile.s) - 1} time-law cells merged into {len(seg.t)} segments; "
-           f"length {program.length!r} m, duration {profile.duration!r} s. Generated by armgen. */",
-           f"#define FW_PROGRAM_SEGMENTS {len(seg.t)}"]
-    out += [f"#define {macro} {len(getattr(table, attr))}" for attr, _, macro in _ARRAYS]
-    rows = [f"{{{_lit(t)}, {_lit(s)}, {_lit(v)}, {_lit(a)}}}" for t, s, v, a in zip(seg.t, seg.s, seg.v, seg.a)]
-    out.append(f"static const fw_program_segment {name}_segments[FW_PROGRAM_SEGMENTS] = {{\n  "
-               + ",\n  ".join(rows) + "\n};")
-    pointers = {}
+    rows = [_row("segment", t=_lit(t), s=_lit(s), v=_lit(v), a=_lit(a))
+            for t, s, v, a in zip(seg.t, seg.s, seg.v, seg.a)]
+    arrays, counts, pointers = [], {}, {}
     for attr, ctype, macro in _ARRAYS:
         items = getattr(table, attr)
+        counts[f"n_{attr}"] = len(items)
         if not items:  # C has no empty arrays: the pointer is NULL and the count 0
-            pointers[attr] = "NULL"
+            pointers[f"{attr}_array"] = "NULL"
             continue
-        out.append(f"static const {ctype} {name}_{attr}[{macro}] = {{\n  " + ",\n  ".join(items) + "\n};")
-        pointers[attr] = f"{name}_{attr}"
-    out.append(
-        f"static const fw_program {name} = {{\n"
-        f"  {_lit(profile.duration)}, {_lit(program.length)},\n"
-        f"  FW_PROGRAM_SEGMENTS, {name}_segments,\n"
-        + "".join(f"  {macro}, {pointers[attr]},\n" for attr, _, macro in _ARRAYS)
-        + "};")
-    return "\n".join(out) + "\n"
+        arrays.append(render_template("firmware/program_array.h", ctype=ctype, name=name, attr=attr, macro=macro,
+                                      items=ROW_SEPARATOR.join(items)) + "\n")
+        pointers[f"{attr}_array"] = f"{name}_{attr}"
+    return render_template("firmware/program_table.h", name=name, moves=len(program.moves), pieces=len(program.pieces),
+                           cells=len(profile.s) - 1, segments=len(seg.t), length=repr(program.length),
+                           duration=repr(profile.duration), segment_rows=ROW_SEPARATOR.join(rows),
+                           arrays="".join(arrays), duration_literal=_lit(profile.duration),
+                           length_literal=_lit(program.length), **counts, **pointers) + "\n"

@@ -37,7 +37,8 @@ def firmware_task(config, source: str) -> FirmwareTask:
         path = program_path(config.duration)
     else:
         axis, angle = _rotation(config)
-        path = geometric_path(config.path_type, config.via, config.end, axis, angle, config.duration, config.law, source)
+        path = geometric_path(config.path_type, config.via, config.end, axis, angle, config.duration, config.law,
+                              source)
     # .damping = 0 in the template: the planner damps only below σ_min = ε, which no bundled
     # plan reaches; plans that used damping are refused (refusal: summary.damped_steps > 0).
     fields = template("resolved_rate.h", common=common_fields(robot, "CTRL_MODE_RESOLVED_RATE", config.step,

@@ -42,7 +42,8 @@ def firmware_task(config, source: str) -> FirmwareTask:
                       lambda_max=c_real(path.damping_max))
     comment = template("fault_tolerant_comment.txt", path=path.path_type, turns=number(path.turns), method=m.label,
                        index=m.index, step=number(path.step), steps=steps,
-                       locked=", ".join(robot.joints[j].name for j in config.fault.joints) or "none", lock_tick=lock_tick)
+                       locked=", ".join(robot.joints[j].name for j in config.fault.joints) or "none",
+                       lock_tick=lock_tick)
     header = task_header(robot, source, fields, comment, lock_tick, lock_mask, program_tables(path.motion))
     return FirmwareTask(robot, "fault_tolerant", header, path.step, steps, source, path.output_every,
                         lock_tick=lock_tick, lock_mask=lock_mask)

@@ -1,0 +1,1 @@
+{$centre, $radius, $e1, $e2, $length, $quaternion, $rotvec, $omega}

@@ -1,0 +1,3 @@
+static const $ctype ${name}_$attr[$macro] = {
+  $items
+};

@@ -1,0 +1,1 @@
+{$control, $differences, $quaternion, $rotvec, $omega, $first_map, $maps}

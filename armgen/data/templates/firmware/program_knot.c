@@ -1,0 +1,1 @@
+{$x, $quaternion, $position, $rotvec}

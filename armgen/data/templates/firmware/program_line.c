@@ -1,0 +1,1 @@
+{$p0, $direction, $length, $quaternion, $rotvec, $omega}

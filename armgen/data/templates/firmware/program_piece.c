@@ -1,0 +1,1 @@
+{$kind, $index, $start, $u0, $length}

@@ -1,0 +1,1 @@
+{$first_map, $maps, $first_knot, $knots}
