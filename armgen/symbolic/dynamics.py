@@ -135,7 +135,6 @@ class _Chain:
 
     def __init__(self, robot: RobotDescription, q: ca.SX):
         require_dynamics(robot)
-        self.robot = robot
         self.base, self.links = _links(robot)
         self.motions = _motions(robot, q)
         self.gravity = self.base.rotate_in(ca.SX(ca.DM(np.asarray(robot.gravity, dtype=float))))
@@ -209,7 +208,7 @@ class _Chain:
                 M[i, j] = M[j, i]
         return M
 
-    def _inertia_to_parent(self, i: int, mass, first: ca.SX, second: ca.SX) -> tuple:
+    def _inertia_to_parent(self, i: int, mass: ca.SX, first: ca.SX, second: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         """(m, h, I_o) about J_i's origin → about J_{i-1}'s origin, J_{i-1} axes:
         h' = R h + m p, I_o' = R I_o Rᵀ − m [p]×² − [p]×[R h]× − [R h]×[p]×."""
         for frame in (self.motions[i], self.links[i].fixed):
