@@ -28,7 +28,7 @@ if TYPE_CHECKING:  # heavy imports only for type checkers
     from matplotlib.figure import Figure
 
     from .planning.result import PlanResult
-    from .planning.tasks import Task, TaskDocument
+    from .planning.tasks import ResourceCaps, Task, TaskDocument
 
 __all__ = ["Robot", "load_robot", "read_task_document", "read_task", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport",
            "parse_override", "read_plan", "plan_metadata_path", "figure_format", "save_plot", "parse_frame_size",
@@ -168,7 +168,7 @@ def read_task_document(task: str | Path | dict[str, Any], **overrides: Any) -> T
 
 
 def read_task(task: str | Path | dict[str, Any] | TaskDocument | Task, *, for_robot: Robot | None = None,
-              **overrides: Any) -> Task:
+              caps: ResourceCaps | None = None, **overrides: Any) -> Task:
     """Read a task once: the file (or dict) with its overrides, validated by its planner's
     schema, its robot loaded, and the planner's typed SI configuration made.
 
@@ -183,6 +183,9 @@ def read_task(task: str | Path | dict[str, Any] | TaskDocument | Task, *, for_ro
         (:class:`~armgen.errors.RobotMismatchError`, exit code 5, otherwise), and used instead of
         loading the task's robot file again. (Not ``robot``: that is the task field an override
         may set.)
+    caps
+        Caps on integration steps and output rows, checked from the validated task before its
+        robot is loaded (default: :class:`~armgen.planning.tasks.ResourceCaps`).
     **overrides
         Task fields to replace, as in :func:`read_task_document`.
 
@@ -199,7 +202,7 @@ def read_task(task: str | Path | dict[str, Any] | TaskDocument | Task, *, for_ro
     RobotMismatchError
         The task names another robot than ``for_robot`` (exit code 5).
     """
-    from .planning.tasks import Task, TaskDocument, configure_task
+    from .planning.tasks import ResourceCaps, Task, TaskDocument, configure_task
 
     if isinstance(task, Task):
         if overrides or for_robot is not None:
@@ -209,7 +212,7 @@ def read_task(task: str | Path | dict[str, Any] | TaskDocument | Task, *, for_ro
         task = read_task_document(task, **overrides)
     elif overrides:
         raise OptionError("overrides change a task file: apply them with read_task_document")
-    return configure_task(task.document, task.source, task.sha256, for_robot)
+    return configure_task(task.document, task.source, task.sha256, for_robot, caps or ResourceCaps())
 
 
 def plan(task: str | Path | dict[str, Any] | TaskDocument | Task, backend: str = "symbolic", *,
@@ -243,10 +246,9 @@ def plan(task: str | Path | dict[str, Any] | TaskDocument | Task, backend: str =
     """
     from .planning.tasks import ResourceCaps, plan_configured
 
-    configured = read_task(task, **overrides)
     caps = ResourceCaps()
     caps = ResourceCaps(max_steps or caps.max_steps, max_samples or caps.max_samples)
-    return Plan(plan_configured(configured, backend, caps))
+    return Plan(plan_configured(read_task(task, caps=caps, **overrides), backend, caps))
 
 
 # -- code generation ----------------------------------------------------------------------------

@@ -191,11 +191,14 @@ def task_robot(model: Any, source: str, robot: Robot | None = None) -> Robot | N
     return robot if robot is not None else named
 
 
-def configure_task(task: dict[str, Any], source: str, sha256: str = "", robot: Robot | None = None) -> Task:
-    """Validate ``task`` (a task file's document, overrides applied), load its robot once (or
-    check it names ``robot``) and make its planner's typed SI configuration."""
+def configure_task(task: dict[str, Any], source: str, sha256: str = "", robot: Robot | None = None,
+                   caps: ResourceCaps = ResourceCaps()) -> Task:
+    """Validate ``task`` (a task file's document, overrides applied), refuse a workload beyond
+    ``caps`` (before anything is loaded), load its robot once (or check it names ``robot``) and
+    make its planner's typed SI configuration."""
     model = validate_task(task, source)
     spec = planner(task["planner"], source)
+    check_caps(spec, model, caps, source)
     config = spec.configure(model, task_robot(model, source, robot), source)
     return Task(spec, model, config, source, sha256, task)
 
@@ -241,7 +244,7 @@ def plan_configured(task: Task, backend: str = "symbolic", caps: ResourceCaps = 
 def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: str = "symbolic",
              caps: ResourceCaps = ResourceCaps(), robot: Robot | None = None) -> PlanResult:
     """Configure ``task`` (:func:`configure_task`) and plan it (:func:`plan_configured`)."""
-    return plan_configured(configure_task(task, source, task_sha256, robot), backend, caps)
+    return plan_configured(configure_task(task, source, task_sha256, robot, caps), backend, caps)
 
 
 def plot_plan(result: PlanResult, source: str, robot=None):
