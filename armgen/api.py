@@ -32,7 +32,7 @@ if TYPE_CHECKING:  # heavy imports only for type checkers
 
 __all__ = ["Robot", "load_robot", "read_task_document", "read_task", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport",
            "parse_override", "read_plan", "plan_metadata_path", "figure_format", "save_plot", "parse_frame_size",
-           "animate", "sweep", "solve_ik", "IkSolution", "generate_ptp", "json_schema", "write_text_atomic",
+           "animate_plan", "sweep", "solve_ik", "IkSolution", "generate_ptp", "json_schema", "write_text_atomic",
            "firmware_project", "firmware_task",
            # the errors every call may raise, each with its command-line exit code
            "ArmgenError", "RobotFileError", "TaskFileError", "PlanningError", "ToolchainError", "VerificationError",
@@ -452,7 +452,7 @@ def parse_frame_size(text: str) -> tuple[int, int]:
     return parse_size(text)
 
 
-def animate(plan: Plan, out: str | Path, fps: float | None = None, duration: float | None = None,
+def animate_plan(plan: Plan, out: str | Path, fps: float | None = None, duration: float | None = None,
             size: tuple[int, int] | None = None, robot: Robot | str | Path | None = None,
             plan_file: str | Path | None = None) -> Path:
     """Render the arm moving through a plan, as ``armgen animate`` does; returns the path written.

@@ -25,10 +25,10 @@ def animate_cmd(plan_csv: str, output: str | None, fps: float, duration: float |
                 robot: str | None) -> None:
     """Draw the arm moving through a plan: links between the joint frames (the arm's own forward
     kinematics), the tool frame, the planned path, snake obstacles, and a time stamp."""
-    from ..api import animate, parse_frame_size
+    from ..api import animate_plan, parse_frame_size
 
     pixels = parse_frame_size(size)  # a bad --size fails before any work
     out = Path(output) if output is not None else Path(plan_csv).with_suffix(".gif")
     plan = plan_with_metadata(plan_csv, robot, "animate")
-    animate(plan, output if output is not None else out, fps, duration, pixels, robot, plan_csv)
+    animate_plan(plan, output if output is not None else out, fps, duration, pixels, robot, plan_csv)
     click.echo(f"wrote {out}")
