@@ -177,13 +177,6 @@ def program_tables(motion: ProgramMotion | None) -> str:
     return "" if motion is None else program_table_c(motion, PROGRAM_TABLE) + "\n\n"
 
 
-def need_motion(motion: ProgramMotion | None, source: str) -> ProgramMotion:
-    """A program task's time law: the plan's (a program is run as planned, never from its task alone)."""
-    if motion is None:
-        raise FirmwareError(f"{source}: a program task needs its plan's time law; plan it first (armgen plan)")
-    return motion
-
-
 def sample_column(joint) -> str:
     """The plan column of a joint's samples (the snake planner's naming): <name>_m for a
     prismatic joint, <name>_rad for a revolute one."""

@@ -122,7 +122,7 @@ def refusal(plan: PlanResult) -> str | None:
 def task_from_file(source: str | Path, robot: Robot | None = None, overrides: Sequence[str] = ()) -> FirmwareTask:
     """The controller task of a task file (.toml, with ``--set`` overrides) or a plan CSV (with
     its plan.json); ``robot``, when given, must be the task's (checked when it is configured:
-    a :class:`TaskFileError`)."""
+    a :class:`~armgen.errors.RobotMismatchError`)."""
     src = Path(source)
     if src.suffix == ".csv":
         if overrides:
