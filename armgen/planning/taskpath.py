@@ -15,17 +15,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Callable
 
 import casadi as ca
 import numpy as np
 
 from ..errors import TaskFileError, excerpt
 from ..robot import Robot
+from .backends import make_backend
 from .common.path import WHOLE_STEP_SLACK, PathGeometry, check_step, path_geometry, program_task, timing_law
 from .common.start import start_configuration, unit_scales
 from .common.symbolic import sym_orientation_error, sym_rpy
+from .result import PlanResult
 from .toolpath.accuracy import PathAccuracy, path_tolerance
+from .toolpath.limits import plan_with_speed_limits
 from .toolpath.paths import TimeLaw
 from .toolpath.schema import ProgramPath
 from .toolpath.task import ProgramSpec
@@ -188,3 +191,22 @@ def path_metadata(task: PathTask) -> dict[str, Any]:
                        "clik_gain": task.clik_gain if task.clik else 0.0, "open_loop": not task.clik},
         "damping": {"epsilon": task.damping_epsilon, "lambda_max": task.damping_max},
     }
+
+
+def plan_path_task(config: Any, backend: str, planner: Callable[..., Any]) -> PlanResult:
+    """The plan of a task whose ``path`` is a :class:`PathTask` (fault_tolerant, wgpm) by
+    ``planner(task, backend=...)``'s ``run()``: a program is slowed where a joint would exceed its
+    speed limits and the integrator step halved to meet a stated path tolerance
+    (toolpath.accuracy); ``result.config`` is the task as planned (the step and, for a program,
+    the motion used)."""
+    shared = make_backend(config.robot, backend)
+    path = config.path
+
+    def run(motion, step):
+        stepped = replace(path, step=step)
+        planned = replace(config, path=stepped if motion is None else stepped.with_motion(motion))
+        return planner(planned, backend=shared).run()
+
+    result, _ = plan_with_speed_limits(run, path.motion, path.program and path.program.angular_speed, config.robot,
+                                       config.source, path.accuracy, path.duration)
+    return result

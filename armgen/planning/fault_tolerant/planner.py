@@ -42,9 +42,9 @@ from ...progress import progress
 from ..backends import Backend, make_backend
 from ..limits import limit_report
 from ..result import PlanResult
-from ..taskpath import (TIMED_WIDTH, TaskPath, base_columns, path_metadata,
+from ..taskpath import (TIMED_WIDTH, TaskPath, base_columns, path_metadata, plan_path_task,
                        smoothness, sym_base_row, sym_tracking)
-from ..toolpath.limits import SelfMotionLimiter, plan_with_speed_limits
+from ..toolpath.limits import SelfMotionLimiter
 from .reach import srs_reach_check
 from .config import FaultMethod, FaultSpec, FaultTolerantTask
 
@@ -360,17 +360,5 @@ class FaultTolerantPlanner:
 
 
 def plan(config: FaultTolerantTask, backend: str = "symbolic") -> PlanResult:
-    """The task's plan; a program is slowed where a joint would exceed its speed limits and the
-    integrator step halved to meet a stated path tolerance (toolpath.accuracy).
-    ``result.config`` is the task as planned (the step and, for a program, the motion used)."""
-    shared = make_backend(config.robot, backend)
-    path = config.path
-
-    def run(motion, step):
-        stepped = replace(path, step=step)
-        planned = replace(config, path=stepped if motion is None else stepped.with_motion(motion))
-        return FaultTolerantPlanner(planned, backend=shared).run()
-
-    result, _ = plan_with_speed_limits(run, path.motion, path.program and path.program.angular_speed, config.robot,
-                                       config.source, path.accuracy, path.duration)
-    return result
+    """The task's plan (:func:`~armgen.planning.taskpath.plan_path_task`)."""
+    return plan_path_task(config, backend, FaultTolerantPlanner)
