@@ -1,8 +1,9 @@
 """Schema of a plan's metadata (``plan.json``) as :func:`armgen.planning.result.read_plan`
 reads it. The fields every plan has are typed, and so are the summary's figures that every
-planner reports (joint limits, joint speeds, run time, path accuracy); each planner adds its
-own result blocks (``robot``, ``comparison``, ...) and summary figures, kept as they are because
-only that planner's figure and the firmware's adapter of that planner read them.
+planner reports (joint limits, joint speeds, joint torques, run time, path accuracy); each
+planner adds its own result blocks (``robot``, ``comparison``, ...) and summary figures, kept
+as they are because only that planner's figure and the firmware's adapter of that planner read
+them.
 
 Formats (``format``): 1 — no ``format`` field (armgen before issue 36); 2 — ``format = 2``,
 otherwise the same blocks. A reader takes every format up to :data:`PLAN_FORMAT`."""
@@ -63,6 +64,35 @@ class JointSpeed(_Block):
     beyond_speed_limits: list[dict[str, Any]] = Field(default_factory=list)
 
 
+class TorqueExcess(_Block):
+    """A joint whose plan needs more than its ``taumax`` (one entry of
+    ``summary.joint_torque.beyond_torque_limits``): its peak torque and when."""
+
+    joint: StrictStr
+    torque: float
+    taumax: float
+    ratio: float
+    t_s: float
+    unit: Literal["N·m", "N"]
+
+
+class JointTorque(_Block):
+    """The plan's joint torques (inverse dynamics at the samples) against the joints' ``taumax``
+    (``summary.joint_torque``, a robot with inertials only); ``computed`` is false, with the
+    ``reason``, for a plan whose columns do not give every joint's position and rate."""
+
+    computed: bool
+    reason: Optional[StrictStr] = None
+    acceleration_rule: Optional[StrictStr] = None
+    peak_torque: Optional[list[float]] = None  # N·m (N for a prismatic joint), per joint
+    peak_torque_t_s: Optional[list[float]] = None
+    taumax: Optional[PerJoint] = None
+    peak_torque_ratio: Optional[PerJoint] = None
+    max_torque_ratio: Optional[JsonFloat] = None
+    within_torque_limits: Optional[bool] = None
+    beyond_torque_limits: list[TorqueExcess] = Field(default_factory=list)
+
+
 class PathAccuracy(_Block):
     """How far the tool left its path, and the integrator step that kept it within the tolerance."""
 
@@ -80,6 +110,7 @@ class PlanSummary(_Block):
     limit_violations: list[LimitViolation] = Field(default_factory=list)
     joint_speed: Optional[JointSpeed] = None
     path_accuracy: Optional[PathAccuracy] = None
+    joint_torque: Optional[JointTorque] = None
 
 
 class PlanMetadata(BaseModel):

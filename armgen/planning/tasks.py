@@ -21,6 +21,7 @@ from ..description import bundled_robots, resolve_robot_path
 from ..schemas import (MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, format_validation_error, parse_toml_bounded,
                        read_input_file)
 from .limits import enforce_limits, enforce_speed_limits
+from .torque import enforce_torque_limits, planned_robot, torque_report
 from ..robot import Robot, load_robot
 from .registry import Planner, planner
 from .result import PlanResult, first_invalid_sample
@@ -205,7 +206,8 @@ def configure_task(task: dict[str, Any], source: str, sha256: str = "", robot: R
 
 def plan_configured(task: Task, backend: str = "symbolic", caps: ResourceCaps = ResourceCaps()) -> PlanResult:
     """Plan a configured task (caps checked first), and reject a plan with a non-finite sample
-    or (policy ``[check] limits = "error"``) one that leaves the joints' limits."""
+    or (policy ``[check] limits = "error"``) one that leaves the joints' limits (position, speed,
+    and for a robot with inertials, torque: ``summary.joint_torque``)."""
     source = task.source
     check_caps(task.planner, task.model, caps, source)
     started = time.perf_counter()
@@ -225,6 +227,11 @@ def plan_configured(task: Task, backend: str = "symbolic", caps: ResourceCaps = 
     summary = result.metadata.get("summary", {})  # every planner's task has [check] limits
     enforce_limits(summary.get("limit_violations", []), task.model.check.limits, source)
     enforce_speed_limits(summary.get("joint_speed"), task.model.check.limits, source, task.planner.name)
+    robot = planned_robot(task.config)
+    torque = None if robot is None else torque_report(robot, result.columns, result.data)
+    if torque is not None:  # a robot with inertials (docs/dynamics.md, "Torque limits in planning")
+        result.metadata.setdefault("summary", {})["joint_torque"] = torque
+    enforce_torque_limits(torque, task.model.check.limits, source, task.planner.name)
     meta = {
         "armgen_version": __version__,
         "task_file": source,
