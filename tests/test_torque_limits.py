@@ -19,7 +19,8 @@ from armgen.cli.main import cli
 from armgen.errors import PlanningError
 from armgen.planning.plan_schema import JointTorque
 from armgen.planning.tasks import configure_task, load_task, run_task
-from armgen.planning.torque import DIFFERENCE_RULE, PLAN_ACCELERATION_RULE, planned_robot, torque_report
+from armgen.planning.torque import (DIFFERENCE_RULE, PLAN_ACCELERATION_RULE, SINGLE_SAMPLE_RULE, planned_robot,
+                                   torque_report)
 from armgen.robot import load_robot, parse_robot
 
 pin = pytest.importorskip("pinocchio")
@@ -197,6 +198,15 @@ def test_a_plan_without_joint_columns_says_so(arm_file):
     assert report is not None and report["computed"] is False and "no joint torques" in report["reason"]
     assert JointTorque.model_validate(report).beyond_torque_limits == []
 
+
+
+def test_a_plan_of_one_sample_needs_the_gravity_torques(arm_file):
+    robot = load_robot(arm_file())
+    q = np.radians([20.0, -30.0, 50.0])
+    report = torque_report(robot, ["t_s", "q1_rad", "q2_rad", "q3_rad", "dq1_rad_s", "dq2_rad_s", "dq3_rad_s"],
+                           np.concatenate([[0.0], q, np.zeros(3)])[None, :])
+    assert report["acceleration_rule"] == SINGLE_SAMPLE_RULE
+    assert report["peak_torque"] == pytest.approx(np.abs(closed_form_gravity(q)), rel=PEAK_RTOL)
 
 def test_robots_without_inertials_get_no_torque_block():
     result = run_task(line_task(Path(load_robot("planar3").path), 1.0), "line.toml")

@@ -37,8 +37,10 @@ UNIT_SUFFIXES = (("_rad", "_rad_s", "_rad_s2"), ("_m", "_m_s", "_m_s2"))
 
 PLAN_ACCELERATION_RULE = "the plan's own q̈ columns (the planner's closed form at the samples)"
 DIFFERENCE_RULE = "central differences of the plan's q̇ columns over t (numpy.gradient; one-sided at the ends)"
-NO_JOINT_COLUMNS = ("the plan's columns do not give every robot joint's position and rate (q{k}_rad / dq{k}_rad_s "
-                    "or theta_<joint>_rad / omega_<joint>_rad_s), so no joint torques were computed")
+SINGLE_SAMPLE_RULE = "a plan of one sample holds its pose: q̈ = 0 (no differences to take)"
+NO_JOINT_COLUMNS = ("the plan's columns do not give the time t_s and every robot joint's position and rate "
+                    "(q{k}_rad / dq{k}_rad_s or theta_<joint>_rad / omega_<joint>_rad_s), so no joint torques "
+                    "were computed")
 
 # A ratio up to this counts as within the limit: the rounding of the inverse dynamics' sums
 # (a plan tuned to exactly taumax is feasible).
@@ -88,14 +90,16 @@ def torque_report(robot: Robot, columns: list[str], data: np.ndarray) -> Optiona
     if not robot.has_dynamics:
         return None
     found = joint_columns(robot, columns)
-    if found is None or "t_s" not in columns or len(data) < 2:
+    if found is None or "t_s" not in columns:
         return {"computed": False, "reason": NO_JOINT_COLUMNS}
     t = data[:, columns.index("t_s")]
     q, dq = data[:, found.q], data[:, found.dq]
     if found.ddq is not None:
         ddq, rule = data[:, found.ddq], PLAN_ACCELERATION_RULE
-    else:
+    elif len(t) > 1:
         ddq, rule = np.gradient(dq, t, axis=0), DIFFERENCE_RULE
+    else:
+        ddq, rule = np.zeros_like(dq), SINGLE_SAMPLE_RULE
     tau = np.abs(robot.rnea(q, dq, ddq))
     taumax = robot.taumax
     peak_at = np.argmax(tau, axis=0)
