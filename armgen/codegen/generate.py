@@ -10,7 +10,7 @@ API conventions (stated once in the header):
 - matrices are column-major: element (r, c) of an R×C matrix M is ``M[r + R*c]``;
 - vector inputs are fixed-size arrays, scalar inputs are passed by value, scalar outputs
   by pointer; outputs must not overlap inputs;
-- the kinematic and criterion functions cannot fail; the step functions return
+- the kinematic, criterion and dynamic functions cannot fail; the step functions return
   ``<P>_OK`` or ``<P>_NONFINITE`` (then the output holds a non-finite value: a non-finite
   input, or an overflow the damping could not prevent); ``<p>_ik`` returns ``<P>_OK``,
   ``<P>_NOT_CONVERGED`` (the closest configuration reached is in the outputs), ``<P>_NONFINITE``

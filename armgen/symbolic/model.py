@@ -14,7 +14,7 @@ import casadi as ca
 
 from ..description import RobotDescription
 from . import criteria, ik, steps
-from .dynamics import DYNAMIC_FUNCTIONS, dynamic_function
+from .dynamics import DYNAMIC_FUNCTIONS, dynamic_function, require_dynamics
 from .kinematics import chain, geometric_jacobian
 
 KINEMATIC_FUNCTIONS = ("fk", "jacobian", "fk_jacobian")
@@ -35,9 +35,9 @@ STEP_FUNCTIONS = STEPS + tuple(name + FROM_JACOBIAN for name in STEPS)  # those 
 IK_FUNCTIONS = ("ik",)
 # twins first: the generated functions of J call them (and jacobian)
 ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + TWINS + CRITERION_FUNCTIONS + STEPS + IK_FUNCTIONS
-# The rigid-body dynamics (armgen.symbolic.dynamics), for a robot with every link's inertial
-# (robot.has_dynamics): built by function(name), outside ALL_FUNCTIONS and selected(), so
-# generated code stays kinematic until the dynamics get their C (issue 39, phase 2).
+# The rigid-body dynamics (armgen.symbolic.dynamics, DYNAMIC_FUNCTIONS) come after these, only for
+# a robot with every link's inertial (robot.has_dynamics): available() lists them then, so code
+# generation, `armgen verify` and the compiled backends take them like the kinematic ones.
 
 # One-line descriptions, used in the generated header and by `armgen show`.
 DESCRIPTIONS = {
@@ -66,6 +66,12 @@ DESCRIPTIONS = {
           "success = 1 and OK when position/orientation errors <= tol_position/tol_orientation, else "
           "NOT_CONVERGED with the closest q reached (max_iterations <= 0: no step, iterations 0); "
           "BAD_TARGET, no step, for a T_target that is not a pose (is_pose, in the header)",
+    "gravity": "gravity torques tau = g(q) (N m; N for a prismatic joint): the torques that hold the arm still at q",
+    "rnea": "inverse dynamics tau = M(q) ddq + C(q, dq) dq + g(q) (recursive Newton-Euler; reflected motor "
+            "inertia included)",
+    "mass_matrix": "joint-space mass matrix M(q) (nxn, symmetric positive definite; composite rigid body; "
+                   "reflected motor inertia on the diagonal)",
+    "coriolis": "Coriolis and centrifugal torques c = C(q, dq) dq",
 }
 DESCRIPTIONS.update({twin: f"{DESCRIPTIONS[name]}; from a given Jacobian J (jacobian's output, 6xn; "
                            "its entries that are constant for this robot are not read)"
@@ -123,12 +129,15 @@ class SymbolicModel:
         return criteria.jacobian_vjp([j.revolute for j in self.robot.joints], jac, full)
 
     def available(self) -> tuple[str, ...]:
-        """Every function, for any chain length (the criteria cost O(n) after the kinematics)."""
-        return ALL_FUNCTIONS
+        """Every function, for any chain length (the criteria cost O(n) after the kinematics),
+        then the dynamic ones when every link has an inertial."""
+        return ALL_FUNCTIONS + self.dynamic_functions()
 
     def selected(self) -> tuple[str, ...]:
         """The requested functions with what they call (jacobian, the twins), in ALL_FUNCTIONS order."""
         wanted = self.options.functions or self.available()
+        if any(f in DYNAMIC_FUNCTIONS for f in wanted):
+            require_dynamics(self.robot)  # the error names the joints without an inertial and the fix
         unknown = [f for f in wanted if f not in self.available()]
         if unknown:
             raise ValueError(f"functions not available for robot '{self.robot.name}': {', '.join(unknown)} "
