@@ -226,3 +226,14 @@ def test_every_planners_config_names_its_robot(example, robot):
     document, sha = load_task(path)
     found = planned_robot(configure_task(document, str(path), sha).config)
     assert (found and found.name) == robot
+
+
+def test_the_summary_table_gives_torques_in_newton_metres():
+    from armgen.cli.summary import summary_table
+
+    block = {"computed": True, "peak_torque": [30.36, 8.915, 1.059], "peak_torque_ratio": [1.518, None, 0.1],
+             "taumax": [20.0, None, 10.0], "within_torque_limits": False,
+             "beyond_torque_limits": [{"joint": "j1", "t_s": 0.0}]}
+    table = summary_table({"planner": "ptp", "summary": {"joint_torque": block}})
+    assert "peak joint torque" in table and "[30.36, 8.915, 1.059]" in table and "N·m" in table
+    assert "152% (joint 1)" in table and "within torque limits" in table

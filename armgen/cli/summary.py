@@ -148,11 +148,34 @@ def _joint_speed_rows(speed: dict[str, Any]) -> list[tuple[str, str, str]]:
     return rows
 
 
+def _joint_torque_rows(torque: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """The joint-torque report (a robot with inertials): the peak torque per joint in N·m (N for a
+    prismatic joint), the highest share of a taumax and the verdict."""
+    if not torque.get("computed", True):
+        return [("joint torque", "not computed", "")]
+    rows = []
+    peaks = torque.get("peak_torque") or []
+    if peaks and all(_is_number(v) for v in peaks):
+        rows.append(("peak joint torque", _numbers("peak_torque", peaks, [f"#{k + 1}" for k in range(len(peaks))],
+                                                   _Converter("peak_torque", ("m", "rad"))), "N·m"))
+    known = [(k, r) for k, r in enumerate(torque.get("peak_torque_ratio") or []) if _is_number(r)]
+    if known:
+        k, ratio = max(known, key=lambda item: item[1])
+        rows.append(("peak joint torque of taumax", f"{ratio:.0%} (joint {k + 1})", ""))
+    if "within_torque_limits" in torque:
+        rows.append(("within torque limits", _figure(torque["within_torque_limits"]), ""))
+    if torque.get("beyond_torque_limits"):
+        rows.append(("beyond torque limits", _entries(torque["beyond_torque_limits"]), ""))
+    return rows
+
+
 def _rows(key: str, value: Any, units: tuple[str, str], prefix: str = "") -> list[tuple[str, str, str]]:
     convert = _Converter(key, units)
     label = prefix + convert.label
     if key == "joint_speed" and isinstance(value, dict):
         return _joint_speed_rows(value)
+    if key == "joint_torque" and isinstance(value, dict):
+        return _joint_torque_rows(value)
     if isinstance(value, dict):
         named_units = any(_key_unit(sub)[1] is not None or _key_unit(sub)[2] for sub in value)
         if convert.unit or (value and not named_units and all(_is_number(v) for v in value.values())):

@@ -90,8 +90,9 @@ class Damping(StrictModel):
 
 class Check(StrictModel):
     limits: Literal["error", "report"] = Field(
-        "error", description="a plan that leaves a joint's limits: 'error' (exit 3, nothing written) or 'report' "
-                             "(written; listed in the summary's limit_violations)")
+        "error", description="a plan that leaves a joint's position, speed or torque limits: 'error' (exit 3, nothing "
+                             "written) or 'report' (written; listed in the summary's limit_violations, "
+                             "joint_speed.beyond_speed_limits, joint_torque.beyond_torque_limits)")
     path_tolerance: Optional[Positive] = Field(
         None, description="length unit: the most the tool may deviate from the path (default 0.1 mm for programs and "
                           "for cartesian circles/lines that leave integrator.step unset); the step is halved to meet it, else "
@@ -103,8 +104,9 @@ class SpeedCheck(StrictModel):
     joints' speed limits are left to the policy."""
 
     limits: Literal["error", "report"] = Field(
-        "error", description="a plan beyond a joint's speed limit (the robot file's qdlim or qddlim): 'error' (exit 3, "
-                             "nothing written) or 'report' (written; listed in summary.joint_speed.beyond_speed_limits)")
+        "error", description="a plan beyond a joint's speed limit (the robot file's qdlim or qddlim) or torque limit "
+                             "(taumax, a robot with inertials): 'error' (exit 3, nothing written) or 'report' (written; "
+                             "listed in summary.joint_speed.beyond_speed_limits, joint_torque.beyond_torque_limits)")
 
 
 class RelativePath(Path):
