@@ -228,7 +228,8 @@ def plan_configured(task: Task, backend: str = "symbolic", caps: ResourceCaps = 
     enforce_limits(summary.get("limit_violations", []), task.model.check.limits, source)
     enforce_speed_limits(summary.get("joint_speed"), task.model.check.limits, source, task.planner.name)
     robot = planned_robot(task.config)
-    torque = None if robot is None else torque_report(robot, result.columns, result.data)
+    slowing = summary.get("joint_torque", {}).get("slowing")  # a program slowed for torque (toolpath.limits)
+    torque = None if robot is None else torque_report(robot, result.columns, result.data, slowing)
     if torque is not None:  # a robot with inertials (docs/dynamics.md, "Torque limits in planning")
         result.metadata.setdefault("summary", {})["joint_torque"] = torque
     enforce_torque_limits(torque, task.model.check.limits, source, task.planner.name)

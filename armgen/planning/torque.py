@@ -84,9 +84,27 @@ def _finite_or_none(values: np.ndarray) -> list[Optional[float]]:
     return [float(v) if math.isfinite(v) else None for v in values]
 
 
-def torque_report(robot: Robot, columns: list[str], data: np.ndarray) -> Optional[dict[str, Any]]:
+def differenced_accelerations(t: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, str]:
+    """(q̈, the rule) of a plan without q̈ columns: the central differences of ``dq`` over ``t``
+    (:data:`DIFFERENCE_RULE`), or 0 for a plan of one sample. A program's torque-limited slowing
+    (:mod:`armgen.planning.toolpath.limits`) measures its plans by this rule too, so the plan it
+    returns is within ``taumax`` by the report's own reckoning."""
+    if len(t) > 1:
+        return np.gradient(dq, t, axis=0), DIFFERENCE_RULE
+    return np.zeros_like(dq), SINGLE_SAMPLE_RULE
+
+
+def torque_ratios(robot: Robot, tau: np.ndarray) -> np.ndarray:
+    """|τ| / taumax per sample and joint (0 for a joint without ``taumax``)."""
+    return np.abs(tau) / robot.taumax
+
+
+def torque_report(robot: Robot, columns: list[str], data: np.ndarray,
+                  slowing: Optional[dict[str, Any]] = None) -> Optional[dict[str, Any]]:
     """``summary.joint_torque`` of a plan (``columns``, ``data`` in SI) of ``robot``; None for a
-    robot without inertials. A plan without joint columns (snake) gets a block that says so."""
+    robot without inertials. A plan without joint columns (snake) gets a block that says so.
+    ``slowing``: a program's torque-limited slowing (how much time it added, and where), kept
+    in the block as ``slowing``."""
     if not robot.has_dynamics:
         return None
     found = joint_columns(robot, columns)
@@ -96,10 +114,8 @@ def torque_report(robot: Robot, columns: list[str], data: np.ndarray) -> Optiona
     q, dq = data[:, found.q], data[:, found.dq]
     if found.ddq is not None:
         ddq, rule = data[:, found.ddq], PLAN_ACCELERATION_RULE
-    elif len(t) > 1:
-        ddq, rule = np.gradient(dq, t, axis=0), DIFFERENCE_RULE
     else:
-        ddq, rule = np.zeros_like(dq), SINGLE_SAMPLE_RULE
+        ddq, rule = differenced_accelerations(t, dq)
     tau = np.abs(robot.rnea(q, dq, ddq))
     taumax = robot.taumax
     peak_at = np.argmax(tau, axis=0)
@@ -119,6 +135,7 @@ def torque_report(robot: Robot, columns: list[str], data: np.ndarray) -> Optiona
         "max_torque_ratio": float(ratio[limited].max()) if limited.any() else None,
         "within_torque_limits": not beyond,
         "beyond_torque_limits": beyond,  # per joint beyond taumax: its peak torque and when
+        **({"slowing": slowing} if slowing is not None else {}),
     }
 
 
