@@ -423,16 +423,16 @@ def test_batches_broadcast_and_equal_single_samples(tmp_path):
 
 
 def test_robot_without_inertials_says_so():
-    robot = load_robot("panda")
+    robot = load_robot("modular8")  # a bundled robot without inertials
     assert not robot.has_dynamics
     assert SymbolicModel(robot).dynamic_functions() == ()
     for call in (lambda: robot.gravity_torques(robot.qmid), lambda: robot.mass_matrix(robot.qmid),
                  lambda: robot.rnea(robot.qmid, robot.qmid, robot.qmid), lambda: robot.coriolis(robot.qmid, robot.qmid),
                  lambda: SymbolicModel(robot).function("gravity")):
-        with pytest.raises(RobotFileError, match=r"panda.toml: robot 'panda' has no inertials, so it has no dynamics"
+        with pytest.raises(RobotFileError, match=r"modular8.toml: robot 'modular8' has no inertials, so it has no dynamics"
                                                  r".*mass, com and inertia.*docs/dynamics.md"):
             call()
     partly = Robot.from_description(dataclasses.replace(
         robot, joints=_with_inertials(robot).joints[:-1] + robot.joints[-1:]))
-    with pytest.raises(RobotFileError, match=r"robot 'panda' has no inertials for joint\(s\) joint7, so"):
+    with pytest.raises(RobotFileError, match=r"robot 'modular8' has no inertials for joint\(s\) j8, so"):
         partly.gravity_torques(partly.qmid)
