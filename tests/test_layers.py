@@ -2,7 +2,7 @@
 
 The contract is import-linter's, in pyproject.toml (``[tool.importlinter]``), bottom to top:
 errors; the utilities (schemas, fileio, progress, data); the robot description; the symbolic
-core; the NumPy façade ``armgen.robot``; code generation; planning; the firmware generator;
+core; code generation; the NumPy façade ``armgen.robot`` (which calls the compiled kernel); planning; the firmware generator;
 verification; the API; the CLI. import-linter follows every import statement, at module level
 and inside functions, and indirect chains through other modules. The tests of the contract add
 one import that runs back up to a copy of the package and show that the check then fails.

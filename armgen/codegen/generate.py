@@ -34,7 +34,7 @@ from .._version import __version__
 from ..data import render_template
 from ..errors import OptionError, excerpt
 from ..fileio import write_file_set
-from ..robot import Robot, load_robot_any
+from ..description import RobotDescription, load_description
 from ..symbolic.model import (DESCRIPTIONS, FROM_JACOBIAN, IK_FUNCTIONS, JACOBIAN_FUNCTIONS, STEP_FUNCTIONS,
                               ModelOptions, SymbolicModel)
 from ..symbolic import ik
@@ -65,7 +65,7 @@ GENERATED_DIR = Path("generated")
 
 @dataclass(frozen=True)
 class CodegenConfig:
-    robot: Robot
+    robot: RobotDescription
     precision: str = "double"  # the header's default; -D<P>_USE_FLOAT=0/1 overrides it
     prefix: str = ""  # default: the robot name
     functions: tuple[str, ...] | None = None  # default: all the robot supports
@@ -386,10 +386,10 @@ def write(code: GeneratedCode, out_dir: str | Path) -> list[Path]:
     return write_file_set({out_dir / name: text for name, text in code.files.items()})
 
 
-def generate_robot(robot: Robot | str | Path, out_dir: str | Path | None = None, precision: str = "double",
+def generate_robot(robot: RobotDescription | str | Path, out_dir: str | Path | None = None, precision: str = "double",
                    prefix: str = "", functions: tuple[str, ...] | None = None) -> tuple[GeneratedCode, list[Path]]:
     """Library entry of ``armgen gen``: default output is ``./generated/<robot>/``."""
-    robot = load_robot_any(robot)
+    robot = robot if isinstance(robot, RobotDescription) else load_description(robot)
     code = generate(CodegenConfig(robot, precision, prefix, functions))
     target = Path(out_dir) if out_dir is not None else GENERATED_DIR / robot.name
     return code, write(code, target)
