@@ -284,9 +284,10 @@ def check_gravity_headroom(robot: Robot, motion: ProgramMotion, t: np.ndarray, g
     raise PlanningError(
         f"{source}: joint '{robot.joints[joint].name}' needs {abs(gravity[k, joint]):.4g} {unit} against gravity alone "
         f"at t = {t[k]:.3f} s (path.moves[{move}], {motion.program.moves[move].kind}), {share[k, joint]:.2f} times its "
-        f"torque limit of {limit:.4g} {unit} (taumax in the robot file, effort in a URDF): the program needs more "
-        f"torque there than the joint has at any speed (or leaves it less than {MIN_TORQUE_HEADROOM:.0%} of taumax to "
-        "move with), so slowing cannot make it feasible; nothing was written. Move the program where gravity loads "
+        f"torque limit of {limit:.4g} {unit} (taumax in the robot file, effort in a URDF): "
+        + ("the joint cannot hold that pose" if share[k, joint] > 1.0 else
+           f"it leaves less than {MIN_TORQUE_HEADROOM:.0%} of taumax to move with")
+        + ", so slowing cannot make the program feasible; nothing was written. Move the program where gravity loads "
         "the joint less (closer to the base, lower), start from another configuration, lighten the tool, or raise "
         "taumax if the drive gives more")
 
