@@ -20,6 +20,7 @@ import tomli_w
 from click.testing import CliRunner
 
 from armgen.cli.main import cli
+from armgen.planning.plan_schema import TorqueSlowing
 from armgen.planning.tasks import configure_task, run_task
 from armgen.planning.toolpath.accuracy import DEFAULT_PATH_TOLERANCE
 from armgen.robot import load_robot
@@ -163,6 +164,7 @@ def test_the_program_is_slowed_for_torque_and_says_how_much(plans):
     assert slowing["time_added_s"] == pytest.approx(duration - free_duration, rel=1e-9) and slowing["time_added_s"] > 0
     assert slowing["slowdown_factor"] == pytest.approx(duration / free_duration, rel=1e-12)
     assert slowing["slowed"] and all(zone["slowest_speed_fraction"] < 1 for zone in slowing["slowed"])
+    assert isinstance(tight.summary.joint_torque.slowing, TorqueSlowing)
     assert speed["duration_s"] == duration and speed["nominal_duration_s"] == slowing["nominal_duration_s"]
     free_slowing = free.metadata["summary"]["joint_torque"]["slowing"]
     assert free_slowing["time_added_s"] == 0 and free_slowing["slowed"] == []

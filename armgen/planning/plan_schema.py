@@ -76,6 +76,31 @@ class TorqueExcess(_Block):
     unit: Literal["N·m", "N"]
 
 
+class SlowedStretch(_Block):
+    """A stretch of a program the slowing made slower (one entry of ``slowed``)."""
+
+    moves: list[StrictInt]
+    s_from_mm: float
+    s_to_mm: float
+    t_from_s: float
+    t_to_s: float
+    slowest_speed_fraction: float
+
+
+class TorqueSlowing(_Block):
+    """How much a program was slowed to stay within the joints' ``taumax``
+    (``summary.joint_torque.slowing``): its time law's duration with and without the torque
+    bounds, and the stretches they slowed."""
+
+    enforced: bool
+    nominal_duration_s: float
+    duration_without_torque_s: float
+    duration_s: float
+    time_added_s: float
+    slowdown_factor: float
+    slowed: list[SlowedStretch] = Field(default_factory=list)
+
+
 class JointTorque(_Block):
     """The plan's joint torques (inverse dynamics at the samples) against the joints' ``taumax``
     (``summary.joint_torque``, a robot with inertials only); ``computed`` is false, with the
@@ -91,6 +116,7 @@ class JointTorque(_Block):
     max_torque_ratio: Optional[JsonFloat] = None
     within_torque_limits: Optional[bool] = None
     beyond_torque_limits: list[TorqueExcess] = Field(default_factory=list)
+    slowing: Optional[TorqueSlowing] = None  # a program on a robot with taumax
 
 
 class PathAccuracy(_Block):
