@@ -3,7 +3,8 @@
 :class:`Robot` is a :class:`~armgen.description.RobotDescription` (joints, limits, base, tool,
 configurations) plus the models derived from it and the methods that evaluate them: forward
 kinematics, Jacobians, the redundancy criteria, the inverse kinematics and, for a robot with
-inertials, the rigid-body dynamics (docs/dynamics.md). The models (the
+inertials, the rigid-body dynamics (docs/dynamics.md) and, for a robot with capsules, the
+collision distances and criterion (docs/collision.md). The models (the
 symbolic model of :mod:`armgen.symbolic` with its IK definition, the NumPy evaluators) are
 built on first use and held here, never by the description, which stays plain data. This
 module sits above the symbolic core, which takes the description and never this module
@@ -16,16 +17,18 @@ The description's public names (``Joint``, ``rpy_matrix``, ``matrix_rpy``, ``BUN
 
 from __future__ import annotations
 
+import math
 from dataclasses import fields
 from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from .description import (BUNDLED_DIR, Joint, RobotDescription, bundled_robots, describe, load_description,
                           matrix_rpy, parse_description, read_urdf, resolve_robot_path, rpy_matrix)
+from .description.collision import Obstacle
 from .description.model import MAX_ABS_LENGTH_M
 from .errors import excerpt
 
@@ -283,6 +286,58 @@ class Robot(RobotDescription):
             shapes = ", ".join(f"{k} {v.shape}" for k, v in arrays.items())
             raise ValueError(f"{name}: the shapes {shapes} do not broadcast to one batch") from None
         return self._numeric.evaluate(name, shaped.pop("q"), **shaped)
+
+    # -- collision (docs/collision.md): a robot with capsules (has_collision) -------------------
+
+    def collision_pairs(self) -> list[tuple[str, str]]:
+        """What each entry of :meth:`collision_distances` is: ``("capsule 2", "capsule 5")``, then
+        ``("capsule 3", "box 0")`` … (self pairs, then each moving capsule against each obstacle slot)."""
+        return self.collision.pair_labels()
+
+    def collision_distances(self, q: ArrayLike, obstacles: Sequence[Obstacle] = ()) -> np.ndarray:
+        """Signed distances (m; negative when overlapping) of the checked pairs at ``q``.
+
+        Parameters
+        ----------
+        q
+            Joint values, shape ``(n,)`` or ``(..., n)``.
+        obstacles
+            :class:`~armgen.description.collision.SphereObstacle`, ``CapsuleObstacle``,
+            ``BoxObstacle``, ``PlaneObstacle`` (SI, base frame), at most the robot's slots per
+            kind; the slots left over report a distance of ``INACTIVE_DISTANCE``.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape ``(pairs,)`` or ``(..., pairs)``, in the order of :meth:`collision_pairs`.
+
+        Raises
+        ------
+        armgen.errors.RobotFileError
+            The robot has no usable capsules (:attr:`has_collision` is False).
+        """
+        return self._collision("collision_distances", q, obstacles)["d"]
+
+    def collision_criterion(self, q: ArrayLike, obstacles: Sequence[Obstacle] = (), *, clearance: float = 0.0,
+                            activation: float) -> dict[str, np.ndarray]:
+        """The collision criterion ``H_C`` (a barrier on the distances below ``activation``,
+        docs/collision.md) and its gradient: ``{"H_C": (...), "grad_H_C": (..., n)}``.
+        ``clearance`` < ``activation`` (m); other arguments as :meth:`collision_distances`."""
+        if not (math.isfinite(clearance) and math.isfinite(activation) and clearance < activation):
+            raise ValueError(f"collision_criterion: clearance = {clearance!r} must be below activation = "
+                             f"{activation!r} (both finite, m)")
+        return self._collision("collision_criterion", q, obstacles, clearance=clearance, activation=activation)
+
+    def _collision(self, name: str, q: ArrayLike, obstacles: Sequence[Obstacle], **scalars: float) -> dict[str, np.ndarray]:
+        from .description.collision import obstacle_parameters
+        from .symbolic.collision import require_collision
+
+        require_collision(self)
+        q = np.asarray(q, dtype=float)
+        parameters = obstacle_parameters(obstacles, self.collision.slots)
+        if q.ndim != 1:  # a batch takes each matrix as its column-major entries
+            parameters = {k: v.reshape(-1, order="F") for k, v in parameters.items()}
+        return self._numeric.evaluate(name, q, **parameters, **scalars)
 
     def within_limits(self, q: ArrayLike) -> np.ndarray:
         """True where every joint value is finite and inside ``[qmin, qmax]``.

@@ -55,11 +55,12 @@ from pydantic import ValidationError
 from ..errors import RobotFileError, excerpt
 from ..schemas import (IDENTIFIER_PATTERN, MAX_INPUT_FILE_BYTES, format_validation_error, parse_toml_bounded,
                        read_input_file)
+from .collision import MAX_CAPSULES, CollisionCapsule, CollisionModel, ObstacleSlots
 from .frames import rpy_matrix, snap_quarter_turn
 from .inertia import inertia_problem
 from .model import (MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, MAX_INERTIA_KGM2, MAX_MASS_KG, MAX_REVOLUTE_LIMIT_RAD,
                     MAX_TORQUE, MIN_JOINT_RATE, MIN_MASS_KG, TASK_ROWS, Inertial, Joint, RobotDescription)
-from .schema import JointEntry, JointLimits, RobotFile, Transform, UrdfRobotFile
+from .schema import CollisionEntry, JointEntry, JointLimits, RobotFile, Transform, UrdfRobotFile
 from .urdf import UrdfChain, UrdfJoint, parse_urdf
 
 BUNDLED_DIR = Path(str(resources.files("armgen.data") / "robots"))
@@ -174,6 +175,32 @@ def _transform(table: Transform, key: str, length_scale: float, angle_scale: flo
     return out
 
 
+def _capsule(entry: CollisionEntry, index: int, frame: int, pose: np.ndarray, link: str, length: float,
+             source: str) -> CollisionCapsule:
+    """A ``[[collision]]`` entry in SI, its ends moved by ``pose`` (a URDF link's pose in its
+    joint's link frame; the identity for a frame index)."""
+    where = f"[[collision]] capsule {index}"
+    values = [*entry.a, *entry.end, entry.radius]
+    if max(abs(v) * length for v in values) > MAX_ABS_LENGTH_M:
+        raise _fail(source, where, f"a, b or radius is beyond ±{MAX_ABS_LENGTH_M:g} m; check [units] length and the values")
+    a, b = (pose[:3, :3] @ (np.asarray(v, dtype=float) * length) + pose[:3, 3] for v in (entry.a, entry.end))
+    return CollisionCapsule(frame=frame, a=tuple(float(v) for v in a), b=tuple(float(v) for v in b),
+                            radius=entry.radius * length, link=link)
+
+
+def _collision_model(model: RobotFile | UrdfRobotFile, capsules: list[CollisionCapsule], unusable: str,
+                     source: str) -> CollisionModel:
+    """The capsules with ``[collision_check]``: ignored pairs (within the capsules, in order) and slots."""
+    for k, pair in enumerate(model.collision_check.ignore):
+        if max(pair) >= len(capsules):
+            raise _fail(source, f"[collision_check] ignore {k}", f"pair {pair} names capsule {max(pair)}, but the robot "
+                                                                 f"has {len(capsules)} capsules (armgen show lists them)")
+    slots = model.collision_check.max_obstacles
+    return CollisionModel(capsules=tuple(capsules), ignore=tuple(sorted({tuple(sorted(p)) for p in
+                                                                         model.collision_check.ignore})),
+                          slots=ObstacleSlots(slots.sphere, slots.capsule, slots.box, slots.plane), unusable=unusable)
+
+
 def _configurations(given: dict[str, list[float]], q_scales: np.ndarray, source: str) -> dict[str, np.ndarray]:
     """The ``[configurations]`` table in SI, one value per joint."""
     out = {}
@@ -241,6 +268,8 @@ def dh_description(model: RobotFile, source: str, sha256: str) -> RobotDescripti
         description=model.description,
         units={"length": model.units.length, "angle": model.units.angle, "mass": model.units.mass},
         gravity=tuple(model.gravity),
+        collision=_collision_model(model, [_capsule(entry, k, entry.link, np.eye(4), f"frame {entry.link}", length,
+                                                    source) for k, entry in enumerate(model.collision)], "", source),
     )
     for name, q in configurations.items():
         robot.check_within_limits(q, f"{source}: [configurations] {name}")
@@ -320,10 +349,46 @@ def urdf_description(model: UrdfRobotFile, chain: UrdfChain, source: str, sha256
                              if j.type == "continuous" and joint.qlim == j.qlim]}
         | ({"no_dynamics": chain.no_dynamics} if chain.no_dynamics else {}),
         gravity=tuple(model.gravity),
+        collision=_urdf_collision(model, chain, length, source),
     )
     for cname, q in configurations.items():
         robot.check_within_limits(q, f"{source}: [configurations] {cname}")
     return robot
+
+
+def _urdf_collision(model: UrdfRobotFile, chain: UrdfChain, length: float, source: str) -> CollisionModel:
+    """The robot file's ``[[collision]]`` capsules (a frame index, or a URDF link whose own
+    collision shapes they replace), then the URDF's capsules of the other links; a mesh left on
+    a link makes the geometry unusable, with the link and the fix."""
+    capsules, replaced = [], set()
+    for k, entry in enumerate(model.collision):
+        if isinstance(entry.link, int):
+            if entry.link > len(chain.joints):
+                raise _fail(source, f"[[collision]] capsule {k}", f"link = {entry.link} is beyond the flange: the chain "
+                                                                  f"has {len(chain.joints)} moving joints")
+            capsules.append(_capsule(entry, k, entry.link, np.eye(4), f"frame {entry.link}", length, source))
+            continue
+        if entry.link not in chain.link_frames:
+            raise _fail(source, f"[[collision]] capsule {k}", f"link = {excerpt(repr(entry.link))} is not a link of the "
+                                                              f"chain (links: {', '.join(chain.link_frames)})")
+        frame, pose = chain.link_frames[entry.link]
+        capsules.append(_capsule(entry, k, frame, pose, entry.link, length, source))
+        replaced.add(entry.link)
+    unusable = ""
+    for shape in chain.collision:
+        if shape.link in replaced:
+            continue
+        if shape.capsule is None:
+            unusable = unusable or (f"link '{shape.link}' has a <mesh> collision shape, which armgen does not take; give "
+                                    f"its capsules in a robot file that references the URDF ([[collision]] link = "
+                                    f"\"{shape.link}\", a = [...], b = [...], radius = ...: they replace the link's URDF "
+                                    "shapes, docs/collision.md)")
+            continue
+        capsules.append(shape.capsule)
+    if len(capsules) > MAX_CAPSULES:
+        raise _fail(source, "[[collision]]", f"the robot has {len(capsules)} capsules (the URDF's and the file's), more "
+                                             f"than {MAX_CAPSULES}; replace some links' shapes by fewer capsules")
+    return _collision_model(model, capsules, unusable, source)
 
 
 # -- reading files ------------------------------------------------------------------------

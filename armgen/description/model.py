@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import RobotFileError
+from .collision import CollisionModel
 from .frames import matrix_rpy
 from .inertia import inertia_matrix
 
@@ -142,6 +143,10 @@ class RobotDescription:
         The gravity vector in the base frame (m/s²), ``DEFAULT_GRAVITY`` unless the file
         gives one; with every joint's :class:`Inertial` (:attr:`has_dynamics`) it defines the
         robot's dynamics.
+    collision
+        The arm's capsules, the pairs not checked and the obstacle slots
+        (:class:`~armgen.description.collision.CollisionModel`); with capsules
+        (:attr:`has_collision`) the robot has the collision functions (docs/collision.md).
     """
 
     name: str
@@ -159,6 +164,12 @@ class RobotDescription:
     urdf: dict[str, Any] = field(default_factory=dict)
     path: str = ""
     gravity: tuple[float, float, float] = DEFAULT_GRAVITY  # m/s², base frame
+    collision: CollisionModel = field(default_factory=CollisionModel, repr=False)
+
+    @property
+    def has_collision(self) -> bool:
+        """The robot has capsules it can use: the collision functions exist."""
+        return self.collision.usable
 
     @property
     def n(self) -> int:
@@ -239,6 +250,7 @@ class RobotDescription:
             lines.append(f"  {j.name:8s} {j.type:9s} {fixed}  d={j.d * 1e3:9.3f}  a={j.a * 1e3:9.3f}  "
                          f"alpha={math.degrees(j.alpha):8.3f}  qlim={lim}")
         lines.append(self._dynamics_line())
+        lines.extend(self._collision_lines())
         continuous = self.urdf.get("continuous", [])
         if continuous:
             lines.append(f"note: continuous in the URDF, given ±180 deg here: {', '.join(continuous)}; a start or "
@@ -260,6 +272,27 @@ class RobotDescription:
             return f"dynamics: inertials for all {self.n} links (gravity {gravity} m/s^2)"
         why = self.urdf.get("no_dynamics")
         return "no inertials: no dynamic functions" + (f" ({why})" if why else "")
+
+    def _collision_lines(self) -> list[str]:
+        """The capsules (mm, in their frames), which enclose a URDF shape, the pairs checked."""
+        model = self.collision
+        if model.unusable:
+            return [f"no collision model: {model.unusable}"]
+        if not model.capsules:
+            return ["no collision capsules: no collision functions"]
+        lines = [f"collision: {len(model.capsules)} capsules (mm, in their frames), {len(model.self_pairs())} self pairs "
+                 f"checked (not the same or adjacent frames{', not ignored' if model.ignore else ''})"]
+        for k, capsule in enumerate(model.capsules):
+            a, b = (np.round(np.asarray(v) * 1e3, 3) + 0.0 for v in (capsule.a, capsule.b))
+            shape = f"a={a.tolist()} b={b.tolist()}" if capsule.a != capsule.b else f"sphere at {a.tolist()}"
+            where = f"frame {capsule.frame}" + (f" ({capsule.link})" if capsule.link != f"frame {capsule.frame}" else "")
+            lines.append(f"  capsule {k:2d} {where}: {shape} r={capsule.radius * 1e3:.3f}  [{capsule.origin}]")
+        if model.ignore:
+            lines.append(f"  ignored pairs: {', '.join(f'{i}-{j}' for i, j in model.ignore)}")
+        slots = model.slots
+        lines.append(f"  obstacle slots: {slots.sphere} spheres, {slots.capsule} capsules, {slots.box} boxes, "
+                     f"{slots.plane} planes")
+        return lines
 
     def show(self) -> None:
         """Print :meth:`show_text` (the whole description; ``repr`` is one line)."""

@@ -13,6 +13,7 @@ from pydantic import Discriminator, Field, StringConstraints, Tag, model_validat
 
 from ..errors import excerpt
 from ..schemas import IDENTIFIER_PATTERN, StrictModel, rule_error
+from .collision import MAX_CAPSULES, MAX_OBSTACLE_SLOTS, ObstacleSlots
 from .inertia import inertia_problem
 from .model import DEFAULT_GRAVITY, TASK_ROWS
 
@@ -98,6 +99,58 @@ class Transform(StrictModel):
     rpy: Vector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="R = Rz(yaw) Ry(pitch) Rx(roll)")
 
 
+LinkName = Annotated[str, StringConstraints(min_length=1, max_length=256)]
+Length = Annotated[Number, Field(ge=0)]
+
+
+class CollisionEntry(StrictModel):
+    """One ``[[collision]]`` capsule, in the file's length unit."""
+
+    link: Union[Annotated[int, Field(ge=0, le=MAX_DOF)], LinkName] = Field(
+        description="frame index (0 = base, i = joint i's link frame, n = flange), or a URDF link name (a robot "
+                    "file that references a URDF: the segment is then in that link's frame)")
+    a: Vector3 = Field(description="one end of the segment, in that frame (length unit)")
+    b: Optional[Vector3] = Field(None, description="the other end (default a: a sphere)")
+    radius: Length = Field(description="the capsule's radius (length unit)")
+
+    @property
+    def end(self) -> list[float]:
+        return self.a if self.b is None else self.b
+
+
+SlotCount = Annotated[int, Field(ge=0, le=MAX_OBSTACLE_SLOTS)]
+
+
+class ObstacleSlotCounts(StrictModel):
+    """How many obstacles of each kind the generated collision functions take (fixed sizes)."""
+
+    sphere: SlotCount = ObstacleSlots.sphere
+    capsule: SlotCount = ObstacleSlots.capsule
+    box: SlotCount = ObstacleSlots.box
+    plane: SlotCount = ObstacleSlots.plane
+
+
+CapsulePair = Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=2, max_length=2)]
+
+
+class CollisionCheck(StrictModel):
+    """``[collision_check]``: the pairs of capsules never checked (besides adjacent links) and
+    the obstacle slots."""
+
+    ignore: Annotated[list[CapsulePair], Field(max_length=MAX_CAPSULES * MAX_CAPSULES)] = Field(
+        default_factory=list, description="pairs [i, j] of capsule indices (from 0, in the order armgen show lists "
+                                          "them) never checked; pairs on the same or adjacent frames never are")
+    max_obstacles: ObstacleSlotCounts = Field(default_factory=ObstacleSlotCounts)
+
+    @model_validator(mode="after")
+    def _distinct_pairs(self) -> CollisionCheck:
+        for k, (i, j) in enumerate(self.ignore):
+            if i == j:
+                raise rule_error(f"pair [{i}, {j}] names one capsule twice; give two different capsule indices",
+                                 at=("ignore", k))
+        return self
+
+
 class _RobotFileCommon(StrictModel):
     """The fields every robot file has, whatever describes its chain."""
 
@@ -112,6 +165,9 @@ class _RobotFileCommon(StrictModel):
     gravity: Annotated[list[GravityComponent], Field(min_length=3, max_length=3)] = Field(
         default_factory=lambda: list(DEFAULT_GRAVITY), description="gravity vector in the base frame, m/s^2 (whatever "
                                                                    "[units] length is)")
+    collision: Annotated[list[CollisionEntry], Field(max_length=MAX_CAPSULES)] = Field(
+        default_factory=list, description="the arm's capsules (docs/collision.md)")
+    collision_check: CollisionCheck = Field(default_factory=CollisionCheck)
 
     @model_validator(mode="after")
     def _distinct_task_rows(self) -> _RobotFileCommon:
@@ -141,6 +197,23 @@ class RobotFile(_RobotFileCommon):
                 default = "" if self.joints[i].name else f" (the default name of joint {i + 1}, which has none)"
                 raise rule_error(f"duplicate joint name '{name}'{default}; joint names must be unique", at=("joints", i))
             seen.add(name)
+        return self
+
+    @model_validator(mode="after")
+    def _capsules_on_frames(self) -> RobotFile:
+        for k, entry in enumerate(self.collision):
+            if isinstance(entry.link, str):
+                raise rule_error(f"link = {excerpt(repr(entry.link))} names a URDF link, but this robot file is DH: give "
+                                 f"the frame index (0 = base, 1 … {len(self.joints)} = joint i's link frame)",
+                                 at=("collision", k, "link"))
+            if entry.link > len(self.joints):
+                raise rule_error(f"link = {entry.link} is beyond the flange: the robot has {len(self.joints)} joints, so "
+                                 f"the frames are 0 (base) … {len(self.joints)}", at=("collision", k, "link"))
+        for k, pair in enumerate(self.collision_check.ignore):
+            if max(pair) >= len(self.collision):
+                raise rule_error(f"pair {pair} names capsule {max(pair)}, but the file has {len(self.collision)} "
+                                 f"[[collision]] capsules (indices 0 … {len(self.collision) - 1})",
+                                 at=("collision_check", "ignore", k))
         return self
 
     @model_validator(mode="after")

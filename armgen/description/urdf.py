@@ -41,12 +41,13 @@ from __future__ import annotations
 import math
 import re
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..errors import RobotFileError, excerpt
 from ..schemas import IDENTIFIER_PATTERN
+from .collision import CollisionCapsule
 from .frames import axis_alignment, rpy_matrix, snap_quarter_turn
 from .inertia import inertia_matrix, inertia_problem, inertia_six, lump
 from .model import (MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M, MAX_INERTIA_KGM2, MAX_MASS_KG, MAX_REVOLUTE_LIMIT_RAD,
@@ -92,9 +93,19 @@ class UrdfJoint:
 
 
 @dataclass(frozen=True)
+class UrdfCollision:
+    """One ``<collision>`` of a link on the chain: its capsule (in the link's frame index and
+    that frame's coordinates), or None for a mesh."""
+
+    link: str
+    capsule: CollisionCapsule | None
+
+
+@dataclass(frozen=True)
 class UrdfChain:
     """The chain from ``base_link`` to ``tip_link``; ``tip`` is the fixed transform from
-    the last moving joint's frame to the tip link."""
+    the last moving joint's frame to the tip link. ``link_frames`` maps every link of the
+    chain's bodies to (frame index: 0 base, i joint i's link frame; the link's pose in it)."""
 
     robot_name: str
     base_link: str
@@ -102,6 +113,8 @@ class UrdfChain:
     joints: tuple[UrdfJoint, ...]
     tip: np.ndarray  # 4x4
     no_dynamics: str = ""  # why a joint's body has no inertial ("" when every joint's has one)
+    collision: tuple[UrdfCollision, ...] = ()
+    link_frames: dict[str, tuple[int, np.ndarray]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -188,12 +201,18 @@ def parse_urdf(text: str, source: str, base_link: str | None = None, tip_link: s
     joints, tip = _moving_joints(p, path)
     if not joints:
         raise p.fail("tip_link", f"no revolute, continuous or prismatic joint between '{base_link}' and '{tip_link}'")
-    bodies = [_body(p, tree, raw, joint) for raw, joint in zip([r for r in path if r.type != "fixed"], joints)]
+    moving = [r for r in path if r.type != "fixed"]
+    bodies = [_body(p, tree, raw, joint) for raw, joint in zip(moving, joints)]
+    link_frames = _link_frames(p, tree, base_link, moving, joints)
+    collision = tuple(shape for link, (frame, pose) in link_frames.items()
+                      for shape in _link_collisions(p, tree, link, frame, pose))
     missing = next((reason for _, reason in bodies if reason), "")
     if missing:  # the dynamics need every body: none at all rather than some
-        return UrdfChain(robot_name, base_link, tip_link, joints, tip, no_dynamics=missing)
+        return UrdfChain(robot_name, base_link, tip_link, joints, tip, no_dynamics=missing, collision=collision,
+                         link_frames=link_frames)
     return UrdfChain(robot_name, base_link, tip_link,
-                     tuple(replace(joint, inertial=inertial) for joint, (inertial, _) in zip(joints, bodies)), tip)
+                     tuple(replace(joint, inertial=inertial) for joint, (inertial, _) in zip(joints, bodies)), tip,
+                     collision=collision, link_frames=link_frames)
 
 
 @dataclass(frozen=True)
@@ -496,3 +515,74 @@ def _body(p: _Parser, tree: _Tree, raw: _RawJoint, joint: UrdfJoint) -> tuple[In
     turn = axis_alignment(joint.axis)[:3, :3]  # the link frame's axes in the child link frame
     return Inertial(mass=float(mass), com=tuple(float(v) for v in turn.T @ com),
                     inertia=inertia_six(turn.T @ tensor @ turn)), ""
+
+
+def _fixed_subtree(p: _Parser, tree: _Tree, link: str) -> list[tuple[str, np.ndarray]]:
+    """``link`` and every link fixed to it (through fixed joints), with its pose in ``link``'s frame."""
+    out, stack = [], [(link, np.eye(4))]
+    while stack:
+        current, pose = stack.pop()
+        out.append((current, pose))
+        stack.extend((fixed.child, pose @ _origin(p, fixed.element, f"joint '{excerpt(fixed.name)}'"))
+                     for fixed in tree.children.get(current, []) if fixed.type == "fixed")
+    return sorted(out, key=lambda item: item[0] != link)  # the link itself first, then in tree order
+
+
+def _link_frames(p: _Parser, tree: _Tree, base_link: str, moving: list[_RawJoint],
+                 joints: tuple[UrdfJoint, ...]) -> dict[str, tuple[int, np.ndarray]]:
+    """Every link of the chain's rigid bodies: the base link and the links fixed to it (frame 0,
+    the base link's frame), each moving joint's child and the links fixed to it (frame i, the
+    child's frame turned by the axis alignment A: poses ``Aᵀ · pose in the child``)."""
+    frames = {link: (0, pose) for link, pose in _fixed_subtree(p, tree, base_link)}
+    for i, (raw, joint) in enumerate(zip(moving, joints), start=1):
+        turn = axis_alignment(joint.axis).T
+        frames.update({link: (i, turn @ pose) for link, pose in _fixed_subtree(p, tree, raw.child)})
+    return frames
+
+
+def _link_collisions(p: _Parser, tree: _Tree, link: str, frame: int, pose: np.ndarray) -> list[UrdfCollision]:
+    """The link's ``<collision>`` shapes as capsules in frame ``frame`` (``pose``: the link's
+    pose in it): a sphere and a capsule exactly, a cylinder enclosed by the capsule of its axis
+    and radius (the caps reach r beyond its ends), a box by the capsule along its longest axis
+    with the radius of its cross-section's half-diagonal; a mesh gives None."""
+    shapes = []
+    for k, element in enumerate(tree.links[link].findall("collision")):
+        where = f"link '{excerpt(link)}' <collision> {k + 1}"
+        geometry = element.find("geometry")
+        shape = next(iter(geometry), None) if geometry is not None else None
+        if shape is None:
+            raise p.fail(where, "needs <geometry> with one of <sphere>, <cylinder>, <box>, <capsule>, <mesh>")
+        if shape.tag == "mesh":
+            shapes.append(UrdfCollision(link, None))
+            continue
+        origin = pose @ _origin(p, element, where)
+        ends, radius, kind = _shape_axis(p, shape, f"{where} <{shape.tag}>")
+        a, b = (origin[:3, :3] @ np.asarray(end) + origin[:3, 3] for end in ends)
+        capsule = CollisionCapsule(frame=frame, a=tuple(float(v) for v in a), b=tuple(float(v) for v in b),
+                                   radius=radius, link=link, origin=f"urdf {kind}")
+        shapes.append(UrdfCollision(link, capsule))
+    return shapes
+
+
+def _shape_axis(p: _Parser, shape: ET.Element, where: str) -> tuple[tuple[tuple[float, ...], ...], float, str]:
+    """(the capsule's segment ends in the shape's frame, its radius, what it is) of a URDF shape."""
+    def positive(attribute: str, count: int = 1) -> tuple[float, ...]:
+        values = p.numbers(shape, attribute, where, count, None)
+        if min(values) < 0 or max(values) > MAX_ABS_LENGTH_M:
+            raise p.fail(where, f"{attribute} must be ≥ 0 and at most {MAX_ABS_LENGTH_M:g} m (URDF is in m)")
+        return values
+
+    if shape.tag == "sphere":
+        return ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0)), positive("radius")[0], "sphere"
+    if shape.tag in ("cylinder", "capsule"):
+        radius, half = positive("radius")[0], positive("length")[0] / 2
+        kind = "capsule" if shape.tag == "capsule" else "cylinder (enclosed)"
+        return ((0.0, 0.0, -half), (0.0, 0.0, half)), radius, kind
+    if shape.tag == "box":
+        half = np.asarray(positive("size", 3)) / 2
+        axis = int(np.argmax(half))
+        end = np.zeros(3)
+        end[axis] = half[axis]
+        others = [half[k] for k in range(3) if k != axis]
+        return (tuple(-end), tuple(end)), float(math.hypot(*others)), "box (enclosed)"
+    raise p.fail(where, "is not a URDF collision shape; give <sphere>, <cylinder>, <box>, <capsule> or <mesh>")

@@ -14,6 +14,7 @@ import casadi as ca
 
 from ..description import RobotDescription
 from . import criteria, ik, steps
+from .collision import COLLISION_FUNCTIONS, collision_function, require_collision
 from .dynamics import DYNAMIC_FUNCTIONS, dynamic_function, require_dynamics
 from .kinematics import chain, geometric_jacobian
 
@@ -38,6 +39,8 @@ ALL_FUNCTIONS = KINEMATIC_FUNCTIONS + TWINS + CRITERION_FUNCTIONS + STEPS + IK_F
 # The rigid-body dynamics (armgen.symbolic.dynamics, DYNAMIC_FUNCTIONS) come after these, only for
 # a robot with every link's inertial (robot.has_dynamics): available() lists them then, so code
 # generation, `armgen verify` and the compiled backends take them like the kinematic ones.
+# The collision functions (armgen.symbolic.collision, COLLISION_FUNCTIONS) come last, only for a
+# robot with capsules (robot.has_collision), so the C of a robot without them is unchanged.
 
 # One-line descriptions, used in the generated header and by `armgen show`.
 DESCRIPTIONS = {
@@ -72,6 +75,10 @@ DESCRIPTIONS = {
     "mass_matrix": "joint-space mass matrix M(q) (nxn, symmetric positive definite; composite rigid body; "
                    "reflected motor inertia on the diagonal)",
     "coriolis": "Coriolis and centrifugal torques c = C(q, dq) dq",
+    "collision_distances": "signed distances d (m; negative when overlapping) of the checked capsule pairs, then of "
+                           "each moving capsule to each obstacle slot (inactive slots: a large distance)",
+    "collision_criterion": "collision criterion H_C = sum 1/2 (max(activation - d, 0) / max(d - clearance, "
+                           "1e-3 (activation - clearance)))^2 over the distances d and its gradient",
 }
 DESCRIPTIONS.update({twin: f"{DESCRIPTIONS[name]}; from a given Jacobian J (jacobian's output, 6xn; "
                            "its entries that are constant for this robot are not read)"
@@ -131,13 +138,15 @@ class SymbolicModel:
     def available(self) -> tuple[str, ...]:
         """Every function, for any chain length (the criteria cost O(n) after the kinematics),
         then the dynamic ones when every link has an inertial."""
-        return ALL_FUNCTIONS + self.dynamic_functions()
+        return ALL_FUNCTIONS + self.dynamic_functions() + self.collision_functions()
 
     def selected(self) -> tuple[str, ...]:
         """The requested functions with what they call (jacobian, the twins), in ALL_FUNCTIONS order."""
         wanted = self.options.functions or self.available()
         if any(f in DYNAMIC_FUNCTIONS for f in wanted):
             require_dynamics(self.robot)  # the error names the joints without an inertial and the fix
+        if any(f in COLLISION_FUNCTIONS for f in wanted):
+            require_collision(self.robot)  # the error says why the robot has no capsules and the fix
         unknown = [f for f in wanted if f not in self.available()]
         if unknown:
             raise ValueError(f"functions not available for robot '{self.robot.name}': {', '.join(unknown)} "
@@ -149,11 +158,17 @@ class SymbolicModel:
         """The dynamic functions (DYNAMIC_FUNCTIONS) when every link has an inertial, else none."""
         return DYNAMIC_FUNCTIONS if self.robot.has_dynamics else ()
 
+    def collision_functions(self) -> tuple[str, ...]:
+        """The collision functions (COLLISION_FUNCTIONS) when the robot has capsules, else none."""
+        return COLLISION_FUNCTIONS if self.robot.has_collision else ()
+
     # -- the functions ---------------------------------------------------------------
     def function(self, name: str) -> ca.Function:
         if name not in self._functions:  # built on first use: a planner needs a few of them
             if name in DYNAMIC_FUNCTIONS:  # a clear error names the joints without an inertial
                 self._functions[name] = dynamic_function(self.robot, name)
+            elif name in COLLISION_FUNCTIONS:  # a clear error says why there are no capsules
+                self._functions[name] = collision_function(self.robot, name)
             elif name not in self.available():
                 raise KeyError(name)
             else:

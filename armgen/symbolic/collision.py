@@ -1,0 +1,146 @@
+"""The collision functions of a robot with capsules: the distances of the checked pairs and the
+smooth collision criterion H_C with its gradient, as named ``casadi.Function``s.
+
+Inputs: ``q``, then one matrix per obstacle kind with slots (``spheres`` 5×K, ``capsules`` 8×K,
+``boxes`` 16×K, ``planes`` 5×K; the rows of
+:data:`armgen.description.collision.OBSTACLE_ROWS`, each column one slot with an ``active``
+flag), so the generated C has fixed sizes and serves every task. ``collision_criterion`` also
+takes ``clearance`` and ``activation`` (m).
+
+``d`` holds, in the order of :meth:`~armgen.description.collision.CollisionModel.pair_labels`,
+the signed distance (m; coal's convention: negative when overlapping) of every checked self
+pair, then of every moving capsule against every obstacle slot (an inactive slot gives
+:data:`~armgen.description.collision.INACTIVE_DISTANCE`). The geometry is in
+:mod:`armgen.symbolic.collision_geometry`.
+
+The criterion (``docs/collision.md``), for clearance c and activation ρ > c::
+
+    H_C = Σ_k φ(d_k),   φ(d) = ½ (max(ρ − d, 0) / max(d − c, BARRIER_FLOOR (ρ − c)))²
+
+0 at and beyond ρ with a zero slope there (C¹), growing without bound toward the clearance;
+below ``c + BARRIER_FLOOR (ρ − c)`` the denominator is held, so H_C stays finite (and keeps
+growing as d falls) for a configuration already too close or overlapping. ∇H_C is the reverse
+derivative of that expression (CasADi AD through the kinematics and the clamps).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from ..description import RobotDescription
+from ..description.collision import (INACTIVE_DISTANCE, OBSTACLE_INPUTS, OBSTACLE_KINDS, OBSTACLE_ROWS,
+                                     CollisionCapsule)
+from ..errors import RobotFileError
+from . import collision_geometry as geometry
+from .kinematics import chain
+
+COLLISION_FUNCTIONS = ("collision_distances", "collision_criterion")
+# The barrier's denominator d − c is held at BARRIER_FLOOR (ρ − c) at and below that distance:
+# φ there is ½ (1/BARRIER_FLOOR)² ≈ 5e5 times the squared fraction of ρ − c left, large enough
+# to dominate any other criterion, and finite in single precision with its gradient.
+BARRIER_FLOOR = 1e-3
+
+
+def require_collision(robot: RobotDescription) -> None:
+    """Raise a clear error when the robot has no usable capsules."""
+    if robot.has_collision:
+        return
+    why = robot.collision.unusable or "it has no capsules"
+    raise RobotFileError(
+        f"{robot.source or '<in memory>'}: robot '{robot.name}' has no collision model ({why}), so it has no collision "
+        "functions (collision_distances, collision_criterion); give the arm's capsules as [[collision]] tables in the "
+        "robot file (docs/collision.md)")
+
+
+class _Arm:
+    """The capsules' segment ends in the base frame at symbolic q."""
+
+    def __init__(self, robot: RobotDescription, q: ca.SX):
+        _, joint_frames, _ = chain(robot, q)
+        frames = [ca.SX(ca.DM(robot.base)), *joint_frames]
+        self.capsules = robot.collision.capsules
+        self.ends = [self._ends(frames[c.frame], c) for c in self.capsules]
+
+    @staticmethod
+    def _ends(frame: ca.SX, capsule: CollisionCapsule) -> tuple[ca.SX, ca.SX]:
+        a = ca.mtimes(frame[:3, :3], ca.DM(capsule.a)) + frame[:3, 3]
+        if capsule.a == capsule.b:  # a sphere: one point, and the point formulas
+            return a, a
+        return a, ca.mtimes(frame[:3, :3], ca.DM(capsule.b)) + frame[:3, 3]
+
+    def is_point(self, i: int) -> bool:
+        return self.capsules[i].a == self.capsules[i].b
+
+    def axis_to_segment(self, i: int, a: ca.SX, b: ca.SX) -> ca.SX:
+        """Capsule i's axis to the segment [a, b] (a runtime segment, possibly of zero length)."""
+        ai, bi = self.ends[i]
+        return geometry.point_segment(ai, a, b) if self.is_point(i) else geometry.segment_segment(ai, bi, a, b)
+
+    def self_distance(self, i: int, j: int) -> ca.SX:
+        (ai, bi), (aj, bj) = self.ends[i], self.ends[j]
+        radii = self.capsules[i].radius + self.capsules[j].radius
+        if self.is_point(i) and self.is_point(j):
+            return geometry.point_point(ai, aj) - radii
+        if self.is_point(i):
+            return geometry.point_segment(ai, aj, bj) - radii
+        if self.is_point(j):
+            return geometry.point_segment(aj, ai, bi) - radii
+        return geometry.segment_segment(ai, bi, aj, bj) - radii
+
+    def obstacle_distance(self, i: int, kind: str, column: ca.SX) -> ca.SX:
+        """Capsule i to one obstacle slot (its column), INACTIVE_DISTANCE when the slot is off."""
+        a, b = self.ends[i]
+        radius = self.capsules[i].radius
+        if kind == "sphere":
+            distance = self.axis_to_segment(i, column[0:3], column[0:3]) - column[3] - radius
+        elif kind == "capsule":
+            distance = self.axis_to_segment(i, column[0:3], column[3:6]) - column[6] - radius
+        elif kind == "box":
+            distance = geometry.segment_box(a, b, column[0:3], ca.reshape(column[3:12], 3, 3), column[12:15]) - radius
+        else:
+            distance = geometry.segment_halfspace(a, b, column[0:3], column[3]) - radius
+        return ca.if_else(column[-1] != 0, distance, INACTIVE_DISTANCE)
+
+
+def _obstacle_inputs(robot: RobotDescription) -> list[tuple[str, ca.SX]]:
+    """(kind, rows × slots symbol) per kind with slots."""
+    slots = robot.collision.slots
+    return [(kind, ca.SX.sym(OBSTACLE_INPUTS[kind], OBSTACLE_ROWS[kind], slots.count(kind)))
+            for kind in OBSTACLE_KINDS if slots.count(kind)]
+
+
+def distances(robot: RobotDescription, q: ca.SX, obstacles: list[tuple[str, ca.SX]]) -> ca.SX:
+    """The column of signed distances (pair_labels' order) at symbolic q and obstacle inputs."""
+    arm = _Arm(robot, q)
+    model = robot.collision
+    entries = [arm.self_distance(i, j) for i, j in model.self_pairs()]
+    for kind, matrix in obstacles:
+        for slot in range(matrix.shape[1]):
+            entries += [arm.obstacle_distance(i, kind, matrix[:, slot]) for i in model.moving()]
+    return ca.vertcat(*entries)
+
+
+def barrier(d: ca.SX, clearance: ca.SX, activation: ca.SX) -> ca.SX:
+    """φ(d) of every entry, summed: the criterion H_C (module docstring)."""
+    span = activation - clearance
+    reach = ca.fmax(activation - d, 0.0)
+    room = ca.fmax(d - clearance, BARRIER_FLOOR * span)
+    ratio = reach / room
+    return 0.5 * ca.sum1(ratio * ratio)
+
+
+def collision_function(robot: RobotDescription, name: str) -> ca.Function:
+    """One of :data:`COLLISION_FUNCTIONS` as a named ``casadi.Function``."""
+    require_collision(robot)
+    q = ca.SX.sym("q", robot.n)
+    obstacles = _obstacle_inputs(robot)
+    d = distances(robot, q, obstacles)
+    inputs, labels = [q, *[m for _, m in obstacles]], ["q", *[OBSTACLE_INPUTS[k] for k, _ in obstacles]]
+    if name == "collision_distances":
+        return ca.Function(name, inputs, [ca.densify(d)], labels, ["d"])
+    if name == "collision_criterion":
+        clearance, activation = ca.SX.sym("clearance"), ca.SX.sym("activation")
+        h = barrier(d, clearance, activation)
+        return ca.Function(name, [*inputs, clearance, activation], [h, ca.densify(ca.gradient(h, q))],
+                           [*labels, "clearance", "activation"], ["H_C", "grad_H_C"])
+    raise KeyError(name)

@@ -1,0 +1,157 @@
+"""Distances between a capsule and the primitive shapes, in CasADi SX, branch-light.
+
+A capsule is a segment ``[a, b]`` swept by a ball of radius ``r``; a sphere is a capsule of
+zero length. Every function here returns the distance between the segment (the capsule's
+axis) and the other shape, so a capsule's distance is that minus its radius. Clamps are
+``fmin``/``fmax`` and the one choice is a select (``if_else``), so the C has no data-dependent
+branch. Divisions are guarded by explicit floors, so every value and every derivative is
+finite for any input (a segment of zero length, parallel segments, a zero half-extent).
+
+Sign convention (coal's, ``docs/collision.md``): positive when apart, zero when touching,
+negative when overlapping. Capsule–capsule, capsule–sphere and capsule–plane distances are
+the exact signed distances (the penetration depth, negated, when overlapping). Capsule–box is
+exact while the capsule's axis stays outside the box; once the axis enters, it is ``−r`` minus
+the depth of the axis' deepest point, which is at least coal's signed distance (coal's depth
+is the shortest translation that separates the two, and the whole axis must come out).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+# Divisions are by fmax(x, DIVISION_FLOOR): a zero-length segment (a sphere given as an
+# obstacle capsule) divides 0 by it and gets 0, never 0/0. Far below any squared length that
+# matters (1e-30 m² is a femtometre squared) and a normal number in single precision (≥ 1.2e-38).
+DIVISION_FLOOR = 1e-30
+# Two segments count as parallel when sin²(angle) < SEGMENT_PARALLEL_EPSILON: then the first
+# closest-point parameter is taken as 0 (Ericson's choice) rather than from a quotient by the
+# vanishing a·e − b² = |d1|²|d2|² sin². Either way the two clamped projections that follow give
+# the closest points, so the threshold only decides where the quotient's rounding would start to
+# matter: the squared distance's error is below min(L² sin², ε² L²/sin²) (L the segments'
+# length, ε the precision), at most ε L² wherever the threshold sits; 1e-14 keeps the quotient
+# for every angle above 1e-7 rad.
+SEGMENT_PARALLEL_EPSILON = 1e-14
+# The axis distance's square is floored at DISTANCE_FLOOR² before its square root, so the
+# gradient 1/(2 sqrt) stays finite when two axes cross (a deep overlap); 1e-12 m changes no
+# distance that matters and its square is a normal number in single precision.
+DISTANCE_FLOOR = 1e-12
+
+
+def _dot(u: ca.SX, v: ca.SX) -> ca.SX:
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+
+
+def _clamp01(x: ca.SX) -> ca.SX:
+    return ca.fmin(ca.fmax(x, 0.0), 1.0)
+
+
+def _root(squared: ca.SX) -> ca.SX:
+    return ca.sqrt(ca.fmax(squared, DISTANCE_FLOOR ** 2))
+
+
+def segment_segment_squared(a1: ca.SX, d1: ca.SX, a2: ca.SX, d2: ca.SX) -> ca.SX:
+    """The squared distance between the segments ``a1 + s d1`` and ``a2 + t d2``, s, t ∈ [0, 1].
+
+    Ericson, *Real-Time Collision Detection* (2005), 5.1.9, with the branches as clamps: the
+    unconstrained s (0 for parallel segments), t projected from it and clamped, s projected back
+    from t and clamped. Projecting s back whatever t was gives Ericson's s in every case (when
+    t needed no clamp, the projection returns s itself), so no branch is needed.
+    """
+    r = a1 - a2
+    a, e, b = _dot(d1, d1), _dot(d2, d2), _dot(d1, d2)
+    c, f = _dot(d1, r), _dot(d2, r)
+    denominator = ca.fmax(a * e - b * b, SEGMENT_PARALLEL_EPSILON * a * e + DIVISION_FLOOR)
+    s = _clamp01((b * f - c * e) / denominator)
+    t = _clamp01((b * s + f) / ca.fmax(e, DIVISION_FLOOR))
+    s = _clamp01((b * t - c) / ca.fmax(a, DIVISION_FLOOR))
+    gap = r + s * d1 - t * d2
+    return _dot(gap, gap)
+
+
+def point_segment_squared(p: ca.SX, a: ca.SX, d: ca.SX) -> ca.SX:
+    """The squared distance between the point ``p`` and the segment ``a + t d``, t ∈ [0, 1]."""
+    t = _clamp01(_dot(p - a, d) / ca.fmax(_dot(d, d), DIVISION_FLOOR))
+    gap = a + t * d - p
+    return _dot(gap, gap)
+
+
+def segment_segment(a1: ca.SX, b1: ca.SX, a2: ca.SX, b2: ca.SX) -> ca.SX:
+    """The distance (≥ 0) between the segments ``[a1, b1]`` and ``[a2, b2]``."""
+    return _root(segment_segment_squared(a1, b1 - a1, a2, b2 - a2))
+
+
+def point_segment(p: ca.SX, a: ca.SX, b: ca.SX) -> ca.SX:
+    """The distance (≥ 0) between the point ``p`` and the segment ``[a, b]``."""
+    return _root(point_segment_squared(p, a, b - a))
+
+
+def point_point(p: ca.SX, q: ca.SX) -> ca.SX:
+    gap = p - q
+    return _root(_dot(gap, gap))
+
+
+def segment_halfspace(a: ca.SX, b: ca.SX, normal: ca.SX, offset: ca.SX) -> ca.SX:
+    """The signed distance of the segment ``[a, b]`` from the half-space ``{x : n·x ≤ offset}``
+    (``n`` a unit normal pointing out of the solid): the nearer end's height above the boundary,
+    negative below it."""
+    return ca.fmin(_dot(normal, a), _dot(normal, b)) - offset
+
+
+def segment_box(a: ca.SX, b: ca.SX, centre: ca.SX, rotation: ca.SX, half: ca.SX) -> ca.SX:
+    """The signed distance of the segment ``[a, b]`` from the box (``centre``, ``rotation`` whose
+    columns are the box's axes, half-extents ``half``): the distance while the segment is
+    outside the box, and the box's signed distance of the segment's deepest point (negative)
+    once it enters.
+
+    Outside, the nearest point of the segment is an end or a point nearest to one of the
+    box's 12 edges (between those, the distance to a face is linear along the segment), so the
+    distance is the least of the two ends' distances and the 12 segment–edge distances. Inside,
+    ``max_i(|p_i| − h_i)`` is convex and piecewise linear along the segment, so its least value
+    is at an end or a kink: where a coordinate crosses 0, or where two of ``±p_i − h_i`` meet (15
+    parameters, each clamped to the segment and evaluated).
+    """
+    p0 = ca.mtimes(rotation.T, a - centre)
+    direction = ca.mtimes(rotation.T, b - a)
+    outside = ca.fmin(_point_box_outside_squared(p0, half), _point_box_outside_squared(p0 + direction, half))
+    for axis in range(3):
+        u, v = [k for k in range(3) if k != axis]
+        edge = ca.SX.zeros(3, 1)
+        edge[axis] = 2 * half[axis]
+        for su in (-1.0, 1.0):
+            for sv in (-1.0, 1.0):
+                corner = ca.SX.zeros(3, 1)
+                corner[axis], corner[u], corner[v] = -half[axis], su * half[u], sv * half[v]
+                outside = ca.fmin(outside, segment_segment_squared(p0, direction, corner, edge))
+    deepest = ca.fmin(_box_depth(p0, half), _box_depth(p0 + direction, half))
+    for t in _kinks(p0, direction, half):
+        deepest = ca.fmin(deepest, _box_depth(p0 + _clamp01(t) * direction, half))
+    # the axis enters the box exactly when its deepest point is inside (depth < 0)
+    return ca.if_else(deepest < 0, deepest, _root(outside))
+
+
+def _point_box_outside_squared(p: ca.SX, half: ca.SX) -> ca.SX:
+    """The squared distance of ``p`` (box frame) from the box; 0 inside."""
+    out = [ca.fmax(ca.fabs(p[k]) - half[k], 0.0) for k in range(3)]
+    return out[0] * out[0] + out[1] * out[1] + out[2] * out[2]
+
+
+def _box_depth(p: ca.SX, half: ca.SX) -> ca.SX:
+    """``min(max_i(|p_i| − h_i), 0)``: minus the depth of ``p`` (box frame) inside the box, 0 outside."""
+    return ca.fmin(ca.fmax(ca.fmax(ca.fabs(p[0]) - half[0], ca.fabs(p[1]) - half[1]), ca.fabs(p[2]) - half[2]), 0.0)
+
+
+def _crossing(offset: ca.SX, slope: ca.SX) -> ca.SX:
+    """The root t of ``offset + t slope`` (a large number of the right sign when slope is 0,
+    which the clamp to the segment then takes to an end)."""
+    return -offset * slope / ca.fmax(slope * slope, DIVISION_FLOOR)
+
+
+def _kinks(p0: ca.SX, direction: ca.SX, half: ca.SX) -> list[ca.SX]:
+    """The parameters where ``max_i(|p_i(t)| − h_i)`` may kink: ``p_i = 0`` (3) and
+    ``σ_i p_i − h_i = σ_j p_j − h_j`` for i < j and signs σ (12)."""
+    kinks = [_crossing(p0[k], direction[k]) for k in range(3)]
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        for si in (-1.0, 1.0):
+            for sj in (-1.0, 1.0):
+                kinks.append(_crossing(si * p0[i] - sj * p0[j] - half[i] + half[j], si * direction[i] - sj * direction[j]))
+    return kinks
