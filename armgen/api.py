@@ -581,7 +581,8 @@ def solve_ik(robot: Robot | str | Path, pose: Any, q0: Any = None, seed: Any = N
 # -- firmware ---------------------------------------------------------------------------------------
 
 def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None = None,
-                     plan: str | Path | None = None, overrides: tuple[str, ...] | list[str] = ()) -> tuple[Robot, list[Path]]:
+                     plan: str | Path | None = None, overrides: tuple[str, ...] | list[str] = (),
+                     feedforward: str | None = None) -> tuple[Robot, list[Path]]:
     """Write a self-contained firmware project (``armgen firmware``): the robot's generated C,
     the controller, a CMake host demo, the Cortex-M4F toolchain file and a README.
 
@@ -600,6 +601,10 @@ def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None
         must give the CSV's samples; the demo runs it.
     overrides
         ``key=value`` changes of ``task`` (as ``--set``).
+    feedforward
+        ``"none"``, ``"gravity"`` or ``"inverse_dynamics"``: each command's feed-forward torque
+        (``ctrl_output.tau_ff``, checked against ``taumax``: the ``TORQUE`` fault). Default: the
+        inverse dynamics for a robot with inertials; a robot without has no feed-forward.
 
     Returns
     -------
@@ -610,7 +615,8 @@ def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None
     Raises
     ------
     OptionError
-        Both ``task`` and ``plan``, or ``overrides`` without ``task`` (exit 2).
+        Both ``task`` and ``plan``, ``overrides`` without ``task``, or a ``feedforward`` other than
+        ``"none"`` for a robot without inertials (exit 2).
     RobotFileError, TaskFileError, PlanFileError
         A bad robot, task or plan file (exit 2).
     PlanningError
@@ -630,12 +636,12 @@ def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None
         raise OptionError("give --task or --plan, not both (a task is planned here; a plan was made from one)")
     if overrides and task is None:
         raise OptionError("--set changes a task file: give --task (a plan was made already; re-plan its task instead)")
-    return write_firmware_project(robot, out, task, plan, tuple(overrides))
+    return write_firmware_project(robot, out, task, plan, tuple(overrides), feedforward)
 
 
 def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path | None = None,
                   overrides: tuple[str, ...] | list[str] = (), gen_dir: str | Path | None = None,
-                  lock: str | None = None) -> list[Path]:
+                  lock: str | None = None, feedforward: str | None = None) -> list[Path]:
     """Write the controller's task files (``armgen firmware-task``, used by the firmware stub's
     Makefile): ``task_params.h``, the PTP evaluator ``fw_ptp.{h,c}`` and ``robot_fw.c``.
 
@@ -655,6 +661,8 @@ def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path
     lock
         ``JOINTS@TIME`` (e.g. ``"5@1.38"``): the runners report these joints locked from TIME s
         on, a fault the plan does not know.
+    feedforward
+        Each command's feed-forward torque, as :func:`firmware_project`'s.
 
     Returns
     -------
@@ -665,6 +673,8 @@ def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path
     ------
     TaskFileError, PlanFileError
         A bad task or plan file (exit 2).
+    OptionError
+        A ``feedforward`` other than ``"none"`` for a robot without inertials (exit 2).
     RobotMismatchError
         A task for another robot than ``robot`` (exit 5).
     OutputError
@@ -672,12 +682,14 @@ def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path
     ArmgenError
         ``armgen.firmware.FirmwareError`` (exit 5): a task the controller cannot run.
     """
-    from .firmware.configuration import schedule_lock, write_task_files
+    from .firmware.configuration import schedule_lock, with_feedforward, write_task_files
     from .firmware.tasks import task_from_file
 
     controller = task_from_file(source, load_robot_any(robot) if robot is not None else None, tuple(overrides))
     if lock:
         controller = schedule_lock(controller, lock)
+    if feedforward is not None:
+        controller = with_feedforward(controller, feedforward)
     return write_task_files(controller, out, gen_dir)
 
 

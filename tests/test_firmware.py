@@ -61,9 +61,12 @@ def short_plan(short_task):
     return plan(short_task)
 
 
-def assert_never_nan(run: fw.FirmwareRun, n: int = 8) -> None:
+def assert_never_nan(run: fw.FirmwareRun, robot="modular8") -> None:
+    """Every value finite, in the CSV's columns: tick, t, q, qd, errors, windows, the feed-forward
+    torques of a robot with inertials, locked, state, fault."""
+    robot = load_robot(robot) if isinstance(robot, str) else robot
     assert np.all(np.isfinite(run.data)), "the firmware wrote a non-finite value"
-    assert run.data.shape[1] == 2 + 3 * n + 5  # tick, t, q, qd, windows; errors; locked, state, fault
+    assert run.data.shape[1] == 2 + (4 if robot.has_dynamics else 3) * robot.n + 5
 
 
 # --------------------------------------------------------------------------- replay on the host
@@ -395,7 +398,7 @@ def test_spec30_and_spec35_examples_replay_on_the_host_firmware(builders, ft_pla
     cmp = fwcmp.compare_with_plan(result, run, task, "double", name)
     assert cmp.passed, cmp.rows
     assert cmp.max_dq <= fwcmp.FW_DOUBLE_BOUND_RAD
-    assert_never_nan(run, task.robot.n)
+    assert_never_nan(run, task.robot)
     if task.lock_tick >= 0:  # the plan's lock, reported by the drive model at its tick
         by_tick = run.by_tick()
         k = task.lock_tick
@@ -435,7 +438,7 @@ def test_lock_from_the_tick_input_at_a_time_the_plan_did_not_know(builders, robo
     assert k == round(t_lock / task.dt) and task.lock_mask == 1 << j
     run = fw.run_host(builders[robot_name].executable(HOST_SAN, task, f"{name}_runtime_lock"))
     assert (run.state, run.fault) == ("DONE", "NONE")
-    assert_never_nan(run, n)
+    assert_never_nan(run, task.robot)
     rows = np.array([run.by_tick()[i] for i in range(task.n_ticks + 1)])
     state = rows[:, -2].astype(int)
     assert np.all(state[:k] == fw.STATE_NAMES.index("RUNNING"))
@@ -477,7 +480,7 @@ def test_verify_replay_stage_runs_a_fault_tolerant_plan(ft_plans, tmp_path):
 
 def lock_run(builder, task, args, name):
     run = fw.run_host(builder.executable(HOST_SAN, task, name), args)
-    assert_never_nan(run, task.robot.n)
+    assert_never_nan(run, task.robot)
     return run
 
 

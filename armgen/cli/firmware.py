@@ -8,6 +8,11 @@ from __future__ import annotations
 import click
 
 from .handling import handle_errors
+
+# armgen.firmware.configuration.FEEDFORWARD_IDS (the CLI imports only the API and the description)
+FEEDFORWARD_CHOICES = ("none", "gravity", "inverse_dynamics")
+FEEDFORWARD_HELP = ("a robot with inertials: each command's feed-forward torque (ctrl_output.tau_ff, checked against "
+                    "taumax: fault TORQUE); default inverse_dynamics; a robot without inertials has none")
 from .options import out_option
 
 
@@ -20,19 +25,21 @@ from .options import out_option
 @click.option("--plan", "plan_csv", type=click.Path(exists=True, dir_okay=False), default=None,
               help="a plan CSV (with its plan.json) made by `armgen plan`: its task is planned again, must give "
                    "the CSV's samples, and the project's demo runs it")
+@click.option("--feedforward", type=click.Choice(FEEDFORWARD_CHOICES), default=None, help=FEEDFORWARD_HELP)
 @handle_errors
-def firmware_cmd(robot: str, out_dir: str, task_file: str | None, plan_csv: str | None) -> None:
+def firmware_cmd(robot: str, out_dir: str, task_file: str | None, plan_csv: str | None,
+                 feedforward: str | None) -> None:
     """Write a firmware project for ROBOT (a bundled name or a robot file) into --out; its demo
     runs --task or --plan, else a short built-in line.
 
-    Exit codes: 2 bad robot, task or plan file, 3 the task (or, without one, the demo) cannot
+    Exit codes: 2 bad robot, task or plan file (or --feedforward for a robot without inertials), 3 the task (or, without one, the demo) cannot
     be planned or its plan leaves the joint limits (also under [check] limits = "report"), 4 the
     folder cannot be written (a file, a foreign non-empty folder, read-only, a symbolic link in
     the project's paths), 5 the controller cannot run the task (another robot's, refused before
     planning, or a mode it does not have) or a --plan its recorded task does not plan to."""
     from ..api import firmware_project
 
-    r, paths = firmware_project(robot, out_dir, task_file, plan_csv)
+    r, paths = firmware_project(robot, out_dir, task_file, plan_csv, feedforward=feedforward)
     click.echo(f"wrote {len(paths)} files of the firmware project of '{r.name}' into {out_dir}")
     click.echo(f"build the host demo:  cmake -S {out_dir} -B {out_dir}/build && cmake --build {out_dir}/build")
     click.echo(f"see {out_dir}/README.md for the Cortex-M4F image and the controller's API")
@@ -48,15 +55,17 @@ def firmware_cmd(robot: str, out_dir: str, task_file: str | None, plan_csv: str 
               help="the robot's generated code (default generated/<robot>/)")
 @click.option("--lock", default=None, metavar="JOINTS@TIME",
               help="the drives report these joints locked from TIME s on (e.g. 5@1.38), unknown to the plan")
+@click.option("--feedforward", type=click.Choice(FEEDFORWARD_CHOICES), default=None, help=FEEDFORWARD_HELP)
 @handle_errors
 def firmware_task_cmd(source: str, out_dir: str, robot: str | None, overrides: tuple[str, ...], gen_dir: str | None,
-                      lock: str | None) -> None:
+                      lock: str | None, feedforward: str | None) -> None:
     """Write the controller's task for SOURCE (a task file or a plan CSV): task_params.h, the PTP
     evaluator fw_ptp.{h,c} and robot_fw.c (the generated functions the controller calls).
 
-    Used by firmware_stub/Makefile. Exit codes: 2 bad task file, 4 unwritable output, 5 a task
+    Used by firmware_stub/Makefile. Exit codes: 2 bad task file (or --feedforward for a robot without
+    inertials), 4 unwritable output, 5 a task
     the controller cannot run (e.g. one for another --robot)."""
     from ..api import firmware_task
 
-    for path in firmware_task(source, out_dir, robot, overrides, gen_dir, lock):
+    for path in firmware_task(source, out_dir, robot, overrides, gen_dir, lock, feedforward):
         click.echo(f"wrote {path}")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,10 +23,11 @@ import numpy as np
 from ..codegen.generate import GENERATED_DIR
 from ..codegen.ptp_c import generate_ptp_evaluator
 from ..data import render_template
-from ..errors import RobotFileError, excerpt
+from ..errors import OptionError, RobotFileError, excerpt
 from ..fileio import write_text_atomic
 from ..planning.toolpath.timelaw import ProgramMotion
 from ..robot import Robot
+from ..symbolic.dynamics import require_dynamics
 from .errors import FirmwareError
 from .literals import c_ints, c_real, c_reals
 from .program_table import program_table_c
@@ -64,6 +66,12 @@ RESOLVED_MODES = ("resolved_rate", "fault_tolerant", "weighted_gpm")
 LAW_IDS = {"cubic": "CTRL_LAW_CUBIC", "trapezoidal": "CTRL_LAW_TRAPEZOIDAL", "constant": "CTRL_LAW_CONSTANT"}
 PATH_IDS = {"circle": "CTRL_PATH_CIRCLE", "line": "CTRL_PATH_LINE"}
 PROGRAM_TABLE = "fw_program_table"  # the program table's name in task_params.h
+# The feed-forward torque of each command (ctrl_config.feedforward; a robot with inertials only):
+# none, gravity g(q), or the inverse dynamics rnea(q, q̇, q̈) — the default, the torque a
+# current-controlled drive needs and the one the TORQUE fault must check.
+FEEDFORWARD_IDS = {"none": "CTRL_FF_NONE", "gravity": "CTRL_FF_GRAVITY", "inverse_dynamics": "CTRL_FF_INVERSE_DYNAMICS"}
+DEFAULT_FEEDFORWARD = "inverse_dynamics"
+_FEEDFORWARD_LINE = re.compile(r"^    \.feedforward = CTRL_FF_\w+,$", re.M)  # feedforward.h's first line
 
 
 @dataclass
@@ -82,6 +90,11 @@ class FirmwareTask:
     nseg: int = 0
     lock_tick: int = -1  # the runners report the joints of lock_mask locked from this tick (-1: never)
     lock_mask: int = 0
+    feedforward: str = ""  # FEEDFORWARD_IDS' key in the header; "" (as the adapters make it): the robot's default
+
+    def __post_init__(self) -> None:
+        if not self.feedforward:
+            self.feedforward = default_feedforward(self.robot)
 
     @property
     def max_segments(self) -> int:
@@ -148,13 +161,59 @@ def check_controller_limits(robot: Robot, dt: float) -> None:
                 f"ticks: here {ticks:.3g}); raise the limits in the robot file or lengthen the tick")
 
 
+def default_feedforward(robot: Robot) -> str:
+    """The feed-forward a task of ``robot`` gets unless asked otherwise: the inverse dynamics for a
+    robot with inertials, none without (its firmware has no dynamics)."""
+    return DEFAULT_FEEDFORWARD if robot.has_dynamics else "none"
+
+
+def torque_limits(robot: Robot) -> np.ndarray:
+    """``ctrl_config.tau_max``: each joint's taumax (N·m, N), 0 (no limit) where the robot gives none."""
+    return np.where(np.isfinite(robot.taumax), robot.taumax, 0.0)
+
+
+def feedforward_fields(robot: Robot, choice: str) -> str:
+    """The feed-forward fields of ``fw_task`` (a robot with inertials only)."""
+    return template("feedforward.h", feedforward=FEEDFORWARD_IDS[choice], tau_max=c_reals(torque_limits(robot)))
+
+
 def common_fields(robot: Robot, mode: str, dt: float, q_start: np.ndarray) -> str:
-    """The fields of ``fw_task`` every mode has (after checking the robot's limits fit the controller)."""
+    """The fields of ``fw_task`` every mode has (after checking the robot's limits fit the
+    controller); for a robot with inertials, the default feed-forward and the torque limits too
+    (without inertials the controller has no such fields: the text is as before dynamics)."""
     check_controller_limits(robot, dt)
-    return template("common_fields.h", mode=mode, dt=c_real(dt), q_start=c_reals(q_start), q_min=c_reals(robot.qmin),
-                    q_max=c_reals(robot.qmax), qdot_max=c_reals(speed_guard(robot)),
-                    qddot_max=c_reals(acceleration_limit(robot)), residual_rel=c_real(DEFAULT_RESIDUAL_REL),
-                    residual_abs=c_real(DEFAULT_RESIDUAL_ABS), pos_err_max=c_real(DEFAULT_POS_ERR_MAX))
+    fields = template("common_fields.h", mode=mode, dt=c_real(dt), q_start=c_reals(q_start), q_min=c_reals(robot.qmin),
+                      q_max=c_reals(robot.qmax), qdot_max=c_reals(speed_guard(robot)),
+                      qddot_max=c_reals(acceleration_limit(robot)), residual_rel=c_real(DEFAULT_RESIDUAL_REL),
+                      residual_abs=c_real(DEFAULT_RESIDUAL_ABS), pos_err_max=c_real(DEFAULT_POS_ERR_MAX))
+    if not robot.has_dynamics:
+        return fields
+    return f"{fields}\n{feedforward_fields(robot, default_feedforward(robot))}"
+
+
+def check_feedforward(robot: Robot, choice: str, source: str = "--feedforward") -> None:
+    """Refuse a feed-forward choice that is not one of :data:`FEEDFORWARD_IDS`, or anything but
+    ``none`` for a robot without inertials (naming its file and the fix)."""
+    if choice not in FEEDFORWARD_IDS:
+        raise OptionError(f"{source} {excerpt(repr(choice))}: give one of {', '.join(FEEDFORWARD_IDS)}")
+    if choice != "none":
+        try:
+            require_dynamics(robot)
+        except RobotFileError as exc:
+            raise OptionError(f"{source} {choice}: {exc}; or leave the feed-forward at none") from None
+
+
+def with_feedforward(task: FirmwareTask, choice: str, source: str = "--feedforward") -> FirmwareTask:
+    """The task with the controller computing ``choice`` as each command's feed-forward torque
+    (``none``, ``gravity``, ``inverse_dynamics``); anything but ``none`` needs a robot with inertials."""
+    check_feedforward(task.robot, choice, source)
+    if not task.robot.has_dynamics:
+        return task  # none: the firmware of a robot without inertials has no feed-forward at all
+    lines = _FEEDFORWARD_LINE.findall(task.header)
+    if len(lines) != 1:
+        raise FirmwareError(f"{source}: the task's task_params.h does not hold one feed-forward field (edited by hand?)")
+    new = feedforward_fields(task.robot, choice).splitlines()[0]
+    return dataclasses.replace(task, header=task.header.replace(lines[0], new), feedforward=choice)
 
 
 def program_path(duration: float) -> str:

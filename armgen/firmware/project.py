@@ -44,7 +44,7 @@ from ..planning.tasks import apply_overrides, load_task, run_task
 from ..planning.toolpath.task import MAX_POSES_FILE_BYTES
 from ..robot import BUNDLED_DIR, Robot, load_robot, parse_robot, resolve_robot_path
 from ..schemas import MAX_INPUT_FILE_BYTES, parse_toml_bounded, read_input_file
-from .configuration import FirmwareTask, write_task_files
+from .configuration import FirmwareTask, check_feedforward, with_feedforward, write_task_files
 from .tasks import REPLANNED_SAMPLE_TOL, refusal, task_from_plan, task_source
 from .errors import FirmwareError
 
@@ -395,7 +395,8 @@ def _assemble(stage: Path, robot_file: str, robot_files: dict[str, bytes], job: 
     values = {"ROBOT": robot.name, "ROBOT_FILE": robot_file, "ROBOT_FILES": _robot_rows(robot_files),
               "NDOF": str(robot.n), "PREFIX": code.prefix, "PREFIX_UC": code.prefix.upper(),
               "MAX_SEGMENTS": str(job.firmware.max_segments), "VERSION": __version__, "SHA256": robot.sha256,
-              "DEMO": job.description}
+              "DEMO": job.description, "HAS_DYNAMICS": "1" if robot.has_dynamics else "0",
+              "FEEDFORWARD": _feedforward_note(job.firmware)}
     project = stub / "project"
     (stage / "CMakeLists.txt").write_text(_fill((project / "CMakeLists.txt.in").read_text(encoding="utf-8"), values),
                                           encoding="utf-8")
@@ -404,6 +405,19 @@ def _assemble(stage: Path, robot_file: str, robot_files: dict[str, bytes], job: 
     (stage / "cmake").mkdir()
     (stage / "cmake" / "arm-none-eabi-cortex-m4.cmake").write_bytes(
         (project / "cmake" / "arm-none-eabi-cortex-m4.cmake").read_bytes())
+
+
+def _feedforward_note(firmware: FirmwareTask) -> str:
+    """The README's sentence on the feed-forward torque (a robot with inertials), else nothing."""
+    if not firmware.robot.has_dynamics:
+        return ""
+    what = {"none": "zeros (the task was written with `--feedforward none`)",
+            "gravity": "the gravity torques of each command (`--feedforward gravity`)",
+            "inverse_dynamics": "the inverse dynamics of each command, gravity included"}[firmware.feedforward]
+    return (f" The robot has inertials: `out.tau_ff` holds {what}, N·m, for a current or torque loop "
+            "(`send_joint_torques(out.tau_ff)`), and a command that would need more than a joint's `taumax` "
+            "is the `TORQUE` fault (docs/firmware.md, \"Feed-forward torque\"; choose with `armgen firmware "
+            "--feedforward none|gravity|inverse_dynamics`).")
 
 
 def _robot_rows(robot_files: dict[str, bytes]) -> str:
@@ -417,13 +431,16 @@ def _robot_rows(robot_files: dict[str, bytes]) -> str:
 
 
 def write_firmware_project(robot_ref: str | Path, out: str | Path, task: str | Path | None = None,
-                           plan: str | Path | None = None, overrides: Sequence[str] = ()) -> tuple[Robot, list[Path]]:
+                           plan: str | Path | None = None, overrides: Sequence[str] = (),
+                           feedforward: str | None = None) -> tuple[Robot, list[Path]]:
     """Write the project into ``out`` (new, empty, or a project this command wrote earlier:
     its own files are updated, the user's left alone), its demo running ``task`` (a task file,
     planned here, with ``overrides`` as ``--set``) or ``plan`` (a plan CSV), else the built-in
     demo task. Returns the robot and the files written. Give at most one of ``task`` and
     ``plan``. The robot file and the task file are each read once; the task must name the robot
-    (checked before it is planned)."""
+    (checked before it is planned). ``feedforward`` (one of :data:`FEEDFORWARD_IDS`, default the
+    robot's: the inverse dynamics with inertials, none without) is each command's feed-forward
+    torque; asking for one of a robot without inertials is refused first (OptionError)."""
     out = Path(out)
     owned = _owned_files(out)
     _check_writable(out)
@@ -431,12 +448,16 @@ def write_firmware_project(robot_ref: str | Path, out: str | Path, task: str | P
     data = read_input_file(robot_path, MAX_INPUT_FILE_BYTES, "robot file", RobotFileError)
     robot = _parse_robot(robot_path, data)
     robot_file, robot_files = project_robot_files(robot_path, data, robot)
+    if feedforward is not None:
+        check_feedforward(robot, feedforward)  # before anything is planned
     if task is not None:
         job = task_file_project_task(robot, task, overrides)
     elif plan is not None:
         job = plan_project_task(robot, plan)
     else:
         job = demo_project_task(robot, robot_ref)
+    if feedforward is not None:
+        job = dataclasses.replace(job, firmware=with_feedforward(job.firmware, feedforward))
     parent = out.resolve().parent
     try:
         parent.mkdir(parents=True, exist_ok=True)

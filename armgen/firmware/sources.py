@@ -19,17 +19,19 @@ def robot_prefix(robot: Robot) -> str:
     return re.sub(r"[^0-9a-zA-Z_]", "_", robot.name).lower()
 
 
-# The generated functions the controller calls: always, and per optional mode (a robot whose
-# generated code lacks them gets a firmware without that mode: -DCTRL_HAS_<MODE>=0).
-# The steps take the J of the tick's fk_jacobian (their *_from_jacobian twins).
+# The generated functions the controller calls: always, and per optional feature (a robot whose
+# generated code lacks them gets a firmware without it: -DCTRL_HAS_<FEATURE>=0). The steps take
+# the J of the tick's fk_jacobian (their *_from_jacobian twins); DYNAMICS (a robot with
+# inertials) is each command's feed-forward torque and the TORQUE fault.
 FIRMWARE_FUNCTIONS = ("fk_jacobian", "zghal", "repetitive", "step_gpm_from_jacobian")
 OPTIONAL_FUNCTIONS = {"FAULT_TOLERANT": ("ft_index_from_jacobian", "wln_weights", "step_fault_from_jacobian"),
                       "WEIGHTED_GPM": ("step_wgpm_from_jacobian",),
-                      "MOVE_TO": ("ik",)}
+                      "MOVE_TO": ("ik",),
+                      "DYNAMICS": ("gravity", "rnea")}
 
 
 def available_modes(source: str, prefix: str) -> tuple[str, ...]:
-    """The optional controller modes whose generated functions the robot's source defines."""
+    """The optional controller features whose generated functions the robot's source defines."""
     return tuple(mode for mode, names in OPTIONAL_FUNCTIONS.items()
                  if all(re.search(rf"^(?:void|{prefix}_status) {prefix}_{n}\(", source, re.M) for n in names))
 

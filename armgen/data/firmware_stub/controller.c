@@ -83,6 +83,16 @@ typedef char ctrl_check_ptp_ncoef[(FW_PTP_NCOEF == CTRL_NCOEF) ? 1 : -1];
 #else
 #define REAL_EPSILON DBL_EPSILON
 #endif
+#if CTRL_HAS_DYNAMICS
+/* The largest torque limit ctrl_init accepts, N m (N): the robot files' own bound (description
+ * MAX_TORQUE); beyond it a limit guards nothing. */
+#define TAU_MAX_LIMIT CTRL_LIT(1.0e7)
+/* A command's |tau_ff_i| may reach tau_max[i] times (1 + this) before TORQUE: the float build's
+ * rnea carries up to 2e-5 of the largest torque in rounding (the verifier's FLOAT_BOUNDS), a few
+ * 1e-4 of a wrist joint's small limit beside a shoulder's large torque; a plan the planner
+ * accepts at its limit (to 1e-9) must not stop on that rounding. */
+#define TORQUE_RTOL CTRL_LIT(1e-3)
+#endif
 
 /* The spec 30 / 35 modes need generated functions a robot may lack (e.g. without redundancy):
  * the build sets these to 0 then, and ctrl_init rejects the mode. */
@@ -170,6 +180,7 @@ const char *ctrl_fault_name(ctrl_fault f) {
     case CTRL_FAULT_SPEED: return "SPEED";
     case CTRL_FAULT_UNREACHABLE: return "UNREACHABLE";
     case CTRL_FAULT_BAD_TARGET: return "BAD_TARGET";
+    case CTRL_FAULT_TORQUE: return "TORQUE";
     default: break;
   }
   return "?";
@@ -415,6 +426,27 @@ static int method_valid(ctrl_method m) {
   return 0;
 }
 
+#if CTRL_HAS_DYNAMICS
+/* The feed-forward choice and the torque limits: a known choice, each limit in [0, TAU_MAX_LIMIT]. */
+static int dynamics_valid(const ctrl_config *cfg) {
+  int i, ok;
+  switch (cfg->feedforward) { /* the enum may be stored in a byte (-fshort-enums on bare-metal ARM) */
+    case CTRL_FF_NONE:
+    case CTRL_FF_GRAVITY:
+    case CTRL_FF_INVERSE_DYNAMICS:
+      ok = 1;
+      break;
+    default:
+      ok = 0;
+      break;
+  }
+  for (i = 0; i < N; ++i) {
+    ok = ok && at_most(cfg->tau_max[i], TAU_MAX_LIMIT);
+  }
+  return ok;
+}
+#endif
+
 /* A program path: a well-formed table (fw_program_check), absolute (relative = 0), whose
  * time law ends within the task's duration (the planner rounds it up to whole ticks) and
  * whose first pose is FK(q_start) (start pose Tp, column-major 4x4), to PROGRAM_START_TOL(_RAD):
@@ -625,6 +657,9 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
          positive(config->qddot_max[i]) && config->qddot_max[i] <= QDDOT_MAX_LIMIT &&
          move_to_ticks(config, i, hi - lo) <= MOVE_TO_MAX_TICKS; /* false for inf and NaN too */
   }
+#if CTRL_HAS_DYNAMICS
+  ok = ok && dynamics_valid(config);
+#endif
   if (ok) {
     switch (config->mode) {
       case CTRL_MODE_RESOLVED_RATE: ok = init_resolved_rate(c); break;
@@ -668,6 +703,39 @@ static ctrl_real tick_time(const ctrl *c) {
   return (ctrl_real)c->k * cfg->dt;
 }
 
+#if CTRL_HAS_DYNAMICS
+/* The feed-forward torque of the command (q, q_dot, q_ddot) the configuration asks for. */
+static void feedforward_torque(const ctrl *c, const ctrl_real *q, const ctrl_real *qd, const ctrl_real *qdd,
+                               ctrl_real *tau) {
+  int i;
+  switch (c->cfg.feedforward) {
+    case CTRL_FF_INVERSE_DYNAMICS:
+      ctrl_gen_rnea(q, qd, qdd, tau);
+      break;
+    case CTRL_FF_GRAVITY:
+      ctrl_gen_gravity(q, tau);
+      break;
+    case CTRL_FF_NONE:
+    default:
+      for (i = 0; i < N; ++i) {
+        tau[i] = CTRL_LIT(0.0);
+      }
+      break;
+  }
+}
+
+/* TORQUE when a joint with a limit (tau_max[i] > 0) would need more (TORQUE_RTOL for rounding). */
+static ctrl_fault check_torque(const ctrl *c, const ctrl_real *tau) {
+  int i;
+  if (!all_finite(tau, N)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  for (i = 0; i < N; ++i) {
+    ctrl_real limit = c->cfg.tau_max[i];
+    if (limit > CTRL_LIT(0.0) && CTRL_FABS(tau[i]) > limit * (CTRL_LIT(1.0) + TORQUE_RTOL)) return CTRL_FAULT_TORQUE;
+  }
+  return CTRL_FAULT_NONE;
+}
+#endif
+
 static void emit_hold(const ctrl *c, ctrl_output *out) {
   int i;
   out->tick = c->k;
@@ -677,6 +745,17 @@ static void emit_hold(const ctrl *c, ctrl_output *out) {
     out->qd[i] = CTRL_LIT(0.0);
     out->window[i] = c->win_value[i];
   }
+#if CTRL_HAS_DYNAMICS
+  /* holding still: the gravity torques of the held command (rnea at rest is gravity); none
+   * after a rejected configuration (the drives must not be enabled) */
+  if (c->fault != CTRL_FAULT_BAD_CONFIG && c->cfg.feedforward != CTRL_FF_NONE) {
+    ctrl_gen_gravity(c->q_hold, out->tau_ff);
+  } else {
+    for (i = 0; i < N; ++i) {
+      out->tau_ff[i] = CTRL_LIT(0.0);
+    }
+  }
+#endif
   out->pos_err = c->pos_err;
   out->ori_err = c->ori_err;
   out->locked = c->locked;
@@ -684,8 +763,29 @@ static void emit_hold(const ctrl *c, ctrl_output *out) {
   out->fault = c->fault;
 }
 
-static void accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd, ctrl_output *out) {
+/* The command of this tick, accepted: with dynamics, first its feed-forward torque from
+ * (q, q_dot, q_ddot), q_ddot the mode's own (qdd) or, where the mode has none (qdd NULL), the
+ * backward difference of the commanded velocities (q_dot - the previous command's q_dot) / dt,
+ * and the torque limits (TORQUE: nothing is emitted, the arm holds); then held and emitted. */
+static ctrl_fault accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd, const ctrl_real *qdd,
+                         ctrl_output *out) {
   int i;
+#if CTRL_HAS_DYNAMICS
+  ctrl_real tau[N], difference[N];
+  const ctrl_real *acceleration = qdd;
+  ctrl_fault f;
+  if (acceleration == NULL && c->cfg.feedforward == CTRL_FF_INVERSE_DYNAMICS) {
+    for (i = 0; i < N; ++i) {
+      difference[i] = (qd[i] - c->qd_prev[i]) / c->cfg.dt;
+    }
+    acceleration = difference;
+  }
+  feedforward_torque(c, q, qd, acceleration, tau);
+  f = check_torque(c, tau);
+  if (f != CTRL_FAULT_NONE) return f;
+#else
+  (void)qdd; /* no dynamics: the command's acceleration is not needed */
+#endif
   c->t_hold = t;
   out->tick = c->k;
   out->t = t;
@@ -704,6 +804,12 @@ static void accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd
   out->locked = c->locked;
   out->state = c->state;
   out->fault = c->fault;
+#if CTRL_HAS_DYNAMICS
+  for (i = 0; i < N; ++i) {
+    out->tau_ff[i] = tau[i];
+  }
+#endif
+  return CTRL_FAULT_NONE;
 }
 
 static ctrl_fault check_command(const ctrl *c, const ctrl_real *q) {
@@ -905,7 +1011,8 @@ static ctrl_fault tick_resolved_rate(ctrl *c, const ctrl_input *in, ctrl_real t,
   if (f != CTRL_FAULT_NONE) return f;
   f = check_step(c, J, cmd, cmd_max, qd, 0);
   if (f != CTRL_FAULT_NONE) return f;
-  accept(c, t, q, qd, out);
+  f = accept(c, t, q, qd, NULL, out); /* q_ddot: the backward difference of q_dot */
+  if (f != CTRL_FAULT_NONE) return f;
   if (moving(c)) {
     integrate(c, qd);
   }
@@ -962,7 +1069,8 @@ static ctrl_fault tick_fault_tolerant(ctrl *c, const ctrl_input *in, ctrl_real t
   if (f != CTRL_FAULT_NONE) return f;
   f = check_step(c, J, cmd, cmd_max, qd, lam > CTRL_LIT(0.0));
   if (f != CTRL_FAULT_NONE) return f;
-  accept(c, t, q, qd, out);
+  f = accept(c, t, q, qd, NULL, out); /* q_ddot: the backward difference of q_dot */
+  if (f != CTRL_FAULT_NONE) return f;
   if (moving(c)) {
     integrate(c, qd);
   }
@@ -1007,7 +1115,8 @@ static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, 
   if (f != CTRL_FAULT_NONE) return f;
   f = check_step(c, J, cmd, cmd_max, qd, rho > CTRL_LIT(0.0));
   if (f != CTRL_FAULT_NONE) return f;
-  accept(c, t, q, qd, out);
+  f = accept(c, t, q, qd, NULL, out); /* q_ddot: the backward difference of q_dot */
+  if (f != CTRL_FAULT_NONE) return f;
   if (moving(c)) {
     integrate(c, qd);
   }
@@ -1023,9 +1132,10 @@ static ctrl_real step_rounding(const ctrl *c, const ctrl_real *q, int i) {
 
 /* A played-back command (PLAYBACK, SAMPLED, MOVE_TO) through the checks of playback: the limits,
  * finite velocities, and each joint's speed: |q_dot_i| <= qdot_max[i] and one tick's step at most
- * qdot_max[i] * dt (a little more for rounding: PLAYBACK_STEP_RTOL, STEP_ROUNDING); then emitted,
- * and the next tick due. */
-static ctrl_fault emit_played(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd, ctrl_output *out) {
+ * qdot_max[i] * dt (a little more for rounding: PLAYBACK_STEP_RTOL, STEP_ROUNDING); then accepted
+ * (its torque, accept: qdd the mode's acceleration, or NULL), emitted, and the next tick due. */
+static ctrl_fault emit_played(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd, const ctrl_real *qdd,
+                              ctrl_output *out) {
   const ctrl_config *cfg = &c->cfg;
   ctrl_fault f = check_command(c, q);
   int i;
@@ -1039,29 +1149,33 @@ static ctrl_fault emit_played(ctrl *c, ctrl_real t, const ctrl_real *q, const ct
       return CTRL_FAULT_SPEED;
     }
   }
-  accept(c, t, q, qd, out);
+  f = accept(c, t, q, qd, qdd, out);
+  if (f != CTRL_FAULT_NONE) return f;
   if (moving(c)) {
     ++c->k;
   }
   return CTRL_FAULT_NONE;
 }
 
+/* Playback, tick k: theta, omega and the polynomials' own acceleration eps at t. */
 static ctrl_fault tick_playback(ctrl *c, ctrl_real t, ctrl_output *out) {
   const ctrl_config *cfg = &c->cfg;
   const ctrl_pb_config *pb = &cfg->pb;
-  ctrl_real q[N], qd[N], th[3];
+  ctrl_real q[N], qd[N], qdd[N], th[3];
   int i;
   for (i = 0; i < N; ++i) {
     if (pb->active[i]) {
       if (fw_ptp_eval(pb->coeffs[i], pb->knots, pb->nseg, t, th) != FW_PTP_OK) return CTRL_FAULT_PLAYBACK;
       q[i] = th[0];
       qd[i] = th[1];
+      qdd[i] = th[2];
     } else {
       q[i] = cfg->q_start[i];
       qd[i] = CTRL_LIT(0.0);
+      qdd[i] = CTRL_LIT(0.0);
     }
   }
-  return emit_played(c, t, q, qd, out);
+  return emit_played(c, t, q, qd, qdd, out);
 }
 
 /* Sampled playback, tick k: q = row k exactly; q_dot = (row k+1 - row k) / dt, the velocity
@@ -1078,7 +1192,7 @@ static ctrl_fault tick_sampled(ctrl *c, ctrl_real t, ctrl_output *out) {
     q[i] = row[i];
     qd[i] = (next[i] - row[i]) / cfg->dt;
   }
-  return emit_played(c, t, q, qd, out);
+  return emit_played(c, t, q, qd, NULL, out); /* q_ddot: the backward difference of q_dot (accept) */
 }
 
 static void latch(ctrl *c, ctrl_fault f, ctrl_real t) {
@@ -1112,22 +1226,25 @@ static ctrl_fault update_locks(ctrl *c, uint32_t reported) {
   return CTRL_FAULT_NONE;
 }
 
-/* The rest-to-rest trapezoid s(tau), tau = t / T in [0, 1], and ds/dtau: accelerating over
- * the first MOVE_TO_BLEND of the time, decelerating over the last. */
-static void move_to_profile(ctrl_real tau, ctrl_real *s, ctrl_real *ds) {
+/* The rest-to-rest trapezoid s(tau), tau = t / T in [0, 1], ds/dtau and d2s/dtau2: accelerating
+ * over the first MOVE_TO_BLEND of the time, decelerating over the last. */
+static void move_to_profile(ctrl_real tau, ctrl_real *s, ctrl_real *ds, ctrl_real *dds) {
   const ctrl_real b = MOVE_TO_BLEND;
   const ctrl_real k = CTRL_LIT(1.0) / (b * (CTRL_LIT(1.0) - b));
   tau = min_r(max_r(tau, CTRL_LIT(0.0)), CTRL_LIT(1.0));
   if (tau < b) {
     *s = CTRL_LIT(0.5) * k * tau * tau;
     *ds = k * tau;
+    *dds = k;
   } else if (tau > CTRL_LIT(1.0) - b) {
     ctrl_real r = CTRL_LIT(1.0) - tau;
     *s = CTRL_LIT(1.0) - CTRL_LIT(0.5) * k * r * r;
     *ds = k * r;
+    *dds = -k;
   } else {
     *s = (tau - CTRL_LIT(0.5) * b) / (CTRL_LIT(1.0) - b);
     *ds = CTRL_LIT(1.0) / (CTRL_LIT(1.0) - b);
+    *dds = CTRL_LIT(0.0);
   }
 }
 
@@ -1169,16 +1286,18 @@ static ctrl_fault start_move_to(ctrl *c, const ctrl_real *target) {
 }
 
 /* MOVE_TO, tick k: the profile's command, through the checks of a played-back command (limits,
- * speed, and the step from the last command: the last tick's too, whose q_dot is 0). */
+ * speed, and the step from the last command: the last tick's too, whose q_dot is 0), with the
+ * profile's own acceleration (0 on the last tick: at rest). */
 static ctrl_fault tick_move_to(ctrl *c, ctrl_real t, ctrl_output *out) {
-  ctrl_real q[N], qd[N], s, ds;
+  ctrl_real q[N], qd[N], qdd[N], s, ds, dds;
   int i;
-  move_to_profile(t / c->mt_T, &s, &ds);
+  move_to_profile(t / c->mt_T, &s, &ds, &dds);
   for (i = 0; i < N; ++i) {
     q[i] = (c->k >= c->n_ticks) ? c->mt_q0[i] + c->mt_delta[i] : c->mt_q0[i] + s * c->mt_delta[i];
     qd[i] = (c->k >= c->n_ticks) ? CTRL_LIT(0.0) : ds * c->mt_delta[i] / c->mt_T;
+    qdd[i] = (c->k >= c->n_ticks) ? CTRL_LIT(0.0) : dds * c->mt_delta[i] / (c->mt_T * c->mt_T);
   }
-  return emit_played(c, t, q, qd, out);
+  return emit_played(c, t, q, qd, qdd, out);
 }
 
 static ctrl_fault tick_mode(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_output *out) {

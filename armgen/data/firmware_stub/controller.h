@@ -104,9 +104,12 @@ typedef enum {
                                       that does not fit the plan's knots) */
   CTRL_FAULT_UNREACHABLE = 13,     /* MOVE_TO: the on-board IK found no configuration inside the
                                       limits within its tolerances (or the build has no IK) */
-  CTRL_FAULT_BAD_TARGET = 14       /* MOVE_TO: ctrl_input.target is not a pose (its last row not
+  CTRL_FAULT_BAD_TARGET = 14,      /* MOVE_TO: ctrl_input.target is not a pose (its last row not
                                       0 0 0 1, or its 3x3 part no rotation: zero, scaled, sheared,
                                       mirrored); the generated IK's <P>_BAD_TARGET */
+  CTRL_FAULT_TORQUE = 15           /* a robot with inertials: the command's feed-forward torque
+                                      |tau_ff_i| is above the joint's tau_max[i] (the command is not
+                                      emitted; the arm holds the previous one) */
 } ctrl_fault;
 
 typedef enum {
@@ -130,6 +133,9 @@ typedef enum { CTRL_FT_INDEX_OMEGA = 0, CTRL_FT_INDEX_RELATIVE = 1 } ctrl_ft_ind
 typedef enum { CTRL_WLN_PLAIN = 0, CTRL_WLN_SMOOTH = 1 } ctrl_wln_rule;
 #define CTRL_WGPM_NCRIT 4 /* criteria of step_wgpm: manipulability, joint manipulability, Zghal, condition */
 typedef enum { CTRL_PATH_LINE = 0, CTRL_PATH_CIRCLE = 1, CTRL_PATH_PROGRAM = 2 } ctrl_path_type;
+/* The feed-forward torque of each command (CTRL_HAS_DYNAMICS builds): none, the gravity
+ * torques g(q), or the inverse dynamics M(q) qdd + C(q, qd) qd + g(q) of the command. */
+typedef enum { CTRL_FF_NONE = 0, CTRL_FF_GRAVITY = 1, CTRL_FF_INVERSE_DYNAMICS = 2 } ctrl_feedforward;
 typedef enum { CTRL_LAW_CUBIC = 0, CTRL_LAW_TRAPEZOIDAL = 1, CTRL_LAW_CONSTANT = 2 } ctrl_time_law;
 typedef enum {
   CTRL_METHOD_PINV = 0,           /* alpha = 0 (minimum norm) */
@@ -228,6 +234,11 @@ typedef struct {
   ctrl_ft_config ft;            /* CTRL_MODE_FAULT_TOLERANT */
   ctrl_wg_config wg;            /* CTRL_MODE_WEIGHTED_GPM */
   ctrl_sp_config sp;            /* CTRL_MODE_SAMPLED (points to a const table: not copied) */
+#if CTRL_HAS_DYNAMICS
+  ctrl_feedforward feedforward; /* what ctrl_output.tau_ff holds (CTRL_FF_NONE: zeros, no check) */
+  ctrl_real tau_max[CTRL_NDOF]; /* torque limit per joint, N m (N for a prismatic joint), [0, 1e7];
+                                   0: none. A command whose |tau_ff_i| exceeds it is a TORQUE fault */
+#endif
 } ctrl_config;
 
 /* What the platform hands the controller every tick. */
@@ -253,6 +264,11 @@ typedef struct {
   uint32_t locked;            /* bit i: joint i frozen as locked */
   ctrl_state state;
   ctrl_fault fault;
+#if CTRL_HAS_DYNAMICS
+  ctrl_real tau_ff[CTRL_NDOF]; /* feed-forward torque of the command, N m (N): gravity(q) or
+                                  rnea(q, qd, qdd) per cfg.feedforward; while holding (IDLE, DONE,
+                                  FAULT) gravity(q) of the held command; zeros with CTRL_FF_NONE */
+#endif
 } ctrl_output;
 
 /* The controller object: fixed-size arrays only. Treat as opaque. */

@@ -12,6 +12,11 @@
  * The controller needs these generated functions: fk_jacobian, zghal, repetitive, wln_weights
  * and the *_from_jacobian twins of step_gpm, ft_index, step_fault and step_wgpm (each tick
  * computes J once, in fk_jacobian, and hands it to the steps).
+ *
+ * A robot with inertials has the generated gravity and rnea too: built with
+ * -DCTRL_HAS_DYNAMICS=1 (the builds set it from the generated source, for every source file
+ * alike: it changes ctrl_config and ctrl_output), the controller computes each command's
+ * feed-forward torque (ctrl_output.tau_ff) and checks it against the joints' torque limits.
  */
 #ifndef ARMGEN_CTRL_ROBOT_H
 #define ARMGEN_CTRL_ROBOT_H
@@ -22,6 +27,12 @@
 #endif
 #ifndef CTRL_ROBOT_HEADER
 #define CTRL_ROBOT_HEADER "modular8.h"
+#endif
+
+/* 1: the generated code has gravity and rnea (a robot with inertials); 0: no dynamics, and
+ * neither tau_ff nor the feed-forward fields of the configuration exist. */
+#ifndef CTRL_HAS_DYNAMICS
+#define CTRL_HAS_DYNAMICS 0
 #endif
 
 #define CTRL_CAT_(a, b) a##b
@@ -55,5 +66,9 @@ typedef CTRL_FN(status) ctrl_gen_status; /* what the generated steps and the IK 
 #define ctrl_gen_step_fault CTRL_FN(step_fault_from_jacobian)
 #define ctrl_gen_step_wgpm CTRL_FN(step_wgpm_from_jacobian)
 #define ctrl_gen_ik CTRL_FN(ik)
+#if CTRL_HAS_DYNAMICS
+#define ctrl_gen_gravity CTRL_FN(gravity)
+#define ctrl_gen_rnea CTRL_FN(rnea)
+#endif
 
 #endif /* ARMGEN_CTRL_ROBOT_H */

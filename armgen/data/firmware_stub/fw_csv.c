@@ -139,6 +139,9 @@ size_t fw_csv_header(char *buf, size_t size) {
   put_names(&l, "dq", "_rad_s");
   put(&l, ",pos_err_m,ori_err_rad");
   put_names(&l, "window", "_1");
+#if CTRL_HAS_DYNAMICS
+  put_names(&l, "tau_ff", "_Nm");
+#endif
   put(&l, ",locked,state,fault\n");
   return l.len;
 }
@@ -168,6 +171,12 @@ size_t fw_csv_row(char *buf, size_t size, const ctrl_output *out) {
     put(&l, ",");
     put_real(&l, out->window[i]);
   }
+#if CTRL_HAS_DYNAMICS
+  for (i = 0; i < CTRL_NDOF; ++i) {
+    put(&l, ",");
+    put_real(&l, out->tau_ff[i]);
+  }
+#endif
   put(&l, ",");
   put_uint(&l, (unsigned long)out->locked);
   put(&l, ",");

@@ -1,0 +1,2 @@
+    .feedforward = $feedforward,
+    .tau_max = $tau_max,
