@@ -38,6 +38,11 @@ QUICK_RUNS = {
         rf"x86 -O2 float CasADi C of the same fk_jacobian\s+{NUMBER} instr/call",
         rf"snake12 generation, all functions\s+{NUMBER} s",
         rf"^\s+step_wgpm(\s+\d+){{3}}\s+{NUMBER}$"]),
+    "bench_dynamics.py": (("gcc", *ARM_TOOLS), [
+        rf"foreign URDFs with inertials\s+1\d\s+bar >= 10: meets",
+        rf"double vs Pinocchio, max relative error\s+{NUMBER}",
+        rf"^\s+gravity\s+\d+\s+\d+\s+\d+\s+\d+\s+bar <= 2500",
+        rf"^\s+rnea\s+{NUMBER}\s+{NUMBER}\s+{NUMBER}\s+{NUMBER}x\s+-?{NUMBER}\s+-?{NUMBER}x\s+{NUMBER}$"]),
     "bench_firmware.py": (("gcc", *ARM_TOOLS), [
         r"M4F executed instructions per tick, mean\s+\d+ instr/tick",
         rf"controller\.o flash \(text \+ rodata\)\s+\d+ bytes",
