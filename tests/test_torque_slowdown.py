@@ -99,16 +99,17 @@ def _columns(result, stem: str) -> np.ndarray:
     return np.column_stack([result.column(stem.format(k=k)) for k in range(1, 8)])
 
 
-def _pinocchio_torques(reference: _Pinocchio, result) -> tuple[np.ndarray, np.ndarray]:
-    """(τ, g) by Pinocchio at every sample of the plan."""
+def _pinocchio_torques(reference: _Pinocchio, result, with_gravity: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """(τ, g) by Pinocchio at every sample of the plan (g zeros unless ``with_gravity``)."""
     t, q, dq = result.column("t_s"), _columns(result, "q{k}_rad"), _columns(result, "dq{k}_rad_s")
     ddq = np.gradient(dq, t, axis=0)
     model, data, v = reference.model, reference.data, reference.v
-    tau, gravity = np.empty_like(q), np.empty_like(q)
+    tau, gravity = np.empty_like(q), np.zeros_like(q)
     for k in range(t.size):
         config = reference.configuration(q[k])
         tau[k] = pin.rnea(model, data, config, reference.rate(dq[k]), reference.rate(ddq[k]))[v]
-        gravity[k] = pin.computeGeneralizedGravity(model, data, config)[v]
+        if with_gravity:
+            gravity[k] = pin.computeGeneralizedGravity(model, data, config)[v]
     return tau, gravity
 
 
@@ -128,7 +129,7 @@ def plans(tmp_path_factory):
 def test_the_slowed_program_never_needs_more_than_taumax_by_pinocchio(plans):
     tight, _ = plans
     robot = tight.config.robot
-    tau, _ = _pinocchio_torques(_pinocchio(robot), tight)
+    tau, _ = _pinocchio_torques(_pinocchio(robot), tight, with_gravity=False)
     ratio = np.abs(tau) / np.array(TIGHT_TAUMAX)
     print(f"peak |tau|/taumax by Pinocchio per joint: {np.round(ratio.max(axis=0), 4).tolist()}")
     assert ratio.max() <= PIN_RATIO_TOL, ratio.max(axis=0)
@@ -214,3 +215,45 @@ def test_a_robot_without_inertials_plans_as_one_whose_torques_fit(tmp_path, monk
     assert (tmp_path / "bare.csv").read_bytes() == (tmp_path / "massive.csv").read_bytes()
     bare, massive = (json.loads((tmp_path / f"{name}.json").read_text())["summary"] for name in ("bare", "massive"))
     assert "joint_torque" not in bare and massive["joint_torque"]["slowing"]["time_added_s"] == 0
+
+
+FUZZ_SEED = 20261128
+FUZZ_PROGRAMS = 8
+
+
+def test_random_programs_under_tight_taumax_are_slowed_to_fit(tmp_path):
+    """Seeded random rectangles with a rise and an arc (position, size, 200–1200 mm/s, blend
+    0–20 mm, RK4 or Euler with the path tolerance's step halving), each under random limits
+    between its free plan's gravity and peak torques (``taumax`` = 1.05–1.5 × the largest
+    gravity torque on the path + 0.2–0.8 × the largest dynamic torque, by Pinocchio): every one
+    is slowed to within every ``taumax`` by Pinocchio, the tool within the path tolerance."""
+    rng = np.random.default_rng(FUZZ_SEED)
+    free_robot = _robot_file(tmp_path, "panda_free_tau", None)
+    reference = _pinocchio(load_robot(free_robot))
+    slowdowns = []
+    for case in range(FUZZ_PROGRAMS):
+        x, y, z = rng.uniform(350, 450), rng.uniform(-150, -50), rng.uniform(150, 400)
+        w, h = rng.uniform(50, 250), rng.uniform(50, 250)
+        speed, blend = float(rng.choice([200, 400, 800, 1200])), float(rng.choice([0, 5, 20]))
+        task = PROGRAM | {
+            "start": {"pose": {"xyz": [x, y, z], "rpy": [180, 0, 0]}, "seed": "ready"},
+            "path": {"type": "program", "speed": speed, "acceleration": 8.0 * speed, "blend": blend,
+                     "moves": [{"kind": "line", "to": {"xyz": [x, y + h, z]}},
+                               {"kind": "line", "to": {"xyz": [x + w, y + h, z + 50]}},
+                               {"kind": "arc", "via": {"xyz": [x + w + 40, y + h / 2, z + 50]},
+                                "to": {"xyz": [x + w, y, z]}},
+                               {"kind": "line", "to": {"xyz": [x, y, z]}}]},
+            "integrator": {"method": "rk4"} if rng.random() < 0.5 else {}}
+        free = run_task(task | {"robot": str(free_robot)}, str(tmp_path / "free.toml"))
+        tau, gravity = _pinocchio_torques(reference, free)
+        gravity_peak, dynamic_peak = np.abs(gravity).max(axis=0), np.abs(tau - gravity).max(axis=0)
+        taumax = tuple(np.round(gravity_peak * rng.uniform(1.05, 1.5, 7) + dynamic_peak * rng.uniform(0.2, 0.8, 7), 4))
+        tight_robot = _robot_file(tmp_path, "panda_fuzz_tau", taumax)
+        tight = run_task(task | {"robot": str(tight_robot)}, str(tmp_path / "tight.toml"))
+        tau, _ = _pinocchio_torques(reference, tight, with_gravity=False)
+        ratio = np.abs(tau) / np.array(taumax)
+        assert ratio.max() <= PIN_RATIO_TOL, (case, task, taumax, ratio.max(axis=0))
+        assert tight.column("pos_err_m").max() <= DEFAULT_PATH_TOLERANCE, case
+        slowdowns.append(tight.metadata["summary"]["joint_torque"]["slowing"]["slowdown_factor"])
+    print(f"torque slowdown factors: {np.round(slowdowns, 3).tolist()}")
+    assert min(slowdowns) > 1  # every case needed slowing

@@ -10,9 +10,10 @@ derivative), else the central differences of ``q̇`` over ``t`` (:data:`DIFFEREN
 
 A plan that needs more than a joint's ``taumax`` follows the joints' ``[check] limits``
 policy like the speed limits (:func:`armgen.planning.limits.enforce_speed_limits`): infeasible
-(exit 3, nothing written) unless the task sets ``limits = "report"``. A plan is not yet slowed
-down for torque (as a program is for speed). A robot without inertials gets no block, so the
-plans of the bundled robots are unchanged.
+(exit 3, nothing written) unless the task sets ``limits = "report"``. A program is slowed down
+to stay within ``taumax`` (:mod:`armgen.planning.toolpath.limits`, by the same torques), and its
+block says how much (``slowing``); the other planners only report. A robot without inertials
+gets no block, and nothing is slowed for it.
 """
 
 from __future__ import annotations
