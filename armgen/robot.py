@@ -33,6 +33,7 @@ from .description.model import MAX_ABS_LENGTH_M
 from .errors import excerpt
 
 if TYPE_CHECKING:
+    from .codegen.api_kernel import ApiKernel
     from .symbolic.model import SymbolicModel
     from .symbolic.numeric import NumericModel
     from .symbolic.replay import BatchFunction
@@ -84,6 +85,20 @@ class Robot(RobotDescription):
         return SymbolicModel(self)
 
     @cached_property
+    def _kernel(self) -> ApiKernel | None:
+        """The compiled kernel the NumPy methods call (docs/api.md, "The compiled kernel"), or
+        None: they run on the CasADi reference (``ARMGEN_KERNEL=reference``, or no C compiler)."""
+        from .codegen.api_kernel import load_api_kernel
+
+        return load_api_kernel(self.symbolic)
+
+    @property
+    def _evaluator(self) -> ApiKernel | NumericModel:
+        """What evaluates the criteria: the compiled kernel, else the CasADi reference."""
+        kernel = self._kernel
+        return kernel if kernel is not None else self._numeric
+
+    @cached_property
     def _numeric(self) -> NumericModel:
         from .symbolic.numeric import NumericModel
 
@@ -117,7 +132,8 @@ class Robot(RobotDescription):
         numpy.ndarray
             Homogeneous transforms, shape ``(4, 4)`` or ``(..., 4, 4)``.
         """
-        return self._numeric.evaluate("fk", q)["T"]
+        kernel = self._kernel
+        return kernel.fk(q) if kernel is not None else self._numeric.evaluate("fk", q)["T"]
 
     def frames(self, q: ArrayLike) -> np.ndarray:
         """The base frame, the frame after each joint and the tool pose, in the base frame: the
@@ -160,10 +176,14 @@ class Robot(RobotDescription):
         numpy.ndarray
             Shape ``(6, n)`` or ``(..., 6, n)`` (all six rows, whatever ``task_rows`` says).
         """
-        return self._numeric.evaluate("jacobian", q)["J"]
+        kernel = self._kernel
+        return kernel.jacobian(q) if kernel is not None else self._numeric.evaluate("jacobian", q)["J"]
 
     def fk_jacobian(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`fk` and :meth:`jacobian` in one pass (shared trigonometry)."""
+        kernel = self._kernel
+        if kernel is not None:
+            return kernel.fk_jacobian(q)
         out = self._numeric.evaluate("fk_jacobian", q)
         return out["T"], out["J"]
 
@@ -182,29 +202,29 @@ class Robot(RobotDescription):
         numpy.ndarray
             Shape ``()`` or ``(...)``.
         """
-        return self._numeric.evaluate("manipulability", q, delta=delta)["w"]
+        return self._evaluator.evaluate("manipulability", q, delta=delta)["w"]
 
     def manipulability_gradient(self, q: ArrayLike, delta: float = 0.0) -> np.ndarray:
         """Gradient of :meth:`manipulability` with respect to ``q``, shape ``(n,)`` or ``(..., n)``.
         Use ``delta > 0`` near singular poses, where ``w`` is not differentiable."""
-        return self._numeric.evaluate("manipulability", q, delta=delta)["grad_w"]
+        return self._evaluator.evaluate("manipulability", q, delta=delta)["grad_w"]
 
     def joint_limit_criterion(self, q: ArrayLike) -> np.ndarray:
         """Zghal's joint-limit criterion ``H_L = Σ (q_max − q_min)² / ((q_max − q)(q − q_min))``,
         shape ``()`` or ``(...)``; ``2n`` at mid-range, growing without bound at a limit."""
-        return self._numeric.evaluate("zghal", q)["H_L"]
+        return self._evaluator.evaluate("zghal", q)["H_L"]
 
     def joint_limit_gradient(self, q: ArrayLike) -> np.ndarray:
         """Gradient of :meth:`joint_limit_criterion`, shape ``(n,)`` or ``(..., n)``."""
-        return self._numeric.evaluate("zghal", q)["grad_H_L"]
+        return self._evaluator.evaluate("zghal", q)["grad_H_L"]
 
     def repetitive_criterion(self, q: ArrayLike, q_init: ArrayLike) -> np.ndarray:
         """Repetitive criterion ``H_R = ½‖q − q_init‖²``, shape ``()`` or ``(...)``."""
-        return self._numeric.evaluate("repetitive", q, q_init=q_init)["H_R"]
+        return self._evaluator.evaluate("repetitive", q, q_init=q_init)["H_R"]
 
     def repetitive_gradient(self, q: ArrayLike, q_init: ArrayLike) -> np.ndarray:
         """Gradient of :meth:`repetitive_criterion` (``q − q_init``), shape ``(n,)`` or ``(..., n)``."""
-        return self._numeric.evaluate("repetitive", q, q_init=q_init)["grad_H_R"]
+        return self._evaluator.evaluate("repetitive", q, q_init=q_init)["grad_H_R"]
 
     def joint_manipulability(self, q: ArrayLike, weights: ArrayLike | None = None,
                              delta: float = 0.0) -> dict[str, np.ndarray]:
@@ -225,7 +245,7 @@ class Robot(RobotDescription):
             ``omega`` ``(..., n)``, ``H_M`` ``(...)`` and ``grad_H_M`` ``(..., n)``.
         """
         a = np.ones(self.n) if weights is None else weights
-        return self._numeric.evaluate("joint_manipulability", q, a=a, delta=delta)
+        return self._evaluator.evaluate("joint_manipulability", q, a=a, delta=delta)
 
     # -- dynamics (docs/dynamics.md): a robot with every link's inertial (has_dynamics) ---------
 
@@ -419,9 +439,14 @@ class Robot(RobotDescription):
             start = self._joints_per_pose(seed, "seed", batch_shape)
         else:
             start = rest
-        outputs = ik.solve(self.symbolic.ik_definition, targets, np.ascontiguousarray(start), np.ascontiguousarray(rest),
-                           0.0 if q0 is None else 1.0,
-                           tol_p, tol_o, cap)
+        use_rest = 0.0 if q0 is None else 1.0
+        kernel = self._kernel
+        if kernel is not None:
+            ik.check_targets(targets)
+            outputs = kernel.ik(targets, start, rest, use_rest, tol_p, tol_o, cap)
+        else:
+            outputs = ik.solve(self.symbolic.ik_definition, targets, np.ascontiguousarray(start),
+                               np.ascontiguousarray(rest), use_rest, tol_p, tol_o, cap)
         q, pos, ori, iterations, success = outputs
         q = q.T.reshape(batch_shape + (self.n,))
         return ik.IKResult(q, success.reshape(batch_shape) != 0, pos.reshape(batch_shape), ori.reshape(batch_shape),

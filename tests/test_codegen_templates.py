@@ -9,6 +9,7 @@ import casadi as ca
 import pytest
 
 import armgen.data
+from armgen.codegen.api_kernel import extension_source
 from armgen.codegen.compiled import batch_source, kernel_source
 from armgen.codegen.generate import CodegenConfig, generate
 from armgen.codegen.ptp_c import render_ptp_evaluator
@@ -22,13 +23,15 @@ CODEGEN_TEMPLATES = resources.files("armgen.data") / "templates" / "codegen"
 def _render_everything() -> None:
     """Every generator of armgen.codegen, on inputs that take each branch: planar3 (3 DOF: no
     acceleration limits, straight-line probes), modular8 (8 DOF: all speed limits, the looped
-    probe of the steps' q twins, floor), the PTP evaluator, a planner kernel, the verifier's batch."""
+    probe of the steps' q twins, floor), the PTP evaluator, a planner kernel, the verifier's batch,
+    the API's compiled kernel (extension module)."""
     for robot in ("planar3", "modular8"):
         generate(CodegenConfig(load_robot(robot)))
     render_ptp_evaluator("armgen", "float")
     x = ca.SX.sym("x", 2)
     kernel_source(ca.Function("demo", [x], [ca.sin(x) * x[1]]), "armgen_kernel")
     batch_source("planar3", SymbolicModel(load_robot("planar3")).functions())
+    extension_source("planar3", "armgen_api_demo", SymbolicModel(load_robot("planar3")).functions())
 
 
 def test_every_template_is_rendered_with_exactly_its_placeholders(monkeypatch):
