@@ -7,7 +7,8 @@ axes of DH chains built from 0/±90° twists). The other inputs are drawn per fu
 task velocities and null-space vectors ~N(0, 1), damping in {0, 1e-4, 1e-2, 0.1},
 ``δ`` and the band fraction in sensible ranges, WLN weights in [1, 11]; lock masks with up to
 two zeros, variable-damping thresholds, criterion ranges and gains of the spec 30/35 functions
-in their documented ranges (see ``_DRAWS``).
+in their documented ranges, and the collision functions' obstacles, clearance and activation
+(see ``_DRAWS``).
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from ..description.collision import OBSTACLE_INPUTS, OBSTACLE_KINDS
+from ..description.frames import rpy_matrix
 from ..robot import Robot
 from ..symbolic import ik
 from ..symbolic.model import FROM_JACOBIAN
@@ -180,8 +183,65 @@ _CRITERION_BAND_DRAWS: dict[str, Callable[[_Batch, int], np.ndarray]] = {
     # half of them 0, which selects the plain on/off rule
     "v_band": lambda b, rows: np.where(b.rng.random(b.count) < 0.5, 0.0, b.rng.uniform(0.05, 0.5, size=b.count)),
 }
+# Obstacles of the collision functions (docs/collision.md): each slot active with probability
+# OBSTACLE_ACTIVE; centres and points uniform in the cube of half-width the arm's reach at the
+# samples (so that some pass close to the arm), radii and half-extents in OBSTACLE_SIZE (m),
+# boxes turned by uniform roll, pitch, yaw, planes with a uniform random unit normal.
+OBSTACLE_ACTIVE = 0.9
+OBSTACLE_SIZE = (0.02, 0.25)
+# clearance in [0, 0.05] m, activation 0.05–0.3 m above it: bands the arm's distances cross.
+CLEARANCE_RANGE = (0.0, 0.05)
+ACTIVATION_BAND = (0.05, 0.3)
+
+
+def _reach(b: _Batch) -> float:
+    return float(np.max(np.linalg.norm(b.robot.fk(b.q)[..., :3, 3], axis=-1)))
+
+
+def _points(b: _Batch, slots: int) -> np.ndarray:
+    reach = _reach(b)
+    return b.rng.uniform(-reach, reach, size=(b.count, 3, slots))
+
+
+def _sizes(b: _Batch, rows: int, slots: int) -> np.ndarray:
+    return b.rng.uniform(*OBSTACLE_SIZE, size=(b.count, rows, slots))
+
+
+def _active(b: _Batch, slots: int) -> np.ndarray:
+    return (b.rng.random((b.count, 1, slots)) < OBSTACLE_ACTIVE).astype(float)
+
+
+def _obstacle_slots(kind: str) -> Callable[[_Batch, int], np.ndarray]:
+    """The (samples, rows, slots) draws of one obstacle input (rows as OBSTACLE_ROWS)."""
+
+    def draw(b: _Batch, rows: int) -> np.ndarray:
+        slots = b.func.sparsity_in(b.func.name_in().index(OBSTACLE_INPUTS[kind])).shape[1]
+        if kind == "sphere":
+            parts = [_points(b, slots), _sizes(b, 1, slots)]
+        elif kind == "capsule":
+            parts = [_points(b, slots), _points(b, slots), _sizes(b, 1, slots)]
+        elif kind == "box":
+            angles = b.rng.uniform(-math.pi, math.pi, size=(b.count, slots, 3))
+            rotations = np.array([[rpy_matrix(*angles[s, k]).T.reshape(-1) for k in range(slots)]
+                                  for s in range(b.count)]).transpose(0, 2, 1)
+            parts = [_points(b, slots), rotations, _sizes(b, 3, slots)]
+        else:
+            normals = b.rng.normal(size=(b.count, 3, slots))
+            normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+            offsets = np.einsum("sik,sik->sk", normals, _points(b, slots))[:, None, :]
+            parts = [normals, offsets]
+        return np.concatenate([*parts, _active(b, slots)], axis=1)
+
+    return draw
+
+
+_COLLISION_DRAWS: dict[str, Callable[[_Batch, int], np.ndarray]] = {
+    **{OBSTACLE_INPUTS[kind]: _obstacle_slots(kind) for kind in OBSTACLE_KINDS},
+    "clearance": lambda b, rows: b.rng.uniform(*CLEARANCE_RANGE, size=b.count),
+    "activation": lambda b, rows: b.earlier("clearance") + b.rng.uniform(*ACTIVATION_BAND, size=b.count),
+}
 # Any other input (task velocities, null-space vectors, gradients) is ~N(0, 1): _normal.
-_DRAWS = {**_CONFIGURATION_DRAWS, **_STEP_DRAWS, **_CRITERION_BAND_DRAWS}
+_DRAWS = {**_CONFIGURATION_DRAWS, **_STEP_DRAWS, **_CRITERION_BAND_DRAWS, **_COLLISION_DRAWS}
 
 
 def function_inputs(func: ca.Function, robot: Robot, q: np.ndarray, rng: np.random.Generator,
