@@ -20,6 +20,7 @@ import tomli_w
 from click.testing import CliRunner
 
 from armgen.cli.main import cli
+from armgen.errors import PlanningError
 from armgen.planning.plan_schema import TorqueSlowing
 from armgen.planning.tasks import configure_task, run_task
 from armgen.planning.toolpath.accuracy import DEFAULT_PATH_TOLERANCE
@@ -199,6 +200,23 @@ def test_gravity_beyond_taumax_is_exit_3_naming_the_joint_and_time(tmp_path, mon
     assert expected in text, text
     assert "the joint cannot hold that pose, so slowing cannot make the program feasible" in text and "raise taumax" in text
     assert not (tmp_path / "weak.csv").exists() and not (tmp_path / "weak.json").exists()
+
+
+def test_a_program_still_beyond_taumax_after_the_rounds_names_joint_time_and_torques(tmp_path, monkeypatch):
+    """With one round allowed, the tight program's first plan (its nominal time law) is still
+    beyond: the error names the joint, the time, its torque and its limit."""
+    monkeypatch.setattr("armgen.planning.toolpath.limits.MAX_SLOWDOWN_ROUNDS", 1)
+    robot = _robot_file(tmp_path, "panda_tight_tau", TIGHT_TAUMAX)
+    with pytest.raises(PlanningError) as caught:
+        run_task(_task(robot), "tight.toml")
+    text = str(caught.value)
+    found = re.search(r"asks joint 'panda_joint(\d)' for ([0-9.]+) N·m at t = ([0-9.]+) s, ([0-9.]+) times its torque "
+                      r"limit of ([0-9.]+) N·m, after 1 rounds of slowing", text)
+    assert found, text
+    joint, torque, _, ratio, limit = (float(v) for v in found.groups())
+    assert limit == TIGHT_TAUMAX[int(joint) - 1] and ratio > 1
+    assert torque / limit == pytest.approx(ratio, abs=0.01)  # both as printed, to 4 and 2 digits
+    assert "lower path.speed" in text and "raise taumax" in text
 
 
 def test_a_robot_without_inertials_plans_as_one_whose_torques_fit(tmp_path, monkeypatch):
