@@ -727,10 +727,14 @@ static void feedforward_torque(const ctrl *c, const ctrl_real *q, const ctrl_rea
 /* TORQUE when a joint with a limit (tau_max[i] > 0) would need more (TORQUE_RTOL for rounding). */
 static ctrl_fault check_torque(const ctrl *c, const ctrl_real *tau) {
   int i;
-  if (!all_finite(tau, N)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  if (!all_finite(tau, N)) {
+    return CTRL_FAULT_NONFINITE_OUTPUT;
+  }
   for (i = 0; i < N; ++i) {
     ctrl_real limit = c->cfg.tau_max[i];
-    if (limit > CTRL_LIT(0.0) && CTRL_FABS(tau[i]) > limit * (CTRL_LIT(1.0) + TORQUE_RTOL)) return CTRL_FAULT_TORQUE;
+    if (limit > CTRL_LIT(0.0) && CTRL_FABS(tau[i]) > limit * (CTRL_LIT(1.0) + TORQUE_RTOL)) {
+      return CTRL_FAULT_TORQUE;
+    }
   }
   return CTRL_FAULT_NONE;
 }
@@ -774,15 +778,23 @@ static ctrl_fault accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_re
   ctrl_real tau[N], difference[N];
   const ctrl_real *acceleration = qdd;
   ctrl_fault f;
-  if (acceleration == NULL && c->cfg.feedforward == CTRL_FF_INVERSE_DYNAMICS) {
+  if (c->cfg.feedforward == CTRL_FF_NONE) { /* nothing computed, nothing to check */
     for (i = 0; i < N; ++i) {
-      difference[i] = (qd[i] - c->qd_prev[i]) / c->cfg.dt;
+      tau[i] = CTRL_LIT(0.0);
     }
-    acceleration = difference;
+  } else {
+    if (acceleration == NULL && c->cfg.feedforward == CTRL_FF_INVERSE_DYNAMICS) {
+      for (i = 0; i < N; ++i) {
+        difference[i] = (qd[i] - c->qd_prev[i]) / c->cfg.dt;
+      }
+      acceleration = difference;
+    }
+    feedforward_torque(c, q, qd, acceleration, tau);
+    f = check_torque(c, tau);
+    if (f != CTRL_FAULT_NONE) {
+      return f;
+    }
   }
-  feedforward_torque(c, q, qd, acceleration, tau);
-  f = check_torque(c, tau);
-  if (f != CTRL_FAULT_NONE) return f;
 #else
   (void)qdd; /* no dynamics: the command's acceleration is not needed */
 #endif

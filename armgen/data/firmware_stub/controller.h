@@ -133,9 +133,11 @@ typedef enum { CTRL_FT_INDEX_OMEGA = 0, CTRL_FT_INDEX_RELATIVE = 1 } ctrl_ft_ind
 typedef enum { CTRL_WLN_PLAIN = 0, CTRL_WLN_SMOOTH = 1 } ctrl_wln_rule;
 #define CTRL_WGPM_NCRIT 4 /* criteria of step_wgpm: manipulability, joint manipulability, Zghal, condition */
 typedef enum { CTRL_PATH_LINE = 0, CTRL_PATH_CIRCLE = 1, CTRL_PATH_PROGRAM = 2 } ctrl_path_type;
-/* The feed-forward torque of each command (CTRL_HAS_DYNAMICS builds): none, the gravity
- * torques g(q), or the inverse dynamics M(q) qdd + C(q, qd) qd + g(q) of the command. */
+#if CTRL_HAS_DYNAMICS
+/* The feed-forward torque of each command (a robot with inertials): none, the gravity torques
+ * g(q), or the inverse dynamics M(q) qdd + C(q, qd) qd + g(q) of the command. */
 typedef enum { CTRL_FF_NONE = 0, CTRL_FF_GRAVITY = 1, CTRL_FF_INVERSE_DYNAMICS = 2 } ctrl_feedforward;
+#endif
 typedef enum { CTRL_LAW_CUBIC = 0, CTRL_LAW_TRAPEZOIDAL = 1, CTRL_LAW_CONSTANT = 2 } ctrl_time_law;
 typedef enum {
   CTRL_METHOD_PINV = 0,           /* alpha = 0 (minimum norm) */
