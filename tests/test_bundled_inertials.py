@@ -39,6 +39,7 @@ FILE_VALUE_TOL = 1e-12
 # The constant transform between a URDF link frame and its DH frame, over random q: rounding.
 FRAME_TOL = 1e-12
 SAMPLES = 1000
+C_SAMPLES = 200  # the compiled C: a few hundred calls, its arithmetic is CasADi's op for op
 SEED = 20261128
 
 IIWA14_URDF = Path(__file__).parent / "data" / "iiwa14_drake_inertials.urdf"
@@ -152,3 +153,30 @@ def test_checked_in_code_of_the_arms_with_inertials_has_their_dynamics():
                            ("planar3", ())):
         manifest = json.loads((generated / name / "manifest.json").read_text())
         assert tuple(f for f in manifest["functions"] if f in DYNAMIC_FUNCTIONS) == expected, name
+
+
+@pytest.mark.parametrize("name", ["panda", "iiwa14"])
+def test_checked_in_c_equals_pinocchio(name, tmp_path):
+    """The double build of generated/<robot>/ (what a user compiles) against Pinocchio on the
+    source URDF, not only against its own CasADi source."""
+    from armgen.codegen.compiled import CompiledModel, build_library
+
+    from conftest import require_tool
+
+    require_tool("gcc")
+    robot, model = load_robot(name), source_model(name)
+    data = model.createData()
+    functions = {f: robot.symbolic.function(f) for f in ("gravity", "rnea", "mass_matrix")}
+    library = build_library(Path(__file__).resolve().parents[1] / "generated" / name, name, "double", tmp_path,
+                            batch=functions)
+    compiled = CompiledModel(library, name, functions, "double").raw
+    rng = np.random.default_rng(SEED)
+    q = rng.uniform(robot.qmin, robot.qmax, (C_SAMPLES, robot.n))
+    dq, ddq = rng.uniform(-2.0, 2.0, q.shape), rng.uniform(-10.0, 10.0, q.shape)
+    gravity, tau = compiled["gravity"].batch([q])[0][..., 0], compiled["rnea"].batch([q, dq, ddq])[0][..., 0]
+    mass = compiled["mass_matrix"].batch([q])[0]
+    for k in range(C_SAMPLES):
+        reference = pin.crba(model, data, q[k])
+        assert _relative_error(gravity[k], pin.computeGeneralizedGravity(model, data, q[k])) <= BUNDLED_PEER_TOL
+        assert _relative_error(tau[k], pin.rnea(model, data, q[k], dq[k], ddq[k])) <= BUNDLED_PEER_TOL
+        assert _relative_error(mass[k], np.triu(reference) + np.triu(reference, 1).T) <= BUNDLED_PEER_TOL
