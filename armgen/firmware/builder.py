@@ -40,6 +40,8 @@ class Variant:
     gen_opt: str | None = None  # optimisation of the generated kinematics (default: opt)
     extra: tuple[str, ...] = ()  # more compiler flags (e.g. -fcallgraph-info=su for the benchmark)
     source_opts: tuple[tuple[str, tuple[str, ...]], ...] = ()  # (source file name, flags replacing opt)
+    runner: str = "csv"  # host: "csv" (host/main.c), "link" (host/link_main.c: the link over a pty) or
+                         # "link_fuzz" (host/link_fuzz.c: the link's parser fuzz and codec echo)
 
     @property
     def name(self) -> str:
@@ -49,8 +51,9 @@ class Variant:
         gen = f"_gen{self.gen_opt.replace('-', '_')}" if self.gen_opt and self.gen_opt != self.opt else ""
         extra = "_x" + re.sub(r"[^0-9a-zA-Z]+", "_", "".join(self.extra)).strip("_") if self.extra else ""
         tuned = "_" + hashlib.sha256(repr(self.source_opts).encode()).hexdigest()[:8] if self.source_opts else ""
+        runner = "" if self.runner == "csv" else f"_{self.runner}"
         return (f"{self.target}_{self.precision}{san}{self.opt.replace('-', '_')}{gen}_s{self.max_segments}{rows}"
-                f"{trig}{extra}{tuned}")
+                f"{trig}{extra}{tuned}{runner}")
 
 
 # The Cortex-M4F build's optimisation per source, where it is not -O3 (flash against executed
@@ -152,7 +155,10 @@ class FirmwareBuilder:
         if v.target == "arm":
             fast = [ARM_DIR / "fw_fastmath.c"] if v.fast_trig else []
             return common + [ARM_DIR / "startup.c", ARM_DIR / "semihost.c", ARM_DIR / "fw_main.c", *fast]
-        return common + [FIRMWARE_DIR / "host" / "main.c"]
+        if v.runner == "csv":
+            return common + [FIRMWARE_DIR / "host" / "main.c"]
+        runner = {"link": "link_main.c", "link_fuzz": "link_fuzz.c"}[v.runner]
+        return common + [FIRMWARE_DIR / "fw_link.c", FIRMWARE_DIR / "fw_link_msgs.c", FIRMWARE_DIR / "host" / runner]
 
     def object_dir(self, v: Variant) -> Path:
         return self.work / f"obj_{v.name}"

@@ -181,6 +181,7 @@ const char *ctrl_fault_name(ctrl_fault f) {
     case CTRL_FAULT_UNREACHABLE: return "UNREACHABLE";
     case CTRL_FAULT_BAD_TARGET: return "BAD_TARGET";
     case CTRL_FAULT_TORQUE: return "TORQUE";
+    case CTRL_FAULT_STALE: return "STALE";
     default: break;
   }
   return "?";
@@ -692,7 +693,7 @@ static int moving(const ctrl *c) { return c->state == CTRL_STATE_RUNNING || c->s
 
 static ctrl_real tick_time(const ctrl *c) {
   const ctrl_config *cfg = &c->cfg;
-  if (cfg->mode == CTRL_MODE_PLAYBACK && !c->moving_to) {
+  if (cfg->mode == CTRL_MODE_PLAYBACK && !c->moving_to && !c->following) {
     const ctrl_pb_config *pb = &cfg->pb;
     ctrl_real t_end = pb->knots[pb->nseg];
     if (c->k >= c->n_ticks) {
@@ -1264,11 +1265,10 @@ static void move_to_profile(ctrl_real tau, ctrl_real *s, ctrl_real *ds, ctrl_rea
  * duration (whole ticks) in which every joint's peak speed and acceleration stay within its
  * limits (move_to_ticks). Returns BAD_TARGET for a target that is not a pose, UNREACHABLE when
  * the IK does not converge or its answer lies outside the limits. */
+static ctrl_fault plan_move_to(ctrl *c, const ctrl_real *q);
+
 static ctrl_fault start_move_to(ctrl *c, const ctrl_real *target) {
-  const ctrl_config *cfg = &c->cfg;
-  ctrl_real q[N], ticks = CTRL_LIT(0.0);
-  uint32_t n;
-  int i;
+  ctrl_real q[N];
   if (!all_finite(target, 16)) return CTRL_FAULT_NONFINITE_INPUT;
 #if CTRL_HAS_MOVE_TO
   {
@@ -1282,6 +1282,15 @@ static ctrl_fault start_move_to(ctrl *c, const ctrl_real *target) {
   return CTRL_FAULT_UNREACHABLE;
 #endif
   if (check_command(c, q) != CTRL_FAULT_NONE) return CTRL_FAULT_UNREACHABLE;
+  return plan_move_to(c, q);
+}
+
+/* The move from the held command to q (inside the limits) in the shortest whole number of ticks. */
+static ctrl_fault plan_move_to(ctrl *c, const ctrl_real *q) {
+  const ctrl_config *cfg = &c->cfg;
+  ctrl_real ticks = CTRL_LIT(0.0);
+  uint32_t n;
+  int i;
   for (i = 0; i < N; ++i) {
     /* |delta_i| within the joint's range, which ctrl_init bounded to MOVE_TO_MAX_TICKS */
     ticks = max_r(ticks, move_to_ticks(cfg, i, CTRL_FABS(q[i] - c->q_hold[i])));
@@ -1292,9 +1301,34 @@ static ctrl_fault start_move_to(ctrl *c, const ctrl_real *target) {
   c->mt_T = (ctrl_real)n * cfg->dt;
   c->n_ticks = n;
   c->moving_to = 1;
+  c->following = 0;
   c->k = 0;
   c->state = CTRL_STATE_RUNNING;
   return CTRL_FAULT_NONE;
+}
+
+/* MOVE_TO_JOINTS: the MOVE_TO profile to a joint target inside the limits (else JOINT_LIMIT). */
+static ctrl_fault start_move_to_joints(ctrl *c, const ctrl_real *q) {
+  if (!all_finite(q, N)) return CTRL_FAULT_NONFINITE_INPUT;
+  if (check_command(c, q) != CTRL_FAULT_NONE) return CTRL_FAULT_JOINT_LIMIT;
+  return plan_move_to(c, q);
+}
+
+/* SETPOINT, tick k: the caller's command through the checks of a played-back command; a locked
+ * joint must keep its held position (else LOCK_REPORT). Without a setpoint this tick: the hold. */
+static ctrl_fault tick_setpoint(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_output *out) {
+  ctrl_real zero[N];
+  int i;
+  if (in == NULL || in->command != CTRL_CMD_SETPOINT) {
+    for (i = 0; i < N; ++i) {
+      zero[i] = CTRL_LIT(0.0);
+    }
+    return emit_played(c, t, c->q_hold, zero, NULL, out);
+  }
+  for (i = 0; i < N; ++i) {
+    if (((c->locked >> i) & 1u) != 0u && in->q_ref[i] != c->q_hold[i]) return CTRL_FAULT_LOCK_REPORT;
+  }
+  return emit_played(c, t, in->q_ref, in->qd_ref, NULL, out);
 }
 
 /* MOVE_TO, tick k: the profile's command, through the checks of a played-back command (limits,
@@ -1313,6 +1347,7 @@ static ctrl_fault tick_move_to(ctrl *c, ctrl_real t, ctrl_output *out) {
 }
 
 static ctrl_fault tick_mode(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_output *out) {
+  if (c->following) return tick_setpoint(c, in, t, out);
   if (c->moving_to) return tick_move_to(c, t, out);
   switch (c->cfg.mode) {
     case CTRL_MODE_PLAYBACK: return tick_playback(c, t, out);
@@ -1349,7 +1384,20 @@ ctrl_fault ctrl_tick(ctrl *c, const ctrl_input *in, ctrl_output *out) {
       c->t_hold = t;
     } else if (!moving(c) && cmd == CTRL_CMD_MOVE_TO && (f0 = start_move_to(c, in->target)) != CTRL_FAULT_NONE) {
       latch(c, f0, t); /* the arm holds where it is */
+    } else if (!moving(c) && cmd == CTRL_CMD_MOVE_TO_JOINTS &&
+               (f0 = start_move_to_joints(c, in->q_ref)) != CTRL_FAULT_NONE) {
+      latch(c, f0, t);
+    } else if (cmd == CTRL_CMD_STALE) {
+      latch(c, CTRL_FAULT_STALE, t); /* holds the current command */
     } else {
+      if (cmd == CTRL_CMD_SETPOINT && (!c->following || !moving(c))) { /* takes over: tick 0 of the setpoints */
+        c->following = 1;
+        c->moving_to = 0;
+        c->k = 0;
+        c->n_ticks = 0xFFFFFFFFu; /* no last tick: the caller ends it (STOP) */
+        c->state = c->locked != 0u ? CTRL_STATE_DEGRADED : CTRL_STATE_RUNNING;
+        t = tick_time(c);
+      }
       if (c->moving_to && c->k == 0u) {
         t = tick_time(c); /* the MOVE_TO just accepted: its tick 0 */
       }

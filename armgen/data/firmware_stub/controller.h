@@ -107,18 +107,27 @@ typedef enum {
   CTRL_FAULT_BAD_TARGET = 14,      /* MOVE_TO: ctrl_input.target is not a pose (its last row not
                                       0 0 0 1, or its 3x3 part no rotation: zero, scaled, sheared,
                                       mirrored); the generated IK's <P>_BAD_TARGET */
-  CTRL_FAULT_TORQUE = 15           /* a robot with inertials: the command's feed-forward torque
+  CTRL_FAULT_TORQUE = 15,          /* a robot with inertials: the command's feed-forward torque
                                       |tau_ff_i| is above the joint's tau_max[i] (the command is not
                                       emitted; the arm holds the previous one) */
+  CTRL_FAULT_STALE = 16            /* the command stream went stale: the platform's watchdog (the
+                                      host link, fw_link.h) stopped the arm and sent CTRL_CMD_STALE */
 } ctrl_fault;
 
 typedef enum {
   CTRL_CMD_NONE = 0,  /* keep going */
   CTRL_CMD_START = 1, /* IDLE -> RUNNING (this tick is tick 0 of the motion) */
   CTRL_CMD_STOP = 2,  /* RUNNING -> DONE, holding the current command */
-  CTRL_CMD_MOVE_TO = 3 /* IDLE or DONE -> RUNNING: to the tool pose ctrl_input.target (on-board IK,
+  CTRL_CMD_MOVE_TO = 3, /* IDLE or DONE -> RUNNING: to the tool pose ctrl_input.target (on-board IK,
                           then a joint-space profile within qdot_max and qddot_max); ignored
                           while moving (STOP first). START is not accepted after it (ctrl_init) */
+  CTRL_CMD_MOVE_TO_JOINTS = 4, /* as MOVE_TO, to the joint target ctrl_input.q_ref (no IK) */
+  CTRL_CMD_SETPOINT = 5, /* the caller's joint command for this tick, ctrl_input.q_ref / qd_ref (a
+                          streamed trajectory, a controlled stop): in IDLE, DONE or while moving
+                          (it takes over from the mode or a MOVE_TO), RUNNING; through the checks of
+                          playback (limits, speed, the step from the previous command). A tick
+                          without a setpoint after one holds (STOP: DONE). START is not accepted after */
+  CTRL_CMD_STALE = 6     /* the platform's watchdog: latch STALE, holding the current command */
 } ctrl_command;
 
 typedef enum {
@@ -252,6 +261,8 @@ typedef struct {
   uint32_t locked;          /* bit i: joint i is locked (as its drive reports it); a lock is
                                permanent: clearing a reported bit is a LOCK_REPORT fault */
   ctrl_real target[16];     /* MOVE_TO: the tool pose, 4x4 homogeneous, column-major (m) */
+  ctrl_real q_ref[CTRL_NDOF];  /* MOVE_TO_JOINTS: the joint target; SETPOINT: the joint command */
+  ctrl_real qd_ref[CTRL_NDOF]; /* SETPOINT: the joint velocity command */
 } ctrl_input;
 
 /* What the controller hands back every tick: always finite, always inside the limits. */
@@ -303,6 +314,7 @@ typedef struct {
   /* MOVE_TO: q = mt_q0 + s(t / mt_T) mt_delta, s the trapezoid of move_to_profile */
   int moving_to;
   ctrl_real mt_q0[CTRL_NDOF], mt_delta[CTRL_NDOF], mt_T;
+  int following; /* CTRL_CMD_SETPOINT: the caller's setpoints, not the mode, make the commands */
 } ctrl;
 
 /* Validate the configuration, copy it into the controller and set up the task. Returns CTRL_FAULT_NONE (state IDLE,

@@ -1,0 +1,532 @@
+/*
+ * The host link: framing (COBS, CRC-32), the receive ring and parser, the session and
+ * sequence rules, the watchdog's controlled stop, the waypoint stream and the telemetry
+ * (fw_link.h, docs/link.md). No heap, no globals: everything lives in the caller's fw_link.
+ */
+#include "fw_link.h"
+
+#include <string.h>
+
+#define N CTRL_NDOF
+
+typedef char fw_link_ring_is_a_power_of_two[((FW_LINK_RX_RING & (FW_LINK_RX_RING - 1u)) == 0u) ? 1 : -1];
+
+/* ------------------------------------------------------------------ framing */
+
+/* CRC-32 (IEEE 802.3, reflected, polynomial 0xEDB88320, zlib's crc32): four bits a step from a
+ * 16-entry table, 64 bytes of flash instead of the 1 KB byte table; a frame is < 300 bytes. */
+uint32_t fw_link_crc32(const uint8_t *data, size_t len) {
+  static const uint32_t nibble[16] = {
+      0x00000000u, 0x1DB71064u, 0x3B6E20C8u, 0x26D930ACu, 0x76DC4190u, 0x6B6B51F4u, 0x4DB26158u, 0x5005713Cu,
+      0xEDB88320u, 0xF00F9344u, 0xD6D6A3E8u, 0xCB61B38Cu, 0x9B64C2B0u, 0x86D3D2D4u, 0xA00AE278u, 0xBDBDF21Cu};
+  uint32_t crc = 0xFFFFFFFFu;
+  size_t i;
+  for (i = 0; i < len; ++i) {
+    crc ^= data[i];
+    crc = (crc >> 4) ^ nibble[crc & 0x0Fu];
+    crc = (crc >> 4) ^ nibble[crc & 0x0Fu];
+  }
+  return crc ^ 0xFFFFFFFFu;
+}
+
+size_t fw_link_cobs_encode(const uint8_t *in, size_t len, uint8_t *out) {
+  size_t code_at = 0, o = 1, i;
+  uint8_t code = 1;
+  for (i = 0; i < len; ++i) {
+    if (in[i] == 0u) {
+      out[code_at] = code;
+      code_at = o++;
+      code = 1;
+    } else {
+      out[o++] = in[i];
+      ++code;
+      if (code == 0xFFu) { /* a full block of 254 non-zero bytes: no zero implied after it */
+        out[code_at] = code;
+        code_at = o++;
+        code = 1;
+      }
+    }
+  }
+  out[code_at] = code;
+  return o;
+}
+
+size_t fw_link_cobs_decode(const uint8_t *in, size_t len, uint8_t *out) {
+  size_t i = 0, o = 0, j;
+  if (len == 0u) return 0u;
+  while (i < len) {
+    uint8_t code = in[i];
+    if (code == 0u || (size_t)code - 1u > len - i - 1u) return 0u; /* a zero, or a block past the end */
+    ++i;
+    for (j = 1; j < code; ++j) {
+      if (in[i] == 0u) return 0u;
+      out[o++] = in[i++];
+    }
+    if (code != 0xFFu && i < len) {
+      out[o++] = 0u;
+    }
+  }
+  return o;
+}
+
+size_t fw_link_frame(uint8_t version, uint8_t type, uint16_t seq, const uint8_t *body, size_t len, uint8_t *out) {
+  uint8_t raw[FW_LINK_MAX_RAW];
+  uint32_t crc;
+  size_t n;
+  raw[0] = version;
+  raw[1] = type;
+  raw[2] = (uint8_t)(seq & 0xFFu);
+  raw[3] = (uint8_t)(seq >> 8);
+  if (len > 0u) {
+    (void)memcpy(raw + FW_LINK_HEADER_SIZE, body, len);
+  }
+  n = FW_LINK_HEADER_SIZE + len;
+  crc = fw_link_crc32(raw, n);
+  raw[n] = (uint8_t)(crc & 0xFFu);
+  raw[n + 1u] = (uint8_t)((crc >> 8) & 0xFFu);
+  raw[n + 2u] = (uint8_t)((crc >> 16) & 0xFFu);
+  raw[n + 3u] = (uint8_t)(crc >> 24);
+  n = fw_link_cobs_encode(raw, n + FW_LINK_CRC_SIZE, out);
+  out[n] = 0u;
+  return n + 1u;
+}
+
+/* ------------------------------------------------------------------ helpers */
+
+static int finite_r(ctrl_real x) { return (x - x) == (x - x); } /* false for NaN and inf */
+
+static ctrl_real clamp_r(ctrl_real x, ctrl_real lo, ctrl_real hi) { return x < lo ? lo : (x > hi ? hi : x); }
+
+static int moving(ctrl_state s) { return s == CTRL_STATE_RUNNING || s == CTRL_STATE_DEGRADED; }
+
+/* Queue a frame for the transmitter; dropped (counted) when it does not fit. */
+static void send(fw_link *l, uint8_t type, const uint8_t *body, size_t len) {
+  uint8_t frame[FW_LINK_MAX_ENCODED + 1u];
+  size_t n = fw_link_frame(FW_LINK_VERSION, type, l->tx_seq, body, len, frame);
+  if (l->tx_len + n > sizeof l->tx) {
+    ++l->counts.tx_overflow;
+    return;
+  }
+  (void)memcpy(l->tx + l->tx_len, frame, n);
+  l->tx_len += n;
+  l->tx_seq = (uint16_t)(l->tx_seq + 1u);
+}
+
+/* ------------------------------------------------------------------ setup, receive, transmit */
+
+void fw_link_init(fw_link *l, const ctrl_config *config, uint32_t watchdog_ticks) {
+  int i;
+  (void)memset(l, 0, sizeof *l);
+  l->dt = config->dt;
+  l->watchdog_ticks = watchdog_ticks;
+  for (i = 0; i < N; ++i) {
+    l->q_min[i] = config->q_min[i];
+    l->q_max[i] = config->q_max[i];
+    l->qd_max[i] = config->qdot_max[i];
+    l->qdd_max[i] = config->qddot_max[i];
+    l->last.q[i] = config->q_start[i];
+  }
+  l->last.state = CTRL_STATE_IDLE;
+  l->command = CTRL_CMD_NONE;
+}
+
+int fw_link_receive(fw_link *l, uint8_t byte) {
+  uint32_t head = l->ring_head;
+  if (head - l->ring_tail >= FW_LINK_RX_RING) {
+    ++l->counts.rx_overflow;
+    return 0;
+  }
+  l->ring[head & (FW_LINK_RX_RING - 1u)] = byte;
+  l->ring_head = head + 1u;
+  return 1;
+}
+
+size_t fw_link_transmit(fw_link *l, uint8_t *dst, size_t max) {
+  size_t n = l->tx_len < max ? l->tx_len : max;
+  (void)memcpy(dst, l->tx, n);
+  (void)memmove(l->tx, l->tx + n, l->tx_len - n);
+  l->tx_len -= n;
+  return n;
+}
+
+/* ------------------------------------------------------------------ messages */
+
+static uint8_t accept_move_to_pose(fw_link *l, const fw_link_move_to_pose *m) {
+  int i;
+  for (i = 0; i < 16; ++i) {
+    l->target[i] = (ctrl_real)m->pose[i];
+    if (!finite_r(l->target[i])) return FW_LINK_RESULT_BAD_VALUE;
+  }
+  if (moving(l->last.state) || l->streaming) return FW_LINK_RESULT_REFUSED_STATE;
+  l->command = CTRL_CMD_MOVE_TO;
+  return FW_LINK_RESULT_OK;
+}
+
+static int inside_limits(const fw_link *l, const ctrl_real *q) {
+  int i, inside = 1;
+  for (i = 0; i < N; ++i) {
+    inside &= finite_r(q[i]) && q[i] >= l->q_min[i] && q[i] <= l->q_max[i];
+  }
+  return inside;
+}
+
+static uint8_t accept_move_to_joints(fw_link *l, const fw_link_move_to_joints *m) {
+  int i;
+  for (i = 0; i < N; ++i) {
+    l->q_target[i] = (ctrl_real)m->q[i];
+  }
+  if (!inside_limits(l, l->q_target)) return FW_LINK_RESULT_BAD_VALUE;
+  if (moving(l->last.state) || l->streaming) return FW_LINK_RESULT_REFUSED_STATE;
+  l->command = CTRL_CMD_MOVE_TO_JOINTS;
+  return FW_LINK_RESULT_OK;
+}
+
+/* A waypoint: inside the limits, within the speed limits, later than the one before; the first
+ * of a stream at t = 0 at the held command, with the arm at rest. */
+static uint8_t accept_waypoint(fw_link *l, const fw_link_waypoint *m) {
+  fw_link_waypoint_slot w;
+  int i;
+  w.t_us = m->t_us;
+  w.last = m->last;
+  for (i = 0; i < N; ++i) {
+    w.q[i] = (ctrl_real)m->q[i];
+    w.qd[i] = (ctrl_real)m->qd[i];
+    if (!finite_r(w.qd[i]) || w.qd[i] > l->qd_max[i] || w.qd[i] < -l->qd_max[i]) return FW_LINK_RESULT_BAD_VALUE;
+  }
+  if (!inside_limits(l, w.q)) return FW_LINK_RESULT_BAD_VALUE;
+  if (!l->streaming) {
+    if (moving(l->last.state) || l->last.state == CTRL_STATE_FAULT) return FW_LINK_RESULT_REFUSED_STATE;
+    if (w.t_us != 0u) return FW_LINK_RESULT_STREAM_START;
+    for (i = 0; i < N; ++i) {
+      ctrl_real d = w.q[i] - l->last.q[i];
+      if (d > FW_LINK_STREAM_START_TOL || d < -FW_LINK_STREAM_START_TOL) return FW_LINK_RESULT_STREAM_START;
+    }
+    l->streaming = 1;
+    l->stream_ended = 0;
+    l->stream_arrived = 0;
+    l->stream_k = 0;
+    l->wp_first = 0;
+    l->wp_count = 0;
+  } else {
+    const fw_link_waypoint_slot *prev = &l->wp[(l->wp_first + l->wp_count - 1u) % FW_LINK_WAYPOINTS];
+    if (l->stream_ended || w.t_us <= prev->t_us) return FW_LINK_RESULT_STREAM_ORDER;
+    if (l->wp_count >= FW_LINK_WAYPOINTS) return FW_LINK_RESULT_STREAM_FULL;
+  }
+  l->wp[(l->wp_first + l->wp_count) % FW_LINK_WAYPOINTS] = w;
+  ++l->wp_count;
+  l->stream_ended = w.last != 0u;
+  return FW_LINK_RESULT_OK;
+}
+
+/* A valid frame of the session: act on it (or refuse it) and reply. */
+static uint8_t dispatch(fw_link *l, uint8_t type, const fw_link_message *m) {
+  if (type == FW_LINK_HELLO) {
+    l->telemetry_period = m->hello.telemetry_period;
+    l->reply_hello = 1;
+    l->hello_accepted = 1;
+    return FW_LINK_RESULT_OK;
+  }
+  l->reply_telemetry = 1;
+  if (type == FW_LINK_STATUS) return FW_LINK_RESULT_OK;
+  if (l->stale) return FW_LINK_RESULT_STALE;
+  switch (type) {
+    case FW_LINK_START:
+      if (l->last.state != CTRL_STATE_IDLE || l->streaming) return FW_LINK_RESULT_REFUSED_STATE;
+      l->command = CTRL_CMD_START;
+      return FW_LINK_RESULT_OK;
+    case FW_LINK_STOP:
+      l->streaming = 0;
+      l->command = CTRL_CMD_STOP;
+      return FW_LINK_RESULT_OK;
+    case FW_LINK_MOVE_TO_POSE: return accept_move_to_pose(l, &m->move_to_pose);
+    case FW_LINK_MOVE_TO_JOINTS: return accept_move_to_joints(l, &m->move_to_joints);
+    case FW_LINK_WAYPOINT: return accept_waypoint(l, &m->waypoint);
+    case FW_LINK_LOCK:
+      l->locked = m->lock.locked;
+      return FW_LINK_RESULT_OK;
+    default: return FW_LINK_RESULT_BAD_VALUE; /* not reached: fw_link_unpack knows only the types above */
+  }
+}
+
+/* One received frame (its COBS bytes, without the delimiter): checked, then acted on or counted. */
+static void frame_received(fw_link *l, const uint8_t *encoded, size_t len) {
+  uint8_t raw[FW_LINK_MAX_ENCODED];
+  fw_link_message m;
+  size_t n = fw_link_cobs_decode(encoded, len, raw);
+  uint32_t crc;
+  uint16_t seq;
+  uint8_t type;
+  if (n < FW_LINK_HEADER_SIZE + FW_LINK_CRC_SIZE) {
+    ++l->counts.malformed;
+    return;
+  }
+  n -= FW_LINK_CRC_SIZE;
+  crc = (uint32_t)raw[n] | ((uint32_t)raw[n + 1u] << 8) | ((uint32_t)raw[n + 2u] << 16) | ((uint32_t)raw[n + 3u] << 24);
+  if (fw_link_crc32(raw, n) != crc) {
+    ++l->counts.bad_crc;
+    return;
+  }
+  type = raw[1];
+  seq = (uint16_t)(raw[2] | (uint16_t)((uint16_t)raw[3] << 8));
+  if (raw[0] != FW_LINK_VERSION) {
+    ++l->counts.wrong_version;
+    if (type == FW_LINK_HELLO) { /* say which version this board speaks; nothing else happens */
+      l->reply_hello = 1;
+      l->hello_accepted = 0;
+    }
+    return;
+  }
+  /* host messages only: a board message (HELLO_REPLY, TELEMETRY) from the host is malformed */
+  if ((type & 0x80u) != 0u || !fw_link_unpack(type, raw + FW_LINK_HEADER_SIZE, n - FW_LINK_HEADER_SIZE, &m)) {
+    ++l->counts.malformed;
+    return;
+  }
+  if (type == FW_LINK_HELLO) {
+    l->session = 1;
+  } else if (!l->session) {
+    ++l->counts.no_session;
+    return;
+  } else {
+    /* serial-number arithmetic (RFC 1982): newer when 1 ... 32767 ahead */
+    uint16_t ahead = (uint16_t)(seq - l->rx_seq);
+    if (ahead == 0u || ahead >= 0x8000u) {
+      ++l->counts.out_of_order;
+      return;
+    }
+    l->counts.seq_gaps += (uint32_t)ahead - 1u;
+  }
+  l->rx_seq = seq;
+  ++l->counts.rx_frames;
+  l->last_frame_tick = l->tick;
+  l->ack_seq = seq;
+  l->result = dispatch(l, type, &m);
+  if (l->result != FW_LINK_RESULT_OK) {
+    ++l->counts.rejected;
+  }
+}
+
+/* Decode the received bytes up to the first valid frame: one frame is acted on (and answered)
+ * per tick, the rest wait in the ring (at 1 kHz, a thousand frames a second). */
+static void receive_frames(fw_link *l) {
+  uint32_t before = l->counts.rx_frames;
+  while (l->counts.rx_frames == before && l->ring_tail != l->ring_head) {
+    uint32_t tail = l->ring_tail;
+    uint8_t b = l->ring[tail & (FW_LINK_RX_RING - 1u)];
+    l->ring_tail = tail + 1u;
+    if (b != 0u) {
+      if (l->encoded_len < sizeof l->encoded) {
+        l->encoded[l->encoded_len++] = b;
+      } else {
+        l->encoded_overflow = 1;
+      }
+      continue;
+    }
+    if (l->encoded_overflow) {
+      ++l->counts.oversized;
+    } else if (l->encoded_len > 0u) { /* an empty frame (two delimiters) only resynchronises */
+      frame_received(l, l->encoded, l->encoded_len);
+    }
+    l->encoded_len = 0;
+    l->encoded_overflow = 0;
+  }
+}
+
+/* ------------------------------------------------------------------ the watchdog's stop */
+
+/* The decision: the velocities of the last command ramp down together over the shortest
+ * duration in which every joint decelerates within its qddot_max. */
+static void start_stop(fw_link *l) {
+  int i;
+  l->stale = 1;
+  l->stale_ticks = l->tick - l->last_frame_tick;
+  l->streaming = 0;
+  l->command = CTRL_CMD_NONE;
+  l->stop_T = CTRL_LIT(0.0);
+  l->stop_k = 0;
+  for (i = 0; i < N; ++i) {
+    ctrl_real v = l->last.qd[i], t = (v < CTRL_LIT(0.0) ? -v : v) / l->qdd_max[i];
+    l->stop_q0[i] = l->last.q[i];
+    l->stop_v0[i] = v;
+    l->stop_T = t > l->stop_T ? t : l->stop_T;
+  }
+}
+
+/* The stop's command of this tick: q0 + v0 tau - v0 tau^2 / (2 T), then at rest; then STALE. */
+static void stop_tick(fw_link *l, ctrl_input *in) {
+  ctrl_real tau;
+  int i;
+  if (l->stale_sent) return;
+  ++l->stop_k;
+  tau = (ctrl_real)l->stop_k * l->dt;
+  if (tau > l->stop_T + l->dt || !moving(l->last.state)) {
+    in->command = CTRL_CMD_STALE; /* at rest since the tick before */
+    l->stale_sent = 1;
+    return;
+  }
+  tau = tau < l->stop_T ? tau : l->stop_T;
+  in->command = CTRL_CMD_SETPOINT;
+  for (i = 0; i < N; ++i) {
+    ctrl_real a = l->stop_T > CTRL_LIT(0.0) ? l->stop_v0[i] / l->stop_T : CTRL_LIT(0.0);
+    in->q_ref[i] = l->stop_q0[i] + l->stop_v0[i] * tau - CTRL_LIT(0.5) * a * tau * tau;
+    in->qd_ref[i] = l->stop_v0[i] - a * tau;
+  }
+}
+
+/* ------------------------------------------------------------------ the stream */
+
+/* The cubic Hermite between waypoints a and b at time t (s): position. */
+static ctrl_real hermite(const fw_link_waypoint_slot *a, const fw_link_waypoint_slot *b, int i, ctrl_real t) {
+  ctrl_real h = (ctrl_real)(b->t_us - a->t_us) * CTRL_LIT(1e-6);
+  ctrl_real s = (t - (ctrl_real)a->t_us * CTRL_LIT(1e-6)) / h;
+  ctrl_real s2 = s * s, s3 = s2 * s;
+  return (CTRL_LIT(2.0) * s3 - CTRL_LIT(3.0) * s2 + CTRL_LIT(1.0)) * a->q[i] + (s3 - CTRL_LIT(2.0) * s2 + s) * h * a->qd[i] +
+         (CTRL_LIT(3.0) * s2 - CTRL_LIT(2.0) * s3) * b->q[i] + (s3 - s2) * h * b->qd[i];
+}
+
+/* The stream's command of this tick: the interpolated point, reached from the last command with
+ * each joint's step limited to qdot_max * dt and its change of velocity to qddot_max * dt. */
+static void stream_tick(fw_link *l, ctrl_input *in) {
+  const fw_link_waypoint_slot *a, *b;
+  ctrl_real t = (ctrl_real)l->stream_k * l->dt, ref[N];
+  int i, arriving = 1;
+  if (l->stream_k > 0u && !moving(l->last.state)) { /* the controller stopped it (a fault) */
+    l->streaming = 0;
+    return;
+  }
+  if (l->stream_arrived) { /* at the last waypoint, at rest, since the tick before: the controller holds (DONE) */
+    in->command = CTRL_CMD_STOP;
+    l->streaming = 0;
+    return;
+  }
+  while (l->wp_count >= 2u && (ctrl_real)l->wp[(l->wp_first + 1u) % FW_LINK_WAYPOINTS].t_us * CTRL_LIT(1e-6) <= t) {
+    l->wp_first = (l->wp_first + 1u) % FW_LINK_WAYPOINTS;
+    --l->wp_count;
+  }
+  a = &l->wp[l->wp_first];
+  if (l->wp_count >= 2u) {
+    b = &l->wp[(l->wp_first + 1u) % FW_LINK_WAYPOINTS];
+    for (i = 0; i < N; ++i) {
+      ref[i] = clamp_r(hermite(a, b, i, t), l->q_min[i], l->q_max[i]);
+    }
+  } else {
+    if (!l->stream_ended) ++l->counts.underruns; /* the host is late: hold the last waypoint */
+    for (i = 0; i < N; ++i) {
+      ref[i] = a->q[i];
+    }
+  }
+  in->command = CTRL_CMD_SETPOINT;
+  for (i = 0; i < N; ++i) {
+    ctrl_real q = l->last.q[i], v_prev = l->stream_k > 0u ? l->last.qd[i] : CTRL_LIT(0.0);
+    ctrl_real dv = l->qdd_max[i] * l->dt, e = ref[i] - q;
+    ctrl_real v = clamp_r(e / l->dt, -l->qd_max[i], l->qd_max[i]);
+    v = clamp_r(v, v_prev - dv, v_prev + dv);
+    in->q_ref[i] = v * l->dt + q;
+    in->qd_ref[i] = v;
+    /* one step from the end, slow enough to stop within qddot_max in it */
+    arriving &= (v_prev <= dv) && (v_prev >= -dv) && (e <= dv * l->dt) && (e >= -dv * l->dt);
+  }
+  ++l->stream_k;
+  if (l->wp_count == 1u && l->stream_ended && arriving) { /* the last waypoint exactly, at rest */
+    for (i = 0; i < N; ++i) {
+      in->q_ref[i] = ref[i];
+      in->qd_ref[i] = CTRL_LIT(0.0);
+    }
+    l->stream_arrived = 1;
+  }
+}
+
+/* ------------------------------------------------------------------ per tick */
+
+void fw_link_input(fw_link *l, ctrl_input *in) {
+  in->locked = l->locked;
+  receive_frames(l);
+  if (!l->stale && l->session && moving(l->last.state) && l->tick - l->last_frame_tick > l->watchdog_ticks) {
+    start_stop(l);
+  }
+  if (l->stale) {
+    stop_tick(l, in);
+    return;
+  }
+  if (l->command != CTRL_CMD_NONE) {
+    in->command = l->command;
+    if (l->command == CTRL_CMD_MOVE_TO) {
+      (void)memcpy(in->target, l->target, sizeof in->target);
+    } else if (l->command == CTRL_CMD_MOVE_TO_JOINTS) {
+      (void)memcpy(in->q_ref, l->q_target, sizeof in->q_ref);
+    }
+    l->command = CTRL_CMD_NONE;
+    return;
+  }
+  if (l->streaming) {
+    stream_tick(l, in);
+  }
+}
+
+static void send_hello_reply(fw_link *l) {
+  fw_link_hello_reply r;
+  uint8_t body[FW_LINK_HELLO_REPLY_SIZE];
+  r.accepted = (uint8_t)l->hello_accepted;
+  r.version = FW_LINK_VERSION;
+  r.ndof = (uint8_t)N;
+  r.dt_us = (uint32_t)(l->dt * CTRL_LIT(1e6) + CTRL_LIT(0.5));
+  r.watchdog_ticks = l->watchdog_ticks;
+  r.waypoint_capacity = (uint16_t)FW_LINK_WAYPOINTS;
+  send(l, FW_LINK_HELLO_REPLY, body, fw_link_pack_hello_reply(&r, body));
+}
+
+static void send_telemetry(fw_link *l) {
+  const ctrl_output *o = &l->last;
+  fw_link_telemetry m;
+  uint8_t body[FW_LINK_TELEMETRY_SIZE];
+  ctrl_real T[16], J[6 * N];
+  int i;
+  ctrl_gen_fk_jacobian(o->q, T, J);
+  m.tick = l->tick;
+  m.ctrl_tick = o->tick;
+  m.state = (uint8_t)o->state;
+  m.fault = (uint8_t)(l->stale ? CTRL_FAULT_STALE : o->fault);
+  m.link_flags = (uint8_t)((l->session ? FW_LINK_FLAG_SESSION : 0u) | (l->streaming ? FW_LINK_FLAG_STREAMING : 0u) |
+                           (l->stale ? FW_LINK_FLAG_STALE : 0u));
+  m.result = l->result;
+  m.ack_seq = l->ack_seq;
+  m.waypoints_free = (uint16_t)(l->streaming ? FW_LINK_WAYPOINTS - l->wp_count : FW_LINK_WAYPOINTS);
+  for (i = 0; i < N; ++i) {
+    m.q[i] = (float)o->q[i];
+    m.qd[i] = (float)o->qd[i];
+  }
+  for (i = 0; i < 3; ++i) {
+    m.tool[i] = (float)T[12 + i];
+    m.tool[3 + i] = (float)T[i];
+    m.tool[6 + i] = (float)T[4 + i];
+    m.tool[9 + i] = (float)T[8 + i];
+  }
+  m.pos_err = (float)o->pos_err;
+  m.ori_err = (float)o->ori_err;
+  m.locked = o->locked;
+  m.rx_frames = l->counts.rx_frames;
+  m.bad_crc = l->counts.bad_crc;
+  m.malformed = l->counts.malformed;
+  m.oversized = l->counts.oversized;
+  m.out_of_order = l->counts.out_of_order;
+  m.wrong_version = l->counts.wrong_version;
+  m.no_session = l->counts.no_session;
+  m.rejected = l->counts.rejected;
+  m.rx_overflow = l->counts.rx_overflow;
+  m.seq_gaps = l->counts.seq_gaps;
+  m.underruns = l->counts.underruns;
+  m.stale_ticks = l->stale_ticks;
+  send(l, FW_LINK_TELEMETRY, body, fw_link_pack_telemetry(&m, body));
+}
+
+void fw_link_output(fw_link *l, const ctrl_output *out) {
+  l->last = *out;
+  if (l->reply_hello) {
+    send_hello_reply(l);
+    l->reply_hello = 0;
+  }
+  if (l->reply_telemetry || (l->session && l->telemetry_period > 0u && l->tick % l->telemetry_period == 0u)) {
+    send_telemetry(l);
+    l->reply_telemetry = 0;
+  }
+  ++l->tick;
+}

@@ -1,0 +1,145 @@
+/*
+ * The host link of the joint controller (docs/link.md): a byte stream (UART, USB CDC, TCP, a
+ * pseudo-terminal) carrying the messages of fw_link_msgs.h in COBS frames with a CRC-32.
+ *
+ *   fw_link l;                                    one per link; no heap, no globals
+ *   fw_link_init(&l, &config, watchdog_ticks);    after ctrl_init, with the same configuration
+ *   in the UART interrupt (or a poll):   fw_link_receive(&l, byte);
+ *   every period dt:
+ *     ctrl_input in = {0};
+ *     fw_link_input(&l, &in);                     frames -> this tick's command or setpoint
+ *     ctrl_tick(&c, &in, &out);
+ *     fw_link_output(&l, &out);                   replies and telemetry
+ *     n = fw_link_transmit(&l, buf, sizeof buf);  bytes for the UART
+ *
+ * The link sits on top of the controller: it reads the controller's outputs and writes its
+ * inputs, and every command it makes goes through the controller's checks (limits, speed).
+ *
+ * Receive: a ring buffer filled a byte at a time (single producer, single consumer: the
+ * interrupt writes head, the tick reads tail); the tick decodes whole frames. A frame that is
+ * no COBS, too short or too long, of another protocol version, with a bad CRC-32, of an unknown
+ * type or length, before the session's HELLO, or with a sequence number not newer than the
+ * last one is counted and dropped: never acted on. One valid frame is taken per tick (acted
+ * on and answered); frames after it wait in the ring for the next tick.
+ *
+ * Watchdog: while a session is open and the arm moves (RUNNING or DEGRADED), a tick more than
+ * watchdog_ticks after the last valid frame decides a controlled stop: the joint velocities
+ * ramp down together (one common duration, each joint within its qddot_max), then the
+ * controller latches STALE (CTRL_CMD_STALE). Nothing is acted on after that decision.
+ *
+ * Stream: timed joint waypoints (t, q, qd) buffered, interpolated at every tick by the cubic
+ * Hermite between the two around t, and followed within each joint's qdot_max and qddot_max
+ * (the step to the interpolated point, limited); the controller receives it as a setpoint.
+ */
+#ifndef ARMGEN_FW_LINK_H
+#define ARMGEN_FW_LINK_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "controller.h"
+#include "fw_link_msgs.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Receive ring, bytes (a power of two): at 115 200 baud 11.5 bytes arrive per millisecond, so
+ * 1 024 bytes hold ~90 ms of traffic between two ticks. -DFW_LINK_RX_RING=n */
+#ifndef FW_LINK_RX_RING
+#define FW_LINK_RX_RING 1024u
+#endif
+/* Transmit buffer, bytes: several telemetry frames between two drains. */
+#ifndef FW_LINK_TX_BUFFER
+#define FW_LINK_TX_BUFFER 2048u
+#endif
+/* Buffered stream waypoints: at 50 Hz, 32 waypoints are 0.64 s of lead. */
+#ifndef FW_LINK_WAYPOINTS
+#define FW_LINK_WAYPOINTS 32u
+#endif
+/* A stream's first waypoint must lie this close to the held command, rad (m): the stream starts
+ * where the arm is, never with a jump. */
+#define FW_LINK_STREAM_START_TOL CTRL_LIT(1e-3)
+
+/* A frame: header, body, CRC-32 (FW_LINK_MAX_RAW); COBS adds one byte per 254 and the first. */
+#define FW_LINK_MAX_RAW (FW_LINK_HEADER_SIZE + FW_LINK_MAX_BODY + FW_LINK_CRC_SIZE)
+#define FW_LINK_MAX_ENCODED (FW_LINK_MAX_RAW + FW_LINK_MAX_RAW / 254u + 1u)
+
+typedef struct {
+  uint32_t rx_frames, bad_crc, malformed, oversized, out_of_order, wrong_version, no_session, rejected;
+  uint32_t rx_overflow, seq_gaps, underruns, tx_overflow;
+} fw_link_counts;
+
+typedef struct {
+  uint32_t t_us;
+  uint8_t last;
+  ctrl_real q[CTRL_NDOF], qd[CTRL_NDOF];
+} fw_link_waypoint_slot;
+
+typedef struct {
+  /* the controller's limits (copied from its configuration) */
+  ctrl_real dt;
+  ctrl_real q_min[CTRL_NDOF], q_max[CTRL_NDOF], qd_max[CTRL_NDOF], qdd_max[CTRL_NDOF];
+  uint32_t watchdog_ticks;
+  /* receive */
+  uint8_t ring[FW_LINK_RX_RING];
+  volatile uint32_t ring_head; /* written by the receiver (interrupt) only */
+  volatile uint32_t ring_tail; /* written by fw_link_input only */
+  uint8_t encoded[FW_LINK_MAX_ENCODED];
+  size_t encoded_len;
+  int encoded_overflow; /* the frame being received is longer than any message */
+  /* session */
+  int session;
+  uint16_t rx_seq, tx_seq, ack_seq, telemetry_period;
+  uint8_t result;
+  int reply_telemetry, reply_hello, hello_accepted;
+  uint32_t tick, last_frame_tick;
+  fw_link_counts counts;
+  /* this tick's command from a frame */
+  ctrl_command command;
+  ctrl_real target[16];
+  ctrl_real q_target[CTRL_NDOF];
+  uint32_t locked;
+  /* stream */
+  fw_link_waypoint_slot wp[FW_LINK_WAYPOINTS];
+  uint32_t wp_first, wp_count, stream_k;
+  int streaming, stream_ended, stream_arrived; /* ended: its last waypoint received; arrived: the arm is there */
+  /* the watchdog's stop */
+  int stale, stale_sent;
+  uint32_t stale_ticks, stop_k;
+  ctrl_real stop_q0[CTRL_NDOF], stop_v0[CTRL_NDOF], stop_T;
+  /* the controller's last output */
+  ctrl_output last;
+  /* transmit */
+  uint8_t tx[FW_LINK_TX_BUFFER];
+  size_t tx_len;
+} fw_link;
+
+/* Set up the link for a controller initialised with `config` (its limits, period and start). */
+void fw_link_init(fw_link *l, const ctrl_config *config, uint32_t watchdog_ticks);
+/* One received byte (from an interrupt or a poll): 1, or 0 when the ring is full (dropped, counted). */
+int fw_link_receive(fw_link *l, uint8_t byte);
+/* Before ctrl_tick: decode the frames received, watch the watchdog, and write this tick's
+ * command (or setpoint, or the stop) and the reported locks into `in`. */
+void fw_link_input(fw_link *l, ctrl_input *in);
+/* After ctrl_tick: remember the output, queue the replies and telemetry. */
+void fw_link_output(fw_link *l, const ctrl_output *out);
+/* Move up to `max` queued bytes to `dst`; returns how many. */
+size_t fw_link_transmit(fw_link *l, uint8_t *dst, size_t max);
+
+/* The framing, shared with the tests and tools. */
+uint32_t fw_link_crc32(const uint8_t *data, size_t len);
+/* COBS: encode len bytes (no delimiter written); returns the encoded length (at most len + len / 254 + 1). */
+size_t fw_link_cobs_encode(const uint8_t *in, size_t len, uint8_t *out);
+/* COBS: decode len bytes (no delimiter) into out (at most len - 1 bytes); returns the decoded
+ * length, or 0 for bytes that are no COBS (a zero byte, a code past the end, an empty input). */
+size_t fw_link_cobs_decode(const uint8_t *in, size_t len, uint8_t *out);
+/* A whole frame of a body: header, CRC-32, COBS and the 0x00 delimiter; returns its length (out
+ * holds FW_LINK_MAX_ENCODED + 1 bytes). */
+size_t fw_link_frame(uint8_t version, uint8_t type, uint16_t seq, const uint8_t *body, size_t len, uint8_t *out);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* ARMGEN_FW_LINK_H */

@@ -1,0 +1,214 @@
+"""The host side of the link: a client on pyserial, for a serial port (``/dev/ttyUSB0``,
+``COM3``), a pseudo-terminal (the host firmware's ``/dev/pts/N``) or TCP (``socket://host:port``,
+pyserial's URL handlers).
+
+    with LinkClient("/dev/ttyUSB0") as link:
+        print(link.status().state_name)
+        link.move_to_joints(q)
+        link.wait_idle()            # sends STATUS as the watchdog's heartbeat meanwhile
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import serial
+
+from .codec import Frame, FrameDecoder, encode
+from .protocol import FAULT_NAMES, FLAGS, RESULTS, STATE_NAMES, VERSION
+
+HANDSHAKE_NDOF = 0  # HELLO and HELLO_REPLY have no per-joint field: decodable before the board says ndof
+DEFAULT_TIMEOUT_S = 2.0  # a reply takes one tick plus the wire; 2 s covers a loaded host running the board
+
+
+class LinkError(RuntimeError):
+    """No answer, a refused handshake, or a refused command (the message names which)."""
+
+
+@dataclass(frozen=True)
+class Telemetry:
+    """One TELEMETRY frame: ``values`` by the protocol's field names, and their readings."""
+
+    seq: int
+    values: dict[str, Any]
+
+    def __getitem__(self, name: str) -> Any:
+        return self.values[name]
+
+    @property
+    def state_name(self) -> str:
+        s = self.values["state"]
+        return STATE_NAMES[s] if s < len(STATE_NAMES) else str(s)
+
+    @property
+    def fault_name(self) -> str:
+        f = self.values["fault"]
+        return FAULT_NAMES[f] if f < len(FAULT_NAMES) else str(f)
+
+    @property
+    def result_name(self) -> str:
+        r = self.values["result"]
+        return RESULTS[r][0] if r < len(RESULTS) else str(r)
+
+    @property
+    def flags(self) -> tuple[str, ...]:
+        return tuple(name for bit, (name, _) in enumerate(FLAGS) if self.values["link_flags"] >> bit & 1)
+
+    @property
+    def q(self) -> np.ndarray:
+        return np.array(self.values["q"])
+
+
+class LinkClient:
+    """A session with a board: the handshake on opening, then commands and telemetry."""
+
+    def __init__(self, port: str, *, baudrate: int = 115200, timeout: float = DEFAULT_TIMEOUT_S,
+                 telemetry_period: int = 0):
+        try:
+            self.serial = serial.serial_for_url(port, baudrate=baudrate, timeout=0.005)
+        except (serial.SerialException, ValueError) as exc:
+            raise LinkError(f"cannot open {port}: {exc}") from None
+        self.port = port
+        self.timeout = timeout
+        self.seq = 0
+        self.telemetry: list[Telemetry] = []
+        self._decoder = FrameDecoder(HANDSHAKE_NDOF)
+        self.hello = self._handshake(telemetry_period)
+        self.ndof = self.hello["ndof"]
+        self._decoder = FrameDecoder(self.ndof)
+
+    # -- plumbing
+    def close(self) -> None:
+        self.serial.close()
+
+    def __enter__(self) -> LinkClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def send(self, name: str, values: dict[str, Any] | None = None) -> int:
+        """Send one message; returns its sequence number."""
+        self.seq = (self.seq + 1) & 0xFFFF
+        self.serial.write(encode(name, self.seq, self.ndof, values))
+        return self.seq
+
+    def poll(self) -> list[Frame]:
+        """The frames received so far (telemetry also appended to ``self.telemetry``)."""
+        data = self.serial.read(self.serial.in_waiting or 1)
+        frames = self._decoder.feed(data)
+        self.telemetry += [Telemetry(f.seq, f.values) for f in frames if f.name == "TELEMETRY"]
+        return frames
+
+    def _await(self, accept, what: str) -> Frame:
+        deadline = time.monotonic() + self.timeout
+        while time.monotonic() < deadline:
+            for frame in self.poll():
+                if accept(frame):
+                    return frame
+        counts = {k: v for k, v in self._decoder.counts.items() if v and k != "frames"}
+        raise LinkError(f"no {what} from {self.port} within {self.timeout:g} s"
+                        + (f" (dropped frames: {counts})" if counts else ""))
+
+    def _handshake(self, telemetry_period: int) -> dict[str, Any]:
+        self.ndof = HANDSHAKE_NDOF
+        self.serial.reset_input_buffer()
+        self.serial.write(b"\x00")  # ends any partial frame on the wire: the board resynchronises
+        self.seq = 0
+        self.serial.write(encode("HELLO", self.seq, HANDSHAKE_NDOF, {"telemetry_period": telemetry_period}))
+        try:
+            reply = self._await(lambda f: f.name == "HELLO_REPLY", "HELLO_REPLY")
+        except LinkError as exc:
+            raise LinkError(f"{exc}: is it an armgen board speaking protocol version {VERSION}?") from None
+        if not reply.values["accepted"]:
+            raise LinkError(f"the board speaks protocol version {reply.values['version']}, this armgen {VERSION}")
+        return dict(reply.values)
+
+    # -- requests
+    def request(self, name: str, values: dict[str, Any] | None = None, *, check: bool = True) -> Telemetry:
+        """Send a message and wait for the TELEMETRY that answers it; ``check``: a result other
+        than OK raises LinkError naming it."""
+        seq = self.send(name, values)
+        frame = self._await(lambda f: f.name == "TELEMETRY" and f.values["ack_seq"] == seq, f"reply to {name}")
+        reply = Telemetry(frame.seq, frame.values)
+        if check and reply.result_name != "OK":
+            raise LinkError(f"{name} refused: {reply.result_name} ({dict(RESULTS)[reply.result_name]}); "
+                            f"state {reply.state_name}, fault {reply.fault_name}")
+        return reply
+
+    def status(self) -> Telemetry:
+        return self.request("STATUS")
+
+    def start(self) -> Telemetry:
+        return self.request("START")
+
+    def stop(self) -> Telemetry:
+        return self.request("STOP")
+
+    def move_to_pose(self, pose: Sequence[Sequence[float]] | np.ndarray) -> Telemetry:
+        """To a tool pose (4x4 homogeneous, m): the board's IK, then a move within the limits."""
+        T = np.asarray(pose, dtype=float)
+        if T.shape != (4, 4):
+            raise LinkError(f"a pose is 4x4, got shape {T.shape}")
+        return self.request("MOVE_TO_POSE", {"pose": T.flatten(order="F")})
+
+    def move_to_joints(self, q: Sequence[float]) -> Telemetry:
+        return self.request("MOVE_TO_JOINTS", {"q": list(q)})
+
+    def wait_idle(self, heartbeat_s: float = 0.02, limit_s: float = 600.0) -> Telemetry:
+        """STATUS every heartbeat_s (it feeds the watchdog) until the arm no longer moves."""
+        end = time.monotonic() + limit_s
+        while True:
+            reply = self.status()
+            if reply.state_name not in ("RUNNING", "DEGRADED") or time.monotonic() > end:
+                return reply
+            time.sleep(heartbeat_s)
+
+    def stream(self, t: Sequence[float], q: np.ndarray, qd: np.ndarray, *, lead_s: float = 0.1,
+               stop_after: int | None = None) -> list[Telemetry]:
+        """Stream timed waypoints in real time, each sent lead_s before its time (the board
+        interpolates between them), the last marked as the stream's end; then wait until the arm
+        is at rest. ``stop_after``: send only that many waypoints, then nothing (the watchdog's
+        test: the stream cut). Returns the replies to the waypoints."""
+        t = np.asarray(t, dtype=float)
+        q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
+        if q.shape != (len(t), self.ndof) or qd.shape != q.shape:
+            raise LinkError(f"waypoints need {self.ndof} joint values each: q {q.shape}, qd {qd.shape}, t {t.shape}")
+        if len(t) == 0 or t[0] != 0.0 or np.any(np.diff(t) <= 0):
+            raise LinkError("waypoint times must start at 0 and increase")
+        count = len(t) if stop_after is None else min(stop_after, len(t))
+        replies: list[Telemetry] = []
+        sent: dict[int, int] = {}
+        start = time.monotonic()
+        for k in range(count):
+            due = start + t[k] - lead_s
+            while time.monotonic() < due:
+                self._collect(sent, replies)
+                time.sleep(0.001)
+            values = {"t_us": int(round(t[k] * 1e6)), "last": int(k == len(t) - 1), "q": q[k], "qd": qd[k]}
+            sent[self.send("WAYPOINT", values)] = k
+            self._collect(sent, replies)
+        deadline = time.monotonic() + self.timeout
+        while len(replies) < count and time.monotonic() < deadline:
+            self._collect(sent, replies)
+        refused = [r for r in replies if r.result_name != "OK"]
+        if refused:
+            r = refused[0]
+            raise LinkError(f"waypoint {sent[r['ack_seq']]} refused: {r.result_name} "
+                            f"({dict(RESULTS)[r.result_name]})")
+        return replies
+
+    def _collect(self, sent: dict[int, int], replies: list[Telemetry]) -> None:
+        for frame in self.poll():
+            if frame.name == "TELEMETRY" and frame.values["ack_seq"] in sent:
+                replies.append(Telemetry(frame.seq, frame.values))
+
+    def watch(self, period_s: float = 0.1) -> Iterator[Telemetry]:
+        """Telemetry every period_s (STATUS requests: they also feed the watchdog)."""
+        while True:
+            yield self.status()
+            time.sleep(period_s)
