@@ -1,0 +1,17 @@
+"""The host link (issue 40, docs/link.md): a versioned binary protocol between a host and the
+controller on the board, over any byte stream —
+
+- :mod:`.protocol`: the messages, defined once (this table makes both sides);
+- :mod:`.codec`: the host's framing (COBS, CRC-32), messages to frames and back;
+- :mod:`.c_codec`: the board's packers and parsers, ``fw_link_msgs.{h,c}`` of the firmware stub;
+- :mod:`.client`: a session with a board on pyserial (serial port, pseudo-terminal, TCP).
+
+The board's side is ``armgen/data/firmware_stub/fw_link.{h,c}``.
+"""
+
+from .client import LinkClient, LinkError, Telemetry
+from .codec import Frame, FrameDecoder, LinkProtocolError, encode
+from .protocol import FAULT_NAMES, MESSAGES, STATE_NAMES, VERSION
+
+__all__ = ["FAULT_NAMES", "MESSAGES", "STATE_NAMES", "VERSION", "Frame", "FrameDecoder", "LinkClient", "LinkError",
+           "LinkProtocolError", "Telemetry", "encode"]
