@@ -257,9 +257,10 @@ def host(rep: Report, robot: Robot, work: Path, quick: bool) -> None:
         print(f"  {name:<18} {ours['double'][name]:>9.1f} {ours['float'][name]:>9.1f} {peer[name]:>19.1f} "
               f"{ratio:>6.1f}x {net:>11.1f} {net / ours['double'][name]:>6.1f}x {batched[name]:>15.1f}")
         rep.rows.append((f"host {name} ns/call", f"C {ours['double'][name]:.0f} / Pinocchio {peer[name]:.0f}", "ns",
-                         f"Pinocchio (Python) / C double {ratio:.1f}x; less the call floor {net / ours['double'][name]:.1f}x"))
-    print(f"  Pinocchio's call floor (isNormalized(model, q): the Python-to-C++ call alone) {floor:.0f} ns; its coriolis"
-          " is nonLinearEffects (c + g); ratios are Pinocchio / C double")
+                         f"Pinocchio (Python) / C double {ratio:.1f}x; "
+                         f"less the call floor {net / ours['double'][name]:.1f}x"))
+    print(f"  Pinocchio's call floor (isNormalized(model, q): the Python-to-C++ call alone) {floor:.0f} ns; "
+          "its coriolis is nonLinearEffects (c + g); ratios are Pinocchio / C double")
 
 
 def _best_ns(call, inputs: list[tuple], quick: bool) -> float:
