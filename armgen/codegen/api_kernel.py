@@ -27,6 +27,7 @@ import importlib.util
 import json
 import os
 import pickle
+import re
 import subprocess
 import sys
 import sysconfig
@@ -49,6 +50,9 @@ from .toolchain import STRICT_FLAGS, compile_shared, host_cc
 # criteria that Robot evaluates; what the robot lacks (a criterion of a robot without one) is left out.
 API_FUNCTIONS = ("fk", "jacobian", "fk_jacobian", "ik", "zghal", "repetitive", "manipulability",
                  "joint_manipulability")
+# The C prefix of the kernel's generated code: fixed (internal to the extension module), so any
+# robot name builds (a robot called 'nan' would be a prefix armgen gen refuses).
+C_PREFIX = "robot"
 # ARMGEN_KERNEL selects the evaluator of the Robot methods: the compiled kernel (the default) or
 # the CasADi reference.
 KERNEL_ENV = "ARMGEN_KERNEL"
@@ -232,12 +236,11 @@ def _kernel_digest(model: SymbolicModel, functions: tuple[str, ...]) -> str:
 
 
 def _names(model: SymbolicModel, digest: str) -> tuple[Path, Path, str]:
-    """(entry, library, module name) of the kernel ``digest`` in the store."""
-    from .generate import CodegenConfig, make_consistent
-
-    prefix = make_consistent(CodegenConfig(model.robot)).prefix
+    """(entry, library, module name) of the kernel ``digest`` in the store (the files named
+    after the robot, for whoever lists the store)."""
+    stem = re.sub(r"[^A-Za-z0-9_]", "_", model.robot.name)[:60] + "_api"
     store = kernel_store.store_dir()
-    return store / f"{prefix}_api-{digest}.json", store / f"{prefix}_api-{digest}.so", f"armgen_api_{digest}"
+    return store / f"{stem}-{digest}.json", store / f"{stem}-{digest}.so", f"armgen_api_{digest}"
 
 
 def _stored(model: SymbolicModel, references: dict[str, ca.Function], digest: str) -> ApiKernel | None:
@@ -270,7 +273,7 @@ def _built(model: SymbolicModel, references: dict[str, ca.Function], digest: str
     store = library.parent
     with tempfile.TemporaryDirectory(prefix="armgen-api-", dir=store) as tmp:
         work = Path(tmp)
-        code = generate(CodegenConfig(model.robot, "double", "", tuple(references)))
+        code = generate(CodegenConfig(model.robot, "double", C_PREFIX, tuple(references)))
         write(code, work)
         glue = work / f"{code.prefix}_api.c"
         glue.write_text(extension_source(code.prefix, module_name, references), encoding="utf-8")
