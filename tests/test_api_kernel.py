@@ -1,0 +1,228 @@
+"""The compiled kernel behind the Python API (issue 41): Robot's methods on the generated C give
+what the CasADi reference gives; the kernel is built once into the store and loaded from it only
+when trusted and self-tested; without a C compiler the reference runs, said once."""
+
+import json
+import os
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from armgen.codegen import api_kernel
+from armgen.errors import OptionError, ToolchainError
+from armgen.robot import load_robot
+
+ROOT = Path(__file__).resolve().parents[1]
+SEED = 4141
+# The bench poses of benchmarks/bench_ik.py: FK of seeded configurations inside the limits,
+# solved from the middle of the limits.
+IK_POSES = 30
+IK_SEED = 2025
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    """One store for the module: each robot's kernel is built once here."""
+    folder = tmp_path_factory.mktemp("cache")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("ARMGEN_CACHE_DIR", str(folder))
+        patch.delenv(api_kernel.KERNEL_ENV, raising=False)
+        yield folder / "kernels"
+
+
+@pytest.fixture
+def fresh_process(monkeypatch):
+    """Nothing loaded, nothing warned: as in a new process."""
+    monkeypatch.setattr(api_kernel, "_LOADED", {})
+    monkeypatch.setattr(api_kernel, "_WARNED", [])
+
+
+def reference(name):
+    """The robot with its methods on the CasADi reference."""
+    robot = load_robot(name)
+    robot.__dict__["_kernel"] = None
+    return robot
+
+
+def compiled(name):
+    robot = load_robot(name)
+    assert robot._kernel is not None, "no compiled kernel was built"
+    return robot
+
+
+def assert_agrees(value, expected, tolerance=api_kernel.REFERENCE_AGREEMENT):
+    value, expected = np.asarray(value), np.asarray(expected)
+    assert value.shape == expected.shape
+    np.testing.assert_allclose(value, expected, rtol=tolerance, atol=tolerance)
+
+
+@pytest.mark.parametrize("name", ["planar3", "panda", "modular8"])
+def test_kinematics_and_criteria_equal_the_casadi_reference(store, name):
+    robot, ref = compiled(name), reference(name)
+    rng = np.random.default_rng(SEED)
+    batch = rng.uniform(robot.qmin, robot.qmax, (2, 3, robot.n))
+    for q in (batch, batch[0, 0], batch[0, 0].tolist(), batch[:, 1]):  # batch, one sample, a list, a strided batch
+        assert_agrees(robot.fk(q), ref.fk(q))
+        assert_agrees(robot.jacobian(q), ref.jacobian(q))
+        for value, expected in zip(robot.fk_jacobian(q), ref.fk_jacobian(q)):
+            assert_agrees(value, expected)
+        assert_agrees(robot.manipulability(q, delta=0.01), ref.manipulability(q, delta=0.01))
+        assert_agrees(robot.manipulability_gradient(q, delta=0.01), ref.manipulability_gradient(q, delta=0.01))
+        assert_agrees(robot.joint_limit_criterion(q), ref.joint_limit_criterion(q))
+        assert_agrees(robot.joint_limit_gradient(q), ref.joint_limit_gradient(q))
+        assert_agrees(robot.repetitive_gradient(q, robot.qmid), ref.repetitive_gradient(q, robot.qmid))
+        weights = rng.uniform(0.5, 2.0, robot.n)
+        for key, value in robot.joint_manipulability(q, weights, delta=0.01).items():
+            assert_agrees(value, ref.joint_manipulability(q, weights, delta=0.01)[key])
+    assert robot.fk(np.zeros((0, robot.n))).shape == (0, 4, 4)
+
+
+def test_ik_has_the_reference_success_and_residuals_on_the_bench_poses(store):
+    robot, ref = compiled("panda"), reference("panda")
+    rng = np.random.default_rng(IK_SEED)
+    poses = ref.fk(robot.qmin + (robot.qmax - robot.qmin) * rng.random((IK_POSES, robot.n)))
+    solved, expected = robot.ik(poses, seed=robot.qmid), ref.ik(poses, seed=robot.qmid)
+    np.testing.assert_array_equal(solved.success, expected.success)
+    assert solved.success.mean() >= expected.success.mean()
+    for field in ("q", "position_error", "orientation_error"):
+        assert_agrees(getattr(solved, field), getattr(expected, field), api_kernel.IK_REFERENCE_AGREEMENT)
+    for pose, q in zip(poses[:3], expected.q[:3]):  # one pose per call, and with q0 (the self-motion toward it)
+        assert_agrees(robot.ik(pose, seed=robot.qmid).q, ref.ik(pose, seed=robot.qmid).q, api_kernel.IK_REFERENCE_AGREEMENT)
+        assert_agrees(robot.ik(pose, q0=q).q, ref.ik(pose, q0=q).q, api_kernel.IK_REFERENCE_AGREEMENT)
+    with pytest.raises(ValueError, match="not a rotation"):
+        robot.ik(np.diag([2.0, 1.0, 1.0, 1.0]))
+
+
+def test_results_are_independent_arrays(store):
+    robot = compiled("planar3")
+    first = robot.fk(robot.qmid)
+    second = robot.fk(robot.qmin)
+    assert not np.shares_memory(first, second) and not np.allclose(first, second)
+
+
+def test_wrong_shapes_and_buffers_are_errors_not_crashes(store):
+    robot = compiled("planar3")
+    with pytest.raises(ValueError, match=r"q must have shape \(3,\) or \(\.\.\., 3\) for robot 'planar3'"):
+        robot.fk(np.zeros(4))
+    module = robot._kernel._module
+    with pytest.raises(ValueError, match="argument 2: a contiguous float64 buffer of 1 samples of 16 values"):
+        module.fk(1, np.zeros(3), np.zeros(15))
+    with pytest.raises(ValueError, match="argument 1"):
+        module.fk(2, np.zeros(3, dtype=np.float32), np.zeros(32))
+    with pytest.raises(ValueError, match="argument 2"):
+        module.fk(2, np.zeros(3), np.zeros(16))  # an output holds every sample
+    with pytest.raises(TypeError, match="fk takes count and 2 buffers"):
+        module.fk(1, np.zeros(3))
+    with pytest.raises(ValueError, match="count must be at least 0"):
+        module.fk(-1, np.zeros(3), np.zeros(16))
+
+
+def test_kernel_is_loaded_from_the_store_not_built_again(store, fresh_process, monkeypatch):
+    compiled("planar3")
+    monkeypatch.setattr(api_kernel, "_LOADED", {})
+    monkeypatch.setattr(api_kernel, "compile_shared", lambda *_, **__: pytest.fail("compiled again"))
+    robot = load_robot("planar3")
+    assert robot._kernel is not None
+    [entry] = store.glob("planar3_api-*.json")
+    assert json.loads(entry.read_text())["library"] == entry.with_suffix(".so").name
+
+
+PLANTED = r"""
+#include <stdio.h>
+__attribute__((constructor)) static void planted(void) {
+    FILE *f = fopen(MARKER, "w");
+    if (f) { fputs("ran", f); fclose(f); }
+}
+"""
+
+
+def test_a_library_that_is_not_the_stored_one_is_not_loaded(store, fresh_process, tmp_path):
+    compiled("planar3")
+    [library] = store.glob("planar3_api-*.so")
+    marker, source = tmp_path / "constructor-ran", tmp_path / "planted.c"
+    source.write_text(PLANTED)
+    subprocess.run(["gcc", "-shared", "-fPIC", f'-DMARKER="{marker}"', str(source), "-o", str(tmp_path / "p.so")],
+                   check=True)
+    library.unlink()  # (a new file: the one this process mapped stays as it was)
+    library.write_bytes((tmp_path / "p.so").read_bytes())  # same name, someone else's code
+    api_kernel._LOADED.clear()
+    robot, ref = load_robot("planar3"), reference("planar3")
+    assert robot._kernel is not None
+    assert not marker.exists()
+    assert_agrees(robot.fk(robot.qmin), ref.fk(robot.qmin))
+    assert library.read_bytes() != (tmp_path / "p.so").read_bytes()  # built again over it
+
+
+def test_a_kernel_failing_its_self_test_is_not_used(store, fresh_process, monkeypatch):
+    compiled("planar3")
+    api_kernel._LOADED.clear()
+    monkeypatch.setattr(api_kernel, "_agrees_with_reference", lambda *_: False)
+    with pytest.warns(RuntimeWarning, match="disagrees with the CasADi reference"):
+        robot = load_robot("planar3")
+        assert robot._kernel is None
+    assert_agrees(robot.fk(robot.qmid), reference("planar3").fk(robot.qmid))
+
+
+def test_without_a_compiler_the_reference_runs_and_one_line_says_so(store, fresh_process, monkeypatch):
+    def no_compiler():
+        raise ToolchainError("'gcc' not found on PATH; install a C compiler (apt-get install -y gcc)")
+
+    monkeypatch.setattr(api_kernel, "host_cc", no_compiler)
+    api_kernel._toolchain_identity.cache_clear()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            robots = [load_robot("planar3"), load_robot("panda")]
+            for robot in robots:
+                assert robot._kernel is None
+                assert_agrees(robot.fk_jacobian(robot.qmid)[1], reference(robot.name).jacobian(robot.qmid))
+    finally:
+        api_kernel._toolchain_identity.cache_clear()
+    [line] = [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]
+    assert line == ("armgen: the Robot methods run on the CasADi reference (slower), no compiled kernel: "
+                    "'gcc' not found on PATH; install a C compiler (apt-get install -y gcc)")
+
+
+def test_the_environment_forces_the_reference(store, fresh_process, monkeypatch):
+    monkeypatch.setenv(api_kernel.KERNEL_ENV, "reference")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a choice, not a fallback: no warning
+        assert load_robot("planar3")._kernel is None
+    monkeypatch.setenv(api_kernel.KERNEL_ENV, "fast")
+    with pytest.raises(OptionError, match="ARMGEN_KERNEL='fast': set it to one of compiled, reference"):
+        load_robot("planar3").fk(np.zeros(3))
+
+
+BUILD = """
+import sys
+from armgen.robot import load_robot
+robot = load_robot('planar3')
+assert robot._kernel is not None, 'no kernel'
+print(robot.fk([0.1, 0.2, 0.3])[0, 3])
+"""
+
+
+def test_processes_building_the_same_kernel_at_once_leave_a_whole_store(tmp_path):
+    env = dict(os.environ, ARMGEN_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(ROOT))
+    env.pop(api_kernel.KERNEL_ENV, None)
+    runs = [subprocess.Popen([sys.executable, "-W", "error::RuntimeWarning", "-c", BUILD], env=env,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    outputs = [run.communicate(timeout=600) for run in runs]
+    assert [run.returncode for run in runs] == [0, 0], outputs
+    assert outputs[0][0] == outputs[1][0]
+    store = tmp_path / "cache" / "kernels"
+    [entry] = store.glob("planar3_api-*.json")
+    assert [p.name for p in store.glob("*.so")] == [json.loads(entry.read_text())["library"]]
+    assert not [p for p in store.iterdir() if p.is_dir()]  # no build folder left behind
+    # builds are reproducible, so the entry's digest is the library's whichever process wrote last:
+    # a third process loads them (a mismatch would build again, replacing the file)
+    library = store / json.loads(entry.read_text())["library"]
+    before = library.stat()
+    third = subprocess.run([sys.executable, "-W", "error::RuntimeWarning", "-c", BUILD], env=env,
+                           capture_output=True, text=True, timeout=600)
+    assert third.returncode == 0, third.stderr
+    assert library.stat().st_ino == before.st_ino  # the same file (a build replaces it by os.replace)
