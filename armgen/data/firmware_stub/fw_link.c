@@ -40,7 +40,7 @@ size_t fw_link_cobs_encode(const uint8_t *in, size_t len, uint8_t *out) {
     } else {
       out[o++] = in[i];
       ++code;
-      if (code == 0xFFu) { /* a full block of 254 non-zero bytes: no zero implied after it */
+      if (code == 0xFFu && i + 1u < len) { /* a full block of 254 non-zero bytes, more to come: no zero implied */
         out[code_at] = code;
         code_at = o++;
         code = 1;

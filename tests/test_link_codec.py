@@ -1,0 +1,151 @@
+"""The link's codec: one message table makes both sides, and they agree bit for bit.
+
+The Python side is the ``cobs`` package and :func:`zlib.crc32` (independent, maintained
+implementations); the board's C (fw_link.c's COBS and CRC-32, the generated fw_link_msgs.c) is
+run under ASan/UBSan by host/link_fuzz.c: frames Python encodes come back from the C byte for
+byte, COBS of random buffers (long runs without a zero included) equals the package's, and the
+parser fuzz acts on every intact frame and on nothing else.
+"""
+
+from __future__ import annotations
+
+import random
+import struct
+import subprocess
+import zlib
+
+import pytest
+from cobs import cobs
+from hypothesis import given, settings, strategies as st
+
+from armgen.link import c_codec
+from armgen.link.codec import FrameDecoder, LinkProtocolError, encode
+from armgen.link.protocol import CRC, HEADER, MESSAGES, NDOF, VERSION, max_body_size
+
+from link_builds import link_executable
+
+NDOF_MODULAR8 = 8
+SEED = 40
+ECHO_MESSAGES = 400  # random messages through the C and back: every type ~40 times
+QUICK_FUZZ_CHUNKS = 20_000  # the test's share of the fuzz; benchmarks/bench_link.py runs >= 10^6
+
+
+def run_c(*args: str, data: bytes = b"") -> bytes:
+    proc = subprocess.run([str(link_executable("link_fuzz")), *args], input=data, capture_output=True, timeout=300)
+    assert proc.returncode == 0 and not proc.stderr, proc.stderr.decode()[-3000:]
+    return proc.stdout
+
+
+def random_values(message, rng: random.Random) -> dict:
+    """Every field filled; floats include NaN with a payload, ±inf, -0 and subnormals as bit patterns."""
+    def f32() -> float:
+        bits = rng.getrandbits(32) if rng.random() < 0.5 else struct.unpack("<I", struct.pack("<f", rng.uniform(-5, 5)))[0]
+        return struct.unpack("<f", struct.pack("<I", bits))[0]
+    out = {}
+    for f in message.fields:
+        one = (lambda: f32()) if f.kind == "f32" else (lambda: rng.getrandbits({"u8": 8, "u16": 16, "u32": 32}[f.kind]))
+        out[f.name] = [one() for _ in range(f.length(NDOF_MODULAR8))] if f.is_array else one()
+    return out
+
+
+def test_generated_c_is_the_table():
+    """fw_link_msgs.{h,c} in the stub are what the table and the templates make today."""
+    for name, text in c_codec.render().items():
+        assert (c_codec.stub_dir() / name).read_text(encoding="utf-8") == text, \
+            f"{name} is stale: python -m armgen.link.c_codec"
+
+
+def test_python_frames_come_back_from_c_bit_for_bit():
+    rng = random.Random(SEED)
+    frames = []
+    for k in range(ECHO_MESSAGES):
+        message = MESSAGES[k % len(MESSAGES)]
+        frames.append(encode(message.name, rng.getrandbits(16), NDOF_MODULAR8, random_values(message, rng)))
+    back = run_c("echo", data=b"".join(frames))
+    assert back == b"".join(frames)
+    # and what the C wrote decodes in Python to the same bits
+    decoded = FrameDecoder(NDOF_MODULAR8).feed(back)
+    assert len(decoded) == len(frames)
+
+
+def test_a_frame_the_c_cannot_decode_is_refused_by_python_too():
+    good = encode("STATUS", 7, NDOF_MODULAR8)
+    bad_crc = bytearray(cobs.decode(good[:-1]))
+    bad_crc[-1] ^= 0x40
+    frames = [cobs.encode(bytes(bad_crc)) + b"\x00", b"\x05\x01\x02\x03\x00"]
+    assert run_c("echo", data=b"".join(frames)) == b"\x00\x00"
+    decoder = FrameDecoder(NDOF_MODULAR8)
+    assert decoder.feed(b"".join(frames)) == []
+    assert decoder.counts["bad_crc"] == 1 and decoder.counts["malformed"] == 1
+
+
+@pytest.mark.parametrize("length", [0, 1, 253, 254, 255, 508, 1000])
+def test_cobs_of_the_c_equals_the_package(length):
+    rng = random.Random(length)
+    for zeros in (0.0, 0.05, 0.5):  # no zero at all: the 254-byte blocks
+        data = bytes(0 if rng.random() < zeros else rng.randrange(1, 256) for _ in range(length))
+        encoded = run_c("cobs", data=data)
+        assert encoded == cobs.encode(data)
+        if length:
+            assert run_c("uncobs", data=encoded) == data
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.sampled_from([m for m in MESSAGES]), st.integers(0, 0xFFFF), st.randoms(use_true_random=False))
+def test_python_round_trip(message, seq, rng):
+    values = random_values(message, rng)
+    (frame,) = FrameDecoder(NDOF_MODULAR8).feed(encode(message.name, seq, NDOF_MODULAR8, values))
+    assert frame.seq == seq and frame.message is message
+    for name, v in values.items():
+        got = frame.values[name]
+        want = v if isinstance(v, list) else [v]
+        got = list(got) if isinstance(got, tuple) else [got]
+        pack = struct.Struct("<f") if isinstance(want[0], float) else None
+        if pack:
+            assert [pack.pack(x) for x in got] == [pack.pack(x) for x in want]  # bits, NaN payloads included
+        else:
+            assert got == want
+
+
+def test_frame_layout_is_the_documented_one():
+    """version | type | seq (LE) | body | CRC-32 of all that (LE), COBS, 0x00 — by hand."""
+    frame = encode("LOCK", 0x1234, NDOF_MODULAR8, {"locked": 0x05})
+    raw = bytes([VERSION, 0x07, 0x34, 0x12, 0x05, 0, 0, 0])
+    assert frame == cobs.encode(raw + struct.pack("<I", zlib.crc32(raw))) + b"\x00"
+    assert HEADER.size + CRC.size == 8
+
+
+def test_bad_messages_name_the_field():
+    with pytest.raises(LinkProtocolError, match="MOVE_TO_JOINTS.q needs 8 values"):
+        encode("MOVE_TO_JOINTS", 1, NDOF_MODULAR8, {"q": [0.0] * 7})
+    with pytest.raises(LinkProtocolError, match="unknown message"):
+        encode("JUMP", 1, NDOF_MODULAR8)
+    with pytest.raises(LinkProtocolError, match="has no field 'speed'"):
+        encode("STATUS", 1, NDOF_MODULAR8, {"speed": 1})
+
+
+def test_python_decoder_drops_other_versions_and_oversized_frames():
+    decoder = FrameDecoder(NDOF_MODULAR8)
+    other = encode("STATUS", 1, NDOF_MODULAR8, version=VERSION + 1)
+    oversized = bytes([1 + k % 255 for k in range(2 * max_body_size(NDOF_MODULAR8))]) + b"\x00"
+    assert decoder.feed(other + oversized + encode("STATUS", 2, NDOF_MODULAR8)) != []
+    assert decoder.counts["wrong_version"] == 1 and decoder.counts["oversized"] == 1
+
+
+def test_parser_fuzz_quick():
+    """Intact, mutated, random, over-long, other-version, replayed, board-type and wrong-length
+    frames, under ASan/UBSan: every intact frame is acted on, nothing else is."""
+    out = run_c("fuzz", str(QUICK_FUZZ_CHUNKS), str(SEED)).decode()
+    summary = dict(line[2:].split() for line in out.splitlines() if line.startswith("# "))
+    assert int(summary["chunks"]) == QUICK_FUZZ_CHUNKS
+    assert int(summary["violations"]) == 0
+    # each kind of bad frame was sent and counted by its own rule
+    for key in ("bad_crc", "malformed", "oversized", "wrong_version", "out_of_order"):
+        assert int(summary[key]) > 0, key
+    assert int(summary["commands"]) > 0 and int(summary["setpoints"]) > 0  # valid frames were acted on
+
+
+def test_ndof_arrays_size_every_message():
+    for message in MESSAGES:
+        per_joint = sum(4 for f in message.fields if f.count == NDOF)
+        assert message.body_size(9) - message.body_size(8) == per_joint
