@@ -87,6 +87,8 @@ def _robot_place(doc: dict[str, Any], loc: tuple) -> str:
         valid = isinstance(name, str) and re.fullmatch(IDENTIFIER_PATTERN, name)
         label = f"joint {loc[1] + 1}" + (f" ('{name}')" if valid else "")
         return label + "".join(f".{p}" for p in loc[2:])
+    if loc[0] == "collision" and len(loc) > 1 and isinstance(loc[1], int):  # numbered as armgen show lists them
+        return f"[[collision]] capsule {loc[1]}" + "".join(f".{p}" for p in loc[2:])
     return "[" + ".".join(str(p) for p in loc) + "]"
 
 

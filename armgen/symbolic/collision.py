@@ -13,14 +13,17 @@ pair, then of every moving capsule against every obstacle slot (an inactive slot
 :data:`~armgen.description.collision.INACTIVE_DISTANCE`). The geometry is in
 :mod:`armgen.symbolic.collision_geometry`.
 
-The criterion (``docs/collision.md``), for clearance c and activation ρ > c::
+The criterion (``docs/collision.md``), for clearance c and activation ρ > c, with the room
+u = d − c, the band s = ρ − c and the floor f = BARRIER_FLOOR · s::
 
-    H_C = Σ_k φ(d_k),   φ(d) = ½ (max(ρ − d, 0) / max(d − c, BARRIER_FLOOR (ρ − c)))²
+    H_C = Σ_k g(d_k − c),   g(u) = ½ x(u)²,   x(u) = max(s / u − 1, 0)          for u ≥ f
+                            g(u) = g(f) + g'(f) (u − f),  g'(f) = −x(f) s / f²   for u < f
 
-0 at and beyond ρ with a zero slope there (C¹), growing without bound toward the clearance;
-below ``c + BARRIER_FLOOR (ρ − c)`` the denominator is held, so H_C stays finite (and keeps
-growing as d falls) for a configuration already too close or overlapping. ∇H_C is the reverse
-derivative of that expression (CasADi AD through the kinematics and the clamps).
+0 at and beyond the activation distance with a zero slope there, growing without bound toward
+the clearance (x = (ρ − d)/(d − c)), and continued below c + f by its tangent: finite, with a
+continuous gradient of the largest magnitude, for a configuration already too close or
+overlapping. C¹ everywhere. ∇H_C is the reverse derivative of that expression (CasADi AD
+through the kinematics and the clamps).
 """
 
 from __future__ import annotations
@@ -35,10 +38,13 @@ from . import collision_geometry as geometry
 from .kinematics import chain
 
 COLLISION_FUNCTIONS = ("collision_distances", "collision_criterion")
-# The barrier's denominator d − c is held at BARRIER_FLOOR (ρ − c) at and below that distance:
-# φ there is ½ (1/BARRIER_FLOOR)² ≈ 5e5 times the squared fraction of ρ − c left, large enough
-# to dominate any other criterion, and finite in single precision with its gradient.
-BARRIER_FLOOR = 1e-3
+# Below c + BARRIER_FLOOR (ρ − c) the barrier goes on along its tangent, so value and gradient
+# stay finite and continuous for a configuration already beyond the clearance. At the floor the
+# value is ½ (1/BARRIER_FLOOR − 1)² = 180, dominating the other criteria (of order 1 to 10), and
+# the slope (1/BARRIER_FLOOR − 1)/(BARRIER_FLOOR² (ρ − c)) = 7600/(ρ − c) per metre: in single
+# precision a distance's rounding (~1e-7 m per metre of reach) moves the gradient by ≤ 1e-3/(ρ − c),
+# where a floor of 1e-3 (slope 1e9/(ρ − c)) let rounding alone give gradients of 60 (measured).
+BARRIER_FLOOR = 0.05
 
 
 def require_collision(robot: RobotDescription) -> None:
@@ -121,12 +127,14 @@ def distances(robot: RobotDescription, q: ca.SX, obstacles: list[tuple[str, ca.S
 
 
 def barrier(d: ca.SX, clearance: ca.SX, activation: ca.SX) -> ca.SX:
-    """φ(d) of every entry, summed: the criterion H_C (module docstring)."""
+    """The criterion H_C of the distances ``d`` (module docstring): branch-free, ``fmax``/``fmin``."""
     span = activation - clearance
-    reach = ca.fmax(activation - d, 0.0)
-    room = ca.fmax(d - clearance, BARRIER_FLOOR * span)
-    ratio = reach / room
-    return 0.5 * ca.sum1(ratio * ratio)
+    floor = BARRIER_FLOOR * span
+    room = d - clearance
+    held = ca.fmax(room, floor)
+    x = ca.fmax(span / held - 1.0, 0.0)
+    # below the floor (room < floor, held = floor) the tangent: g(f) − g'(f) (f − room)
+    return ca.sum1(0.5 * x * x - x * span / (held * held) * ca.fmin(room - floor, 0.0))
 
 
 def collision_function(robot: RobotDescription, name: str) -> ca.Function:

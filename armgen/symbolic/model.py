@@ -77,8 +77,9 @@ DESCRIPTIONS = {
     "coriolis": "Coriolis and centrifugal torques c = C(q, dq) dq",
     "collision_distances": "signed distances d (m; negative when overlapping) of the checked capsule pairs, then of "
                            "each moving capsule to each obstacle slot (inactive slots: a large distance)",
-    "collision_criterion": "collision criterion H_C = sum 1/2 (max(activation - d, 0) / max(d - clearance, "
-                           "1e-3 (activation - clearance)))^2 over the distances d and its gradient",
+    "collision_criterion": "collision criterion H_C = sum 1/2 ((activation - d) / (d - clearance))^2 over the "
+                           "distances d below activation, continued by its tangent below clearance + 0.05 (activation "
+                           "- clearance) (C1), and its gradient",
 }
 DESCRIPTIONS.update({twin: f"{DESCRIPTIONS[name]}; from a given Jacobian J (jacobian's output, 6xn; "
                            "its entries that are constant for this robot are not read)"
