@@ -67,8 +67,9 @@ FLOAT_BOUNDS = {
     # ≤ 5.7e-7 m absolute on distances up to 3 m (3000 samples, a 7-DOF arm with 5 capsules and 12
     # obstacle slots)]
     "collision_distances": 5e-6,
-    # [H_C divides by d − c, held ≥ 1e-3 (ρ − c) ≥ 5e-5 m: a float distance error of ~1e-7 m is up
-    # to 4e-3 relative in H_C and more in its gradient near the clearance; seen 1.5e-2]
+    # [the barrier's slope (up to 7600/(ρ − c) per m, symbolic.collision.BARRIER_FLOOR) times float's
+    # error in ∂d/∂q, ~1e-5 where a distance is stationary (the verifier's near-singular samples:
+    # a straight wrist); seen 1.5e-2 (a 7-DOF arm, 3000 samples), 6.7e-4 (a planar 3R)]
     "collision_criterion": 0.1,
 }
 
