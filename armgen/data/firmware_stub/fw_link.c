@@ -393,6 +393,9 @@ static void stream_tick(fw_link *l, ctrl_input *in) {
     l->streaming = 0;
     return;
   }
+  if (l->stream_k == 0u && l->wp_count < 2u && !l->stream_ended) {
+    return; /* the stream starts once its first segment is known: the arm holds until then */
+  }
   if (l->stream_arrived) { /* at the last waypoint, at rest, since the tick before: the controller holds (DONE) */
     in->command = CTRL_CMD_STOP;
     l->streaming = 0;

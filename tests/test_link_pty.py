@@ -1,0 +1,171 @@
+"""The host firmware serving the link over a pseudo-terminal, driven by armgen.link's client in
+real time: a plan streamed at 50 Hz, the watchdog when the stream is cut, the session's rules.
+
+The run's own CSV (one row per 1 ms tick: the commands, the link's flags, the count of valid
+frames) is the record the checks read; the reference is the plan the PTP planner made
+(examples/modular8_ptp_two_segments.toml: 3-4 splines through a via point, 1 ms samples).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import random
+import subprocess
+import time
+from contextlib import contextmanager
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from armgen.link import LinkClient, LinkError, encode
+from armgen.planning.tasks import load_task, run_task
+
+from link_builds import TASK, link_executable
+
+DT = 0.001  # the task's step: the controller's period
+WAYPOINT_EVERY = 20  # plan samples per waypoint: 50 Hz
+NDOF = 8
+QDOT_MAX = math.radians(90)  # robots/modular8.toml: qdlim 90 deg/s, every joint
+QDDOT_MAX = math.radians(360)  # qddlim 360 deg/s^2
+WATCHDOG_TICKS = 100  # the runner's default 100 ms at 1 ms
+LEAD_S = 0.3  # waypoints sent this far ahead of their time: a loaded CI host stays ahead
+# The streamed commands against the plan: the wire carries IEEE single (|q| < 2 rad: half an
+# ulp is 2^-24 * 2 = 1.2e-7 rad) and the cubic Hermite between 20-ms waypoints of a quintic-free
+# 3-4 spline errs by h^4 |q''''| / 384 < 1e-9 rad; 1e-6 leaves a margin for the two.
+STREAM_DEVIATION_TOL = 1e-6
+# The follower limits each change of velocity to qddot_max * dt exactly; the CSV's %.17g and
+# the division by dt add a few ulps.
+LIMIT_RTOL = 1e-9
+SEED = 40
+
+
+@pytest.fixture(scope="module")
+def plan():
+    os.environ["ARMGEN_NO_PROGRESS"] = "1"
+    document, _ = load_task(TASK)
+    result = run_task(document, str(TASK))
+    cols = list(result.columns)
+    t = result.data[:, 0]
+    q = result.data[:, [cols.index(f"theta_j{i}_rad") for i in range(1, NDOF + 1)]]
+    qd = result.data[:, [cols.index(f"omega_j{i}_rad_s") for i in range(1, NDOF + 1)]]
+    return t, q, qd
+
+
+@contextmanager
+def board(tmp_path):
+    """The host firmware on a fresh pty; yields (port, the CSV path)."""
+    csv = tmp_path / "run.csv"
+    proc = subprocess.Popen([str(link_executable("link")), "--csv", str(csv)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert line.startswith("# port "), line + proc.stderr.read()
+        yield line.split()[-1], csv
+    finally:
+        time.sleep(0.05)
+        proc.terminate()
+        _, err = proc.communicate(timeout=30)
+        assert "Sanitizer" not in err and "runtime error" not in err, err[-3000:]
+
+
+def read_run(csv) -> pd.DataFrame:
+    run = pd.read_csv(csv)
+    return run.iloc[:-1] if run.iloc[-1].isna().any() else run  # a row cut by the runner's end
+
+
+def commands(run):
+    return run[[f"q{i}" for i in range(1, NDOF + 1)]].to_numpy(), run[[f"qd{i}" for i in range(1, NDOF + 1)]].to_numpy()
+
+
+def assert_within_speed_and_acceleration(qd):
+    assert np.abs(qd).max() <= QDOT_MAX * (1 + LIMIT_RTOL)
+    assert np.abs(np.diff(qd, axis=0)).max() / DT <= QDDOT_MAX * (1 + LIMIT_RTOL)
+
+
+def test_stream_a_plan_at_50_hz(plan, tmp_path):
+    t, q, qd = plan
+    pick = np.arange(0, len(t), WAYPOINT_EVERY)
+    assert pick[-1] == len(t) - 1  # the plan's last sample is a waypoint
+    with board(tmp_path) as (port, csv):
+        with LinkClient(port) as link:
+            replies = link.stream(t[pick], q[pick], qd[pick], lead_s=LEAD_S)
+            end = link.wait_idle()
+    assert len(replies) == len(pick) and all(r.result_name == "OK" for r in replies)
+    assert (end.state_name, end.fault_name) == ("DONE", "NONE")
+    assert end["underruns"] == 0 and end["rejected"] == 0
+    run = read_run(csv)
+    streamed = run[run.state == 1]  # RUNNING: tick k of the stream commands the plan at k * dt
+    k = np.rint(streamed.t_s.to_numpy() / DT).astype(int)
+    assert k[0] == 0 and k[-1] == len(t) - 1 and np.all(np.diff(k) == 1)
+    q_cmd, qd_cmd = commands(streamed)
+    deviation = np.abs(q_cmd - q[k]).max()
+    print(f"stream at 50 Hz: {len(pick)} waypoints, {len(k)} ticks, max joint deviation {deviation:.3g} rad")
+    assert deviation <= STREAM_DEVIATION_TOL
+    assert_within_speed_and_acceleration(commands(run)[1])
+    # ends exactly on the last waypoint as the wire carried it (IEEE single)
+    assert np.array_equal(commands(run[run.state == 2])[0][-1], q[-1].astype(np.float32).astype(float))
+
+
+def test_watchdog_stops_a_cut_stream_within_the_acceleration_limits(plan, tmp_path):
+    t, q, qd = plan
+    pick = np.arange(0, len(t), WAYPOINT_EVERY)
+    cut = random.Random(SEED).randrange(15, 120)  # while the arm moves
+    with board(tmp_path) as (port, csv):
+        with LinkClient(port) as link:
+            link.stream(t[pick], q[pick], qd[pick], lead_s=LEAD_S, stop_after=cut)
+            time.sleep(LEAD_S + (WATCHDOG_TICKS + 200) * DT)  # silence: the watchdog fires, the arm stops
+            after = link.status()
+            refused = link.request("MOVE_TO_JOINTS", {"q": q[0]}, check=False)
+    assert (after.state_name, after.fault_name) == ("FAULT", "STALE") and "STALE" in after.flags
+    assert refused.result_name == "STALE"
+    run = read_run(csv)
+    rx = run.rx_frames.to_numpy()
+    last_frame = int(run.tick[np.nonzero(rx == rx[np.nonzero(run.link_flags.to_numpy() & 4)[0][0]])[0][0]])
+    decision = int(run.tick[np.nonzero(run.link_flags.to_numpy() & 4)[0][0]])
+    print(f"watchdog: stream cut after waypoint {cut}; ticks from the last frame to the stop decision "
+          f"{decision - last_frame} (timeout {WATCHDOG_TICKS}); reported {after['stale_ticks']}")
+    assert decision - last_frame == WATCHDOG_TICKS + 1 == after["stale_ticks"]
+    q_cmd, qd_cmd = commands(run)
+    assert np.abs(qd_cmd[decision - 1]).max() > 0.01  # it was moving when the stream stopped
+    assert_within_speed_and_acceleration(qd_cmd)
+    held = run[run.state == 3]
+    assert len(held) > 0 and np.all(commands(held)[1] == 0)
+    assert np.all(commands(held)[0] == commands(held)[0][0])  # at rest, holding
+
+
+def test_session_rules(plan, tmp_path):
+    t, q, qd = plan
+    with board(tmp_path) as (port, _):
+        with LinkClient(port) as link:
+            start = link.status()
+            assert (start.state_name, start.flags) == ("IDLE", ("SESSION",))
+            assert np.allclose(start.q, q[0], atol=1e-6)
+            off = q[0].copy()
+            off[2] += 0.01
+            bad = link.request("WAYPOINT", {"t_us": 0, "last": 0, "q": off, "qd": np.zeros(NDOF)}, check=False)
+            assert bad.result_name == "STREAM_START"
+            outside = q[0].copy()
+            outside[0] = 100.0
+            assert link.request("MOVE_TO_JOINTS", {"q": outside}, check=False).result_name == "BAD_VALUE"
+            target = q[0] + 0.05
+            moving = link.move_to_joints(target)
+            assert moving.result_name == "OK"
+            assert link.request("MOVE_TO_JOINTS", {"q": target}, check=False).result_name == "REFUSED_STATE"
+            done = link.wait_idle()
+            assert (done.state_name, done.fault_name) == ("DONE", "NONE")
+            assert np.abs(done.q - target).max() <= 2 ** -23 * 2  # the wire's float32 of the target
+            assert link.request("START", check=False).result_name == "REFUSED_STATE"  # not after a move
+            # a frame with an old sequence number is not acted on (and not answered)
+            link.serial.write(encode("STOP", link.seq, NDOF))
+            after = link.status()
+            assert after["out_of_order"] == 1 and after["state"] == done["state"]
+        with pytest.raises(LinkError, match="board speaks protocol version 1"):
+            import armgen.link.client as client
+            original = client.encode
+            client.encode = lambda *a, **k: original(*a, **{**k, "version": 2})
+            try:
+                LinkClient(port)
+            finally:
+                client.encode = original
