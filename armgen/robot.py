@@ -432,7 +432,7 @@ class Robot(RobotDescription):
         if q0 is not None:
             rest = self._joints_per_pose(q0, "q0", batch_shape)
         else:
-            rest = np.broadcast_to(self.qmid, (targets.shape[0], self.n))
+            rest = self.qmid[None] if not batch_shape else np.broadcast_to(self.qmid, (targets.shape[0], self.n))
         if isinstance(seed, str):
             start = self._joints_per_pose(self.configuration(seed), f"seed '{seed}'", batch_shape)
         elif seed is not None:
@@ -442,8 +442,9 @@ class Robot(RobotDescription):
         use_rest = 0.0 if q0 is None else 1.0
         kernel = self._kernel
         if kernel is not None:
-            ik.check_targets(targets)
             outputs = kernel.ik(targets, start, rest, use_rest, tol_p, tol_o, cap)
+            if not np.all(outputs[3]):  # an attempt of 0 iterations: <p>_ik found no pose (BAD_TARGET)
+                ik.check_targets(targets)  # the reference's check, and its error naming what is wrong
         else:
             outputs = ik.solve(self.symbolic.ik_definition, targets, np.ascontiguousarray(start),
                                np.ascontiguousarray(rest), use_rest, tol_p, tol_o, cap)
@@ -458,6 +459,8 @@ class Robot(RobotDescription):
         if value.ndim == 0 or value.shape[-1] != self.n or not np.all(np.isfinite(value)):
             raise ValueError(f"{what} must hold {self.n} finite joint values for robot '{self.name}' "
                              f"(shape ({self.n},) or (..., {self.n})), got shape {value.shape}")
+        if not batch_shape and value.ndim == 1:
+            return value[None]  # one pose (what broadcast_to gives, without its cost)
         try:
             return np.broadcast_to(value, batch_shape + (self.n,)).reshape(-1, self.n)
         except ValueError:

@@ -93,8 +93,11 @@ def test_ik_has_the_reference_success_and_residuals_on_the_bench_poses(store):
     for pose, q in zip(poses[:3], expected.q[:3]):  # one pose per call, and with q0 (the self-motion toward it)
         assert_agrees(robot.ik(pose, seed=robot.qmid).q, ref.ik(pose, seed=robot.qmid).q, api_kernel.IK_REFERENCE_AGREEMENT)
         assert_agrees(robot.ik(pose, q0=q).q, ref.ik(pose, q0=q).q, api_kernel.IK_REFERENCE_AGREEMENT)
+    # the C takes no step for a target that is not a pose; the reference's check then names what is wrong
     with pytest.raises(ValueError, match="not a rotation"):
         robot.ik(np.diag([2.0, 1.0, 1.0, 1.0]))
+    with pytest.raises(ValueError, match="pose 1 of the batch holds NaN or inf"):
+        robot.ik(np.stack([poses[0], np.full((4, 4), np.nan)]))
 
 
 def test_results_are_independent_arrays(store):

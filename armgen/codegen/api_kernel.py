@@ -103,36 +103,60 @@ class ApiKernel:
         self._fk, self._jacobian, self._fk_jacobian = module.fk, module.jacobian, module.fk_jacobian
         self.functions = tuple(references)
 
-    def _samples(self, q: ArrayLike) -> tuple[np.ndarray, int, tuple[int, ...]]:
-        """``q`` as contiguous float64 samples, their count and the batch shape."""
-        if (type(q) is np.ndarray and q.dtype == np.float64 and q.ndim == 1 and q.shape[0] == self._n
-                and q.flags.c_contiguous):
-            return q, 1, ()  # one configuration as given
-        q = np.asarray(q, dtype=float)
-        if q.ndim == 0 or q.shape[-1] != self._n:
-            raise ValueError(f"q must have shape ({self._n},) or (..., {self._n}) for robot '{self._robot_name}', "
-                             f"got {q.shape}")
-        batch = q.shape[:-1]
-        return np.ascontiguousarray(q), int(np.prod(batch, dtype=int)), batch
+    # One configuration: a 1-D ndarray goes to the extension as it is, which takes it when it is
+    # n contiguous float64 values (and raises ValueError or BufferError otherwise: then the
+    # general path converts it, or names the wrong shape). These few checks are most of a call's
+    # cost beside the C; the single-call paths below avoid every other one.
+    _SINGLE_MISMATCH = (ValueError, BufferError)
 
     def fk(self, q: ArrayLike) -> np.ndarray:
+        if type(q) is np.ndarray and q.ndim == 1:
+            T = np.empty((4, 4))
+            try:
+                self._fk(1, q, T)
+                return T.T  # column-major
+            except self._SINGLE_MISMATCH:
+                pass
         q, count, batch = self._samples(q)
         T = np.empty(batch + (4, 4))
         self._fk(count, q, T)
-        return T.swapaxes(-1, -2)  # each sample column-major
+        return T.swapaxes(-1, -2)
 
     def jacobian(self, q: ArrayLike) -> np.ndarray:
+        if type(q) is np.ndarray and q.ndim == 1:
+            J = np.empty((self._n, 6))
+            try:
+                self._jacobian(1, q, J)
+                return J.T
+            except self._SINGLE_MISMATCH:
+                pass
         q, count, batch = self._samples(q)
         J = np.empty(batch + (self._n, 6))
         self._jacobian(count, q, J)
         return J.swapaxes(-1, -2)
 
     def fk_jacobian(self, q: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        if type(q) is np.ndarray and q.ndim == 1:
+            T, J = np.empty((4, 4)), np.empty((self._n, 6))
+            try:
+                self._fk_jacobian(1, q, T, J)
+                return T.T, J.T
+            except self._SINGLE_MISMATCH:
+                pass
         q, count, batch = self._samples(q)
         T = np.empty(batch + (4, 4))
         J = np.empty(batch + (self._n, 6))
         self._fk_jacobian(count, q, T, J)
         return T.swapaxes(-1, -2), J.swapaxes(-1, -2)
+
+    def _samples(self, q: ArrayLike) -> tuple[np.ndarray, int, tuple[int, ...]]:
+        """``q`` as contiguous float64 samples, their count and the batch shape."""
+        q = np.asarray(q, dtype=float)
+        if q.ndim == 0 or q.shape[-1] != self._n:
+            raise ValueError(f"q must have shape ({self._n},) or (..., {self._n}) for robot '{self._robot_name}', "
+                             f"got {q.shape}")
+        batch = q.shape[:-1]
+        return np.ascontiguousarray(q), int(np.prod(batch, dtype=int)), batch
 
     def evaluate(self, name: str, q: ArrayLike, **parameters: ArrayLike) -> dict[str, np.ndarray]:
         """Function ``name`` at ``q`` (``(n,)`` or ``(..., n)``), the other inputs by name,

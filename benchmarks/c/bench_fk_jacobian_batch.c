@@ -1,0 +1,58 @@
+/*
+ * The C side of benchmarks/bench_kernel.py's batch row: `<prefix>_fk_jacobian` called from C
+ * on a batch of configurations, each sample's T and J stored (the work the Python API's batched
+ * call does, minus Python).
+ *
+ * Compiled by bench_kernel.py with the strict flags and the kernel's own (-O2 -ffp-contract=off):
+ *   gcc ... -DBENCH_HEADER='"robot.h"' -DBENCH_FN=robot_fk_jacobian -DBENCH_NDOF=7 \
+ *       bench_fk_jacobian_batch.c robot.c -lm
+ * Usage: bench q.bin <count> <repeats>: reads count * NDOF doubles (one configuration after
+ * another) and prints "ns_per_sample <best of repeats>" and "checksum <sum of outputs>". Each
+ * repeat writes into freshly allocated outputs, as each Python call does (first-touch page
+ * faults included on both sides).
+ */
+#define _POSIX_C_SOURCE 199309L
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <time.h>
+
+#include BENCH_HEADER
+
+static double seconds(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+int main(int argc, char **argv) {
+  long count, i;
+  int repeats, r;
+  double *q, best = 1e300, checksum = 0.0;
+  FILE *f;
+  if (argc != 4) return 2;
+  count = atol(argv[2]);
+  repeats = atoi(argv[3]);
+  q = malloc(sizeof(double) * BENCH_NDOF * (size_t)count);
+  f = fopen(argv[1], "rb");
+  if (q == NULL || f == NULL || fread(q, sizeof(double), BENCH_NDOF * (size_t)count, f) != BENCH_NDOF * (size_t)count) {
+    return 3;
+  }
+  fclose(f);
+  for (r = 0; r < repeats; ++r) {
+    double *T = malloc(sizeof(double) * 16 * (size_t)count);
+    double *J = malloc(sizeof(double) * 6 * BENCH_NDOF * (size_t)count);
+    double start, elapsed;
+    if (T == NULL || J == NULL) return 3;
+    start = seconds();
+    for (i = 0; i < count; ++i) BENCH_FN(q + BENCH_NDOF * i, T + 16 * i, J + 6 * BENCH_NDOF * i);
+    elapsed = seconds() - start;
+    if (elapsed < best) best = elapsed;
+    checksum += T[16 * (count - 1) + 12] + J[6 * BENCH_NDOF * (count - 1)];
+    free(T);
+    free(J);
+  }
+  printf("ns_per_sample %.3f\nchecksum %.17g\n", 1e9 * best / (double)count, checksum);
+  free(q);
+  return 0;
+}
