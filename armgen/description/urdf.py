@@ -3,8 +3,9 @@
 What the kinematics and the dynamics need is read: per ``<link>`` its ``name`` and
 ``<inertial>`` (``<origin xyz rpy>``, ``<mass value>``, ``<inertia ixx ixy ixz iyy iyz
 izz>``), and per ``<joint>`` its ``name``, ``type``, ``<parent link>``, ``<child link>``,
-``<origin xyz rpy>``, ``<axis xyz>`` and ``<limit lower upper velocity effort>``. Visual and
-collision data are ignored.
+``<origin xyz rpy>``, ``<axis xyz>`` and ``<limit lower upper velocity effort>``; per link on the
+chain its ``<collision>`` shapes, as capsules (sphere and capsule exactly, cylinder and box
+enclosed, a mesh marked: ``docs/collision.md``). Visual data are ignored.
 
 Rules (see ``docs/urdf.md``):
 
