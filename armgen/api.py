@@ -33,7 +33,8 @@ if TYPE_CHECKING:  # heavy imports only for type checkers
 __all__ = ["Robot", "load_robot", "read_task_document", "read_task", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport",
            "parse_override", "read_plan", "plan_metadata_path", "figure_format", "save_plot", "parse_frame_size",
            "animate_plan", "sweep", "solve_ik", "IkSolution", "generate_ptp", "json_schema", "write_text_atomic",
-           "firmware_project", "firmware_task",
+           "firmware_project", "firmware_task", "link_open", "link_status", "link_move_to", "link_stream",
+           "LinkStreamReport", "link_watch",
            # the errors every call may raise, each with its command-line exit code
            "ArmgenError", "RobotFileError", "TaskFileError", "PlanningError", "ToolchainError", "VerificationError",
            "OutputError", "Interrupted", "PlanFileError", "OptionError", "excerpt"]
@@ -734,3 +735,88 @@ def write_text_atomic(path: str | Path, text: str) -> None:
     from .fileio import write_text_atomic as write
 
     write(path, text)
+
+
+# -- the host link (issue 40, docs/link.md) ----------------------------------------------------
+
+
+def link_open(port: str, timeout: float = 2.0, telemetry_period: int = 0) -> Any:
+    """A session with a board on ``port`` (a serial device, a pseudo-terminal, ``socket://host:port``):
+    an :class:`armgen.link.LinkClient` after the version handshake. Raises ``LinkError`` (exit 4)
+    when the port cannot be opened or nothing answers in this protocol version."""
+    from .link import LinkClient
+
+    return LinkClient(port, timeout=timeout, telemetry_period=telemetry_period)
+
+
+def link_status(port: str, timeout: float = 2.0) -> Any:
+    """The board's telemetry (:class:`armgen.link.Telemetry`): state, fault, joints, tool pose, counters."""
+    with link_open(port, timeout) as link:
+        return link.status()
+
+
+def link_move_to(port: str, joints: Any = None, pose: Any = None, wait: bool = True, timeout: float = 2.0) -> Any:
+    """Move the arm to a joint target (``joints``, rad / m) or a tool pose (``pose``, 4x4, m):
+    the board plans the move within its limits (a pose through its IK). ``wait``: until the arm
+    stops, sending the watchdog's heartbeat meanwhile. Returns the last telemetry; a refusal is
+    ``CommandRefused`` (exit 3) naming the reason."""
+    from .link import LinkError
+
+    if (joints is None) == (pose is None):
+        raise LinkError("give a joint target or a tool pose (one of them)")
+    with link_open(port, timeout) as link:
+        reply = link.move_to_joints(joints) if joints is not None else link.move_to_pose(pose)
+        return link.wait_idle() if wait else reply
+
+
+@dataclass(frozen=True)
+class LinkStreamReport:
+    """A streamed plan: waypoints sent, the telemetry at the end, and the largest difference
+    between a reply's joint command and the plan at the reply's tick (rad / m)."""
+
+    waypoints: int
+    end: Any
+    max_deviation: float
+
+
+def link_stream(port: str, plan_csv: str | Path, rate_hz: float = 50.0, lead_s: float = 0.1,
+                timeout: float = 2.0) -> LinkStreamReport:
+    """Stream a plan's joint samples as timed waypoints at ``rate_hz`` (the board interpolates
+    them at its tick within its limits), in real time, each ``lead_s`` ahead; waits until the arm
+    is at rest. The plan must start where the arm is (its held command)."""
+    import numpy as np
+
+    from .link import plan_waypoints
+
+    plan_read = read_plan(plan_csv)
+    columns, data = list(plan_read.columns), plan_read.data
+    with link_open(port, timeout) as link:
+        t, q, qd = plan_waypoints(columns, data, link.ndof, rate_hz)
+        replies = link.stream(t, q, qd, lead_s=lead_s)
+        end = link.wait_idle()
+    dt = link.hello["dt_us"] * 1e-6
+    t_plan = data[:, columns.index("t_s")] - data[0, columns.index("t_s")]
+    q_plan = data[:, [columns.index(c) for c in _joint_names(columns, link.ndof)]]
+    deviation = 0.0
+    for reply in replies:
+        if reply.state_name == "RUNNING":
+            at = reply["ctrl_tick"] * dt
+            want = np.array([np.interp(at, t_plan, q_plan[:, i]) for i in range(link.ndof)])
+            deviation = max(deviation, float(np.abs(reply.q - want).max()))
+    return LinkStreamReport(len(t), end, deviation)
+
+
+def _joint_names(columns: list[str], ndof: int) -> list[str]:
+    from .link.waypoints import joint_columns
+
+    return [columns[i] for i in joint_columns(columns, ndof)[0]]
+
+
+def link_watch(port: str, period_s: float = 0.1, count: int | None = None, timeout: float = 2.0) -> Any:
+    """Telemetry every ``period_s`` (``count`` of them, or until interrupted); its STATUS requests
+    are the watchdog's heartbeat."""
+    with link_open(port, timeout) as link:
+        for k, reply in enumerate(link.watch(period_s)):
+            yield reply
+            if count is not None and k + 1 >= count:
+                return

@@ -202,10 +202,11 @@ from .animate import animate_cmd  # noqa: E402
 from .examples import examples_cmd  # noqa: E402
 from .firmware import firmware_cmd, firmware_task_cmd  # noqa: E402
 from .ik import ik_cmd  # noqa: E402
+from .link import link_cmd  # noqa: E402
 from .schema import schema_cmd  # noqa: E402
 from .sweep import sweep_cmd  # noqa: E402
 
-for command in (animate_cmd, examples_cmd, firmware_cmd, firmware_task_cmd, ik_cmd, schema_cmd, sweep_cmd):
+for command in (animate_cmd, examples_cmd, firmware_cmd, firmware_task_cmd, ik_cmd, link_cmd, schema_cmd, sweep_cmd):
     cli.add_command(command)
 
 if __name__ == "__main__":  # pragma: no cover

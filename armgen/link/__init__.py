@@ -9,9 +9,10 @@ controller on the board, over any byte stream —
 The board's side is ``armgen/data/firmware_stub/fw_link.{h,c}``.
 """
 
-from .client import LinkClient, LinkError, Telemetry
+from .client import CommandRefused, LinkClient, LinkError, Telemetry
 from .codec import Frame, FrameDecoder, LinkProtocolError, encode
 from .protocol import FAULT_NAMES, MESSAGES, STATE_NAMES, VERSION
+from .waypoints import plan_waypoints
 
-__all__ = ["FAULT_NAMES", "MESSAGES", "STATE_NAMES", "VERSION", "Frame", "FrameDecoder", "LinkClient", "LinkError",
-           "LinkProtocolError", "Telemetry", "encode"]
+__all__ = ["CommandRefused", "FAULT_NAMES", "MESSAGES", "STATE_NAMES", "VERSION", "Frame", "FrameDecoder", "LinkClient", "LinkError",
+           "LinkProtocolError", "Telemetry", "encode", "plan_waypoints"]

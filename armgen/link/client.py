@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import serial
 
+from ..errors import ArmgenError
 from .codec import Frame, FrameDecoder, encode
 from .protocol import FAULT_NAMES, FLAGS, RESULTS, STATE_NAMES, VERSION
 
@@ -25,8 +26,16 @@ HANDSHAKE_NDOF = 0  # HELLO and HELLO_REPLY have no per-joint field: decodable b
 DEFAULT_TIMEOUT_S = 2.0  # a reply takes one tick plus the wire; 2 s covers a loaded host running the board
 
 
-class LinkError(RuntimeError):
-    """No answer, a refused handshake, or a refused command (the message names which)."""
+class LinkError(ArmgenError):
+    """No answer, a refused handshake or a port that cannot be opened (exit 4, as a failed tool)."""
+
+    exit_code = 4
+
+
+class CommandRefused(LinkError):
+    """The board refused a command (its result names why: the state, a value, the stream, STALE): exit 3."""
+
+    exit_code = 3
 
 
 @dataclass(frozen=True)
@@ -136,7 +145,7 @@ class LinkClient:
         frame = self._await(lambda f: f.name == "TELEMETRY" and f.values["ack_seq"] == seq, f"reply to {name}")
         reply = Telemetry(frame.seq, frame.values)
         if check and reply.result_name != "OK":
-            raise LinkError(f"{name} refused: {reply.result_name} ({dict(RESULTS)[reply.result_name]}); "
+            raise CommandRefused(f"{name} refused: {reply.result_name} ({dict(RESULTS)[reply.result_name]}); "
                             f"state {reply.state_name}, fault {reply.fault_name}")
         return reply
 
@@ -198,7 +207,7 @@ class LinkClient:
         refused = [r for r in replies if r.result_name != "OK"]
         if refused:
             r = refused[0]
-            raise LinkError(f"waypoint {sent[r['ack_seq']]} refused: {r.result_name} "
+            raise CommandRefused(f"waypoint {sent[r['ack_seq']]} refused: {r.result_name} "
                             f"({dict(RESULTS)[r.result_name]})")
         return replies
 

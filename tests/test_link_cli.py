@@ -1,0 +1,70 @@
+"""``armgen link PORT …`` against the host firmware on a pseudo-terminal: status, a joint move,
+a streamed plan file, watch; and the exit codes of a port without a board (4) and a refused
+command (3)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from armgen.api import plan
+
+from link_builds import TASK, link_executable
+
+NDOF = 8
+PRINT_RTOL = 5e-6  # status prints %.6g: half a unit of the sixth significant digit
+FLOAT32_ATOL = 2.4e-7  # the wire's IEEE single of a joint value below 2 rad (one ulp), for values printed near 0
+
+
+def armgen(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "armgen.cli.main", *args], capture_output=True, text=True,
+                          timeout=120, env=dict(os.environ, ARMGEN_NO_PROGRESS="1"))
+
+
+@pytest.fixture()
+def port():
+    proc = subprocess.Popen([str(link_executable("link"))], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        yield proc.stdout.readline().split()[-1]
+    finally:
+        proc.terminate()
+        _, err = proc.communicate(timeout=30)
+        assert "Sanitizer" not in err and "runtime error" not in err, err[-3000:]
+
+
+def test_status_move_to_stream_watch(port, tmp_path):
+    os.environ["ARMGEN_NO_PROGRESS"] = "1"
+    status = armgen("link", port, "status")
+    assert status.returncode == 0, status.stderr
+    assert "state IDLE" in status.stdout and "fault NONE" in status.stdout
+    ptp = plan(TASK)
+    ptp.save(tmp_path / "ptp.csv")
+    # the plan starts at the firmware's start: stream it at 50 Hz
+    streamed = armgen("link", port, "stream", str(tmp_path / "ptp.csv"), "--rate", "50")
+    assert streamed.returncode == 0, streamed.stderr
+    assert "streamed 151 waypoints" in streamed.stdout and "state DONE" in streamed.stdout
+    deviation = float(streamed.stdout.split("ticks ")[1].split()[0])
+    assert deviation < 1e-5  # the replies' float32 commands against the plan interpolated at their ticks
+    q_end = ptp.data[-1, [ptp.columns.index(f"theta_j{i}_rad") for i in range(1, NDOF + 1)]]
+    target = ",".join(f"{v:.9f}" for v in q_end - 0.02)
+    moved = armgen("link", port, "move-to", "--joints", target)
+    assert moved.returncode == 0, moved.stderr
+    assert "state DONE" in moved.stdout
+    got = np.array([float(v) for v in moved.stdout.split("q [rad|m]")[1].split("\n")[0].split()])
+    assert np.allclose(got, q_end - 0.02, rtol=PRINT_RTOL, atol=FLOAT32_ATOL)
+    watched = armgen("link", port, "watch", "--count", "3", "--period", "0.01")
+    assert watched.returncode == 0 and watched.stdout.count("state DONE") == 3
+
+
+def test_refused_and_missing(port):
+    outside = ",".join(["10"] * NDOF)
+    refused = armgen("link", port, "move-to", "--joints", outside)
+    assert refused.returncode == 3 and "BAD_VALUE" in refused.stderr
+    wrong_count = armgen("link", port, "move-to", "--joints", "0,0")
+    assert wrong_count.returncode != 0 and "MOVE_TO_JOINTS.q needs 8 values" in wrong_count.stderr
+    missing = armgen("link", "/nonexistent/tty", "status")
+    assert missing.returncode == 4 and "cannot open /nonexistent/tty" in missing.stderr
