@@ -31,6 +31,8 @@ from armgen.symbolic import collision_geometry as geometry
 from armgen.symbolic.collision import BARRIER_FLOOR, COLLISION_FUNCTIONS
 from armgen.symbolic.model import SymbolicModel
 
+from test_urdf import OBLIQUE_URDF
+
 coal = pytest.importorskip("coal", reason="coal missing: pip install coal")
 
 SEED = 20261128
@@ -576,8 +578,6 @@ def test_fuzzed_capsules_load_or_fail_cleanly(link, a, radius, ignore):
 # -- URDF ----------------------------------------------------------------------------------
 
 def _oblique_with_collisions() -> str:
-    from test_urdf import OBLIQUE_URDF
-
     shapes = {
         "base": '<collision><origin xyz="0 0 0.1"/><geometry><cylinder radius="0.08" length="0.2"/></geometry></collision>',
         "l2": '<collision><origin xyz="0.1 0.02 0" rpy="0 1.5707963267948966 0.3"/><geometry><cylinder radius="0.05" '
@@ -789,3 +789,50 @@ def test_task_obstacles_convert_to_si_and_feed_the_distances(iiwa):
             pydantic.TypeAdapter(Obstacles).validate_python([bad], strict=True)
     with pytest.raises(pydantic.ValidationError, match="activation = 10.0 must be beyond clearance = 20.0"):
         CollisionSettings.model_validate({"clearance": 20.0, "activation": 10.0})
+
+
+_URDF_VALUE = st.one_of(st.floats(-10, 10, allow_nan=False).map(repr), st.sampled_from(["nan", "inf", "1e400", "", "x",
+                                                                                        "0", "-1", "0 0", "1 2 3"]))
+
+
+@settings(max_examples=300, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(shape=st.sampled_from(["sphere", "cylinder", "box", "capsule", "mesh", "cone"]),
+       values=st.fixed_dictionaries({key: _URDF_VALUE for key in ("radius", "length", "size")}),
+       present=st.sets(st.sampled_from(["radius", "length", "size"])))
+def test_fuzzed_urdf_collision_shapes_load_or_fail_cleanly(tmp_path_factory, shape, values, present):
+    """Every result is a robot whose capsules are finite and within the bounds, or one
+    RobotFileError naming the file and the link's <collision>."""
+    attributes = " ".join(f'{key}="{values[key]}"' for key in sorted(present))
+    text = _oblique_with_collisions().replace(
+        '<link name="l3"/>', f'<link name="l3"><collision><geometry><{shape} {attributes} filename="x.stl"/></geometry>'
+                             '</collision></link>')
+    path = tmp_path_factory.mktemp("urdf") / "fuzz.urdf"
+    path.write_text(text, encoding="utf-8")
+    try:
+        robot = Robot.from_urdf(path)
+    except RobotFileError as error:
+        assert str(error).startswith(str(path)) and "link 'l3' <collision> 1" in str(error), str(error)
+        return
+    for capsule in robot.collision.capsules:
+        assert 0 <= capsule.radius <= 1e3 and np.all(np.isfinite([*capsule.a, *capsule.b]))
+    assert robot.has_collision == (shape != "mesh")
+
+
+_COORDINATE = st.floats(-2, 2, allow_nan=False).map(lambda v: round(v, 1))  # ties, zeros and repeats are common
+
+
+@settings(max_examples=500, deadline=None, derandomize=True)
+@given(points=st.lists(st.tuples(_COORDINATE, _COORDINATE, _COORDINATE), min_size=4, max_size=4))
+def test_degenerate_segments_give_finite_distances_and_gradients(points):
+    """Zero-length, coincident, parallel and crossing segments (coordinates on a 0.1 grid): the
+    distance is the brute-force one and its gradient is finite (the guarded divisions)."""
+    a1, b1, a2, b2 = (np.array(p) for p in points)
+    x = ca.SX.sym("x", 12)
+    distance = geometry.segment_segment(x[0:3], x[3:6], x[6:9], x[9:12])
+    f = ca.Function("f", [x], [distance, ca.gradient(distance, x)])
+    value, gradient = (np.array(v).ravel() for v in f(np.concatenate([a1, b1, a2, b2])))
+    s = np.linspace(0, 1, 201)
+    first, second = a1 + s[:, None] * (b1 - a1), a2 + s[:, None] * (b2 - a2)
+    brute = np.min(np.linalg.norm(first[:, None, :] - second[None, :, :], axis=2))
+    assert np.all(np.isfinite(gradient)) and value[0] >= 0
+    assert brute - 0.02 <= value[0] <= brute + 1e-12  # the grid of 201 points is within 0.02 of the segments' points
