@@ -18,12 +18,15 @@ import numpy as np
 import pytest
 import tomli_w
 from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from armgen.cli.main import cli
 from armgen.errors import PlanningError
 from armgen.planning.plan_schema import TorqueSlowing
 from armgen.planning.tasks import configure_task, run_task
 from armgen.planning.toolpath.accuracy import DEFAULT_PATH_TOLERANCE
+from armgen.planning.toolpath.timelaw import JointBounds, PathProfile
 from armgen.robot import load_robot
 
 pin = pytest.importorskip("pinocchio")
@@ -275,3 +278,42 @@ def test_random_programs_under_tight_taumax_are_slowed_to_fit(tmp_path):
         slowdowns.append(tight.metadata["summary"]["joint_torque"]["slowing"]["slowdown_factor"])
     print(f"torque slowdown factors: {np.round(slowdowns, 3).tolist()}")
     assert min(slowdowns) > 1  # every case needed slowing
+
+
+# The passes work in ṡ² with one square root per node and back, and s̈ is a difference of two
+# ṡ² over 2 ds: the bound holds to rounding of the terms so differenced, |m| max(ṡ²) / 2 ds,
+# beside the limit (a few ulps; measured up to 1e-15 of them).
+BOUND_RTOL = 1e-12
+
+
+@settings(max_examples=100, deadline=None, derandomize=True)
+@given(st.data())
+def test_the_time_law_keeps_every_torque_row_within_its_bound(data):
+    """The invariant the slowing relies on (:class:`~armgen.planning.toolpath.timelaw.JointBounds`,
+    rows of torque or acceleration): on any grid, with any caps, path accelerations and rows
+    ``|m|``, ``|c|`` ≥ 0, limit > 0, every cell of the time law has
+    ``|m| |s̈| + |c| max(ṡ²) ≤ limit`` (ṡ² is linear in s over a cell, so its largest is at an
+    end), and no node is faster than its cap."""
+    cells = data.draw(st.integers(2, 40))
+    rows = data.draw(st.integers(1, 3))
+    positive = st.floats(1e-3, 1e3)
+    ds = np.array(data.draw(st.lists(st.floats(1e-4, 0.1), min_size=cells, max_size=cells)))
+    s = np.concatenate([[0.0], np.cumsum(ds)])
+    cap = np.array(data.draw(st.lists(st.floats(1e-3, 5.0), min_size=cells + 1, max_size=cells + 1)))
+    acceleration = np.array(data.draw(st.lists(positive, min_size=cells, max_size=cells)))
+
+    def table(elements):
+        return np.array(data.draw(st.lists(st.lists(elements, min_size=rows, max_size=rows),
+                                           min_size=cells, max_size=cells)))
+
+    bounds = JointBounds(table(st.one_of(st.just(0.0), positive)), table(st.one_of(st.just(0.0), positive)),
+                         table(positive))
+    profile = PathProfile(s, cap, acceleration, bounds)
+    u = profile.v ** 2
+    fastest = np.maximum(u[1:], u[:-1])[:, None]
+    excess = bounds.dq * np.abs(profile.cell_acc)[:, None] + bounds.ddq * fastest - bounds.limit
+    rounding = bounds.limit + bounds.dq * fastest / (2 * ds[:, None])
+    assert np.max(excess / rounding) <= BOUND_RTOL, np.max(excess / rounding)
+    assert np.all(profile.v <= cap * (1.0 + BOUND_RTOL))
+    beyond = np.abs(profile.cell_acc) - acceleration
+    assert np.max(beyond / (acceleration + fastest[:, 0] / (2 * ds))) <= BOUND_RTOL
