@@ -55,11 +55,19 @@ QUICK_RUNS = {
         r"\| Robotics Toolbox ikine_LM \| "
         r"(30 \| [0-9.]+ %|— \| — \| — \| — \| MISSING: roboticstoolbox-python)",
         rf"\| Pinocchio CLIK \(Python loop\) \| 30 \| {NUMBER} %"]),
+    "bench_kernel.py": (("gcc",), [
+        rf"robot\.fk_jacobian\(q\), one call, compiled kernel\s+{NUMBER} us",
+        rf"Pinocchio forwardKinematics \+ computeJointJacobians \+ getFrameJacobian\s+{NUMBER} us",
+        rf"robot\.ik\(pose\) compiled mean {NUMBER} us, success {NUMBER} %; reference \(before\) {NUMBER} us",
+        r"\| Robotics Toolbox ikine_LM \| (10 \| [0-9.]+ %|— \| — \| — \| — \| MISSING: roboticstoolbox-python)",
+        rf"C called from C \(same code and flags\)\s+wall\s+{NUMBER} ns/sample"]),
     "bench_kinematics.py": (("gcc", "valgrind", *ARM_TOOLS), [
         rf"x86 -O2 double fk_jacobian instructions\s+{NUMBER} instr/call",
         rf"CasADi C double \(jacobian\(\)\) instructions\s+{NUMBER} instr/call",
         rf"M4F -Os float fk_jacobian executed instr\s+{NUMBER} instr/call",
         rf"cross-check: -singlestep -d exec trace\s+{NUMBER} instr/call"]),
+    "bench_link.py": (("gcc",), [rf"fuzz: \d+ chunks in {NUMBER} s: crashes 0, violations 0",
+                                 rf"\| 50 \| 151 \| {NUMBER} \|", rf"\| \d+ \| 101 \| {NUMBER} \|"]),
     "bench_planner.py": (("gcc",), [
         rf"host firmware \(gcc -O2, double\): {NUMBER} us/tick",
         rf"c\s+planner\s+{NUMBER} s",
