@@ -429,10 +429,12 @@ class Robot(RobotDescription):
         cap = _iteration_cap(max_iterations, ik.MAX_ITERATIONS)
         tol_p = _tolerance(tol_position, "tol_position", ik.TOL_POSITION, MAX_TOL_POSITION, "m")
         tol_o = _tolerance(tol_orientation, "tol_orientation", ik.TOL_ORIENTATION, MAX_TOL_ORIENTATION, "rad")
+        kernel = self._kernel
         if q0 is not None:
             rest = self._joints_per_pose(q0, "q0", batch_shape)
         else:
-            rest = self.qmid[None] if not batch_shape else np.broadcast_to(self.qmid, (targets.shape[0], self.n))
+            qmid = kernel.qmid if kernel is not None else self.qmid  # (the kernel's copy: computed once)
+            rest = qmid[None] if not batch_shape else np.broadcast_to(qmid, (targets.shape[0], self.n))
         if isinstance(seed, str):
             start = self._joints_per_pose(self.configuration(seed), f"seed '{seed}'", batch_shape)
         elif seed is not None:
@@ -440,10 +442,9 @@ class Robot(RobotDescription):
         else:
             start = rest
         use_rest = 0.0 if q0 is None else 1.0
-        kernel = self._kernel
         if kernel is not None:
             outputs = kernel.ik(targets, start, rest, use_rest, tol_p, tol_o, cap)
-            if not np.all(outputs[3]):  # an attempt of 0 iterations: <p>_ik found no pose (BAD_TARGET)
+            if not outputs[3].all():  # an attempt of 0 iterations: <p>_ik found no pose (BAD_TARGET)
                 ik.check_targets(targets)  # the reference's check, and its error naming what is wrong
         else:
             outputs = ik.solve(self.symbolic.ik_definition, targets, np.ascontiguousarray(start),
@@ -481,7 +482,7 @@ def _real_array(value: ArrayLike, what: str) -> np.ndarray:
     array = np.asarray(value)
     if array.dtype.kind not in "iuf":
         raise TypeError(f"{what} must hold real numbers (int or float), got an array of dtype {array.dtype}")
-    return array.astype(float)
+    return array.astype(float, copy=False)  # read only by the callers: a float array is used as it is
 
 
 def _pose_targets(pose: ArrayLike) -> tuple[np.ndarray, tuple[int, ...]]:
@@ -490,7 +491,8 @@ def _pose_targets(pose: ArrayLike) -> tuple[np.ndarray, tuple[int, ...]]:
     if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
         raise ValueError(f"pose must have shape (4, 4) or (..., 4, 4), got {pose.shape}")
     targets = pose.reshape(-1, 4, 4)
-    if np.max(np.abs(np.where(np.isfinite(targets), targets, 0.0)), initial=0.0) > MAX_ABS_LENGTH_M:
+    if not (np.abs(targets) <= MAX_ABS_LENGTH_M).all() and \
+            np.max(np.abs(np.where(np.isfinite(targets), targets, 0.0)), initial=0.0) > MAX_ABS_LENGTH_M:
         raise ValueError(f"pose: an entry is beyond ±{MAX_ABS_LENGTH_M:g} (m), far out of any arm's reach; "
                          "give the position in metres")
     return targets, pose.shape[:-2]

@@ -95,13 +95,15 @@ class ApiKernel:
     :meth:`evaluate` with the shapes of :class:`~armgen.symbolic.numeric.NumericModel`, and
     :meth:`ik` with the outputs of :func:`armgen.symbolic.ik.solve`."""
 
-    def __init__(self, module: ModuleType, references: dict[str, ca.Function], n: int, name: str):
+    def __init__(self, module: ModuleType, references: dict[str, ca.Function], n: int, name: str, qmid: np.ndarray):
         self._module = module
         self._references = references
         self._n = n
         self._robot_name = name
         self._fk, self._jacobian, self._fk_jacobian = module.fk, module.jacobian, module.fk_jacobian
         self.functions = tuple(references)
+        self.qmid = qmid  # the IK's default rest configuration (a description property, computed on each access)
+        self.qmid.flags.writeable = False
 
     # One configuration: a 1-D ndarray goes to the extension as it is, which takes it when it is
     # n contiguous float64 values (and raises ValueError or BufferError otherwise: then the
@@ -186,9 +188,18 @@ class ApiKernel:
         outputs = [np.empty((count, self._n))] + [np.empty(count) for _ in range(4)]
         self._module.ik(count, np.ascontiguousarray(targets.transpose(0, 2, 1)), np.ascontiguousarray(seeds),
                         np.ascontiguousarray(rest),
-                        *[np.array([x], dtype=float) for x in (use_rest, tol_position, tol_orientation, max_iterations)],
-                        *outputs)
+                        *_scalar_buffers(float(use_rest), float(tol_position), float(tol_orientation),
+                                         float(max_iterations)), *outputs)
         return [outputs[0].T] + [out.reshape(1, count) for out in outputs[1:]]
+
+
+@functools.lru_cache(maxsize=64)
+def _scalar_buffers(*values: float) -> tuple[np.ndarray, ...]:
+    """One read-only buffer per scalar input (the IK's settings: a few distinct ones per program)."""
+    buffers = tuple(np.array([value]) for value in values)
+    for buffer in buffers:
+        buffer.flags.writeable = False
+    return buffers
 
 
 def _unpacked(value: np.ndarray, rows: int, cols: int) -> np.ndarray:
@@ -279,7 +290,7 @@ def _stored(model: SymbolicModel, references: dict[str, ca.Function], digest: st
         binary = kernel_store.read_trusted(library)
         if binary is None or kernel_store.digest(binary) != entry["library_sha256"]:
             return None
-        kernel = ApiKernel(_import(library, module_name), references, model.n, model.robot.name)
+        kernel = ApiKernel(_import(library, module_name), references, model.n, model.robot.name, model.robot.qmid)
     except (ValueError, KeyError, TypeError, ImportError, AttributeError):
         return None
     if not _agrees_with_reference(kernel, model):
@@ -305,7 +316,7 @@ def _built(model: SymbolicModel, references: dict[str, ca.Function], digest: str
                                defines=[f"{code.prefix.upper()}_USE_FLOAT=0"],
                                extra=[f"-I{work}", f"-I{_python_include()}", *FLOATING_POINT_FLAGS], opt=OPTIMISATION)
         sha256 = kernel_store.seal(built)
-        kernel = ApiKernel(_import(built, module_name), references, model.n, model.robot.name)
+        kernel = ApiKernel(_import(built, module_name), references, model.n, model.robot.name, model.robot.qmid)
         if not _agrees_with_reference(kernel, model):
             raise ArmgenError(f"the compiled kernel of robot '{model.robot.name}' disagrees with the CasADi reference "
                               f"(beyond {REFERENCE_AGREEMENT:g}); please report it")
