@@ -768,37 +768,10 @@ static void emit_hold(const ctrl *c, ctrl_output *out) {
   out->fault = c->fault;
 }
 
-/* The command of this tick, accepted: with dynamics, first its feed-forward torque from
- * (q, q_dot, q_ddot), q_ddot the mode's own (qdd) or, where the mode has none (qdd NULL), the
- * backward difference of the commanded velocities (q_dot - the previous command's q_dot) / dt,
- * and the torque limits (TORQUE: nothing is emitted, the arm holds); then held and emitted. */
-static ctrl_fault accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd, const ctrl_real *qdd,
-                         ctrl_output *out) {
+/* The command of this tick emitted: held (its q_dot the next difference's previous one), output,
+ * and DONE after the last tick. */
+static void emit(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd, ctrl_output *out) {
   int i;
-#if CTRL_HAS_DYNAMICS
-  ctrl_real tau[N], difference[N];
-  const ctrl_real *acceleration = qdd;
-  ctrl_fault f;
-  if (c->cfg.feedforward == CTRL_FF_NONE) { /* nothing computed, nothing to check */
-    for (i = 0; i < N; ++i) {
-      tau[i] = CTRL_LIT(0.0);
-    }
-  } else {
-    if (acceleration == NULL && c->cfg.feedforward == CTRL_FF_INVERSE_DYNAMICS) {
-      for (i = 0; i < N; ++i) {
-        difference[i] = (qd[i] - c->qd_prev[i]) / c->cfg.dt;
-      }
-      acceleration = difference;
-    }
-    feedforward_torque(c, q, qd, acceleration, tau);
-    f = check_torque(c, tau);
-    if (f != CTRL_FAULT_NONE) {
-      return f;
-    }
-  }
-#else
-  (void)qdd; /* no dynamics: the command's acceleration is not needed */
-#endif
   c->t_hold = t;
   out->tick = c->k;
   out->t = t;
@@ -817,10 +790,52 @@ static ctrl_fault accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_re
   out->locked = c->locked;
   out->state = c->state;
   out->fault = c->fault;
+}
+
 #if CTRL_HAS_DYNAMICS
+/* The command's feed-forward torque tau from (q, q_dot, q_ddot), q_ddot the mode's own (qdd) or,
+ * where the mode has none (qdd NULL), the backward difference of the commanded velocities
+ * (q_dot - the previous command's q_dot) / dt; and its check against the torque limits. */
+static ctrl_fault command_torque(const ctrl *c, const ctrl_real *q, const ctrl_real *qd, const ctrl_real *qdd,
+                                 ctrl_real *tau) {
+  ctrl_real difference[N];
+  const ctrl_real *acceleration = qdd;
+  int i;
+  if (c->cfg.feedforward == CTRL_FF_NONE) { /* nothing computed, nothing to check */
+    for (i = 0; i < N; ++i) {
+      tau[i] = CTRL_LIT(0.0);
+    }
+    return CTRL_FAULT_NONE;
+  }
+  if (acceleration == NULL && c->cfg.feedforward == CTRL_FF_INVERSE_DYNAMICS) {
+    for (i = 0; i < N; ++i) {
+      difference[i] = (qd[i] - c->qd_prev[i]) / c->cfg.dt;
+    }
+    acceleration = difference;
+  }
+  feedforward_torque(c, q, qd, acceleration, tau);
+  return check_torque(c, tau);
+}
+#endif
+
+/* The command of this tick, accepted: with dynamics, first its feed-forward torque and the
+ * torque limits (TORQUE: nothing is emitted, the arm holds); then emitted. */
+static ctrl_fault accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd, const ctrl_real *qdd,
+                         ctrl_output *out) {
+#if CTRL_HAS_DYNAMICS
+  ctrl_real tau[N];
+  int i;
+  ctrl_fault f = command_torque(c, q, qd, qdd, tau);
+  if (f != CTRL_FAULT_NONE) {
+    return f;
+  }
+  emit(c, t, q, qd, out);
   for (i = 0; i < N; ++i) {
     out->tau_ff[i] = tau[i];
   }
+#else
+  (void)qdd; /* no dynamics: the command's acceleration is not needed */
+  emit(c, t, q, qd, out);
 #endif
   return CTRL_FAULT_NONE;
 }
