@@ -67,8 +67,8 @@ MANIFEST = ".armgen-firmware"  # the files this command wrote there, with their 
 # The stub's files the project needs, by their place in the project.
 STUB_FILES = {
     "controller": ("controller.c", "controller.h", "ctrl_robot.h", "fw_program.c", "fw_program.h", "fw_csv.c", "fw_csv.h",
-                   "fw_task.c", "fw_task.h"),
-    "host": ("host/main.c",),
+                   "fw_task.c", "fw_task.h", "fw_link.c", "fw_link.h", "fw_link_msgs.c", "fw_link_msgs.h"),
+    "host": ("host/main.c", "host/link_main.c"),
     "arm": ("arm/fw_main.c", "arm/startup.c", "arm/semihost.c", "arm/semihost.h", "arm/fw_fastmath.c",
             "arm/mps2_an386.ld"),
 }
