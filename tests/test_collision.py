@@ -738,6 +738,54 @@ def test_gen_emits_the_collision_functions_and_verify_compares_them(tmp_path, mo
         assert not set(bundled["functions"]) & set(COLLISION_FUNCTIONS)
 
 
+@pytest.fixture(scope="module")
+def planar_collision_c(tmp_path_factory) -> tuple[Path, Robot]:
+    """The planar arm's two collision functions generated alone."""
+    from armgen.codegen.generate import CodegenConfig, generate, write
+
+    folder = tmp_path_factory.mktemp("planarc")
+    robot = load_robot(_planar_with_capsules(folder))
+    write(generate(CodegenConfig(robot, functions=COLLISION_FUNCTIONS)), folder / "gen")
+    return folder / "gen", robot
+
+
+def test_collision_c_is_strict_heap_free_and_true_float(planar_collision_c, tmp_path):
+    """The strict flags in both precisions, no heap or stdio, no double libm call in the float
+    build, and no software double on a Cortex-M4F."""
+    import subprocess
+
+    from armgen.codegen.toolchain import ARM_CPU_FLAGS, STRICT_FLAGS
+    from conftest import require_tool
+    from test_codegen import DOUBLE_LIBM, FORBIDDEN_SYMBOLS
+    from test_dynamics_codegen import _undefined_symbols
+
+    gen_dir, _ = planar_collision_c
+    source = gen_dir / "planarc.c"
+    undefined = {}
+    for precision, flag in (("double", 0), ("float", 1)):
+        obj = tmp_path / f"{precision}.o"
+        subprocess.run(["gcc", *STRICT_FLAGS, "-O2", f"-DPLANARC_USE_FLOAT={flag}", "-c", str(source), "-o", str(obj)],
+                       check=True, capture_output=True, text=True)
+        undefined[precision] = _undefined_symbols(obj)
+        assert not undefined[precision] & FORBIDDEN_SYMBOLS
+    assert not undefined["float"] & DOUBLE_LIBM
+    arm_gcc = require_tool("arm-none-eabi-gcc")
+    m4 = tmp_path / "m4.o"
+    subprocess.run([arm_gcc, *STRICT_FLAGS, "-Os", *ARM_CPU_FLAGS, "-DPLANARC_USE_FLOAT=1", "-c", str(source), "-o",
+                    str(m4)], check=True, capture_output=True, text=True)
+    symbols = _undefined_symbols(m4, require_tool("arm-none-eabi-nm"))
+    assert not [s for s in symbols if s.startswith("__aeabi_d")], symbols
+
+
+@pytest.mark.parametrize("precision", ["double", "float"])
+def test_collision_c_is_sanitizer_clean(planar_collision_c, precision):
+    from armgen.verification.harness import run_sanitized
+
+    gen_dir, robot = planar_collision_c
+    functions = {name: robot.symbolic.function(name) for name in COLLISION_FUNCTIONS}
+    assert run_sanitized(gen_dir, "planarc", functions, precision).startswith("ok")
+
+
 # -- the task vocabulary ---------------------------------------------------------------------
 
 def test_task_obstacles_convert_to_si_and_feed_the_distances(iiwa):
