@@ -32,6 +32,11 @@ For the joint controller of firmware_stub/ running spec 20's combined plan on mo
    line task on the same robot from the same start with the same method and gain (today's
    resolved-rate tick) in the same build, flash of the program table and of fw_program.o, RAM
    (sizeof(ctrl)), and the replay error of the QEMU run against the plan.
+8. The feed-forward torque (issue 39, ``--feedforward-only``): on the bundled iiwa14 (inertials,
+   taumax), instructions per tick (mean, max) of a resolved-rate line and of a ptp swing played
+   back with feedforward none / gravity / inverse_dynamics, against the same arm's robot file
+   without its inertials (no dynamics compiled in); the image's text and sizeof(ctrl) of each,
+   and the host's ns per tick (gcc -O2 double, best of 20).
 
 Bars (reported, not asserted): BARS. A missing tool skips its rows and the run exits 4; a
 measurement that fails is reported FAILED and the run exits 1 (bench_kinematics.py's
@@ -260,6 +265,8 @@ def main(argv=None) -> int:
     ap.add_argument("--modes-only", action="store_true", help="only section 5 (every controller mode)")
     ap.add_argument("--move-to-only", action="store_true", help="only section 6 (MOVE_TO under QEMU)")
     ap.add_argument("--program-only", action="store_true", help="only section 7 (a program on board)")
+    ap.add_argument("--feedforward-only", action="store_true",
+                    help="only section 8 (the feed-forward torque, iiwa14)")
     ap.add_argument("--quick", action="store_true", help="sections 0-4 on a 5-s plan, in seconds (a smoke run)")
     args = ap.parse_args(argv)
     if args.out is None and not args.quick:
@@ -279,6 +286,9 @@ def main(argv=None) -> int:
     print(f"armgen firmware benchmark, build dir {work}")
 
     state: dict = {}
+    if args.feedforward_only:
+        rep.section("feedforward", FEEDFORWARD_TITLE, lambda: feedforward_section(rep, work))
+        return finish(rep, args, work, started)
     if args.program_only:
         rep.section("program", "7. A program on board, Baxter's arm, Cortex-M4F float (QEMU -icount):",
                     lambda: program_section(rep, work))
@@ -444,6 +454,7 @@ def main(argv=None) -> int:
         return finish(rep, args, work, started)
     rep.section("modes", "5. Every controller mode, modular8, Cortex-M4F float (QEMU -icount):",
                 lambda: modes_table(rep, work, builder))
+    rep.section("feedforward", FEEDFORWARD_TITLE, lambda: feedforward_section(rep, work))
     return finish(rep, args, work, started)
 
 
@@ -614,6 +625,73 @@ def program_section(rep: Report, work: Path) -> None:
           f"{table} B flash, fw_program.o {evaluator} B", flush=True)
     rep.rows.append(("program tick / resolved-rate tick (mean, max)", f"{ratio_mean:.3f} / {ratio_max:.3f}", "x",
                      f"goal <= 1.2; table {table} B, evaluator {evaluator} B"))
+
+
+FEEDFORWARD_TITLE = "8. The feed-forward torque, iiwa14, Cortex-M4F float (QEMU -icount) and host:"
+FEEDFORWARD_CHOICES = ("none", "gravity", "inverse_dynamics")
+# The robot file's inertial fields: without them the same arm has no dynamics (the baseline).
+INERTIAL_FIELD = re.compile(r"^(mass|com|inertia|motor_inertia) *=.*\n", re.M)
+
+
+def feedforward_tasks(robot, robot_ref: str) -> dict:
+    """Section 8's tasks: a 5 cm line of the tool in 1 s (resolved rate), and a ptp swing of a1,
+    a2, a4 by 1, 0.4, 0.5 rad in 1.5 s (playback), both from q0 at a 10 ms tick."""
+    q0 = robot.configuration("q0")
+    end = robot.fk(q0)[:3, 3] + [0.05, 0.0, 0.0]
+    line = {"planner": "cartesian", "robot": robot_ref, "start": "q0",
+            "path": {"type": "line", "end": end.tolist(), "orientation": "hold"},
+            "timing": {"duration": 1.0, "law": "cubic"}, "integrator": {"method": "euler", "step": 0.01},
+            "method": {"name": "pinv"}}
+    swing = {"a1": 1.0, "a2": 0.4, "a4": 0.5}
+    ptp = {"planner": "ptp", "robot": robot_ref, "method": "quintic", "step": 0.01,
+           "waypoints": {"t": [0.0, 1.5], "omega": {j.name: [0.0, 0.0] for j in robot.joints},
+                         "theta": {j.name: [float(q), float(q + swing.get(j.name, 0.0))]
+                                   for j, q in zip(robot.joints, q0)}}}
+    return {"resolved-rate line": line, "ptp swing (playback)": ptp}
+
+
+def feedforward_section(rep: Report, work: Path) -> None:
+    """Section 8: what the feed-forward torque adds to a tick, per choice, against the arm
+    without dynamics."""
+    from armgen.firmware.configuration import with_feedforward
+    from armgen.robot import BUNDLED_DIR, load_robot
+
+    tool("arm-none-eabi-gcc")
+    tool("qemu-system-arm")
+    quiet = dataclasses.replace(fw.ARM_VARIANT, print_rows=False)
+    host = fw.Variant("host", "double", opt="-O2")
+    plain_file = work / "iiwa14_without_inertials.toml"
+    plain_file.write_text(INERTIAL_FIELD.sub("", (BUNDLED_DIR / "iiwa14.toml").read_text(encoding="utf-8"))
+                          .replace('name = "iiwa14"', 'name = "iiwa14_plain"', 1), encoding="utf-8")
+    arms = {"iiwa14": (load_robot("iiwa14"), "iiwa14"), "plain": (load_robot(plain_file), str(plain_file))}
+    if not arms["iiwa14"][0].has_dynamics or arms["plain"][0].has_dynamics:
+        raise RuntimeError("section 8 needs the bundled iiwa14 with inertials and its copy without")
+    data = rep.data.setdefault("feedforward", {})
+    for key, (robot, ref) in arms.items():
+        builder = fw.FirmwareBuilder(robot, work / f"ff_{key}")
+        for label, task_doc in feedforward_tasks(robot, ref).items():
+            task = fw.task_from_plan(run_task(copy.deepcopy(task_doc), label), label, robot)
+            for choice in (FEEDFORWARD_CHOICES if key == "iiwa14" else ("without dynamics",)):
+                ftask = with_feedforward(task, choice) if key == "iiwa14" else task
+                name = re.sub(r"\W", "", f"{label}_{choice}")
+                elf = builder.executable(quiet, ftask, name)
+                run = fw.run_qemu(elf)
+                ipt = fw.instructions_per_tick(run)
+                wall = fw.run_host(builder.executable(host, ftask, name + "_host"), ["--quiet", "--time", "20"])
+                m = {"mean": ipt["mean"], "max": ipt["max"], "end": f"{run.state}/{run.fault}",
+                     "image_text": image_size(elf)["text"], "sizeof_ctrl": int(run.summary["sizeof_ctrl"]),
+                     "host_ns_per_tick": float(wall.summary["wall_ns_per_tick"])}
+                data.setdefault(label, {})[choice] = m
+    for label, by_choice in data.items():
+        base = by_choice["without dynamics"]
+        for choice, m in by_choice.items():
+            print(f"  {label:<22} {choice:<17} instr/tick mean {m['mean']:>6.0f} (+{m['mean'] - base['mean']:>5.0f})  "
+                  f"max {m['max']:>6.0f}  {m['end']:<10} image text {m['image_text']:>6} B  sizeof(ctrl) "
+                  f"{m['sizeof_ctrl']} B  host {m['host_ns_per_tick']:.0f} ns/tick", flush=True)
+        added = by_choice["inverse_dynamics"]["mean"] - base["mean"]
+        rep.rows.append((f"feed-forward (inverse dynamics), {label}: added instr/tick", f"{added:.0f}", "instr",
+                         f"gravity +{by_choice['gravity']['mean'] - base['mean']:.0f}, "
+                         f"none +{by_choice['none']['mean'] - base['mean']:.0f}"))
 
 
 if __name__ == "__main__":
