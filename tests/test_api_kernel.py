@@ -128,10 +128,28 @@ def test_kernel_is_loaded_from_the_store_not_built_again(store, fresh_process, m
     compiled("planar3")
     monkeypatch.setattr(api_kernel, "_LOADED", {})
     monkeypatch.setattr(api_kernel, "compile_shared", lambda *_, **__: pytest.fail("compiled again"))
+    monkeypatch.setattr(api_kernel, "reference_cases", lambda *_: pytest.fail("self-test values evaluated again"))
     robot = load_robot("planar3")
     assert robot._kernel is not None
     [entry] = store.glob("planar3_api-*.json")
     assert json.loads(entry.read_text())["library"] == entry.with_suffix(".so").name
+
+
+def test_an_entry_whose_recorded_reference_was_edited_is_built_again(store, fresh_process):
+    """The self-test on load compares with the values the entry recorded: a kernel that does
+    not reproduce them (here: the values moved, the library intact) is not used but rebuilt."""
+    compiled("planar3")
+    [entry] = store.glob("planar3_api-*.json")
+    fields = json.loads(entry.read_text())
+    fields["self_test"]["fk"][0]["outputs"][0][12] += 1e-6  # the x of the first case's pose
+    entry.write_text(json.dumps(fields))
+    library = entry.with_suffix(".so")
+    inode = library.stat().st_ino
+    api_kernel._LOADED.clear()
+    assert load_robot("planar3")._kernel is not None
+    assert library.stat().st_ino != inode  # built again (os.replace of a new file)
+    assert json.loads(entry.read_text())["self_test"]["fk"][0]["outputs"][0][12] != \
+        fields["self_test"]["fk"][0]["outputs"][0][12]
 
 
 PLANTED = r"""
@@ -163,7 +181,7 @@ def test_a_library_that_is_not_the_stored_one_is_not_loaded(store, fresh_process
 def test_a_kernel_failing_its_self_test_is_not_used(store, fresh_process, monkeypatch):
     compiled("planar3")
     api_kernel._LOADED.clear()
-    monkeypatch.setattr(api_kernel, "_agrees_with_reference", lambda *_: False)
+    monkeypatch.setattr(api_kernel, "_reproduces", lambda *_: False)
     with pytest.warns(RuntimeWarning, match="disagrees with the CasADi reference"):
         robot = load_robot("planar3")
         assert robot._kernel is None

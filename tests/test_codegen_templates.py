@@ -9,7 +9,7 @@ import casadi as ca
 import pytest
 
 import armgen.data
-from armgen.codegen.api_kernel import extension_source
+from armgen.codegen.api_kernel import Signature, extension_source
 from armgen.codegen.compiled import batch_source, kernel_source
 from armgen.codegen.generate import CodegenConfig, generate
 from armgen.codegen.ptp_c import render_ptp_evaluator
@@ -31,7 +31,8 @@ def _render_everything() -> None:
     x = ca.SX.sym("x", 2)
     kernel_source(ca.Function("demo", [x], [ca.sin(x) * x[1]]), "armgen_kernel")
     batch_source("planar3", SymbolicModel(load_robot("planar3")).functions())
-    extension_source("planar3", "armgen_api_demo", SymbolicModel(load_robot("planar3")).functions())
+    extension_source("planar3", "armgen_api_demo",
+                     {name: Signature.of(f) for name, f in SymbolicModel(load_robot("planar3")).functions().items()})
 
 
 def test_every_template_is_rendered_with_exactly_its_placeholders(monkeypatch):

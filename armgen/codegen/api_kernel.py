@@ -11,9 +11,12 @@ What is trusted follows :mod:`armgen.codegen.kernel_store`: an entry ``<prefix>_
 (the library's file name and SHA-256) beside the library ``<prefix>_api-<digest24>.so``, found
 by a digest of everything the library is made from (armgen's sources and C templates, the
 robot, the functions, the compiler and its flags, the Python ABI), read only when this user's
-alone and loaded only when its bytes match the entry's digest. Loaded or just built, a library
-is used only after it agrees with the CasADi reference on :data:`SELF_TEST_SAMPLES` seeded
-configurations (:data:`REFERENCE_AGREEMENT`). It is built in a private folder of the store and
+alone and loaded only when its bytes match the entry's digest. A library is used only after it
+reproduces the CasADi reference on :data:`SELF_TEST_SAMPLES` seeded inputs per function
+(:data:`REFERENCE_AGREEMENT`; :func:`reference_cases`): when built, the reference is evaluated
+then and its values recorded in the entry (with the functions' signatures), so that loading
+runs the same self-test against them without building a CasADi function (~2 ms rather than
+~0.3 s, what a one-pose ``armgen ik`` would pay). It is built in a private folder of the store and
 moved into place by ``os.replace`` (the entry last): processes building the same kernel at once
 each leave a whole file, and a reader sees a whole entry or none.
 """
@@ -33,6 +36,7 @@ import sys
 import sysconfig
 import tempfile
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 
@@ -90,18 +94,40 @@ def kernel_choice() -> str:
     return choice
 
 
+@dataclass(frozen=True)
+class Signature:
+    """A function's inputs and outputs: (name, rows, cols) each, in order (column-major values)."""
+
+    inputs: tuple[tuple[str, int, int], ...]
+    outputs: tuple[tuple[str, int, int], ...]
+
+    @classmethod
+    def of(cls, f: ca.Function) -> Signature:
+        return cls(tuple((f.name_in(k), *f.size_in(k)) for k in range(f.n_in())),
+                   tuple((f.name_out(k), *f.size_out(k)) for k in range(f.n_out())))
+
+    @classmethod
+    def from_json(cls, value: dict) -> Signature:
+        return cls(*(tuple((str(name), int(rows), int(cols)) for name, rows, cols in value[side])
+                     for side in ("inputs", "outputs")))
+
+    def sizes(self) -> list[int]:
+        """Values per sample of each argument, inputs then outputs."""
+        return [rows * cols for _, rows, cols in (*self.inputs, *self.outputs)]
+
+
 class ApiKernel:
     """One robot's compiled functions: :meth:`fk`, :meth:`jacobian`, :meth:`fk_jacobian` and
     :meth:`evaluate` with the shapes of :class:`~armgen.symbolic.numeric.NumericModel`, and
     :meth:`ik` with the outputs of :func:`armgen.symbolic.ik.solve`."""
 
-    def __init__(self, module: ModuleType, references: dict[str, ca.Function], n: int, name: str, qmid: np.ndarray):
+    def __init__(self, module: ModuleType, signatures: dict[str, Signature], n: int, name: str, qmid: np.ndarray):
         self._module = module
-        self._references = references
+        self.signatures = signatures
         self._n = n
         self._robot_name = name
         self._fk, self._jacobian, self._fk_jacobian = module.fk, module.jacobian, module.fk_jacobian
-        self.functions = tuple(references)
+        self.functions = tuple(signatures)
         self.qmid = qmid  # the IK's default rest configuration (a description property, computed on each access)
         self.qmid.flags.writeable = False
 
@@ -163,21 +189,21 @@ class ApiKernel:
     def evaluate(self, name: str, q: ArrayLike, **parameters: ArrayLike) -> dict[str, np.ndarray]:
         """Function ``name`` at ``q`` (``(n,)`` or ``(..., n)``), the other inputs by name,
         broadcast against the batch: the outputs by name, batch axes in front (NumericModel.evaluate)."""
-        f = self._references[name]
+        signature = self.signatures[name]
         q, count, batch = self._samples(q)
-        names_in = f.name_in()
+        names_in = [input_name for input_name, _, _ in signature.inputs]
         if set(parameters) != set(names_in[1:]):
             raise TypeError(f"{name}: inputs {names_in[1:]} expected, got {sorted(parameters)}")
         inputs = [q]
-        for k, input_name in enumerate(names_in[1:], start=1):
-            own = (f.nnz_in(k),) if f.nnz_in(k) > 1 else ()
+        for input_name, rows, cols in signature.inputs[1:]:
+            own = (rows * cols,) if rows * cols > 1 else ()
             value = np.asarray(parameters[input_name], dtype=float)
             if value.shape != own:  # carries batch axes: one value per sample
-                value = np.ascontiguousarray(np.broadcast_to(value, batch + own))
+                value = np.broadcast_to(value, batch + own)
             inputs.append(np.ascontiguousarray(value))
-        outputs = [np.empty(batch + (f.size_out(k)[1], f.size_out(k)[0])) for k in range(f.n_out())]
+        outputs = [np.empty(batch + (cols, rows)) for _, rows, cols in signature.outputs]
         getattr(self._module, name)(count, *inputs, *outputs)
-        return {f.name_out(k): _unpacked(out, *f.size_out(k)) for k, out in enumerate(outputs)}
+        return {output_name: _unpacked(out, rows, cols) for (output_name, rows, cols), out in zip(signature.outputs, outputs)}
 
     def ik(self, targets: np.ndarray, seeds: np.ndarray, rest: np.ndarray, use_rest: float, tol_position: float,
            tol_orientation: float, max_iterations: int) -> list[np.ndarray]:
@@ -219,11 +245,11 @@ def load_api_kernel(model: SymbolicModel) -> ApiKernel | None:
     if kernel_choice() == "reference":
         return None
     try:
-        references = {name: model.function(name) for name in API_FUNCTIONS if name in model.available()}
-        digest = _kernel_digest(model, tuple(references))
+        functions = tuple(name for name in API_FUNCTIONS if name in model.available())
+        digest = _kernel_digest(model, functions)
         if digest in _LOADED:
             return _LOADED[digest]
-        kernel = _stored(model, references, digest) or _built(model, references, digest)
+        kernel = _stored(model, digest) or _built(model, functions, digest)
     except (ArmgenError, OSError, ImportError, subprocess.SubprocessError) as exc:
         _warn_fallback(str(exc).splitlines()[0])
         return None
@@ -278,9 +304,10 @@ def _names(model: SymbolicModel, digest: str) -> tuple[Path, Path, str]:
     return store / f"{stem}-{digest}.json", store / f"{stem}-{digest}.so", f"armgen_api_{digest}"
 
 
-def _stored(model: SymbolicModel, references: dict[str, ca.Function], digest: str) -> ApiKernel | None:
+def _stored(model: SymbolicModel, digest: str) -> ApiKernel | None:
     """The kernel from the store when its entry is trusted, its library matches the entry's
-    digest and it passes the self-test; else None (the caller builds it)."""
+    digest and it reproduces the reference values the entry recorded; else None (the caller
+    builds it). No CasADi function is built: the entry holds the signatures and the cases."""
     entry_path, library, module_name = _names(model, digest)
     text = kernel_store.read_trusted(entry_path)
     try:
@@ -290,20 +317,24 @@ def _stored(model: SymbolicModel, references: dict[str, ca.Function], digest: st
         binary = kernel_store.read_trusted(library)
         if binary is None or kernel_store.digest(binary) != entry["library_sha256"]:
             return None
-        kernel = ApiKernel(_import(library, module_name), references, model.n, model.robot.name, model.robot.qmid)
+        signatures = {name: Signature.from_json(value) for name, value in entry["signatures"].items()}
+        kernel = ApiKernel(_import(library, module_name), signatures, model.n, model.robot.name, model.robot.qmid)
+        if not _reproduces(kernel, entry["self_test"]):
+            return None
     except (ValueError, KeyError, TypeError, ImportError, AttributeError):
-        return None
-    if not _agrees_with_reference(kernel, model):
         return None
     os.utime(entry_path)  # used now: pruned last
     os.utime(library)
     return kernel
 
 
-def _built(model: SymbolicModel, references: dict[str, ca.Function], digest: str) -> ApiKernel:
-    """Generate, compile, self-test and store the kernel."""
+def _built(model: SymbolicModel, functions: tuple[str, ...], digest: str) -> ApiKernel:
+    """Generate, compile, self-test (against the CasADi reference evaluated now) and store the kernel."""
     from .generate import CodegenConfig, generate, write
 
+    references = {name: model.function(name) for name in functions}
+    signatures = {name: Signature.of(f) for name, f in references.items()}
+    cases = reference_cases(model, references)
     entry_path, library, module_name = _names(model, digest)
     store = library.parent
     with tempfile.TemporaryDirectory(prefix="armgen-api-", dir=store) as tmp:
@@ -311,20 +342,21 @@ def _built(model: SymbolicModel, references: dict[str, ca.Function], digest: str
         code = generate(CodegenConfig(model.robot, "double", C_PREFIX, tuple(references)))
         write(code, work)
         glue = work / f"{code.prefix}_api.c"
-        glue.write_text(extension_source(code.prefix, module_name, references), encoding="utf-8")
+        glue.write_text(extension_source(code.prefix, module_name, signatures), encoding="utf-8")
         built = compile_shared([work / f"{code.prefix}.c", glue], work / library.name,
                                defines=[f"{code.prefix.upper()}_USE_FLOAT=0"],
                                extra=[f"-I{work}", f"-I{_python_include()}", *FLOATING_POINT_FLAGS], opt=OPTIMISATION)
         sha256 = kernel_store.seal(built)
-        kernel = ApiKernel(_import(built, module_name), references, model.n, model.robot.name, model.robot.qmid)
-        if not _agrees_with_reference(kernel, model):
+        kernel = ApiKernel(_import(built, module_name), signatures, model.n, model.robot.name, model.robot.qmid)
+        if not _reproduces(kernel, cases):
             raise ArmgenError(f"the compiled kernel of robot '{model.robot.name}' disagrees with the CasADi reference "
                               f"(beyond {REFERENCE_AGREEMENT:g}); please report it")
+        entry = {"format": API_KERNEL_FORMAT, "library": library.name, "library_sha256": sha256, "module": module_name,
+                 "signatures": {name: {"inputs": sig.inputs, "outputs": sig.outputs} for name, sig in signatures.items()},
+                 "self_test": cases}
         try:
             os.replace(built, library)  # atomic: concurrent builders each leave a whole file
-            (work / "entry.json").write_text(json.dumps({"format": API_KERNEL_FORMAT, "library": library.name,
-                                                         "library_sha256": sha256, "module": module_name}),
-                                             encoding="utf-8")
+            (work / "entry.json").write_text(json.dumps(entry), encoding="utf-8")
             kernel_store.seal(work / "entry.json")
             os.replace(work / "entry.json", entry_path)  # last: the entry is whole
         except OSError:
@@ -343,58 +375,66 @@ def _import(library: Path, module_name: str) -> ModuleType:
     return module
 
 
-def extension_source(prefix: str, module_name: str, references: dict[str, ca.Function]) -> str:
+def extension_source(prefix: str, module_name: str, signatures: dict[str, Signature]) -> str:
     """C99 of the extension module: for each function ``f(count, inputs…, outputs…)``
     (api_kernel.c; buffers described there)."""
     entries, methods = [], []
-    for name, f in references.items():
-        sizes = [f.nnz_in(k) for k in range(f.n_in())] + [f.nnz_out(k) for k in range(f.n_out())]
-        scalar_input = [k < f.n_in() and size == 1 for k, size in enumerate(sizes)]
-        const = ["const " if k < f.n_in() else "" for k in range(len(sizes))]
+    for name, signature in signatures.items():
+        sizes = signature.sizes()
+        n_in = len(signature.inputs)
+        scalar_input = [k < n_in and size == 1 for k, size in enumerate(sizes)]
+        const = ["const " if k < n_in else "" for k in range(len(sizes))]
         real = f"{prefix}_real"
         parameters = [f"{const[k]}{real} *a{k}, Py_ssize_t d{k}" for k in range(len(sizes))]
         arguments = [f"a{k}[s * d{k}]" if scalar_input[k] else f"a{k} + (s * d{k})" for k in range(len(sizes))]
         call = [f"({const[k]}{real} *)views[{k}].buf, strides[{k}]" for k in range(len(sizes))]
-        names = ", ".join([*f.name_in(), *f.name_out()])
+        names = ", ".join(argument for argument, _, _ in (*signature.inputs, *signature.outputs))
         entries.append(render_template("codegen/api_kernel_entry.c", p=prefix, P=prefix.upper(), function=name,
                                        parameters=", ".join(parameters), arguments=", ".join(arguments),
                                        arity=len(sizes), sizes=", ".join(map(str, sizes)), names=names,
-                                       inputs=f.n_in(), call=", ".join(call)))
+                                       inputs=n_in, call=", ".join(call)))
         methods.append(render_template("codegen/api_kernel_method.c", p=prefix, function=name, names=names))
     return render_template("codegen/api_kernel.c", p=prefix, P=prefix.upper(), module=module_name,
                            entries="\n\n".join(entries), methods="\n".join(methods)) + "\n"
 
 
-def _agrees_with_reference(kernel: ApiKernel, model: SymbolicModel) -> bool:
-    """Whether every function of ``kernel`` matches the CasADi reference on seeded samples
-    (:data:`REFERENCE_AGREEMENT`) and one IK solve does (:data:`IK_REFERENCE_AGREEMENT`)."""
+def reference_cases(model: SymbolicModel, references: dict[str, ca.Function]) -> dict[str, list[dict]]:
+    """The self-test: per function, the CasADi reference's outputs on :data:`SELF_TEST_SAMPLES`
+    seeded inputs (configurations inside the limits; a criterion's weights, delta, q_init in
+    [0.1, 1]); the IK's on one pose (the FK of the first configuration, from the middle of the
+    limits). Each case: ``inputs`` and ``outputs``, the flat column-major values of each argument."""
     rng = np.random.default_rng(SELF_TEST_SEED)
     robot = model.robot
     samples = rng.uniform(robot.qmin, robot.qmax, (SELF_TEST_SAMPLES, robot.n))
-    for name in kernel.functions:
+    arguments: dict[str, list[list[np.ndarray]]] = {}
+    for name, f in references.items():
         if name == "ik":
-            continue
-        f = model.function(name)
-        # the other inputs: seeded values of their sizes (a criterion's weights, delta, q_init)
-        extra = {f.name_in(k): rng.uniform(0.1, 1.0, f.nnz_in(k)).reshape((f.nnz_in(k),) if f.nnz_in(k) > 1 else ())
-                 for k in range(1, f.n_in())}
-        compiled = kernel.evaluate(name, samples, **extra)
-        for s, q in enumerate(samples):
-            reference = f.call([q, *extra.values()])
-            for k in range(f.n_out()):
-                expected = np.asarray(reference[k].full()).reshape(compiled[f.name_out(k)][s].shape, order="F")
-                if not _close(compiled[f.name_out(k)][s], expected, REFERENCE_AGREEMENT):
-                    return False
-    if "ik" in kernel.functions:
-        from ..symbolic import ik
+            from ..symbolic import ik
 
-        target = np.asarray(model.function("fk")(samples[0]).full())[None]
-        start = robot.qmid[None]
-        arguments = (0.0, ik.TOL_POSITION, ik.TOL_ORIENTATION, ik.MAX_ITERATIONS)
-        compiled = kernel.ik(target, start, start, *arguments)
-        reference = [np.asarray(x.full()).reshape(-1, 1) for x in model.function("ik")(target[0], start[0], start[0],
-                                                                                         *arguments)]
-        return all(_close(c, r, IK_REFERENCE_AGREEMENT) for c, r in zip(compiled, reference))
+            target = np.asarray(model.function("fk")(samples[0]).full())
+            settings = [np.array([x]) for x in (0.0, ik.TOL_POSITION, ik.TOL_ORIENTATION, ik.MAX_ITERATIONS)]
+            arguments[name] = [[target, robot.qmid, robot.qmid, *settings]]
+        else:
+            arguments[name] = [[q, *(rng.uniform(0.1, 1.0, f.nnz_in(k)) for k in range(1, f.n_in()))] for q in samples]
+    return {name: [{"inputs": [np.ravel(x, order="F").tolist() for x in inputs],
+                    "outputs": [np.ravel(np.asarray(y.full()), order="F").tolist() for y in references[name].call(inputs)]}
+                   for inputs in cases]
+            for name, cases in arguments.items()}
+
+
+def _reproduces(kernel: ApiKernel, cases: dict[str, list[dict]]) -> bool:
+    """Whether the kernel holds exactly the functions of ``cases`` and gives their outputs:
+    within :data:`REFERENCE_AGREEMENT` (:data:`IK_REFERENCE_AGREEMENT` for the IK)."""
+    if set(cases) != set(kernel.functions):
+        return False
+    for name, function_cases in cases.items():
+        tolerance = IK_REFERENCE_AGREEMENT if name == "ik" else REFERENCE_AGREEMENT
+        for case in function_cases:
+            outputs = [np.empty(len(values)) for values in case["outputs"]]
+            getattr(kernel._module, name)(1, *[np.array(values, dtype=float) for values in case["inputs"]], *outputs)
+            if not all(_close(out, np.array(expected, dtype=float), tolerance)
+                       for out, expected in zip(outputs, case["outputs"])):
+                return False
     return True
 
 
