@@ -23,6 +23,7 @@ from .codec import Frame, FrameDecoder, encode
 from .protocol import FAULT_NAMES, FLAGS, RESULTS, STATE_NAMES, VERSION
 
 HANDSHAKE_NDOF = 0  # HELLO and HELLO_REPLY have no per-joint field: decodable before the board says ndof
+HEARTBEATS_PER_TIMEOUT = 4  # frames per watchdog timeout while a stream's waypoints are sparser
 DEFAULT_TIMEOUT_S = 2.0  # a reply takes one tick plus the wire; 2 s covers a loaded host running the board
 
 
@@ -192,14 +193,19 @@ class LinkClient:
         count = len(t) if stop_after is None else min(stop_after, len(t))
         replies: list[Telemetry] = []
         sent: dict[int, int] = {}
-        start = time.monotonic()
+        heartbeat_s = self.hello["watchdog_ticks"] * self.hello["dt_us"] * 1e-6 / HEARTBEATS_PER_TIMEOUT
+        start = last_sent = time.monotonic()
         for k in range(count):
             due = start + t[k] - lead_s
             while time.monotonic() < due:
+                if time.monotonic() - last_sent > heartbeat_s:  # sparse waypoints: keep the watchdog fed
+                    self.send("STATUS")
+                    last_sent = time.monotonic()
                 self._collect(sent, replies)
                 time.sleep(0.001)
             values = {"t_us": int(round(t[k] * 1e6)), "last": int(k == len(t) - 1), "q": q[k], "qd": qd[k]}
             sent[self.send("WAYPOINT", values)] = k
+            last_sent = time.monotonic()
             self._collect(sent, replies)
         deadline = time.monotonic() + self.timeout
         while len(replies) < count and time.monotonic() < deadline:
