@@ -326,6 +326,8 @@ def test_a_robot_without_inertials_has_no_feed_forward(tmp_path):
     task = fw.task_from_file(EXAMPLES / "modular8_ptp_two_segments.toml")
     assert task.feedforward == "none" and "feedforward" not in task.header and "tau_max" not in task.header
     assert with_feedforward(task, "none") is task
+    with pytest.raises(OptionError, match="give one of none, gravity, inverse_dynamics"):
+        with_feedforward(task, "full")
     for choice in ("gravity", "inverse_dynamics"):
         with pytest.raises(OptionError, match=r"modular8.*has no inertials.*mass, com and inertia"):
             with_feedforward(task, choice)
