@@ -26,7 +26,9 @@ from armgen.cli.firmware import FEEDFORWARD_CHOICES
 from armgen.cli.main import cli
 from armgen.codegen import toolchain
 from armgen.errors import OptionError
-from armgen.firmware.configuration import FEEDFORWARD_IDS, with_feedforward
+from armgen.firmware.configuration import (FEEDFORWARD_IDS, FirmwareTask, common_fields, task_header, template,
+                                           with_feedforward)
+from armgen.firmware.literals import c_reals
 from armgen.planning.tasks import load_task, run_task
 from armgen.robot import BUNDLED_DIR, load_robot
 from armgen.verification.compare import DOUBLE_REL_BOUND, FLOAT_BOUNDS
@@ -121,6 +123,17 @@ def swing(robot):
     return plan, fw.task_from_plan(plan, "swing", robot)
 
 
+def _sampled_task(robot, plan) -> FirmwareTask:
+    """The swing's joint samples played back as a sampled table (CTRL_MODE_SAMPLED, the mode of
+    snake plans: no robot with inertials has one), from the snake adapter's templates."""
+    q = np.column_stack([plan.column(f"theta_{j.name}_rad") for j in robot.joints])
+    samples = "\n".join(template("sampled_row.h", values=c_reals(row)) for row in q)
+    tables = template("sampled_table.h", rows=len(q), samples=samples) + "\n\n"
+    fields = template("sampled.h", common=common_fields(robot, "CTRL_MODE_SAMPLED", STEP_S, q[0]))
+    header = task_header(robot, "swing samples", fields, "the swing's samples", tables=tables)
+    return FirmwareTask(robot, "sampled", header, STEP_S, len(q) - 1, "swing samples")
+
+
 def _line_task(robot) -> dict:
     """A 5 cm line of the tool from q0 in 1 s (resolved rate, as the firmware project's demo)."""
     pose = robot.fk(robot.configuration("q0"))
@@ -132,10 +145,11 @@ def _line_task(robot) -> dict:
 
 # --------------------------------------------------------------------------- tau_ff = the model
 
-@pytest.mark.parametrize("case", ["resolved_rate", "fault_tolerant", "playback", "playback_gravity"])
+@pytest.mark.parametrize("case", ["resolved_rate", "fault_tolerant", "playback", "playback_gravity", "sampled"])
 def test_tau_ff_is_the_models_torque_at_each_command(case, robot, builder, swing):
     """Host double with ASan/UBSan: every command's tau_ff is rnea(q, q̇, q̈) of that command
-    (gravity(q) with feedforward = gravity), q̈ by the mode's rule; the hold rows after DONE hold
+    (gravity(q) with feedforward = gravity), q̈ by the mode's rule (sampled playback: the centred
+    second difference of the table); the hold rows after DONE hold
     gravity(q); the run ends DONE within the (bundled) torque limits."""
     if case == "resolved_rate":
         plan = _plan(_line_task(robot), case)
@@ -145,6 +159,8 @@ def test_tau_ff_is_the_models_torque_at_each_command(case, robot, builder, swing
         task = fw.task_from_plan(plan, case, robot)
     else:
         plan, task = swing
+    if case == "sampled":  # q̇ the forward difference to the next row, q̈ the backward one of q̇
+        task = _sampled_task(robot, plan)
     if case == "playback_gravity":
         task = with_feedforward(task, "gravity")
     assert task.feedforward == ("gravity" if case == "playback_gravity" else "inverse_dynamics")
