@@ -2,7 +2,7 @@
 not bundled (example-robot-data's URDF, its inertials, behind a robot file with a job's tight
 ``taumax``) runs a fast welding-like program. The plan's joint torques are recomputed by an
 independent inverse dynamics, Pinocchio's ``rnea`` on the same URDF at every sample of the
-plan (``q``, ``q̇`` from the CSV columns, ``q̈`` by the documented rule: central differences of
+plan (``q``, ``q̇`` from its columns, ``q̈`` by the documented rule: central differences of
 ``q̇`` over ``t``), and the tool's position by Pinocchio's forward kinematics against the
 program's point at that time. A pose where gravity alone needs more than ``taumax`` is exit 3
 naming the joint and the time; a robot without inertials plans as it did before."""
@@ -117,8 +117,8 @@ def _pinocchio_torques(reference: _Pinocchio, result, with_gravity: bool = True)
     return tau, gravity
 
 
-def _task(robot: Path, **check) -> dict:
-    return PROGRAM | {"robot": str(robot)} | ({"check": check} if check else {})
+def _task(robot: Path) -> dict:
+    return PROGRAM | {"robot": str(robot)}
 
 
 @pytest.fixture(scope="module")
