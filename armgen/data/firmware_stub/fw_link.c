@@ -141,6 +141,8 @@ int fw_link_receive(fw_link *l, uint8_t byte) {
   return 1;
 }
 
+uint32_t fw_link_receive_space(const fw_link *l) { return FW_LINK_RX_RING - (l->ring_head - l->ring_tail); }
+
 size_t fw_link_transmit(fw_link *l, uint8_t *dst, size_t max) {
   size_t n = l->tx_len < max ? l->tx_len : max;
   (void)memcpy(dst, l->tx, n);

@@ -119,6 +119,9 @@ typedef struct {
 void fw_link_init(fw_link *l, const ctrl_config *config, uint32_t watchdog_ticks);
 /* One received byte (from an interrupt or a poll): 1, or 0 when the ring is full (dropped, counted). */
 int fw_link_receive(fw_link *l, uint8_t byte);
+/* Free bytes in the receive ring: a driver with flow control (RTS, USB CDC's NAK, a pty left
+ * unread) takes no more than this. */
+uint32_t fw_link_receive_space(const fw_link *l);
 /* Before ctrl_tick: decode the frames received, watch the watchdog, and write this tick's
  * command (or setpoint, or the stop) and the reported locks into `in`. */
 void fw_link_input(fw_link *l, ctrl_input *in);

@@ -162,7 +162,9 @@ int main(int argc, char **argv) {
     size_t m;
     ctrl_input in;
     ctrl_output out;
-    while ((n = read(fd, buf, sizeof buf)) > 0) {
+    /* no more than the ring takes: the rest waits in the terminal's buffer (flow control) */
+    while (fw_link_receive_space(&l) > 0u &&
+           (n = read(fd, buf, fw_link_receive_space(&l) < sizeof buf ? fw_link_receive_space(&l) : sizeof buf)) > 0) {
       for (i = 0; i < (int)n; ++i) (void)fw_link_receive(&l, buf[i]);
     }
     (void)memset(&in, 0, sizeof in);
