@@ -60,7 +60,7 @@ QUICK_RUNS = {
         rf"Pinocchio forwardKinematics \+ computeJointJacobians \+ getFrameJacobian\s+{NUMBER} us",
         rf"robot\.ik\(pose\) compiled mean {NUMBER} us, success {NUMBER} %; reference \(before\) {NUMBER} us",
         r"\| Robotics Toolbox ikine_LM \| (10 \| [0-9.]+ %|— \| — \| — \| — \| MISSING: roboticstoolbox-python)",
-        rf"C called from C \(same code and flags\)\s+wall\s+{NUMBER} ns/sample"]),
+        rf"C called from C \(same code and flags\)\s+wall\s+{NUMBER} ns/sample\s+cpu\s+{NUMBER} ns/sample"]),
     "bench_kinematics.py": (("gcc", "valgrind", *ARM_TOOLS), [
         rf"x86 -O2 double fk_jacobian instructions\s+{NUMBER} instr/call",
         rf"CasADi C double \(jacobian\(\)\) instructions\s+{NUMBER} instr/call",
