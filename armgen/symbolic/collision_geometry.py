@@ -103,30 +103,43 @@ def segment_box(a: ca.SX, b: ca.SX, centre: ca.SX, rotation: ca.SX, half: ca.SX)
     outside the box, and the box's signed distance of the segment's deepest point (negative)
     once it enters.
 
-    Outside, the nearest point of the segment is an end or a point nearest to one of the
-    box's 12 edges (between those, the distance to a face is linear along the segment), so the
-    distance is the least of the two ends' distances and the 12 segment–edge distances. Inside,
-    ``max_i(|p_i| − h_i)`` is convex and piecewise linear along the segment, so its least value
-    is at an end or a kink: where a coordinate crosses 0, or where two of ``±p_i − h_i`` meet (15
-    parameters, each clamped to the segment and evaluated).
+    Outside: the squared distance of the segment's point ``p(t)`` from the box,
+    ``f(t) = Σ_i max(|p_i(t)| − h_i, 0)²``, is convex and C¹ in t, and its slope ``f'`` is piecewise
+    linear with its kinks where a coordinate crosses a face's plane (``p_i = ±h_i``). So the
+    slope at the two ends and the six crossings (clamped to the segment) brackets its root
+    between two neighbouring parameters with no kink between them, where one linear
+    interpolation finds it exactly. Inside, ``max_i(|p_i| − h_i)`` is convex and piecewise
+    linear along the segment, so its least value is at an end or a kink: where a coordinate
+    crosses 0, or where two of ``±p_i − h_i`` meet (15 parameters, each clamped and evaluated).
     """
     p0 = ca.mtimes(rotation.T, a - centre)
     direction = ca.mtimes(rotation.T, b - a)
-    outside = ca.fmin(_point_box_outside_squared(p0, half), _point_box_outside_squared(p0 + direction, half))
-    for axis in range(3):
-        u, v = [k for k in range(3) if k != axis]
-        edge = ca.SX.zeros(3, 1)
-        edge[axis] = 2 * half[axis]
-        for su in (-1.0, 1.0):
-            for sv in (-1.0, 1.0):
-                corner = ca.SX.zeros(3, 1)
-                corner[axis], corner[u], corner[v] = -half[axis], su * half[u], sv * half[v]
-                outside = ca.fmin(outside, segment_segment_squared(p0, direction, corner, edge))
+    outside = _outside_squared(p0, direction, half)
     deepest = ca.fmin(_box_depth(p0, half), _box_depth(p0 + direction, half))
     for t in _kinks(p0, direction, half):
         deepest = ca.fmin(deepest, _box_depth(p0 + _clamp01(t) * direction, half))
     # the axis enters the box exactly when its deepest point is inside (depth < 0)
     return ca.if_else(deepest < 0, deepest, _root(outside))
+
+
+def _outside_squared(p0: ca.SX, direction: ca.SX, half: ca.SX) -> ca.SX:
+    """min over t ∈ [0, 1] of the squared distance of ``p0 + t direction`` from the box (box
+    frame): the root of the slope bracketed by its values at the ends and the face crossings."""
+    def slope(t: ca.SX) -> ca.SX:
+        point = p0 + t * direction
+        return 2 * sum(ca.sign(point[k]) * ca.fmax(ca.fabs(point[k]) - half[k], 0.0) * direction[k] for k in range(3))
+
+    candidates = [ca.SX(0.0), ca.SX(1.0)] + [_clamp01(_crossing(p0[k] - side * half[k], direction[k]))
+                                             for k in range(3) for side in (-1.0, 1.0)]
+    slopes = [slope(t) for t in candidates]
+    lo, hi, slope_lo, slope_hi = ca.SX(0.0), ca.SX(1.0), slopes[0], slopes[1]
+    for t, value in zip(candidates, slopes):  # the last parameter with slope ≤ 0, the first with slope ≥ 0
+        down, up = value <= 0, value >= 0
+        lo, slope_lo = ca.if_else(down * (t >= lo), t, lo), ca.if_else(down * (t >= lo), value, slope_lo)
+        hi, slope_hi = ca.if_else(up * (t <= hi), t, hi), ca.if_else(up * (t <= hi), value, slope_hi)
+    # the slope is linear on [lo, hi]; a flat slope (0 on both sides) keeps lo, where f is least too
+    root = lo - slope_lo * (hi - lo) / ca.fmax(slope_hi - slope_lo, DIVISION_FLOOR)
+    return _point_box_outside_squared(p0 + _clamp01(root) * direction, half)
 
 
 def _point_box_outside_squared(p: ca.SX, half: ca.SX) -> ca.SX:
