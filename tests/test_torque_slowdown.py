@@ -317,3 +317,14 @@ def test_the_time_law_keeps_every_torque_row_within_its_bound(data):
     assert np.all(profile.v <= cap * (1.0 + BOUND_RTOL))
     beyond = np.abs(profile.cell_acc) - acceleration
     assert np.max(beyond / (acceleration + fastest[:, 0] / (2 * ds))) <= BOUND_RTOL
+
+
+def test_the_plan_table_says_how_long_the_torque_slowing_added(plans):
+    from armgen.cli.summary import summary_rows
+
+    tight, free = plans
+    added = tight.metadata["summary"]["joint_torque"]["slowing"]["time_added_s"]
+    rows = {label: (value, unit) for label, value, unit in summary_rows(tight.metadata)}
+    value, unit = rows["time added for torque"]
+    assert unit == "s" and float(value) == pytest.approx(added, rel=1e-3)
+    assert "time added for torque" not in {label for label, _, _ in summary_rows(free.metadata)}

@@ -166,6 +166,9 @@ def _joint_torque_rows(torque: dict[str, Any]) -> list[tuple[str, str, str]]:
         rows.append(("within torque limits", _figure(torque["within_torque_limits"]), ""))
     if torque.get("beyond_torque_limits"):
         rows.append(("beyond torque limits", _entries(torque["beyond_torque_limits"]), ""))
+    slowing = torque.get("slowing") or {}
+    if _is_number(slowing.get("time_added_s")) and slowing["time_added_s"] > 0:
+        rows.append(("time added for torque", _figure(float(slowing["time_added_s"])), "s"))
     return rows
 
 
