@@ -800,7 +800,7 @@ def link_stream(port: str, plan_csv: str | Path, rate_hz: float = 50.0, lead_s: 
     deviation = 0.0
     for reply in replies:
         if reply.state_name == "RUNNING":
-            at = reply["ctrl_tick"] * dt
+            at = reply["motion_tick"] * dt
             want = np.array([np.interp(at, t_plan, q_plan[:, i]) for i in range(link.ndof)])
             deviation = max(deviation, float(np.abs(reply.q - want).max()))
     return LinkStreamReport(len(t), end, deviation)

@@ -10,19 +10,23 @@ parser fuzz acts on every intact frame and on nothing else.
 from __future__ import annotations
 
 import random
+import re
 import struct
 import subprocess
 import zlib
+from pathlib import Path
 
 import pytest
 from cobs import cobs
 from hypothesis import given, settings, strategies as st
 
+from armgen import firmware as fw
 from armgen.link import c_codec
 from armgen.link.codec import FrameDecoder, LinkProtocolError, encode
 from armgen.link.protocol import CRC, HEADER, MESSAGES, NDOF, VERSION, max_body_size
 
-from link_builds import link_executable
+from conftest import require_tool
+from link_builds import REPO, link_executable, task as link_task
 
 NDOF_MODULAR8 = 8
 SEED = 40
@@ -149,3 +153,49 @@ def test_ndof_arrays_size_every_message():
     for message in MESSAGES:
         per_joint = sum(4 for f in message.fields if f.count == NDOF)
         assert message.body_size(9) - message.body_size(8) == per_joint
+
+
+LINK_SOURCES = ("fw_link.c", "fw_link_msgs.c")  # the board's side; the host runners are test harnesses
+LINK_FILES = {"fw_link.c", "fw_link.h", "fw_link_msgs.c", "fw_link_msgs.h"}
+
+
+def link_misra_deviations() -> list[tuple[set[str], set[str]]]:
+    """(rules, files) per row of docs/link.md's deviation table."""
+    text = (REPO / "docs" / "link.md").read_text(encoding="utf-8")
+    section = text.split("## MISRA C:2012 deviations", 1)[1]
+    rows = []
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 3 and re.fullmatch(r"[\d.]+(, [\d.]+)*", cells[0]):
+            rows.append(({r.strip() for r in cells[0].split(",")}, {f.strip() for f in cells[1].split(",")}))
+    return rows
+
+
+def test_link_misra_findings_are_documented_deviations(tmp_path):
+    """cppcheck's MISRA C:2012 addon over the link's board sources, for modular8 and for iiwa14
+    with its dynamics: every finding in the link's files is a row of docs/link.md's table, and
+    every row is still needed."""
+    cppcheck = require_tool("cppcheck")
+    rows = link_misra_deviations()
+    assert rows, "the deviation table is missing from docs/link.md"
+    builds = {"modular8": (link_task(), []),
+              "iiwa14": (fw.task_from_file(REPO / "examples" / "iiwa14_fault_circle_wln.toml"), ["-DCTRL_HAS_DYNAMICS=1"])}
+    stub = fw.FIRMWARE_DIR
+    findings = set()
+    for name, (task, defines) in builds.items():
+        gen_dir = REPO / "generated" / name
+        fw.write_task_files(task, tmp_path / name, gen_dir)
+        proc = subprocess.run([cppcheck, "--addon=misra", "--std=c99", "-q", "--template={file}:{line}:{id}",
+                               f"-DCTRL_ROBOT={name}", f"-DCTRL_ROBOT_UC={name.upper()}",
+                               f'-DCTRL_ROBOT_HEADER="{name}.h"', f"-D{name.upper()}_USE_FLOAT=1", "-DFW_USE_FLOAT=1",
+                               *defines, f"-I{stub}", f"-I{gen_dir}", f"-I{tmp_path / name}",
+                               *(str(stub / s) for s in LINK_SOURCES)], capture_output=True, text=True, timeout=900)
+        found = {(Path(f).name, rule) for f, _, rule in
+                 re.findall(r"^(.+?):(\d+):misra-c2012-([\d.]+)$", proc.stdout + proc.stderr, re.M)}
+        assert found, f"cppcheck's MISRA addon reported nothing for {name}: is the addon installed?"
+        findings |= {(f, rule) for f, rule in found if f in LINK_FILES}
+    undocumented = sorted(f"{f} rule {rule}" for f, rule in findings
+                          if not any(rule in rules and f in files for rules, files in rows))
+    assert not undocumented, "MISRA findings outside docs/link.md's deviation list:\n" + "\n".join(undocumented)
+    stale = [sorted(rules) for rules, files in rows if not any(rule in rules and f in files for f, rule in findings)]
+    assert not stale, f"deviation rows that no finding needs any more: {stale}"

@@ -48,8 +48,8 @@ def _functions(m: Message) -> str:
     pack, unpack = [], []
     for f in m.fields:
         if f.is_array:
-            pack.append(f"  for (i = 0; i < (size_t)({_c_count(f)}); ++i) put_{f.kind}(&p, m->{f.name}[i]);")
-            unpack.append(f"  for (i = 0; i < (size_t)({_c_count(f)}); ++i) m->{f.name}[i] = get_{f.kind}(&p);")
+            pack.append(f"  for (i = 0; i < (size_t)({_c_count(f)}); ++i) {{\n    put_{f.kind}(&p, m->{f.name}[i]);\n  }}")
+            unpack.append(f"  for (i = 0; i < (size_t)({_c_count(f)}); ++i) {{\n    m->{f.name}[i] = get_{f.kind}(&p);\n  }}")
         else:
             pack.append(f"  put_{f.kind}(&p, m->{f.name});")
             unpack.append(f"  m->{f.name} = get_{f.kind}(&p);")
@@ -58,7 +58,7 @@ def _functions(m: Message) -> str:
     return (f"\nsize_t fw_link_pack_{low}(const fw_link_{low} *m, uint8_t *out) {{\n{decl}  uint8_t *p = out;\n"
             + "\n".join(pack) + f"\n  return (size_t)(p - out);\n}}\n"
             f"\nint fw_link_unpack_{low}(const uint8_t *body, size_t len, fw_link_{low} *m) {{\n{decl}"
-            f"  const uint8_t *p = body;\n  if (len != FW_LINK_{m.name}_SIZE) return 0;\n"
+            f"  const uint8_t *p = body;\n  if (len != FW_LINK_{m.name}_SIZE) {{\n    return 0;\n  }}\n"
             + "\n".join(unpack) + "\n  return 1;\n}\n")
 
 

@@ -105,7 +105,7 @@ MESSAGES: tuple[Message, ...] = (
     ), "the answer to HELLO"),
     Message("TELEMETRY", 0x82, "board", (
         Field("tick", "u32", doc="the link's tick count since the board started"),
-        Field("ctrl_tick", "u32", doc="the controller's tick index within the motion"),
+        Field("motion_tick", "u32", doc="the controller's tick index within the motion"),
         Field("state", "u8", doc="ctrl_state"),
         Field("fault", "u8", doc="ctrl_fault (STALE from the watchdog's decision on)"),
         Field("link_flags", "u8", doc="bits: " + ", ".join(f"{i} {n}" for i, (n, _) in enumerate(FLAGS))),

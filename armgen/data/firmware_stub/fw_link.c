@@ -97,7 +97,7 @@ static int finite_r(ctrl_real x) { return (x - x) == (x - x); } /* false for NaN
 
 static ctrl_real clamp_r(ctrl_real x, ctrl_real lo, ctrl_real hi) { return x < lo ? lo : (x > hi ? hi : x); }
 
-static int moving(ctrl_state s) { return s == CTRL_STATE_RUNNING || s == CTRL_STATE_DEGRADED; }
+static int arm_moves(ctrl_state s) { return s == CTRL_STATE_RUNNING || s == CTRL_STATE_DEGRADED; }
 
 /* Queue a frame for the transmitter; dropped (counted) when it does not fit. */
 static void send(fw_link *l, uint8_t type, const uint8_t *body, size_t len) {
@@ -159,7 +159,7 @@ static uint8_t accept_move_to_pose(fw_link *l, const fw_link_move_to_pose *m) {
     l->target[i] = (ctrl_real)m->pose[i];
     if (!finite_r(l->target[i])) return FW_LINK_RESULT_BAD_VALUE;
   }
-  if (moving(l->last.state) || l->streaming) return FW_LINK_RESULT_REFUSED_STATE;
+  if (arm_moves(l->last.state) || l->streaming) return FW_LINK_RESULT_REFUSED_STATE;
   l->command = CTRL_CMD_MOVE_TO;
   return FW_LINK_RESULT_OK;
 }
@@ -178,7 +178,7 @@ static uint8_t accept_move_to_joints(fw_link *l, const fw_link_move_to_joints *m
     l->q_target[i] = (ctrl_real)m->q[i];
   }
   if (!inside_limits(l, l->q_target)) return FW_LINK_RESULT_BAD_VALUE;
-  if (moving(l->last.state) || l->streaming) return FW_LINK_RESULT_REFUSED_STATE;
+  if (arm_moves(l->last.state) || l->streaming) return FW_LINK_RESULT_REFUSED_STATE;
   l->command = CTRL_CMD_MOVE_TO_JOINTS;
   return FW_LINK_RESULT_OK;
 }
@@ -197,7 +197,7 @@ static uint8_t accept_waypoint(fw_link *l, const fw_link_waypoint *m) {
   }
   if (!inside_limits(l, w.q)) return FW_LINK_RESULT_BAD_VALUE;
   if (!l->streaming) {
-    if (moving(l->last.state) || l->last.state == CTRL_STATE_FAULT) return FW_LINK_RESULT_REFUSED_STATE;
+    if (arm_moves(l->last.state) || l->last.state == CTRL_STATE_FAULT) return FW_LINK_RESULT_REFUSED_STATE;
     if (w.t_us != 0u) return FW_LINK_RESULT_STREAM_START;
     for (i = 0; i < N; ++i) {
       ctrl_real d = w.q[i] - l->last.q[i];
@@ -325,8 +325,10 @@ static void receive_frames(fw_link *l) {
     }
     if (l->encoded_overflow) {
       ++l->counts.oversized;
-    } else if (l->encoded_len > 0u) { /* an empty frame (two delimiters) only resynchronises */
+    } else if (l->encoded_len > 0u) {
       frame_received(l, l->encoded, l->encoded_len);
+    } else {
+      /* an empty frame (two delimiters) only resynchronises */
     }
     l->encoded_len = 0;
     l->encoded_overflow = 0;
@@ -360,7 +362,7 @@ static void stop_tick(fw_link *l, ctrl_input *in) {
   if (l->stale_sent) return;
   ++l->stop_k;
   tau = (ctrl_real)l->stop_k * l->dt;
-  if (tau > l->stop_T + l->dt || !moving(l->last.state)) {
+  if (tau > l->stop_T + l->dt || !arm_moves(l->last.state)) {
     in->command = CTRL_CMD_STALE; /* at rest since the tick before */
     l->stale_sent = 1;
     return;
@@ -391,7 +393,7 @@ static void stream_tick(fw_link *l, ctrl_input *in) {
   const fw_link_waypoint_slot *a, *b;
   ctrl_real t = (ctrl_real)l->stream_k * l->dt, ref[N];
   int i, arriving = 1;
-  if (l->stream_k > 0u && !moving(l->last.state)) { /* the controller stopped it (a fault) */
+  if (l->stream_k > 0u && !arm_moves(l->last.state)) { /* the controller stopped it (a fault) */
     l->streaming = 0;
     return;
   }
@@ -414,7 +416,9 @@ static void stream_tick(fw_link *l, ctrl_input *in) {
       ref[i] = clamp_r(hermite(a, b, i, t), l->q_min[i], l->q_max[i]);
     }
   } else {
-    if (!l->stream_ended) ++l->counts.underruns; /* the host is late: hold the last waypoint */
+    if (!l->stream_ended) {
+      ++l->counts.underruns; /* the host is late: hold the last waypoint */
+    }
     for (i = 0; i < N; ++i) {
       ref[i] = a->q[i];
     }
@@ -445,7 +449,7 @@ static void stream_tick(fw_link *l, ctrl_input *in) {
 void fw_link_input(fw_link *l, ctrl_input *in) {
   in->locked = l->locked;
   receive_frames(l);
-  if (!l->stale && l->session && moving(l->last.state) && l->tick - l->last_frame_tick > l->watchdog_ticks) {
+  if (!l->stale && l->session && arm_moves(l->last.state) && l->tick - l->last_frame_tick > l->watchdog_ticks) {
     start_stop(l);
   }
   if (l->stale) {
@@ -458,6 +462,8 @@ void fw_link_input(fw_link *l, ctrl_input *in) {
       (void)memcpy(in->target, l->target, sizeof in->target);
     } else if (l->command == CTRL_CMD_MOVE_TO_JOINTS) {
       (void)memcpy(in->q_ref, l->q_target, sizeof in->q_ref);
+    } else {
+      /* START, STOP: the command alone */
     }
     l->command = CTRL_CMD_NONE;
     return;
@@ -487,7 +493,7 @@ static void send_telemetry(fw_link *l) {
   int i;
   ctrl_gen_fk_jacobian(o->q, T, J);
   m.tick = l->tick;
-  m.ctrl_tick = o->tick;
+  m.motion_tick = o->tick;
   m.state = (uint8_t)o->state;
   m.fault = (uint8_t)(l->stale ? CTRL_FAULT_STALE : o->fault);
   m.link_flags = (uint8_t)((l->session ? FW_LINK_FLAG_SESSION : 0u) | (l->streaming ? FW_LINK_FLAG_STREAMING : 0u) |

@@ -22,7 +22,7 @@ static void put_u32(uint8_t **p, uint32_t v) {
 }
 static void put_f32(uint8_t **p, float v) {
   uint32_t bits;
-  memcpy(&bits, &v, sizeof bits); /* the bits, not the value: NaN payloads and -0 travel as they are */
+  (void)memcpy(&bits, &v, sizeof bits); /* the bits, not the value: NaN payloads and -0 travel as they are */
   put_u32(p, bits);
 }
 static uint8_t get_u8(const uint8_t **p) {
@@ -41,7 +41,7 @@ static uint32_t get_u32(const uint8_t **p) {
 static float get_f32(const uint8_t **p) {
   uint32_t bits = get_u32(p);
   float v;
-  memcpy(&v, &bits, sizeof v);
+  (void)memcpy(&v, &bits, sizeof v);
   return v;
 }
 
@@ -53,7 +53,9 @@ size_t fw_link_pack_hello(const fw_link_hello *m, uint8_t *out) {
 
 int fw_link_unpack_hello(const uint8_t *body, size_t len, fw_link_hello *m) {
   const uint8_t *p = body;
-  if (len != FW_LINK_HELLO_SIZE) return 0;
+  if (len != FW_LINK_HELLO_SIZE) {
+    return 0;
+  }
   m->telemetry_period = get_u16(&p);
   return 1;
 }
@@ -71,30 +73,42 @@ int fw_link_unpack_stop(const uint8_t *body, size_t len) {
 size_t fw_link_pack_move_to_pose(const fw_link_move_to_pose *m, uint8_t *out) {
   size_t i;
   uint8_t *p = out;
-  for (i = 0; i < (size_t)(16); ++i) put_f32(&p, m->pose[i]);
+  for (i = 0; i < (size_t)(16); ++i) {
+    put_f32(&p, m->pose[i]);
+  }
   return (size_t)(p - out);
 }
 
 int fw_link_unpack_move_to_pose(const uint8_t *body, size_t len, fw_link_move_to_pose *m) {
   size_t i;
   const uint8_t *p = body;
-  if (len != FW_LINK_MOVE_TO_POSE_SIZE) return 0;
-  for (i = 0; i < (size_t)(16); ++i) m->pose[i] = get_f32(&p);
+  if (len != FW_LINK_MOVE_TO_POSE_SIZE) {
+    return 0;
+  }
+  for (i = 0; i < (size_t)(16); ++i) {
+    m->pose[i] = get_f32(&p);
+  }
   return 1;
 }
 
 size_t fw_link_pack_move_to_joints(const fw_link_move_to_joints *m, uint8_t *out) {
   size_t i;
   uint8_t *p = out;
-  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) put_f32(&p, m->q[i]);
+  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) {
+    put_f32(&p, m->q[i]);
+  }
   return (size_t)(p - out);
 }
 
 int fw_link_unpack_move_to_joints(const uint8_t *body, size_t len, fw_link_move_to_joints *m) {
   size_t i;
   const uint8_t *p = body;
-  if (len != FW_LINK_MOVE_TO_JOINTS_SIZE) return 0;
-  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) m->q[i] = get_f32(&p);
+  if (len != FW_LINK_MOVE_TO_JOINTS_SIZE) {
+    return 0;
+  }
+  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) {
+    m->q[i] = get_f32(&p);
+  }
   return 1;
 }
 
@@ -103,19 +117,29 @@ size_t fw_link_pack_waypoint(const fw_link_waypoint *m, uint8_t *out) {
   uint8_t *p = out;
   put_u32(&p, m->t_us);
   put_u8(&p, m->last);
-  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) put_f32(&p, m->q[i]);
-  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) put_f32(&p, m->qd[i]);
+  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) {
+    put_f32(&p, m->q[i]);
+  }
+  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) {
+    put_f32(&p, m->qd[i]);
+  }
   return (size_t)(p - out);
 }
 
 int fw_link_unpack_waypoint(const uint8_t *body, size_t len, fw_link_waypoint *m) {
   size_t i;
   const uint8_t *p = body;
-  if (len != FW_LINK_WAYPOINT_SIZE) return 0;
+  if (len != FW_LINK_WAYPOINT_SIZE) {
+    return 0;
+  }
   m->t_us = get_u32(&p);
   m->last = get_u8(&p);
-  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) m->q[i] = get_f32(&p);
-  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) m->qd[i] = get_f32(&p);
+  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) {
+    m->q[i] = get_f32(&p);
+  }
+  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) {
+    m->qd[i] = get_f32(&p);
+  }
   return 1;
 }
 
@@ -127,7 +151,9 @@ size_t fw_link_pack_lock(const fw_link_lock *m, uint8_t *out) {
 
 int fw_link_unpack_lock(const uint8_t *body, size_t len, fw_link_lock *m) {
   const uint8_t *p = body;
-  if (len != FW_LINK_LOCK_SIZE) return 0;
+  if (len != FW_LINK_LOCK_SIZE) {
+    return 0;
+  }
   m->locked = get_u32(&p);
   return 1;
 }
@@ -150,7 +176,9 @@ size_t fw_link_pack_hello_reply(const fw_link_hello_reply *m, uint8_t *out) {
 
 int fw_link_unpack_hello_reply(const uint8_t *body, size_t len, fw_link_hello_reply *m) {
   const uint8_t *p = body;
-  if (len != FW_LINK_HELLO_REPLY_SIZE) return 0;
+  if (len != FW_LINK_HELLO_REPLY_SIZE) {
+    return 0;
+  }
   m->accepted = get_u8(&p);
   m->version = get_u8(&p);
   m->ndof = get_u8(&p);
@@ -164,16 +192,22 @@ size_t fw_link_pack_telemetry(const fw_link_telemetry *m, uint8_t *out) {
   size_t i;
   uint8_t *p = out;
   put_u32(&p, m->tick);
-  put_u32(&p, m->ctrl_tick);
+  put_u32(&p, m->motion_tick);
   put_u8(&p, m->state);
   put_u8(&p, m->fault);
   put_u8(&p, m->link_flags);
   put_u8(&p, m->result);
   put_u16(&p, m->ack_seq);
   put_u16(&p, m->waypoints_free);
-  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) put_f32(&p, m->q[i]);
-  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) put_f32(&p, m->qd[i]);
-  for (i = 0; i < (size_t)(12); ++i) put_f32(&p, m->tool[i]);
+  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) {
+    put_f32(&p, m->q[i]);
+  }
+  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) {
+    put_f32(&p, m->qd[i]);
+  }
+  for (i = 0; i < (size_t)(12); ++i) {
+    put_f32(&p, m->tool[i]);
+  }
   put_f32(&p, m->pos_err);
   put_f32(&p, m->ori_err);
   put_u32(&p, m->locked);
@@ -195,18 +229,26 @@ size_t fw_link_pack_telemetry(const fw_link_telemetry *m, uint8_t *out) {
 int fw_link_unpack_telemetry(const uint8_t *body, size_t len, fw_link_telemetry *m) {
   size_t i;
   const uint8_t *p = body;
-  if (len != FW_LINK_TELEMETRY_SIZE) return 0;
+  if (len != FW_LINK_TELEMETRY_SIZE) {
+    return 0;
+  }
   m->tick = get_u32(&p);
-  m->ctrl_tick = get_u32(&p);
+  m->motion_tick = get_u32(&p);
   m->state = get_u8(&p);
   m->fault = get_u8(&p);
   m->link_flags = get_u8(&p);
   m->result = get_u8(&p);
   m->ack_seq = get_u16(&p);
   m->waypoints_free = get_u16(&p);
-  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) m->q[i] = get_f32(&p);
-  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) m->qd[i] = get_f32(&p);
-  for (i = 0; i < (size_t)(12); ++i) m->tool[i] = get_f32(&p);
+  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) {
+    m->q[i] = get_f32(&p);
+  }
+  for (i = 0; i < (size_t)(CTRL_NDOF); ++i) {
+    m->qd[i] = get_f32(&p);
+  }
+  for (i = 0; i < (size_t)(12); ++i) {
+    m->tool[i] = get_f32(&p);
+  }
   m->pos_err = get_f32(&p);
   m->ori_err = get_f32(&p);
   m->locked = get_u32(&p);

@@ -14,7 +14,7 @@
 
 #include "ctrl_robot.h"
 
-#define FW_LINK_VERSION 1
+#define FW_LINK_VERSION 1u
 #define FW_LINK_HEADER_SIZE 4u /* version u8, type u8, seq u16 */
 #define FW_LINK_CRC_SIZE 4u    /* CRC-32 (IEEE 802.3) of header and body */
 
@@ -100,7 +100,7 @@ typedef struct {
 /* TELEMETRY (board -> host): the board's state: the reply to every valid host frame, and every telemetry_period ticks */
 typedef struct {
   uint32_t tick; /* the link's tick count since the board started */
-  uint32_t ctrl_tick; /* the controller's tick index within the motion */
+  uint32_t motion_tick; /* the controller's tick index within the motion */
   uint8_t state; /* ctrl_state */
   uint8_t fault; /* ctrl_fault (STALE from the watchdog's decision on) */
   uint8_t link_flags; /* bits: 0 SESSION, 1 STREAMING, 2 STALE */

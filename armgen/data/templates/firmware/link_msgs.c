@@ -22,7 +22,7 @@ static void put_u32(uint8_t **p, uint32_t v) {
 }
 static void put_f32(uint8_t **p, float v) {
   uint32_t bits;
-  memcpy(&bits, &v, sizeof bits); /* the bits, not the value: NaN payloads and -0 travel as they are */
+  (void)memcpy(&bits, &v, sizeof bits); /* the bits, not the value: NaN payloads and -0 travel as they are */
   put_u32(p, bits);
 }
 static uint8_t get_u8(const uint8_t **p) {
@@ -41,7 +41,7 @@ static uint32_t get_u32(const uint8_t **p) {
 static float get_f32(const uint8_t **p) {
   uint32_t bits = get_u32(p);
   float v;
-  memcpy(&v, &bits, sizeof v);
+  (void)memcpy(&v, &bits, sizeof v);
   return v;
 }
 $functions

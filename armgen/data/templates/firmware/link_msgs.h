@@ -14,7 +14,7 @@
 
 #include "ctrl_robot.h"
 
-#define FW_LINK_VERSION $version
+#define FW_LINK_VERSION ${version}u
 #define FW_LINK_HEADER_SIZE 4u /* version u8, type u8, seq u16 */
 #define FW_LINK_CRC_SIZE 4u    /* CRC-32 (IEEE 802.3) of header and body */
 
