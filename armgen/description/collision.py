@@ -32,7 +32,7 @@ from .frames import rpy_matrix
 # bounded on a microcontroller.
 MAX_CAPSULES = 32
 # The most obstacle slots of one kind: each slot adds a distance per moving capsule to the
-# generated function (a box costs ~1200 operations per capsule), so 16 per kind is far beyond
+# generated function (a box costs ~650 operations per capsule), so 16 per kind is far beyond
 # what a controller's tick can afford.
 MAX_OBSTACLE_SLOTS = 16
 # The distance reported for an inactive obstacle slot (m): beyond any activation distance a
