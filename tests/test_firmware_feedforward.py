@@ -271,7 +271,7 @@ MOVE_TO_DRIVER = r"""
 #include "controller.h"
 #include "fw_csv.h"
 #include "fw_task.h"
-#include "target.h"
+#include "extra.h"
 int main(void) {
   static ctrl c;
   static char line[FW_CSV_LINE_MAX];
@@ -298,6 +298,71 @@ int main(void) {
 MOVE_TO_BLEND = 0.25
 
 
+def _run_driver(builder, task, name: str, driver: str, folder: Path, extra_header: str = "") -> fw.FirmwareRun:
+    """A C driver of the controller (its own main, in place of the host runner) linked with the
+    builder's objects and ``task``; what it printed."""
+    fw.run_host(builder.executable(HOST_SAN, task, name))  # the objects and the task's fw_task.o
+    (folder / "extra.h").write_text(extra_header)
+    (folder / "driver.c").write_text(driver)
+    objects = [o for o in builder.objects(HOST_SAN) if o.stem != "main"]
+    exe = folder / "driver"
+    toolchain.run_tool([toolchain.host_cc(), *builder.cflags(HOST_SAN), f"-I{folder}", str(folder / "driver.c"),
+                        *map(str, objects), str(builder.work / f"{HOST_SAN.name}_{name}" / "fw_task.o"), "-lm",
+                        "-o", str(exe)], f"the {name} driver")
+    proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0 and not proc.stderr, proc.stderr[-3000:]
+    return fw.parse_output(proc.stdout)
+
+
+SETPOINT_DRIVER = r"""
+#include <stdio.h>
+#include "controller.h"
+#include "fw_csv.h"
+#include "fw_task.h"
+#include "extra.h"
+int main(void) {
+  static ctrl c;
+  static char line[FW_CSV_LINE_MAX];
+  ctrl_input in = {0};
+  ctrl_output out;
+  long i;
+  int j;
+  if (ctrl_init(&c, &fw_task) != CTRL_FAULT_NONE) return 1;
+  (void)fw_csv_header(line, sizeof(line));
+  fputs(line, stdout);
+  for (i = 0; i < STOP_TICK + 10; ++i) {
+    in.command = i == 0 ? CTRL_CMD_START : (i == STOP_TICK ? CTRL_CMD_STOP : (i > STOP_TICK ? CTRL_CMD_SETPOINT
+                                                                                             : CTRL_CMD_NONE));
+    for (j = 0; j < CTRL_NDOF && i > STOP_TICK; ++j) { /* hold where the STOP left the arm */
+      in.q_ref[j] = out.q[j];
+      in.qd_ref[j] = CTRL_LIT(0.0);
+    }
+    (void)ctrl_tick(&c, &in, &out);
+    (void)fw_csv_row(line, sizeof(line), &out);
+    fputs(line, stdout);
+  }
+  printf("# state %s\n# fault %s\n", ctrl_state_name(out.state), ctrl_fault_name(out.fault));
+  return 0;
+}
+"""
+
+
+def test_a_setpoint_after_a_stop_starts_from_rest(robot, builder, swing, tmp_path):
+    """STOP in the middle of the swing (a1 at ~1 rad/s), then SETPOINTs holding that pose: the
+    arm was held at rest, so their tau_ff is the gravity torques (q̈ from rest), not the
+    deceleration from the velocity before the STOP (~100 rad/s² in one tick)."""
+    _, task = swing
+    stop = 75  # mid-swing: the fastest tick
+    run = _run_driver(builder, task, "setpoint", SETPOINT_DRIVER, tmp_path, f"#define STOP_TICK {stop}L\n")
+    assert (run.state, run.fault) == ("RUNNING", "NONE")
+    qd = _columns(run, "dq", "rad_s", robot.n)
+    assert abs(qd[stop - 1, 0]) > 1.0  # moving fast when stopped
+    after = np.arange(len(run.data)) > stop
+    q, tau = run.q(robot.n)[after], _columns(run, "tau_ff", "Nm", robot.n)[after]
+    assert np.all(q == run.q(robot.n)[stop]) and np.all(qd[after] == 0)
+    assert _relative(tau, robot.gravity_torques(q)) <= DOUBLE_RTOL
+
+
 def test_move_to_tau_ff_uses_the_profiles_own_acceleration(robot, builder, tmp_path):
     """MOVE_TO from q0 to the pose of another configuration: each tick's tau_ff is rnea at the
     command with the trapezoid's q̈ = s''(t/T) Δ / T² (k, 0, −k; 0 on the last tick)."""
@@ -306,19 +371,10 @@ def test_move_to_tau_ff_uses_the_profiles_own_acceleration(robot, builder, tmp_p
             "waypoints": {"t": [0.0, 1.0], "omega": {j.name: [0.0, 0.0] for j in robot.joints},
                           "theta": {j.name: [float(q), float(q)] for j, q in zip(robot.joints, q0)}}}
     task = fw.task_from_plan(_plan(hold, "hold"), "hold", robot)
-    fw.run_host(builder.executable(HOST_SAN, task, "hold"))  # the objects and the task's fw_task.o
     target = robot.fk(q0 + np.array([0.3, 0.2, -0.2, 0.3, 0.2, -0.3, 0.2]))
-    (tmp_path / "target.h").write_text("static const ctrl_real target[16] = {"
-                                       + ", ".join(f"CTRL_LIT({float(v)!r})" for v in target.T.ravel()) + "};\n")
-    (tmp_path / "driver.c").write_text(MOVE_TO_DRIVER)
-    objects = [o for o in builder.objects(HOST_SAN) if o.stem != "main"]
-    task_obj = builder.work / f"{HOST_SAN.name}_hold" / "fw_task.o"
-    exe = tmp_path / "driver"
-    toolchain.run_tool([toolchain.host_cc(), *builder.cflags(HOST_SAN), f"-I{tmp_path}", str(tmp_path / "driver.c"),
-                        *map(str, objects), str(task_obj), "-lm", "-o", str(exe)], "the MOVE_TO driver")
-    proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0 and not proc.stderr, proc.stderr[-3000:]
-    run = fw.parse_output(proc.stdout)
+    values = ", ".join(f"CTRL_LIT({float(v)!r})" for v in target.T.ravel())
+    run = _run_driver(builder, task, "hold", MOVE_TO_DRIVER, tmp_path,
+                      f"static const ctrl_real target[16] = {{{values}}};\n")
     assert (run.state, run.fault) == ("DONE", "NONE")
     c = _command_rows(run, robot.n)
     n = int(c["tick"][-1])

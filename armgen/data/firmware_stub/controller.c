@@ -816,6 +816,16 @@ static ctrl_fault command_torque(const ctrl *c, const ctrl_real *q, const ctrl_r
   feedforward_torque(c, q, qd, acceleration, tau);
   return check_torque(c, tau);
 }
+
+/* Holding (IDLE, DONE, FAULT): the held command is at rest, so the next command's backward
+ * difference (a SETPOINT taking over) starts from rest, not from the velocity of the last
+ * command before a STOP. (The WLN rule, qd_prev's other reader, never runs after a hold.) */
+static void at_rest(ctrl *c) {
+  int i;
+  for (i = 0; i < N; ++i) {
+    c->qd_prev[i] = CTRL_LIT(0.0);
+  }
+}
 #endif
 
 /* The command of this tick, accepted: with dynamics, first its feed-forward torque and the
@@ -1430,6 +1440,9 @@ ctrl_fault ctrl_tick(ctrl *c, const ctrl_input *in, ctrl_output *out) {
       }
     }
   }
+#if CTRL_HAS_DYNAMICS
+  at_rest(c);
+#endif
   emit_hold(c, out);
   return c->fault;
 }
