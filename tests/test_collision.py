@@ -603,6 +603,7 @@ def test_urdf_shapes_become_capsules_enclosing_them(tmp_path):
     assert origins == [("base", 0, "urdf cylinder (enclosed)"), ("l2", 2, "urdf cylinder (enclosed)"),
                        ("mid", 4, "urdf box (enclosed)"), ("l5", 5, "urdf sphere"), ("tcp", 6, "urdf capsule")]
     assert "[urdf box (enclosed)]" in robot.show_text()
+    assert "collision: 5 capsules (mm, in their frames; 3 enclose a URDF cylinder or box)" in robot.show_text()
     box = robot.collision.capsules[2]
     assert box.radius == pytest.approx(math.hypot(0.05, 0.025))  # the cross-section's half-diagonal
     assert np.linalg.norm(np.subtract(box.b, box.a)) == pytest.approx(0.3)  # along the longest side

@@ -280,8 +280,11 @@ class RobotDescription:
             return [f"no collision model: {model.unusable}"]
         if not model.capsules:
             return ["no collision capsules: no collision functions"]
-        lines = [f"collision: {len(model.capsules)} capsules (mm, in their frames), {len(model.self_pairs())} self pairs "
-                 f"checked (not the same or adjacent frames{', not ignored' if model.ignore else ''})"]
+        enclosed = sum(capsule.enclosed for capsule in model.capsules)
+        lines = [f"collision: {len(model.capsules)} capsules (mm, in their frames"
+                 + (f"; {enclosed} enclose a URDF cylinder or box" if enclosed else "")
+                 + f"), {len(model.self_pairs())} self pairs checked (not the same or adjacent frames"
+                 + f"{', not ignored' if model.ignore else ''})"]
         for k, capsule in enumerate(model.capsules):
             a, b = (np.round(np.asarray(v) * 1e3, 3) + 0.0 for v in (capsule.a, capsule.b))
             shape = f"a={a.tolist()} b={b.tolist()}" if capsule.a != capsule.b else f"sphere at {a.tolist()}"
