@@ -665,6 +665,16 @@ def test_urdf_mesh_is_refused_naming_the_link_and_a_robot_file_replaces_it(tmp_p
         load_robot(tmp_path / "bad.toml")
 
 
+def test_a_urdf_with_more_shapes_than_capsules_loads_without_a_collision_model(tmp_path):
+    spheres = "".join(f'<collision><origin xyz="0 0 {0.01 * k}"/><geometry><sphere radius="0.01"/></geometry></collision>'
+                      for k in range(40))
+    (tmp_path / "many.urdf").write_text(OBLIQUE_URDF.replace('<link name="l3"/>', f'<link name="l3">{spheres}</link>'),
+                                        encoding="utf-8")
+    robot = Robot.from_urdf(tmp_path / "many.urdf")
+    assert not robot.has_collision and robot.n == 6
+    assert "the URDF's and the robot file's shapes make 40 capsules, more than 32" in robot.show_text()
+
+
 # -- generated C ---------------------------------------------------------------------------
 
 # A small arm for the C: the planar 3R with a capsule per link, the links stacked 0.12 m apart in

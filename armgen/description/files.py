@@ -387,9 +387,10 @@ def _urdf_collision(model: UrdfRobotFile, chain: UrdfChain, length: float, sourc
                                     "shapes, docs/collision.md)")
             continue
         capsules.append(shape.capsule)
-    if len(capsules) > MAX_CAPSULES:
-        raise _fail(source, "[[collision]]", f"the robot has {len(capsules)} capsules (the URDF's and the file's), more "
-                                             f"than {MAX_CAPSULES}; replace some links' shapes by fewer capsules")
+    if len(capsules) > MAX_CAPSULES and not unusable:  # the robot still loads, without a collision model
+        unusable = (f"the URDF's and the robot file's shapes make {len(capsules)} capsules, more than {MAX_CAPSULES}; "
+                    "replace some links' shapes by fewer capsules in a robot file that references the URDF "
+                    "([[collision]] link = \"<link>\": they replace the link's URDF shapes, docs/collision.md)")
     return _collision_model(model, capsules, unusable, source)
 
 
