@@ -675,6 +675,22 @@ def test_a_urdf_with_more_shapes_than_capsules_loads_without_a_collision_model(t
     assert "the URDF's and the robot file's shapes make 40 capsules, more than 32" in robot.show_text()
 
 
+@pytest.mark.parametrize("collision, message", [
+    ("<collision/>", "link 'l3' <collision> 1: needs <geometry> with one of <sphere>, <cylinder>, <box>, <capsule>, <mesh>"),
+    ("<collision><geometry><cone radius=\"1\"/></geometry></collision>", "<cone>: is not a URDF collision shape"),
+    ("<collision><geometry><sphere/></geometry></collision>", "<collision> 1 <sphere>: <sphere> needs attribute 'radius'"),
+    ("<collision><geometry><box size=\"1 2\"/></geometry></collision>", "must be 3 numbers, got 2"),
+    ("<collision><geometry><cylinder radius=\"-1\" length=\"1\"/></geometry></collision>",
+     "radius must be ≥ 0 and at most 1000 m (URDF is in m)"),
+])
+def test_malformed_urdf_collision_is_one_error_naming_the_link(tmp_path, collision, message):
+    (tmp_path / "bad.urdf").write_text(OBLIQUE_URDF.replace('<link name="l3"/>', f'<link name="l3">{collision}</link>'),
+                                       encoding="utf-8")
+    with pytest.raises(RobotFileError) as error:
+        Robot.from_urdf(tmp_path / "bad.urdf")
+    assert str(error.value).startswith(str(tmp_path / "bad.urdf")) and message in str(error.value), str(error.value)
+
+
 # -- generated C ---------------------------------------------------------------------------
 
 # A small arm for the C: the planar 3R with a capsule per link, the links stacked 0.12 m apart in
