@@ -305,7 +305,7 @@ class Robot(RobotDescription):
         except ValueError:
             shapes = ", ".join(f"{k} {v.shape}" for k, v in arrays.items())
             raise ValueError(f"{name}: the shapes {shapes} do not broadcast to one batch") from None
-        return self._numeric.evaluate(name, shaped.pop("q"), **shaped)
+        return self._evaluator.evaluate(name, shaped.pop("q"), **shaped)
 
     # -- collision (docs/collision.md): a robot with capsules (has_collision) -------------------
 

@@ -81,6 +81,19 @@ def test_kinematics_and_criteria_equal_the_casadi_reference(store, name):
     assert robot.fk(np.zeros((0, robot.n))).shape == (0, 4, 4)
 
 
+def test_dynamics_equal_the_casadi_reference(store):
+    robot, ref = compiled("panda"), reference("panda")
+    assert robot.has_dynamics and {"gravity", "rnea", "mass_matrix", "coriolis"} <= set(robot._kernel.functions)
+    rng = np.random.default_rng(SEED)
+    q, dq, ddq = (rng.uniform(-1.0, 1.0, (5, robot.n)) for _ in range(3))
+    for sample in (slice(None), 0):
+        assert_agrees(robot.gravity_torques(q[sample]), ref.gravity_torques(q[sample]))
+        assert_agrees(robot.rnea(q[sample], dq[sample], ddq[sample]), ref.rnea(q[sample], dq[sample], ddq[sample]))
+        assert_agrees(robot.mass_matrix(q[sample]), ref.mass_matrix(q[sample]))
+        assert_agrees(robot.coriolis(q[sample], dq[sample]), ref.coriolis(q[sample], dq[sample]))
+    assert_agrees(robot.rnea(q, dq[0], 0.0 * ddq[0]), ref.rnea(q, dq[0], 0.0 * ddq[0]))  # rates broadcast
+
+
 def test_ik_has_the_reference_success_and_residuals_on_the_bench_poses(store):
     robot, ref = compiled("panda"), reference("panda")
     rng = np.random.default_rng(IK_SEED)

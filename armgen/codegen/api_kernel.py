@@ -50,10 +50,10 @@ from ..symbolic.model import SymbolicModel
 from . import kernel_store
 from .toolchain import STRICT_FLAGS, compile_shared, host_cc
 
-# The functions the kernel holds: the Robot methods' (fk, jacobian, fk_jacobian, ik) and the
-# criteria that Robot evaluates; what the robot lacks (a criterion of a robot without one) is left out.
+# The functions the kernel holds: the Robot methods' (fk, jacobian, fk_jacobian, ik), the
+# criteria and, for a robot with inertials, the dynamics; what the robot lacks is left out.
 API_FUNCTIONS = ("fk", "jacobian", "fk_jacobian", "ik", "zghal", "repetitive", "manipulability",
-                 "joint_manipulability")
+                 "joint_manipulability", "gravity", "rnea", "mass_matrix", "coriolis")
 # The C prefix of the kernel's generated code: fixed (internal to the extension module), so any
 # robot name builds (a robot called 'nan' would be a prefix armgen gen refuses).
 C_PREFIX = "robot"
@@ -413,13 +413,25 @@ def reference_cases(model: SymbolicModel, references: dict[str, ca.Function]) ->
 
             target = np.asarray(model.function("fk")(samples[0]).full())
             settings = [np.array([x]) for x in (0.0, ik.TOL_POSITION, ik.TOL_ORIENTATION, ik.MAX_ITERATIONS)]
-            arguments[name] = [[target, robot.qmid, robot.qmid, *settings]]
+            # (none when the robot's FK is not a pose, a base with det -1 built past the loader:
+            # the C refuses such a target, which the CasADi function does not check, nor Robot.ik take)
+            arguments[name] = [[target, robot.qmid, robot.qmid, *settings]] if _is_pose(target) else []
         else:
             arguments[name] = [[q, *(rng.uniform(0.1, 1.0, f.nnz_in(k)) for k in range(1, f.n_in()))] for q in samples]
     return {name: [{"inputs": [np.ravel(x, order="F").tolist() for x in inputs],
                     "outputs": [np.ravel(np.asarray(y.full()), order="F").tolist() for y in references[name].call(inputs)]}
                    for inputs in cases]
             for name, cases in arguments.items()}
+
+
+def _is_pose(target: np.ndarray) -> bool:
+    from ..symbolic import ik
+
+    try:
+        ik.check_targets(target[None])
+    except ValueError:
+        return False
+    return True
 
 
 def _reproduces(kernel: ApiKernel, cases: dict[str, list[dict]]) -> bool:
