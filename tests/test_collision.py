@@ -609,6 +609,38 @@ def test_urdf_shapes_become_capsules_enclosing_them(tmp_path):
     assert np.linalg.norm(np.subtract(box.b, box.a)) == pytest.approx(0.3)  # along the longest side
 
 
+def _segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    t = np.clip((points - a) @ (b - a) / max(float((b - a) @ (b - a)), 1e-300), 0, 1)
+    return np.linalg.norm(a + t[:, None] * (b - a) - points, axis=1)
+
+
+@settings(max_examples=100, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(size=st.lists(st.floats(0.01, 1.0), min_size=3, max_size=3), xyz=st.lists(st.floats(-1, 1), min_size=3, max_size=3),
+       rpy=st.lists(st.floats(-3.1, 3.1), min_size=3, max_size=3), cylinder=st.booleans())
+def test_urdf_cylinders_and_boxes_are_enclosed_tightly(tmp_path_factory, size, xyz, rpy, cylinder):
+    """Every corner of a box and every rim point of a cylinder lies in its capsule, and one of them
+    on its surface (the capsule is no larger than its construction says)."""
+    shape = (f'<cylinder radius="{size[0]!r}" length="{size[1]!r}"/>' if cylinder
+             else f'<box size="{size[0]!r} {size[1]!r} {size[2]!r}"/>')
+    origin = f'<origin xyz="{" ".join(map(repr, xyz))}" rpy="{" ".join(map(repr, rpy))}"/>'
+    path = tmp_path_factory.mktemp("shape") / "shape.urdf"
+    path.write_text(f"""<robot name="shape"><link name="base"><collision>{origin}<geometry>{shape}</geometry></collision>
+      </link><link name="l1"/><joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+      <limit lower="-1" upper="1"/></joint></robot>""", encoding="utf-8")
+    (capsule,) = Robot.from_urdf(path).collision.capsules
+    if cylinder:
+        angles = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+        local = np.array([[size[0] * math.cos(t), size[0] * math.sin(t), z * size[1] / 2]
+                          for t in angles for z in (-1.0, 1.0)])
+    else:
+        local = np.array([[sx * size[0], sy * size[1], sz * size[2]] for sx in (-0.5, 0.5) for sy in (-0.5, 0.5)
+                          for sz in (-0.5, 0.5)])
+    points = local @ rpy_matrix(*rpy).T + np.array(xyz)
+    distance = _segment_distance(points, np.array(capsule.a), np.array(capsule.b))
+    assert distance.max() <= capsule.radius * (1 + 1e-12)
+    assert distance.max() >= capsule.radius * (1 - 1e-12)
+
+
 def test_urdf_capsules_sit_where_pinocchio_places_their_links(tmp_path):
     """The capsules' ends in the base frame through robot.frames against the link placements
     of Pinocchio's model of the same URDF (the shapes' origins composed by hand)."""
