@@ -260,3 +260,19 @@ def test_processes_building_the_same_kernel_at_once_leave_a_whole_store(tmp_path
                            capture_output=True, text=True, timeout=600)
     assert third.returncode == 0, third.stderr
     assert library.stat().st_ino == before.st_ino  # the same file (a build replaces it by os.replace)
+
+
+def test_the_c_planning_backend_calls_the_same_library(store, monkeypatch):
+    """`make_backend(robot, "c", functions)` (the snake planner's fk cross-check) takes the
+    functions from the robot's kernel: no second build per process."""
+    from armgen.planning import backends
+
+    robot = compiled("modular8")
+    monkeypatch.setattr(backends, "build_library", lambda *_, **__: pytest.fail("compiled for the backend"))
+    backend = backends.make_backend(robot, "c", ("fk", "jacobian"))
+    q = np.random.default_rng(SEED).uniform(robot.qmin, robot.qmax, robot.n)
+    (T,) = backend.call("fk", q)
+    (J,) = backend.call("jacobian", q)
+    assert_agrees(T, reference("modular8").fk(q))
+    assert_agrees(J, reference("modular8").jacobian(q))
+    np.testing.assert_array_equal(np.array(backend.functions["fk"](q)), T)  # as a casadi.Function

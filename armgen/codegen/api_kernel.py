@@ -219,6 +219,28 @@ class ApiKernel:
         return [outputs[0].T] + [out.reshape(1, count) for out in outputs[1:]]
 
 
+class KernelFunction:
+    """One function of a kernel called one sample at a time with the calling convention of
+    :class:`~armgen.codegen.compiled.CompiledFunction` (what :class:`~armgen.codegen.compiled.CCallback`
+    wraps as a ``casadi.Function``): positional inputs, outputs as (rows, cols) matrices."""
+
+    def __init__(self, kernel: ApiKernel, reference: ca.Function):
+        self.reference = reference
+        self.name = reference.name()
+        self._call = getattr(kernel._module, self.name)
+        self._signature = kernel.signatures[self.name]
+        if Signature.of(reference) != self._signature:
+            raise ArmgenError(f"{self.name}: the kernel's signature differs from the reference's; rebuild the kernel")
+
+    def __call__(self, *args) -> list[np.ndarray]:
+        if len(args) != len(self._signature.inputs):
+            raise TypeError(f"{self.name} takes {len(self._signature.inputs)} inputs, got {len(args)}")
+        inputs = [np.ascontiguousarray(np.asarray(value, dtype=float).reshape(-1, order="F")) for value in args]
+        outputs = [np.empty(rows * cols) for _, rows, cols in self._signature.outputs]
+        self._call(1, *inputs, *outputs)
+        return [out.reshape((rows, cols), order="F") for out, (_, rows, cols) in zip(outputs, self._signature.outputs)]
+
+
 @functools.lru_cache(maxsize=64)
 def _scalar_buffers(*values: float) -> tuple[np.ndarray, ...]:
     """One read-only buffer per scalar input (the IK's settings: a few distinct ones per program)."""

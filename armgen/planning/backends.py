@@ -30,7 +30,8 @@ import casadi as ca
 import numpy as np
 
 from ..codegen import kernel_store
-from ..codegen.compiled import CompiledModel, NativeKernel, build_library
+from ..codegen.api_kernel import KernelFunction, load_api_kernel
+from ..codegen.compiled import CCallback, CompiledModel, NativeKernel, build_library
 from ..errors import TaskFileError, excerpt
 from ..robot import Robot
 from ..symbolic.model import ModelOptions, SymbolicModel
@@ -237,12 +238,18 @@ def _load_entry(stem: Path, backend: str) -> Kernel | tuple[ca.Function, dict, d
 
 
 def make_backend(robot: Robot, kind: str, functions: tuple[str, ...] = ()) -> Backend:
-    """A backend; ``c`` generates, compiles (double) and loads the named functions."""
+    """A backend; ``c`` calls the named functions in the generated C (double): from the robot's
+    compiled kernel (the library Robot's methods call, built once per robot in the kernel store,
+    see :mod:`armgen.codegen.api_kernel`) when it holds them all, else generated, compiled and
+    loaded for this backend."""
     if kind not in BACKENDS:
         raise TaskFileError(f"backend {excerpt(repr(kind))} is not one of {', '.join(BACKENDS)}")
     model = SymbolicModel(robot, ModelOptions(functions or None))
     if kind == "symbolic" or not functions:
         return Backend(kind, model, {name: model.function(name) for name in functions})
+    kernel = load_api_kernel(Robot.from_description(robot).symbolic)
+    if kernel is not None and set(functions) <= set(kernel.functions):
+        return Backend("c", model, {name: CCallback(KernelFunction(kernel, model.function(name))) for name in functions})
     from ..codegen.generate import CodegenConfig, generate, write  # SymPy-heavy: only for whole-model C
 
     references = model.functions()
