@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+import sysconfig
 import warnings
 from pathlib import Path
 
@@ -13,6 +14,7 @@ import numpy as np
 import pytest
 
 from armgen.codegen import api_kernel
+from conftest import require_tool
 from armgen.errors import OptionError, ToolchainError
 from armgen.robot import load_robot
 
@@ -24,9 +26,22 @@ IK_POSES = 30
 IK_SEED = 2025
 
 
+def require_python_headers() -> None:
+    """The kernel is a CPython extension: Python.h. Missing locally: skip with the install
+    command; missing in CI: fail (as conftest.require_tool)."""
+    include = sysconfig.get_paths()["include"]
+    if not Path(include, "Python.h").is_file():
+        message = f"no Python.h in {include} (apt-get install -y python3-dev)"
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"{message}: CI must install it (.ci/run)")
+        pytest.skip(message)
+
+
 @pytest.fixture(scope="module")
 def store(tmp_path_factory):
     """One store for the module: each robot's kernel is built once here."""
+    require_tool("gcc")
+    require_python_headers()
     folder = tmp_path_factory.mktemp("cache")
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("ARMGEN_CACHE_DIR", str(folder))
@@ -240,7 +255,7 @@ print(robot.fk([0.1, 0.2, 0.3])[0, 3])
 """
 
 
-def test_processes_building_the_same_kernel_at_once_leave_a_whole_store(tmp_path):
+def test_processes_building_the_same_kernel_at_once_leave_a_whole_store(store, tmp_path):
     env = dict(os.environ, ARMGEN_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(ROOT))
     env.pop(api_kernel.KERNEL_ENV, None)
     runs = [subprocess.Popen([sys.executable, "-W", "error::RuntimeWarning", "-c", BUILD], env=env,
