@@ -88,8 +88,8 @@ def test_robot_repr_is_one_line_and_show_prints_the_table(capsys):
     robot.show()
     printed = capsys.readouterr().out
     assert printed == run("show", "modular8").output  # one text, two doors
-    # name, file, columns, the joints, the dynamics line, the configurations, base/tool if any
-    assert len(printed.splitlines()) == 4 + robot.n + len(robot.configurations) + \
+    # name, file, columns, the joints, the dynamics line, the collision line, the configurations, base/tool if any
+    assert len(printed.splitlines()) == 5 + robot.n + len(robot.configurations) + \
         sum(not (T == np.eye(4)).all() for T in (robot.base, robot.tool))
 
 
