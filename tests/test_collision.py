@@ -510,6 +510,14 @@ def test_robots_without_capsules_have_no_collision_functions():
     assert "no collision capsules: no collision functions" in robot.show_text()
 
 
+def test_capsules_that_give_no_pair_leave_no_collision_functions():
+    text = (Path(load_robot("planar3").path).read_text(encoding="utf-8") + "\n[[collision]]\nlink = 1\na = [0, 0, 0]\n"
+            "radius = 0.1\n[collision_check.max_obstacles]\nsphere = 0\ncapsule = 0\nbox = 0\nplane = 0\n")
+    robot = parse_robot(text, "lonely.toml")
+    assert not robot.has_collision and not set(SymbolicModel(robot).available()) & set(COLLISION_FUNCTIONS)
+    assert "no collision model: its capsules give no pair to check" in robot.show_text()
+
+
 # -- robot files ---------------------------------------------------------------------------
 
 def test_capsules_are_read_in_the_files_units(iiwa):

@@ -198,9 +198,14 @@ def _collision_model(model: RobotFile | UrdfRobotFile, capsules: list[CollisionC
             raise _fail(source, f"[collision_check] ignore {k}", f"pair {pair} names capsule {max(pair)}, but the robot "
                                                                  f"has {len(capsules)} capsules (armgen show lists them)")
     slots = model.collision_check.max_obstacles
-    return CollisionModel(capsules=tuple(capsules), ignore=tuple(sorted({tuple(sorted(p)) for p in
-                                                                         model.collision_check.ignore})),
-                          slots=ObstacleSlots(slots.sphere, slots.capsule, slots.box, slots.plane), unusable=unusable)
+    collision = CollisionModel(capsules=tuple(capsules), ignore=tuple(sorted({tuple(sorted(p)) for p in
+                                                                              model.collision_check.ignore})),
+                               slots=ObstacleSlots(slots.sphere, slots.capsule, slots.box, slots.plane),
+                               unusable=unusable)
+    if capsules and not unusable and not collision.pair_labels():  # the functions would have an empty output
+        collision = replace(collision, unusable="its capsules give no pair to check (none two frames apart or more, "
+                                                "and no obstacle slot for a moving capsule)")
+    return collision
 
 
 def _configurations(given: dict[str, list[float]], q_scales: np.ndarray, source: str) -> dict[str, np.ndarray]:
