@@ -283,7 +283,7 @@ def _warn_fallback(reason: str) -> None:
     if not _WARNED:
         _WARNED.append(reason)
         warnings.warn(f"armgen: the Robot methods run on the CasADi reference (slower), no compiled kernel: {reason}",
-                      RuntimeWarning, stacklevel=4)
+                      RuntimeWarning, stacklevel=6)  # the caller of Robot.fk, jacobian, ik (through _kernel)
 
 
 @functools.lru_cache(maxsize=1)
