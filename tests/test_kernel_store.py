@@ -101,9 +101,9 @@ def test_prune_drops_least_recently_used_files_past_the_cap(tmp_path):
         path = store / name
         path.write_bytes(b"x" * 100)
         os.utime(path, (1e9 - age * 100, 1e9 - age * 100))
-    backends._prune(store, 400)  # at the cap: nothing to do
+    kernel_store.prune(store, 400)  # at the cap: nothing to do
     assert len(list(store.iterdir())) == 4
-    backends._prune(store, 300)  # over it: down to 3/4 of the cap (225 bytes), oldest first
+    kernel_store.prune(store, 300)  # over it: down to 3/4 of the cap (225 bytes), oldest first
     assert sorted(p.name for p in store.iterdir()) == ["newer", "newest"]
 
 

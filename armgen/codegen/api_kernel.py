@@ -381,6 +381,7 @@ def _built(model: SymbolicModel, functions: tuple[str, ...], digest: str) -> Api
             (work / "entry.json").write_text(json.dumps(entry), encoding="utf-8")
             kernel_store.seal(work / "entry.json")
             os.replace(work / "entry.json", entry_path)  # last: the entry is whole
+            kernel_store.prune(store)
         except OSError:
             pass  # an unwritable store only costs the next process the build
     return kernel

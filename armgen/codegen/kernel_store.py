@@ -80,6 +80,26 @@ def store_dir() -> Path:
     return _private_dir()
 
 
+# Every armgen version or robot edit adds entries (a planner kernel's 1–6 MB with its compiled
+# library, a robot's API kernel ~0.2 MB); past this size the store drops the entries used least
+# recently, whenever it stores a new one.
+MAX_STORE_BYTES = 1 << 30
+
+
+def prune(store: Path, max_bytes: int = MAX_STORE_BYTES) -> None:
+    """Drop the least recently used entries (and compiled libraries) until the store holds at
+    most three quarters of ``max_bytes``; nothing happens below ``max_bytes``."""
+    files = [(f.stat().st_mtime, f.stat().st_size, f) for f in store.iterdir() if f.is_file()]
+    total = sum(size for _, size, _ in files)
+    if total <= max_bytes:
+        return
+    for _, size, path in sorted(files, key=lambda item: item[0]):
+        if total <= max_bytes * 3 // 4:
+            break
+        path.unlink(missing_ok=True)  # a library in use stays mapped; its entry compiles it again
+        total -= size
+
+
 def read_trusted(path: Path) -> bytes | None:
     """The bytes of a stored file, or None when it is missing, not a regular file (a symlink,
     a FIFO), not this user's alone, or too long to be an entry."""

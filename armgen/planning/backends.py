@@ -128,9 +128,6 @@ class Backend:
 # backend, the kernel key, and the code and libraries that compose it (armgen's sources,
 # CasADi's and NumPy's versions), so an edited planner or model composes afresh.
 KERNEL_STORE_FORMAT = 2
-# Every armgen version or robot edit adds entries (1–6 MB each with the compiled library);
-# past this size the store drops the entries used least recently, when it stores a new one.
-KERNEL_STORE_MAX_BYTES = 1 << 30
 
 
 @functools.lru_cache(maxsize=1)
@@ -185,24 +182,10 @@ def stored_kernel(model: SymbolicModel, backend: str, key: tuple,
             kernel_store.seal(Path(work) / "f.json")
             os.replace(Path(work) / "f.casadi", stem.with_suffix(".casadi"))
             os.replace(Path(work) / "f.json", stem.with_suffix(".json"))  # last: the entry is whole
-        _prune(store, KERNEL_STORE_MAX_BYTES)
+        kernel_store.prune(store)
     except OSError:
         pass  # an unwritable store only costs the next process the composition
     return Kernel.native(native, inputs, outputs) if native is not None else Kernel.symbolic(func, inputs, outputs)
-
-
-def _prune(store: Path, max_bytes: int) -> None:
-    """Drop the least recently used entries (and compiled libraries) until the store holds at
-    most three quarters of ``max_bytes``; nothing happens below ``max_bytes``."""
-    files = [(f.stat().st_mtime, f.stat().st_size, f) for f in store.iterdir() if f.is_file()]
-    total = sum(size for _, size, _ in files)
-    if total <= max_bytes:
-        return
-    for _, size, path in sorted(files, key=lambda item: item[0]):
-        if total <= max_bytes * 3 // 4:
-            break
-        path.unlink(missing_ok=True)  # a library in use stays mapped; its entry compiles it again
-        total -= size
 
 
 def _load_entry(stem: Path, backend: str) -> Kernel | tuple[ca.Function, dict, dict] | None:
