@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from armgen.codegen import api_kernel
 from conftest import require_tool
@@ -54,6 +56,17 @@ def fresh_process(monkeypatch):
     """Nothing loaded, nothing warned: as in a new process."""
     monkeypatch.setattr(api_kernel, "_LOADED", {})
     monkeypatch.setattr(api_kernel, "_WARNED", [])
+
+
+class _KernelRobots(dict):
+    """(compiled, reference) robot per name, loaded once for the property tests."""
+
+    def __missing__(self, name):
+        self[name] = (compiled(name), reference(name))
+        return self[name]
+
+
+KERNEL_ROBOTS = _KernelRobots()
 
 
 def reference(name):
@@ -291,3 +304,20 @@ def test_the_c_planning_backend_calls_the_same_library(store, monkeypatch):
     assert_agrees(T, reference("modular8").fk(q))
     assert_agrees(J, reference("modular8").jacobian(q))
     np.testing.assert_array_equal(np.array(backend.functions["fk"](q)), T)  # as a casadi.Function
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(shape=st.lists(st.integers(0, 3), max_size=3), dtype=st.sampled_from(["float64", "float32", "int64"]),
+       layout=st.sampled_from(["contiguous", "fortran", "strided"]), scale=st.sampled_from([1.0, 1e3, 1e-3]))
+def test_any_batch_layout_and_dtype_gives_the_reference(store, shape, dtype, layout, scale):
+    """Whatever the batch shape (empty batches included), dtype and memory layout of q, the
+    kernel returns the reference's values and shapes: the extension reads only contiguous
+    float64 buffers of the expected size, and the Python side converts anything else first."""
+    robot, ref = KERNEL_ROBOTS["planar3"]
+    rng = np.random.default_rng(len(shape) * 7 + sum(shape))
+    q = (rng.uniform(-2.0, 2.0, (*shape, 2 * robot.n)) * scale).astype(dtype)
+    q = {"contiguous": q[..., : robot.n], "fortran": np.asfortranarray(q[..., : robot.n]),
+         "strided": q[..., ::2]}[layout]
+    for value, expected in zip(robot.fk_jacobian(q), ref.fk_jacobian(q)):
+        assert_agrees(value, expected)
+    assert_agrees(robot.joint_limit_gradient(q), ref.joint_limit_gradient(q))
