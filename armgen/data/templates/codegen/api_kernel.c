@@ -22,7 +22,7 @@ static int ${p}_api_view(PyObject *object, Py_buffer *view, int output, Py_ssize
   }
   values = view->len / (Py_ssize_t)sizeof(double);
   if ((view->itemsize == (Py_ssize_t)sizeof(double)) && (view->format != NULL) && (strcmp(view->format, "d") == 0)) {
-    if ((values % size == 0) && (values / size == count)) {
+    if ((size == 0) ? (values == 0) : ((values % size == 0) && (values / size == count))) {
       *stride = size;
       return 0;
     }
