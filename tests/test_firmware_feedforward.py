@@ -145,7 +145,8 @@ def _line_task(robot) -> dict:
 
 # --------------------------------------------------------------------------- tau_ff = the model
 
-@pytest.mark.parametrize("case", ["resolved_rate", "fault_tolerant", "playback", "playback_gravity", "sampled"])
+@pytest.mark.parametrize("case", ["resolved_rate", "fault_tolerant", "weighted_gpm", "playback", "playback_gravity",
+                                  "sampled"])
 def test_tau_ff_is_the_models_torque_at_each_command(case, robot, builder, swing):
     """Host double with ASan/UBSan: every command's tau_ff is rnea(q, q̇, q̈) of that command
     (gravity(q) with feedforward = gravity), q̈ by the mode's rule (sampled playback: the centred
@@ -156,6 +157,11 @@ def test_tau_ff_is_the_models_torque_at_each_command(case, robot, builder, swing
         task = fw.task_from_plan(plan, case, robot)
     elif case == "fault_tolerant":  # the wrist locks at 2 s: the velocities jump, a one-tick q̈
         plan = _plan(load_task(EXAMPLES / "iiwa14_fault_circle_wln.toml")[0], case)
+        task = fw.task_from_plan(plan, case, robot)
+    elif case == "weighted_gpm":  # the line with spec 35's secondary terms ramping in over 0.2 s
+        line = dict(_line_task(robot), planner="wgpm", method={"name": "wgpm", "ramp_time": 0.2})
+        line["integrator"] = {"step": STEP_S, "clik": True, "clik_gain": 10}
+        plan = _plan(line, case)
         task = fw.task_from_plan(plan, case, robot)
     else:
         plan, task = swing
