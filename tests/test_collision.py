@@ -539,7 +539,8 @@ def test_capsules_are_read_in_the_files_units(iiwa):
      "link = 8 is beyond the flange: the robot has 7 joints, so the frames are 0 (base) … 7"),
     ("[[collision]]\nlink = 2\na = [0, 0, 0]\nradius = -1\n", "radius"),
     ("[[collision]]\nlink = 2\na = [0, 0]\nradius = 1\n", "a"),
-    ("[[collision]]\nlink = 2\na = [0, 0, 0]\nradius = 1\nlength = 3\n", "[[collision]] capsule 5: unknown field(s) length; allowed: a, b, link, radius"),
+    ("[[collision]]\nlink = 2\na = [0, 0, 0]\nradius = 1\nlength = 3\n",
+     "[[collision]] capsule 5: unknown field(s) length; allowed: a, b, link, radius"),
 ])
 def test_bad_capsules_are_one_error_naming_file_and_field(extra, message):
     with pytest.raises(RobotFileError, match=r"iiwa14c\.toml") as error:
@@ -716,7 +717,8 @@ def test_a_urdf_with_more_shapes_than_capsules_loads_without_a_collision_model(t
 
 
 @pytest.mark.parametrize("collision, message", [
-    ("<collision/>", "link 'l3' <collision> 1: needs <geometry> with one of <sphere>, <cylinder>, <box>, <capsule>, <mesh>"),
+    ("<collision/>",
+     "link 'l3' <collision> 1: needs <geometry> with one of <sphere>, <cylinder>, <box>, <capsule>, <mesh>"),
     ("<collision><geometry><cone radius=\"1\"/></geometry></collision>", "<cone>: is not a URDF collision shape"),
     ("<collision><geometry><sphere/></geometry></collision>", "<collision> 1 <sphere>: <sphere> needs attribute 'radius'"),
     ("<collision><geometry><box size=\"1 2\"/></geometry></collision>", "must be 3 numbers, got 2"),
