@@ -19,10 +19,10 @@ u = d − c, the band s = ρ − c and the floor f = BARRIER_FLOOR · s::
     H_C = Σ_k g(d_k − c),   g(u) = ½ x(u)²,   x(u) = max(s / u − 1, 0)          for u ≥ f
                             g(u) = g(f) + g'(f) (u − f),  g'(f) = −x(f) s / f²   for u < f
 
-0 at and beyond the activation distance with a zero slope there, growing without bound toward
+0 at and beyond the activation distance with a zero slope there, growing like 1/(d − c)² toward
 the clearance (x = (ρ − d)/(d − c)), and continued below c + f by its tangent: finite, with a
-continuous gradient of the largest magnitude, for a configuration already too close or
-overlapping. C¹ everywhere. ∇H_C is the reverse derivative of that expression (CasADi AD
+continuous gradient of the largest magnitude, for a configuration close to or beyond the
+clearance, or overlapping. C¹ everywhere. ∇H_C is the reverse derivative of that expression (CasADi AD
 through the kinematics and the clamps).
 """
 
