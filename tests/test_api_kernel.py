@@ -132,7 +132,8 @@ def test_ik_has_the_reference_success_and_residuals_on_the_bench_poses(store):
     for field in ("q", "position_error", "orientation_error"):
         assert_agrees(getattr(solved, field), getattr(expected, field), api_kernel.IK_REFERENCE_AGREEMENT)
     for pose, q in zip(poses[:3], expected.q[:3]):  # one pose per call, and with q0 (the self-motion toward it)
-        assert_agrees(robot.ik(pose, seed=robot.qmid).q, ref.ik(pose, seed=robot.qmid).q, api_kernel.IK_REFERENCE_AGREEMENT)
+        assert_agrees(robot.ik(pose, seed=robot.qmid).q, ref.ik(pose, seed=robot.qmid).q,
+                      api_kernel.IK_REFERENCE_AGREEMENT)
         assert_agrees(robot.ik(pose, q0=q).q, ref.ik(pose, q0=q).q, api_kernel.IK_REFERENCE_AGREEMENT)
     # the C takes no step for a target that is not a pose; the reference's check then names what is wrong
     with pytest.raises(ValueError, match="not a rotation"):

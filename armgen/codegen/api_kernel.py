@@ -203,7 +203,8 @@ class ApiKernel:
             inputs.append(np.ascontiguousarray(value))
         outputs = [np.empty(batch + (cols, rows)) for _, rows, cols in signature.outputs]
         getattr(self._module, name)(count, *inputs, *outputs)
-        return {output_name: _unpacked(out, rows, cols) for (output_name, rows, cols), out in zip(signature.outputs, outputs)}
+        return {output_name: _unpacked(out, rows, cols)
+                for (output_name, rows, cols), out in zip(signature.outputs, outputs)}
 
     def ik(self, targets: np.ndarray, seeds: np.ndarray, rest: np.ndarray, use_rest: float, tol_position: float,
            tol_orientation: float, max_iterations: int) -> list[np.ndarray]:
@@ -315,7 +316,8 @@ def _code_fingerprint() -> str:
 
 def _kernel_digest(model: SymbolicModel, functions: tuple[str, ...]) -> str:
     robot = hashlib.sha256(pickle.dumps(model.robot, protocol=4)).hexdigest()
-    return hashlib.sha256(repr((_code_fingerprint(), _toolchain_identity(), robot, functions)).encode()).hexdigest()[:24]
+    identity = repr((_code_fingerprint(), _toolchain_identity(), robot, functions))
+    return hashlib.sha256(identity.encode()).hexdigest()[:24]
 
 
 def _names(model: SymbolicModel, digest: str) -> tuple[Path, Path, str]:
@@ -374,7 +376,8 @@ def _built(model: SymbolicModel, functions: tuple[str, ...], digest: str) -> Api
             raise ArmgenError(f"the compiled kernel of robot '{model.robot.name}' disagrees with the CasADi reference "
                               f"(beyond {REFERENCE_AGREEMENT:g}); please report it")
         entry = {"format": API_KERNEL_FORMAT, "library": library.name, "library_sha256": sha256, "module": module_name,
-                 "signatures": {name: {"inputs": sig.inputs, "outputs": sig.outputs} for name, sig in signatures.items()},
+                 "signatures": {name: {"inputs": sig.inputs, "outputs": sig.outputs}
+                                for name, sig in signatures.items()},
                  "self_test": cases}
         try:
             os.replace(built, library)  # atomic: concurrent builders each leave a whole file
@@ -442,7 +445,8 @@ def reference_cases(model: SymbolicModel, references: dict[str, ca.Function]) ->
         else:
             arguments[name] = [[q, *(rng.uniform(0.1, 1.0, f.nnz_in(k)) for k in range(1, f.n_in()))] for q in samples]
     return {name: [{"inputs": [np.ravel(x, order="F").tolist() for x in inputs],
-                    "outputs": [np.ravel(np.asarray(y.full()), order="F").tolist() for y in references[name].call(inputs)]}
+                    "outputs": [np.ravel(np.asarray(y.full()), order="F").tolist()
+                                for y in references[name].call(inputs)]}
                    for inputs in cases]
             for name, cases in arguments.items()}
 

@@ -232,7 +232,8 @@ def make_backend(robot: Robot, kind: str, functions: tuple[str, ...] = ()) -> Ba
         return Backend(kind, model, {name: model.function(name) for name in functions})
     kernel = load_api_kernel(Robot.from_description(robot).symbolic)
     if kernel is not None and set(functions) <= set(kernel.functions):
-        return Backend("c", model, {name: CCallback(KernelFunction(kernel, model.function(name))) for name in functions})
+        return Backend("c", model,
+                       {name: CCallback(KernelFunction(kernel, model.function(name))) for name in functions})
     from ..codegen.generate import CodegenConfig, generate, write  # SymPy-heavy: only for whole-model C
 
     references = model.functions()
