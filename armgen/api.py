@@ -30,7 +30,12 @@ if TYPE_CHECKING:  # heavy imports only for type checkers
     from .planning.result import PlanResult
     from .planning.tasks import ResourceCaps, Task, TaskDocument
 
-__all__ = ["Robot", "load_robot", "read_task_document", "read_task", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport",
+# The emulated cores `verify(target=...)` runs the firmware on: the keys of
+# armgen.firmware.TARGETS (named here so the command line need not import the firmware layer;
+# tests/test_targets.py checks they agree).
+VERIFY_TARGETS = ("cortex-m4", "cortex-m7", "cortex-m33", "cortex-m0plus")
+
+__all__ = ["Robot", "load_robot", "read_task_document", "read_task", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport", "VERIFY_TARGETS",
            "parse_override", "read_plan", "plan_metadata_path", "figure_format", "save_plot", "parse_frame_size",
            "animate_plan", "sweep", "solve_ik", "IkSolution", "generate_ptp", "json_schema", "write_text_atomic",
            "firmware_project", "firmware_task", "link_open", "link_status", "link_move_to", "link_stream",
@@ -353,7 +358,8 @@ def verify(robot: Robot | str | Path, plan: str | Path | None = None, samples: i
     precision
         ``"double"`` or ``"float"`` only (default: both).
     target
-        ``"cortex-m4"`` to also run on the emulated target (needs QEMU).
+        A core of :data:`VERIFY_TARGETS` (``"cortex-m4"``, ``"cortex-m7"``, ...) to also run
+        the firmware on that emulated core (needs QEMU; docs/targets.md).
     report
         Also write the JSON report here.
     echo

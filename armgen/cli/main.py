@@ -11,6 +11,7 @@ from pathlib import Path
 import click
 
 from .._version import __version__
+from ..api import VERIFY_TARGETS
 from .handling import handle_errors
 from .options import out_option, plan_robot_option, plan_with_metadata
 
@@ -160,7 +161,8 @@ def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[
 @click.option("--samples", type=click.IntRange(min=1), default=10_000, show_default=True,
               help="seeded samples per function in the callbacks stage")
 @click.option("--precision", type=click.Choice(["double", "float"]), default=None, help="only this precision (default: both)")
-@click.option("--target", type=click.Choice(["cortex-m4"]), default=None, help="also run on an emulated target")
+@click.option("--target", type=click.Choice(list(VERIFY_TARGETS)), default=None,
+              help="also run the firmware on an emulated core (docs/targets.md)")
 @click.option("--report", type=click.Path(dir_okay=False), default=None, help="write the JSON report here")
 @out_option("generated", "the folder `armgen gen -o` wrote, to verify (default: ./generated/<robot>/)",
             old=("--generated",), type=click.Path(), default=None)

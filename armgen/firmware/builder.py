@@ -15,11 +15,12 @@ from pathlib import Path
 
 from ..codegen.generate import GENERATED_DIR, CodegenConfig, generate, write
 from ..codegen.ptp_c import generate_ptp_evaluator
-from ..codegen.toolchain import ARM_CPU_FLAGS, SANITIZER_FLAGS, STRICT_FLAGS, find_tool, host_cc, run_tool
+from ..codegen.toolchain import SANITIZER_FLAGS, STRICT_FLAGS, find_tool, host_cc, run_tool
 from ..fileio import write_text_atomic
 from ..robot import Robot, load_robot
 from .configuration import MAX_SEGMENTS, FirmwareTask
 from .errors import FirmwareError
+from .targets import TARGETS
 from .sources import (ARM_DIR, FIRMWARE_DIR, OPTIONAL_FUNCTIONS, PTP_PREFIX, available_modes, extract_functions,
                       firmware_functions, robot_prefix)
 
@@ -40,6 +41,7 @@ class Variant:
     gen_opt: str | None = None  # optimisation of the generated kinematics (default: opt)
     extra: tuple[str, ...] = ()  # more compiler flags (e.g. -fcallgraph-info=su for the benchmark)
     source_opts: tuple[tuple[str, tuple[str, ...]], ...] = ()  # (source file name, flags replacing opt)
+    cpu: str = "cortex-m4"  # arm: the core, a key of targets.TARGETS (flags, linker script, clock)
     runner: str = "csv"  # host: "csv" (host/main.c), "link" (host/link_main.c: the link over a pty) or
                          # "link_fuzz" (host/link_fuzz.c: the link's parser fuzz and codec echo)
 
@@ -52,7 +54,8 @@ class Variant:
         extra = "_x" + re.sub(r"[^0-9a-zA-Z]+", "_", "".join(self.extra)).strip("_") if self.extra else ""
         tuned = "_" + hashlib.sha256(repr(self.source_opts).encode()).hexdigest()[:8] if self.source_opts else ""
         runner = "" if self.runner == "csv" else f"_{self.runner}"
-        return (f"{self.target}_{self.precision}{san}{self.opt.replace('-', '_')}{gen}_s{self.max_segments}{rows}"
+        cpu = "" if self.cpu == "cortex-m4" else "_" + self.cpu.replace("-", "_")
+        return (f"{self.target}{cpu}_{self.precision}{san}{self.opt.replace('-', '_')}{gen}_s{self.max_segments}{rows}"
                 f"{trig}{extra}{tuned}{runner}")
 
 
@@ -76,6 +79,12 @@ ARM_SOURCE_OPTS = (("controller.c", ARM_CONTROLLER_FLAGS),
 # straight-line kinematics at -Os (smaller, and on the M4 also fewer executed instructions
 # than -O2, whose scheduling spills more).
 ARM_VARIANT = Variant("arm", "float", opt="-O3", gen_opt="-Os", source_opts=ARM_SOURCE_OPTS)
+
+
+def target_variant(name: str) -> Variant:
+    """The build of the Cortex-M4F's flags for another core (targets.TARGETS), in the precision
+    its FPU computes natively (double on the Cortex-M7)."""
+    return dataclasses.replace(ARM_VARIANT, cpu=name, precision=TARGETS[name].precision)
 
 
 def arm_tools() -> dict[str, str]:
@@ -132,13 +141,13 @@ class FirmwareBuilder:
         if v.target == "arm":
             d += ["-DFW_CSV_HEX=1", f"-DFW_PRINT_ROWS={1 if v.print_rows else 0}"]
             # the generated kinematics' own bounded-range sin/cos (inline, ≤ 2 ulp on the joint range)
-            d += [f"-D{P}_BOUNDED_TRIG={1 if v.fast_trig else 0}"]
+            d += [f"-D{P}_BOUNDED_TRIG={1 if v.fast_trig else 0}", f"-DFW_CPU_HZ={TARGETS[v.cpu].cpu_hz}u"]
         return d
 
     def cflags(self, v: Variant) -> list[str]:
         flags = [*STRICT_FLAGS, v.opt, "-g"]
         if v.target == "arm":
-            flags += [*ARM_CPU_FLAGS, "-ffunction-sections", "-fdata-sections", "-fstack-usage"]
+            flags += [*TARGETS[v.cpu].cpu_flags, "-ffunction-sections", "-fdata-sections", "-fstack-usage"]
         else:
             if v.sanitize:
                 flags += list(SANITIZER_FLAGS)
@@ -206,9 +215,9 @@ class FirmwareBuilder:
         if v.target == "arm":
             out = task_dir / "fw_m4.elf"
             wrap = ["-Wl,--wrap=sinf", "-Wl,--wrap=cosf"] if v.fast_trig else []
-            run_tool([cc, *flags, "-nostartfiles", "--specs=nano.specs", "-T", str(ARM_DIR / "mps2_an386.ld"), *wrap,
+            run_tool([cc, *flags, "-nostartfiles", "--specs=nano.specs", "-T", str(ARM_DIR / TARGETS[v.cpu].linker_script), *wrap,
                       "-Wl,--gc-sections", f"-Wl,-Map={out.with_suffix('.map')}", *map(str, objs), str(task_obj),
-                      "-lm", "-o", str(out)], "linking the Cortex-M4F firmware")
+                      "-lm", "-o", str(out)], f"linking the {v.cpu} firmware")
         else:
             out = task_dir / "fw_host"
             run_tool([cc, *flags, *map(str, objs), str(task_obj), "-lm", "-o", str(out)], "linking the host firmware")

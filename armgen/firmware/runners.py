@@ -1,4 +1,5 @@
-"""Runners of a built firmware: the host executable, and the Cortex-M4F image under QEMU."""
+"""Runners of a built firmware: the host executable, and a target's image under QEMU
+(the Cortex-M4F's by default; targets.TARGETS)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from ..codegen.toolchain import find_tool
 from .builder import APT_HINT
 from .errors import FirmwareError
 from .output import FirmwareRun, parse_output
+from .targets import TARGETS
 
 QEMU_MACHINE = ("-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native")
 # Deterministic time: one guest instruction = 1 ns, so SysTick counts instructions / 40 and
@@ -31,15 +33,16 @@ def run_host(exe: Path, args: Sequence[str] = (), timeout: float = 300) -> Firmw
     return parse_output(proc.stdout)
 
 
-def run_qemu(elf: Path, timeout: float = 600, icount: bool = True) -> FirmwareRun:
+def run_qemu(elf: Path, timeout: float = 600, icount: bool = True, target: str = "cortex-m4") -> FirmwareRun:
     qemu = find_tool("qemu-system-arm", APT_HINT)
-    cmd = [qemu, *QEMU_MACHINE, *(QEMU_ICOUNT if icount else ()), "-kernel", str(elf)]
+    machine = ("-M", TARGETS[target].qemu_machine, *QEMU_MACHINE[2:])
+    cmd = [qemu, *machine, *(QEMU_ICOUNT if icount else ()), "-kernel", str(elf)]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         raise FirmwareError(f"qemu-system-arm did not finish {elf.name} within {timeout:.0f} s") from None
     text = proc.stdout + proc.stderr  # semihosting console output goes to stderr in QEMU 7
     if proc.returncode != 0 or "# end" not in text:
-        raise FirmwareError(f"the Cortex-M4F firmware failed under QEMU (exit {proc.returncode}):\n{text[-3000:]}")
+        raise FirmwareError(f"the {target} firmware failed under QEMU (exit {proc.returncode}):\n{text[-3000:]}")
     return parse_output(text)
 

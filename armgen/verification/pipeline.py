@@ -18,9 +18,11 @@ Stages (each a function returning a :class:`Stage` with a table of rows):
 4. replay   — rerun the plan's task with the C backend (the same planner code) and compare
    with the plan CSV sample by sample; then run the firmware stub (``firmware_stub/``) on the
    same task on the host — double with ASan/UBSan, and float — and compare it the same way;
-5. target   — (``--target cortex-m4``) the firmware cross-compiled for the Cortex-M4F (float),
-   run under ``qemu-system-arm -M mps2-an386``, compared with the plan (and with the host
-   float run); fails naming the apt packages when the toolchain or QEMU is missing. Without
+5. target   — (``--target NAME``, a core of :data:`armgen.firmware.TARGETS`: cortex-m4,
+   cortex-m7, cortex-m33, cortex-m0plus) the firmware cross-compiled for that core in the
+   precision it computes natively (float; double on the Cortex-M7), run under
+   ``qemu-system-arm`` on the core's MPS2 board model (docs/targets.md), compared with the plan
+   (and with the host run of the same precision); fails naming the apt packages when the toolchain or QEMU is missing. Without
    ``--plan`` it plans the demo task of ``armgen firmware`` (:mod:`armgen.firmware.project`);
 6. run      — (``--run CSV``, with ``--plan``) what a firmware run printed (the host demo of an
    ``armgen firmware`` project, or its Cortex-M4F image under QEMU) compared with the plan in the
@@ -390,17 +392,20 @@ def _default_target_plan(config: VerifyConfig, work: Path) -> Path:
 
 
 def stage_target(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder | None = None) -> Stage:
-    """The firmware on an emulated Cortex-M4F (float): build, run under QEMU, compare."""
+    """The firmware on an emulated core (fw.TARGETS; in the precision its FPU computes
+    natively): build, run under QEMU, compare with the plan and with the host run of the
+    same precision."""
     columns = ["run", "quantity", "value", "bound", "ok"]
-    label = f"{config.target} (QEMU mps2-an386), float"
-    if config.target != "cortex-m4":
-        return Stage("target", False, columns, [[config.target, "target", "unknown", "cortex-m4", False]],
+    if config.target not in fw.TARGETS:
+        return Stage("target", False, columns, [[config.target, "target", "unknown", ", ".join(fw.TARGETS), False]],
                      f"unknown target {excerpt(repr(config.target))}")
+    target = fw.TARGETS[config.target]
+    label = target.description
     try:
         fw.arm_tools()
     except ArmgenError as exc:
         return Stage("target", False, columns, [[label, "toolchain", str(exc), "installed", False]],
-                     f"the Cortex-M4F toolchain or QEMU is missing; apt-get install -y {fw.APT_PACKAGES}")
+                     f"the {target.name} toolchain or QEMU is missing; apt-get install -y {fw.APT_PACKAGES}")
     try:
         plan_path = config.plan if config.plan is not None else _default_target_plan(config, work)
     except ArmgenError as exc:
@@ -414,30 +419,31 @@ def stage_target(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder |
     builder = _firmware_builder(config, work, builder)
     rows, passed = [], True
     try:
-        run = fw.run_qemu(builder.executable(fw.ARM_VARIANT, task, "target"))
+        run = fw.run_qemu(builder.executable(fw.target_variant(target.name), task, "target"), target=target.name)
     except ArmgenError as exc:
         return Stage("target", False, columns, [[label, "build and run", str(exc).splitlines()[0], "exit 0", False]],
-                     "the Cortex-M4F build or the QEMU run failed")
-    cmp = fwcmp.compare_with_plan(plan, run, task, "float", label)
+                     f"the {target.name} build or the QEMU run failed")
+    cmp = fwcmp.compare_with_plan(plan, run, task, target.precision, label)
     rows += cmp.rows
     passed &= cmp.passed
-    try:  # the same task on the host in float: how much of the difference is the target's
-        host = fw.run_host(builder.executable(fw.Variant("host", "float"), task, "target_host_float"))
+    try:  # the same task on the host in the same precision: how much of the difference is the target's
+        host = fw.run_host(builder.executable(fw.Variant("host", target.precision), task,
+                                              f"target_host_{target.precision}"))
         n = task.robot.n
         ticks = sorted(set(run.by_tick()) & set(host.by_tick()))
         a, b = run.by_tick(), host.by_tick()
         d = max((float(np.max(np.abs(a[k][2:2 + n] - b[k][2:2 + n]))) for k in ticks), default=0.0)
-        bound = fwcmp.bounds_for("float", task.mode)[0]
-        rows.append([f"{config.target} vs host firmware, float", "max |Δq| [rad]", d, bound, d <= bound])
+        bound = fwcmp.bounds_for(target.precision, task.mode)[0]
+        rows.append([f"{config.target} vs host firmware, {target.precision}", "max |Δq| [rad]", d, bound, d <= bound])
         passed &= d <= bound
     except ArmgenError as exc:
-        rows.append(["host firmware, float", "build and run", str(exc).splitlines()[0], "exit 0", False])
+        rows.append([f"host firmware, {target.precision}", "build and run", str(exc).splitlines()[0], "exit 0", False])
         passed = False
     ipt = fw.instructions_per_tick(run)
     rows.append([label, "instructions per tick, mean / max", f"{ipt['mean']:.0f} / {ipt['max']:.0f}",
                  "(informative)", True])
     rows.append([label, "peak stack [bytes]", run.summary.get("stack_peak_bytes", "?"), "(informative)", True])
-    message = "" if passed else "the Cortex-M4F run differs from the plan: see the rows marked FAIL"
+    message = "" if passed else f"the {target.name} run differs from the plan: see the rows marked FAIL"
     return Stage("target", passed, columns, rows, message)
 
 

@@ -80,7 +80,9 @@ __attribute__((noinline)) static uint32_t timed_tick(ctrl *c, const ctrl_input *
 __attribute__((noinline)) static uint32_t timed_calib(uint32_t iterations) {
   uint32_t t0, t1;
   t0 = SYST_CVR;
-  __asm__ volatile("1: subs %0, %0, #1\n\tbne 1b" : "+r"(iterations)::"cc");
+  /* unified syntax: GCC hands Thumb-1 (Armv6-M) inline assembly to the assembler in the
+   * divided syntax, where `subs` with three operands does not exist */
+  __asm__ volatile(".syntax unified\n1: subs %0, %0, #1\n\tbne 1b" : "+r"(iterations)::"cc");
   t1 = SYST_CVR;
   return (t0 - t1) & SYST_MASK;
 }

@@ -1,6 +1,7 @@
 /*
  * Vector table and reset handler for the Arm MPS2 AN386 (Cortex-M4F), bare metal, for
- * firmware_stub/arm/mps2_an386.ld. No CMSIS needed.
+ * firmware_stub/arm/mps2_an386.ld; the same for the other MPS2 images armgen runs on
+ * (AN500 Cortex-M7, AN385 for Cortex-M0+ code, AN505 Cortex-M33 with mps2_an505.ld). No CMSIS needed.
  *
  * Reset_Handler: enable the FPU (CPACR CP10/CP11 full access) before any floating-point
  * instruction can run, copy .data from its load address, zero .bss, run static constructors,
@@ -75,9 +76,12 @@ void Reset_Handler(void) {
   void (**fn)(void);
   /* CP10 and CP11 full access: the FPU is off after reset and the first VFP instruction
    * would raise UsageFault (NOCP). The barriers make the new setting visible before any
-   * floating-point instruction below or in main(). */
+   * floating-point instruction below or in main(). A soft-float build (Cortex-M0+, whose
+   * Armv6-M has no CPACR) leaves it alone. */
+#if defined(__ARM_FP)
   SCB_CPACR |= (0xFu << 20);
   __asm__ volatile("dsb\n\tisb" ::: "memory");
+#endif
   for (src = __data_load, dst = __data_start; dst < __data_end;) {
     *dst++ = *src++;
   }
