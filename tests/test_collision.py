@@ -490,6 +490,42 @@ def test_criterion_gradient_equals_central_differences(iiwa):
     assert error[smooth].max() <= FD_TOL
 
 
+# The envelope-theorem gradient against reverse-mode AD of the same criterion built on
+# collision_distances: two derivations of one expression in double, equal to rounding (1e-9 of
+# the larger of the gradient's size and H_C leaves six orders above it).
+AD_TOL = 1e-9
+
+
+def test_criterion_gradient_equals_reverse_mode_ad(iiwa):
+    """∇H_C by the witness points moving with their links (armgen.symbolic.collision._Arm.gradient)
+    equals CasADi's reverse-mode derivative of H_C composed from the distances, with boxes
+    entered by the axis (where the deepest point moves along the segment with a kink) included."""
+    from armgen.description.collision import obstacle_parameters
+    from armgen.symbolic.collision import _barrier_terms
+
+    distances = iiwa.symbolic.function("collision_distances")
+    symbols = [ca.SX.sym(distances.name_in(k), distances.sparsity_in(k)) for k in range(distances.n_in())]
+    clearance, activation = ca.SX.sym("clearance"), ca.SX.sym("activation")
+    h, _ = _barrier_terms(distances(*symbols), clearance, activation)
+    reference = ca.Function("ad", [*symbols, clearance, activation], [h, ca.gradient(h, symbols[0])])
+    criterion = iiwa.symbolic.function("collision_criterion")
+    rng = np.random.default_rng(SEED + 10)
+    boxes_entered = 0
+    for _ in range(300):
+        obstacles = _random_obstacles(rng)
+        parameters = obstacle_parameters(obstacles, iiwa.collision.slots)
+        q = rng.uniform(iiwa.qmin, iiwa.qmax)
+        arguments = [q, *[parameters[distances.name_in(k)] for k in range(1, distances.n_in())], 0.01, 0.3]
+        ours, theirs = ([np.array(v).ravel() for v in f(*arguments)] for f in (criterion, reference))
+        scale = max(np.abs(theirs[1]).max(), theirs[0][0], 1.0)
+        assert abs(ours[0][0] - theirs[0][0]) <= AD_TOL * scale
+        assert np.abs(ours[1] - theirs[1]).max() <= AD_TOL * scale
+        d = iiwa.collision_distances(q, obstacles)
+        boxes_entered += sum(value + iiwa.collision.capsules[int(first.split()[1])].radius < 0
+                             for value, (first, second) in zip(d, iiwa.collision_pairs()) if second.startswith("box"))
+    assert boxes_entered > 20  # the kinked case is exercised (41 on this seed)
+
+
 def test_inactive_slots_and_too_many_obstacles(iiwa):
     d = iiwa.collision_distances(iiwa.q0, [])
     self_pairs = len(iiwa.collision.self_pairs())
