@@ -33,7 +33,7 @@ if TYPE_CHECKING:  # heavy imports only for type checkers
 # The emulated cores `verify(target=...)` runs the firmware on: the keys of
 # armgen.firmware.TARGETS (named here so the command line need not import the firmware layer;
 # tests/test_targets.py checks they agree).
-VERIFY_TARGETS = ("cortex-m4", "cortex-m7", "cortex-m33", "cortex-m0plus")
+VERIFY_TARGETS = ("cortex-m4", "cortex-m7", "cortex-m33", "cortex-m0plus", "rv32imf")
 
 __all__ = ["Robot", "load_robot", "read_task_document", "read_task", "plan", "Plan", "generate", "Generated", "verify", "VerifyReport", "VERIFY_TARGETS",
            "parse_override", "read_plan", "plan_metadata_path", "figure_format", "save_plot", "parse_frame_size",

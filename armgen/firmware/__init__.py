@@ -11,7 +11,7 @@ concept per module —
 ``armgen.verification`` compares the runs with the plans (:mod:`armgen.verification.firmware_compare`).
 """
 
-from .builder import APT_PACKAGES, ARM_VARIANT, FirmwareBuilder, Variant, arm_tools, target_variant
+from .builder import APT_PACKAGES, ARM_VARIANT, FirmwareBuilder, Variant, arm_tools, target_tools, target_variant
 from .configuration import MAX_SEGMENTS, FirmwareTask, sample_column, schedule_lock, write_task_files
 from .errors import FirmwareError
 from .output import FAULT_NAMES, FAULT_STATE, STATE_NAMES, FirmwareRun, instructions_per_tick, parse_output
@@ -24,4 +24,4 @@ __all__ = ["APT_PACKAGES", "ARM_VARIANT", "FAULT_NAMES", "FAULT_STATE", "FIRMWAR
            "MAX_SEGMENTS", "OPTIONAL_FUNCTIONS", "QEMU_ICOUNT", "QEMU_MACHINE", "STATE_NAMES", "TARGETS", "FirmwareBuilder",
            "FirmwareError", "FirmwareRun", "FirmwareTask", "Target", "Variant", "arm_tools",
            "instructions_per_tick", "parse_output", "refusal", "robot_prefix", "run_host", "run_qemu", "sample_column",
-           "schedule_lock", "target_variant", "task_from_dict", "task_from_file", "task_from_plan", "write_task_files"]
+           "schedule_lock", "target_tools", "target_variant", "task_from_dict", "task_from_file", "task_from_plan", "write_task_files"]

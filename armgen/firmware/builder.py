@@ -30,7 +30,7 @@ APT_HINT = f"install them from the distribution: apt-get install -y {APT_PACKAGE
 
 @dataclass(frozen=True)
 class Variant:
-    target: str = "host"  # "host" (gcc) | "arm" (arm-none-eabi-gcc, Cortex-M4F)
+    target: str = "host"  # "host" (gcc) | a cross build: "arm" (arm-none-eabi-gcc) or "riscv", of the core `cpu`
     precision: str = "double"
     sanitize: bool = False
     opt: str = "-O2"
@@ -49,7 +49,7 @@ class Variant:
     def name(self) -> str:
         san = "_san" if self.sanitize else ""
         rows = "" if self.print_rows else "_quiet"
-        trig = "" if self.fast_trig or self.target != "arm" else "_newlibtrig"
+        trig = "" if self.fast_trig or self.target == "host" else "_newlibtrig"
         gen = f"_gen{self.gen_opt.replace('-', '_')}" if self.gen_opt and self.gen_opt != self.opt else ""
         extra = "_x" + re.sub(r"[^0-9a-zA-Z]+", "_", "".join(self.extra)).strip("_") if self.extra else ""
         tuned = "_" + hashlib.sha256(repr(self.source_opts).encode()).hexdigest()[:8] if self.source_opts else ""
@@ -84,13 +84,22 @@ ARM_VARIANT = Variant("arm", "float", opt="-O3", gen_opt="-Os", source_opts=ARM_
 def target_variant(name: str) -> Variant:
     """The build of the Cortex-M4F's flags for another core (targets.TARGETS), in the precision
     its FPU computes natively (double on the Cortex-M7)."""
-    return dataclasses.replace(ARM_VARIANT, cpu=name, precision=TARGETS[name].precision)
+    t = TARGETS[name]
+    return dataclasses.replace(ARM_VARIANT, target=t.family, cpu=name, precision=t.precision)
 
 
 def arm_tools() -> dict[str, str]:
     """The cross toolchain and the emulator, or a ToolchainError naming the apt packages."""
     return {name: find_tool(name, APT_HINT) for name in
             ("arm-none-eabi-gcc", "arm-none-eabi-size", "qemu-system-arm")}
+
+
+def target_tools(name: str) -> dict[str, str]:
+    """A core's cross toolchain and emulator (targets.TARGETS), or a ToolchainError naming its
+    apt packages."""
+    t = TARGETS[name]
+    hint = f"install them from the distribution: apt-get install -y {' '.join(t.apt_packages)}"
+    return {tool: find_tool(tool, hint) for tool in t.tools}
 
 
 class FirmwareBuilder:
@@ -138,7 +147,7 @@ class FirmwareBuilder:
              f"-D{P}_USE_FLOAT={flag}", f"-D{PTP_PREFIX.upper()}_USE_FLOAT={flag}",
              f"-DCTRL_MAX_SEGMENTS={v.max_segments}"]
         d += [f"-DCTRL_HAS_{mode}={1 if mode in self.modes else 0}" for mode in OPTIONAL_FUNCTIONS]
-        if v.target == "arm":
+        if v.target != "host":
             d += ["-DFW_CSV_HEX=1", f"-DFW_PRINT_ROWS={1 if v.print_rows else 0}"]
             # the generated kinematics' own bounded-range sin/cos (inline, ≤ 2 ulp on the joint range)
             d += [f"-D{P}_BOUNDED_TRIG={1 if v.fast_trig else 0}", f"-DFW_CPU_HZ={TARGETS[v.cpu].cpu_hz}u"]
@@ -146,24 +155,25 @@ class FirmwareBuilder:
 
     def cflags(self, v: Variant) -> list[str]:
         flags = [*STRICT_FLAGS, v.opt, "-g"]
-        if v.target == "arm":
-            flags += [*TARGETS[v.cpu].cpu_flags, "-ffunction-sections", "-fdata-sections", "-fstack-usage"]
+        if v.target != "host":
+            flags += [*TARGETS[v.cpu].cpu_flags, *TARGETS[v.cpu].compile_specs, "-ffunction-sections", "-fdata-sections", "-fstack-usage"]
         else:
             if v.sanitize:
                 flags += list(SANITIZER_FLAGS)
         return flags + list(v.extra) + self.defines(v) + [f"-I{FIRMWARE_DIR}", f"-I{self.gen_dir}", f"-I{self.ptp_dir}", f"-I{ARM_DIR}"]
 
     def compiler(self, v: Variant) -> str:
-        if v.target == "arm":
-            return find_tool("arm-none-eabi-gcc", APT_HINT)
+        if v.target != "host":
+            t = TARGETS[v.cpu]
+            return target_tools(v.cpu)[t.compiler]
         return host_cc()
 
     def sources(self, v: Variant) -> list[Path]:
         common = [self.robot_source, self.ptp_dir / f"{PTP_PREFIX}_ptp.c",
                   FIRMWARE_DIR / "controller.c", FIRMWARE_DIR / "fw_program.c", FIRMWARE_DIR / "fw_csv.c"]
-        if v.target == "arm":
+        if v.target != "host":  # the runner of arm/ (its timer and semihosting call have a RISC-V branch)
             fast = [ARM_DIR / "fw_fastmath.c"] if v.fast_trig else []
-            return common + [ARM_DIR / "startup.c", ARM_DIR / "semihost.c", ARM_DIR / "fw_main.c", *fast]
+            return common + [FIRMWARE_DIR / TARGETS[v.cpu].startup, ARM_DIR / "semihost.c", ARM_DIR / "fw_main.c", *fast]
         if v.runner == "csv":
             return common + [FIRMWARE_DIR / "host" / "main.c"]
         runner = {"link": "link_main.c", "link_fuzz": "link_fuzz.c"}[v.runner]
@@ -212,10 +222,11 @@ class FirmwareBuilder:
         task_obj = task_dir / "fw_task.o"
         run_tool([cc, *flags, f"-I{task_dir}", "-c", str(FIRMWARE_DIR / "fw_task.c"), "-o", str(task_obj)],
                  f"compiling the task parameters of {task.source or name}", cwd=task_dir)
-        if v.target == "arm":
-            out = task_dir / "fw_m4.elf"
+        if v.target != "host":
+            out = task_dir / ("fw_m4.elf" if v.cpu == "cortex-m4" else f"fw_{v.cpu.replace('-', '_')}.elf")
             wrap = ["-Wl,--wrap=sinf", "-Wl,--wrap=cosf"] if v.fast_trig else []
-            run_tool([cc, *flags, "-nostartfiles", "--specs=nano.specs", "-T", str(ARM_DIR / TARGETS[v.cpu].linker_script), *wrap,
+            t = TARGETS[v.cpu]
+            run_tool([cc, *flags, "-nostartfiles", *t.link_specs, "-T", str(FIRMWARE_DIR / t.linker_script), *wrap,
                       "-Wl,--gc-sections", f"-Wl,-Map={out.with_suffix('.map')}", *map(str, objs), str(task_obj),
                       "-lm", "-o", str(out)], f"linking the {v.cpu} firmware")
         else:

@@ -34,13 +34,15 @@ def run_host(exe: Path, args: Sequence[str] = (), timeout: float = 300) -> Firmw
 
 
 def run_qemu(elf: Path, timeout: float = 600, icount: bool = True, target: str = "cortex-m4") -> FirmwareRun:
-    qemu = find_tool("qemu-system-arm", APT_HINT)
-    machine = ("-M", TARGETS[target].qemu_machine, *QEMU_MACHINE[2:])
+    t = TARGETS[target]
+    qemu = find_tool(t.qemu, APT_HINT if t.family == "arm" else
+                     f"install them from the distribution: apt-get install -y {' '.join(t.apt_packages)}")
+    machine = ("-M", t.qemu_machine, *t.qemu_extra, *QEMU_MACHINE[2:])
     cmd = [qemu, *machine, *(QEMU_ICOUNT if icount else ()), "-kernel", str(elf)]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
-        raise FirmwareError(f"qemu-system-arm did not finish {elf.name} within {timeout:.0f} s") from None
+        raise FirmwareError(f"{t.qemu} did not finish {elf.name} within {timeout:.0f} s") from None
     text = proc.stdout + proc.stderr  # semihosting console output goes to stderr in QEMU 7
     if proc.returncode != 0 or "# end" not in text:
         raise FirmwareError(f"the {target} firmware failed under QEMU (exit {proc.returncode}):\n{text[-3000:]}")

@@ -19,9 +19,9 @@ Stages (each a function returning a :class:`Stage` with a table of rows):
    with the plan CSV sample by sample; then run the firmware stub (``firmware_stub/``) on the
    same task on the host — double with ASan/UBSan, and float — and compare it the same way;
 5. target   — (``--target NAME``, a core of :data:`armgen.firmware.TARGETS`: cortex-m4,
-   cortex-m7, cortex-m33, cortex-m0plus) the firmware cross-compiled for that core in the
+   cortex-m7, cortex-m33, cortex-m0plus, rv32imf) the firmware cross-compiled for that core in the
    precision it computes natively (float; double on the Cortex-M7), run under
-   ``qemu-system-arm`` on the core's MPS2 board model (docs/targets.md), compared with the plan
+   QEMU on the core's board model (MPS2, RISC-V virt; docs/targets.md), compared with the plan
    (and with the host run of the same precision); fails naming the apt packages when the toolchain or QEMU is missing. Without
    ``--plan`` it plans the demo task of ``armgen firmware`` (:mod:`armgen.firmware.project`);
 6. run      — (``--run CSV``, with ``--plan``) what a firmware run printed (the host demo of an
@@ -402,10 +402,10 @@ def stage_target(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder |
     target = fw.TARGETS[config.target]
     label = target.description
     try:
-        fw.arm_tools()
+        fw.target_tools(target.name)
     except ArmgenError as exc:
         return Stage("target", False, columns, [[label, "toolchain", str(exc), "installed", False]],
-                     f"the {target.name} toolchain or QEMU is missing; apt-get install -y {fw.APT_PACKAGES}")
+                     f"the {target.name} toolchain or QEMU is missing; apt-get install -y {' '.join(target.apt_packages)}")
     try:
         plan_path = config.plan if config.plan is not None else _default_target_plan(config, work)
     except ArmgenError as exc:

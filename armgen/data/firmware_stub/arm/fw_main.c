@@ -1,6 +1,7 @@
 /*
  * Cortex-M4F runner of the joint controller (MPS2 AN386 under qemu-system-arm, or the board
- * with a debugger): runs the compiled-in task (`fw_task`, task_params.h) tick by tick and
+ * with a debugger; the other cores of armgen.firmware.TARGETS too, the RISC-V one timed by its
+ * mcycle counter instead of SysTick): runs the compiled-in task (`fw_task`, task_params.h) tick by tick and
  * prints the commanded trajectory as CSV over semihosting (reals in C99 hex, see fw_csv.h),
  * then "# key value" lines:
  *
@@ -48,10 +49,23 @@ extern const ctrl_real fw_move_to_target[16]; /* the tool pose, column-major (th
 #define FW_CPU_HZ 25000000u /* MPS2 AN386 processor clock, the SysTick source */
 #endif
 
+#if defined(__riscv)
+/* RISC-V (riscv/startup.c): the mcycle counter counts up, 32 bits read; processor cycles on
+ * hardware, executed instructions under QEMU -icount shift=0 (1 per count, calibrated below). */
+static inline uint32_t timer_now(void) {
+  uint32_t t;
+  __asm__ volatile("csrr %0, mcycle" : "=r"(t));
+  return t;
+}
+#define TIMER_ELAPSED(t0, t1) ((t1) - (t0))
+#else
 #define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
 #define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
 #define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
 #define SYST_MASK 0xFFFFFFu
+#define timer_now() SYST_CVR
+#define TIMER_ELAPSED(t0, t1) (((t0) - (t1)) & SYST_MASK) /* SysTick counts down, 24 bits */
+#endif
 #define STACK_PAINT 0xA5C3A5C3u
 
 extern uint32_t __stack_limit[];
@@ -71,20 +85,24 @@ __attribute__((noinline)) static ctrl_fault stub_tick(ctrl *c, const ctrl_input 
 __attribute__((noinline)) static uint32_t timed_tick(ctrl *c, const ctrl_input *in, ctrl_output *out) {
   tick_fn fn = selected_tick;
   uint32_t t0, t1;
-  t0 = SYST_CVR;
+  t0 = timer_now();
   (void)fn(c, in, out);
-  t1 = SYST_CVR;
-  return (t0 - t1) & SYST_MASK;
+  t1 = timer_now();
+  return TIMER_ELAPSED(t0, t1);
 }
 
 __attribute__((noinline)) static uint32_t timed_calib(uint32_t iterations) {
   uint32_t t0, t1;
-  t0 = SYST_CVR;
+  t0 = timer_now();
+#if defined(__riscv)
+  __asm__ volatile("1: addi %0, %0, -1\n\tbnez %0, 1b" : "+r"(iterations));
+#else
   /* unified syntax: GCC hands Thumb-1 (Armv6-M) inline assembly to the assembler in the
    * divided syntax, where `subs` with three operands does not exist */
   __asm__ volatile(".syntax unified\n1: subs %0, %0, #1\n\tbne 1b" : "+r"(iterations)::"cc");
-  t1 = SYST_CVR;
-  return (t0 - t1) & SYST_MASK;
+#endif
+  t1 = timer_now();
+  return TIMER_ELAPSED(t0, t1);
 }
 
 /* Fill the unused main stack (below this frame) with a pattern. */
@@ -121,9 +139,11 @@ int main(void) {
   int32_t after = -1;
 
   paint_stack();
+#if !defined(__riscv)
   SYST_RVR = SYST_MASK;
   SYST_CVR = 0u;
   SYST_CSR = 5u; /* ENABLE | CLKSOURCE = processor clock, no interrupt */
+#endif
 
   calib_ticks = timed_calib(101000u) - timed_calib(1000u);
   if (calib_ticks == 0u) {

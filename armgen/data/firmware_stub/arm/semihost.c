@@ -1,4 +1,4 @@
-/* Minimal Arm semihosting, see semihost.h. */
+/* Minimal Arm semihosting (and its RISC-V form, the same operations), see semihost.h. */
 #include "semihost.h"
 
 #define SYS_WRITE0 0x04
@@ -7,12 +7,25 @@
 #define ADP_STOPPED_APPLICATION_EXIT 0x20026u
 #define ADP_STOPPED_RUNTIME_ERROR 0x20023u
 
+#if defined(__riscv)
+/* RISC-V semihosting: ebreak between the two marker instructions, uncompressed and in one
+ * page (the 16-byte alignment keeps the 12 bytes together), operation in a0, argument in a1. */
+static int semihost_call(int op, const void *arg) {
+  register int a0 __asm__("a0") = op;
+  register const void *a1 __asm__("a1") = arg;
+  __asm__ volatile(".option push\n\t.option norvc\n\t.balign 16\n\t"
+                   "slli x0, x0, 0x1f\n\tebreak\n\tsrai x0, x0, 7\n\t.option pop"
+                   : "+r"(a0) : "r"(a1) : "memory");
+  return a0;
+}
+#else
 static int semihost_call(int op, const void *arg) {
   register int r0 __asm__("r0") = op;
   register const void *r1 __asm__("r1") = arg;
   __asm__ volatile("bkpt 0xAB" : "+r"(r0) : "r"(r1) : "memory");
   return r0;
 }
+#endif
 
 void sh_puts(const char *s) { (void)semihost_call(SYS_WRITE0, s); }
 
