@@ -2,6 +2,7 @@
 what the CasADi reference gives; the kernel is built once into the store and loaded from it only
 when trusted and self-tested; without a C compiler the reference runs, said once."""
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -18,7 +19,7 @@ from hypothesis import strategies as st
 from armgen.codegen import api_kernel
 from conftest import require_tool
 from armgen.errors import OptionError, ToolchainError
-from armgen.robot import load_robot
+from armgen.robot import Robot, load_robot
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = 4141
@@ -262,7 +263,7 @@ def test_the_environment_forces_the_reference(store, fresh_process, monkeypatch)
 
 BUILD = """
 import sys
-from armgen.robot import load_robot
+from armgen.robot import Robot, load_robot
 robot = load_robot('planar3')
 assert robot._kernel is not None, 'no kernel'
 print(robot.fk([0.1, 0.2, 0.3])[0, 3])
@@ -322,3 +323,22 @@ def test_any_batch_layout_and_dtype_gives_the_reference(store, shape, dtype, lay
     for value, expected in zip(robot.fk_jacobian(q), ref.fk_jacobian(q)):
         assert_agrees(value, expected)
     assert_agrees(robot.joint_limit_gradient(q), ref.joint_limit_gradient(q))
+
+
+def test_the_digest_names_what_the_kernel_computes_not_where_the_robot_was_read(tmp_path):
+    from armgen.description import BUNDLED_DIR
+
+    def digest(robot):
+        functions = tuple(n for n in api_kernel.API_FUNCTIONS if n in robot.symbolic.available())
+        return api_kernel._kernel_digest(robot.symbolic, functions)
+
+    base = digest(load_robot("panda"))
+    (tmp_path / "copy.toml").write_text((BUNDLED_DIR / "panda.toml").read_text())
+    assert digest(load_robot(tmp_path / "copy.toml")) == base  # another file, the same arm
+    moved_tool = load_robot("panda")
+    moved_tool.tool[2, 3] += 1e-3
+    assert digest(moved_tool) != base
+    panda = load_robot("panda")
+    narrowed = dataclasses.replace(panda, joints=(dataclasses.replace(panda.joints[0], qlim=(-1.0, 1.0)),
+                                                  *panda.joints[1:]))
+    assert digest(Robot.from_description(narrowed)) != base

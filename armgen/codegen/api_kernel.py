@@ -10,7 +10,8 @@ warning says, once per process.
 What is trusted follows :mod:`armgen.codegen.kernel_store`: an entry ``<prefix>_api-<digest>.json``
 (the library's file name and SHA-256) beside the library ``<prefix>_api-<digest24>.so``, found
 by a digest of everything the library is made from (armgen's sources and C templates, the
-robot, the functions, the compiler and its flags, the Python ABI), read only when this user's
+robot's description but where it was read from, the functions, the compiler and its flags, the
+Python ABI), read only when this user's
 alone and loaded only when its bytes match the entry's digest. A library is used only after it
 reproduces the CasADi reference on :data:`SELF_TEST_SAMPLES` seeded inputs per function
 (:data:`REFERENCE_AGREEMENT`; :func:`reference_cases`): when built, the reference is evaluated
@@ -23,6 +24,7 @@ each leave a whole file, and a reader sees a whole entry or none.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import importlib.machinery
@@ -36,7 +38,6 @@ import sys
 import sysconfig
 import tempfile
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 
@@ -94,7 +95,7 @@ def kernel_choice() -> str:
     return choice
 
 
-@dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True)
 class Signature:
     """A function's inputs and outputs: (name, rows, cols) each, in order (column-major values)."""
 
@@ -314,8 +315,14 @@ def _code_fingerprint() -> str:
     return digest.hexdigest()
 
 
+# The description's fields that say where it was read from, not what it computes: the same arm
+# read from another file (a copy, a test's temporary folder) shares the kernel.
+PLACE_FIELDS = frozenset({"source", "sha256", "description", "units", "urdf", "path"})
+
+
 def _kernel_digest(model: SymbolicModel, functions: tuple[str, ...]) -> str:
-    robot = hashlib.sha256(pickle.dumps(model.robot, protocol=4)).hexdigest()
+    fields = {f.name: getattr(model.robot, f.name) for f in dataclasses.fields(model.robot) if f.name not in PLACE_FIELDS}
+    robot = hashlib.sha256(pickle.dumps(fields, protocol=4)).hexdigest()
     identity = repr((_code_fingerprint(), _toolchain_identity(), robot, functions))
     return hashlib.sha256(identity.encode()).hexdigest()[:24]
 
