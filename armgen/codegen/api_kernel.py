@@ -321,7 +321,8 @@ PLACE_FIELDS = frozenset({"source", "sha256", "description", "units", "urdf", "p
 
 
 def _kernel_digest(model: SymbolicModel, functions: tuple[str, ...]) -> str:
-    fields = {f.name: getattr(model.robot, f.name) for f in dataclasses.fields(model.robot) if f.name not in PLACE_FIELDS}
+    fields = {f.name: getattr(model.robot, f.name) for f in dataclasses.fields(model.robot)
+              if f.name not in PLACE_FIELDS}
     robot = hashlib.sha256(pickle.dumps(fields, protocol=4)).hexdigest()
     identity = repr((_code_fingerprint(), _toolchain_identity(), robot, functions))
     return hashlib.sha256(identity.encode()).hexdigest()[:24]
