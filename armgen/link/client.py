@@ -24,7 +24,10 @@ from .protocol import FAULT_NAMES, FLAGS, RESULTS, STATE_NAMES, VERSION
 
 HANDSHAKE_NDOF = 0  # HELLO and HELLO_REPLY have no per-joint field: decodable before the board says ndof
 HEARTBEATS_PER_TIMEOUT = 4  # frames per watchdog timeout while a stream's waypoints are sparser
-DEFAULT_TIMEOUT_S = 2.0  # a reply takes one tick plus the wire; 2 s covers a loaded host running the board
+DEFAULT_TIMEOUT_S = 2.0
+# A servo at rest: the closed loop's last corrections on a zero twist decay as exp(-20 t) and
+# never reach exactly 0; below this (rad/s, m/s) STOP's jump to velocity 0 is nothing.
+SERVO_REST_SPEED = 1e-6  # a reply takes one tick plus the wire; 2 s covers a loaded host running the board
 
 
 class LinkError(ArmgenError):
@@ -216,6 +219,35 @@ class LinkClient:
             raise CommandRefused(f"waypoint {sent[r['ack_seq']]} refused: {r.result_name} "
                             f"({dict(RESULTS)[r.result_name]})")
         return replies
+
+    def servo(self, twists: np.ndarray, period_s: float) -> list[Telemetry]:
+        """Send one tool twist ([v; w], base frame, m/s, rad/s) every period_s (servo: the board
+        follows each within its limits until the next), then a zero twist until the arm is at
+        rest, then STOP. Returns the replies to the twists, in order (``tick``: the tick from
+        which the board followed each)."""
+        twists = np.asarray(twists, dtype=float)
+        if twists.ndim != 2 or twists.shape[1] != 6:
+            raise LinkError(f"twists are rows of 6 values [vx vy vz wx wy wz], got shape {twists.shape}")
+        replies: list[Telemetry] = []
+        sent: dict[int, int] = {}
+        start = time.monotonic()
+        for k, xdot in enumerate(twists):
+            while time.monotonic() < start + k * period_s:
+                self._collect(sent, replies)
+                time.sleep(0.001)
+            sent[self.send("TWIST", {"xdot": xdot})] = k
+        deadline = time.monotonic() + self.timeout
+        while len(replies) < len(twists) and time.monotonic() < deadline:
+            self._collect(sent, replies)
+        refused = [r for r in replies if r.result_name != "OK"]
+        if refused:
+            raise CommandRefused(f"twist {sent[refused[0]['ack_seq']]} refused: {refused[0].result_name}")
+        deadline = time.monotonic() + self.timeout
+        while (max(abs(v) for v in self.request("TWIST", {"xdot": np.zeros(6)})["qd"]) > SERVO_REST_SPEED
+               and time.monotonic() < deadline):
+            time.sleep(0.005)
+        self.stop()
+        return sorted(replies, key=lambda r: sent[r["ack_seq"]])
 
     def _collect(self, sent: dict[int, int], replies: list[Telemetry]) -> None:
         for frame in self.poll():

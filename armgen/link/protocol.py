@@ -71,6 +71,7 @@ FLAGS = (
     ("SESSION", "a host has said HELLO in this protocol version"),
     ("STREAMING", "a waypoint stream is being followed"),
     ("STALE", "the watchdog fired: stopping, then the controller's STALE fault"),
+    ("SERVOING", "a TWIST is being followed"),
 )
 
 MESSAGES: tuple[Message, ...] = (
@@ -95,6 +96,9 @@ MESSAGES: tuple[Message, ...] = (
         Field("locked", "u32", doc="bit i: joint i's drive reports a lock (permanent: ctrl_input.locked)"),
     ), "a lock report, handed to the controller on every tick from now on"),
     Message("STATUS", 0x08, "host", (), "asks for TELEMETRY; also the heartbeat that keeps the watchdog fed"),
+    Message("TWIST", 0x09, "host", (
+        Field("xdot", "f32", 6, "the tool's twist [v; w] in the base frame, m/s and rad/s (the robot's task rows)"),
+    ), "servo: the tool moves at this twist (resolved rate with damping, scaled down to the joint limits) until the next"),
     Message("HELLO_REPLY", 0x81, "board", (
         Field("accepted", "u8", doc="1: the session is open; 0: the host's version differs (see version)"),
         Field("version", "u8", doc="the board's protocol version"),

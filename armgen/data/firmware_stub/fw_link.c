@@ -126,6 +126,13 @@ void fw_link_init(fw_link *l, const ctrl_config *config, uint32_t watchdog_ticks
     l->qdd_max[i] = config->qddot_max[i];
     l->last.q[i] = config->q_start[i];
   }
+  /* the robot's task rows: the resolved-rate modes' configuration names them; a robot that
+   * controls all six rows needs no name; else (a planar arm's playback) SERVO is refused */
+  l->servo_rows_known = config->mode == CTRL_MODE_RESOLVED_RATE || config->mode == CTRL_MODE_FAULT_TOLERANT ||
+                        config->mode == CTRL_MODE_WEIGHTED_GPM || CTRL_NTASK == 6;
+  for (i = 0; i < CTRL_NTASK; ++i) {
+    l->task_rows[i] = CTRL_NTASK == 6 ? i : config->rr.task_rows[i];
+  }
   l->last.state = CTRL_STATE_IDLE;
   l->command = CTRL_CMD_NONE;
 }
@@ -153,13 +160,46 @@ size_t fw_link_transmit(fw_link *l, uint8_t *dst, size_t max) {
 
 /* ------------------------------------------------------------------ messages */
 
+/* R (3x3, column-major) of a 4x4 pose. */
+static void rotation_of(const ctrl_real *T, ctrl_real *R) {
+  int r, col;
+  for (col = 0; col < 3; ++col) {
+    for (r = 0; r < 3; ++r) {
+      R[r + 3 * col] = T[r + 4 * col];
+    }
+  }
+}
+
+static uint8_t accept_twist(fw_link *l, const fw_link_twist *m) {
+  int i;
+  ctrl_real T[16], J[6 * N];
+  for (i = 0; i < 6; ++i) {
+    l->twist[i] = (ctrl_real)m->xdot[i];
+    if (!finite_r(l->twist[i])) return FW_LINK_RESULT_BAD_VALUE;
+  }
+  if (!l->servo_rows_known || l->streaming || (arm_moves(l->last.state) && !l->servoing) ||
+      l->last.state == CTRL_STATE_FAULT) {
+    return FW_LINK_RESULT_REFUSED_STATE;
+  }
+  if (!l->servoing) { /* the reference starts at the held command's tool pose */
+    ctrl_gen_fk_jacobian(l->last.q, T, J);
+    rotation_of(T, l->R_ref);
+    for (i = 0; i < 3; ++i) {
+      l->p_ref[i] = T[12 + i];
+    }
+    l->servoing = 1;
+    l->servo_k = 0;
+  }
+  return FW_LINK_RESULT_OK;
+}
+
 static uint8_t accept_move_to_pose(fw_link *l, const fw_link_move_to_pose *m) {
   int i;
   for (i = 0; i < 16; ++i) {
     l->target[i] = (ctrl_real)m->pose[i];
     if (!finite_r(l->target[i])) return FW_LINK_RESULT_BAD_VALUE;
   }
-  if (arm_moves(l->last.state) || l->streaming) return FW_LINK_RESULT_REFUSED_STATE;
+  if (arm_moves(l->last.state) || l->streaming || l->servoing) return FW_LINK_RESULT_REFUSED_STATE;
   l->command = CTRL_CMD_MOVE_TO;
   return FW_LINK_RESULT_OK;
 }
@@ -178,7 +218,7 @@ static uint8_t accept_move_to_joints(fw_link *l, const fw_link_move_to_joints *m
     l->q_target[i] = (ctrl_real)m->q[i];
   }
   if (!inside_limits(l, l->q_target)) return FW_LINK_RESULT_BAD_VALUE;
-  if (arm_moves(l->last.state) || l->streaming) return FW_LINK_RESULT_REFUSED_STATE;
+  if (arm_moves(l->last.state) || l->streaming || l->servoing) return FW_LINK_RESULT_REFUSED_STATE;
   l->command = CTRL_CMD_MOVE_TO_JOINTS;
   return FW_LINK_RESULT_OK;
 }
@@ -197,7 +237,9 @@ static uint8_t accept_waypoint(fw_link *l, const fw_link_waypoint *m) {
   }
   if (!inside_limits(l, w.q)) return FW_LINK_RESULT_BAD_VALUE;
   if (!l->streaming) {
-    if (arm_moves(l->last.state) || l->last.state == CTRL_STATE_FAULT) return FW_LINK_RESULT_REFUSED_STATE;
+    if (arm_moves(l->last.state) || l->servoing || l->last.state == CTRL_STATE_FAULT) {
+      return FW_LINK_RESULT_REFUSED_STATE;
+    }
     if (w.t_us != 0u) return FW_LINK_RESULT_STREAM_START;
     for (i = 0; i < N; ++i) {
       ctrl_real d = w.q[i] - l->last.q[i];
@@ -233,16 +275,18 @@ static uint8_t dispatch(fw_link *l, uint8_t type, const fw_link_message *m) {
   if (l->stale) return FW_LINK_RESULT_STALE;
   switch (type) {
     case FW_LINK_START:
-      if (l->last.state != CTRL_STATE_IDLE || l->streaming) return FW_LINK_RESULT_REFUSED_STATE;
+      if (l->last.state != CTRL_STATE_IDLE || l->streaming || l->servoing) return FW_LINK_RESULT_REFUSED_STATE;
       l->command = CTRL_CMD_START;
       return FW_LINK_RESULT_OK;
     case FW_LINK_STOP:
       l->streaming = 0;
+      l->servoing = 0;
       l->command = CTRL_CMD_STOP;
       return FW_LINK_RESULT_OK;
     case FW_LINK_MOVE_TO_POSE: return accept_move_to_pose(l, &m->move_to_pose);
     case FW_LINK_MOVE_TO_JOINTS: return accept_move_to_joints(l, &m->move_to_joints);
     case FW_LINK_WAYPOINT: return accept_waypoint(l, &m->waypoint);
+    case FW_LINK_TWIST: return accept_twist(l, &m->twist);
     case FW_LINK_LOCK:
       l->locked = m->lock.locked;
       return FW_LINK_RESULT_OK;
@@ -344,6 +388,7 @@ static void start_stop(fw_link *l) {
   l->stale = 1;
   l->stale_ticks = l->tick - l->last_frame_tick;
   l->streaming = 0;
+  l->servoing = 0;
   l->command = CTRL_CMD_NONE;
   l->stop_T = CTRL_LIT(0.0);
   l->stop_k = 0;
@@ -444,6 +489,120 @@ static void stream_tick(fw_link *l, ctrl_input *in) {
   }
 }
 
+/* ------------------------------------------------------------------ servo */
+
+/* The orientation error of R from Rd: the vector part of Rd R^T (as the controller's). */
+static void orientation_error(const ctrl_real *R, const ctrl_real *Rd, ctrl_real *e) {
+  ctrl_real S[9];
+  int r, col;
+  for (col = 0; col < 3; ++col) {
+    for (r = 0; r < 3; ++r) {
+      S[r + 3 * col] = Rd[r] * R[col] + Rd[r + 3] * R[col + 3] + Rd[r + 6] * R[col + 6];
+    }
+  }
+  e[0] = CTRL_LIT(0.5) * (S[5] - S[7]);
+  e[1] = CTRL_LIT(0.5) * (S[6] - S[2]);
+  e[2] = CTRL_LIT(0.5) * (S[1] - S[3]);
+}
+
+/* R <- Rot(w h) R (Rodrigues), w in the base frame. */
+static void rotate(ctrl_real *R, const ctrl_real *w, ctrl_real h) {
+  ctrl_real th = CTRL_SQRT(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * h, k[3], K[9], KK[9], A[9], out[9];
+  int r, col, j;
+  if (!(th > CTRL_LIT(0.0))) return;
+  for (j = 0; j < 3; ++j) {
+    k[j] = w[j] * h / th;
+  }
+  K[0] = CTRL_LIT(0.0); K[3] = -k[2]; K[6] = k[1];
+  K[1] = k[2]; K[4] = CTRL_LIT(0.0); K[7] = -k[0];
+  K[2] = -k[1]; K[5] = k[0]; K[8] = CTRL_LIT(0.0);
+  for (col = 0; col < 3; ++col) {
+    for (r = 0; r < 3; ++r) {
+      KK[r + 3 * col] = K[r] * K[3 * col] + K[r + 3] * K[1 + 3 * col] + K[r + 6] * K[2 + 3 * col];
+    }
+  }
+  for (j = 0; j < 9; ++j) {
+    A[j] = CTRL_SIN(th) * K[j] + (CTRL_LIT(1.0) - CTRL_COS(th)) * KK[j] + ((j % 4) == 0 ? CTRL_LIT(1.0) : CTRL_LIT(0.0));
+  }
+  for (col = 0; col < 3; ++col) {
+    for (r = 0; r < 3; ++r) {
+      out[r + 3 * col] = A[r] * R[3 * col] + A[r + 3] * R[1 + 3 * col] + A[r + 6] * R[2 + 3 * col];
+    }
+  }
+  (void)memcpy(R, out, sizeof out);
+}
+
+/* The largest s in [0, s_max] with |s qd_i - v_i| <= dv_i for every joint, or -1 when none. */
+static ctrl_real acceleration_scale(const ctrl_real *qd, const ctrl_real *v, const ctrl_real *dv, ctrl_real s_max) {
+  ctrl_real lo = CTRL_LIT(0.0), hi = s_max;
+  int i;
+  for (i = 0; i < N; ++i) {
+    if (qd[i] != CTRL_LIT(0.0)) {
+      ctrl_real a = (v[i] - dv[i]) / qd[i], b = (v[i] + dv[i]) / qd[i];
+      lo = a < b ? (a > lo ? a : lo) : (b > lo ? b : lo);
+      hi = a < b ? (b < hi ? b : hi) : (a < hi ? a : hi);
+    } else if (v[i] > dv[i] || v[i] < -dv[i]) {
+      return CTRL_LIT(-1.0); /* a joint the step leaves still cannot stop within the tick */
+    } else {
+      /* a joint the step leaves still, and can: no bound on s */
+    }
+  }
+  return lo <= hi ? hi : CTRL_LIT(-1.0);
+}
+
+/* The servo's command of this tick: the step toward the twist, closed on the integrated pose,
+ * scaled into the limits (speed, braking distance to a limit, acceleration), integrated. */
+static void servo_tick(fw_link *l, ctrl_input *in) {
+  ctrl_real T[16], J[6 * N], R[9], e[6], xd[CTRL_NTASK], alpha[N], qd[N], v[N], dv[N], s = CTRL_LIT(1.0);
+  int i;
+  if (l->servo_k > 0u && !arm_moves(l->last.state)) { /* the controller stopped it (a fault) */
+    l->servoing = 0;
+    return;
+  }
+  ctrl_gen_fk_jacobian(l->last.q, T, J);
+  rotation_of(T, R);
+  for (i = 0; i < 3; ++i) {
+    e[i] = l->p_ref[i] - T[12 + i];
+  }
+  orientation_error(R, l->R_ref, e + 3);
+  for (i = 0; i < CTRL_NTASK; ++i) {
+    xd[i] = l->twist[l->task_rows[i]] + FW_LINK_SERVO_GAIN * e[l->task_rows[i]];
+  }
+  for (i = 0; i < N; ++i) {
+    alpha[i] = CTRL_LIT(0.0);
+    v[i] = l->servo_k > 0u ? l->last.qd[i] : CTRL_LIT(0.0);
+    dv[i] = l->qdd_max[i] * l->dt;
+  }
+  if (ctrl_gen_step_gpm(J, xd, alpha, FW_LINK_SERVO_DAMPING, qd) != CTRL_GEN_OK) {
+    for (i = 0; i < N; ++i) {
+      qd[i] = CTRL_LIT(0.0); /* a non-finite step: come to rest */
+    }
+  }
+  for (i = 0; i < N; ++i) { /* each joint's speed cap: its limit, and stopping before its joint limit */
+    ctrl_real room = (qd[i] > CTRL_LIT(0.0) ? l->q_max[i] - l->last.q[i] : l->last.q[i] - l->q_min[i]) -
+                     FW_LINK_SERVO_LIMIT_MARGIN;
+    ctrl_real cap = CTRL_SQRT(CTRL_LIT(2.0) * l->qdd_max[i] * (room > CTRL_LIT(0.0) ? room : CTRL_LIT(0.0)));
+    ctrl_real speed = qd[i] < CTRL_LIT(0.0) ? -qd[i] : qd[i];
+    cap = cap < l->qd_max[i] ? cap : l->qd_max[i];
+    if (speed > cap) s = s < cap / speed ? s : cap / speed;
+  }
+  /* the reference moves by the twist scaled to the speeds the joints may reach; the change of
+   * velocity this tick is limited on top, and the closed loop makes up the lag */
+  l->servo_scale = s;
+  s = acceleration_scale(qd, v, dv, s);
+  for (i = 0; i < N; ++i) { /* no common scale fits the acceleration: each joint as close as it can */
+    v[i] = s >= CTRL_LIT(0.0) ? s * qd[i] : clamp_r(l->servo_scale * qd[i], v[i] - dv[i], v[i] + dv[i]);
+    in->q_ref[i] = clamp_r(l->last.q[i] + v[i] * l->dt, l->q_min[i], l->q_max[i]);
+    in->qd_ref[i] = v[i];
+  }
+  in->command = CTRL_CMD_SETPOINT;
+  for (i = 0; i < 3; ++i) { /* the reference moves by the twist as executed */
+    l->p_ref[i] += l->servo_scale * l->twist[i] * l->dt;
+  }
+  rotate(l->R_ref, l->twist + 3, l->servo_scale * l->dt);
+  ++l->servo_k;
+}
+
 /* ------------------------------------------------------------------ per tick */
 
 void fw_link_input(fw_link *l, ctrl_input *in) {
@@ -470,6 +629,10 @@ void fw_link_input(fw_link *l, ctrl_input *in) {
   }
   if (l->streaming) {
     stream_tick(l, in);
+  } else if (l->servoing) {
+    servo_tick(l, in);
+  } else {
+    /* nothing to command: the controller goes on with its mode or holds */
   }
 }
 
@@ -497,7 +660,8 @@ static void send_telemetry(fw_link *l) {
   m.state = (uint8_t)o->state;
   m.fault = (uint8_t)(l->stale ? CTRL_FAULT_STALE : o->fault);
   m.link_flags = (uint8_t)((l->session ? FW_LINK_FLAG_SESSION : 0u) | (l->streaming ? FW_LINK_FLAG_STREAMING : 0u) |
-                           (l->stale ? FW_LINK_FLAG_STALE : 0u));
+                           (l->stale ? FW_LINK_FLAG_STALE : 0u) |
+                           (l->servoing ? FW_LINK_FLAG_SERVOING : 0u));
   m.result = l->result;
   m.ack_seq = l->ack_seq;
   m.waypoints_free = (uint16_t)(l->streaming ? FW_LINK_WAYPOINTS - l->wp_count : FW_LINK_WAYPOINTS);

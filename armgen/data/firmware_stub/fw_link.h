@@ -30,6 +30,11 @@
  * Stream: timed joint waypoints (t, q, qd) buffered, interpolated at every tick by the cubic
  * Hermite between the two around t, and followed within each joint's qdot_max and qddot_max
  * (the step to the interpolated point, limited); the controller receives it as a setpoint.
+ *
+ * Servo: a tool twist (TWIST) followed at every tick by the resolved-rate step (the generated
+ * step_gpm, damped), closed on the pose the executed twist integrates to; the joint velocities
+ * are scaled down together (the tool's direction kept) so that every joint keeps its qdot_max,
+ * its qddot_max and a braking distance to its limits.
  */
 #ifndef ARMGEN_FW_LINK_H
 #define ARMGEN_FW_LINK_H
@@ -60,6 +65,14 @@ extern "C" {
 /* A stream's first waypoint must lie this close to the held command, rad (m): the stream starts
  * where the arm is, never with a jump. */
 #define FW_LINK_STREAM_START_TOL CTRL_LIT(1e-3)
+
+/* SERVO: the closed loop's gain on the tool's error from the integrated twist, 1/s (the
+ * error decays as exp(-gain t); gain * dt << 1 at any tick up to 10 ms); the damping of the
+ * resolved-rate step, m (finite joint speeds at a singular pose, scaled down by the limits);
+ * the margin kept from a joint limit, rad (m). */
+#define FW_LINK_SERVO_GAIN CTRL_LIT(20.0)
+#define FW_LINK_SERVO_DAMPING CTRL_LIT(0.005)
+#define FW_LINK_SERVO_LIMIT_MARGIN CTRL_LIT(1e-3)
 
 /* A frame: header, body, CRC-32 (FW_LINK_MAX_RAW); COBS adds one byte per 254 and the first. */
 #define FW_LINK_MAX_RAW (FW_LINK_HEADER_SIZE + FW_LINK_MAX_BODY + FW_LINK_CRC_SIZE)
@@ -104,6 +117,13 @@ typedef struct {
   fw_link_waypoint_slot wp[FW_LINK_WAYPOINTS];
   uint32_t wp_first, wp_count, stream_k;
   int streaming, stream_ended, stream_arrived; /* ended: its last waypoint received; arrived: the arm is there */
+  /* servo */
+  int servoing;
+  uint32_t servo_k;
+  ctrl_real twist[6];              /* the last TWIST, [v; w] in the base frame */
+  ctrl_real p_ref[3], R_ref[9];    /* the tool pose of the twist as executed (scaled), integrated */
+  ctrl_real servo_scale;           /* the scale of the last servo tick, (0, 1] */
+  int task_rows[CTRL_NTASK], servo_rows_known;
   /* the watchdog's stop */
   int stale, stale_sent;
   uint32_t stale_ticks, stop_k;

@@ -163,6 +163,27 @@ int fw_link_unpack_status(const uint8_t *body, size_t len) {
   return len == FW_LINK_STATUS_SIZE;
 }
 
+size_t fw_link_pack_twist(const fw_link_twist *m, uint8_t *out) {
+  size_t i;
+  uint8_t *p = out;
+  for (i = 0; i < (size_t)(6); ++i) {
+    put_f32(&p, m->xdot[i]);
+  }
+  return (size_t)(p - out);
+}
+
+int fw_link_unpack_twist(const uint8_t *body, size_t len, fw_link_twist *m) {
+  size_t i;
+  const uint8_t *p = body;
+  if (len != FW_LINK_TWIST_SIZE) {
+    return 0;
+  }
+  for (i = 0; i < (size_t)(6); ++i) {
+    m->xdot[i] = get_f32(&p);
+  }
+  return 1;
+}
+
 size_t fw_link_pack_hello_reply(const fw_link_hello_reply *m, uint8_t *out) {
   uint8_t *p = out;
   put_u8(&p, m->accepted);
@@ -277,6 +298,7 @@ int fw_link_unpack(uint8_t type, const uint8_t *body, size_t len, fw_link_messag
     case FW_LINK_WAYPOINT: return fw_link_unpack_waypoint(body, len, &m->waypoint);
     case FW_LINK_LOCK: return fw_link_unpack_lock(body, len, &m->lock);
     case FW_LINK_STATUS: return fw_link_unpack_status(body, len);
+    case FW_LINK_TWIST: return fw_link_unpack_twist(body, len, &m->twist);
     case FW_LINK_HELLO_REPLY: return fw_link_unpack_hello_reply(body, len, &m->hello_reply);
     case FW_LINK_TELEMETRY: return fw_link_unpack_telemetry(body, len, &m->telemetry);
     default: return 0;
@@ -293,6 +315,7 @@ size_t fw_link_pack(uint8_t type, const fw_link_message *m, uint8_t *out) {
     case FW_LINK_WAYPOINT: return fw_link_pack_waypoint(&m->waypoint, out);
     case FW_LINK_LOCK: return fw_link_pack_lock(&m->lock, out);
     case FW_LINK_STATUS: return FW_LINK_STATUS_SIZE;
+    case FW_LINK_TWIST: return fw_link_pack_twist(&m->twist, out);
     case FW_LINK_HELLO_REPLY: return fw_link_pack_hello_reply(&m->hello_reply, out);
     case FW_LINK_TELEMETRY: return fw_link_pack_telemetry(&m->telemetry, out);
     default: return 0u;

@@ -27,6 +27,7 @@
 #define FW_LINK_WAYPOINT 0x06u /* one timed waypoint of a stream, interpolated on board at every tick (cubic Hermite) within the limits */
 #define FW_LINK_LOCK 0x07u /* a lock report, handed to the controller on every tick from now on */
 #define FW_LINK_STATUS 0x08u /* asks for TELEMETRY; also the heartbeat that keeps the watchdog fed */
+#define FW_LINK_TWIST 0x09u /* servo: the tool moves at this twist (resolved rate with damping, scaled down to the joint limits) until the next */
 #define FW_LINK_HELLO_REPLY 0x81u /* the answer to HELLO */
 #define FW_LINK_TELEMETRY 0x82u /* the board's state: the reply to every valid host frame, and every telemetry_period ticks */
 
@@ -39,6 +40,7 @@
 #define FW_LINK_WAYPOINT_SIZE (4u + 1u + 4u * (size_t)(CTRL_NDOF) + 4u * (size_t)(CTRL_NDOF))
 #define FW_LINK_LOCK_SIZE (4u)
 #define FW_LINK_STATUS_SIZE 0u
+#define FW_LINK_TWIST_SIZE (4u * (size_t)(6))
 #define FW_LINK_HELLO_REPLY_SIZE (1u + 1u + 1u + 4u + 4u + 2u)
 #define FW_LINK_TELEMETRY_SIZE (4u + 4u + 1u + 1u + 1u + 1u + 2u + 2u + 4u * (size_t)(CTRL_NDOF) + 4u * (size_t)(CTRL_NDOF) + 4u * (size_t)(12) + 4u + 4u + 4u + 4u + 4u + 4u + 4u + 4u + 4u + 4u + 4u + 4u + 4u + 4u + 4u)
 /* the largest body (for every joint count: armgen.link.c_codec checks it) */
@@ -57,6 +59,7 @@
 #define FW_LINK_FLAG_SESSION 1u /* a host has said HELLO in this protocol version */
 #define FW_LINK_FLAG_STREAMING 2u /* a waypoint stream is being followed */
 #define FW_LINK_FLAG_STALE 4u /* the watchdog fired: stopping, then the controller's STALE fault */
+#define FW_LINK_FLAG_SERVOING 8u /* a TWIST is being followed */
 
 
 /* HELLO (host -> board): opens a session (the version handshake); its seq is the base of the host's sequence */
@@ -87,6 +90,11 @@ typedef struct {
   uint32_t locked; /* bit i: joint i's drive reports a lock (permanent: ctrl_input.locked) */
 } fw_link_lock;
 
+/* TWIST (host -> board): servo: the tool moves at this twist (resolved rate with damping, scaled down to the joint limits) until the next */
+typedef struct {
+  float xdot[6]; /* the tool's twist [v; w] in the base frame, m/s and rad/s (the robot's task rows) */
+} fw_link_twist;
+
 /* HELLO_REPLY (board -> host): the answer to HELLO */
 typedef struct {
   uint8_t accepted; /* 1: the session is open; 0: the host's version differs (see version) */
@@ -103,7 +111,7 @@ typedef struct {
   uint32_t motion_tick; /* the controller's tick index within the motion */
   uint8_t state; /* ctrl_state */
   uint8_t fault; /* ctrl_fault (STALE from the watchdog's decision on) */
-  uint8_t link_flags; /* bits: 0 SESSION, 1 STREAMING, 2 STALE */
+  uint8_t link_flags; /* bits: 0 SESSION, 1 STREAMING, 2 STALE, 3 SERVOING */
   uint8_t result; /* the result of the frame ack_seq names (RESULTS) */
   uint16_t ack_seq; /* seq of the last host frame acted on or refused */
   uint16_t waypoints_free; /* free slots of the waypoint buffer */
@@ -134,6 +142,7 @@ typedef union {
   fw_link_move_to_joints move_to_joints;
   fw_link_waypoint waypoint;
   fw_link_lock lock;
+  fw_link_twist twist;
   fw_link_hello_reply hello_reply;
   fw_link_telemetry telemetry;
 } fw_link_message;
@@ -151,6 +160,8 @@ int fw_link_unpack_waypoint(const uint8_t *body, size_t len, fw_link_waypoint *m
 size_t fw_link_pack_lock(const fw_link_lock *m, uint8_t *out);
 int fw_link_unpack_lock(const uint8_t *body, size_t len, fw_link_lock *m);
 int fw_link_unpack_status(const uint8_t *body, size_t len); /* 1: an empty body */
+size_t fw_link_pack_twist(const fw_link_twist *m, uint8_t *out);
+int fw_link_unpack_twist(const uint8_t *body, size_t len, fw_link_twist *m);
 size_t fw_link_pack_hello_reply(const fw_link_hello_reply *m, uint8_t *out);
 int fw_link_unpack_hello_reply(const uint8_t *body, size_t len, fw_link_hello_reply *m);
 size_t fw_link_pack_telemetry(const fw_link_telemetry *m, uint8_t *out);

@@ -112,7 +112,8 @@ static void csv_row(FILE *f, const fw_link *l, const ctrl_output *out) {
   int i;
   fprintf(f, "%lu,%.17g,%d,%d,%d,%lu", (unsigned long)l->tick, (double)out->t, (int)out->state,
           (int)(l->stale ? CTRL_FAULT_STALE : out->fault),
-          (l->session ? 1 : 0) | (l->streaming ? 2 : 0) | (l->stale ? 4 : 0), (unsigned long)l->counts.rx_frames);
+          (l->session ? 1 : 0) | (l->streaming ? 2 : 0) | (l->stale ? 4 : 0) | (l->servoing ? 8 : 0),
+          (unsigned long)l->counts.rx_frames);
   for (i = 0; i < CTRL_NDOF; ++i) fprintf(f, ",%.17g", (double)out->q[i]);
   for (i = 0; i < CTRL_NDOF; ++i) fprintf(f, ",%.17g", (double)out->qd[i]);
   fputc('\n', f);
@@ -170,11 +171,11 @@ int main(int argc, char **argv) {
     (void)memset(&in, 0, sizeof in);
     fw_link_input(&l, &in);
     (void)ctrl_tick(&c, &in, &out);
+    if (csv != NULL) csv_row(csv, &l, &out); /* before fw_link_output: the row's tick is this tick */
     fw_link_output(&l, &out);
     while ((m = fw_link_transmit(&l, buf, sizeof buf)) > 0u) {
       if (write(fd, buf, m) != (ssize_t)m) break; /* the reader is gone or slow: the rest is dropped */
     }
-    if (csv != NULL) csv_row(csv, &l, &out);
     if (ticks_max > 0ul && (unsigned long)l.tick >= ticks_max) break;
     add_ns(&next, period_ns);
     (void)clock_gettime(CLOCK_MONOTONIC, &now);
