@@ -39,7 +39,7 @@ __all__ = ["Robot", "load_robot", "read_task_document", "read_task", "plan", "Pl
            "parse_override", "read_plan", "plan_metadata_path", "figure_format", "save_plot", "parse_frame_size",
            "animate_plan", "sweep", "solve_ik", "IkSolution", "generate_ptp", "json_schema", "write_text_atomic",
            "firmware_project", "firmware_task", "link_open", "link_status", "link_move_to", "link_stream",
-           "LinkStreamReport", "link_watch",
+           "LinkStreamReport", "link_watch", "link_servo", "read_twists",
            # the errors every call may raise, each with its command-line exit code
            "ArmgenError", "RobotFileError", "TaskFileError", "PlanningError", "ToolchainError", "VerificationError",
            "OutputError", "Interrupted", "PlanFileError", "OptionError", "excerpt"]
@@ -816,6 +816,35 @@ def _joint_names(columns: list[str], ndof: int) -> list[str]:
     from .link.waypoints import joint_columns
 
     return [columns[i] for i in joint_columns(columns, ndof)[0]]
+
+
+def link_servo(port: str, twists: Any, period_s: float = 0.02, timeout: float = 2.0) -> Any:
+    """Servo the tool: one twist ``[vx vy vz wx wy wz]`` (base frame, m/s, rad/s) every
+    ``period_s``, each followed by the board within its limits (scaled down, never beyond them)
+    until the next; then a zero twist until the arm rests, and STOP. Returns the last telemetry."""
+    with link_open(port, timeout) as link:
+        link.servo(twists, period_s)
+        return link.status()
+
+
+def read_twists(csv_path: str | Path) -> Any:
+    """A twist trace: a CSV with the columns ``vx_m_s vy_m_s vz_m_s wx_rad_s wy_rad_s wz_rad_s``
+    (any others ignored), one row per period. Raises ``PlanFileError`` (exit 2) naming what is missing."""
+    import numpy as np
+    import pandas as pd
+
+    names = ("vx_m_s", "vy_m_s", "vz_m_s", "wx_rad_s", "wy_rad_s", "wz_rad_s")
+    try:
+        table = pd.read_csv(csv_path)
+    except (OSError, ValueError) as exc:
+        raise PlanFileError(f"{csv_path}: cannot read a twist trace: {excerpt(str(exc))}") from None
+    missing = [n for n in names if n not in table.columns]
+    if missing:
+        raise PlanFileError(f"{csv_path}: no column {missing[0]}; a twist trace has the columns {' '.join(names)}")
+    twists = table[list(names)].to_numpy(dtype=float)
+    if not np.all(np.isfinite(twists)):
+        raise PlanFileError(f"{csv_path}: a twist holds NaN or inf; give finite numbers")
+    return twists
 
 
 def link_watch(port: str, period_s: float = 0.1, count: int | None = None, timeout: float = 2.0) -> Any:

@@ -56,15 +56,28 @@ def test_status_move_to_stream_watch(port, tmp_path):
     assert "state DONE" in moved.stdout
     got = np.array([float(v) for v in moved.stdout.split("q [rad|m]")[1].split("\n")[0].split()])
     assert np.allclose(got, q_end - 0.02, rtol=PRINT_RTOL, atol=FLOAT32_ATOL)
+    trace = tmp_path / "twists.csv"
+    t = np.arange(50) * 0.02
+    ramp = np.minimum(1.0, t / 0.3)  # from rest
+    columns = {"vx_m_s": 0.02 * ramp, "vy_m_s": 0.0 * t, "vz_m_s": -0.01 * ramp, "wx_rad_s": 0.0 * t,
+               "wy_rad_s": 0.0 * t, "wz_rad_s": 0.05 * ramp}
+    trace.write_text(",".join(columns) + "\n" + "\n".join(",".join(f"{columns[c][k]:.6g}" for c in columns)
+                                                          for k in range(len(t))) + "\n")
+    served = armgen("link", port, "servo", str(trace))
+    assert served.returncode == 0, served.stderr
+    assert "sent 50 twists" in served.stdout and "state DONE" in served.stdout
     watched = armgen("link", port, "watch", "--count", "3", "--period", "0.01")
     assert watched.returncode == 0 and watched.stdout.count("state DONE") == 3
 
 
-def test_refused_and_missing(port):
+def test_refused_and_missing(port, tmp_path):
     outside = ",".join(["10"] * NDOF)
     refused = armgen("link", port, "move-to", "--joints", outside)
     assert refused.returncode == 3 and "BAD_VALUE" in refused.stderr
     wrong_count = armgen("link", port, "move-to", "--joints", "0,0")
     assert wrong_count.returncode != 0 and "MOVE_TO_JOINTS.q needs 8 values" in wrong_count.stderr
+    (tmp_path / "speeds.csv").write_text("vx,vy\n1,2\n")
+    bad_trace = armgen("link", port, "servo", str(tmp_path / "speeds.csv"))
+    assert bad_trace.returncode == 2 and "no column vx_m_s" in bad_trace.stderr
     missing = armgen("link", "/nonexistent/tty", "status")
     assert missing.returncode == 4 and "cannot open /nonexistent/tty" in missing.stderr

@@ -1,4 +1,4 @@
-"""``armgen link PORT status | move-to … | stream plan.csv | watch``: talk to a board running the
+"""``armgen link PORT status | move-to … | stream plan.csv | servo twists.csv | watch``: talk to a board running the
 firmware's link (docs/link.md). PORT is a serial device (``/dev/ttyUSB0``, ``COM3``), the host
 firmware's pseudo-terminal (``/dev/pts/N``) or ``socket://host:port``. Exit 4 when nothing
 answers (or in another protocol version), 3 when the board refuses a command, 2 for bad options."""
@@ -30,7 +30,7 @@ def _describe(reply) -> str:
               help="seconds to wait for each reply")
 @click.pass_context
 def link_cmd(ctx: click.Context, port: str, timeout: float) -> None:
-    """Talk to a board over the link: status, move-to, stream, watch."""
+    """Talk to a board over the link: status, move-to, stream, servo, watch."""
     ctx.obj = {"port": port, "timeout": timeout}
 
 
@@ -95,6 +95,20 @@ def stream_cmd(obj: dict, plan_csv: str, rate: float, lead: float) -> None:
     click.echo(f"streamed {report.waypoints} waypoints at {rate:g} Hz; largest difference from the plan at the "
                f"replies' ticks {report.max_deviation:.3g} rad|m")
     click.echo(_describe(report.end))
+
+
+@link_cmd.command("servo")
+@click.argument("twists_csv", type=click.Path(dir_okay=False))
+@click.option("--rate", type=click.FloatRange(0.1, 1000), default=50.0, show_default=True, help="twists per second")
+@click.pass_obj
+@handle_errors
+def servo_cmd(obj: dict, twists_csv: str, rate: float) -> None:
+    """Servo the tool through a twist trace (CSV: vx_m_s vy_m_s vz_m_s wx_rad_s wy_rad_s wz_rad_s per row)."""
+    from ..api import link_servo, read_twists
+
+    twists = read_twists(twists_csv)
+    click.echo(f"sent {len(twists)} twists at {rate:g} Hz")
+    click.echo(_describe(link_servo(obj["port"], twists, 1.0 / rate, obj["timeout"])))
 
 
 @link_cmd.command("watch")
