@@ -262,22 +262,28 @@ def test_the_environment_forces_the_reference(store, fresh_process, monkeypatch)
 
 
 BUILD = """
-import sys
-from armgen.robot import Robot, load_robot
+import armgen.codegen.api_kernel as api_kernel
+from armgen.robot import load_robot
+build = api_kernel._built
+def counted(*args):
+    print('built')
+    return build(*args)
+api_kernel._built = counted
 robot = load_robot('planar3')
 assert robot._kernel is not None, 'no kernel'
 print(robot.fk([0.1, 0.2, 0.3])[0, 3])
 """
 
 
-def test_processes_building_the_same_kernel_at_once_leave_a_whole_store(store, tmp_path):
+def test_processes_building_the_same_kernel_at_once_build_it_once(store, tmp_path):
     env = dict(os.environ, ARMGEN_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(ROOT))
     env.pop(api_kernel.KERNEL_ENV, None)
     runs = [subprocess.Popen([sys.executable, "-W", "error::RuntimeWarning", "-c", BUILD], env=env,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
     outputs = [run.communicate(timeout=600) for run in runs]
     assert [run.returncode for run in runs] == [0, 0], outputs
-    assert outputs[0][0] == outputs[1][0]
+    assert outputs[0][0].splitlines()[-1] == outputs[1][0].splitlines()[-1]
+    assert sum(out.count("built") for out, _ in outputs) == 1  # one built it; the other waited and loaded it
     store = tmp_path / "cache" / "kernels"
     [entry] = store.glob("planar3_api-*.json")
     assert [p.name for p in store.glob("*.so")] == [json.loads(entry.read_text())["library"]]
@@ -289,6 +295,7 @@ def test_processes_building_the_same_kernel_at_once_leave_a_whole_store(store, t
     third = subprocess.run([sys.executable, "-W", "error::RuntimeWarning", "-c", BUILD], env=env,
                            capture_output=True, text=True, timeout=600)
     assert third.returncode == 0, third.stderr
+    assert "built" not in third.stdout
     assert library.stat().st_ino == before.st_ino  # the same file (a build replaces it by os.replace)
 
 

@@ -18,12 +18,14 @@ reproduces the CasADi reference on :data:`SELF_TEST_SAMPLES` seeded inputs per f
 then and its values recorded in the entry (with the functions' signatures), so that loading
 runs the same self-test against them without building a CasADi function (~2 ms rather than
 ~0.3 s, what a one-pose ``armgen ik`` would pay). It is built in a private folder of the store and
-moved into place by ``os.replace`` (the entry last): processes building the same kernel at once
-each leave a whole file, and a reader sees a whole entry or none.
+moved into place by ``os.replace`` (the entry last), so a reader sees a whole entry or none;
+processes building the same kernel take turns on a lock (:func:`_build_lock`), and without one
+each leaves a whole file.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import hashlib
@@ -40,6 +42,7 @@ import tempfile
 import warnings
 from pathlib import Path
 from types import ModuleType
+from typing import Iterator
 
 import casadi as ca
 import numpy as np
@@ -273,12 +276,34 @@ def load_api_kernel(model: SymbolicModel) -> ApiKernel | None:
         digest = _kernel_digest(model, functions)
         if digest in _LOADED:
             return _LOADED[digest]
-        kernel = _stored(model, digest) or _built(model, functions, digest)
+        kernel = _stored(model, digest)
+        if kernel is None:
+            with _build_lock(_names(model, digest)[0].with_suffix(".lock")):
+                kernel = _stored(model, digest) or _built(model, functions, digest)  # (another process's, meanwhile)
     except (ArmgenError, OSError, ImportError, subprocess.SubprocessError) as exc:
         _warn_fallback(str(exc).splitlines()[0])
         return None
     _LOADED[digest] = kernel
     return kernel
+
+
+@contextlib.contextmanager
+def _build_lock(path: Path) -> Iterator[None]:
+    """Processes building the same kernel take turns (``flock`` on ``path``): the second then
+    finds it stored rather than building it too (a sweep's workers, pytest's). Where ``fcntl`` is
+    missing each builds; ``os.replace`` keeps the store whole either way."""
+    try:
+        import fcntl
+    except ImportError:
+        yield
+        return
+    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0), 0o600)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
 
 
 def _warn_fallback(reason: str) -> None:
