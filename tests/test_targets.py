@@ -101,3 +101,61 @@ def test_the_cortex_m0plus_image_holds_armv6m_instructions_only(tmp_path, short_
     assert len(narrow) > 1000  # the listing was parsed: the image's 16-bit instructions
     assert wide <= ARMV6M_32BIT, wide - ARMV6M_32BIT
     assert not re.search(r"\bv(add|mul|ldr|str|mov)\.f32\b", listing)  # no FPU instruction: soft float
+
+
+TOOLCHAIN_DIR = Path(fw.FIRMWARE_DIR) / "project" / "cmake"
+
+
+def toolchain_file(name: str) -> Path:
+    t = fw.TARGETS[name]
+    return TOOLCHAIN_DIR / f"{t.compiler.removesuffix('-gcc')}-{name}.cmake"
+
+
+def cmake_sets(path: Path) -> dict[str, str]:
+    return {m.group(1): m.group(2).strip('"') for m in re.finditer(r"^set\((\w+) (.*?)\)", path.read_text(), re.M)}
+
+
+@pytest.mark.parametrize("name", list(fw.TARGETS))
+def test_each_toolchain_file_builds_what_armgen_builds(name):
+    t = fw.TARGETS[name]
+    sets = cmake_sets(toolchain_file(name))
+    assert sets["CMAKE_C_COMPILER"] == t.compiler
+    assert sets["CMAKE_C_FLAGS_INIT"].split() == [*t.cpu_flags, *t.compile_specs]
+    assert sets["ARMGEN_LINK_SPECS"].split() == list(t.link_specs)
+    assert (sets["ARMGEN_STARTUP"], sets["ARMGEN_LINKER_SCRIPT"]) == (t.startup, t.linker_script)
+    assert sets["ARMGEN_QEMU"] == t.qemu and sets["ARMGEN_QEMU_MACHINE"].split(";") == ["-M", t.qemu_machine,
+                                                                                       *t.qemu_extra]
+    assert int(sets["ARMGEN_CPU_HZ"]) == t.cpu_hz
+    assert sets["ARMGEN_FLOAT"] == ("OFF" if t.precision == "double" else "ON")
+
+
+@pytest.fixture(scope="module")
+def project(tmp_path_factory):
+    from click.testing import CliRunner
+    from armgen.cli.main import cli
+    folder = tmp_path_factory.mktemp("project") / "fw"
+    out = CliRunner().invoke(cli, ["firmware", "modular8", "--out", str(folder)])
+    assert out.exit_code == 0, out.output
+    return folder
+
+
+@pytest.mark.parametrize("name", [t for t in fw.TARGETS if t != "cortex-m4"])  # the M4: tests/test_install.py
+def test_the_firmware_project_builds_and_runs_each_core(name, project, monkeypatch):
+    """The project's toolchain file of the core: configure, build, its `qemu` target; the run
+    follows the project's plan in the bounds of the core's precision."""
+    from armgen.planning.result import read_plan
+    from armgen.verification import firmware_compare as fwcmp
+    target = require_target(name)
+    require_tool("cmake")
+    build = project / f"build-{name}"
+    for cmd in (["cmake", "-S", str(project), "-B", str(build), f"-DCMAKE_TOOLCHAIN_FILE={toolchain_file(name)}"],
+                ["cmake", "--build", str(build)], ["cmake", "--build", str(build), "--target", "qemu"]):
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    suffix = cmake_sets(toolchain_file(name))["ARMGEN_TARGET"]
+    run = fw.parse_output((build / f"run-{suffix}.csv").read_text())
+    assert run.summary["real_bytes"] == ("8" if target.precision == "double" else "4")
+    monkeypatch.chdir(project)  # the plan's task names the project's robot.toml
+    plan = read_plan(project / "demo" / "plan.csv")
+    cmp = fwcmp.compare_with_plan(plan, run, fw.task_from_plan(plan, "demo"), target.precision, name)
+    assert cmp.passed, cmp.rows

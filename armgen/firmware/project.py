@@ -70,7 +70,8 @@ STUB_FILES = {
                    "fw_task.c", "fw_task.h", "fw_link.c", "fw_link.h", "fw_link_msgs.c", "fw_link_msgs.h"),
     "host": ("host/main.c", "host/link_main.c"),
     "arm": ("arm/fw_main.c", "arm/startup.c", "arm/semihost.c", "arm/semihost.h", "arm/fw_fastmath.c",
-            "arm/mps2_an386.ld"),
+            "arm/mps2_an386.ld", "arm/mps2_an505.ld"),
+    "riscv": ("riscv/startup.c", "riscv/virt.ld"),
 }
 
 
@@ -403,8 +404,8 @@ def _assemble(stage: Path, robot_file: str, robot_files: dict[str, bytes], job: 
     (stage / "README.md").write_text(_fill((project / "README.md.in").read_text(encoding="utf-8"), values),
                                      encoding="utf-8")
     (stage / "cmake").mkdir()
-    (stage / "cmake" / "arm-none-eabi-cortex-m4.cmake").write_bytes(
-        (project / "cmake" / "arm-none-eabi-cortex-m4.cmake").read_bytes())
+    for toolchain in sorted((project / "cmake").glob("*.cmake")):  # one per core of targets.TARGETS
+        (stage / "cmake" / toolchain.name).write_bytes(toolchain.read_bytes())
 
 
 def _feedforward_note(firmware: FirmwareTask) -> str:

@@ -12,3 +12,12 @@ set(CMAKE_EXE_LINKER_FLAGS_INIT "-mcpu=cortex-m4 -mthumb -mfloat-abi=hard -mfpu=
 set(CMAKE_FIND_ROOT_PATH_MODE_PROGRAM NEVER)
 set(CMAKE_FIND_ROOT_PATH_MODE_LIBRARY ONLY)
 set(CMAKE_FIND_ROOT_PATH_MODE_INCLUDE ONLY)
+# What CMakeLists.txt builds and runs for this core (its defaults; the other cores' files set them too):
+set(ARMGEN_TARGET m4)  # the image <prefix>_m4.elf, the CSV run-m4.csv
+set(ARMGEN_FLOAT ON)  # float: the FPU is single precision
+set(ARMGEN_STARTUP arm/startup.c)
+set(ARMGEN_LINKER_SCRIPT arm/mps2_an386.ld)
+set(ARMGEN_LINK_SPECS "--specs=nano.specs")
+set(ARMGEN_CPU_HZ 25000000)  # FW_CPU_HZ: the clock the overrun check measures a tick in
+set(ARMGEN_QEMU qemu-system-arm)
+set(ARMGEN_QEMU_MACHINE "-M;mps2-an386")
