@@ -280,8 +280,10 @@ def load_api_kernel(model: SymbolicModel) -> ApiKernel | None:
         if kernel is None:
             with _build_lock(_names(model, digest)[0].with_suffix(".lock")):
                 kernel = _stored(model, digest) or _built(model, functions, digest)  # (another process's, meanwhile)
-    except (ArmgenError, OSError, ImportError, subprocess.SubprocessError) as exc:
-        _warn_fallback(str(exc).splitlines()[0])
+    # (a robot the generator cannot take, CasADi's RuntimeError, a failed compile or import: the
+    # reference still evaluates it)
+    except (ArmgenError, OSError, ImportError, subprocess.SubprocessError, ValueError, KeyError, RuntimeError) as exc:
+        _warn_fallback(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
         return None
     _LOADED[digest] = kernel
     return kernel
