@@ -10,7 +10,10 @@ with the configuration of examples/modular8_ptp_two_segments.toml (1 ms ticks):
    50 and 100 Hz, the max joint deviation of the 1 kHz commands from the plan's 1 ms samples;
 3. the watchdog: the stream cut after a seeded random waypoint, five times: ticks from the last
    valid frame to the stop decision (timeout 100 ticks) and the peak deceleration of the stop
-   over qddot_max.
+   over qddot_max;
+4. the Cortex-M4F (float, the firmware's own build, QEMU -icount): executed instructions per
+   received TWIST frame (the bytes into the ring, the decode and dispatch, the TELEMETRY reply)
+   and per servo tick (fw_link's step and the controller's SETPOINT tick), arm/link_bench.c.
 
     python benchmarks/bench_link.py [--chunks 1000000] [--seed 40] [--quick]
 
@@ -20,6 +23,7 @@ with the configuration of examples/modular8_ptp_two_segments.toml (1 ms ticks):
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import random
@@ -34,8 +38,9 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-from link_builds import TASK, link_executable  # noqa: E402
+from link_builds import TASK, _builder, link_executable, task  # noqa: E402
 
+from armgen import firmware as fw  # noqa: E402
 from armgen.link import LinkClient  # noqa: E402
 from armgen.planning.tasks import load_task, run_task  # noqa: E402
 
@@ -111,6 +116,23 @@ def cut(plan, after: int) -> tuple[int, float]:
     return int(run.tick[decision] - run.tick[last_frame]), float(np.abs(np.diff(qd_cmd, axis=0)).max() / DT / QDDOT_MAX)
 
 
+def m4_costs() -> dict[str, float]:
+    """Instructions per part (mean, and max where it matters) from arm/link_bench.c under QEMU."""
+    elf = _builder().executable(dataclasses.replace(fw.ARM_VARIANT, runner="link_bench"), task(), name="link_bench")
+    proc = subprocess.run(["qemu-system-arm", *fw.QEMU_MACHINE, *fw.QEMU_ICOUNT, "-kernel", str(elf)],
+                          capture_output=True, text=True, timeout=600)
+    text = proc.stdout + proc.stderr
+    if proc.returncode != 0 or "# end" not in text:
+        raise SystemExit(f"arm/link_bench.c failed under QEMU (exit {proc.returncode}):\n{text[-2000:]}")
+    kv = dict(line[2:].split() for line in text.splitlines() if line.startswith("# ") and len(line.split()) == 3)
+    per_count = int(kv["calib_insns"]) / int(kv["calib_ticks"])
+    out = {"frame_bytes": float(kv["frame_bytes"]), "sizeof_link": float(kv["sizeof_link"])}
+    for part in ("rx", "input_frame", "input_servo", "ctrl", "output_reply", "output_quiet"):
+        out[part] = int(kv[f"{part}_sum"]) / int(kv[f"{part}_count"]) * per_count
+        out[part + "_max"] = int(kv[f"{part}_max"]) * per_count
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--chunks", type=int, default=1_000_000)
@@ -145,6 +167,19 @@ def main() -> None:
         after = rng.randrange(15, 120)
         ticks, decel = cut(plan, after)
         print(f"| {after} | {ticks} | {decel:.4f} |")
+
+    print("\n== 4. Cortex-M4F instructions (float, QEMU -icount; a SysTick count is 40 instructions)")
+    m = m4_costs()
+    decode = m["input_frame"] - m["input_servo"]
+    print(f"| part | mean | max |")
+    print(f"| a TWIST frame's {m['frame_bytes']:.0f} bytes into the ring (fw_link_receive) | {m['rx']:.0f} | {m['rx_max']:.0f} |")
+    print(f"| decode, checks and dispatch of the frame (input on its tick - a servo step) | {decode:.0f} | |")
+    print(f"| the TELEMETRY reply (tool pose, packing, CRC-32, COBS) | {m['output_reply']:.0f} | {m['output_reply_max']:.0f} |")
+    print(f"| a servo step (fw_link_input without a frame) | {m['input_servo']:.0f} | {m['input_servo_max']:.0f} |")
+    print(f"| the controller's SETPOINT tick | {m['ctrl']:.0f} | {m['ctrl_max']:.0f} |")
+    print(f"| fw_link_output with nothing to send | {m['output_quiet']:.0f} | {m['output_quiet_max']:.0f} |")
+    print(f"per received frame: {m['rx'] + decode + m['output_reply']:.0f} instructions; per servo tick: "
+          f"{m['input_servo'] + m['ctrl'] + m['output_quiet']:.0f} instructions; sizeof(fw_link) {m['sizeof_link']:.0f} B")
 
 
 if __name__ == "__main__":

@@ -43,7 +43,8 @@ class Variant:
     source_opts: tuple[tuple[str, tuple[str, ...]], ...] = ()  # (source file name, flags replacing opt)
     cpu: str = "cortex-m4"  # arm: the core, a key of targets.TARGETS (flags, linker script, clock)
     runner: str = "csv"  # host: "csv" (host/main.c), "link" (host/link_main.c: the link over a pty) or
-                         # "link_fuzz" (host/link_fuzz.c: the link's parser fuzz and codec echo)
+                         # "link_fuzz" (host/link_fuzz.c: the link's parser fuzz and codec echo);
+                         # Arm: "csv" (arm/fw_main.c) or "link_bench" (arm/link_bench.c: the link's cost)
 
     @property
     def name(self) -> str:
@@ -173,6 +174,10 @@ class FirmwareBuilder:
                   FIRMWARE_DIR / "controller.c", FIRMWARE_DIR / "fw_program.c", FIRMWARE_DIR / "fw_csv.c"]
         if v.target != "host":  # the runner of arm/ (its timer and semihosting call have a RISC-V branch)
             fast = [ARM_DIR / "fw_fastmath.c"] if v.fast_trig else []
+            if v.runner == "link_bench":  # the link's cost per frame and per servo tick (Arm: SysTick)
+                return common + [FIRMWARE_DIR / "fw_link.c", FIRMWARE_DIR / "fw_link_msgs.c",
+                                 FIRMWARE_DIR / TARGETS[v.cpu].startup, ARM_DIR / "semihost.c", ARM_DIR / "link_bench.c",
+                                 *fast]
             return common + [FIRMWARE_DIR / TARGETS[v.cpu].startup, ARM_DIR / "semihost.c", ARM_DIR / "fw_main.c", *fast]
         if v.runner == "csv":
             return common + [FIRMWARE_DIR / "host" / "main.c"]

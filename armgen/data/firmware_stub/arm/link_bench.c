@@ -1,0 +1,151 @@
+/*
+ * Cortex-M4F cost of the host link (benchmarks/bench_link.py): the controller with the
+ * compiled-in task's configuration and fw_link, fed frames from memory (built here with the
+ * link's own packers: the same bytes a UART would deliver), timed with SysTick under
+ * `qemu-system-arm -icount shift=0` (a count is calib_insns / calib_ticks instructions, as
+ * arm/fw_main.c). A HELLO, then FW_BENCH_FRAMES twists, each followed by FW_BENCH_QUIET ticks
+ * without a frame; per part, "# key value" lines of SysTick counts (sum, max, count):
+ *
+ *   rx          fw_link_receive of a TWIST frame's bytes (the interrupt's work), per frame
+ *   input_frame fw_link_input on the tick a TWIST arrives: decode, checks, dispatch, servo step
+ *   input_servo fw_link_input on a tick without a frame: the servo step alone
+ *   ctrl        ctrl_tick with the servo's SETPOINT
+ *   output_reply fw_link_output with the TELEMETRY reply (tool pose, packing, CRC, COBS)
+ *   output_quiet fw_link_output without a frame to send
+ */
+#include <stdint.h>
+#include <string.h>
+
+#include "controller.h"
+#include "fw_link.h"
+#include "fw_task.h"
+#include "semihost.h"
+
+#ifndef FW_BENCH_FRAMES
+#define FW_BENCH_FRAMES 50u
+#endif
+#ifndef FW_BENCH_QUIET
+#define FW_BENCH_QUIET 19u /* ticks between two twists: 50 Hz twists at 1 kHz */
+#endif
+
+#define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
+#define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
+#define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
+#define SYST_MASK 0xFFFFFFu
+#define ELAPSED(t0, t1) (((t0) - (t1)) & SYST_MASK) /* SysTick counts down, 24 bits */
+
+typedef struct {
+  uint32_t sum, max, count;
+} stat;
+
+static ctrl controller;
+static fw_link link_state;
+static uint8_t frame[FW_LINK_MAX_ENCODED + 1u];
+
+static void add(stat *s, uint32_t d) {
+  s->sum += d;
+  s->max = d > s->max ? d : s->max;
+  ++s->count;
+}
+
+static void put(const char *key, const stat *s) {
+  sh_puts("# ");
+  sh_puts(key);
+  sh_put_kv("_sum", s->sum);
+  sh_puts("# ");
+  sh_puts(key);
+  sh_put_kv("_max", s->max);
+  sh_puts("# ");
+  sh_puts(key);
+  sh_put_kv("_count", s->count);
+}
+
+__attribute__((noinline)) static uint32_t timed_calib(uint32_t iterations) {
+  uint32_t t0, t1;
+  t0 = SYST_CVR;
+  __asm__ volatile(".syntax unified\n1: subs %0, %0, #1\n\tbne 1b" : "+r"(iterations)::"cc");
+  t1 = SYST_CVR;
+  return ELAPSED(t0, t1);
+}
+
+static void drain(void) {
+  uint8_t sink[128];
+  while (fw_link_transmit(&link_state, sink, sizeof sink) > 0u) {
+  }
+}
+
+int main(void) {
+  stat rx = {0u, 0u, 0u}, input_frame = {0u, 0u, 0u}, input_servo = {0u, 0u, 0u}, control = {0u, 0u, 0u};
+  stat output_reply = {0u, 0u, 0u}, output_quiet = {0u, 0u, 0u};
+  fw_link_hello hello;
+  fw_link_twist twist;
+  uint8_t body[FW_LINK_MAX_BODY];
+  ctrl_input in;
+  ctrl_output out;
+  uint32_t k, j, i, t0, t1, calib_ticks, frame_bytes = 0u;
+  uint16_t seq = 0u;
+
+  SYST_RVR = SYST_MASK;
+  SYST_CVR = 0u;
+  SYST_CSR = 5u; /* ENABLE | CLKSOURCE = processor clock, no interrupt */
+  calib_ticks = timed_calib(101000u) - timed_calib(1000u);
+
+  (void)ctrl_init(&controller, &fw_task);
+  fw_link_init(&link_state, &fw_task, 0xFFFFFFFFu); /* no watchdog: the bench sends on its own time */
+  hello.telemetry_period = 0u;
+  frame_bytes = (uint32_t)fw_link_frame(FW_LINK_VERSION, FW_LINK_HELLO, seq, body, fw_link_pack_hello(&hello, body),
+                                        frame);
+  for (i = 0; i < frame_bytes; ++i) {
+    (void)fw_link_receive(&link_state, frame[i]);
+  }
+  for (k = 0; k < FW_BENCH_FRAMES; ++k) {
+    for (j = 0; j <= FW_BENCH_QUIET; ++j) {
+      if (j == 0u) { /* a twist arrives */
+        for (i = 0; i < 6u; ++i) {
+          twist.xdot[i] = (i == 0u || i == 5u) ? 0.01f + 0.0002f * (float)k : 0.0f;
+        }
+        seq = (uint16_t)(seq + 1u);
+        frame_bytes = (uint32_t)fw_link_frame(FW_LINK_VERSION, FW_LINK_TWIST, seq, body,
+                                              fw_link_pack_twist(&twist, body), frame);
+        t0 = SYST_CVR;
+        for (i = 0; i < frame_bytes; ++i) {
+          (void)fw_link_receive(&link_state, frame[i]);
+        }
+        t1 = SYST_CVR;
+        if (k > 0u) add(&rx, ELAPSED(t0, t1));
+      }
+      (void)memset(&in, 0, sizeof in);
+      t0 = SYST_CVR;
+      fw_link_input(&link_state, &in);
+      t1 = SYST_CVR;
+      if (k > 0u) add(j == 0u ? &input_frame : &input_servo, ELAPSED(t0, t1));
+      t0 = SYST_CVR;
+      (void)ctrl_tick(&controller, &in, &out);
+      t1 = SYST_CVR;
+      if (k > 0u) add(&control, ELAPSED(t0, t1));
+      t0 = SYST_CVR;
+      fw_link_output(&link_state, &out);
+      t1 = SYST_CVR;
+      if (k > 0u) add(j == 0u ? &output_reply : &output_quiet, ELAPSED(t0, t1));
+      drain();
+    }
+  }
+  sh_puts("# state ");
+  sh_puts(ctrl_state_name(out.state));
+  sh_puts("\n# fault ");
+  sh_puts(ctrl_fault_name(out.fault));
+  sh_puts("\n");
+  sh_put_kv("# calib_insns", 200000u);
+  sh_put_kv("# calib_ticks", calib_ticks);
+  sh_put_kv("# frame_bytes", frame_bytes);
+  sh_put_kv("# rx_frames", link_state.counts.rx_frames);
+  sh_put_kv("# sizeof_link", (uint32_t)sizeof(fw_link));
+  put("rx", &rx);
+  put("input_frame", &input_frame);
+  put("input_servo", &input_servo);
+  put("ctrl", &control);
+  put("output_reply", &output_reply);
+  put("output_quiet", &output_quiet);
+  sh_puts("# end\n");
+  return 0;
+}
