@@ -165,6 +165,8 @@ def test_wrong_shapes_and_buffers_are_errors_not_crashes(store):
         module.fk(1, np.zeros(3))
     with pytest.raises(ValueError, match="count must be at least 0"):
         module.fk(-1, np.zeros(3), np.zeros(16))
+    with pytest.raises(ValueError, match="not C-contiguous"):  # a Fortran-ordered batch: samples interleaved
+        module.fk(2, np.zeros((3, 2), order="F"), np.zeros(32))
 
 
 def test_kernel_is_loaded_from_the_store_not_built_again(store, fresh_process, monkeypatch):

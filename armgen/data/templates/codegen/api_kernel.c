@@ -1,7 +1,7 @@
 /* The compiled kernel behind armgen's Python API for robot ${p}: each function of ${p}.c
  * evaluated on `count` samples in one call, as a CPython extension module (written by armgen
  * into its kernel store; not part of the generated code). Every argument after `count` is a
- * contiguous buffer of doubles: an input holds one sample's values (used for every sample) or
+ * C-contiguous buffer of doubles: an input holds one sample's values (used for every sample) or
  * `count` samples' one after another, an output `count` samples'; each sample column-major. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -17,7 +17,7 @@
 static int ${p}_api_view(PyObject *object, Py_buffer *view, int output, Py_ssize_t count, Py_ssize_t size,
                          Py_ssize_t *stride, Py_ssize_t position) {
   Py_ssize_t values;
-  if (PyObject_GetBuffer(object, view, PyBUF_ANY_CONTIGUOUS | PyBUF_FORMAT | (output ? PyBUF_WRITABLE : 0)) != 0) {
+  if (PyObject_GetBuffer(object, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (output ? PyBUF_WRITABLE : 0)) != 0) {
     return -1;
   }
   values = view->len / (Py_ssize_t)sizeof(double);
