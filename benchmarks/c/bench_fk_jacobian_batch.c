@@ -3,7 +3,8 @@
  * on a batch of configurations, each sample's T and J stored (the work the Python API's batched
  * call does, minus Python).
  *
- * Compiled by bench_kernel.py with the strict flags and the kernel's own (-O2 -ffp-contract=off):
+ * Compiled by bench_kernel.py with the strict flags and the kernel's own (api_kernel.OPTIMISATION,
+ * -ffp-contract=off):
  *   gcc ... -DBENCH_HEADER='"robot.h"' -DBENCH_FN=robot_fk_jacobian -DBENCH_NDOF=7 \
  *       bench_fk_jacobian_batch.c robot.c -lm
  * Usage: bench q.bin <count> <repeats>: reads count * NDOF doubles (one configuration after
