@@ -13,7 +13,7 @@ with the configuration of examples/modular8_ptp_two_segments.toml (1 ms ticks):
    over qddot_max;
 4. the Cortex-M4F (float, the firmware's own build, QEMU -icount): executed instructions per
    received TWIST frame (the bytes into the ring, the decode and dispatch, the TELEMETRY reply)
-   and per servo tick (fw_link's step and the controller's SETPOINT tick), arm/link_bench.c.
+   and per servo tick (fw_link's step and the controller's SETPOINT tick), bench/link_bench.c.
 
     python benchmarks/bench_link.py [--chunks 1000000] [--seed 40] [--quick]
 
@@ -117,13 +117,13 @@ def cut(plan, after: int) -> tuple[int, float]:
 
 
 def m4_costs() -> dict[str, float]:
-    """Instructions per part (mean, and max where it matters) from arm/link_bench.c under QEMU."""
+    """Instructions per part (mean, and max where it matters) from bench/link_bench.c under QEMU."""
     elf = _builder().executable(dataclasses.replace(fw.ARM_VARIANT, runner="link_bench"), task(), name="link_bench")
     proc = subprocess.run(["qemu-system-arm", *fw.QEMU_MACHINE, *fw.QEMU_ICOUNT, "-kernel", str(elf)],
                           capture_output=True, text=True, timeout=600)
     text = proc.stdout + proc.stderr
     if proc.returncode != 0 or "# end" not in text:
-        raise SystemExit(f"arm/link_bench.c failed under QEMU (exit {proc.returncode}):\n{text[-2000:]}")
+        raise SystemExit(f"bench/link_bench.c failed under QEMU (exit {proc.returncode}):\n{text[-2000:]}")
     kv = dict(line[2:].split() for line in text.splitlines() if line.startswith("# ") and len(line.split()) == 3)
     per_count = int(kv["calib_insns"]) / int(kv["calib_ticks"])
     out = {"frame_bytes": float(kv["frame_bytes"]), "sizeof_link": float(kv["sizeof_link"])}

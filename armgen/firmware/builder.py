@@ -44,7 +44,7 @@ class Variant:
     cpu: str = "cortex-m4"  # arm: the core, a key of targets.TARGETS (flags, linker script, clock)
     runner: str = "csv"  # host: "csv" (host/main.c), "link" (host/link_main.c: the link over a pty) or
                          # "link_fuzz" (host/link_fuzz.c: the link's parser fuzz and codec echo);
-                         # Arm: "csv" (arm/fw_main.c) or "link_bench" (arm/link_bench.c: the link's cost)
+                         # Arm: "csv" (arm/fw_main.c) or "link_bench" (bench/link_bench.c: the link's cost)
 
     @property
     def name(self) -> str:
@@ -176,7 +176,8 @@ class FirmwareBuilder:
             fast = [ARM_DIR / "fw_fastmath.c"] if v.fast_trig else []
             if v.runner == "link_bench":  # the link's cost per frame and per servo tick (Arm: SysTick)
                 return common + [FIRMWARE_DIR / "fw_link.c", FIRMWARE_DIR / "fw_link_msgs.c",
-                                 FIRMWARE_DIR / TARGETS[v.cpu].startup, ARM_DIR / "semihost.c", ARM_DIR / "link_bench.c",
+                                 FIRMWARE_DIR / TARGETS[v.cpu].startup, ARM_DIR / "semihost.c",
+                                 FIRMWARE_DIR / "bench" / "link_bench.c",
                                  *fast]
             return common + [FIRMWARE_DIR / TARGETS[v.cpu].startup, ARM_DIR / "semihost.c", ARM_DIR / "fw_main.c", *fast]
         if v.runner == "csv":

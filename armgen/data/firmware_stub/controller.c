@@ -1409,8 +1409,7 @@ ctrl_fault ctrl_tick(ctrl *c, const ctrl_input *in, ctrl_output *out) {
       c->t_hold = t;
     } else if (!moving(c) && cmd == CTRL_CMD_MOVE_TO && (f0 = start_move_to(c, in->target)) != CTRL_FAULT_NONE) {
       latch(c, f0, t); /* the arm holds where it is */
-    } else if (!moving(c) && cmd == CTRL_CMD_MOVE_TO_JOINTS &&
-               (f0 = start_move_to_joints(c, in->q_ref)) != CTRL_FAULT_NONE) {
+    } else if (!moving(c) && cmd == CTRL_CMD_MOVE_TO_JOINTS && (f0 = start_move_to_joints(c, in->q_ref)) != CTRL_FAULT_NONE) {
       latch(c, f0, t);
     } else if (cmd == CTRL_CMD_STALE) {
       latch(c, CTRL_FAULT_STALE, t); /* holds the current command */

@@ -48,7 +48,7 @@ static void add(stat *s, uint32_t d) {
   ++s->count;
 }
 
-static void put(const char *key, const stat *s) {
+static void put_stat(const char *key, const stat *s) {
   sh_puts("# ");
   sh_puts(key);
   sh_put_kv("_sum", s->sum);
@@ -140,12 +140,12 @@ int main(void) {
   sh_put_kv("# frame_bytes", frame_bytes);
   sh_put_kv("# rx_frames", link_state.counts.rx_frames);
   sh_put_kv("# sizeof_link", (uint32_t)sizeof(fw_link));
-  put("rx", &rx);
-  put("input_frame", &input_frame);
-  put("input_servo", &input_servo);
-  put("ctrl", &control);
-  put("output_reply", &output_reply);
-  put("output_quiet", &output_quiet);
+  put_stat("rx", &rx);
+  put_stat("input_frame", &input_frame);
+  put_stat("input_servo", &input_servo);
+  put_stat("ctrl", &control);
+  put_stat("output_reply", &output_reply);
+  put_stat("output_quiet", &output_quiet);
   sh_puts("# end\n");
   return 0;
 }
