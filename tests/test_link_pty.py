@@ -176,6 +176,17 @@ SERVO_TWISTS = 150  # 3 s
 SERVO_RAMP_S = 0.3  # the trace starts from rest: a twist that jumps from 0 is not reachable within qddot_max
 # "The tool within 1 mm of the integrated twist" (issue 40's bar), where the twist is reachable
 SERVO_TOOL_TOL_M = 1e-3
+SERVO_TOOL_ORIENTATION_TOL_RAD = 1e-3  # its orientation counterpart: 1 mm at a 1 m lever
+
+
+def _rotation(phi: np.ndarray) -> np.ndarray:
+    """exp of the rotation vector phi (Rodrigues)."""
+    angle = float(np.linalg.norm(phi))
+    if angle == 0.0:
+        return np.eye(3)
+    k = phi / angle
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
 
 
 def twist_trace(amplitude: float, seed: int = SEED) -> np.ndarray:
@@ -217,9 +228,16 @@ def test_servo_follows_a_recorded_twist_within_the_limits(tmp_path):
     pose = load_robot("modular8").fk(q_cmd)
     integrated = pose[first - 1, :3, 3] + np.cumsum(v * DT, axis=0)  # from the held command's tool position
     error = np.linalg.norm(pose[first:last, :3, 3] - integrated, axis=1)
+    rotation = pose[first - 1, :3, :3]
+    angle = np.zeros(last - first)
+    for j, w in enumerate(twists[active[first:last], 3:]):  # R <- Rot(w dt) R, base frame
+        rotation = _rotation(w * DT) @ rotation
+        relative = pose[first + j, :3, :3] @ rotation.T
+        angle[j] = np.arccos(np.clip((np.trace(relative) - 1) / 2, -1, 1))
     print(f"servo: {len(twists)} twists at 50 Hz, {last - first} ticks; tool from the integrated twist: "
-          f"max {error.max() * 1e3:.3g} mm")
+          f"max {error.max() * 1e3:.3g} mm, {angle.max() * 1e3:.3g} mrad")
     assert error.max() <= SERVO_TOOL_TOL_M
+    assert angle.max() <= SERVO_TOOL_ORIENTATION_TOL_RAD
 
 
 def test_servo_scales_an_impossible_twist_down_instead_of_breaking_the_limits(tmp_path):
@@ -234,3 +252,24 @@ def test_servo_scales_an_impossible_twist_down_instead_of_breaking_the_limits(tm
     lo, hi = np.array([j.qlim[0] for j in robot.joints]), np.array([j.qlim[1] for j in robot.joints])
     assert np.all(q_cmd >= lo) and np.all(q_cmd <= hi)
     assert np.abs(qd_cmd).max() >= 0.9 * QDOT_MAX  # it did go as fast as the joints may
+
+
+def test_watchdog_stops_a_servo_whose_host_went_silent(tmp_path):
+    twists = twist_trace(0.05)[:50]  # 1 s of the trace, then nothing: the host hangs mid-motion
+    with board(tmp_path) as (port, csv):
+        with LinkClient(port) as link:
+            for k, xdot in enumerate(twists):
+                link.send("TWIST", {"xdot": xdot})
+                link.poll()
+                time.sleep(SERVO_PERIOD_S)
+            time.sleep((WATCHDOG_TICKS + 300) * DT)
+            after = link.status()
+    assert (after.state_name, after.fault_name) == ("FAULT", "STALE")
+    assert after["stale_ticks"] == WATCHDOG_TICKS + 1
+    run = read_run(csv)
+    decision = int(np.nonzero(run.link_flags.to_numpy() & 4)[0][0])
+    q_cmd, qd_cmd = commands(run)
+    assert np.abs(qd_cmd[decision - 1]).max() > 0.01  # it was moving
+    assert_within_speed_and_acceleration(qd_cmd)
+    held = run[run.state == 3]
+    assert len(held) > 0 and np.all(commands(held)[1] == 0)
