@@ -23,6 +23,7 @@ import numpy as np
 from ..errors import TaskFileError, excerpt
 from ..robot import Robot
 from .backends import make_backend
+from .common.collision import TaskCollision, configure_collision
 from .common.path import WHOLE_STEP_SLACK, PathGeometry, check_step, path_geometry, program_task, timing_law
 from .common.start import start_configuration, unit_scales
 from .common.symbolic import sym_orientation_error, sym_rpy
@@ -63,6 +64,7 @@ class PathTask:
     length_unit: str
     program: ProgramSpec | None = None  # path.type = "program": the moves, and
     motion: ProgramMotion | None = None  # their geometry and time law from the start pose
+    collision: TaskCollision | None = None  # the obstacles and [collision] (robot with capsules)
 
     @property
     def steps(self) -> int:
@@ -101,7 +103,7 @@ def configure_path_task(model: Any, robot: Robot, source: str) -> PathTask:
                   clik_gain=integ.clik_gain, damping_epsilon=model.damping.epsilon,
                   damping_max=model.damping.lambda_max, output_every=integ.output_every,
                   tolerance=path_tolerance(model.check.path_tolerance, model.units.length, is_program),
-                  length_unit=model.units.length)
+                  length_unit=model.units.length, collision=configure_collision(model, robot, source))
     if is_program:  # its time comes from the program (no [timing])
         program = program_task(model.path, model.timing, robot, q_start, ls, as_, source)
         blank = PathTask(path_type="program", via=None, end=np.zeros(3), relative=False, turns=1.0, end_rotation=None,

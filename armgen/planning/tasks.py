@@ -20,8 +20,9 @@ from ..errors import PlanFileError, PlanningError, RobotFileError, RobotMismatch
 from ..description import bundled_robots, resolve_robot_path
 from ..schemas import (MAX_INPUT_FILE_BYTES, MAX_NESTING_DEPTH, format_validation_error, parse_toml_bounded,
                        read_input_file)
+from .common.collision import clearance_report, enforce_clearance, task_collision
 from .limits import enforce_limits, enforce_speed_limits
-from .torque import enforce_torque_limits, planned_robot, torque_report
+from .torque import enforce_torque_limits, joint_columns, planned_robot, torque_report
 from ..robot import Robot, load_robot
 from .registry import Planner, planner
 from .result import PlanResult, first_invalid_sample
@@ -233,6 +234,10 @@ def plan_configured(task: Task, backend: str = "symbolic", caps: ResourceCaps = 
     if torque is not None:  # a robot with inertials (docs/dynamics.md, "Torque limits in planning")
         result.metadata.setdefault("summary", {})["joint_torque"] = torque
     enforce_torque_limits(torque, task.model.check.limits, source, task.planner.name)
+    clearance = plan_clearance(task.config, robot, result.columns, result.data)
+    if clearance is not None:  # a robot with capsules (docs/collision.md, "Obstacles in task files")
+        result.metadata.setdefault("summary", {})["collision"] = clearance
+    enforce_clearance(clearance, task.model.check.limits, source)
     meta = {
         "armgen_version": __version__,
         "task_file": source,
@@ -247,6 +252,16 @@ def plan_configured(task: Task, backend: str = "symbolic", caps: ResourceCaps = 
     if result.config is None:
         result.config = task.config
     return result
+
+
+def plan_clearance(config: Any, robot: Robot | None, columns: list[str], data: np.ndarray) -> dict[str, Any] | None:
+    """``summary.collision`` of a plan whose task has a :class:`~.common.collision.TaskCollision`
+    (a robot with capsules) and whose columns give the joints: every sample measured."""
+    collision = task_collision(config)
+    found = None if robot is None or collision is None else joint_columns(robot, columns)
+    if found is None or "t_s" not in columns:
+        return None
+    return clearance_report(robot, data[:, columns.index("t_s")], data[:, found.q], collision)
 
 
 def run_task(task: dict[str, Any], source: str, task_sha256: str = "", backend: str = "symbolic",

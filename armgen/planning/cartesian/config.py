@@ -12,6 +12,7 @@ import numpy as np
 
 from ...errors import TaskFileError
 from ...robot import Robot
+from ..common.collision import TaskCollision, configure_collision
 from ..common.path import WHOLE_STEP_SLACK, check_step, path_geometry, program_task, timing_law
 from ..common.start import start_configuration, unit_scales
 from ..limits import check_start_off_limits
@@ -78,6 +79,7 @@ class CartesianTask:
     tolerance: float | None = None
     length_unit: str = "m"
     source: str = ""
+    collision: TaskCollision | None = None  # the obstacles and [collision] (robot with capsules)
 
     @property
     def accuracy(self) -> PathAccuracy:
@@ -132,5 +134,5 @@ def configure(model: CartesianTaskFile, robot: Robot, source: str) -> CartesianT
         damping_max=float(model.damping.lambda_max), output_every=integ.output_every,
         program=None if program is None else program.spec, start_label=label,
         tolerance=path_tolerance(model.check.path_tolerance, model.units.length, program is not None or step_unset),
-        length_unit=model.units.length, source=source)
+        length_unit=model.units.length, source=source, collision=configure_collision(model, robot, source))
     return task if program is None else task.with_motion(program.motion)

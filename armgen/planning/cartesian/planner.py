@@ -19,6 +19,7 @@ from ...errors import PlanningError
 from ...progress import progress
 from ...symbolic.steps import min_eigenvalue
 from ..backends import make_backend
+from ..common.collision import criterion_term, set_kernel_inputs, uses_criterion
 from ..common.path import PathGeometry
 from ..common.symbolic import sym_orientation_error, sym_rpy
 from ..limits import limit_report
@@ -115,6 +116,7 @@ class CartesianPlanner:
         sweeps and applies λ = λ_max √(1 − (σ_min/ε)²) below ε."""
         stages = 3 if self.task.integrator == "rk4" else 1
         rows = self.rows
+        with_collision = uses_criterion(self.task.collision)
 
         def build(model, x, y):
             n = model.n
@@ -122,6 +124,7 @@ class CartesianPlanner:
             q, q_init, windows = x.add("q", n), x.add("q_init", n), x.add("windows", n)
             h, rho_l, gain, eps, lam_max = (x.add(k, 1) for k in ("h", "rho_L", "clik_gain", "epsilon", "lambda_max"))
             at = [[x.add(f"{k}{s}", size) for k, size in self.STAGE_INPUTS] for s in range(stages)]
+            avoid = criterion_term(model, x) if with_collision else None
             flags = []
 
             def law(qs, p_d, r_d, xdot, gamma_r, a_r, b_r):
@@ -131,6 +134,8 @@ class CartesianPlanner:
                 cmd = xdot + gain * ca.vertcat(pos_err, ori_err)
                 h_l, grad_l = zghal(qs)
                 alpha = gamma_r * (a_r * (q_init - qs) / b_r) + windows * (-rho_l * grad_l)
+                if avoid is not None:  # the collision criterion descends beside the method's own terms
+                    alpha = alpha + avoid(qs)
                 gram = ca.mtimes(jac[rows, :], jac[rows, :].T)
                 if damped:
                     sigma = ca.sqrt(ca.fmax(min_eigenvalue(gram), 0))
@@ -156,7 +161,8 @@ class CartesianPlanner:
             y.add("q_next", q_next)
             y.add("needs_damping", sum(flags, ca.SX(0)) if flags else ca.SX(0))
 
-        key = ("cartesian", self.task.integrator, "damped" if damped else "undamped", self.robot.task_rows)
+        key = ("cartesian", self.task.integrator, "damped" if damped else "undamped", self.robot.task_rows,
+               "collision" if with_collision else "")
         return self.backend.kernel(key, build)
 
     def run(self) -> PlanResult:
@@ -168,6 +174,8 @@ class CartesianPlanner:
                            ("clik_gain", task.clik_gain), ("epsilon", task.damping_epsilon),
                            ("lambda_max", task.damping_max)):
             kernel.set(key, value)
+        if uses_criterion(task.collision):
+            set_kernel_inputs(kernel, task.collision)
         # everything that depends on t alone, for every step and stage, in the kernel's input order
         t = np.arange(steps + 1) * h
         blocks = []

@@ -9,6 +9,7 @@ from typing import Annotated, Literal, Optional
 from pydantic import Field
 
 from ...schemas import StrictModel
+from ..common.collision import CollisionFields
 from ..common.schema import (Check, Damping, Description, NonNegative, Path, Positive, RobotReference, Start, Timing,
                              Units, resolved_rate_workload)
 from ..toolpath.schema import path_union
@@ -35,7 +36,7 @@ class Method(StrictModel):
     gamma_R_ramp: Positive = 20.0
 
 
-class CartesianTaskFile(StrictModel):
+class CartesianTaskFile(CollisionFields):
     """A Cartesian path task (spec 20)."""
 
     planner: Literal["cartesian"]

@@ -3,9 +3,11 @@ the style of :mod:`armgen.planning.common.schema`: ``[[obstacles]]`` (spheres, c
 half-spaces) and ``[collision]`` (clearance, activation, gain), in the task file's units, and
 their conversion to SI (:func:`obstacles_si`, :func:`collision_si`).
 
-Ready for the planners (a planner's task model adds ``obstacles: Obstacles = []`` and
-``collision: Optional[CollisionSettings] = None``); no planner takes them yet (docs/collision.md,
-"Not yet")::
+A planner's task model takes them by deriving from :class:`CollisionFields`; its config holds
+the :class:`TaskCollision` of :func:`configure_collision`. The resolved-rate planners add
+``−gain ∇H_C`` to their null-space term (:func:`criterion_term`); :func:`clearance_report`
+measures every plan's samples and :func:`enforce_clearance` refuses one below ``clearance``
+(docs/collision.md, "Obstacles in task files")::
 
     [[obstacles]]
     type = "capsule"        # "sphere" | "capsule" | "box" | "plane"
@@ -33,13 +35,17 @@ Ready for the planners (a planner's task model adds ``obstacles: Obstacles = []`
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, Literal, Union
+from typing import Annotated, Any, Callable, Literal, Optional, Union
 
+import casadi as ca
+import numpy as np
 from pydantic import Discriminator, Field, Tag, model_validator
 
 from ...description.collision import (MAX_OBSTACLE_SLOTS, BoxObstacle, CapsuleObstacle, Obstacle, PlaneObstacle,
-                                      SphereObstacle)
+                                      SphereObstacle, obstacle_kind, obstacle_parameters)
 from ...description.files import ANGLE_UNITS, LENGTH_UNITS
+from ...errors import PlanningError, TaskFileError
+from ...robot import Robot
 from ...schemas import StrictModel, rule_error
 from .schema import NonNegative, Positive, Units, Vector3
 
@@ -135,3 +141,155 @@ def obstacles_si(entries: list[SphereEntry | CapsuleEntry | BoxEntry | PlaneEntr
 def collision_si(settings: CollisionSettings, units: Units) -> Collision:
     length = LENGTH_UNITS[units.length]
     return Collision(settings.clearance * length, settings.activation * length, settings.gain)
+
+
+class CollisionFields(StrictModel):
+    """The task-file fields of every planner that moves a robot's joints: ``[[obstacles]]`` and
+    ``[collision]`` (a planner's task model derives from this class)."""
+
+    obstacles: Obstacles = Field(default_factory=list, description="the cell's obstacles (base frame, file units)")
+    collision: Optional[CollisionSettings] = Field(
+        None, description="clearance, activation and gain of the collision criterion (required with obstacles)")
+
+
+@dataclass(frozen=True)
+class TaskCollision:
+    """A task's collision model on a robot with capsules, in SI: the obstacles, the criterion's
+    settings (None: the plan is only measured, against the arm itself), and the obstacle inputs
+    of the collision functions (:func:`~armgen.description.collision.obstacle_parameters`)."""
+
+    obstacles: tuple[Obstacle, ...]
+    settings: Collision | None
+    parameters: dict[str, np.ndarray]
+    length_unit: str = "m"
+
+
+def configure_collision(model: Any, robot: Robot, source: str) -> TaskCollision | None:
+    """The task's :class:`TaskCollision` (None for a robot without capsules and a task without
+    obstacles). A task that gives obstacles or ``[collision]`` to a robot without capsules is
+    refused, and so is one with obstacles but no ``[collision]`` or more obstacles than slots."""
+    entries, settings, units = model.obstacles, model.collision, model.units
+    if not robot.has_collision:
+        if entries or settings is not None:
+            field = "obstacles" if entries else "collision"
+            why = f" ({robot.collision.unusable})" if robot.collision.unusable else ""
+            raise TaskFileError(f"{source}: field '{field}': robot '{robot.name}' has no collision capsules{why}, so "
+                                "nothing can keep the arm clear of the obstacles; give the robot file [[collision]] "
+                                "capsules (docs/collision.md), or remove [[obstacles]] and [collision] from the task")
+        return None
+    if entries and settings is None:
+        raise TaskFileError(f"{source}: field 'collision': the task has [[obstacles]] but no [collision] table; add "
+                            "[collision] with activation = (the distance where the criterion starts, length unit) "
+                            "and, optionally, clearance and gain")
+    obstacles = obstacles_si(entries, units)
+    try:
+        parameters = obstacle_parameters(obstacles, robot.collision.slots)
+    except ValueError as exc:
+        raise TaskFileError(f"{source}: field 'obstacles': {exc}") from None
+    return TaskCollision(obstacles, None if settings is None else collision_si(settings, units), parameters,
+                         units.length)
+
+
+# The collision criterion's inputs besides q, by the name CasADi gives them; in a kernel each
+# carries the prefix, so no planner's own input shares its name.
+KERNEL_PREFIX = "collision_"
+
+
+def criterion_term(model: Any, inputs: Any) -> Callable[[ca.SX], ca.SX]:
+    """``q ↦ −gain ∇H_C(q)`` for a planner's kernel (``model``: its SymbolicModel; ``inputs``: its
+    input Packing): the obstacle slots, the clearance, the activation and the gain become kernel
+    inputs once (set them with :func:`set_kernel_inputs`), the term is taken at each stage's q.
+    A planner adds it to its null-space term α, whose step projects it as the other criteria."""
+    criterion = model.function("collision_criterion")
+    arguments = []
+    for k in range(1, criterion.n_in()):
+        rows, cols = criterion.size_in(k)
+        arguments.append(ca.reshape(inputs.add(KERNEL_PREFIX + criterion.name_in(k), rows * cols), rows, cols))
+    gain = inputs.add(KERNEL_PREFIX + "gain", 1)
+
+    def term(q: ca.SX) -> ca.SX:
+        return -gain * criterion(q, *arguments)[1]
+
+    return term
+
+
+def set_kernel_inputs(kernel: Any, collision: TaskCollision) -> None:
+    """Write the task's obstacles and settings into a kernel built with :func:`criterion_term`."""
+    settings = collision.settings
+    values = {**collision.parameters, "clearance": settings.clearance, "activation": settings.activation,
+              "gain": settings.gain}
+    for name, value in values.items():
+        kernel.set(KERNEL_PREFIX + name, np.asarray(value, dtype=float).reshape(-1, order="F"))
+
+
+def task_collision(config: Any) -> TaskCollision | None:
+    """The :class:`TaskCollision` of a planner's typed config (``config.collision``, or its path
+    task's for the planners of :mod:`armgen.planning.taskpath`), None when it has none."""
+    found = getattr(config, "collision", None)
+    if found is None:
+        found = getattr(getattr(config, "path", None), "collision", None)
+    return found if isinstance(found, TaskCollision) else None
+
+
+def uses_criterion(collision: TaskCollision | None) -> bool:
+    """Whether a planner's null-space term takes ``H_C`` (a task with ``[collision]``)."""
+    return collision is not None and collision.settings is not None
+
+
+def _pair_name(label: str, obstacles: tuple[Obstacle, ...]) -> str:
+    """An obstacle slot's label (``box 1``) as the task names the obstacle: ``obstacles[4] (box)``,
+    its index among the task's [[obstacles]]."""
+    kind, slot = label.rsplit(" ", 1)
+    same = [k for k, o in enumerate(obstacles) if obstacle_kind(o) == kind]
+    return f"obstacles[{same[int(slot)]}] ({kind})"
+
+
+def clearance_report(robot: Robot, t: np.ndarray, q: np.ndarray, collision: TaskCollision) -> dict[str, Any]:
+    """``summary.collision`` of a plan (joint values ``q`` at the times ``t``, SI): the least
+    distance over every sample and checked pair (the arm's self pairs and each moving capsule
+    against each obstacle), its pair and time, the least of the self pairs alone, and whether
+    the plan keeps ``clearance``."""
+    distances = np.atleast_2d(robot.collision_distances(q, collision.obstacles))
+    labels = robot.collision_pairs()
+    self_pairs = len(robot.collision.self_pairs())
+    active = [k for k, (first, second) in enumerate(labels) if k < self_pairs or _is_given(second, collision)]
+    sample, column = np.unravel_index(int(np.argmin(distances[:, active])), (len(t), len(active)))
+    pair = labels[active[column]]
+    first = pair[0]
+    second = pair[1] if active[column] < self_pairs else _pair_name(pair[1], collision.obstacles)
+    clearance = collision.settings.clearance if collision.settings is not None else 0.0
+    least = float(distances[sample, active[column]])
+    report = {
+        "min_clearance_m": least,
+        "pair": [first, second],
+        "t_s": float(t[sample]),
+        "clearance_m": clearance,
+        "within_clearance": bool(least >= clearance),
+        "samples_checked": int(len(t)),
+        "obstacles": len(collision.obstacles),
+    }
+    if self_pairs:
+        self_sample, self_pair = np.unravel_index(int(np.argmin(distances[:, :self_pairs])), (len(t), self_pairs))
+        report["min_self_clearance_m"] = float(distances[self_sample, self_pair])
+        report["self_pair"] = list(labels[self_pair])
+        report["self_t_s"] = float(t[self_sample])
+    return report
+
+
+def _is_given(slot_label: str, collision: TaskCollision) -> bool:
+    """Whether an obstacle slot (``sphere 1``) holds one of the task's obstacles."""
+    kind, slot = slot_label.rsplit(" ", 1)
+    return int(slot) < sum(obstacle_kind(o) == kind for o in collision.obstacles)
+
+
+def enforce_clearance(report: dict[str, Any] | None, policy: str, source: str) -> None:
+    """Raise the infeasible-plan error (exit 3) for a plan closer than ``clearance`` unless
+    ``policy`` ([check] limits) is ``"report"``."""
+    if not report or report["within_clearance"] or policy == "report":
+        return
+    first, second = report["pair"]
+    raise PlanningError(
+        f"{source}: the plan brings {first} within {report['min_clearance_m'] * 1e3:.1f} mm of {second} at "
+        f"t = {report['t_s']:.3f} s, below [collision] clearance = {report['clearance_m'] * 1e3:.1f} mm; nothing was "
+        "written. Raise [collision] gain or activation (a resolved-rate plan), move the path or the start away from "
+        "it, or, to write the plan and inspect it, set [check] limits = \"report\" (or --set check.limits=report)")

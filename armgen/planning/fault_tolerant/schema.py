@@ -13,6 +13,7 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import Field
 
 from ...schemas import StrictModel
+from ..common.collision import CollisionFields
 from ..toolpath.schema import path_union
 from ..common import schema as common
 from ..common.schema import (Damping, Description, EulerIntegrator, NonNegative, Positive, RelativePath, RobotReference,
@@ -61,7 +62,7 @@ class Check(common.Check):
     reach: Literal["error", "report"] = "error"
 
 
-class FaultTolerantTaskFile(StrictModel):
+class FaultTolerantTaskFile(CollisionFields):
     """A path task with a locked-joint fault (spec 30)."""
 
     planner: Literal["fault_tolerant"]

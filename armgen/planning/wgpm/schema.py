@@ -12,6 +12,7 @@ from typing import Annotated, Literal, Optional
 from pydantic import Field, model_validator
 
 from ...schemas import StrictModel, rule_error
+from ..common.collision import CollisionFields
 from ..toolpath.schema import path_union
 from ..common.schema import (Check, Damping, Description, EulerIntegrator, NonNegative, Positive, RelativePath, RobotReference,
                              Start, Timing, Units, resolved_rate_workload)
@@ -66,7 +67,7 @@ class Tracking(StrictModel):
     ori_tol: Optional[Positive] = Field(None, description="angle unit; default 1 deg")
 
 
-class WgpmTaskFile(StrictModel):
+class WgpmTaskFile(CollisionFields):
     """A path task with weighted gradient projection (spec 35)."""
 
     planner: Literal["wgpm"]
