@@ -40,6 +40,7 @@ import numpy as np
 from ...errors import PlanningError
 from ...progress import progress
 from ..backends import Backend, make_backend
+from ..common.collision import criterion_term, set_kernel_inputs, uses_criterion
 from ..limits import limit_report
 from ..result import PlanResult
 from ..taskpath import (TIMED_WIDTH, TaskPath, base_columns, path_metadata, plan_path_task,
@@ -128,6 +129,7 @@ class FaultTolerantPlanner:
         """One fused call per step: index, weights or null-space term, masked step, q(t + h)."""
         rows = self.rows
         numeric_index = method.index == "sigma_min"  # NumPy SVD and differences: an input
+        with_collision = uses_criterion(self.task.path.collision)
 
         def build(model, x, y):
             n = model.n
@@ -141,6 +143,7 @@ class FaultTolerantPlanner:
             if numeric_index:
                 h_in, grad_in, per_in = x.add("H", 1), x.add("grad_H", n), x.add("per_joint", n)
             timed = x.add("timed", TIMED_WIDTH)
+            avoid = criterion_term(model, x) if with_collision else None
             pose, jac = fk_jacobian(q)
             pos_err, ori_err, cmd = sym_tracking(pose, timed, gain)
             omega, h_m, grad, w, grad_w = ft_index(jac, mask, a, delta)
@@ -162,13 +165,15 @@ class FaultTolerantPlanner:
                     weights, active = wln_weights(grad_index, per, probe, mask, b, omega_floor, v_band)
                 else:
                     weights, active = wln_weights(grad_index, per, qd_prev, mask, b, omega_floor, 0.0)
+            if avoid is not None:  # the collision criterion descends beside the method's own term
+                alpha = alpha + avoid(q)
             qd, lam, sigma = step_fault(jac, cmd[rows], mask, weights, alpha, eps, lam_max)
             y.add("row", ca.vertcat(sym_base_row(q, qd, pose, jac, pos_err, ori_err, cmd, rows, lam, sigma), index, w,
                                     per, 1 - mask, weights, active))
             y.add("q_next", q + h * qd)
 
         key = ("fault", method.name, method.index, method.weight_rule if method.name == "wln" else "",
-               self.robot.task_rows)
+               self.robot.task_rows, "collision" if with_collision else "")
         return self.backend.kernel(key, build)
 
     def segment(self, kernel, timed: np.ndarray, q: np.ndarray, qd_prev: np.ndarray, k0: int, k1: int,
@@ -217,6 +222,8 @@ class FaultTolerantPlanner:
                            ("clik_gain", p.clik_gain if p.clik else 0.0), ("epsilon", p.damping_epsilon),
                            ("lambda_max", p.damping_max), ("h", p.step)):
             kernel.set(key, value)
+        if uses_criterion(p.collision):
+            set_kernel_inputs(kernel, p.collision)
         timed = self.path.timed_inputs(np.arange(p.steps + 1) * p.step)
         results = []
         started = time.perf_counter()

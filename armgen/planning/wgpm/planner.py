@@ -31,8 +31,9 @@ import numpy as np
 
 from ...errors import PlanningError
 from ...progress import progress
-from ...symbolic.steps import WGPM_CRITERIA
+from ...symbolic.steps import WGPM_CRITERIA, scaled_step, weighted_gram
 from ..backends import Backend, make_backend
+from ..common.collision import criterion_term, set_kernel_inputs, uses_criterion
 from ..limits import limit_report
 from ..result import PlanResult
 from ..taskpath import (TIMED_WIDTH, TaskPath, base_columns, path_metadata, plan_path_task, smoothness, sym_base_row,
@@ -46,6 +47,16 @@ SHORT = {"manipulability": "w", "joint_manipulability": "M", "zghal": "L", "cond
 def smoothstep(x):
     x = np.clip(x, 0.0, 1.0)
     return x * x * (3 - 2 * x)
+
+
+def wgpm_null_space_term(jac: ca.SX, w_c: ca.SX, rho: ca.SX, alpha: ca.SX) -> ca.SX:
+    """What ``step_wgpm`` adds to q̇ for a further null-space vector ``alpha`` (the collision
+    criterion's −gain ∇H_C): its q̇ = z + W_b² Jᵀ (J_wb J_wbᵀ + ρ² I)⁻¹ (ẋ − J z) is linear in z,
+    so z + W_b α adds W_b α − W_b² Jᵀ (J_wb J_wbᵀ + ρ² I)⁻¹ J W_b α, with W_b = I − diag(w_c) and ρ
+    of the same step: α enters as the criteria's gradients do (unramped: it acts from t = 0)."""
+    w_b = 1 - w_c
+    scale = w_b * w_b
+    return scaled_step(jac, ca.DM.zeros(jac.shape[0]), scale, w_b * alpha, rho * rho, weighted_gram(jac, scale))
 
 
 class WgpmPlanner:
@@ -74,6 +85,7 @@ class WgpmPlanner:
         this step would push out, solve again, at most n times) is unrolled: once nothing is
         frozen any more, the further rounds repeat the same solve."""
         rows, robot = self.rows, self.robot
+        with_collision = uses_criterion(self.task.path.collision)
 
         def build(model, x, y):
             n = model.n
@@ -85,13 +97,16 @@ class WgpmPlanner:
             timed, ramp = x.add("timed", TIMED_WIDTH), x.add("ramp", 1)
             eps, lam_max = scalars[2], scalars[3]
             pose, jac = fk_jacobian(q)
+            avoid = criterion_term(model, x)(q) if with_collision else ca.DM.zeros(n)
             pos_err, ori_err, cmd = sym_tracking(pose, timed, gain)
             qd, w_c, rho, sigma, gains, crit = step_wgpm(jac, q, cmd[rows], *scalars, ramp, *vectors)
+            if with_collision and method.name == "wgpm":
+                qd = qd + wgpm_null_space_term(jac[rows, :], w_c, rho, avoid)
             if method.name != "wgpm":
-                ones, zeros = ca.DM.ones(n), ca.DM.zeros(n)
+                ones = ca.DM.ones(n)
                 mask = ca.SX(ones)
                 for _ in range(n if method.name == "clamp" else 1):
-                    qd, rho, sigma = step_fault(jac, cmd[rows], mask, ones, zeros, eps, lam_max)
+                    qd, rho, sigma = step_fault(jac, cmd[rows], mask, ones, avoid, eps, lam_max)
                     if method.name == "clamp":
                         nxt = q + h * qd
                         out = ca.logic_and(mask > 0, ca.logic_or(nxt > robot.qmax, nxt < robot.qmin))
@@ -101,7 +116,8 @@ class WgpmPlanner:
                                     gains, w_c))
             y.add("q_next", q + h * qd)
 
-        return self.backend.kernel(("wgpm", method.name, self.robot.task_rows), build)
+        return self.backend.kernel(("wgpm", method.name, self.robot.task_rows, "collision" if with_collision else ""),
+                                   build)
 
     def columns(self) -> list[str]:
         n = self.robot.n
@@ -118,6 +134,8 @@ class WgpmPlanner:
                            ("clik_gain", p.clik_gain if p.clik else 0.0), ("h", h),
                            *zip(("H_lo", "H_hi", "k_hi", "k_lo", "u_th", "u_band"), method.vectors())):
             kernel.set(key, value)
+        if uses_criterion(p.collision):
+            set_kernel_inputs(kernel, p.collision)
         t = np.arange(p.steps + 1) * h
         ramp = self.ramp(t, method) if method.name == "wgpm" else np.zeros_like(t)
         timed = np.hstack([self.path.timed_inputs(t), ramp[:, None]])
