@@ -44,7 +44,8 @@ class Variant:
     cpu: str = "cortex-m4"  # arm: the core, a key of targets.TARGETS (flags, linker script, clock)
     runner: str = "csv"  # host: "csv" (host/main.c), "link" (host/link_main.c: the link over a pty) or
                          # "link_fuzz" (host/link_fuzz.c: the link's parser fuzz and codec echo);
-                         # Arm: "csv" (arm/fw_main.c) or "link_bench" (bench/link_bench.c: the link's cost)
+                         # Arm: "csv" (arm/fw_main.c), "link_bench" (bench/link_bench.c: the link's cost) or
+                         # "link_uart" (bench/link_uart.c: the link on the MPS2's UART0)
 
     @property
     def name(self) -> str:
@@ -174,11 +175,10 @@ class FirmwareBuilder:
                   FIRMWARE_DIR / "controller.c", FIRMWARE_DIR / "fw_program.c", FIRMWARE_DIR / "fw_csv.c"]
         if v.target != "host":  # the runner of arm/ (its timer and semihosting call have a RISC-V branch)
             fast = [ARM_DIR / "fw_fastmath.c"] if v.fast_trig else []
-            if v.runner == "link_bench":  # the link's cost per frame and per servo tick (Arm: SysTick)
+            if v.runner in ("link_bench", "link_uart"):  # the link's cost; the link on UART0 (Arm only)
                 return common + [FIRMWARE_DIR / "fw_link.c", FIRMWARE_DIR / "fw_link_msgs.c",
                                  FIRMWARE_DIR / TARGETS[v.cpu].startup, ARM_DIR / "semihost.c",
-                                 FIRMWARE_DIR / "bench" / "link_bench.c",
-                                 *fast]
+                                 FIRMWARE_DIR / "bench" / f"{v.runner}.c", *fast]
             return common + [FIRMWARE_DIR / TARGETS[v.cpu].startup, ARM_DIR / "semihost.c", ARM_DIR / "fw_main.c", *fast]
         if v.runner == "csv":
             return common + [FIRMWARE_DIR / "host" / "main.c"]
