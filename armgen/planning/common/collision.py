@@ -164,11 +164,19 @@ class TaskCollision:
     length_unit: str = "m"
 
 
-def configure_collision(model: Any, robot: Robot, source: str) -> TaskCollision | None:
+def configure_collision(model: Any, robot: Robot | None, source: str) -> TaskCollision | None:
     """The task's :class:`TaskCollision` (None for a robot without capsules and a task without
     obstacles). A task that gives obstacles or ``[collision]`` to a robot without capsules is
     refused, and so is one with obstacles but no ``[collision]`` or more obstacles than slots."""
-    entries, settings, units = model.obstacles, model.collision, model.units
+    entries, settings = model.obstacles, model.collision
+    # a ptp task gives angles only: its lengths (tool positions) are in m
+    units = Units(length=getattr(model.units, "length", "m"), angle=model.units.angle)
+    if robot is None:
+        if entries or settings is not None:
+            raise TaskFileError(f"{source}: field '{'obstacles' if entries else 'collision'}': the task names no robot, "
+                                "so there is no arm to keep clear; give 'robot' (one with [[collision]] capsules), or "
+                                "remove [[obstacles]] and [collision]")
+        return None
     if not robot.has_collision:
         if entries or settings is not None:
             field = "obstacles" if entries else "collision"

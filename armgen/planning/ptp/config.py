@@ -13,6 +13,7 @@ import numpy as np
 from ...description.files import ANGLE_UNITS
 from ...errors import TaskFileError, excerpt
 from ...robot import Robot
+from ..common.collision import TaskCollision, configure_collision
 from .families import JointWaypoints, preset_accel
 from .poses import SolvedPoses, solve_pose_waypoints
 from .schema import PerJointBound, PtpTaskFile
@@ -39,6 +40,7 @@ class PtpConfig:
     robot: str | None = None  # the task's robot reference, as plan.json records it
     solved_poses: SolvedPoses | None = None  # waypoints given as tool poses: the IK's solutions (poses.py)
     robot_model: Robot | None = None  # the named robot: its qdlim/qddlim are checked against the plan
+    collision: TaskCollision | None = None  # the robot's capsules and the task's obstacles: every sample checked
 
     @property
     def n_waypoints(self) -> int:
@@ -159,7 +161,7 @@ def configure(model: PtpTaskFile, robot: Robot | None, source: str) -> PtpConfig
         None if wp.t is None else np.array(wp.t, dtype=float),
         _bounds(model.timing.omega_max, "timing.omega_max", names, nseg, scale, source),
         _bounds(model.timing.eps_max, "timing.eps_max", names, nseg, scale, source),
-        model.timing.grid, model.robot, solved, robot)
+        model.timing.grid, model.robot, solved, robot, configure_collision(model, robot, source))
     if config.omega_max is not None:
         _check_bounds_against_waypoints(config)
     return config

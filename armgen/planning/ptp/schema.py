@@ -19,6 +19,7 @@ from ...description.files import ANGLE_UNITS
 from ...description.model import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M
 from ...errors import excerpt
 from ...schemas import StrictModel, rule_error
+from ..common.collision import CollisionFields
 from ..common.schema import Description, Positive, RobotReference, SpeedCheck
 
 MAX_WAYPOINTS = 10_000
@@ -82,7 +83,7 @@ def _per_joint_arrays(value: Values | dict[str, Values] | None, field: str) -> l
     return [(field, value)]
 
 
-class PtpTaskFile(StrictModel):
+class PtpTaskFile(CollisionFields):
     """Point-to-point joint splines through velocity-constrained waypoints (spec 40)."""
 
     planner: Literal["ptp"]
