@@ -69,11 +69,12 @@ def point_to_segment(point: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndar
     return np.linalg.norm(a + t[..., None] * ab - point, axis=-1)
 
 
-def sphere_clearance(robot_file: Path, q: np.ndarray) -> np.ndarray:
-    """Per sample, the least distance (m) of the arm's moving capsules to the sphere."""
+def sphere_clearance_to(robot_file: Path, q: np.ndarray, sphere: dict, scale: float = 1e-3) -> np.ndarray:
+    """Per sample, the least distance (m) of the arm's moving capsules to ``sphere`` (lengths in
+    m per ``scale``: mm by default)."""
     robot = load_robot(robot_file)
     frames = robot.frames(q)
-    centre, radius = np.array(SPHERE["centre"]) * 1e-3, SPHERE["radius"] * 1e-3
+    centre, radius = np.array(sphere["centre"]) * scale, sphere["radius"] * scale
     least = np.full(len(q), np.inf)
     for capsule in robot.collision.capsules:
         if capsule.frame == 0:
@@ -83,6 +84,10 @@ def sphere_clearance(robot_file: Path, q: np.ndarray) -> np.ndarray:
         b = pose[:, :3, :3] @ np.array(capsule.b) + pose[:, :3, 3]
         least = np.minimum(least, point_to_segment(centre, a, b) - capsule.radius - radius)
     return least
+
+
+def sphere_clearance(robot_file: Path, q: np.ndarray) -> np.ndarray:
+    return sphere_clearance_to(robot_file, q, SPHERE)
 
 
 PLANNERS = [("cartesian", "pinv"), ("fault_tolerant", "gpm"), ("wgpm", "wgpm")]
@@ -146,3 +151,62 @@ def test_obstacles_need_a_robot_with_capsules_and_a_collision_table(robot_file):
     with pytest.raises(TaskFileError, match=r"field 'obstacles': 5 sphere obstacles, but the robot's collision "
                                             r"functions take 4"):
         run_task(task, "job.toml")
+
+
+# -- PTP plans: every sample checked -------------------------------------------------------------
+
+PTP_TURN_DEG = 60.0  # joint a1 turns this far from the start, 2 s rest to rest
+
+
+def ptp_task(robot_file: Path, obstacles: list[dict], collision: dict | None) -> dict:
+    start = np.degrees(START)
+    end = start + np.array([PTP_TURN_DEG, 0, 0, 0, 0, 0, 0])
+    task = {"planner": "ptp", "robot": str(robot_file), "method": "3-4", "step": 0.001, "units": {"angle": "deg"},
+            "waypoints": {"t": [0.0, 2.0], "theta": {f"a{k + 1}": [start[k], end[k]] for k in range(7)},
+                          "omega": {f"a{k + 1}": [0.0, 0.0] for k in range(7)}}}
+    if obstacles:
+        task["obstacles"] = obstacles
+    if collision:
+        task["collision"] = collision
+    return task
+
+
+def elbow_half_way(robot_file: Path) -> np.ndarray:
+    """The elbow (DH frame 4's origin, m) half-way through the PTP turn."""
+    robot = load_robot(robot_file)
+    q = START + np.radians([PTP_TURN_DEG / 2, 0, 0, 0, 0, 0, 0])
+    return robot.frames(q)[4, :3, 3]
+
+
+def test_a_ptp_plan_through_an_obstacle_is_refused_at_the_sample_it_hits(robot_file):
+    # a ptp task's lengths are in m (its [units] has the angle only)
+    sphere = {"type": "sphere", "centre": list(elbow_half_way(robot_file)), "radius": 0.05}
+    collision = {"clearance": CLEARANCE_MM * 1e-3, "activation": ACTIVATION_MM * 1e-3}
+    with pytest.raises(PlanningError) as error:
+        run_task(ptp_task(robot_file, [sphere], collision), "ptp.toml")
+    message = str(error.value)
+    assert "ptp.toml" in message and "obstacles[0] (sphere)" in message and error.value.exit_code == 3
+    # written with limits = "report": the report's least distance and time against our closed form
+    task = ptp_task(robot_file, [sphere], collision)
+    task["check"] = {"limits": "report"}
+    result = run_task(task, "ptp.toml")
+    report = result.metadata["summary"]["collision"]
+    q = np.column_stack([result.column(f"theta_a{k + 1}_rad") for k in range(7)])
+    ours = sphere_clearance_to(robot_file, q, sphere, scale=1.0)
+    assert report["samples_checked"] == len(result.data) and not report["within_clearance"]
+    assert report["min_clearance_m"] == pytest.approx(ours.min(), abs=DISTANCE_TOL)
+    assert report["t_s"] == pytest.approx(result.data[int(np.argmin(ours)), 0])
+    assert f"t = {report['t_s']:.3f} s" in message
+    # the same turn with the sphere a metre higher plans (exit 0)
+    sphere["centre"][2] += 1.0
+    clear = run_task(ptp_task(robot_file, [sphere], collision), "ptp.toml")
+    assert clear.metadata["summary"]["collision"]["within_clearance"]
+
+
+def test_a_ptp_plan_closer_to_itself_than_the_clearance_is_refused(robot_file):
+    free = run_task(ptp_task(robot_file, [], None), "ptp.toml").metadata["summary"]["collision"]
+    closest = free["min_self_clearance_m"]
+    with pytest.raises(PlanningError) as error:  # a clearance beyond the arm's closest self approach
+        run_task(ptp_task(robot_file, [], {"clearance": closest + 0.01, "activation": 0.5}), "ptp.toml")
+    first, second = free["self_pair"]
+    assert f"brings {first} within {closest * 1e3:.1f} mm of {second}" in str(error.value)
