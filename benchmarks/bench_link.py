@@ -38,7 +38,7 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-from link_builds import TASK, _builder, link_executable, task  # noqa: E402
+from link_builds import TASK, builder, link_executable, task  # noqa: E402
 
 from armgen import firmware as fw  # noqa: E402
 from armgen.link import LinkClient  # noqa: E402
@@ -118,7 +118,7 @@ def cut(plan, after: int) -> tuple[int, float]:
 
 def m4_costs() -> dict[str, float]:
     """Instructions per part (mean, and max where it matters) from bench/link_bench.c under QEMU."""
-    elf = _builder().executable(dataclasses.replace(fw.ARM_VARIANT, runner="link_bench"), task(), name="link_bench")
+    elf = builder().executable(dataclasses.replace(fw.ARM_VARIANT, runner="link_bench"), task(), name="link_bench")
     proc = subprocess.run(["qemu-system-arm", *fw.QEMU_MACHINE, *fw.QEMU_ICOUNT, "-kernel", str(elf)],
                           capture_output=True, text=True, timeout=600)
     text = proc.stdout + proc.stderr

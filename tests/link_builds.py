@@ -18,7 +18,7 @@ TASK = REPO / "examples" / "modular8_ptp_two_segments.toml"
 
 
 @functools.lru_cache(maxsize=None)
-def _builder() -> fw.FirmwareBuilder:
+def builder() -> fw.FirmwareBuilder:
     return fw.FirmwareBuilder("modular8", tempfile.mkdtemp(prefix="armgen_link_"))
 
 
@@ -33,4 +33,4 @@ def task() -> fw.FirmwareTask:
 def link_executable(runner: str) -> Path:
     """``runner``: "link" (the pty server) or "link_fuzz"."""
     variant = fw.Variant("host", "double", sanitize=True, opt="-O1", runner=runner)
-    return _builder().executable(variant, task(), name="ptp")
+    return builder().executable(variant, task(), name="ptp")

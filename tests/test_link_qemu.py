@@ -19,7 +19,7 @@ from armgen.link import LinkClient
 from armgen.planning.tasks import load_task, run_task
 
 from conftest import require_tool
-from link_builds import TASK, _builder, task
+from link_builds import TASK, builder, task
 
 NDOF = 8
 DT = 0.001
@@ -36,7 +36,7 @@ LATENCY_SAMPLES = 50
 def board():
     for tool in ("arm-none-eabi-gcc", "qemu-system-arm"):
         require_tool(tool)
-    elf = _builder().executable(dataclasses.replace(fw.ARM_VARIANT, runner="link_uart"), task(), name="uart")
+    elf = builder().executable(dataclasses.replace(fw.ARM_VARIANT, runner="link_uart"), task(), name="uart")
     proc = subprocess.Popen(["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none",
                              "-semihosting-config", "enable=on,target=native", "-serial", "pty", "-kernel", str(elf)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

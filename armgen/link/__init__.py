@@ -4,7 +4,8 @@ controller on the board, over any byte stream —
 - :mod:`.protocol`: the messages, defined once (this table makes both sides);
 - :mod:`.codec`: the host's framing (COBS, CRC-32), messages to frames and back;
 - :mod:`.c_codec`: the board's packers and parsers, ``fw_link_msgs.{h,c}`` of the firmware stub;
-- :mod:`.client`: a session with a board on pyserial (serial port, pseudo-terminal, TCP).
+- :mod:`.client`: a session with a board on pyserial (serial port, pseudo-terminal, TCP);
+- :mod:`.waypoints`: a plan's joint samples as a stream's timed waypoints.
 
 The board's side is ``armgen/data/firmware_stub/fw_link.{h,c}``.
 """

@@ -6,7 +6,6 @@ firmware's C (``fw_link.c``) is tested bit-equal against both (tests/test_link_c
 
 from __future__ import annotations
 
-import math
 import struct
 import zlib
 from dataclasses import dataclass, field
@@ -135,7 +134,3 @@ class FrameDecoder:
         self.counts["frames"] += 1
         return Frame(version, message, seq, _values(message, self.ndof, body))
 
-
-def float32(x: float) -> float:
-    """x as the wire carries it (IEEE single)."""
-    return struct.unpack("<f", struct.pack("<f", x))[0] if math.isfinite(x) else x
