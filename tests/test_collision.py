@@ -934,7 +934,7 @@ def test_task_obstacles_convert_to_si_and_feed_the_distances(iiwa):
     q = np.random.default_rng(SEED + 9).uniform(iiwa.qmin, iiwa.qmax, size=(50, iiwa.n))
     assert np.allclose(iiwa.collision_distances(q, obstacles), iiwa.collision_distances(q, by_hand), rtol=0, atol=1e-15)
     settings = collision_si(CollisionSettings.model_validate(document["collision"]), units)
-    assert (settings.clearance, settings.activation, settings.gain) == pytest.approx((0.02, 0.1, 1.0))
+    assert (settings.clearance, settings.activation, settings.gain) == pytest.approx((0.02, 0.1, 0.01))
     for bad, message in (({"type": "cone", "radius": 1}, "cone"), ({"type": "plane", "point": [0, 0, 0],
                                                                      "normal": [0, 0, 0]}, "has no direction"),
                          ({"type": "box", "centre": [0, 0, 0], "size": [1, 0, 1]}, "greater than 0")):

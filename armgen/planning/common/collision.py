@@ -29,7 +29,7 @@ measures every plan's samples and :func:`enforce_clearance` refuses one below ``
     [collision]
     clearance = 20          # the hard minimum distance (length unit)
     activation = 100        # the criterion acts below this distance
-    gain = 1.0
+    gain = 0.01            # α = −gain ∇H_C in the resolved-rate planners' null-space term
 """
 
 from __future__ import annotations
@@ -99,7 +99,11 @@ class CollisionSettings(StrictModel):
 
     clearance: NonNegative = Field(0.0, description="length unit: a plan closer than this is infeasible")
     activation: Positive = Field(description="length unit: the criterion H_C acts below this distance")
-    gain: NonNegative = Field(1.0, description="the criterion's weight in the planner's null-space term")
+    # α = −gain ∇H_C (rad/s): ∇H_C reaches ~40 per rad at d = c + 3(ρ − c)/4 on a 0.4 m lever and
+    # grows like 1/(d − c)³ toward the clearance, so 0.01 asks a fraction of a joint's speed limit
+    # for the self-motion until the arm is close (tests/test_collision_planning.py's scene)
+    gain: NonNegative = Field(0.01, description="rad²/s: the criterion's weight in the planner's null-space "
+                                                "term α = −gain ∇H_C")
 
     @model_validator(mode="after")
     def _activation_beyond_clearance(self) -> CollisionSettings:
