@@ -210,3 +210,11 @@ def test_a_ptp_plan_closer_to_itself_than_the_clearance_is_refused(robot_file):
         run_task(ptp_task(robot_file, [], {"clearance": closest + 0.01, "activation": 0.5}), "ptp.toml")
     first, second = free["self_pair"]
     assert f"brings {first} within {closest * 1e3:.1f} mm of {second}" in str(error.value)
+
+
+def test_the_firmware_refuses_a_task_whose_plan_bends_around_obstacles(robot_file):
+    from armgen.firmware.errors import FirmwareError
+    from armgen.firmware.tasks import task_from_dict
+
+    with pytest.raises(FirmwareError, match=r"fw\.toml: the task's \[collision\] gain = 0\.01 moves the arm around"):
+        task_from_dict(line_task(robot_file, "cartesian", "pinv", GAIN), "fw.toml")

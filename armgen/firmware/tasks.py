@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import excerpt
 from ..planning.result import PlanResult, read_plan
+from ..planning.common.collision import task_collision
 from ..planning.tasks import Task, apply_overrides, configure_task, load_task, plan_configured
 from ..robot import Robot
 from .adapters import cartesian, fault_tolerant, ptp, snake, wgpm
@@ -67,7 +68,19 @@ def _replanned(task: Task, plan: PlanResult, source: str) -> PlanResult:
     return replanned
 
 
+def _refuse_collision_criterion(name: str, config: Any, source: str) -> None:
+    """The controller's resolved-rate modes do not take H_C yet (docs/collision.md, "Not yet"):
+    a task whose plan bends around obstacles would run without bending."""
+    collision = task_collision(config)
+    if name in RESOLVED_ADAPTERS and collision is not None and collision.settings and collision.settings.gain > 0:
+        raise FirmwareError(f"{source}: the task's [collision] gain = {collision.settings.gain:g} moves the arm around "
+                            "its obstacles, which the controller's resolved-rate modes do not do yet; set "
+                            "[collision] gain = 0 to run the path as planned without it (the plan is still checked "
+                            "against the clearance)")
+
+
 def _adapted(name: str, config: Any, plan: PlanResult, source: str, robot: Robot | None) -> FirmwareTask:
+    _refuse_collision_criterion(name, config, source)
     if name == "ptp":
         return ptp.firmware_task(config, plan, source, robot)
     if name == "snake":
@@ -101,6 +114,7 @@ def task_from_dict(document: dict[str, Any], source: str, robot: Robot | None = 
     task = configure_task(document, source, robot=robot)
     name = task.planner.name
     if name in RESOLVED_ADAPTERS and not _is_program(task.config):
+        _refuse_collision_criterion(name, task.config, source)
         return RESOLVED_ADAPTERS[name](task.config, source)
     return task_from_plan(plan_configured(task), source, robot)
 
