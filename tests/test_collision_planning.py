@@ -218,3 +218,63 @@ def test_the_firmware_refuses_a_task_whose_plan_bends_around_obstacles(robot_fil
 
     with pytest.raises(FirmwareError, match=r"fw\.toml: the task's \[collision\] gain = 0\.01 moves the arm around"):
         task_from_dict(line_task(robot_file, "cartesian", "pinv", GAIN), "fw.toml")
+
+
+# -- snake plans: the links' capsules against each other at every sample --------------------------
+
+SNAKE_LINK_RADIUS_MM = 30.0
+
+
+def snake_with_capsules(tmp_path: Path, ignore_adjacent: bool) -> Path:
+    """snake12 with a capsule around each 104 mm link: link i runs from the origin of DH frame
+    2i back along its x axis (a = 104 mm) to frame 2i + 2's origin."""
+    text = Path(load_robot("snake12").path).read_text(encoding="utf-8").replace('name = "snake12"', 'name = "snake12c"')
+    for link in range(12):
+        text += f"\n[[collision]]\nlink = {2 * link + 2}\na = [-104, 0, 0]\nb = [0, 0, 0]\nradius = {SNAKE_LINK_RADIUS_MM}\n"
+    if ignore_adjacent:  # neighbours meet at their universal joint by construction
+        text += "\n[collision_check]\nignore = [" + ", ".join(f"[{k}, {k + 1}]" for k in range(11)) + "]\n"
+    path = tmp_path / "snake12c.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def snake_task(robot: Path) -> dict:
+    from armgen.planning.tasks import load_task
+
+    task, _ = load_task(Path(load_robot("snake12").path).parents[1] / "examples" / "snake_planar.toml")
+    task["robot"] = str(robot)
+    return task
+
+
+def test_snake_plans_report_their_links_clearance_and_are_refused_when_links_overlap(tmp_path):
+    coal = pytest.importorskip("coal")
+    from test_collision import REQUEST, _coal_capsule
+
+    robot_file = snake_with_capsules(tmp_path, ignore_adjacent=True)
+    result = run_task(snake_task(robot_file), "snake.toml")
+    report = result.metadata["summary"]["collision"]
+    robot = load_robot(robot_file)
+    q = np.column_stack([result.column("feed_m")] + [result.column(f"{ab}{i + 1}_rad")
+                                                      for i in range(12) for ab in "ab"])
+    assert report["samples_checked"] == len(q) and report["within_clearance"]
+    # the reported least distance against coal's capsule distances at its sample
+    k = int(np.argmin(np.abs(result.column("t_s") - report["t_s"])))
+    frames = robot.frames(q[k])
+    first, second = (int(name.split()[1]) for name in report["pair"])
+
+    def capsule(index):
+        c = robot.collision.capsules[index]
+        pose = frames[c.frame]
+        return _coal_capsule(pose[:3, :3] @ np.array(c.a) + pose[:3, 3], pose[:3, :3] @ np.array(c.b) + pose[:3, 3],
+                             c.radius)
+
+    ours = coal.distance(*capsule(first), *capsule(second), REQUEST, coal.DistanceResult())
+    assert report["min_clearance_m"] == pytest.approx(ours, abs=DISTANCE_TOL)
+    # without the adjacent pairs ignored, neighbours overlap at their joint by 2 radii at every
+    # sample (the example writes its plan under [check] limits = "report", which the refusal follows)
+    overlapping = run_task(snake_task(snake_with_capsules(tmp_path, ignore_adjacent=False)), "snake.toml")
+    report = overlapping.metadata["summary"]["collision"]
+    assert not report["within_clearance"] and report["t_s"] == 0.0
+    assert report["min_clearance_m"] == pytest.approx(-2 * SNAKE_LINK_RADIUS_MM * 1e-3, abs=DISTANCE_TOL)
+    first, second = (int(name.split()[1]) for name in report["pair"])
+    assert second == first + 1

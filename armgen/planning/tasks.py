@@ -237,7 +237,8 @@ def plan_configured(task: Task, backend: str = "symbolic", caps: ResourceCaps = 
     clearance = plan_clearance(task.config, robot, result.columns, result.data)
     if clearance is not None:  # a robot with capsules (docs/collision.md, "Obstacles in task files")
         result.metadata.setdefault("summary", {})["collision"] = clearance
-    enforce_clearance(clearance, task.model.check.limits, source)
+    # a snake plan measures its links itself (its CSV has universal-joint angles, not joint columns)
+    enforce_clearance(result.metadata.get("summary", {}).get("collision"), task.model.check.limits, source)
     meta = {
         "armgen_version": __version__,
         "task_file": source,

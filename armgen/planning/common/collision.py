@@ -256,15 +256,17 @@ def _pair_name(label: str, obstacles: tuple[Obstacle, ...]) -> str:
     return f"obstacles[{same[int(slot)]}] ({kind})"
 
 
-def clearance_report(robot: Robot, t: np.ndarray, q: np.ndarray, collision: TaskCollision) -> dict[str, Any]:
+def clearance_report(robot: Robot, t: np.ndarray, q: np.ndarray, collision: TaskCollision) -> dict[str, Any] | None:
     """``summary.collision`` of a plan (joint values ``q`` at the times ``t``, SI): the least
     distance over every sample and checked pair (the arm's self pairs and each moving capsule
     against each obstacle), its pair and time, the least of the self pairs alone, and whether
-    the plan keeps ``clearance``."""
+    the plan keeps ``clearance``; None when there is no pair to measure."""
     distances = np.atleast_2d(robot.collision_distances(q, collision.obstacles))
     labels = robot.collision_pairs()
     self_pairs = len(robot.collision.self_pairs())
     active = [k for k, (first, second) in enumerate(labels) if k < self_pairs or _is_given(second, collision)]
+    if not active:  # no self pair and no obstacle: nothing to measure
+        return None
     sample, column = np.unravel_index(int(np.argmin(distances[:, active])), (len(t), len(active)))
     pair = labels[active[column]]
     first = pair[0]

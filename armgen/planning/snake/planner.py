@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import PlanningError, TaskFileError
+from ..common.collision import TaskCollision, clearance_report
 from ..limits import PLAYBACK_RATE_RULE, playback_rates, speed_report
 from ..result import PlanResult
 from .arm import SnakeArm, recover_angles
@@ -199,6 +200,11 @@ def plan(task: SnakeTask, backend: str = "symbolic") -> PlanResult:
                                 fk_centres, centres, fk_check, recover_s, time.perf_counter() - started)
     result.metadata["summary"]["joint_speed"] = speed_report(arm.robot, t, playback_rates(q, task.output_step)) | {
         "enforced": False, "rate_rule": PLAYBACK_RATE_RULE}
+    if arm.robot.has_collision:  # the links' capsules against each other at every sample (the task's
+        # obstacles are the tube's, checked above); refused below the arm's contact by tasks.plan_configured
+        report = clearance_report(arm.robot, t, q, TaskCollision((), None, {}))
+        if report is not None:
+            result.metadata["summary"]["collision"] = report
     return result
 
 
