@@ -278,3 +278,33 @@ def test_snake_plans_report_their_links_clearance_and_are_refused_when_links_ove
     assert report["min_clearance_m"] == pytest.approx(-2 * SNAKE_LINK_RADIUS_MM * 1e-3, abs=DISTANCE_TOL)
     first, second = (int(name.split()[1]) for name in report["pair"])
     assert second == first + 1
+
+
+# -- a program above a table -------------------------------------------------------------------
+
+TABLE_Z_MM = 250.0  # the bundled weld seam runs at z = 400 mm with the tool pointing down
+
+
+def test_a_cartesian_program_over_a_table_reports_the_wrist_sphere_height(robot_file):
+    from armgen.planning.tasks import load_task
+
+    task, _ = load_task(Path(load_robot("iiwa14").path).parents[1] / "examples" / "iiwa14_weld_seam_program.toml")
+    task.update(planner="cartesian", robot=str(robot_file), method={"name": "pinv"})
+    task["obstacles"] = [{"type": "plane", "point": [0, 0, TABLE_Z_MM], "normal": [0, 0, 1]}]
+    task["collision"] = {"clearance": CLEARANCE_MM, "activation": 100.0}
+    result = run_task(task, "weld.toml")
+    report = result.metadata["summary"]["collision"]
+    robot = load_robot(robot_file)
+    q = np.column_stack([result.column(f"q{k + 1}_rad") for k in range(7)])
+    # closed form: every moving capsule's lower end above the table, less its radius
+    frames = robot.frames(q)
+    heights = []
+    for capsule in robot.collision.capsules:
+        if capsule.frame:
+            pose = frames[:, capsule.frame]
+            ends = [pose[:, :3, :3] @ np.array(end) + pose[:, :3, 3] for end in (capsule.a, capsule.b)]
+            heights.append(np.minimum(ends[0][:, 2], ends[1][:, 2]) - TABLE_Z_MM * 1e-3 - capsule.radius)
+    ours = np.min(heights, axis=0)
+    assert report["pair"][1] == "obstacles[0] (plane)" and report["within_clearance"]
+    assert report["min_clearance_m"] == pytest.approx(ours.min(), abs=DISTANCE_TOL)
+    assert report["samples_checked"] == len(q)
