@@ -29,7 +29,8 @@ WAYPOINT_EVERY = 20  # plan samples per waypoint: 50 Hz
 NDOF = 8
 QDOT_MAX = math.radians(90)  # robots/modular8.toml: qdlim 90 deg/s, every joint
 QDDOT_MAX = math.radians(360)  # qddlim 360 deg/s^2
-WATCHDOG_TICKS = 100  # the runner's default 100 ms at 1 ms
+WATCHDOG_MS = 500  # long enough that a loaded CI host's pauses between frames do not fire it
+WATCHDOG_TICKS = WATCHDOG_MS  # at 1 ms
 LEAD_S = 0.3  # waypoints sent this far ahead of their time: a loaded CI host stays ahead
 # The streamed commands against the plan: the wire carries IEEE single (|q| < 2 rad: half an
 # ulp is 2^-24 * 2 = 1.2e-7 rad) and the cubic Hermite between 20-ms waypoints of a quintic-free
@@ -57,7 +58,8 @@ def plan():
 def board(tmp_path):
     """The host firmware on a fresh pty; yields (port, the CSV path)."""
     csv = tmp_path / "run.csv"
-    proc = subprocess.Popen([str(link_executable("link")), "--csv", str(csv)], stdout=subprocess.PIPE,
+    proc = subprocess.Popen([str(link_executable("link")), "--csv", str(csv), "--watchdog-ms", str(WATCHDOG_MS)],
+                            stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
         line = proc.stdout.readline()

@@ -11,6 +11,7 @@ pyserial's URL handlers).
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -23,6 +24,7 @@ from .codec import Frame, FrameDecoder, encode
 from .protocol import FAULT_NAMES, FLAGS, RESULTS, STATE_NAMES, VERSION
 
 HANDSHAKE_NDOF = 0  # HELLO and HELLO_REPLY have no per-joint field: decodable before the board says ndof
+TELEMETRY_KEPT = 1000  # the latest TELEMETRY frames a session keeps (self.telemetry)
 HEARTBEATS_PER_TIMEOUT = 4  # frames per watchdog timeout while a stream's waypoints are sparser
 DEFAULT_TIMEOUT_S = 2.0
 # A servo at rest: the closed loop's last corrections on a zero twist decay as exp(-20 t) and
@@ -88,7 +90,7 @@ class LinkClient:
         self.port = port
         self.timeout = timeout
         self.seq = 0
-        self.telemetry: list[Telemetry] = []
+        self.telemetry: deque[Telemetry] = deque(maxlen=TELEMETRY_KEPT)
         self._decoder = FrameDecoder(HANDSHAKE_NDOF)
         self.hello = self._handshake(telemetry_period)
         self.ndof = self.hello["ndof"]
@@ -114,7 +116,7 @@ class LinkClient:
         """The frames received so far (telemetry also appended to ``self.telemetry``)."""
         data = self.serial.read(self.serial.in_waiting or 1)
         frames = self._decoder.feed(data)
-        self.telemetry += [Telemetry(f.seq, f.values) for f in frames if f.name == "TELEMETRY"]
+        self.telemetry.extend(Telemetry(f.seq, f.values) for f in frames if f.name == "TELEMETRY")
         return frames
 
     def _await(self, accept, what: str) -> Frame:
@@ -197,17 +199,36 @@ class LinkClient:
         replies: list[Telemetry] = []
         sent: dict[int, int] = {}
         heartbeat_s = self.hello["watchdog_ticks"] * self.hello["dt_us"] * 1e-6 / HEARTBEATS_PER_TIMEOUT
+        capacity = self.hello["waypoint_capacity"]
+
+        marks: dict[int, int] = {}  # seq of each frame sent -> waypoints sent up to and with it
+
+        def board_full() -> bool:
+            """Flow control (a board slower than the wall clock is not overrun): the waypoints the
+            latest reply (to a waypoint or a heartbeat) says are buffered, plus those sent after
+            the frame it answers; a lost reply makes the estimate late, never stuck."""
+            latest = next((r for r in reversed(self.telemetry) if r["ack_seq"] in marks), None)
+            if latest is None:
+                return len(sent) >= capacity - 1
+            in_flight = len(sent) - marks[latest["ack_seq"]]
+            return capacity - latest["waypoints_free"] + in_flight >= capacity - 1
+
         start = last_sent = time.monotonic()
         for k in range(count):
             due = start + t[k] - lead_s
-            while time.monotonic() < due:
+            deadline = time.monotonic() + self.timeout
+            while time.monotonic() < due or board_full():
+                if time.monotonic() > deadline and board_full():
+                    raise LinkError(f"the board took no waypoint for {self.timeout:g} s (its buffer stays full)")
                 if time.monotonic() - last_sent > heartbeat_s:  # sparse waypoints: keep the watchdog fed
-                    self.send("STATUS")
+                    marks[self.send("STATUS")] = len(sent)
                     last_sent = time.monotonic()
                 self._collect(sent, replies)
                 time.sleep(0.001)
             values = {"t_us": int(round(t[k] * 1e6)), "last": int(k == len(t) - 1), "q": q[k], "qd": qd[k]}
-            sent[self.send("WAYPOINT", values)] = k
+            seq = self.send("WAYPOINT", values)
+            sent[seq] = k
+            marks[seq] = len(sent)
             last_sent = time.monotonic()
             self._collect(sent, replies)
         deadline = time.monotonic() + self.timeout

@@ -24,7 +24,7 @@
 #define FW_LINK_SECONDS 60u
 #endif
 #ifndef FW_LINK_WATCHDOG_TICKS
-#define FW_LINK_WATCHDOG_TICKS 100u
+#define FW_LINK_WATCHDOG_TICKS 500u
 #endif
 
 #define UART0_DATA (*(volatile uint32_t *)0x40004000u)
