@@ -123,6 +123,7 @@ def test_a_plan_below_the_clearance_is_refused_naming_pair_time_and_distance(rob
     message = str(error.value)
     assert "job.toml" in message and "capsule 1" in message and "obstacles[0] (sphere)" in message
     assert "t = 6.510 s" in message and "clearance = 20.0 mm" in message and "gain" in message
+    assert "capsule 1 to -27.1 mm into obstacles[0] (sphere)" in message
     assert error.value.exit_code == 3
 
 
@@ -209,7 +210,7 @@ def test_a_ptp_plan_closer_to_itself_than_the_clearance_is_refused(robot_file):
     with pytest.raises(PlanningError) as error:  # a clearance beyond the arm's closest self approach
         run_task(ptp_task(robot_file, [], {"clearance": closest + 0.01, "activation": 0.5}), "ptp.toml")
     first, second = free["self_pair"]
-    assert f"brings {first} within {closest * 1e3:.1f} mm of {second}" in str(error.value)
+    assert f"brings {first} to {closest * 1e3:.1f} mm from {second}" in str(error.value)
 
 
 def test_the_firmware_refuses_a_task_whose_plan_bends_around_obstacles(robot_file):

@@ -165,7 +165,6 @@ class TaskCollision:
     obstacles: tuple[Obstacle, ...]
     settings: Collision | None
     parameters: dict[str, np.ndarray]
-    length_unit: str = "m"
 
 
 def configure_collision(model: Any, robot: Robot | None, source: str) -> TaskCollision | None:
@@ -198,8 +197,7 @@ def configure_collision(model: Any, robot: Robot | None, source: str) -> TaskCol
         parameters = obstacle_parameters(obstacles, robot.collision.slots)
     except ValueError as exc:
         raise TaskFileError(f"{source}: field 'obstacles': {exc}") from None
-    return TaskCollision(obstacles, None if settings is None else collision_si(settings, units), parameters,
-                         units.length)
+    return TaskCollision(obstacles, None if settings is None else collision_si(settings, units), parameters)
 
 
 # The collision criterion's inputs besides q, by the name CasADi gives them; in a kernel each
@@ -302,8 +300,9 @@ def enforce_clearance(report: dict[str, Any] | None, policy: str, source: str) -
     if not report or report["within_clearance"] or policy == "report":
         return
     first, second = report["pair"]
+    least = report["min_clearance_m"]
     raise PlanningError(
-        f"{source}: the plan brings {first} within {report['min_clearance_m'] * 1e3:.1f} mm of {second} at "
+        f"{source}: the plan brings {first} to {least * 1e3:.1f} mm {'into' if least < 0 else 'from'} {second} at "
         f"t = {report['t_s']:.3f} s, below [collision] clearance = {report['clearance_m'] * 1e3:.1f} mm; nothing was "
         "written. Raise [collision] gain or activation (a resolved-rate plan), move the path or the start away from "
         "it, or, to write the plan and inspect it, set [check] limits = \"report\" (or --set check.limits=report)")
