@@ -103,11 +103,10 @@ def test_the_criterion_keeps_the_clearance_the_plain_plan_breaks(robot_file, pla
     assert ours_avoid.min() >= CLEARANCE_MM * 1e-3  # the criterion keeps the clearance at every sample
     report = avoiding.metadata["summary"]["collision"]
     assert report["within_clearance"] and report["samples_checked"] == len(q_avoid)
-    sphere_entries = [k for k, pair in enumerate(report["pair"]) if "obstacles[0]" in pair]
-    if sphere_entries:  # the least distance is the sphere's: the summary agrees with our closed form
+    if "obstacles[0]" in report["pair"]:  # the least distance is the sphere's: equal to our closed form
         assert report["min_clearance_m"] == pytest.approx(ours_avoid.min(), abs=DISTANCE_TOL)
     plain_report = plain.metadata["summary"]["collision"]
-    assert plain_report["pair"][1] == "obstacles[0] (sphere)" and not plain_report["within_clearance"]
+    assert plain_report["pair"] == "capsule 1 – obstacles[0] (sphere)" and not plain_report["within_clearance"]
     assert plain_report["min_clearance_m"] == pytest.approx(ours_plain.min(), abs=DISTANCE_TOL)
     for result in (plain, avoiding):
         summary = result.metadata["summary"]
@@ -209,7 +208,7 @@ def test_a_ptp_plan_closer_to_itself_than_the_clearance_is_refused(robot_file):
     closest = free["min_self_clearance_m"]
     with pytest.raises(PlanningError) as error:  # a clearance beyond the arm's closest self approach
         run_task(ptp_task(robot_file, [], {"clearance": closest + 0.01, "activation": 0.5}), "ptp.toml")
-    first, second = free["self_pair"]
+    first, second = free["self_pair"].split(" – ")
     assert f"brings {first} to {closest * 1e3:.1f} mm from {second}" in str(error.value)
 
 
@@ -261,7 +260,7 @@ def test_snake_plans_report_their_links_clearance_and_are_refused_when_links_ove
     # the reported least distance against coal's capsule distances at its sample
     k = int(np.argmin(np.abs(result.column("t_s") - report["t_s"])))
     frames = robot.frames(q[k])
-    first, second = (int(name.split()[1]) for name in report["pair"])
+    first, second = (int(name.split()[1]) for name in report["pair"].split(" – "))
 
     def capsule(index):
         c = robot.collision.capsules[index]
@@ -277,7 +276,7 @@ def test_snake_plans_report_their_links_clearance_and_are_refused_when_links_ove
     report = overlapping.metadata["summary"]["collision"]
     assert not report["within_clearance"] and report["t_s"] == 0.0
     assert report["min_clearance_m"] == pytest.approx(-2 * SNAKE_LINK_RADIUS_MM * 1e-3, abs=DISTANCE_TOL)
-    first, second = (int(name.split()[1]) for name in report["pair"])
+    first, second = (int(name.split()[1]) for name in report["pair"].split(" – "))
     assert second == first + 1
 
 
@@ -306,6 +305,6 @@ def test_a_cartesian_program_over_a_table_reports_the_wrist_sphere_height(robot_
             ends = [pose[:, :3, :3] @ np.array(end) + pose[:, :3, 3] for end in (capsule.a, capsule.b)]
             heights.append(np.minimum(ends[0][:, 2], ends[1][:, 2]) - TABLE_Z_MM * 1e-3 - capsule.radius)
     ours = np.min(heights, axis=0)
-    assert report["pair"][1] == "obstacles[0] (plane)" and report["within_clearance"]
+    assert report["pair"].endswith(" – obstacles[0] (plane)") and report["within_clearance"]
     assert report["min_clearance_m"] == pytest.approx(ours.min(), abs=DISTANCE_TOL)
     assert report["samples_checked"] == len(q)

@@ -257,7 +257,7 @@ def _pair_name(label: str, obstacles: tuple[Obstacle, ...]) -> str:
 def clearance_report(robot: Robot, t: np.ndarray, q: np.ndarray, collision: TaskCollision) -> dict[str, Any] | None:
     """``summary.collision`` of a plan (joint values ``q`` at the times ``t``, SI): the least
     distance over every sample and checked pair (the arm's self pairs and each moving capsule
-    against each obstacle), its pair and time, the least of the self pairs alone, and whether
+    against each obstacle), its pair (``"capsule 2 – obstacles[0] (sphere)"``) and time, the least of the self pairs alone, and whether
     the plan keeps ``clearance``; None when there is no pair to measure."""
     distances = np.atleast_2d(robot.collision_distances(q, collision.obstacles))
     labels = robot.collision_pairs()
@@ -273,7 +273,7 @@ def clearance_report(robot: Robot, t: np.ndarray, q: np.ndarray, collision: Task
     least = float(distances[sample, active[column]])
     report = {
         "min_clearance_m": least,
-        "pair": [first, second],
+        "pair": f"{first} – {second}",
         "t_s": float(t[sample]),
         "clearance_m": clearance,
         "within_clearance": bool(least >= clearance),
@@ -283,7 +283,7 @@ def clearance_report(robot: Robot, t: np.ndarray, q: np.ndarray, collision: Task
     if self_pairs:
         self_sample, self_pair = np.unravel_index(int(np.argmin(distances[:, :self_pairs])), (len(t), self_pairs))
         report["min_self_clearance_m"] = float(distances[self_sample, self_pair])
-        report["self_pair"] = list(labels[self_pair])
+        report["self_pair"] = " – ".join(labels[self_pair])
         report["self_t_s"] = float(t[self_sample])
     return report
 
@@ -299,7 +299,7 @@ def enforce_clearance(report: dict[str, Any] | None, policy: str, source: str) -
     ``policy`` ([check] limits) is ``"report"``."""
     if not report or report["within_clearance"] or policy == "report":
         return
-    first, second = report["pair"]
+    first, second = report["pair"].split(" – ")
     least = report["min_clearance_m"]
     raise PlanningError(
         f"{source}: the plan brings {first} to {least * 1e3:.1f} mm {'into' if least < 0 else 'from'} {second} at "
