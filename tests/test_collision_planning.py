@@ -308,3 +308,14 @@ def test_a_cartesian_program_over_a_table_reports_the_wrist_sphere_height(robot_
     assert report["pair"].endswith(" – obstacles[0] (plane)") and report["within_clearance"]
     assert report["min_clearance_m"] == pytest.approx(ours.min(), abs=DISTANCE_TOL)
     assert report["samples_checked"] == len(q)
+
+
+def test_plan_json_keeps_the_clearance_report(robot_file, tmp_path):
+    from armgen.planning.result import read_plan, write_plan
+
+    result = run_task(line_task(robot_file, "wgpm", "wgpm", GAIN), "job.toml")
+    csv, _ = write_plan(result, tmp_path / "plan.csv")
+    summary = read_plan(csv).summary
+    assert summary.collision.pair == result.metadata["summary"]["collision"]["pair"]
+    assert summary.collision.min_clearance_m == result.metadata["summary"]["collision"]["min_clearance_m"]
+    assert summary.collision.within_clearance

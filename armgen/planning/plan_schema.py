@@ -1,6 +1,6 @@
 """Schema of a plan's metadata (``plan.json``) as :func:`armgen.planning.result.read_plan`
 reads it. The fields every plan has are typed, and so are the summary's figures that every
-planner reports (joint limits, joint speeds, joint torques, run time, path accuracy); each
+planner reports (joint limits, joint speeds, joint torques, clearance, run time, path accuracy); each
 planner adds its own result blocks (``robot``, ``comparison``, ...) and summary figures, kept
 as they are because only that planner's figure and the firmware's adapter of that planner read
 them.
@@ -129,6 +129,23 @@ class PathAccuracy(_Block):
     step_halvings: StrictInt
 
 
+class Clearance(_Block):
+    """The plan's least distances (a robot with collision capsules, ``summary.collision``): over
+    every sample and checked pair, its pair and time; the least of the arm's self pairs; against
+    the task's ``[collision] clearance`` (docs/collision.md)."""
+
+    min_clearance_m: float
+    pair: StrictStr
+    t_s: float
+    clearance_m: float
+    within_clearance: bool
+    samples_checked: StrictInt
+    obstacles: StrictInt
+    min_self_clearance_m: Optional[float] = None
+    self_pair: Optional[StrictStr] = None
+    self_t_s: Optional[float] = None
+
+
 class PlanSummary(_Block):
     """The figures of merit every planner reports, typed; a planner's own figures are extra fields."""
 
@@ -137,6 +154,7 @@ class PlanSummary(_Block):
     joint_speed: Optional[JointSpeed] = None
     path_accuracy: Optional[PathAccuracy] = None
     joint_torque: Optional[JointTorque] = None
+    collision: Optional[Clearance] = None
 
 
 class PlanMetadata(BaseModel):
