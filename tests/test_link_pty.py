@@ -275,3 +275,22 @@ def test_watchdog_stops_a_servo_whose_host_went_silent(tmp_path):
     assert_within_speed_and_acceleration(qd_cmd)
     held = run[run.state == 3]
     assert len(held) > 0 and np.all(commands(held)[1] == 0)
+
+
+def test_stop_mid_stream_brings_the_arm_to_rest_within_the_acceleration_limits(plan, tmp_path):
+    t, q, qd = plan
+    pick = np.arange(0, len(t), WAYPOINT_EVERY)
+    with board(tmp_path) as (port, csv):
+        with LinkClient(port) as link:
+            link.stream(t[pick], q[pick], qd[pick], lead_s=0.0, stop_after=60)  # 1.2 s in, moving
+            stopped = link.stop()
+            refused = link.request("MOVE_TO_JOINTS", {"q": q[0]}, check=False)  # while it stops
+            end = link.wait_idle()
+    assert stopped.result_name == "OK"
+    assert (end.state_name, end.fault_name) == ("DONE", "NONE")
+    run = read_run(csv)
+    q_cmd, qd_cmd = commands(run)
+    assert_within_speed_and_acceleration(qd_cmd)
+    assert refused.result_name == "REFUSED_STATE"  # the ramp from ~0.3 rad/s at 6.3 rad/s^2 takes ~50 ticks
+    done = run[run.state == 2]
+    assert np.all(commands(done)[1] == 0) and np.all(commands(done)[0] == commands(done)[0][0])

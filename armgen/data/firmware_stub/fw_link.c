@@ -262,6 +262,8 @@ static uint8_t accept_waypoint(fw_link *l, const fw_link_waypoint *m) {
   return FW_LINK_RESULT_OK;
 }
 
+static void start_stop(fw_link *l, ctrl_command end);
+
 /* A valid frame of the session: act on it (or refuse it) and reply. */
 static uint8_t dispatch(fw_link *l, uint8_t type, const fw_link_message *m) {
   if (type == FW_LINK_HELLO) {
@@ -273,15 +275,18 @@ static uint8_t dispatch(fw_link *l, uint8_t type, const fw_link_message *m) {
   l->reply_telemetry = 1;
   if (type == FW_LINK_STATUS) return FW_LINK_RESULT_OK;
   if (l->stale) return FW_LINK_RESULT_STALE;
+  if (l->stopping && type != FW_LINK_LOCK) return FW_LINK_RESULT_REFUSED_STATE; /* until at rest */
   switch (type) {
     case FW_LINK_START:
       if (l->last.state != CTRL_STATE_IDLE || l->streaming || l->servoing) return FW_LINK_RESULT_REFUSED_STATE;
       l->command = CTRL_CMD_START;
       return FW_LINK_RESULT_OK;
     case FW_LINK_STOP:
-      l->streaming = 0;
-      l->servoing = 0;
-      l->command = CTRL_CMD_STOP;
+      if (arm_moves(l->last.state)) {
+        start_stop(l, CTRL_CMD_STOP); /* to rest within the acceleration limits, then DONE */
+      } else {
+        l->command = CTRL_CMD_STOP;
+      }
       return FW_LINK_RESULT_OK;
     case FW_LINK_MOVE_TO_POSE: return accept_move_to_pose(l, &m->move_to_pose);
     case FW_LINK_MOVE_TO_JOINTS: return accept_move_to_joints(l, &m->move_to_joints);
@@ -381,12 +386,12 @@ static void receive_frames(fw_link *l) {
 
 /* ------------------------------------------------------------------ the watchdog's stop */
 
-/* The decision: the velocities of the last command ramp down together over the shortest
- * duration in which every joint decelerates within its qddot_max. */
-static void start_stop(fw_link *l) {
+/* A controlled stop: the velocities of the last command ramp down together over the shortest
+ * duration in which every joint decelerates within its qddot_max; then `end` (STALE or STOP). */
+static void start_stop(fw_link *l, ctrl_command end) {
   int i;
-  l->stale = 1;
-  l->stale_ticks = l->tick - l->last_frame_tick;
+  l->stopping = 1;
+  l->stop_end = end;
   l->streaming = 0;
   l->servoing = 0;
   l->command = CTRL_CMD_NONE;
@@ -400,16 +405,15 @@ static void start_stop(fw_link *l) {
   }
 }
 
-/* The stop's command of this tick: q0 + v0 tau - v0 tau^2 / (2 T), then at rest; then STALE. */
+/* The stop's command of this tick: q0 + v0 tau - v0 tau^2 / (2 T), then at rest; then its end. */
 static void stop_tick(fw_link *l, ctrl_input *in) {
   ctrl_real tau;
   int i;
-  if (l->stale_sent) return;
   ++l->stop_k;
   tau = (ctrl_real)l->stop_k * l->dt;
   if (tau > l->stop_T + l->dt || !arm_moves(l->last.state)) {
-    in->command = CTRL_CMD_STALE; /* at rest since the tick before */
-    l->stale_sent = 1;
+    in->command = l->stop_end; /* at rest since the tick before */
+    l->stopping = 0;
     return;
   }
   tau = tau < l->stop_T ? tau : l->stop_T;
@@ -551,10 +555,11 @@ static ctrl_real acceleration_scale(const ctrl_real *qd, const ctrl_real *v, con
 }
 
 /* The servo's command of this tick: the step toward the twist, closed on the integrated pose,
- * scaled into the limits (speed, braking distance to a limit, acceleration), integrated. */
+ * with the Zghal criterion's descent as self-motion, scaled into the limits (speed, braking
+ * distance to a limit, acceleration), integrated. */
 static void servo_tick(fw_link *l, ctrl_input *in) {
-  ctrl_real T[16], J[6 * N], R[9], e[6], xd[CTRL_NTASK], alpha[N], qd[N], v[N], dv[N], s = CTRL_LIT(1.0);
-  int i;
+  ctrl_real T[16], J[6 * N], R[9], e[6], xd[CTRL_NTASK], alpha[N], qd[N], v[N], dv[N], s = CTRL_LIT(1.0), H;
+  int i, moving_tool = 0;
   if (l->servo_k > 0u && !arm_moves(l->last.state)) { /* the controller stopped it (a fault) */
     l->servoing = 0;
     return;
@@ -568,8 +573,12 @@ static void servo_tick(fw_link *l, ctrl_input *in) {
   for (i = 0; i < CTRL_NTASK; ++i) {
     xd[i] = l->twist[l->task_rows[i]] + FW_LINK_SERVO_GAIN * e[l->task_rows[i]];
   }
-  for (i = 0; i < N; ++i) {
-    alpha[i] = CTRL_LIT(0.0);
+  ctrl_gen_zghal(l->last.q, &H, alpha); /* the joint-limit criterion's gradient */
+  for (i = 0; i < 6; ++i) {
+    moving_tool |= l->twist[i] != CTRL_LIT(0.0);
+  }
+  for (i = 0; i < N; ++i) { /* a zero twist means rest: no self-motion then */
+    alpha[i] = moving_tool ? -FW_LINK_SERVO_NULL_GAIN * alpha[i] : CTRL_LIT(0.0);
     v[i] = l->servo_k > 0u ? l->last.qd[i] : CTRL_LIT(0.0);
     dv[i] = l->qdd_max[i] * l->dt;
   }
@@ -609,11 +618,16 @@ void fw_link_input(fw_link *l, ctrl_input *in) {
   in->locked = l->locked;
   receive_frames(l);
   if (!l->stale && l->session && arm_moves(l->last.state) && l->tick - l->last_frame_tick > l->watchdog_ticks) {
-    start_stop(l);
+    l->stale = 1;
+    l->stale_ticks = l->tick - l->last_frame_tick;
+    start_stop(l, CTRL_CMD_STALE);
   }
-  if (l->stale) {
+  if (l->stopping) {
     stop_tick(l, in);
     return;
+  }
+  if (l->stale) {
+    return; /* latched: the controller holds */
   }
   if (l->command != CTRL_CMD_NONE) {
     in->command = l->command;

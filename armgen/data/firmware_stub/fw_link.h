@@ -73,6 +73,11 @@ extern "C" {
 #define FW_LINK_SERVO_GAIN CTRL_LIT(20.0)
 #define FW_LINK_SERVO_DAMPING CTRL_LIT(0.005)
 #define FW_LINK_SERVO_LIMIT_MARGIN CTRL_LIT(1e-3)
+/* SERVO's self-motion: alpha = -gain * grad H_L, the generated Zghal joint-limit criterion's
+ * descent in the null space (a redundant arm drifts away from its limits while the tool follows
+ * the twist; none on a zero twist, which brings the arm to rest); 1/s on the criterion's
+ * gradient, the planners' order of rho_L. */
+#define FW_LINK_SERVO_NULL_GAIN CTRL_LIT(0.1)
 
 /* A frame: header, body, CRC-32 (FW_LINK_MAX_RAW); COBS adds one byte per 254 and the first. */
 #define FW_LINK_MAX_RAW (FW_LINK_HEADER_SIZE + FW_LINK_MAX_BODY + FW_LINK_CRC_SIZE)
@@ -125,7 +130,8 @@ typedef struct {
   ctrl_real servo_scale;           /* the scale of the last servo tick, (0, 1] */
   int task_rows[CTRL_NTASK], servo_rows_known;
   /* the watchdog's stop */
-  int stale, stale_sent;
+  int stale, stopping;    /* stopping: the ramp to rest runs, then stop_end goes to the controller */
+  ctrl_command stop_end;  /* CTRL_CMD_STALE (the watchdog) or CTRL_CMD_STOP (a STOP frame) */
   uint32_t stale_ticks, stop_k;
   ctrl_real stop_q0[CTRL_NDOF], stop_v0[CTRL_NDOF], stop_T;
   /* the controller's last output */
