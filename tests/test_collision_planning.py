@@ -12,8 +12,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
+from armgen.description.collision import CapsuleObstacle, PlaneObstacle, SphereObstacle, obstacle_kind
 from armgen.errors import PlanningError, TaskFileError
+from armgen.planning.common.collision import TaskCollision, clearance_report
 from armgen.planning.tasks import run_task
 from armgen.robot import load_robot
 from test_collision import CAPSULES
@@ -319,3 +323,41 @@ def test_plan_json_keeps_the_clearance_report(robot_file, tmp_path):
     assert summary.collision.pair == result.metadata["summary"]["collision"]["pair"]
     assert summary.collision.min_clearance_m == result.metadata["summary"]["collision"]["min_clearance_m"]
     assert summary.collision.within_clearance
+
+
+# -- the report names the obstacle the task gave ---------------------------------------------------
+
+_COORD = st.floats(-0.8, 0.8, allow_nan=False)
+_POINT = st.tuples(_COORD, _COORD, st.floats(0.0, 1.2, allow_nan=False))
+_OBSTACLE = st.one_of(
+    st.builds(SphereObstacle, _POINT, st.floats(0.0, 0.2)),
+    st.builds(CapsuleObstacle, _POINT, _POINT, st.floats(0.0, 0.2)),
+    st.builds(PlaneObstacle, _POINT, st.sampled_from([(0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (0.3, -0.4, 0.5)])))
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow,
+                                                                                   HealthCheck.function_scoped_fixture])
+@given(obstacles=st.lists(_OBSTACLE, min_size=1, max_size=6), seed=st.integers(0, 2 ** 16))
+def test_the_report_names_the_task_obstacle_it_measured(robot_file, obstacles, seed):
+    """Whatever the mix of kinds (the collision functions take them grouped by kind), the pair the
+    report names gives its least distance when measured alone: the task's obstacle k and capsule i."""
+    robot = load_robot(robot_file)
+    kinds = [obstacle_kind(o) for o in obstacles]
+    # at most the robot's slots of each kind (more is refused when configured)
+    obstacles = [o for k, o in enumerate(obstacles) if kinds[:k].count(kinds[k]) < robot.collision.slots.count(kinds[k])]
+    given = {kind: sum(obstacle_kind(o) == kind for o in obstacles) for kind in ("sphere", "capsule", "box", "plane")}
+    q = np.random.default_rng(seed).uniform(robot.qmin, robot.qmax, size=(5, robot.n))
+    report = clearance_report(robot, np.arange(5.0), q, TaskCollision(tuple(obstacles), None, {}))
+    everything = robot.collision_distances(q, obstacles)
+    self_pairs = len(robot.collision.self_pairs())
+    given_columns = [k for k, (_, other) in enumerate(robot.collision_pairs())
+                     if k < self_pairs or int(other.split()[1]) < given[other.split()[0]]]
+    assert report["min_clearance_m"] == pytest.approx(everything[:, given_columns].min(), abs=DISTANCE_TOL)
+    first, second = report["pair"].split(" – ")
+    sample = int(report["t_s"])
+    if second.startswith("obstacles["):
+        k = int(second[len("obstacles["):second.index("]")])
+        alone = robot.collision_distances(q[sample], [obstacles[k]])
+        kind = second.split("(")[1].rstrip(")")
+        column = robot.collision_pairs().index((first, f"{kind} 0"))
+        assert alone[column] == pytest.approx(report["min_clearance_m"], abs=DISTANCE_TOL)
