@@ -361,3 +361,16 @@ def test_the_report_names_the_task_obstacle_it_measured(robot_file, obstacles, s
         kind = second.split("(")[1].rstrip(")")
         column = robot.collision_pairs().index((first, f"{kind} 0"))
         assert alone[column] == pytest.approx(report["min_clearance_m"], abs=DISTANCE_TOL)
+
+
+# The compiled kernel (generated C, double) against CasADi's interpreter of the same expression:
+# the bar for the host build, 1e-9 rad.
+HOST_C_TOL = 1e-9
+
+
+def test_the_compiled_kernel_plans_the_same_avoidance(robot_file):
+    symbolic = run_task(line_task(robot_file, "cartesian", "pinv", GAIN), "job.toml", backend="symbolic")
+    compiled = run_task(line_task(robot_file, "cartesian", "pinv", GAIN), "job.toml", backend="c")
+    q = [result.data[:, 1:8] for result in (symbolic, compiled)]
+    assert np.max(np.abs(q[0] - q[1])) <= HOST_C_TOL
+    assert compiled.metadata["summary"]["collision"]["within_clearance"]
