@@ -159,3 +159,21 @@ def test_the_firmware_project_builds_and_runs_each_core(name, project, monkeypat
     plan = read_plan(project / "demo" / "plan.csv")
     cmp = fwcmp.compare_with_plan(plan, run, fw.task_from_plan(plan, "demo"), target.precision, name)
     assert cmp.passed, cmp.rows
+
+
+def test_the_float_cores_command_the_same_bits(short_plan_path, builder):
+    """IEEE 754 binary32 arithmetic is correctly rounded in an FPU and in libgcc's soft float
+    alike, -std=c99 contracts no a*b+c into a fused multiply-add (-ffp-contract=off), and every
+    core links the same sin/cos (arm/fw_fastmath.c, the generated bounded trig): so the float
+    runs of the Cortex-M4F, -M33, -M0+ and RV32IMF print the same bits, row for row. A core
+    whose build fused operations or took another library's math would differ here."""
+    from armgen.planning.result import read_plan
+    floats = [name for name, t in fw.TARGETS.items() if t.precision == "float"]
+    for name in floats:
+        require_target(name)
+    task = fw.task_from_plan(read_plan(short_plan_path), "bits")
+    runs = {name: fw.run_qemu(builder.executable(fw.target_variant(name), task, f"bits_{name}"), target=name)
+            for name in floats}
+    reference = runs["cortex-m4"].data
+    for name, run in runs.items():
+        assert run.data.shape == reference.shape and (run.data == reference).all(), name
