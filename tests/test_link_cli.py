@@ -81,3 +81,20 @@ def test_refused_and_missing(port, tmp_path):
     assert bad_trace.returncode == 2 and "no column vx_m_s" in bad_trace.stderr
     missing = armgen("link", "/nonexistent/tty", "status")
     assert missing.returncode == 4 and "cannot open /nonexistent/tty" in missing.stderr
+
+
+def test_the_host_firmware_over_tcp():
+    """--tcp: the same link on a TCP socket (pyserial's socket:// URL), a client after another."""
+    proc = subprocess.Popen([str(link_executable("link")), "--tcp", "0"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        url = proc.stdout.readline().split()[-1]
+        assert url.startswith("socket://127.0.0.1:")
+        first = armgen("link", url, "status")
+        moved = armgen("link", url, "move-to", "--joints", "-0.9,-0.8,1.2,-0.8,0.6,1.3,0.6,-0.5")
+        assert first.returncode == 0 and "state IDLE" in first.stdout, first.stderr
+        assert moved.returncode == 0 and "state DONE" in moved.stdout, moved.stderr
+    finally:
+        proc.terminate()
+        _, err = proc.communicate(timeout=30)
+        assert "Sanitizer" not in err and "runtime error" not in err, err[-3000:]

@@ -4,10 +4,12 @@
  * real time (one tick per dt of CLOCK_MONOTONIC), so a host program talks to it as to a board
  * on a serial port.
  *
- *   fw_link_host [--port PATH] [--watchdog-ms MS] [--csv FILE] [--run-s S]
+ *   fw_link_host [--port PATH | --tcp PORT] [--watchdog-ms MS] [--csv FILE] [--run-s S]
  *
  *   --port PATH      serve the link on this terminal device (default: a new pseudo-terminal,
  *                    its name printed on stdout as "# port /dev/pts/N")
+ *   --tcp PORT       serve it on TCP, 127.0.0.1:PORT (0: any free port), one client at a time;
+ *                    printed as "# port socket://127.0.0.1:N" (pyserial's URL)
  *   --watchdog-ms M  the watchdog's timeout (default 100 ms), rounded to whole ticks
  *   --csv FILE       one row per tick: tick, t, state, fault, link flags, valid frames so far,
  *                    the joint commands q<i> and velocities qd<i> (%.17g)
@@ -19,8 +21,11 @@
  */
 #define _XOPEN_SOURCE 600
 
+#include <arpa/inet.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -35,6 +40,7 @@
 typedef struct {
   const char *port, *csv;
   double watchdog_ms, run_s;
+  long tcp; /* -1: no TCP */
 } options;
 
 static int parse_args(int argc, char **argv, options *o) {
@@ -43,9 +49,13 @@ static int parse_args(int argc, char **argv, options *o) {
   o->csv = NULL;
   o->watchdog_ms = 100.0;
   o->run_s = -1.0;
+  o->tcp = -1;
   for (i = 1; i + 1 < argc; i += 2) {
     char *end = NULL;
-    if (strcmp(argv[i], "--port") == 0) {
+    if (strcmp(argv[i], "--tcp") == 0) {
+      o->tcp = strtol(argv[i + 1], &end, 10);
+      if (*end != '\0' || o->tcp < 0 || o->tcp > 65535) return 0;
+    } else if (strcmp(argv[i], "--port") == 0) {
       o->port = argv[i + 1];
     } else if (strcmp(argv[i], "--csv") == 0) {
       o->csv = argv[i + 1];
@@ -59,7 +69,27 @@ static int parse_args(int argc, char **argv, options *o) {
       return 0;
     }
   }
-  return i == argc;
+  return i == argc && !(o->tcp >= 0 && o->port != NULL);
+}
+
+/* A TCP listener on 127.0.0.1 (non-blocking), its port printed as pyserial's URL. */
+static int open_tcp(long port) {
+  struct sockaddr_in a;
+  socklen_t len = sizeof a;
+  int one = 1, fd = socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return -1;
+  (void)setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+  (void)memset(&a, 0, sizeof a);
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons((uint16_t)port);
+  if (bind(fd, (struct sockaddr *)&a, sizeof a) != 0 || listen(fd, 1) != 0 ||
+      getsockname(fd, (struct sockaddr *)&a, &len) != 0 || fcntl(fd, F_SETFL, O_NONBLOCK) != 0) {
+    return -1;
+  }
+  printf("# port socket://127.0.0.1:%u\n", (unsigned)ntohs(a.sin_port));
+  (void)fflush(stdout);
+  return fd;
 }
 
 /* Raw bytes: no echo, no line editing, no translation of CR/LF, reads return at once. */
@@ -130,7 +160,7 @@ int main(int argc, char **argv) {
   FILE *csv = NULL;
   struct timespec next, now;
   if (!parse_args(argc, argv, &o)) {
-    fprintf(stderr, "usage: fw_link_host [--port PATH] [--watchdog-ms MS] [--csv FILE] [--run-s S]\n");
+    fprintf(stderr, "usage: fw_link_host [--port PATH | --tcp PORT] [--watchdog-ms MS] [--csv FILE] [--run-s S]\n");
     return 2;
   }
   if (ctrl_init(&c, &fw_task) != CTRL_FAULT_NONE) {
@@ -138,8 +168,17 @@ int main(int argc, char **argv) {
     return 2;
   }
   fw_link_init(&l, &fw_task, (uint32_t)(o.watchdog_ms * 1e-3 / (double)fw_task.dt + 0.5));
-  fd = open_port(&o, &keep);
-  if (fd < 0) {
+  if (o.tcp >= 0) {
+    keep = open_tcp(o.tcp); /* the listener; fd is the client's connection, -1 while none */
+    fd = -1;
+    if (keep < 0) {
+      fprintf(stderr, "fw_link_host: cannot listen on TCP port %ld: %s\n", o.tcp, strerror(errno));
+      return 4;
+    }
+  } else {
+    fd = open_port(&o, &keep);
+  }
+  if (fd < 0 && o.tcp < 0) {
     fprintf(stderr, "fw_link_host: cannot open the terminal: %s\n", strerror(errno));
     return 4;
   }
@@ -159,14 +198,25 @@ int main(int argc, char **argv) {
   (void)clock_gettime(CLOCK_MONOTONIC, &next);
   for (;;) {
     uint8_t buf[512];
-    ssize_t n;
+    ssize_t n = -1;
     size_t m;
     ctrl_input in;
     ctrl_output out;
-    /* no more than the ring takes: the rest waits in the terminal's buffer (flow control) */
-    while (fw_link_receive_space(&l) > 0u &&
+    if (o.tcp >= 0 && fd < 0) { /* TCP: take a client when one connects */
+      fd = accept(keep, NULL, NULL);
+      if (fd >= 0 && fcntl(fd, F_SETFL, O_NONBLOCK) != 0) {
+        (void)close(fd);
+        fd = -1;
+      }
+    }
+    /* no more than the ring takes: the rest waits in the terminal's or socket's buffer (flow control) */
+    while (fd >= 0 && fw_link_receive_space(&l) > 0u &&
            (n = read(fd, buf, fw_link_receive_space(&l) < sizeof buf ? fw_link_receive_space(&l) : sizeof buf)) > 0) {
       for (i = 0; i < (int)n; ++i) (void)fw_link_receive(&l, buf[i]);
+    }
+    if (o.tcp >= 0 && fd >= 0 && n == 0) { /* the client closed its end: wait for the next */
+      (void)close(fd);
+      fd = -1;
     }
     (void)memset(&in, 0, sizeof in);
     fw_link_input(&l, &in);
@@ -174,7 +224,8 @@ int main(int argc, char **argv) {
     if (csv != NULL) csv_row(csv, &l, &out); /* before fw_link_output: the row's tick is this tick */
     fw_link_output(&l, &out);
     while ((m = fw_link_transmit(&l, buf, sizeof buf)) > 0u) {
-      if (write(fd, buf, m) != (ssize_t)m) break; /* the reader is gone or slow: the rest is dropped */
+      /* no reader, or a slow one: the rest is dropped (a closed TCP peer raises no SIGPIPE) */
+      if (fd < 0 || (o.tcp >= 0 ? send(fd, buf, m, MSG_NOSIGNAL) : write(fd, buf, m)) != (ssize_t)m) break;
     }
     if (ticks_max > 0ul && (unsigned long)l.tick >= ticks_max) break;
     add_ns(&next, period_ns);
@@ -185,6 +236,6 @@ int main(int argc, char **argv) {
   }
   if (csv != NULL) (void)fclose(csv);
   if (keep >= 0) (void)close(keep);
-  (void)close(fd);
+  if (fd >= 0) (void)close(fd);
   return 0;
 }
