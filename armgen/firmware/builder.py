@@ -1,7 +1,7 @@
 """Builds of the firmware for one robot: the controller, the generated kinematics and the
 generated PTP evaluator with the strict flags of spec 10, for the host (gcc, optionally with
-ASan/UBSan) or the Cortex-M4F (arm-none-eabi-gcc, float), once per variant, and one
-executable per task."""
+ASan/UBSan) or a microcontroller core of targets.TARGETS (the Cortex-M4F by default,
+arm-none-eabi-gcc, float), once per variant, and one executable per task."""
 
 from __future__ import annotations
 
