@@ -76,9 +76,3 @@ TARGETS: dict[str, Target] = {t.name: t for t in (
            link_specs=(), apt_packages=RISCV_APT_PACKAGES),
 )}
 
-
-def target(name: str) -> Target:
-    try:
-        return TARGETS[name]
-    except KeyError:
-        raise KeyError(f"unknown target {name!r}; known: {', '.join(TARGETS)}") from None
