@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import stat
 import subprocess
 import sys
@@ -357,13 +358,32 @@ def _project_readme_blocks(venv, project: Path) -> str:
     output = ""
     for block in to_run:
         started = time.perf_counter()
-        run = subprocess.run(["bash", "-e", "-o", "pipefail", "-x", "-c", block.code], cwd=project, env=_env(venv),
-                             capture_output=True, text=True, timeout=BLOCK_TIMEOUT_S, preexec_fn=lambda: os.umask(0o022))
-        print(f"{project.name}/README.md:{block.line}: {time.perf_counter() - started:.1f} s, exit {run.returncode}")
-        assert run.returncode == 0, \
-            f"{project.name}/README.md:{block.line} exit {run.returncode}\n{run.stdout[-3000:]}\n{run.stderr[-5000:]}"
-        output += run.stdout
+        returncode, stdout, stderr = _run_block(block.code, project, _env(venv), f"{project.name}/README.md:{block.line}")
+        print(f"{project.name}/README.md:{block.line}: {time.perf_counter() - started:.1f} s, exit {returncode}")
+        assert returncode == 0, f"{project.name}/README.md:{block.line} exit {returncode}\n{stdout[-3000:]}\n{stderr[-5000:]}"
+        output += stdout
     return output
+
+
+def _run_block(code: str, cwd: Path, env: dict, where: str) -> tuple[int, str, str]:
+    """One README block in its own process group: a command it left running in the background
+    (the link's host firmware) would hold the output pipes open and hang the test past any
+    timeout, so the group is killed when the block ends or times out."""
+    with subprocess.Popen(["bash", "-e", "-o", "pipefail", "-x", "-c", code], cwd=cwd, env=env, text=True,
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
+                          preexec_fn=lambda: os.umask(0o022)) as process:
+        try:
+            stdout, stderr = process.communicate(timeout=BLOCK_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            stdout, stderr = process.communicate()
+            pytest.fail(f"{where}: still running after {BLOCK_TIMEOUT_S} s (or left a command running)\n"
+                        f"{stdout[-3000:]}\n{stderr[-3000:]}")
+        try:
+            os.killpg(process.pid, signal.SIGKILL)  # nothing of a finished block stays behind
+        except ProcessLookupError:
+            pass
+    return process.returncode, stdout, stderr
 
 
 def test_firmware_project_readme_of_a_urdf_arm(venv, tmp_path):
