@@ -358,14 +358,15 @@ def _project_readme_blocks(venv, project: Path) -> str:
     output = ""
     for block in to_run:
         started = time.perf_counter()
-        returncode, stdout, stderr = _run_block(block.code, project, _env(venv), f"{project.name}/README.md:{block.line}")
-        print(f"{project.name}/README.md:{block.line}: {time.perf_counter() - started:.1f} s, exit {returncode}")
-        assert returncode == 0, f"{project.name}/README.md:{block.line} exit {returncode}\n{stdout[-3000:]}\n{stderr[-5000:]}"
+        where = f"{project.name}/README.md:{block.line}"
+        returncode, stdout, stderr = _run_project_block(block.code, project, _env(venv), where)
+        print(f"{where}: {time.perf_counter() - started:.1f} s, exit {returncode}")
+        assert returncode == 0, f"{where} exit {returncode}\n{stdout[-3000:]}\n{stderr[-5000:]}"
         output += stdout
     return output
 
 
-def _run_block(code: str, cwd: Path, env: dict, where: str) -> tuple[int, str, str]:
+def _run_project_block(code: str, cwd: Path, env: dict, where: str) -> tuple[int, str, str]:
     """One README block in its own process group: a command it left running in the background
     (the link's host firmware) would hold the output pipes open and hang the test past any
     timeout, so the group is killed when the block ends or times out."""
