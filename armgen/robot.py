@@ -18,7 +18,7 @@ The description's public names (``Joint``, ``rpy_matrix``, ``matrix_rpy``, ``BUN
 from __future__ import annotations
 
 import math
-from dataclasses import fields
+from dataclasses import dataclass, fields
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike
 
 from .description import (BUNDLED_DIR, Joint, RobotDescription, bundled_robots, describe, load_description,
                           matrix_rpy, parse_description, read_urdf, resolve_robot_path, rpy_matrix)
-from .description.collision import Obstacle
+from .description.collision import BoxObstacle, CapsuleObstacle, Obstacle, PlaneObstacle, SphereObstacle
 from .description.model import MAX_ABS_LENGTH_M
 from .errors import excerpt
 
@@ -378,7 +378,9 @@ class Robot(RobotDescription):
         return np.all((q >= self.qmin) & (q <= self.qmax), axis=-1)
 
     def ik(self, pose: ArrayLike, q0: ArrayLike | None = None, *, seed: str | ArrayLike | None = None,
-           tol_position: float | None = None, tol_orientation: float | None = None, max_iterations: int | None = None):
+           tol_position: float | None = None, tol_orientation: float | None = None, max_iterations: int | None = None,
+           obstacles: Sequence[Obstacle] = (), clearance: float = 0.0, activation: float | None = None,
+           collision_free: bool = True):
         """Joint values that put the tool at ``pose`` (inverse kinematics, ``docs/ik.md``).
 
         Damped least squares (Levenberg–Marquardt) on the pose error over the robot's task
@@ -405,13 +407,28 @@ class Robot(RobotDescription):
             Stop after this many steps (an int, 1 to the default,
             ``armgen.symbolic.ik.MAX_ITERATIONS``): a bound on the time a solve takes, at the
             price of more misses.
+        obstacles
+            :class:`~armgen.description.collision.SphereObstacle`, ``CapsuleObstacle``,
+            ``BoxObstacle``, ``PlaneObstacle`` (SI, base frame) the solution must keep clear of.
+        clearance
+            The least distance (m) a solution keeps between the arm's checked capsule pairs and
+            from each obstacle. A robot with capsules is checked against itself even without
+            obstacles (docs/ik.md, "Collision-free solutions"); a solution closer than this is
+            moved along the arm's self-motion, else searched for from other starts, and when none
+            is found ``success`` is False and ``colliding`` True.
+        activation
+            The distance (m, > ``clearance``) below which the collision criterion pushes the
+            pairs apart during that search (default ``clearance`` + 0.05 m).
+        collision_free
+            False: the plain solver, no collision check (no ``obstacles`` then).
 
         Returns
         -------
         armgen.symbolic.ik.IKResult
             ``q`` (the solution, or the closest configuration reached), ``success``,
-            ``position_error``, ``orientation_error``, ``iterations``; arrays with the pose's
-            batch shape for a batch.
+            ``position_error``, ``orientation_error``, ``iterations``, and for a checked robot
+            ``clearance`` (the least distance at ``q``) and ``colliding``; arrays with the pose's
+            batch shape for a batch. ``reason`` says why a pose was not solved.
 
         Raises
         ------
@@ -421,11 +438,16 @@ class Robot(RobotDescription):
         ValueError
             A pose that is not a finite homogeneous transform with a rotation part (or has an
             entry beyond ±1000 m), a ``q0``/``seed`` of the wrong size, a tolerance outside
-            its range, a ``max_iterations`` outside its range.
+            its range, a ``max_iterations`` outside its range, a ``clearance`` or ``activation``
+            that is not a finite length with ``0 ≤ clearance < activation``, more obstacles of a
+            kind than the robot's slots.
+        armgen.errors.RobotFileError
+            ``obstacles`` or a ``clearance`` for a robot without capsules.
         """
         from .symbolic import ik
 
         targets, batch_shape = _pose_targets(pose)
+        checked = self._ik_collision_settings(obstacles, clearance, activation, collision_free)
         cap = _iteration_cap(max_iterations, ik.MAX_ITERATIONS)
         tol_p = _tolerance(tol_position, "tol_position", ik.TOL_POSITION, MAX_TOL_POSITION, "m")
         tol_o = _tolerance(tol_orientation, "tol_orientation", ik.TOL_ORIENTATION, MAX_TOL_ORIENTATION, "rad")
@@ -442,17 +464,65 @@ class Robot(RobotDescription):
         else:
             start = rest
         use_rest = 0.0 if q0 is None else 1.0
+        q, pos, ori, iterations, success = self._ik_outputs(targets, start, rest, use_rest, tol_p, tol_o, cap)
+        if checked is None:  # the plain solver: nothing to check
+            return ik.IKResult(q.T.reshape(batch_shape + (self.n,)), success.reshape(batch_shape) != 0,
+                               pos.reshape(batch_shape), ori.reshape(batch_shape),
+                               iterations.reshape(batch_shape).astype(int))
+        search = _CollisionFreeSearch(self, targets, np.broadcast_to(rest, (len(targets), self.n)), use_rest,
+                                      (tol_p, tol_o, cap), *checked)
+        found = search.run(q.T.copy(), success.reshape(-1) != 0, pos.reshape(-1), ori.reshape(-1),
+                           iterations.reshape(-1).astype(int))
+        return ik.IKResult(found.q.reshape(batch_shape + (self.n,)), found.success.reshape(batch_shape),
+                           found.position_error.reshape(batch_shape), found.orientation_error.reshape(batch_shape),
+                           found.iterations.reshape(batch_shape), found.clearance.reshape(batch_shape),
+                           found.colliding.reshape(batch_shape))
+
+    def _ik_outputs(self, targets: np.ndarray, start: np.ndarray, rest: np.ndarray, use_rest: float, tol_p: float,
+                    tol_o: float, cap: int) -> list[np.ndarray]:
+        """The solver (the compiled kernel's ``<p>_ik``, else the reference) on ``targets`` (B, 4, 4)
+        from ``start`` with ``rest`` (B, n): q, position and orientation errors, iterations, success, each (rows, B)."""
+        from .symbolic import ik
+
+        kernel = self._kernel
         if kernel is not None:
             outputs = kernel.ik(targets, start, rest, use_rest, tol_p, tol_o, cap)
             if not outputs[3].all():  # an attempt of 0 iterations: <p>_ik found no pose (BAD_TARGET)
                 ik.check_targets(targets)  # the reference's check, and its error naming what is wrong
-        else:
-            outputs = ik.solve(self.symbolic.ik_definition, targets, np.ascontiguousarray(start),
-                               np.ascontiguousarray(rest), use_rest, tol_p, tol_o, cap)
-        q, pos, ori, iterations, success = outputs
-        q = q.T.reshape(batch_shape + (self.n,))
-        return ik.IKResult(q, success.reshape(batch_shape) != 0, pos.reshape(batch_shape), ori.reshape(batch_shape),
-                           iterations.reshape(batch_shape).astype(int))
+            return outputs
+        return ik.solve(self.symbolic.ik_definition, targets, np.ascontiguousarray(start), np.ascontiguousarray(rest),
+                        use_rest, tol_p, tol_o, cap)
+
+    def _ik_collision_settings(self, obstacles: Sequence[Obstacle], clearance: object, activation: object,
+                               collision_free: bool) -> tuple[tuple[Obstacle, ...], float, float] | None:
+        """(obstacles, clearance, activation) the IK's solutions are checked against, or None when
+        nothing is checked (``collision_free`` False, or a robot without capsules given neither
+        obstacles nor a clearance)."""
+        from .description.collision import obstacle_parameters
+        from .symbolic.collision import require_collision
+
+        if isinstance(obstacles, (str, bytes)) or not isinstance(obstacles, Sequence):
+            raise TypeError(f"obstacles must be a sequence of SphereObstacle, CapsuleObstacle, BoxObstacle or "
+                            f"PlaneObstacle, got {excerpt(repr(obstacles))}")
+        obstacles = tuple(obstacles)
+        for obstacle in obstacles:
+            if type(obstacle) not in _OBSTACLE_TYPES:
+                raise TypeError(f"obstacles: {excerpt(repr(obstacle))} is no obstacle; give SphereObstacle, "
+                                "CapsuleObstacle, BoxObstacle or PlaneObstacle (armgen.description.collision)")
+        clearance = _length(clearance, "clearance")
+        if not collision_free:
+            if obstacles or clearance or activation is not None:
+                raise ValueError("ik: obstacles, clearance and activation need collision_free=True (the default)")
+            return None
+        if not self.has_collision and not obstacles and not clearance and activation is None:
+            return None
+        require_collision(self)
+        activation = clearance + DEFAULT_ACTIVATION_BAND if activation is None else _length(activation, "activation")
+        if not activation > clearance:
+            raise ValueError(f"activation = {activation!r} m must be beyond clearance = {clearance!r} m: the "
+                             "collision criterion acts between them")
+        obstacle_parameters(obstacles, self.collision.slots)  # more of a kind than slots: its ValueError
+        return obstacles, clearance, activation
 
     def _joints_per_pose(self, value: ArrayLike, what: str, batch_shape: tuple[int, ...]) -> np.ndarray:
         """``value`` (``(n,)`` or the poses' ``(..., n)``) as one row of joint values per pose."""
@@ -518,6 +588,164 @@ def _tolerance(value: object, what: str, default: float, bound: float, unit: str
         raise ValueError(f"{what} = {value!r} {unit}: give a tolerance above 0 and at most {bound:g} {unit} (a larger "
                          "one would call a pose out of reach solved)")
     return float(value)
+
+
+def _length(value: object, what: str) -> float:
+    """A clearance or activation distance: a real number from 0 to MAX_ABS_LENGTH_M (m)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{what} must be a number (m), got {excerpt(repr(value))}")
+    if not 0.0 <= float(value) <= MAX_ABS_LENGTH_M:
+        raise ValueError(f"{what} = {value!r} m: give a distance from 0 to {MAX_ABS_LENGTH_M:g} m")
+    return float(value)
+
+
+_OBSTACLE_TYPES = (SphereObstacle, CapsuleObstacle, BoxObstacle, PlaneObstacle)
+# The collision criterion's band above the clearance while the IK moves a colliding solution
+# apart (m): the pairs within 5 cm of the clearance push, so a step clears the nearest pair
+# without running into the next one.
+DEFAULT_ACTIVATION_BAND = 0.05
+# The search for a collision-free solution (docs/ik.md, "Collision-free solutions"):
+# - each step moves the arm along its self-motion by REPAIR_STEP rad on the joint that moves
+#   most (a small step keeps the pose error the polish removes to a few 1e-4, within one
+#   attempt's steps), at most REPAIR_STEPS steps (up to 2 rad of self-motion: an elbow swung
+#   to the other side of an obstacle);
+# - a step that does not widen the least distance by REPAIR_PROGRESS (m) ends the repair (the
+#   self-motion cannot help: a limit holds it, or the pair lies beyond the null space);
+# - POLISH_ITERATIONS: the solver's steps that bring each moved configuration back onto the
+#   pose (one attempt: from within REPAIR_STEP it converges in a few);
+# - FALLBACK_STARTS further solves from the solver's restart sequence (points beyond its own
+#   ATTEMPTS), each repaired the same way, for a pose whose first solution's branch collides.
+REPAIR_STEP = 0.05
+# From this many configurations on the collision functions run as one NumPy replay (a fixed
+# ~5–8 ms for a 7-DOF arm with the default slots), below it one CasADi call each (~0.25 ms).
+REPLAY_FROM = 32
+REPAIR_STEPS = 40
+REPAIR_PROGRESS = 1e-6
+POLISH_ITERATIONS = 15
+FALLBACK_STARTS = 8
+
+
+@dataclass
+class _Found:
+    """The collision-free search's answer per pose (flat over the batch)."""
+
+    q: np.ndarray
+    success: np.ndarray
+    position_error: np.ndarray
+    orientation_error: np.ndarray
+    iterations: np.ndarray
+    clearance: np.ndarray
+    colliding: np.ndarray
+
+
+class _CollisionFreeSearch:
+    """Solutions of :meth:`Robot.ik` clear of the arm itself and of the obstacles (docs/ik.md,
+    "Collision-free solutions"). A converged solution closer than the clearance is moved along
+    the arm's self-motion down the collision criterion's gradient, ``Δq ∝ −(I − J⁺J) ∇H_C``,
+    each step brought back onto the pose by the solver (from the moved configuration, its
+    self-motion held there); when that does not clear it, the pose is solved again from the
+    solver's restart sequence and each answer repaired the same way. Deterministic."""
+
+    def __init__(self, robot: Robot, targets: np.ndarray, rest: np.ndarray, use_rest: float,
+                 settings: tuple[float, float, int], obstacles: tuple[Obstacle, ...], clearance: float,
+                 activation: float):
+        from .description.collision import obstacle_parameters
+
+        self.robot, self.targets, self.rest, self.use_rest = robot, targets, rest, use_rest
+        self.tol_position, self.tol_orientation, self.cap = settings
+        self.clearance, self.activation = clearance, activation
+        self.parameters = obstacle_parameters(obstacles, robot.collision.slots)
+        self.rows = list(robot.task_rows)
+
+    def _evaluate(self, name: str, q: np.ndarray, **scalars: float) -> dict[str, np.ndarray]:
+        """A collision function at the rows of ``q`` (B ≥ 1, n): a few configurations one by one
+        through CasADi, more through the NumPy replay (Robot._collision's two paths, without its checks)."""
+        numeric = self.robot._numeric
+        if len(q) < REPLAY_FROM:
+            rows = [numeric.evaluate(name, row, **self.parameters, **scalars) for row in q]
+            return {k: np.array([row[k] for row in rows]) for k in rows[0]}
+        flat = {k: v.reshape(-1, order="F") for k, v in self.parameters.items()}
+        return numeric.evaluate(name, q, **flat, **scalars)
+
+    def least(self, q: np.ndarray) -> np.ndarray:
+        """The least distance over the checked pairs at each row of ``q`` (an empty slot's is 1000 m)."""
+        if not len(q):
+            return np.empty(0)
+        return self._evaluate("collision_distances", q)["d"].min(axis=-1)
+
+    def _solve(self, index: np.ndarray, start: np.ndarray, rest: np.ndarray, use_rest: float,
+               cap: int) -> tuple[np.ndarray, ...]:
+        q, pos, ori, iterations, success = self.robot._ik_outputs(self.targets[index], np.ascontiguousarray(start),
+                                                                   np.ascontiguousarray(rest), use_rest,
+                                                                   self.tol_position, self.tol_orientation, cap)
+        return q.T, pos.reshape(-1), ori.reshape(-1), iterations.reshape(-1).astype(int), success.reshape(-1) != 0
+
+    def repair(self, index: np.ndarray, q: np.ndarray, least: np.ndarray, pos: np.ndarray,
+               ori: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Move the solutions ``q`` (least distance ``least``, pose errors ``pos``, ``ori``) of
+        poses ``index`` along the self-motion until clear: the four updated, and the iterations spent."""
+        robot = self.robot
+        q, least, pos, ori = q.copy(), least.copy(), pos.copy(), ori.copy()
+        spent = np.zeros(len(q), dtype=int)
+        going = least < self.clearance
+        for _ in range(REPAIR_STEPS):
+            active = np.flatnonzero(going)
+            if not active.size:
+                break
+            gradient = self._evaluate("collision_criterion", q[active], clearance=self.clearance,
+                                      activation=self.activation)["grad_H_C"]
+            jacobian = robot.jacobian(q[active])[:, self.rows, :]
+            step = -(gradient - np.einsum("bij,bj->bi", np.linalg.pinv(jacobian),
+                                          np.einsum("bij,bj->bi", jacobian, gradient)))
+            size = np.abs(step).max(axis=1)
+            trial = np.clip(q[active] + step * (REPAIR_STEP / np.maximum(size, 1e-300))[:, None], robot.qmin, robot.qmax)
+            moved, moved_pos, moved_ori, iterations, converged = self._solve(index[active], trial, trial, 1.0,
+                                                                              POLISH_ITERATIONS)
+            spent[active] += iterations
+            moved_least = np.full(len(active), -np.inf)
+            moved_least[converged] = self.least(moved[converged])
+            better = converged & (moved_least >= least[active] + REPAIR_PROGRESS)
+            taken = active[better]
+            q[taken], least[taken] = moved[better], moved_least[better]
+            pos[taken], ori[taken] = moved_pos[better], moved_ori[better]
+            going[active[~better]] = False  # stalled: the self-motion does not widen the gap
+            going[taken] = least[taken] < self.clearance
+        return q, least, pos, ori, spent
+
+    def run(self, q: np.ndarray, success: np.ndarray, pos: np.ndarray, ori: np.ndarray,
+            iterations: np.ndarray) -> _Found:
+        """The search from the solver's answers (flat over the batch)."""
+        from .symbolic import ik
+
+        robot = self.robot
+        least = self.least(q)
+        colliding = success & (least < self.clearance)
+        for attempt in range(FALLBACK_STARTS + 1):
+            index = np.flatnonzero(colliding)
+            if not index.size:
+                break
+            if attempt == 0:  # the solver's own answers first
+                start_q, start_pos, start_ori, converged = q[index], pos[index], ori[index], np.ones(len(index), bool)
+                start_least = least[index]
+            else:
+                start = np.broadcast_to(ik.sequence_point(robot.qmin, robot.qmax, ik.ATTEMPTS + attempt),
+                                        (len(index), robot.n))
+                start_q, start_pos, start_ori, spent, converged = self._solve(index, start, self.rest[index],
+                                                                              self.use_rest, self.cap)
+                iterations[index] += spent
+                start_least = np.full(len(index), -np.inf)  # a miss is no answer
+                start_least[converged] = self.least(start_q[converged])
+            repaired = np.flatnonzero(converged)
+            (start_q[repaired], start_least[repaired], start_pos[repaired], start_ori[repaired],
+             spent) = self.repair(index[repaired], start_q[repaired], start_least[repaired], start_pos[repaired],
+                                  start_ori[repaired])
+            iterations[index[repaired]] += spent
+            better = start_least > least[index]  # the answer that comes least close, so far
+            chosen = index[better]
+            q[chosen], least[chosen] = start_q[better], start_least[better]
+            pos[chosen], ori[chosen] = start_pos[better], start_ori[better]
+            colliding[chosen] = least[chosen] < self.clearance
+        return _Found(q, success & ~colliding, pos, ori, iterations, least, colliding)
 
 
 def parse_robot(text: str, source: str, sha256: str | None = None, directory: Path | None = None) -> Robot:

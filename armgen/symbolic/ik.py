@@ -492,7 +492,16 @@ class IKResult:
         ‖p_target − p(q)‖ (m) and the rotation angle between the target and reached
         orientations (rad), over the robot's task rows.
     iterations
-        Steps taken (each one FK and Jacobian), restarts included.
+        Steps taken (each one FK and Jacobian), restarts included, and those of the search for a
+        collision-free configuration.
+    clearance
+        The least distance (m; negative when overlapping) at ``q`` over the checked pairs: the
+        arm's self pairs and its capsules against the obstacles given. None when nothing was
+        checked (a robot without capsules, or ``collision_free=False``).
+    colliding
+        True where the pose was reached but every configuration found comes closer than the
+        clearance asked for (``q`` is then the one that comes least close); ``success`` is False
+        there. None when nothing was checked.
     """
 
     q: np.ndarray
@@ -500,9 +509,40 @@ class IKResult:
     position_error: np.ndarray
     orientation_error: np.ndarray
     iterations: np.ndarray
+    clearance: np.ndarray | None = None
+    colliding: np.ndarray | None = None
 
     def __bool__(self) -> bool:
         return bool(np.all(self.success))
+
+    @property
+    def reason(self) -> str | np.ndarray:
+        """Why a pose was not solved ("" where it was): not reached within the tolerances, or no
+        collision-free configuration found. A str for one pose, an array of str for a batch."""
+        colliding = np.zeros_like(self.success) if self.colliding is None else self.colliding
+        clearance = np.full(np.shape(self.success), np.nan) if self.clearance is None else self.clearance
+        reasons = np.vectorize(_reason, otypes=[object])(self.success, colliding, self.position_error,
+                                                        self.orientation_error, clearance)
+        return str(reasons) if reasons.ndim == 0 else reasons.astype(str)
+
+
+def _reason(success: bool, colliding: bool, position_error: float, orientation_error: float,
+            clearance: float) -> str:
+    if success:
+        return ""
+    if colliding:
+        return (f"no collision-free configuration was found: every one that reaches the pose comes closer than "
+                f"the clearance asked for (the best: least distance {clearance * 1e3:.1f} mm)")
+    return (f"not reached within the tolerances: the closest configuration found is {position_error:.3g} m / "
+            f"{orientation_error:.3g} rad from the pose")
+
+
+def sequence_point(qmin: np.ndarray, qmax: np.ndarray, attempt: int) -> np.ndarray:
+    """The point of the restart sequence for attempt ``attempt`` (the configuration
+    ``IKDefinition._restart`` moves the joints to), in NumPy: a deterministic start spread over
+    the middle of the joint ranges, for a caller's own restarts beyond the solver's."""
+    frac = attempt * np.array(_irrational_steps(len(qmin))) + 0.5
+    return qmin + (qmax - qmin) * (SEED_MARGIN + (1 - 2 * SEED_MARGIN) * (frac - np.floor(frac)))
 
 
 def check_targets(targets: np.ndarray) -> None:
