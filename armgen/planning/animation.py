@@ -3,7 +3,9 @@
 Each frame draws the arm from its own forward kinematics (``robot.frames``, DH or URDF alike, of
 the robot ``plan.json`` records or ``--robot``): links as straight segments between consecutive
 joint-frame origins (base, each joint's frame, the tool), the tool frame's axes (x red, y green,
-z blue), the planned tool path dashed and the executed one so far, and a time stamp. A planner
+z blue), the planned tool path dashed and the executed one so far, and a time stamp; for a robot
+with capsules and a task with obstacles also the capsules at each frame, the obstacles and the
+plan's closest approach (:mod:`.collision_scene`, the drawing the figures use). A planner
 whose arm the joint frames do not show draws its own scene (its registry entry's
 ``animation_scene``: snake plans in top and side view with their obstacles and plate openings). Frames are plan samples picked evenly in time so that the video lasts ``duration``
 seconds at ``fps`` frames per second.
@@ -24,6 +26,7 @@ from ..fileio import atomic_open
 from ..progress import progress
 from ..robot import Robot
 from .registry import PLANNER_NAMES, planner as planner_named
+from .collision_scene import draw_approach, draw_capsules, draw_obstacles, plan_scene, scene_points
 from .plotting import (FigureOutputError, FigureWriteError, joint_count, new_figure, plan_robot,
                        planned_tool_path)
 from .result import PlanResult
@@ -117,7 +120,10 @@ def _serial_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
     origins = poses[:, :, :3, 3] * 1e3
     planned = planned_tool_path(result, robot) if result.metadata.get("planner") != "ptp" else None
     ax = fig.add_subplot(projection="3d")
-    lo, hi = origins.reshape(-1, 3).min(axis=0), origins.reshape(-1, 3).max(axis=0)
+    scene = plan_scene(result, robot, q)
+    bounded = origins.reshape(-1, 3) if scene is None else np.vstack([origins.reshape(-1, 3),
+                                                                      scene_points(scene, poses) * 1e3])
+    lo, hi = bounded.min(axis=0), bounded.max(axis=0)
     size = float(np.max(hi - lo)) or 1.0
     centre = (lo + hi) / 2
     for k, axis in enumerate("xyz"):
@@ -130,10 +136,19 @@ def _serial_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
     trace, = ax.plot([], [], [], color="tab:red", lw=1.2, label="executed")
     links, = ax.plot([], [], [], "-o", color="tab:blue", lw=3, ms=4, label="links (joint frames)")
     axes = [ax.plot([], [], [], color=c, lw=2)[0] for c in ("r", "g", "b")]
+    capsules: list = []
+    if scene is not None:
+        draw_obstacles(ax, scene.obstacles, centre / 1e3, (0.5 + SCENE_MARGIN) * size / 1e3)
+        if scene.approach is not None:
+            draw_approach(ax, scene.approach)
     ax.legend(fontsize=7, loc="upper left")
     length = TOOL_AXIS_FRACTION * size
 
     def draw(f: int) -> None:
+        if scene is not None and scene.capsules:  # the capsules move with the arm: drawn again each frame
+            for artist in capsules:
+                artist.remove()
+            capsules[:] = draw_capsules(ax, robot, poses[f])
         links.set_data_3d(*origins[f].T)
         trace.set_data_3d(*origins[: f + 1, -1].T)
         tool = poses[f, -1]

@@ -32,6 +32,7 @@ from pydantic import ValidationError
 from ..errors import ArmgenError, PlanFileError, excerpt
 from ..fileio import atomic_open
 from ..robot import Robot, bundled_robots, load_robot, load_robot_any
+from .collision_scene import Scene, plan_scene, scene_panel
 from .common.path import path_geometry
 from .common.schema import RelativePath, Units
 from .common.start import unit_scales
@@ -60,6 +61,9 @@ STRAIGHT_RATIO = 1e-6
 LIMIT_LABEL_LINE_FRACTION = 0.05
 # Ticks per axis of the 3-D inset: more crowd the small panel.
 INSET_TICKS = 4
+# The collision row (the arm at its closest approach) is as tall as the tool-path row and a bit
+# more: one 3-D panel whose cube holds the arm, its capsules and the obstacles.
+SCENE_HEIGHT_IN = 6.0
 # A path in an error is quoted up to this length: a real deep path fits, a hand-edited
 # plan.json's megabyte of name does not.
 PATH_EXCERPT_CHARS = 400
@@ -441,12 +445,28 @@ def resolved_rate_figure(result: PlanResult, panels: list, title: str, rows: int
     """A figure with the planner's panels in a ``rows``×2 grid above one row of tool-path views.
     ``panels`` are callables ``draw(ax)``; every panel drawn has data (no empty axes). The tool
     path is drawn through ``robot``'s forward kinematics (default: :func:`plan_robot`)."""
-    fig = new_figure(14, 4.2 * rows + 4.4)
-    top, bottom = fig.subfigures(2, 1, height_ratios=[4.2 * rows, 4.4])
+    robot = robot if robot is not None else plan_robot(result)
+    q = np.column_stack([result.column(f"q{i + 1}_rad") for i in range(robot.n)])
+    scene = plan_scene(result, robot, q)
+    heights = [4.2 * rows, 4.4] + ([SCENE_HEIGHT_IN] if scene is not None and scene.approach is not None else [])
+    fig = new_figure(14, sum(heights))
+    top, bottom, *below = fig.subfigures(len(heights), 1, height_ratios=heights)
     grid = top.add_gridspec(rows, 2)
     for k, draw in enumerate(panels):
         last_alone = k == len(panels) - 1 and k % 2 == 0  # an odd last panel spans the row: no blank slot
         draw(top.add_subplot(grid[k // 2, :] if last_alone else grid[k // 2, k % 2]))
-    tool_path_views(bottom, result, robot if robot is not None else plan_robot(result))
+    tool_path_views(bottom, result, robot)
+    if below:
+        collision_row(below[0], result, robot, q, scene)
     fig.suptitle(title)
     return fig
+
+
+def collision_row(subfig, result: PlanResult, robot: Robot, q: np.ndarray, scene: Scene) -> None:
+    """The arm at the plan's closest approach (:mod:`.collision_scene`): its capsules, the task's
+    obstacles and the marker, in one 3-D panel (a robot with capsules: every plan reports
+    ``summary.collision``)."""
+    report = result.metadata["summary"]["collision"]
+    frames = robot.frames(q[scene.approach.sample])
+    scene_panel(subfig.add_subplot(projection="3d"), scene, frames, robot.fk(q)[:, :3, 3],
+                report.get("clearance_m"))

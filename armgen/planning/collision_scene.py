@@ -1,0 +1,356 @@
+"""The arm's capsules, the task's obstacles and the plan's closest approach, drawn in a 3-D axes:
+the one drawing of the collision model (docs/collision.md) that every planner's figure and
+``armgen animate`` use.
+
+- **Capsules** (``robot.collision``, DH or URDF alike): each a cylinder with hemispherical caps,
+  light and semi-transparent, at the plotted configuration: its segment's ends through the arm's
+  own frames (``robot.frames``), with the axis drawn as a thin line inside.
+- **Obstacles** (the task's ``[[obstacles]]`` as ``plan.json`` records them, in the task's units):
+  spheres, capsules, boxes, and a half-space as a square patch of its boundary plane as large as
+  the scene.
+- **The closest approach**: at the time of ``summary.collision`` (the least distance over the
+  plan's samples and checked pairs), the pair's two witness points (on the two surfaces; for an
+  overlap, the deepest points) joined by a line, labelled with the pair and the distance.
+
+The witness points come from the same geometry as the collision functions
+(:mod:`armgen.symbolic.collision_geometry`), evaluated at the plan's sample, so the marker's
+length is the distance ``plan.json`` reports. Everything is drawn in mm, as the other 3-D panels.
+A robot without capsules and a task without obstacles get no scene (:func:`plan_scene` is None):
+their figures are unchanged.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+from pydantic import ValidationError
+
+from ..description.collision import (BoxObstacle, CapsuleObstacle, Obstacle, PlaneObstacle, SphereObstacle,
+                                     obstacle_kind)
+from ..description.frames import rpy_matrix
+from ..errors import PlanFileError
+from ..robot import Robot
+from ..symbolic import collision_geometry as geometry
+from .common.collision import CollisionFields, obstacles_si
+from .common.schema import Units
+
+MM = 1e3  # the scene is drawn in mm
+CAPSULE_COLOUR = "tab:cyan"
+CAPSULE_ALPHA = 0.25  # light: the links and the other capsules stay visible through a capsule
+OBSTACLE_COLOUR = "0.45"
+OBSTACLE_ALPHA = 0.3
+APPROACH_COLOUR = "tab:red"
+# Facets of a capsule's surface: around its axis, and rings per hemispherical cap. 16 × 6 reads
+# as round at the figures' sizes and keeps an animation frame of 20 capsules under ~4 000 facets.
+FACETS_AROUND = 16
+RINGS_PER_CAP = 6
+# A summary pair: "capsule 2 – capsule 4" or "capsule 1 – obstacles[0] (sphere)".
+PAIR = re.compile(r"^capsule (\d+) – (?:capsule (\d+)|obstacles\[(\d+)\] \((\w+)\))$")
+
+
+@dataclass(frozen=True)
+class ClosestApproach:
+    """The plan's least distance: at ``sample`` (time ``t``, s) between the two surfaces of
+    ``pair``, ``distance`` (m, negative for an overlap) between ``points`` (2 × 3, m, base frame:
+    the first shape's witness point, then the second's)."""
+
+    sample: int
+    t: float
+    pair: str
+    distance: float
+    points: np.ndarray
+
+
+@dataclass(frozen=True)
+class Scene:
+    """What a plan's figures draw of its collision model: the robot's capsules (when it has a
+    usable collision model), the task's obstacles (SI, base frame) and the closest approach
+    (None when ``plan.json`` has no ``summary.collision``)."""
+
+    robot: Robot
+    obstacles: tuple[Obstacle, ...]
+    approach: ClosestApproach | None
+
+    @property
+    def capsules(self) -> bool:
+        return self.robot.has_collision
+
+
+def plan_scene(result, robot: Robot, q: np.ndarray) -> Scene | None:
+    """The :class:`Scene` of a plan (``result``, a PlanResult, with its ``plan.json``; ``q`` its
+    joint values per sample), None when there is nothing to draw: no capsules and no obstacles."""
+    meta = result.metadata
+    obstacles = task_obstacles(meta)
+    if not robot.has_collision and not obstacles:
+        return None
+    report = (meta.get("summary") or {}).get("collision")
+    approach = None
+    if isinstance(report, dict) and robot.has_collision and "pair" in report and "t_s" in report:
+        sample = int(np.argmin(np.abs(result.column("t_s") - float(report["t_s"]))))
+        approach = closest_approach(robot, q[sample], obstacles, str(report["pair"]), sample, float(report["t_s"]))
+    return Scene(robot, obstacles, approach)
+
+
+def task_obstacles(meta: dict) -> tuple[Obstacle, ...]:
+    """The obstacles of the task ``plan.json`` records (``task.obstacles`` in ``task.units``), SI."""
+    task = meta.get("task")
+    if not isinstance(task, dict) or not task.get("obstacles"):
+        return ()
+    units = task.get("units") if isinstance(task.get("units"), dict) else {}
+    try:
+        fields = CollisionFields.model_validate({"obstacles": task["obstacles"]})
+        # a PTP task's [units] gives the angle only: its lengths are in m
+        units = Units(length=units.get("length", "m"), angle=units.get("angle", "rad"))
+    except ValidationError as exc:
+        raise PlanFileError(f"plan.json: task.obstacles: {exc.errors()[0]['msg']}; it is not what `armgen plan` "
+                            "wrote: re-run `armgen plan`") from None
+    return obstacles_si(fields.obstacles, units)
+
+
+def obstacle_names(obstacles: tuple[Obstacle, ...]) -> list[str]:
+    """Each obstacle as the task and ``summary.collision`` name it: ``obstacles[2] (box)``."""
+    return [f"obstacles[{k}] ({obstacle_kind(o)})" for k, o in enumerate(obstacles)]
+
+
+# -- the closest approach ------------------------------------------------------------------
+
+
+@lru_cache(maxsize=None)
+def _witness_functions() -> dict[str, ca.Function]:
+    """The collision functions' witness geometry as numeric functions of one pair: a capsule's
+    axis ``[a, b]`` against a segment (a capsule's axis, a sphere's centre twice), a half-space
+    (unit normal, offset) or a box (centre, axes, half-extents); each returns the axis distance,
+    the axis' witness point and the unit direction in which the distance grows as it moves."""
+    a, b = ca.SX.sym("a", 3), ca.SX.sym("b", 3)
+
+    def function(name: str, others: list[ca.SX], witness: geometry.Witness) -> ca.Function:
+        point = a + witness.parameter * (b - a)
+        return ca.Function(name, [a, b, *others], [witness.distance, point, witness.normal])
+
+    c, e = ca.SX.sym("c", 3), ca.SX.sym("e", 3)
+    normal, offset = ca.SX.sym("n", 3), ca.SX.sym("offset")
+    centre, axes, half = ca.SX.sym("centre", 3), ca.SX.sym("R", 3, 3), ca.SX.sym("half", 3)
+    return {"segment": function("segment", [c, e], geometry.segment_segment_witness(a, b, c, e)),
+            "plane": function("plane", [normal, offset], geometry.segment_halfspace_witness(a, b, normal, offset)),
+            "box": function("box", [centre, axes, half], geometry.segment_box_witness(a, b, centre, axes, half))}
+
+
+def capsule_ends(robot: Robot, frames: np.ndarray) -> np.ndarray:
+    """Each capsule's segment ends (capsules × 2 × 3, m, base frame) at one configuration's
+    ``robot.frames``."""
+    ends = []
+    for capsule in robot.collision.capsules:
+        pose = frames[capsule.frame]
+        ends.append([pose[:3, :3] @ np.asarray(end, dtype=float) + pose[:3, 3] for end in (capsule.a, capsule.b)])
+    return np.array(ends).reshape(-1, 2, 3)
+
+
+def closest_approach(robot: Robot, q: np.ndarray, obstacles: tuple[Obstacle, ...], pair: str, sample: int = 0,
+                     t: float = 0.0) -> ClosestApproach:
+    """The witness points of ``pair`` (``summary.collision``'s name of it) at joint values ``q``."""
+    match = PAIR.match(pair)
+    if match is None:
+        raise PlanFileError(f"plan.json: summary.collision.pair = {pair!r} names no pair of capsules or obstacles; "
+                            "re-run `armgen plan`")
+    first, second, index, kind = match.groups()
+    capsules = robot.collision.capsules
+    ends = capsule_ends(robot, robot.frames(np.asarray(q, dtype=float)))
+    i = int(first)
+    j = int(second) if second is not None else None
+    if i >= len(capsules) or (j is not None and j >= len(capsules)) or (
+            index is not None and (int(index) >= len(obstacles) or obstacle_kind(obstacles[int(index)]) != kind)):
+        raise PlanFileError(f"plan.json: summary.collision.pair = {pair!r} names a capsule or obstacle the robot "
+                            f"'{robot.name}' and the task do not have; re-run `armgen plan`")
+    functions = _witness_functions()
+    a, b = ends[i]
+    if j is not None:
+        axis, point, normal = functions["segment"](a, b, *ends[j])
+        radii = capsules[j].radius
+    else:
+        obstacle = obstacles[int(index)]
+        if isinstance(obstacle, SphereObstacle):
+            axis, point, normal = functions["segment"](a, b, obstacle.centre, obstacle.centre)
+            radii = obstacle.radius
+        elif isinstance(obstacle, CapsuleObstacle):
+            axis, point, normal = functions["segment"](a, b, obstacle.a, obstacle.b)
+            radii = obstacle.radius
+        elif isinstance(obstacle, BoxObstacle):
+            axis, point, normal = functions["box"](a, b, obstacle.centre, rpy_matrix(*obstacle.rpy),
+                                                   0.5 * np.asarray(obstacle.size, dtype=float))
+            radii = 0.0
+        else:
+            unit = np.asarray(obstacle.normal, dtype=float) / np.linalg.norm(obstacle.normal)
+            axis, point, normal = functions["plane"](a, b, unit, float(unit @ np.asarray(obstacle.point, dtype=float)))
+            radii = 0.0
+    point, normal = np.asarray(point, dtype=float).ravel(), np.asarray(normal, dtype=float).ravel()
+    distance = float(axis) - capsules[i].radius - radii
+    # the first surface lies the capsule's radius back from its axis against the direction in
+    # which the distance grows; the second a further `distance` along the same line
+    near = point - capsules[i].radius * normal
+    return ClosestApproach(sample, t, pair, distance, np.array([near, near - distance * normal]))
+
+
+# -- drawing ---------------------------------------------------------------------------------
+
+
+def _basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Two unit vectors across ``axis`` and its unit direction (z for a zero-length axis)."""
+    length = float(np.linalg.norm(axis))
+    w = axis / length if length > 0 else np.array([0.0, 0.0, 1.0])
+    helper = np.array([1.0, 0.0, 0.0]) if abs(w[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(w, helper)
+    u /= np.linalg.norm(u)
+    return u, np.cross(w, u), w
+
+
+def capsule_surface(a: np.ndarray, b: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The surface of the capsule ``[a, b]``, ``radius`` as (X, Y, Z) grids for ``plot_surface``:
+    the cap around ``a`` from its pole to its rim, then the cap around ``b`` from its rim to its
+    pole; the band between the two rims is the cylinder. Every point lies ``radius`` from the
+    segment."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    u, v, w = _basis(b - a)
+    around = np.linspace(0.0, 2.0 * np.pi, FACETS_AROUND + 1)
+    ring = np.cos(around)[:, None] * u + np.sin(around)[:, None] * v  # (around, 3)
+    rows = []
+    for centre, latitudes in ((a, np.linspace(-np.pi / 2, 0.0, RINGS_PER_CAP + 1)),
+                              (b, np.linspace(0.0, np.pi / 2, RINGS_PER_CAP + 1))):
+        for phi in latitudes:
+            rows.append(centre + radius * (np.cos(phi) * ring + np.sin(phi) * w))
+    grid = np.array(rows)  # (rings, around, 3)
+    return grid[..., 0], grid[..., 1], grid[..., 2]
+
+
+def draw_capsule(ax, a: np.ndarray, b: np.ndarray, radius: float, name: str, colour: str, alpha: float,
+                 axis: bool = True) -> list:
+    """One capsule (m) drawn in mm: its surface (gid ``name``) and, with ``axis``, its segment as
+    a thin line (gid ``name axis``)."""
+    x, y, z = (values * MM for values in capsule_surface(a, b, radius))
+    surface = ax.plot_surface(x, y, z, color=colour, alpha=alpha, linewidth=0, shade=True)
+    surface.set_gid(name)
+    if not axis:
+        return [surface]
+    axis_line, = ax.plot(*(np.array([a, b]) * MM).T, color=colour, lw=0.8, alpha=0.9)
+    axis_line.set_gid(f"{name} axis")
+    return [surface, axis_line]
+
+
+def draw_capsules(ax, robot: Robot, frames: np.ndarray) -> list:
+    """The arm's capsules at one configuration (its ``robot.frames``); returns the artists drawn
+    (to remove them for the next animation frame)."""
+    artists = []
+    for k, ((a, b), capsule) in enumerate(zip(capsule_ends(robot, frames), robot.collision.capsules)):
+        artists += draw_capsule(ax, a, b, capsule.radius, f"capsule {k}", CAPSULE_COLOUR, CAPSULE_ALPHA)
+    return artists
+
+
+def box_faces(obstacle: BoxObstacle) -> np.ndarray:
+    """The six faces of a box obstacle (6 × 4 × 3, m, base frame), each a loop of corners."""
+    rotation = rpy_matrix(*obstacle.rpy)
+    half = 0.5 * np.asarray(obstacle.size, dtype=float)
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
+    corners = (signs * half) @ rotation.T + np.asarray(obstacle.centre, dtype=float)
+    loops = [(0, 1, 3, 2), (4, 5, 7, 6), (0, 1, 5, 4), (2, 3, 7, 6), (0, 2, 6, 4), (1, 3, 7, 5)]
+    return corners[np.array(loops)]
+
+
+def plane_patch(obstacle: PlaneObstacle, centre: np.ndarray, half: float) -> np.ndarray:
+    """A square of the half-space's boundary plane (4 × 3, m): centred where ``centre`` (the
+    scene's centre) projects onto it, ``2 half`` on a side (the scene's size)."""
+    u, v, n = _basis(np.asarray(obstacle.normal, dtype=float))
+    point = np.asarray(obstacle.point, dtype=float)
+    foot = centre - ((centre - point) @ n) * n
+    return np.array([foot + half * (su * u + sv * v) for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+
+
+def obstacle_extent(obstacles: tuple[Obstacle, ...]) -> np.ndarray:
+    """Points (m) that bound the bounded obstacles (spheres, capsules, boxes): for the scene's limits."""
+    points = []
+    for obstacle in obstacles:
+        if isinstance(obstacle, SphereObstacle):
+            points += [np.asarray(obstacle.centre) + s * obstacle.radius for s in (-1.0, 1.0)]
+        elif isinstance(obstacle, CapsuleObstacle):
+            points += [np.asarray(end) + s * obstacle.radius for end in (obstacle.a, obstacle.b) for s in (-1.0, 1.0)]
+        elif isinstance(obstacle, BoxObstacle):
+            points += list(box_faces(obstacle).reshape(-1, 3))
+    return np.array(points, dtype=float).reshape(-1, 3)
+
+
+def draw_obstacles(ax, obstacles: tuple[Obstacle, ...], centre: np.ndarray, half: float) -> list:
+    """The task's obstacles (m) drawn in mm, each with the gid of its task name
+    (``obstacles[0] (sphere)``); a half-space as its boundary plane's square around the scene's
+    ``centre`` (m), ``2 half`` (m) on a side."""
+    artists = []
+    for obstacle, name in zip(obstacles, obstacle_names(obstacles)):
+        if isinstance(obstacle, SphereObstacle):
+            artists += draw_capsule(ax, obstacle.centre, obstacle.centre, obstacle.radius, name, OBSTACLE_COLOUR,
+                                    OBSTACLE_ALPHA, axis=False)
+            continue
+        if isinstance(obstacle, CapsuleObstacle):
+            artists += draw_capsule(ax, obstacle.a, obstacle.b, obstacle.radius, name, OBSTACLE_COLOUR, OBSTACLE_ALPHA)
+            continue
+        faces = box_faces(obstacle) if isinstance(obstacle, BoxObstacle) else plane_patch(obstacle, centre, half)[None]
+        patch = Poly3DCollection(faces * MM, facecolor=OBSTACLE_COLOUR, edgecolor="0.3", linewidth=0.4,
+                                 alpha=OBSTACLE_ALPHA)
+        patch.set_gid(name)
+        ax.add_collection3d(patch)
+        artists.append(patch)
+    return artists
+
+
+def draw_approach(ax, approach: ClosestApproach) -> list:
+    """The closest approach: its witness points joined by a line (gid ``closest approach``),
+    labelled with the pair, the distance and the time."""
+    points = approach.points * MM
+    label = f"closest approach {approach.distance * MM:.1f} mm: {approach.pair} (t = {approach.t:.2f} s)"
+    line, = ax.plot(*points.T, "-o", color=APPROACH_COLOUR, lw=1.6, ms=4, label=label)
+    line.set_gid("closest approach")
+    text = ax.text(*points.mean(axis=0), f" {approach.distance * MM:.1f} mm", color=APPROACH_COLOUR, fontsize=7)
+    return [line, text]
+
+
+def scene_points(scene: Scene, frames: np.ndarray) -> np.ndarray:
+    """Points (m) the scene's limits must hold besides the arm's frame origins: the capsules'
+    surfaces' extremes in ``frames`` (one configuration or several) and the bounded obstacles."""
+    points = [obstacle_extent(scene.obstacles)]
+    if scene.capsules:
+        radii = np.array([c.radius for c in scene.robot.collision.capsules])
+        for pose in np.asarray(frames).reshape(-1, *np.shape(frames)[-3:]):
+            ends = capsule_ends(scene.robot, pose)
+            points += [(ends + sign * radii[:, None, None]).reshape(-1, 3) for sign in (-1.0, 1.0)]
+    if scene.approach is not None:
+        points.append(scene.approach.points)
+    return np.vstack(points)
+
+
+def scene_panel(ax, scene: Scene, frames: np.ndarray, tool_path: np.ndarray | None, clearance: float | None) -> None:
+    """The arm at the closest approach (``frames``: its ``robot.frames`` there) in a 3-D axes:
+    the links between the joint frames, the capsules, the obstacles, the marker, and the
+    executed tool path (m) for orientation; a cube around all of them, in mm."""
+    origins = frames[:, :3, 3]
+    points = np.vstack([origins, scene_points(scene, frames)] + ([tool_path] if tool_path is not None else []))
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    centre, half = 0.5 * (lo + hi), max(0.5 * float(np.max(hi - lo)), 1e-3)
+    ax.set(xlim=(MM * (centre[0] - half), MM * (centre[0] + half)), ylim=(MM * (centre[1] - half), MM * (centre[1] + half)),
+           zlim=(MM * (centre[2] - half), MM * (centre[2] + half)), xlabel="x [mm]", ylabel="y [mm]", zlabel="z [mm]")
+    ax.set_box_aspect((1, 1, 1), zoom=0.85)
+    ax.tick_params(labelsize=6)
+    if tool_path is not None:
+        ax.plot(*(tool_path * MM).T, color="tab:red", lw=0.8, alpha=0.6, label="executed tool path")
+    ax.plot(*(origins * MM).T, "-o", color="tab:blue", lw=2.5, ms=3, label="links (joint frames)")
+    if scene.capsules:
+        draw_capsules(ax, scene.robot, frames)
+    draw_obstacles(ax, scene.obstacles, centre, half)
+    title = "the arm's capsules and the task's obstacles"
+    if scene.approach is not None:
+        draw_approach(ax, scene.approach)
+        title = f"closest approach at t = {scene.approach.t:.2f} s: {scene.approach.distance * MM:.1f} mm"
+        if clearance is not None:
+            title += f" (clearance {clearance * MM:.3g} mm)"
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7, loc="upper left")
