@@ -27,7 +27,7 @@ from ..progress import progress
 from ..robot import Robot
 from .registry import PLANNER_NAMES, planner as planner_named
 from .collision_scene import draw_approach, draw_capsules, draw_obstacles, plan_scene, scene_points
-from .plotting import (FigureOutputError, FigureWriteError, joint_count, new_figure, plan_robot,
+from .plotting import (FigureOutputError, FigureWriteError, new_figure, plan_joint_angles, plan_robot,
                        planned_tool_path)
 from .result import PlanResult
 
@@ -94,28 +94,8 @@ def _check_output(out_path: str | Path) -> Path:
     return out
 
 
-def _joint_angles(result: PlanResult, robot: Robot) -> np.ndarray:
-    """q per sample: the columns q1_rad… (resolved-rate plans) or theta_<joint>_rad (PTP plans,
-    by joint name; a joint the plan does not move stays at 0)."""
-    n = joint_count(result)
-    if n:
-        if n != robot.n:
-            raise PlanFileError(f"the plan has {n} joint columns but robot '{robot.name}' has {robot.n} joints; "
-                                "give the robot the plan was made for")
-        return np.column_stack([result.column(f"q{i + 1}_rad") for i in range(n)])
-    named = [f"theta_{joint.name}_rad" for joint in robot.joints]
-    if not any(column in result.columns for column in named):
-        raise PlanFileError(f"the plan has no joint columns of robot '{robot.name}' (q1_rad… or "
-                            f"{', '.join(named[:2])}…); give the robot the plan was made for")
-    q = np.zeros((result.data.shape[0], robot.n))
-    for i, column in enumerate(named):
-        if column in result.columns:
-            q[:, i] = result.column(column)
-    return q
-
-
 def _serial_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
-    q = _joint_angles(result, robot)
+    q = plan_joint_angles(result, robot)
     poses = robot.frames(q[frames])
     origins = poses[:, :, :3, 3] * 1e3
     planned = planned_tool_path(result, robot) if result.metadata.get("planner") != "ptp" else None

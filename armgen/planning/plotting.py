@@ -446,9 +446,8 @@ def resolved_rate_figure(result: PlanResult, panels: list, title: str, rows: int
     ``panels`` are callables ``draw(ax)``; every panel drawn has data (no empty axes). The tool
     path is drawn through ``robot``'s forward kinematics (default: :func:`plan_robot`)."""
     robot = robot if robot is not None else plan_robot(result)
-    q = np.column_stack([result.column(f"q{i + 1}_rad") for i in range(robot.n)])
-    scene = plan_scene(result, robot, q)
-    heights = [4.2 * rows, 4.4] + ([SCENE_HEIGHT_IN] if scene is not None and scene.approach is not None else [])
+    view = collision_view(result, robot)
+    heights = [4.2 * rows, 4.4] + ([SCENE_HEIGHT_IN] if view is not None else [])
     fig = new_figure(14, sum(heights))
     top, bottom, *below = fig.subfigures(len(heights), 1, height_ratios=heights)
     grid = top.add_gridspec(rows, 2)
@@ -457,16 +456,55 @@ def resolved_rate_figure(result: PlanResult, panels: list, title: str, rows: int
         draw(top.add_subplot(grid[k // 2, :] if last_alone else grid[k // 2, k % 2]))
     tool_path_views(bottom, result, robot)
     if below:
-        collision_row(below[0], result, robot, q, scene)
+        collision_row(below[0], result, view)
     fig.suptitle(title)
     return fig
 
 
-def collision_row(subfig, result: PlanResult, robot: Robot, q: np.ndarray, scene: Scene) -> None:
+def plan_joint_angles(result: PlanResult, robot: Robot) -> np.ndarray:
+    """q per sample: the columns q1_rad… (resolved-rate plans) or theta_<joint>_rad (PTP plans,
+    by joint name; a joint the plan does not move stays at 0)."""
+    n = joint_count(result)
+    if n:
+        if n != robot.n:
+            raise PlanFileError(f"the plan has {n} joint columns but robot '{robot.name}' has {robot.n} joints; "
+                                "give the robot the plan was made for")
+        return np.column_stack([result.column(f"q{i + 1}_rad") for i in range(n)])
+    named = [f"theta_{joint.name}_rad" for joint in robot.joints]
+    if not any(column in result.columns for column in named):
+        raise PlanFileError(f"the plan has no joint columns of robot '{robot.name}' (q1_rad… or "
+                            f"{', '.join(named[:2])}…); give the robot the plan was made for")
+    q = np.zeros((result.data.shape[0], robot.n))
+    for i, column in enumerate(named):
+        if column in result.columns:
+            q[:, i] = result.column(column)
+    return q
+
+
+@dataclass(frozen=True)
+class CollisionView:
+    """What the collision row draws: the plan's robot, its joint values per sample, the scene."""
+
+    robot: Robot
+    q: np.ndarray
+    scene: Scene
+
+
+def collision_view(result: PlanResult, robot: Robot | None = None) -> CollisionView | None:
+    """The plan's :class:`CollisionView` when ``plan.json`` reports ``summary.collision`` (every
+    plan on a robot with capsules), else None: the figure gets no collision row. ``robot`` as in
+    :func:`plan_robot` (default: the one ``plan.json`` records)."""
+    if not isinstance((result.metadata.get("summary") or {}).get("collision"), dict):
+        return None
+    robot = robot if robot is not None else plan_robot(result)
+    q = plan_joint_angles(result, robot)
+    scene = plan_scene(result, robot, q)
+    return None if scene is None or scene.approach is None else CollisionView(robot, q, scene)
+
+
+def collision_row(subfig, result: PlanResult, view: CollisionView) -> None:
     """The arm at the plan's closest approach (:mod:`.collision_scene`): its capsules, the task's
-    obstacles and the marker, in one 3-D panel (a robot with capsules: every plan reports
-    ``summary.collision``)."""
-    report = result.metadata["summary"]["collision"]
-    frames = robot.frames(q[scene.approach.sample])
-    scene_panel(subfig.add_subplot(projection="3d"), scene, frames, robot.fk(q)[:, :3, 3],
-                report.get("clearance_m"))
+    obstacles and the marker, in one 3-D panel, with the executed tool path."""
+    frames = view.robot.frames(view.q[view.scene.approach.sample])
+    scene_panel(subfig.add_subplot(projection="3d"), view.scene, frames, view.robot.fk(view.q)[:, :3, 3],
+                result.metadata["summary"]["collision"].get("clearance_m"))

@@ -9,9 +9,9 @@ from .schema import PtpTaskFile, workload
 
 
 def _plot(result, robot=None):
-    from .plots import plot_ptp  # matplotlib only when a figure is drawn; a PTP figure draws no arm
+    from .plots import plot_ptp  # matplotlib only when a figure is drawn; the arm only for a robot with capsules
 
-    return plot_ptp(result)
+    return plot_ptp(result, robot)
 
 
 PLANNER = Planner(name="ptp", schema=PtpTaskFile, configure=configure, plan=plan, plot=_plot, workload=workload)

@@ -6,7 +6,9 @@ curves are re-evaluated from the stored segment coefficients. Without it the CSV
 are drawn. Knots are dotted vertical lines, waypoints are dots. Angles are shown in the
 task's angle unit. The task's bounds (``timing.omega_max``, ``timing.eps_max``, per joint and
 segment) are drawn as dashed steps in the joint's colour on the ω and ε rows; where a curve
-exceeds its bound the peak is marked with a red ×, and the column title says so.
+exceeds its bound the peak is marked with a red ×, and the column title says so. A plan on a
+robot with capsules (``summary.collision``) gets a row below: the arm at its closest approach
+with its capsules and the task's obstacles (:mod:`armgen.planning.collision_scene`).
 """
 
 from __future__ import annotations
@@ -19,7 +21,8 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from numpy.polynomial import polynomial as npp
 
-from ..plotting import joint_style, new_figure
+from ...robot import Robot
+from ..plotting import SCENE_HEIGHT_IN, collision_row, collision_view, joint_style, new_figure
 from ..result import PlanResult, read_plan
 from .config import BOUND_RTOL
 from .plans import PtpPlan
@@ -86,9 +89,12 @@ def _draw_bounds(ax: Axes, t: np.ndarray, values: np.ndarray, knots: np.ndarray,
     return violations
 
 
-def plot_ptp(source: str | Path | PlanResult) -> Figure:
-    """The figure of a PTP plan (a ``plan.csv`` path or a :class:`PlanResult`)."""
+def plot_ptp(source: str | Path | PlanResult, robot: Robot | None = None) -> Figure:
+    """The figure of a PTP plan (a ``plan.csv`` path or a :class:`PlanResult`); a plan on a
+    robot with capsules (``summary.collision``) also shows the arm at its closest approach,
+    drawn through ``robot``'s kinematics (default: the plan's robot)."""
     result = read_plan(source) if not isinstance(source, PlanResult) else source
+    view = collision_view(result, robot)
     meta = result.metadata
     unit = meta.get("units", {}).get("task_angle_unit", "rad")
     scale = 180.0 / math.pi if unit == "deg" else 1.0
@@ -100,9 +106,11 @@ def plot_ptp(source: str | Path | PlanResult) -> Figure:
     else:
         panels = []
     ncol = max(1, len(panels))
-    fig = new_figure(4.4 * ncol + 0.6, 9.0)
+    heights = [9.0] + ([SCENE_HEIGHT_IN] if view is not None else [])
+    fig = new_figure(max(4.4 * ncol + 0.6, SCENE_HEIGHT_IN if view is not None else 0.0), sum(heights))
+    top, *below = fig.subfigures(len(heights), 1, height_ratios=heights) if view is not None else [fig]
     bounds = _bounds(meta)
-    axes = fig.subplots(len(ROWS), ncol, sharex=True, sharey="row", squeeze=False)
+    axes = top.subplots(len(ROWS), ncol, sharex=True, sharey="row", squeeze=False)
     if panels:
         for col, (method, plan) in enumerate(panels):
             t, values = _curves(plan)
@@ -148,4 +156,6 @@ def plot_ptp(source: str | Path | PlanResult) -> Figure:
         axes[0, 0].legend(fontsize=8, loc="best")
     for row in bounds:
         axes[row, 0].legend(fontsize=7, loc="lower left")
+    if below:
+        collision_row(below[0], result, view)
     return fig
