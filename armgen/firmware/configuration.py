@@ -23,6 +23,7 @@ import numpy as np
 from ..codegen.generate import GENERATED_DIR
 from ..codegen.ptp_c import generate_ptp_evaluator
 from ..data import render_template
+from ..description.collision import obstacle_kind
 from ..errors import OptionError, RobotFileError, excerpt
 from ..fileio import write_text_atomic
 from ..planning.toolpath.timelaw import ProgramMotion
@@ -91,6 +92,7 @@ class FirmwareTask:
     lock_tick: int = -1  # the runners report the joints of lock_mask locked from this tick (-1: never)
     lock_mask: int = 0
     feedforward: str = ""  # FEEDFORWARD_IDS' key in the header; "" (as the adapters make it): the robot's default
+    collision: bool = False  # the controller checks the clearance (a task with [collision]: with_collision)
 
     def __post_init__(self) -> None:
         if not self.feedforward:
@@ -214,6 +216,54 @@ def with_feedforward(task: FirmwareTask, choice: str, source: str = "--feedforwa
         raise FirmwareError(f"{source}: the task's task_params.h does not hold one feed-forward field (edited by hand?)")
     new = feedforward_fields(task.robot, choice).splitlines()[0]
     return dataclasses.replace(task, header=task.header.replace(lines[0], new), feedforward=choice)
+
+
+# The resolved-rate modes descend the collision criterion (-gain ∇H_C in their null-space term);
+# the others only check the clearance.
+CRITERION_MODES = RESOLVED_MODES
+_FW_TASK_OPENING = "const ctrl_config fw_task = {\n"  # task_params.h's initialiser (task_params.h)
+
+
+def collision_tables(robot: Robot, collision, mode: str) -> str:
+    """task_params.h's lines of a task with ``[collision]`` (``collision``: its
+    :class:`~armgen.planning.common.collision.TaskCollision`): the obstacle slots as const data, the
+    generated collision functions bound to them, and the ``ctrl_collision`` the configuration
+    points to. The criterion is bound only where the mode descends it with a gain above 0."""
+    settings = collision.settings
+    slots = []
+    for name, matrix in collision.parameters.items():  # the functions' input order (obstacle_parameters)
+        values = np.asarray(matrix, dtype=float).reshape(-1, order="F")  # one column per slot
+        slots.append(template("collision_slot.h", kind=name, size=values.size, values=c_reals(values, f"obstacle {name}")))
+    arguments = "".join(f"fw_task_{name}, " for name in collision.parameters)
+    descends = mode in CRITERION_MODES and settings.gain > 0.0
+    kinds: dict[str, int] = {}
+    for obstacle in collision.obstacles:
+        kinds[obstacle_kind(obstacle)] = kinds.get(obstacle_kind(obstacle), 0) + 1
+    described = ", ".join(f"{n} {k}{'s' if n > 1 else ''}" for k, n in kinds.items()) or "no obstacle (the arm itself)"
+    return template("collision.h", obstacles=described, clearance=number(settings.clearance),
+                    activation=number(settings.activation), gain=number(settings.gain),
+                    gain_note="" if descends or settings.gain == 0.0 else " (this mode only checks the clearance)",
+                    ndist=len(robot.collision_pairs()), slots="\n".join(slots), arguments=arguments,
+                    criterion=template("collision_criterion.h", arguments=arguments) if descends else "",
+                    clearance_literal=c_real(settings.clearance), activation_literal=c_real(settings.activation),
+                    gain_literal=c_real(settings.gain if descends else 0.0),
+                    criterion_name="fw_task_criterion" if descends else "NULL") + "\n\n"
+
+
+def with_collision(task: FirmwareTask, collision) -> FirmwareTask:
+    """The task with the controller checking every command against ``[collision]``'s clearance
+    (the arm's self pairs and the task's obstacles: the COLLISION fault) and, in the resolved-rate
+    modes, descending the criterion as the planners do; ``collision`` None (a robot without
+    capsules) or without settings (a task without ``[collision]``): the task as it is, unchecked
+    on board (docs/collision.md, "On the board")."""
+    if collision is None or collision.settings is None:
+        return task
+    if task.header.count(_FW_TASK_OPENING) != 1:
+        raise FirmwareError(f"{task.source}: the task's task_params.h does not hold one fw_task (edited by hand?)")
+    tables = collision_tables(task.robot, collision, task.mode)
+    header = task.header.replace(_FW_TASK_OPENING,
+                                 f"{tables}{_FW_TASK_OPENING}    .collision = &fw_task_collision,\n")
+    return dataclasses.replace(task, header=header, collision=True)
 
 
 def program_path(duration: float) -> str:

@@ -397,6 +397,7 @@ def _assemble(stage: Path, robot_file: str, robot_files: dict[str, bytes], job: 
               "NDOF": str(robot.n), "PREFIX": code.prefix, "PREFIX_UC": code.prefix.upper(),
               "MAX_SEGMENTS": str(job.firmware.max_segments), "VERSION": __version__, "SHA256": robot.sha256,
               "DEMO": job.description, "HAS_DYNAMICS": "1" if robot.has_dynamics else "0",
+              "HAS_COLLISION": "1" if robot.has_collision else "0",
               "FEEDFORWARD": _feedforward_note(job.firmware)}
     project = stub / "project"
     (stage / "CMakeLists.txt").write_text(_fill((project / "CMakeLists.txt.in").read_text(encoding="utf-8"), values),

@@ -22,12 +22,15 @@ def robot_prefix(robot: Robot) -> str:
 # The generated functions the controller calls: always, and per optional feature (a robot whose
 # generated code lacks them gets a firmware without it: -DCTRL_HAS_<FEATURE>=0). The steps take
 # the J of the tick's fk_jacobian (their *_from_jacobian twins); DYNAMICS (a robot with
-# inertials) is each command's feed-forward torque and the TORQUE fault.
+# inertials) is each command's feed-forward torque and the TORQUE fault; COLLISION (a robot with
+# capsules) the clearance check and the collision criterion of a task with [collision] (the task's
+# task_params.h binds them to its obstacles: a task without links neither).
 FIRMWARE_FUNCTIONS = ("fk_jacobian", "zghal", "repetitive", "step_gpm_from_jacobian")
 OPTIONAL_FUNCTIONS = {"FAULT_TOLERANT": ("ft_index_from_jacobian", "wln_weights", "step_fault_from_jacobian"),
                       "WEIGHTED_GPM": ("step_wgpm_from_jacobian",),
                       "MOVE_TO": ("ik",),
-                      "DYNAMICS": ("gravity", "rnea")}
+                      "DYNAMICS": ("gravity", "rnea"),
+                      "COLLISION": ("collision_distances", "collision_criterion")}
 
 
 def available_modes(source: str, prefix: str) -> tuple[str, ...]:

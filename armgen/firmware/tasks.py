@@ -22,7 +22,7 @@ from ..planning.common.collision import task_collision
 from ..planning.tasks import Task, apply_overrides, configure_task, load_task, plan_configured
 from ..robot import Robot
 from .adapters import cartesian, fault_tolerant, ptp, snake, wgpm
-from .configuration import FirmwareTask
+from .configuration import FirmwareTask, with_collision
 from .errors import FirmwareError
 
 # The planners whose task the controller integrates on board: the adapter takes the typed
@@ -68,24 +68,31 @@ def _replanned(task: Task, plan: PlanResult, source: str) -> PlanResult:
     return replanned
 
 
-def _refuse_collision_criterion(name: str, config: Any, source: str) -> None:
-    """The controller's resolved-rate modes do not take H_C yet (docs/collision.md, "Not yet"):
-    a task whose plan bends around obstacles would run without bending."""
-    collision = task_collision(config)
-    if name in RESOLVED_ADAPTERS and collision is not None and collision.settings and collision.settings.gain > 0:
-        raise FirmwareError(f"{source}: the task's [collision] gain = {collision.settings.gain:g} moves the arm around "
-                            "its obstacles, which the controller's resolved-rate modes do not do yet; set "
-                            "[collision] gain = 0 to run the path as planned without it (the plan is still checked "
-                            "against the clearance)")
-
-
 def _adapted(name: str, config: Any, plan: PlanResult, source: str, robot: Robot | None) -> FirmwareTask:
-    _refuse_collision_criterion(name, config, source)
     if name == "ptp":
-        return ptp.firmware_task(config, plan, source, robot)
-    if name == "snake":
-        return snake.firmware_task(config, plan, source)
-    return RESOLVED_ADAPTERS[name](config, source)
+        task = ptp.firmware_task(config, plan, source, robot)
+    elif name == "snake":
+        return snake.firmware_task(config, plan, source)  # its [[obstacles]] are the tube's (docs/snake.md)
+    else:
+        task = RESOLVED_ADAPTERS[name](config, source)
+    return _checked(task, config)
+
+
+def _checked(task: FirmwareTask, config: Any) -> FirmwareTask:
+    """The task with the task's [collision] on board: every command's clearance checked, the
+    resolved-rate modes descending the criterion as the plan did (docs/collision.md, "On the
+    board"). Its obstacle slots are its robot's: a ptp task played on another robot is refused."""
+    collision = task_collision(config)
+    if collision is None or collision.settings is None:
+        return task
+    planned = next((r for holder in (config, getattr(config, "path", None))
+                    for r in (getattr(holder, "robot_model", None), getattr(holder, "robot", None))
+                    if isinstance(r, Robot)), None)
+    if planned is None or planned.sha256 != task.robot.sha256:
+        raise FirmwareError(f"{task.source}: the task's [collision] is set up for robot "
+                            f"'{getattr(planned, 'name', '?')}''s capsules, not '{task.robot.name}''s; run it on its "
+                            "own robot, or remove [[obstacles]] and [collision] from the task")
+    return with_collision(task, collision)
 
 
 def task_from_plan(plan: PlanResult, source: str, robot: Robot | None = None) -> FirmwareTask:
@@ -114,8 +121,7 @@ def task_from_dict(document: dict[str, Any], source: str, robot: Robot | None = 
     task = configure_task(document, source, robot=robot)
     name = task.planner.name
     if name in RESOLVED_ADAPTERS and not _is_program(task.config):
-        _refuse_collision_criterion(name, task.config, source)
-        return RESOLVED_ADAPTERS[name](task.config, source)
+        return _checked(RESOLVED_ADAPTERS[name](task.config, source), task.config)
     return task_from_plan(plan_configured(task), source, robot)
 
 

@@ -182,6 +182,7 @@ const char *ctrl_fault_name(ctrl_fault f) {
     case CTRL_FAULT_BAD_TARGET: return "BAD_TARGET";
     case CTRL_FAULT_TORQUE: return "TORQUE";
     case CTRL_FAULT_STALE: return "STALE";
+    case CTRL_FAULT_COLLISION: return "COLLISION";
     default: break;
   }
   return "?";
@@ -413,6 +414,77 @@ static int positive(ctrl_real x) { return finite_r(x) && x > CTRL_LIT(0.0); }
 static int nonneg(ctrl_real x) { return finite_r(x) && x >= CTRL_LIT(0.0); }
 static int at_most(ctrl_real x, ctrl_real limit) { return nonneg(x) && x <= limit; }
 
+#if CTRL_HAS_COLLISION
+/* ------------------------------------------------------------------ collision (docs/collision.md) */
+
+/* The least of the task's distances at q: the self pairs and each moving capsule against each
+ * obstacle slot (an inactive slot reports CTRL_CLEARANCE_UNCHECKED). A NaN stays (the planner's
+ * clearance report takes the least of the same distances). */
+static ctrl_real least_distance(const ctrl_collision *coll, const ctrl_real *q) {
+  ctrl_real d[CTRL_NDIST], least;
+  int k;
+  coll->distances(q, d);
+  least = d[0];
+  for (k = 1; k < CTRL_NDIST; ++k) {
+    least = (d[k] < least || d[k] != d[k]) ? d[k] : least;
+  }
+  return least;
+}
+
+/* The command q's least distance into *clearance: COLLISION below the task's clearance (as the
+ * planner's check: a plan closer than it is infeasible), NONFINITE_OUTPUT for NaN. */
+static ctrl_fault check_clearance(const ctrl_collision *coll, const ctrl_real *q, ctrl_real *clearance) {
+  *clearance = least_distance(coll, q);
+  if (!finite_r(*clearance)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  return *clearance < coll->clearance ? CTRL_FAULT_COLLISION : CTRL_FAULT_NONE;
+}
+
+/* -gain grad H_C(q), the planners' collision term (planning/common/collision.py criterion_term),
+ * into term; 0 when the task only checks (gain 0, no criterion bound). */
+static void collision_term(const ctrl *c, const ctrl_real *q, ctrl_real *term) {
+  const ctrl_collision *coll = c->cfg.collision;
+  ctrl_real h, grad[N];
+  int i;
+  if (coll == NULL || coll->criterion == NULL || coll->gain == CTRL_LIT(0.0)) {
+    for (i = 0; i < N; ++i) {
+      term[i] = CTRL_LIT(0.0);
+    }
+    return;
+  }
+  coll->criterion(q, coll->clearance, coll->activation, &h, grad);
+  for (i = 0; i < N; ++i) {
+    term[i] = -coll->gain * grad[i];
+  }
+}
+
+/* alpha + the collision term at q: what the cartesian and fault-tolerant planners add to their
+ * null-space vector (the step's status covers a non-finite gradient). */
+static void add_collision_term(const ctrl *c, const ctrl_real *q, ctrl_real *alpha) {
+  ctrl_real term[N];
+  int i;
+  if (c->cfg.collision == NULL || c->cfg.collision->gain == CTRL_LIT(0.0)) return;
+  collision_term(c, q, term);
+  for (i = 0; i < N; ++i) {
+    alpha[i] = alpha[i] + term[i];
+  }
+}
+
+/* The configuration's collision check, when it has one: bindings present, 0 <= clearance <
+ * activation, gain >= 0 (> 0 needs the criterion), and finite distances at q_start (NaN or inf
+ * in the task's obstacle slots show there). The held command's clearance. */
+static int init_collision(ctrl *c) {
+  const ctrl_collision *coll = c->cfg.collision;
+  if (coll == NULL) return 1;
+  if (coll->distances == NULL || !nonneg(coll->clearance) || !finite_r(coll->activation) ||
+      !(coll->activation > coll->clearance) || !nonneg(coll->gain) ||
+      (coll->gain > CTRL_LIT(0.0) && coll->criterion == NULL)) {
+    return 0;
+  }
+  c->clearance = least_distance(coll, c->cfg.q_start);
+  return finite_r(c->clearance);
+}
+#endif
+
 static int method_valid(ctrl_method m) {
   switch (m) { /* the enum may be stored in a byte (-fshort-enums on bare-metal ARM) */
     case CTRL_METHOD_PINV:
@@ -639,6 +711,9 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
   (void)memset(c, 0, sizeof(*c));
   c->state = CTRL_STATE_FAULT;
   c->fault = CTRL_FAULT_BAD_CONFIG;
+#if CTRL_HAS_COLLISION
+  c->clearance = CTRL_CLEARANCE_UNCHECKED;
+#endif
   if (config == NULL) {
     return CTRL_FAULT_BAD_ARGS;
   }
@@ -660,6 +735,9 @@ ctrl_fault ctrl_init(ctrl *c, const ctrl_config *config) {
   }
 #if CTRL_HAS_DYNAMICS
   ok = ok && dynamics_valid(config);
+#endif
+#if CTRL_HAS_COLLISION
+  ok = ok && init_collision(c); /* after q_start's check: it measures there */
 #endif
   if (ok) {
     switch (config->mode) {
@@ -763,6 +841,9 @@ static void emit_hold(const ctrl *c, ctrl_output *out) {
 #endif
   out->pos_err = c->pos_err;
   out->ori_err = c->ori_err;
+#if CTRL_HAS_COLLISION
+  out->clearance = c->clearance;
+#endif
   out->locked = c->locked;
   out->state = c->state;
   out->fault = c->fault;
@@ -784,6 +865,9 @@ static void emit(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd, 
   }
   out->pos_err = c->pos_err;
   out->ori_err = c->ori_err;
+#if CTRL_HAS_COLLISION
+  out->clearance = c->clearance;
+#endif
   if (c->k >= c->n_ticks) {
     c->state = CTRL_STATE_DONE;
   }
@@ -828,10 +912,18 @@ static void at_rest(ctrl *c) {
 }
 #endif
 
-/* The command of this tick, accepted: with dynamics, first its feed-forward torque and the
- * torque limits (TORQUE: nothing is emitted, the arm holds); then emitted. */
+/* The command of this tick, accepted: with a collision check, first its least distance against
+ * the clearance (COLLISION: nothing is emitted, the arm holds); with dynamics, its feed-forward
+ * torque and the torque limits (TORQUE: likewise); then emitted. */
 static ctrl_fault accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_real *qd, const ctrl_real *qdd,
                          ctrl_output *out) {
+#if CTRL_HAS_COLLISION
+  ctrl_real clearance = CTRL_CLEARANCE_UNCHECKED;
+  if (c->cfg.collision != NULL) {
+    ctrl_fault fc = check_clearance(c->cfg.collision, q, &clearance);
+    if (fc != CTRL_FAULT_NONE) return fc;
+  }
+#endif
 #if CTRL_HAS_DYNAMICS
   ctrl_real tau[N];
   int i;
@@ -839,12 +931,18 @@ static ctrl_fault accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_re
   if (f != CTRL_FAULT_NONE) {
     return f;
   }
+#if CTRL_HAS_COLLISION
+  c->clearance = clearance;
+#endif
   emit(c, t, q, qd, out);
   for (i = 0; i < N; ++i) {
     out->tau_ff[i] = tau[i];
   }
 #else
   (void)qdd; /* no dynamics: the command's acceleration is not needed */
+#if CTRL_HAS_COLLISION
+  c->clearance = clearance;
+#endif
   emit(c, t, q, qd, out);
 #endif
   return CTRL_FAULT_NONE;
@@ -1043,6 +1141,9 @@ static ctrl_fault tick_resolved_rate(ctrl *c, const ctrl_input *in, ctrl_real t,
   }
   task_command(c, in, t, q, J, cmd, &cmd_max);
   null_space_alpha(c, t, q, alpha);
+#if CTRL_HAS_COLLISION
+  add_collision_term(c, q, alpha); /* beside the method's own terms, as cartesian.py */
+#endif
   /* the step's status covers its inputs (cmd, alpha) and q_dot: NaN/inf in any is a fault */
   if (ctrl_gen_step_gpm(J, cmd, alpha, rr->damping, qd) != CTRL_GEN_OK) return CTRL_FAULT_NONFINITE_OUTPUT;
   f = limit_speed(c, J, qd);
@@ -1098,6 +1199,9 @@ static ctrl_fault tick_fault_tolerant(ctrl *c, const ctrl_input *in, ctrl_real t
     }
     ctrl_gen_wln_weights(grad, omega, reference, c->mask, ft->b, ft->omega_floor, v_band, W, active);
   }
+#if CTRL_HAS_COLLISION
+  add_collision_term(c, q, alpha); /* after the WLN probe (which runs without it), as the planner */
+#endif
   if (ctrl_gen_step_fault(J, cmd, c->mask, W, alpha, ft->epsilon, ft->lambda_max, qd, &lam, &sigma) != CTRL_GEN_OK) {
     return CTRL_FAULT_NONFINITE_OUTPUT;
   }
@@ -1124,6 +1228,33 @@ static ctrl_real smoothstep(ctrl_real x) {
   return x * x * (CTRL_LIT(3.0) - CTRL_LIT(2.0) * x);
 }
 
+#if CTRL_HAS_COLLISION
+/* wgpm/planner.py wgpm_null_space_term: step_wgpm's q_dot is linear in its null-space vector z, so
+ * z + W_b alpha_C (alpha_C the collision term, unramped) adds W_b alpha_C - W_b^2 J^T (J W_b^2 J^T +
+ * rho^2 I)^-1 J W_b alpha_C (W_b = I - diag(w_c), rho the step's damping) =
+ * W_b step_gpm(J W_b, 0, alpha_C, rho). */
+static ctrl_fault add_wgpm_collision_term(const ctrl *c, const ctrl_real *J, const ctrl_real *q, const ctrl_real *w_c,
+                                          ctrl_real rho, ctrl_real *qd) {
+  ctrl_real alpha[N], Jw[6 * N], zero[CTRL_NTASK], r[N];
+  int i, k;
+  if (c->cfg.collision == NULL || c->cfg.collision->gain == CTRL_LIT(0.0)) return CTRL_FAULT_NONE;
+  collision_term(c, q, alpha);
+  for (i = 0; i < N; ++i) {
+    for (k = 0; k < 6; ++k) {
+      Jw[k + 6 * i] = J[k + 6 * i] * (CTRL_LIT(1.0) - w_c[i]);
+    }
+  }
+  for (k = 0; k < CTRL_NTASK; ++k) {
+    zero[k] = CTRL_LIT(0.0);
+  }
+  if (ctrl_gen_step_gpm(Jw, zero, alpha, rho, r) != CTRL_GEN_OK) return CTRL_FAULT_NONFINITE_OUTPUT;
+  for (i = 0; i < N; ++i) {
+    qd[i] = qd[i] + (CTRL_LIT(1.0) - w_c[i]) * r[i];
+  }
+  return CTRL_FAULT_NONE;
+}
+#endif
+
 /* Spec 35 (wgpm/planner.py WgpmPlanner.evaluate), one tick: step_wgpm with the ramp. */
 static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, ctrl_output *out) {
   const ctrl_wg_config *wg = &c->cfg.wg;
@@ -1149,6 +1280,10 @@ static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, 
   for (i = 0; i < N; ++i) {
     c->win_value[i] = w_c[i]; /* reported in out.window: the joint-limit weights W_c */
   }
+#if CTRL_HAS_COLLISION
+  f = add_wgpm_collision_term(c, J, q, w_c, rho, qd);
+  if (f != CTRL_FAULT_NONE) return f;
+#endif
   f = limit_speed(c, J, qd);
   if (f != CTRL_FAULT_NONE) return f;
   f = check_step(c, J, cmd, cmd_max, qd, rho > CTRL_LIT(0.0));

@@ -110,8 +110,13 @@ typedef enum {
   CTRL_FAULT_TORQUE = 15,          /* a robot with inertials: the command's feed-forward torque
                                       |tau_ff_i| is above the joint's tau_max[i] (the command is not
                                       emitted; the arm holds the previous one) */
-  CTRL_FAULT_STALE = 16            /* the command stream went stale: the platform's watchdog (the
+  CTRL_FAULT_STALE = 16,           /* the command stream went stale: the platform's watchdog (the
                                       host link, fw_link.h) stopped the arm and sent CTRL_CMD_STALE */
+  CTRL_FAULT_COLLISION = 17        /* a robot with a collision model and a task with [collision]:
+                                      the command's least checked distance (the arm to itself or to
+                                      an obstacle) is below cfg.collision->clearance (the command is
+                                      not emitted; the arm holds the previous one). Every mode,
+                                      MOVE_TO and SETPOINT included */
 } ctrl_fault;
 
 typedef enum {
@@ -225,6 +230,26 @@ typedef struct {
   int32_t n_samples;         /* rows; ticks 0 .. n_samples - 1, one per period dt */
 } ctrl_sp_config;
 
+#if CTRL_HAS_COLLISION
+/* The task's collision check (docs/collision.md, "On the board"): the generated functions bound to
+ * the task's obstacle slots (task_params.h defines both bindings and this constant struct, in
+ * flash), the hard minimum distance, and the criterion's settings (the planner's, SI). */
+typedef struct {
+  ctrl_real clearance;  /* m, >= 0: a command whose least distance is below it is the COLLISION fault */
+  ctrl_real activation; /* m, > clearance: the criterion H_C acts below this distance */
+  ctrl_real gain;       /* rad^2/s, >= 0: the resolved-rate modes add -gain grad H_C to their null-space
+                           term, as the planners do; 0: only the check */
+  /* d (CTRL_NDIST) at q: the generated collision_distances with the task's obstacle slots */
+  void (*distances)(const ctrl_real *q, ctrl_real *d);
+  /* H_C and grad H_C (CTRL_NDOF) at q: the generated collision_criterion with the same slots;
+   * NULL when gain is 0 (never called then) */
+  void (*criterion)(const ctrl_real *q, ctrl_real clearance, ctrl_real activation, ctrl_real *h, ctrl_real *grad);
+} ctrl_collision;
+/* ctrl_output.clearance while nothing is checked (no cfg.collision): the generated distance of
+ * an inactive obstacle slot, "nothing near" */
+#define CTRL_CLEARANCE_UNCHECKED CTRL_LIT(1000.0)
+#endif
+
 typedef struct {
   ctrl_mode mode;
   ctrl_real dt;                 /* tick period, s */
@@ -249,6 +274,10 @@ typedef struct {
   ctrl_feedforward feedforward; /* what ctrl_output.tau_ff holds (CTRL_FF_NONE: zeros, no check) */
   ctrl_real tau_max[CTRL_NDOF]; /* torque limit per joint, N m (N for a prismatic joint), [0, 1e7];
                                    0: none. A command whose |tau_ff_i| exceeds it is a TORQUE fault */
+#endif
+#if CTRL_HAS_COLLISION
+  const ctrl_collision *collision; /* the task's collision check (const data that never changes while
+                                      the controller lives); NULL: none (a task without [collision]) */
 #endif
 } ctrl_config;
 
@@ -281,6 +310,11 @@ typedef struct {
   ctrl_real tau_ff[CTRL_NDOF]; /* feed-forward torque of the command, N m (N): gravity(q) or
                                   rnea(q, qd, qdd) per cfg.feedforward; while holding (IDLE, DONE,
                                   FAULT) gravity(q) of the held command; zeros with CTRL_FF_NONE */
+#endif
+#if CTRL_HAS_COLLISION
+  ctrl_real clearance;         /* m: the least checked distance of the command (the arm to itself or
+                                  to the task's obstacles; negative: overlapping); while holding, the
+                                  held command's. CTRL_CLEARANCE_UNCHECKED without cfg.collision */
 #endif
 } ctrl_output;
 
@@ -315,6 +349,9 @@ typedef struct {
   int moving_to;
   ctrl_real mt_q0[CTRL_NDOF], mt_delta[CTRL_NDOF], mt_T;
   int following; /* CTRL_CMD_SETPOINT: the caller's setpoints, not the mode, make the commands */
+#if CTRL_HAS_COLLISION
+  ctrl_real clearance; /* least checked distance of the held command (CTRL_CLEARANCE_UNCHECKED: none) */
+#endif
 } ctrl;
 
 /* Validate the configuration, copy it into the controller and set up the task. Returns CTRL_FAULT_NONE (state IDLE,

@@ -17,6 +17,12 @@
  * -DCTRL_HAS_DYNAMICS=1 (the builds set it from the generated source, for every source file
  * alike: it changes ctrl_config and ctrl_output), the controller computes each command's
  * feed-forward torque (ctrl_output.tau_ff) and checks it against the joints' torque limits.
+ *
+ * A robot with a collision model (capsules in its robot file) has the generated
+ * collision_distances and collision_criterion: built with -DCTRL_HAS_COLLISION=1 (the builds set
+ * it from the generated source, for every source file alike: it changes ctrl_config and
+ * ctrl_output), a task with [collision] checks every command's least distance (the COLLISION
+ * fault) and, in the resolved-rate modes, descends the criterion (docs/collision.md, "On the board").
  */
 #ifndef ARMGEN_CTRL_ROBOT_H
 #define ARMGEN_CTRL_ROBOT_H
@@ -33,6 +39,12 @@
  * neither tau_ff nor the feed-forward fields of the configuration exist. */
 #ifndef CTRL_HAS_DYNAMICS
 #define CTRL_HAS_DYNAMICS 0
+#endif
+
+/* 1: the generated code has collision_distances and collision_criterion (a robot with capsules);
+ * 0: no collision model, and neither ctrl_output.clearance nor ctrl_config.collision exist. */
+#ifndef CTRL_HAS_COLLISION
+#define CTRL_HAS_COLLISION 0
 #endif
 
 #define CTRL_CAT_(a, b) a##b
@@ -69,6 +81,13 @@ typedef CTRL_FN(status) ctrl_gen_status; /* what the generated steps and the IK 
 #if CTRL_HAS_DYNAMICS
 #define ctrl_gen_gravity CTRL_FN(gravity)
 #define ctrl_gen_rnea CTRL_FN(rnea)
+#endif
+#if CTRL_HAS_COLLISION
+/* the distances the collision model checks: its self pairs, then each moving capsule against
+ * each obstacle slot (inactive slots report a large distance) */
+#define CTRL_NDIST CTRL_M(COLLISION_DISTANCES_D_ROWS)
+#define ctrl_gen_collision_distances CTRL_FN(collision_distances)
+#define ctrl_gen_collision_criterion CTRL_FN(collision_criterion)
 #endif
 
 #endif /* ARMGEN_CTRL_ROBOT_H */

@@ -142,6 +142,9 @@ size_t fw_csv_header(char *buf, size_t size) {
 #if CTRL_HAS_DYNAMICS
   put_names(&l, "tau_ff", "_Nm");
 #endif
+#if CTRL_HAS_COLLISION
+  put(&l, ",clearance_m");
+#endif
   put(&l, ",locked,state,fault\n");
   return l.len;
 }
@@ -176,6 +179,10 @@ size_t fw_csv_row(char *buf, size_t size, const ctrl_output *out) {
     put(&l, ",");
     put_real(&l, out->tau_ff[i]);
   }
+#endif
+#if CTRL_HAS_COLLISION
+  put(&l, ",");
+  put_real(&l, out->clearance);
 #endif
   put(&l, ",");
   put_uint(&l, (unsigned long)out->locked);

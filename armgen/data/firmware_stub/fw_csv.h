@@ -22,11 +22,12 @@
 #define FW_CSV_HEX 0
 #endif
 
-/* Longest line: a real takes at most 25 characters plus the comma. */
+/* Longest line: a real takes at most 25 characters plus the comma (tau_ff with dynamics, the
+ * clearance with a collision model). */
 #if CTRL_HAS_DYNAMICS
-#define FW_CSV_LINE_MAX (26 * (4 * CTRL_NDOF + 7) + 32)
+#define FW_CSV_LINE_MAX (26 * (4 * CTRL_NDOF + 7 + CTRL_HAS_COLLISION) + 32)
 #else
-#define FW_CSV_LINE_MAX (26 * (3 * CTRL_NDOF + 7) + 32)
+#define FW_CSV_LINE_MAX (26 * (3 * CTRL_NDOF + 7 + CTRL_HAS_COLLISION) + 32)
 #endif
 
 /* Write the header / one row, '\n'-terminated and NUL-terminated, into buf; return the

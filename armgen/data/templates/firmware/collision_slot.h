@@ -1,0 +1,1 @@
+static const ctrl_real fw_task_$kind[$size] = $values;
