@@ -536,7 +536,11 @@ class IkSolution:
     (rad) in the rows the arm controls; ``free_rows``, the task rows it does not control
     (``"vz"``, ``"wx"`` … of a planar arm), with the pose's largest error there
     (``free_position_error`` m, ``free_orientation_error`` rad, a rotation-vector component)
-    and whether both are within the tolerances (``free_rows_match``)."""
+    and whether both are within the tolerances (``free_rows_match``). For a robot with capsules
+    (or given obstacles): ``clearance`` (the least distance at ``q``, m), its ``pair``
+    (``"capsule 2 – obstacles[0] (sphere)"``), the clearance asked for (``required_clearance``)
+    and ``colliding`` (the pose was reached, but by no configuration found clear of collisions:
+    ``converged`` is then False)."""
 
     q: Any
     converged: bool
@@ -547,6 +551,10 @@ class IkSolution:
     free_position_error: float
     free_orientation_error: float
     free_rows_match: bool
+    clearance: float | None = None
+    pair: str = ""
+    required_clearance: float = 0.0
+    colliding: bool = False
 
     @property
     def solved(self) -> bool:
@@ -555,7 +563,7 @@ class IkSolution:
 
 
 def solve_ik(robot: Robot | str | Path, pose: Any, q0: Any = None, seed: Any = None, max_iterations: int | None = None,
-             orientation_given: bool = True) -> IkSolution:
+             orientation_given: bool = True, obstacles: str | Path | None = None) -> IkSolution:
     """Joint values that put the tool at ``pose``, as ``armgen ik`` does (``docs/ik.md``).
 
     Parameters
@@ -570,19 +578,37 @@ def solve_ik(robot: Robot | str | Path, pose: Any, q0: Any = None, seed: Any = N
         Stop after this many steps (at most the solver's own cap, the default).
     orientation_given
         False: the pose's orientation is not required in the rows the arm does not control.
+    obstacles
+        An obstacle file: ``[units]``, ``[[obstacles]]`` and ``[collision]`` as in a task file
+        (docs/ik.md, "Collision-free solutions"); the solution keeps ``[collision] clearance``
+        from them and between the arm's capsules.
+
+    Raises
+    ------
+    TaskFileError
+        A bad obstacle file, or obstacles for a robot without capsules (exit 2).
     """
     import numpy as np
 
+    from .planning.common.collision import ik_arguments, load_obstacle_file, nearest_pair
     from .planning.ptp.poses import uncontrolled_error
     from .symbolic.ik import MAX_ITERATIONS, TOL_ORIENTATION, TOL_POSITION
 
     arm, pose = load_robot_any(robot), np.asarray(pose, dtype=float)
+    collision = None if obstacles is None else load_obstacle_file(obstacles, arm)
+    arguments = ik_arguments(collision)
     result = arm.ik(pose, q0, seed=seed,
-                    max_iterations=None if max_iterations is None else min(max_iterations, MAX_ITERATIONS))
+                    max_iterations=None if max_iterations is None else min(max_iterations, MAX_ITERATIONS), **arguments)
     free_rows, free_position, free_orientation = uncontrolled_error(arm, pose, result.q)
     match = free_position <= TOL_POSITION and (not orientation_given or free_orientation <= TOL_ORIENTATION)
+    checked = {}
+    if result.clearance is not None:
+        least, pair = nearest_pair(arm, result.q, collision)
+        checked = dict(clearance=least, pair=pair, required_clearance=arguments.get("clearance", 0.0),
+                       colliding=bool(result.colliding))
     return IkSolution(result.q, bool(result.success), int(result.iterations), float(result.position_error),
-                      float(result.orientation_error), tuple(free_rows), free_position, free_orientation, match)
+                      float(result.orientation_error), tuple(free_rows), free_position, free_orientation, match,
+                      **checked)
 
 
 # -- firmware ---------------------------------------------------------------------------------------
@@ -746,13 +772,14 @@ def write_text_atomic(path: str | Path, text: str) -> None:
 # -- the host link (issue 40, docs/link.md) ----------------------------------------------------
 
 
-def link_open(port: str, timeout: float = 2.0, telemetry_period: int = 0) -> Any:
+def link_open(port: str, timeout: float = 2.0, telemetry_period: int = 0, replies: str = "TELEMETRY") -> Any:
     """A session with a board on ``port`` (a serial device, a pseudo-terminal, ``socket://host:port``):
-    an :class:`armgen.link.LinkClient` after the version handshake. Raises ``LinkError`` (exit 4)
-    when the port cannot be opened or nothing answers in this protocol version."""
+    an :class:`armgen.link.LinkClient` after the version handshake. ``replies="ACK"``: the board
+    answers command frames with a 16-byte ACK instead of the full TELEMETRY. Raises ``LinkError``
+    (exit 4) when the port cannot be opened or nothing answers in this protocol version."""
     from .link import LinkClient
 
-    return LinkClient(port, timeout=timeout, telemetry_period=telemetry_period)
+    return LinkClient(port, timeout=timeout, telemetry_period=telemetry_period, replies=replies)
 
 
 def link_status(port: str, timeout: float = 2.0) -> Any:
@@ -778,38 +805,51 @@ def link_move_to(port: str, joints: Any = None, pose: Any = None, wait: bool = T
 @dataclass(frozen=True)
 class LinkStreamReport:
     """A streamed plan: waypoints sent, the telemetry at the end, and the largest difference
-    between a reply's joint command and the plan at the reply's tick (rad / m)."""
+    between a reply's joint command and the plan at the reply's tick (rad / m; for a pose stream
+    the tool position's, m; NaN with ACK replies, which carry no joints)."""
 
     waypoints: int
     end: Any
     max_deviation: float
+    poses: bool = False
 
 
 def link_stream(port: str, plan_csv: str | Path, rate_hz: float = 50.0, lead_s: float = 0.1,
-                timeout: float = 2.0) -> LinkStreamReport:
+                timeout: float = 2.0, poses: bool = False, replies: str = "TELEMETRY") -> LinkStreamReport:
     """Stream a plan's joint samples as timed waypoints at ``rate_hz`` (the board interpolates
     them at its tick within its limits), in real time, each ``lead_s`` ahead; waits until the arm
-    is at rest. The plan must start where the arm is (its held command)."""
+    is at rest. The plan must start where the arm is (its held command). ``poses`` (or a file
+    without the board's joint columns, a pose file: ``t_s x_m y_m z_m roll_rad pitch_rad
+    yaw_rad``): stream the tool poses instead, interpolated in task space on the board and
+    followed by its resolved-rate step. ``replies="ACK"``: light replies (no deviation measured)."""
     import numpy as np
 
-    from .link import plan_waypoints
+    from .link import plan_pose_waypoints, plan_waypoints
+    from .link.waypoints import POSE_COLUMNS, has_joints
 
     plan_read = read_plan(plan_csv)
     columns, data = list(plan_read.columns), plan_read.data
-    with link_open(port, timeout) as link:
-        t, q, qd = plan_waypoints(columns, data, link.ndof, rate_hz)
-        replies = link.stream(t, q, qd, lead_s=lead_s)
+    with link_open(port, timeout, replies=replies) as link:
+        poses = poses or not has_joints(columns, link.ndof)
+        if poses:
+            t, tool, twists = plan_pose_waypoints(columns, data, rate_hz)
+            answers = link.stream_poses(t, tool, twists, lead_s=lead_s)
+        else:
+            t, q, qd = plan_waypoints(columns, data, link.ndof, rate_hz)
+            answers = link.stream(t, q, qd, lead_s=lead_s)
         end = link.wait_idle()
     dt = link.hello["dt_us"] * 1e-6
     t_plan = data[:, columns.index("t_s")] - data[0, columns.index("t_s")]
-    q_plan = data[:, [columns.index(c) for c in _joint_names(columns, link.ndof)]]
-    deviation = 0.0
-    for reply in replies:
-        if reply.state_name == "RUNNING":
+    names = list(POSE_COLUMNS[:3]) if poses else _joint_names(columns, link.ndof)
+    want_plan = data[:, [columns.index(c) for c in names]]
+    deviation = 0.0 if replies == "TELEMETRY" else float("nan")
+    for reply in answers:
+        if reply.state_name == "RUNNING" and "q" in reply.values:
             at = reply["motion_tick"] * dt
-            want = np.array([np.interp(at, t_plan, q_plan[:, i]) for i in range(link.ndof)])
-            deviation = max(deviation, float(np.abs(reply.q - want).max()))
-    return LinkStreamReport(len(t), end, deviation)
+            want = np.array([np.interp(at, t_plan, want_plan[:, i]) for i in range(len(names))])
+            got = np.array(reply["tool"][:3]) if poses else reply.q
+            deviation = max(deviation, float(np.abs(got - want).max()))
+    return LinkStreamReport(len(t), end, deviation, poses)
 
 
 def _joint_names(columns: list[str], ndof: int) -> list[str]:
@@ -818,11 +858,15 @@ def _joint_names(columns: list[str], ndof: int) -> list[str]:
     return [columns[i] for i in joint_columns(columns, ndof)[0]]
 
 
-def link_servo(port: str, twists: Any, period_s: float = 0.02, timeout: float = 2.0) -> Any:
+def link_servo(port: str, twists: Any, period_s: float = 0.02, timeout: float = 2.0, criterion: str = "TASK",
+               gain: float = 0.0) -> Any:
     """Servo the tool: one twist ``[vx vy vz wx wy wz]`` (base frame, m/s, rad/s) every
     ``period_s``, each followed by the board within its limits (scaled down, never beyond them)
-    until the next; then a zero twist until the arm rests, and STOP. Returns the last telemetry."""
+    until the next; then a zero twist until the arm rests, and STOP. ``criterion``, ``gain``: the
+    self-motion (:data:`armgen.link.protocol.CRITERIA`; TASK: the compiled-in task's). Returns
+    the last telemetry."""
     with link_open(port, timeout) as link:
+        link.servo_setup(criterion, gain)
         link.servo(twists, period_s)
         return link.status()
 

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from armgen.link import LinkClient, LinkError, encode
+from armgen.link import VERSION, LinkClient, LinkError, encode
 from armgen.planning.tasks import load_task, run_task
 
 from link_builds import TASK, link_executable
@@ -163,10 +163,10 @@ def test_session_rules(plan, tmp_path):
             link.serial.write(encode("STOP", link.seq, NDOF))
             after = link.status()
             assert after["out_of_order"] == 1 and after["state"] == done["state"]
-        with pytest.raises(LinkError, match="board speaks protocol version 1"):
+        with pytest.raises(LinkError, match=f"board speaks protocol version {VERSION}"):
             import armgen.link.client as client
             original = client.encode
-            client.encode = lambda *a, **k: original(*a, **{**k, "version": 2})
+            client.encode = lambda *a, **k: original(*a, **{**k, "version": VERSION + 1})
             try:
                 LinkClient(port)
             finally:

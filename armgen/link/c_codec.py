@@ -12,7 +12,7 @@ from importlib import resources
 from pathlib import Path
 from string import Template
 
-from .protocol import FLAGS, MESSAGES, NDOF, RESULTS, VERSION, C_TYPES, Field, Message
+from .protocol import CRITERIA, FLAGS, MESSAGES, NDOF, REPLIES, RESULTS, VERSION, C_TYPES, Field, Message
 
 STUB_FILES = ("fw_link_msgs.h", "fw_link_msgs.c")
 
@@ -94,6 +94,8 @@ def render() -> dict[str, str]:
         "sizes": sizes,
         "results": "".join(f"#define FW_LINK_RESULT_{n} {i}u /* {d} */\n" for i, (n, d) in enumerate(RESULTS)),
         "flags": "".join(f"#define FW_LINK_FLAG_{n} {1 << i}u /* {d} */\n" for i, (n, d) in enumerate(FLAGS)),
+        "replies": "".join(f"#define FW_LINK_REPLY_{n} {i}u /* {d} */\n" for i, (n, d) in enumerate(REPLIES)),
+        "criteria": "".join(f"#define FW_LINK_CRITERION_{n} {i}u /* {d} */\n" for i, (n, d) in enumerate(CRITERIA)),
         "structs": "\n" + "\n".join(_struct(m) for m in with_body),
         "union_members": "\n".join(f"  fw_link_{_lower(m)} {_lower(m)};" for m in with_body),
         "prototypes": "".join(_prototypes(m) for m in MESSAGES),

@@ -21,8 +21,9 @@ import serial
 
 from ..errors import ArmgenError
 from .codec import Frame, FrameDecoder, encode
-from .protocol import FAULT_NAMES, FLAGS, RESULTS, STATE_NAMES, VERSION
+from .protocol import CRITERIA, FAULT_NAMES, FLAGS, REPLIES, RESULTS, STATE_NAMES, VERSION
 
+REPLY_MESSAGES = ("TELEMETRY", "ACK")  # the board's answers to a host frame (ack_seq names it)
 HANDSHAKE_NDOF = 0  # HELLO and HELLO_REPLY have no per-joint field: decodable before the board says ndof
 TELEMETRY_KEPT = 1000  # the latest TELEMETRY frames a session keeps (self.telemetry)
 HEARTBEATS_PER_TIMEOUT = 4  # frames per watchdog timeout while a stream's waypoints are sparser
@@ -46,7 +47,8 @@ class CommandRefused(LinkError):
 
 @dataclass(frozen=True)
 class Telemetry:
-    """One TELEMETRY frame: ``values`` by the protocol's field names, and their readings."""
+    """One TELEMETRY frame, or an ACK (its subset: tick, motion_tick, ack_seq, result, state, fault,
+    link_flags, waypoints_free): ``values`` by the protocol's field names, and their readings."""
 
     seq: int
     values: dict[str, Any]
@@ -82,7 +84,7 @@ class LinkClient:
     """A session with a board: the handshake on opening, then commands and telemetry."""
 
     def __init__(self, port: str, *, baudrate: int = 115200, timeout: float = DEFAULT_TIMEOUT_S,
-                 telemetry_period: int = 0):
+                 telemetry_period: int = 0, replies: str = "TELEMETRY"):
         try:
             self.serial = serial.serial_for_url(port, baudrate=baudrate, timeout=0.005)
         except (serial.SerialException, ValueError) as exc:
@@ -92,7 +94,11 @@ class LinkClient:
         self.seq = 0
         self.telemetry: deque[Telemetry] = deque(maxlen=TELEMETRY_KEPT)
         self._decoder = FrameDecoder(HANDSHAKE_NDOF)
-        self.hello = self._handshake(telemetry_period)
+        reply_names = [name for name, _ in REPLIES]
+        if replies not in reply_names:
+            raise LinkError(f"replies={replies!r}: choose one of {', '.join(reply_names)}")
+        self.replies = replies
+        self.hello = self._handshake(telemetry_period, reply_names.index(replies))
         self.ndof = self.hello["ndof"]
         self._decoder = FrameDecoder(self.ndof)
 
@@ -116,7 +122,7 @@ class LinkClient:
         """The frames received so far (telemetry also appended to ``self.telemetry``)."""
         data = self.serial.read(self.serial.in_waiting or 1)
         frames = self._decoder.feed(data)
-        self.telemetry.extend(Telemetry(f.seq, f.values) for f in frames if f.name == "TELEMETRY")
+        self.telemetry.extend(Telemetry(f.seq, f.values) for f in frames if f.name in REPLY_MESSAGES)
         return frames
 
     def _await(self, accept, what: str) -> Frame:
@@ -129,12 +135,13 @@ class LinkClient:
         raise LinkError(f"no {what} from {self.port} within {self.timeout:g} s"
                         + (f" (dropped frames: {counts})" if counts else ""))
 
-    def _handshake(self, telemetry_period: int) -> dict[str, Any]:
+    def _handshake(self, telemetry_period: int, replies: int) -> dict[str, Any]:
         self.ndof = HANDSHAKE_NDOF
         self.serial.reset_input_buffer()
         self.serial.write(b"\x00")  # ends any partial frame on the wire: the board resynchronises
         self.seq = 0
-        self.serial.write(encode("HELLO", self.seq, HANDSHAKE_NDOF, {"telemetry_period": telemetry_period}))
+        self.serial.write(encode("HELLO", self.seq, HANDSHAKE_NDOF, {"telemetry_period": telemetry_period,
+                                                                   "replies": replies}))
         try:
             reply = self._await(lambda f: f.name == "HELLO_REPLY", "HELLO_REPLY")
         except LinkError as exc:
@@ -145,10 +152,11 @@ class LinkClient:
 
     # -- requests
     def request(self, name: str, values: dict[str, Any] | None = None, *, check: bool = True) -> Telemetry:
-        """Send a message and wait for the TELEMETRY that answers it; ``check``: a result other
-        than OK raises LinkError naming it."""
+        """Send a message and wait for the reply that answers it (TELEMETRY, or an ACK in a session
+        opened with ``replies="ACK"``; STATUS: always TELEMETRY); ``check``: a result other than OK
+        raises LinkError naming it."""
         seq = self.send(name, values)
-        frame = self._await(lambda f: f.name == "TELEMETRY" and f.values["ack_seq"] == seq, f"reply to {name}")
+        frame = self._await(lambda f: f.name in REPLY_MESSAGES and f.values["ack_seq"] == seq, f"reply to {name}")
         reply = Telemetry(frame.seq, frame.values)
         if check and reply.result_name != "OK":
             raise CommandRefused(f"{name} refused: {reply.result_name} ({dict(RESULTS)[reply.result_name]}); "
@@ -185,7 +193,7 @@ class LinkClient:
 
     def stream(self, t: Sequence[float], q: np.ndarray, qd: np.ndarray, *, lead_s: float = 0.1,
                stop_after: int | None = None) -> list[Telemetry]:
-        """Stream timed waypoints in real time, each sent lead_s before its time (the board
+        """Stream timed joint waypoints in real time, each sent lead_s before its time (the board
         interpolates between them), the last marked as the stream's end; then wait until the arm
         is at rest. ``stop_after``: send only that many waypoints, then nothing (the watchdog's
         test: the stream cut). Returns the replies to the waypoints."""
@@ -193,6 +201,25 @@ class LinkClient:
         q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
         if q.shape != (len(t), self.ndof) or qd.shape != q.shape:
             raise LinkError(f"waypoints need {self.ndof} joint values each: q {q.shape}, qd {qd.shape}, t {t.shape}")
+        return self._stream("WAYPOINT", t, [{"q": q[k], "qd": qd[k]} for k in range(len(t))], lead_s, stop_after)
+
+    def stream_poses(self, t: Sequence[float], poses: np.ndarray, twists: np.ndarray, *, lead_s: float = 0.1,
+                     stop_after: int | None = None) -> list[Telemetry]:
+        """Stream timed tool poses (``poses``: n 4x4 homogeneous, m; ``twists``: n rows
+        [v; w], base frame, m/s and rad/s) as :meth:`stream` does joint waypoints: the board
+        interpolates them in task space and follows them by its resolved-rate step within the
+        limits. Returns the replies to the poses."""
+        t = np.asarray(t, dtype=float)
+        poses, twists = np.asarray(poses, dtype=float), np.asarray(twists, dtype=float)
+        if poses.shape != (len(t), 4, 4) or twists.shape != (len(t), 6):
+            raise LinkError(f"pose waypoints need a 4x4 pose and a 6-value twist each: poses {poses.shape}, "
+                            f"twists {twists.shape}, t {t.shape}")
+        tool = np.concatenate([poses[:, :3, 3], poses[:, :3, :3].transpose(0, 2, 1).reshape(len(t), 9)], axis=1)
+        return self._stream("POSE_WAYPOINT", t, [{"tool": tool[k], "twist": twists[k]} for k in range(len(t))],
+                            lead_s, stop_after)
+
+    def _stream(self, message: str, t: np.ndarray, points: list[dict[str, Any]], lead_s: float,
+                stop_after: int | None) -> list[Telemetry]:
         if len(t) == 0 or t[0] != 0.0 or np.any(np.diff(t) <= 0):
             raise LinkError("waypoint times must start at 0 and increase")
         count = len(t) if stop_after is None else min(stop_after, len(t))
@@ -225,8 +252,8 @@ class LinkClient:
                     last_sent = time.monotonic()
                 self._collect(sent, replies)
                 time.sleep(0.001)
-            values = {"t_us": int(round(t[k] * 1e6)), "last": int(k == len(t) - 1), "q": q[k], "qd": qd[k]}
-            seq = self.send("WAYPOINT", values)
+            values = {"t_us": int(round(t[k] * 1e6)), "last": int(k == len(t) - 1), **points[k]}
+            seq = self.send(message, values)
             sent[seq] = k
             marks[seq] = len(sent)
             last_sent = time.monotonic()
@@ -263,17 +290,25 @@ class LinkClient:
         refused = [r for r in replies if r.result_name != "OK"]
         if refused:
             raise CommandRefused(f"twist {sent[refused[0]['ack_seq']]} refused: {refused[0].result_name}")
+        self.request("TWIST", {"xdot": np.zeros(6)})
         deadline = time.monotonic() + self.timeout
-        while (max(abs(v) for v in self.request("TWIST", {"xdot": np.zeros(6)})["qd"]) > SERVO_REST_SPEED
-               and time.monotonic() < deadline):
+        while max(abs(v) for v in self.status()["qd"]) > SERVO_REST_SPEED and time.monotonic() < deadline:
             time.sleep(0.005)
         self.stop()
         return sorted(replies, key=lambda r: sent[r["ack_seq"]])
 
     def _collect(self, sent: dict[int, int], replies: list[Telemetry]) -> None:
         for frame in self.poll():
-            if frame.name == "TELEMETRY" and frame.values["ack_seq"] in sent:
+            if frame.name in REPLY_MESSAGES and frame.values["ack_seq"] in sent:
                 replies.append(Telemetry(frame.seq, frame.values))
+
+    def servo_setup(self, criterion: str = "TASK", gain: float = 0.0) -> Telemetry:
+        """The self-motion of SERVO and pose streams from now on: a criterion of
+        :data:`armgen.link.protocol.CRITERIA` by name, its gain (0: the criterion's default)."""
+        names = [name for name, _ in CRITERIA]
+        if criterion not in names:
+            raise LinkError(f"criterion {criterion!r}: choose one of {', '.join(names)}")
+        return self.request("SERVO_SETUP", {"criterion": names.index(criterion), "gain": gain})
 
     def watch(self, period_s: float = 0.1) -> Iterator[Telemetry]:
         """Telemetry every period_s (STATUS requests: they also feed the watchdog)."""

@@ -123,10 +123,12 @@ class FrameDecoder:
             self.counts["bad_crc"] += 1
             return None
         version, code, seq = HEADER.unpack(payload[:HEADER.size])
-        if version != VERSION:
+        message = BY_CODE.get(code)
+        # HELLO_REPLY keeps its code and layout in every version: a board of another version
+        # says which it speaks, and the client names both (the version handshake)
+        if version != VERSION and message is not BY_NAME["HELLO_REPLY"]:
             self.counts["wrong_version"] += 1
             return None
-        message = BY_CODE.get(code)
         body = payload[HEADER.size:]
         if message is None or len(body) != message.body_size(self.ndof):
             self.counts["malformed"] += 1

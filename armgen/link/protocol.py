@@ -20,7 +20,8 @@ import struct
 from dataclasses import dataclass
 from importlib import resources
 
-VERSION = 1  # the protocol's version: the first byte of every frame, checked by both ends
+VERSION = 2  # the protocol's version: the first byte of every frame, checked by both ends (2: ACK, pose waypoints,
+# SERVO_SETUP, TELEMETRY's sigma_min, damping and clearance)
 HEADER = struct.Struct("<BBH")  # version, type, seq
 CRC = struct.Struct("<I")
 NDOF = "ndof"  # an array of one value per joint
@@ -72,14 +73,31 @@ FLAGS = (
     ("STREAMING", "a waypoint stream is being followed"),
     ("STALE", "the watchdog fired: stopping, then the controller's STALE fault"),
     ("SERVOING", "a TWIST is being followed"),
+    ("POSES", "the stream being followed is of tool poses (POSE_WAYPOINT)"),
+)
+# HELLO.replies: what answers a host frame other than HELLO and STATUS (STATUS: always TELEMETRY)
+REPLIES = (
+    ("TELEMETRY", "the full TELEMETRY"),
+    ("ACK", "an ACK (seq, result, state, fault, flags, free waypoints, ticks): 16 bytes instead of ~190"),
+)
+# SERVO_SETUP.criterion: the self-motion of SERVO and of a pose stream (a redundant arm's null space)
+CRITERIA = (
+    ("TASK", "the compiled-in task's own choice (its null-space method and gain; joint limits for a joint-space task)"),
+    ("NONE", "minimum norm: no self-motion"),
+    ("JOINT_LIMITS", "descent of the Zghal joint-limit criterion H_L: away from the joint limits"),
+    ("MANIPULABILITY", "ascent of the manipulability w = sqrt(det(J J^T)): away from singular poses"),
+    ("JOINT_MANIPULABILITY", "ascent of the joint manipulability H_M = sum omega_i: fault tolerance to a locked joint"),
+    ("REST", "descent of H_R = |q - q_start|^2 / 2: back toward the start configuration"),
 )
 
 MESSAGES: tuple[Message, ...] = (
     Message("HELLO", 0x01, "host", (
         Field("telemetry_period", "u16", doc="ticks between unsolicited TELEMETRY frames; 0: only replies"),
+        Field("replies", "u8", doc="the reply to a command frame: 0 TELEMETRY, 1 ACK (REPLIES; STATUS: TELEMETRY)"),
     ), "opens a session (the version handshake); its seq is the base of the host's sequence"),
     Message("START", 0x02, "host", (), "runs the task compiled into the firmware (CTRL_CMD_START)"),
-    Message("STOP", 0x03, "host", (), "ends the motion: the controller holds (CTRL_CMD_STOP); ends a stream"),
+    Message("STOP", 0x03, "host", (), "ends the motion: a moving arm ramps to rest within qddot_max, then the "
+            "controller holds (CTRL_CMD_STOP); ends a stream or a servo"),
     Message("MOVE_TO_POSE", 0x04, "host", (
         Field("pose", "f32", 16, "the tool pose, 4x4 homogeneous, column-major, m"),
     ), "to a tool pose: the on-board IK, then a joint-space move within the limits (CTRL_CMD_MOVE_TO)"),
@@ -99,6 +117,17 @@ MESSAGES: tuple[Message, ...] = (
     Message("TWIST", 0x09, "host", (
         Field("xdot", "f32", 6, "the tool's twist [v; w] in the base frame, m/s and rad/s (the robot's task rows)"),
     ), "servo: the tool moves at this twist (resolved rate with damping, scaled down to the joint limits) until the next"),
+    Message("POSE_WAYPOINT", 0x0A, "host", (
+        Field("t_us", "u32", doc="time from the stream's start, microseconds (the first waypoint: 0)"),
+        Field("last", "u8", doc="1: the stream ends here (the arm stops at this pose)"),
+        Field("tool", "f32", 12, "the tool pose: position (m), then the rotation, column-major (TELEMETRY.tool's layout)"),
+        Field("twist", "f32", 6, "the tool's twist [v; w] at t, base frame, m/s and rad/s"),
+    ), "one timed tool pose of a stream: interpolated in task space at every tick and followed by the resolved-rate step "
+       "within the limits (its clock slowed where they scale the step down)"),
+    Message("SERVO_SETUP", 0x0B, "host", (
+        Field("criterion", "u8", doc="the self-motion (CRITERIA): 0 the task's own choice"),
+        Field("gain", "f32", doc="its gain (alpha = +-gain grad H); 0: the criterion's default"),
+    ), "the null-space criterion of SERVO and of pose streams, from the next one on"),
     Message("HELLO_REPLY", 0x81, "board", (
         Field("accepted", "u8", doc="1: the session is open; 0: the host's version differs (see version)"),
         Field("version", "u8", doc="the board's protocol version"),
@@ -134,7 +163,22 @@ MESSAGES: tuple[Message, ...] = (
         Field("seq_gaps", "u32", doc="host frames missing between two received (lost on the wire)"),
         Field("underruns", "u32", doc="ticks a stream reached its last waypoint before the stream's end"),
         Field("stale_ticks", "u32", doc="ticks from the last valid frame to the watchdog's stop decision (0: none)"),
-    ), "the board's state: the reply to every valid host frame, and every telemetry_period ticks"),
+        Field("sigma_min", "f32", doc="sigma_min of J at the last resolved-rate step of SERVO or a pose stream (NaN: none)"),
+        Field("damping", "f32", doc="the damping lambda of that step (0 away from singular poses)"),
+        Field("servo_scale", "f32", doc="the scale of that step's twist, (0, 1]: below 1 where the limits slowed it"),
+        Field("clearance", "f32", doc="the controller's least clearance to the obstacles, m (NaN: not computed)"),
+    ), "the board's state: the reply to STATUS (and, in TELEMETRY replies, to every valid host frame), and every "
+       "telemetry_period ticks"),
+    Message("ACK", 0x83, "board", (
+        Field("tick", "u32", doc="the link's tick count since the board started"),
+        Field("motion_tick", "u32", doc="the controller's tick index within the motion"),
+        Field("ack_seq", "u16", doc="seq of the host frame this answers"),
+        Field("result", "u8", doc="its result (RESULTS)"),
+        Field("state", "u8", doc="ctrl_state"),
+        Field("fault", "u8", doc="ctrl_fault (STALE from the watchdog's decision on)"),
+        Field("link_flags", "u8", doc="TELEMETRY's link_flags"),
+        Field("waypoints_free", "u16", doc="free slots of the waypoint buffer"),
+    ), "the light reply to a command frame in a session opened with replies = 1"),
 )
 
 BY_NAME = {m.name: m for m in MESSAGES}

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #define N CTRL_NDOF
+#define LINK_ATAN2 CTRL_M(ATAN2)
 
 typedef char fw_link_ring_is_a_power_of_two[((FW_LINK_RX_RING & (FW_LINK_RX_RING - 1u)) == 0u) ? 1 : -1];
 
@@ -114,6 +115,45 @@ static void send(fw_link *l, uint8_t type, const uint8_t *body, size_t len) {
 
 /* ------------------------------------------------------------------ setup, receive, transmit */
 
+/* The task's own null-space criterion for SERVO and pose streams: a resolved-rate task's
+ * method (its Zghal gain rho_L, the same alpha = -rho_L grad H_L; the repetitive operator's
+ * gain is tied to the task's end time, so REST takes its own), a fault-tolerant GPM task's
+ * joint manipulability (its K and weights a_i); minimum norm where the task has none (PINV, WLN);
+ * a joint-space task (playback, sampled) or a weighted-GPM one: the joint limits. */
+static void init_task_criterion(fw_link *l, const ctrl_config *config) {
+  int i, any_weight = 0;
+  l->task_criterion = FW_LINK_CRITERION_JOINT_LIMITS;
+  l->task_gain = FW_LINK_GAIN_JOINT_LIMITS;
+  if (config->mode == CTRL_MODE_RESOLVED_RATE) {
+    ctrl_method m = config->rr.method;
+    if (m == CTRL_METHOD_PINV) {
+      l->task_criterion = FW_LINK_CRITERION_NONE;
+    } else if (m == CTRL_METHOD_REPETITIVE) {
+      l->task_criterion = FW_LINK_CRITERION_REST;
+      l->task_gain = FW_LINK_GAIN_REST;
+    } else {
+      l->task_gain = config->rr.rho_L; /* Zghal, windowed Zghal, combined */
+    }
+  } else if (config->mode == CTRL_MODE_FAULT_TOLERANT) {
+    if (config->ft.method == CTRL_FT_GPM) {
+      l->task_criterion = FW_LINK_CRITERION_JOINT_MANIPULABILITY;
+      l->task_gain = config->ft.K;
+      for (i = 0; i < N; ++i) {
+        any_weight |= config->ft.a[i] != CTRL_LIT(0.0);
+      }
+      for (i = 0; i < N && any_weight; ++i) {
+        l->hm_weights[i] = config->ft.a[i];
+      }
+    } else {
+      l->task_criterion = FW_LINK_CRITERION_NONE;
+    }
+  } else {
+    /* PLAYBACK, SAMPLED, WEIGHTED_GPM: away from the joint limits */
+  }
+  l->criterion = l->task_criterion;
+  l->null_gain = l->task_gain;
+}
+
 void fw_link_init(fw_link *l, const ctrl_config *config, uint32_t watchdog_ticks) {
   int i;
   (void)memset(l, 0, sizeof *l);
@@ -124,8 +164,12 @@ void fw_link_init(fw_link *l, const ctrl_config *config, uint32_t watchdog_ticks
     l->q_max[i] = config->q_max[i];
     l->qd_max[i] = config->qdot_max[i];
     l->qdd_max[i] = config->qddot_max[i];
+    l->q_start[i] = config->q_start[i];
     l->last.q[i] = config->q_start[i];
+    l->hm_weights[i] = CTRL_LIT(1.0);
   }
+  init_task_criterion(l, config);
+  l->sigma_min = (ctrl_real)NAN;
   /* the robot's task rows: the resolved-rate modes' configuration names them; a robot that
    * controls all six rows needs no name; else (a planar arm's playback) SERVO is refused */
   l->servo_rows_known = config->mode == CTRL_MODE_RESOLVED_RATE || config->mode == CTRL_MODE_FAULT_TOLERANT ||
@@ -168,6 +212,47 @@ static void rotation_of(const ctrl_real *T, ctrl_real *R) {
       R[r + 3 * col] = T[r + 4 * col];
     }
   }
+}
+
+/* The orientation error of R from Rd: the vector part of Rd R^T (as the controller's). */
+static void orientation_error(const ctrl_real *R, const ctrl_real *Rd, ctrl_real *e) {
+  ctrl_real S[9];
+  int r, col;
+  for (col = 0; col < 3; ++col) {
+    for (r = 0; r < 3; ++r) {
+      S[r + 3 * col] = Rd[r] * R[col] + Rd[r + 3] * R[col + 3] + Rd[r + 6] * R[col + 6];
+    }
+  }
+  e[0] = CTRL_LIT(0.5) * (S[5] - S[7]);
+  e[1] = CTRL_LIT(0.5) * (S[6] - S[2]);
+  e[2] = CTRL_LIT(0.5) * (S[1] - S[3]);
+}
+
+/* R <- Rot(w h) R (Rodrigues), w in the base frame. */
+static void rotate(ctrl_real *R, const ctrl_real *w, ctrl_real h) {
+  ctrl_real th = CTRL_SQRT(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * h, k[3], K[9], KK[9], A[9], out[9];
+  int r, col, j;
+  if (!(th > CTRL_LIT(0.0))) return;
+  for (j = 0; j < 3; ++j) {
+    k[j] = w[j] * h / th;
+  }
+  K[0] = CTRL_LIT(0.0); K[3] = -k[2]; K[6] = k[1];
+  K[1] = k[2]; K[4] = CTRL_LIT(0.0); K[7] = -k[0];
+  K[2] = -k[1]; K[5] = k[0]; K[8] = CTRL_LIT(0.0);
+  for (col = 0; col < 3; ++col) {
+    for (r = 0; r < 3; ++r) {
+      KK[r + 3 * col] = K[r] * K[3 * col] + K[r + 3] * K[1 + 3 * col] + K[r + 6] * K[2 + 3 * col];
+    }
+  }
+  for (j = 0; j < 9; ++j) {
+    A[j] = CTRL_SIN(th) * K[j] + (CTRL_LIT(1.0) - CTRL_COS(th)) * KK[j] + ((j % 4) == 0 ? CTRL_LIT(1.0) : CTRL_LIT(0.0));
+  }
+  for (col = 0; col < 3; ++col) {
+    for (r = 0; r < 3; ++r) {
+      out[r + 3 * col] = A[r] * R[3 * col] + A[r + 3] * R[1 + 3 * col] + A[r + 6] * R[2 + 3 * col];
+    }
+  }
+  (void)memcpy(R, out, sizeof out);
 }
 
 static uint8_t accept_twist(fw_link *l, const fw_link_twist *m) {
@@ -246,6 +331,7 @@ static uint8_t accept_waypoint(fw_link *l, const fw_link_waypoint *m) {
       if (d > FW_LINK_STREAM_START_TOL || d < -FW_LINK_STREAM_START_TOL) return FW_LINK_RESULT_STREAM_START;
     }
     l->streaming = 1;
+    l->stream_poses = 0;
     l->stream_ended = 0;
     l->stream_arrived = 0;
     l->stream_k = 0;
@@ -253,6 +339,7 @@ static uint8_t accept_waypoint(fw_link *l, const fw_link_waypoint *m) {
     l->wp_count = 0;
   } else {
     const fw_link_waypoint_slot *prev = &l->wp[(l->wp_first + l->wp_count - 1u) % FW_LINK_WAYPOINTS];
+    if (l->stream_poses) return FW_LINK_RESULT_REFUSED_STATE; /* a pose stream runs */
     if (l->stream_ended || w.t_us <= prev->t_us) return FW_LINK_RESULT_STREAM_ORDER;
     if (l->wp_count >= FW_LINK_WAYPOINTS) return FW_LINK_RESULT_STREAM_FULL;
   }
@@ -262,17 +349,134 @@ static uint8_t accept_waypoint(fw_link *l, const fw_link_waypoint *m) {
   return FW_LINK_RESULT_OK;
 }
 
+/* The rotation vector phi of Rb Ra^T (base frame): Rb = Rot(phi) Ra; 0 when the rotation is a
+ * quarter turn or more (refused by the caller). Returns cos of the angle. */
+static ctrl_real rotation_vector(const ctrl_real *Ra, const ctrl_real *Rb, ctrl_real *phi) {
+  ctrl_real S[9], u[3], c, sn, th;
+  int r, col;
+  for (col = 0; col < 3; ++col) {
+    for (r = 0; r < 3; ++r) {
+      S[r + 3 * col] = Rb[r] * Ra[col] + Rb[r + 3] * Ra[col + 3] + Rb[r + 6] * Ra[col + 6];
+    }
+  }
+  u[0] = CTRL_LIT(0.5) * (S[5] - S[7]);
+  u[1] = CTRL_LIT(0.5) * (S[6] - S[2]);
+  u[2] = CTRL_LIT(0.5) * (S[1] - S[3]);
+  c = CTRL_LIT(0.5) * (S[0] + S[4] + S[8] - CTRL_LIT(1.0));
+  sn = CTRL_SQRT(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+  th = LINK_ATAN2(sn, c);
+  for (r = 0; r < 3; ++r) {
+    phi[r] = sn > CTRL_LIT(0.0) ? u[r] * (th / sn) : CTRL_LIT(0.0);
+  }
+  return c;
+}
+
+/* A pose waypoint: finite, its rotation orthonormal, later than the one before and less than a
+ * quarter turn from it; the first of a stream at t = 0 at the held command's tool pose, with
+ * the arm at rest. */
+static uint8_t accept_pose_waypoint(fw_link *l, const fw_link_pose_waypoint *m) {
+  fw_link_pose_slot w;
+  ctrl_real T[16], J[6 * N], R[9], e[3];
+  int i, r, col;
+  w.t_us = m->t_us;
+  w.last = m->last;
+  for (i = 0; i < 3; ++i) {
+    w.p[i] = (ctrl_real)m->tool[i];
+  }
+  for (i = 0; i < 9; ++i) {
+    w.R[i] = (ctrl_real)m->tool[3 + i];
+  }
+  for (i = 0; i < 6; ++i) {
+    w.twist[i] = (ctrl_real)m->twist[i];
+  }
+  for (i = 0; i < 12; ++i) {
+    if (!finite_r(i < 3 ? w.p[i] : w.R[i - 3]) || (i < 6 && !finite_r(w.twist[i]))) return FW_LINK_RESULT_BAD_VALUE;
+  }
+  for (col = 0; col < 3; ++col) { /* R^T R = I */
+    for (r = 0; r < 3; ++r) {
+      ctrl_real d = w.R[3 * r] * w.R[3 * col] + w.R[3 * r + 1] * w.R[3 * col + 1] + w.R[3 * r + 2] * w.R[3 * col + 2] -
+                    (r == col ? CTRL_LIT(1.0) : CTRL_LIT(0.0));
+      if (d > FW_LINK_POSE_ORTHO_TOL || d < -FW_LINK_POSE_ORTHO_TOL) return FW_LINK_RESULT_BAD_VALUE;
+    }
+  }
+  if (!l->streaming) {
+    if (arm_moves(l->last.state) || l->servoing || l->last.state == CTRL_STATE_FAULT || !l->servo_rows_known) {
+      return FW_LINK_RESULT_REFUSED_STATE;
+    }
+    if (w.t_us != 0u) return FW_LINK_RESULT_STREAM_START;
+    ctrl_gen_fk_jacobian(l->last.q, T, J);
+    rotation_of(T, R);
+    orientation_error(R, w.R, e);
+    for (i = 0; i < 3; ++i) {
+      ctrl_real d = w.p[i] - T[12 + i];
+      if (d > FW_LINK_POSE_START_TOL_M || d < -FW_LINK_POSE_START_TOL_M || e[i] > FW_LINK_POSE_START_TOL_RAD ||
+          e[i] < -FW_LINK_POSE_START_TOL_RAD) {
+        return FW_LINK_RESULT_STREAM_START;
+      }
+    }
+    for (i = 0; i < 3; ++i) {
+      w.phi[i] = CTRL_LIT(0.0);
+    }
+    l->streaming = 1;
+    l->stream_poses = 1;
+    l->stream_ended = 0;
+    l->stream_arrived = 0;
+    l->stream_k = 0;
+    l->pose_t = CTRL_LIT(0.0);
+    l->wp_first = 0;
+    l->wp_count = 0;
+  } else {
+    const fw_link_pose_slot *prev = &l->pose_wp[(l->wp_first + l->wp_count - 1u) % FW_LINK_WAYPOINTS];
+    if (!l->stream_poses) return FW_LINK_RESULT_REFUSED_STATE; /* a joint stream runs */
+    if (l->stream_ended || w.t_us <= prev->t_us) return FW_LINK_RESULT_STREAM_ORDER;
+    if (l->wp_count >= FW_LINK_WAYPOINTS) return FW_LINK_RESULT_STREAM_FULL;
+    if (!(rotation_vector(prev->R, w.R, w.phi) > CTRL_LIT(0.0))) return FW_LINK_RESULT_BAD_VALUE;
+  }
+  l->pose_wp[(l->wp_first + l->wp_count) % FW_LINK_WAYPOINTS] = w;
+  ++l->wp_count;
+  l->stream_ended = w.last != 0u;
+  return FW_LINK_RESULT_OK;
+}
+
+static uint8_t accept_servo_setup(fw_link *l, const fw_link_servo_setup *m) {
+  ctrl_real gain = (ctrl_real)m->gain;
+  if (m->criterion > FW_LINK_CRITERION_REST || !finite_r(gain) || gain < CTRL_LIT(0.0)) return FW_LINK_RESULT_BAD_VALUE;
+  if (m->criterion == FW_LINK_CRITERION_TASK) {
+    l->criterion = l->task_criterion;
+    l->null_gain = gain > CTRL_LIT(0.0) ? gain : l->task_gain;
+    return FW_LINK_RESULT_OK;
+  }
+  l->criterion = m->criterion;
+  if (gain > CTRL_LIT(0.0)) {
+    l->null_gain = gain;
+  } else if (m->criterion == FW_LINK_CRITERION_JOINT_LIMITS) {
+    l->null_gain = FW_LINK_GAIN_JOINT_LIMITS;
+  } else if (m->criterion == FW_LINK_CRITERION_MANIPULABILITY) {
+    l->null_gain = FW_LINK_GAIN_MANIPULABILITY;
+  } else if (m->criterion == FW_LINK_CRITERION_JOINT_MANIPULABILITY) {
+    l->null_gain = FW_LINK_GAIN_JOINT_MANIPULABILITY;
+  } else {
+    l->null_gain = FW_LINK_GAIN_REST; /* REST; NONE has no gain */
+  }
+  return FW_LINK_RESULT_OK;
+}
+
 static void start_stop(fw_link *l, ctrl_command end);
 
 /* A valid frame of the session: act on it (or refuse it) and reply. */
 static uint8_t dispatch(fw_link *l, uint8_t type, const fw_link_message *m) {
   if (type == FW_LINK_HELLO) {
     l->telemetry_period = m->hello.telemetry_period;
+    l->replies = m->hello.replies == FW_LINK_REPLY_ACK ? FW_LINK_REPLY_ACK : FW_LINK_REPLY_TELEMETRY;
     l->reply_hello = 1;
     l->hello_accepted = 1;
     return FW_LINK_RESULT_OK;
   }
-  l->reply_telemetry = 1;
+  if (type == FW_LINK_STATUS || l->replies == FW_LINK_REPLY_TELEMETRY) {
+    l->reply_telemetry = 1;
+  } else {
+    l->reply_ack = 1;
+  }
   if (type == FW_LINK_STATUS) return FW_LINK_RESULT_OK;
   if (l->stale) return FW_LINK_RESULT_STALE;
   if (l->stopping && type != FW_LINK_LOCK) return FW_LINK_RESULT_REFUSED_STATE; /* until at rest */
@@ -292,6 +496,8 @@ static uint8_t dispatch(fw_link *l, uint8_t type, const fw_link_message *m) {
     case FW_LINK_MOVE_TO_JOINTS: return accept_move_to_joints(l, &m->move_to_joints);
     case FW_LINK_WAYPOINT: return accept_waypoint(l, &m->waypoint);
     case FW_LINK_TWIST: return accept_twist(l, &m->twist);
+    case FW_LINK_POSE_WAYPOINT: return accept_pose_waypoint(l, &m->pose_waypoint);
+    case FW_LINK_SERVO_SETUP: return accept_servo_setup(l, &m->servo_setup);
     case FW_LINK_LOCK:
       l->locked = m->lock.locked;
       return FW_LINK_RESULT_OK;
@@ -495,47 +701,6 @@ static void stream_tick(fw_link *l, ctrl_input *in) {
 
 /* ------------------------------------------------------------------ servo */
 
-/* The orientation error of R from Rd: the vector part of Rd R^T (as the controller's). */
-static void orientation_error(const ctrl_real *R, const ctrl_real *Rd, ctrl_real *e) {
-  ctrl_real S[9];
-  int r, col;
-  for (col = 0; col < 3; ++col) {
-    for (r = 0; r < 3; ++r) {
-      S[r + 3 * col] = Rd[r] * R[col] + Rd[r + 3] * R[col + 3] + Rd[r + 6] * R[col + 6];
-    }
-  }
-  e[0] = CTRL_LIT(0.5) * (S[5] - S[7]);
-  e[1] = CTRL_LIT(0.5) * (S[6] - S[2]);
-  e[2] = CTRL_LIT(0.5) * (S[1] - S[3]);
-}
-
-/* R <- Rot(w h) R (Rodrigues), w in the base frame. */
-static void rotate(ctrl_real *R, const ctrl_real *w, ctrl_real h) {
-  ctrl_real th = CTRL_SQRT(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * h, k[3], K[9], KK[9], A[9], out[9];
-  int r, col, j;
-  if (!(th > CTRL_LIT(0.0))) return;
-  for (j = 0; j < 3; ++j) {
-    k[j] = w[j] * h / th;
-  }
-  K[0] = CTRL_LIT(0.0); K[3] = -k[2]; K[6] = k[1];
-  K[1] = k[2]; K[4] = CTRL_LIT(0.0); K[7] = -k[0];
-  K[2] = -k[1]; K[5] = k[0]; K[8] = CTRL_LIT(0.0);
-  for (col = 0; col < 3; ++col) {
-    for (r = 0; r < 3; ++r) {
-      KK[r + 3 * col] = K[r] * K[3 * col] + K[r + 3] * K[1 + 3 * col] + K[r + 6] * K[2 + 3 * col];
-    }
-  }
-  for (j = 0; j < 9; ++j) {
-    A[j] = CTRL_SIN(th) * K[j] + (CTRL_LIT(1.0) - CTRL_COS(th)) * KK[j] + ((j % 4) == 0 ? CTRL_LIT(1.0) : CTRL_LIT(0.0));
-  }
-  for (col = 0; col < 3; ++col) {
-    for (r = 0; r < 3; ++r) {
-      out[r + 3 * col] = A[r] * R[3 * col] + A[r + 3] * R[1 + 3 * col] + A[r + 6] * R[2 + 3 * col];
-    }
-  }
-  (void)memcpy(R, out, sizeof out);
-}
-
 /* The largest s in [0, s_max] with |s qd_i - v_i| <= dv_i for every joint, or -1 when none. */
 static ctrl_real acceleration_scale(const ctrl_real *qd, const ctrl_real *v, const ctrl_real *dv, ctrl_real s_max) {
   ctrl_real lo = CTRL_LIT(0.0), hi = s_max;
@@ -554,39 +719,82 @@ static ctrl_real acceleration_scale(const ctrl_real *qd, const ctrl_real *v, con
   return lo <= hi ? hi : CTRL_LIT(-1.0);
 }
 
-/* The servo's command of this tick: the step toward the twist, closed on the integrated pose,
- * with the Zghal criterion's descent as self-motion, scaled into the limits (speed, braking
- * distance to a limit, acceleration), integrated. */
-static void servo_tick(fw_link *l, ctrl_input *in) {
-  ctrl_real T[16], J[6 * N], R[9], e[6], xd[CTRL_NTASK], alpha[N], qd[N], v[N], dv[N], s = CTRL_LIT(1.0), H;
-  int i, moving_tool = 0;
-  if (l->servo_k > 0u && !arm_moves(l->last.state)) { /* the controller stopped it (a fault) */
-    l->servoing = 0;
-    return;
+/* The chosen criterion's self-motion alpha at the last command (J its Jacobian). */
+static void self_motion(const fw_link *l, const ctrl_real *J, ctrl_real *alpha) {
+  ctrl_real H, grad[N], ones[N], omega[N], grad_w[N], w, sign = -CTRL_LIT(1.0);
+  int i;
+  for (i = 0; i < N; ++i) {
+    ones[i] = CTRL_LIT(1.0);
   }
+  switch (l->criterion) {
+    case FW_LINK_CRITERION_JOINT_LIMITS:
+      ctrl_gen_zghal(l->last.q, &H, grad);
+      break;
+    case FW_LINK_CRITERION_REST:
+      ctrl_gen_repetitive(l->last.q, l->q_start, &H, grad);
+      break;
+    case FW_LINK_CRITERION_MANIPULABILITY:
+    case FW_LINK_CRITERION_JOINT_MANIPULABILITY: /* both from one call: w and H_M, maximised */
+      ctrl_gen_ft_index(J, ones, l->hm_weights, FW_LINK_MANIPULABILITY_DELTA, omega, &H, grad, &w, grad_w);
+      if (l->criterion == FW_LINK_CRITERION_MANIPULABILITY) {
+        (void)memcpy(grad, grad_w, sizeof grad);
+      }
+      sign = CTRL_LIT(1.0);
+      break;
+    default: /* NONE: minimum norm */
+      sign = CTRL_LIT(0.0);
+      for (i = 0; i < N; ++i) {
+        grad[i] = CTRL_LIT(0.0);
+      }
+      break;
+  }
+  for (i = 0; i < N; ++i) {
+    alpha[i] = sign * l->null_gain * grad[i];
+    alpha[i] = finite_r(alpha[i]) ? alpha[i] : CTRL_LIT(0.0);
+  }
+}
+
+/* One resolved-rate tick of SERVO or a pose stream: the step toward the reference pose
+ * (p_ref, R_ref) moving at twist (the closed loop on the tool's error from it), the criterion's
+ * self-motion while the reference moves, solved by the generated step_fault (the damping from
+ * sigma_min; a locked joint's column masked), scaled into the limits (speed, braking distance
+ * to a limit, acceleration), written to `in`. Returns the scale of the twist, (0, 1]. */
+static ctrl_real rate_step(fw_link *l, ctrl_input *in, const ctrl_real *twist, const ctrl_real *p_ref,
+                           const ctrl_real *R_ref, int first) {
+  ctrl_real T[16], J[6 * N], R[9], e[6], xd[CTRL_NTASK], alpha[N], qd[N], v[N], dv[N], mask[N], W[N];
+  ctrl_real s = CTRL_LIT(1.0), lam = CTRL_LIT(0.0), sigma = CTRL_LIT(0.0);
+  int i, moving = 0;
   ctrl_gen_fk_jacobian(l->last.q, T, J);
   rotation_of(T, R);
   for (i = 0; i < 3; ++i) {
-    e[i] = l->p_ref[i] - T[12 + i];
+    e[i] = p_ref[i] - T[12 + i];
   }
-  orientation_error(R, l->R_ref, e + 3);
+  orientation_error(R, R_ref, e + 3);
   for (i = 0; i < CTRL_NTASK; ++i) {
-    xd[i] = l->twist[l->task_rows[i]] + FW_LINK_SERVO_GAIN * e[l->task_rows[i]];
+    xd[i] = twist[l->task_rows[i]] + FW_LINK_SERVO_GAIN * e[l->task_rows[i]];
   }
-  ctrl_gen_zghal(l->last.q, &H, alpha); /* the joint-limit criterion's gradient */
   for (i = 0; i < 6; ++i) {
-    moving_tool |= l->twist[i] != CTRL_LIT(0.0);
+    moving |= twist[i] != CTRL_LIT(0.0);
   }
-  for (i = 0; i < N; ++i) { /* a zero twist means rest: no self-motion then */
-    alpha[i] = moving_tool ? -FW_LINK_SERVO_NULL_GAIN * alpha[i] : CTRL_LIT(0.0);
-    v[i] = l->servo_k > 0u ? l->last.qd[i] : CTRL_LIT(0.0);
+  if (moving) { /* a still reference means rest: no self-motion then */
+    self_motion(l, J, alpha);
+  }
+  for (i = 0; i < N; ++i) {
+    int locked = ((l->locked >> (uint32_t)i) & 1u) != 0u;
+    alpha[i] = moving && !locked ? alpha[i] : CTRL_LIT(0.0);
+    mask[i] = locked ? CTRL_LIT(0.0) : CTRL_LIT(1.0);
+    W[i] = CTRL_LIT(1.0);
+    v[i] = first ? CTRL_LIT(0.0) : l->last.qd[i];
     dv[i] = l->qdd_max[i] * l->dt;
   }
-  if (ctrl_gen_step_gpm(J, xd, alpha, FW_LINK_SERVO_DAMPING, qd) != CTRL_GEN_OK) {
+  if (ctrl_gen_step_fault(J, xd, mask, W, alpha, FW_LINK_SERVO_EPSILON, FW_LINK_SERVO_LAMBDA_MAX, qd, &lam, &sigma) !=
+      CTRL_GEN_OK) {
     for (i = 0; i < N; ++i) {
       qd[i] = CTRL_LIT(0.0); /* a non-finite step: come to rest */
     }
   }
+  l->sigma_min = sigma;
+  l->damping = lam;
   for (i = 0; i < N; ++i) { /* each joint's speed cap: its limit, and stopping before its joint limit */
     ctrl_real room = (qd[i] > CTRL_LIT(0.0) ? l->q_max[i] - l->last.q[i] : l->last.q[i] - l->q_min[i]) -
                      FW_LINK_SERVO_LIMIT_MARGIN;
@@ -605,11 +813,109 @@ static void servo_tick(fw_link *l, ctrl_input *in) {
     in->qd_ref[i] = v[i];
   }
   in->command = CTRL_CMD_SETPOINT;
-  for (i = 0; i < 3; ++i) { /* the reference moves by the twist as executed */
-    l->p_ref[i] += l->servo_scale * l->twist[i] * l->dt;
+  return l->servo_scale;
+}
+
+/* The servo's command of this tick; the reference then moves by the twist as executed. */
+static void servo_tick(fw_link *l, ctrl_input *in) {
+  ctrl_real s;
+  int i;
+  if (l->servo_k > 0u && !arm_moves(l->last.state)) { /* the controller stopped it (a fault) */
+    l->servoing = 0;
+    return;
   }
-  rotate(l->R_ref, l->twist + 3, l->servo_scale * l->dt);
+  s = rate_step(l, in, l->twist, l->p_ref, l->R_ref, l->servo_k == 0u);
+  for (i = 0; i < 3; ++i) {
+    l->p_ref[i] += s * l->twist[i] * l->dt;
+  }
+  rotate(l->R_ref, l->twist + 3, s * l->dt);
   ++l->servo_k;
+}
+
+/* The pose between stream poses a and b at time t (s): position and rotation vector by cubic
+ * Hermites (the rotation vector from a's rotation: 0 to b->phi, its rates the poses' angular
+ * velocities, exact at the ends), and the reference's twist, their derivatives. */
+static void pose_between(const fw_link_pose_slot *a, const fw_link_pose_slot *b, ctrl_real t, ctrl_real *p,
+                         ctrl_real *R, ctrl_real *twist) {
+  ctrl_real h = (ctrl_real)(b->t_us - a->t_us) * CTRL_LIT(1e-6);
+  ctrl_real s = (t - (ctrl_real)a->t_us * CTRL_LIT(1e-6)) / h, s2 = s * s, s3 = s2 * s, phi[3];
+  ctrl_real h00 = CTRL_LIT(2.0) * s3 - CTRL_LIT(3.0) * s2 + CTRL_LIT(1.0), h10 = s3 - CTRL_LIT(2.0) * s2 + s;
+  ctrl_real h01 = CTRL_LIT(3.0) * s2 - CTRL_LIT(2.0) * s3, h11 = s3 - s2;
+  ctrl_real d00 = (CTRL_LIT(6.0) * s2 - CTRL_LIT(6.0) * s) / h, d10 = CTRL_LIT(3.0) * s2 - CTRL_LIT(4.0) * s + CTRL_LIT(1.0);
+  ctrl_real d01 = -d00, d11 = CTRL_LIT(3.0) * s2 - CTRL_LIT(2.0) * s;
+  int i;
+  for (i = 0; i < 3; ++i) {
+    p[i] = h00 * a->p[i] + h10 * h * a->twist[i] + h01 * b->p[i] + h11 * h * b->twist[i];
+    twist[i] = d00 * a->p[i] + d10 * a->twist[i] + d01 * b->p[i] + d11 * b->twist[i];
+    phi[i] = h10 * h * a->twist[3 + i] + h01 * b->phi[i] + h11 * h * b->twist[3 + i];
+    twist[3 + i] = d10 * a->twist[3 + i] + d01 * b->phi[i] + d11 * b->twist[3 + i];
+  }
+  (void)memcpy(R, a->R, 9u * sizeof *R);
+  rotate(R, phi, CTRL_LIT(1.0));
+}
+
+/* The pose stream's command of this tick: the interpolated pose at the stream's clock, followed
+ * by the resolved-rate step; the clock advances by the step's scale (slower where the limits
+ * slow the tool). After the last pose, the step closes on it at rest; there, the command rests. */
+static void pose_stream_tick(fw_link *l, ctrl_input *in) {
+  const fw_link_pose_slot *a;
+  ctrl_real p[3], R[9], twist[6], s, T[16], J[6 * N], Rt[9], e[3];
+  int i, arrived = 1;
+  if (l->stream_k > 0u && !arm_moves(l->last.state)) { /* the controller stopped it (a fault) */
+    l->streaming = 0;
+    return;
+  }
+  if (l->stream_k == 0u && l->wp_count < 2u && !l->stream_ended) {
+    return; /* the stream starts once its first segment is known: the arm holds until then */
+  }
+  if (l->stream_arrived) { /* at the last pose, at rest, since the tick before: the controller holds (DONE) */
+    in->command = CTRL_CMD_STOP;
+    l->streaming = 0;
+    return;
+  }
+  while (l->wp_count >= 2u &&
+         (ctrl_real)l->pose_wp[(l->wp_first + 1u) % FW_LINK_WAYPOINTS].t_us * CTRL_LIT(1e-6) <= l->pose_t) {
+    l->wp_first = (l->wp_first + 1u) % FW_LINK_WAYPOINTS;
+    --l->wp_count;
+  }
+  a = &l->pose_wp[l->wp_first];
+  if (l->wp_count >= 2u) {
+    pose_between(a, &l->pose_wp[(l->wp_first + 1u) % FW_LINK_WAYPOINTS], l->pose_t, p, R, twist);
+  } else {
+    if (!l->stream_ended) {
+      ++l->counts.underruns; /* the host is late: hold the last pose */
+    }
+    (void)memcpy(p, a->p, sizeof p);
+    (void)memcpy(R, a->R, sizeof R);
+    (void)memset(twist, 0, sizeof twist);
+  }
+  if (l->wp_count == 1u && l->stream_ended) { /* past the end: arrived when there and slow */
+    ctrl_gen_fk_jacobian(l->last.q, T, J);
+    rotation_of(T, Rt);
+    orientation_error(Rt, R, e);
+    for (i = 0; i < 3; ++i) {
+      ctrl_real d = p[i] - T[12 + i];
+      arrived &= d <= FW_LINK_POSE_ARRIVE_M && d >= -FW_LINK_POSE_ARRIVE_M && e[i] <= FW_LINK_POSE_ARRIVE_RAD &&
+                 e[i] >= -FW_LINK_POSE_ARRIVE_RAD;
+    }
+    for (i = 0; i < N; ++i) {
+      ctrl_real dv = l->qdd_max[i] * l->dt;
+      arrived &= l->last.qd[i] <= dv && l->last.qd[i] >= -dv;
+    }
+    if (arrived) { /* rest where the command is */
+      for (i = 0; i < N; ++i) {
+        in->q_ref[i] = l->last.q[i];
+        in->qd_ref[i] = CTRL_LIT(0.0);
+      }
+      in->command = CTRL_CMD_SETPOINT;
+      l->stream_arrived = 1;
+      ++l->stream_k;
+      return;
+    }
+  }
+  s = rate_step(l, in, twist, p, R, l->stream_k == 0u);
+  l->pose_t += s * l->dt;
+  ++l->stream_k;
 }
 
 /* ------------------------------------------------------------------ per tick */
@@ -641,7 +947,9 @@ void fw_link_input(fw_link *l, ctrl_input *in) {
     l->command = CTRL_CMD_NONE;
     return;
   }
-  if (l->streaming) {
+  if (l->streaming && l->stream_poses) {
+    pose_stream_tick(l, in);
+  } else if (l->streaming) {
     stream_tick(l, in);
   } else if (l->servoing) {
     servo_tick(l, in);
@@ -662,6 +970,31 @@ static void send_hello_reply(fw_link *l) {
   send(l, FW_LINK_HELLO_REPLY, body, fw_link_pack_hello_reply(&r, body));
 }
 
+static uint8_t link_flags(const fw_link *l) {
+  return (uint8_t)((l->session ? FW_LINK_FLAG_SESSION : 0u) | (l->streaming ? FW_LINK_FLAG_STREAMING : 0u) |
+                   (l->stale ? FW_LINK_FLAG_STALE : 0u) | (l->servoing ? FW_LINK_FLAG_SERVOING : 0u) |
+                   (l->streaming && l->stream_poses ? FW_LINK_FLAG_POSES : 0u));
+}
+
+static uint16_t waypoints_free(const fw_link *l) {
+  return (uint16_t)(l->streaming ? FW_LINK_WAYPOINTS - l->wp_count : FW_LINK_WAYPOINTS);
+}
+
+/* The light reply: what became of the frame, and the state; no joint values, no FK. */
+static void send_ack(fw_link *l) {
+  fw_link_ack m;
+  uint8_t body[FW_LINK_ACK_SIZE];
+  m.tick = l->tick;
+  m.motion_tick = l->last.tick;
+  m.ack_seq = l->ack_seq;
+  m.result = l->result;
+  m.state = (uint8_t)l->last.state;
+  m.fault = (uint8_t)(l->stale ? CTRL_FAULT_STALE : l->last.fault);
+  m.link_flags = link_flags(l);
+  m.waypoints_free = waypoints_free(l);
+  send(l, FW_LINK_ACK, body, fw_link_pack_ack(&m, body));
+}
+
 static void send_telemetry(fw_link *l) {
   const ctrl_output *o = &l->last;
   fw_link_telemetry m;
@@ -673,12 +1006,10 @@ static void send_telemetry(fw_link *l) {
   m.motion_tick = o->tick;
   m.state = (uint8_t)o->state;
   m.fault = (uint8_t)(l->stale ? CTRL_FAULT_STALE : o->fault);
-  m.link_flags = (uint8_t)((l->session ? FW_LINK_FLAG_SESSION : 0u) | (l->streaming ? FW_LINK_FLAG_STREAMING : 0u) |
-                           (l->stale ? FW_LINK_FLAG_STALE : 0u) |
-                           (l->servoing ? FW_LINK_FLAG_SERVOING : 0u));
+  m.link_flags = link_flags(l);
   m.result = l->result;
   m.ack_seq = l->ack_seq;
-  m.waypoints_free = (uint16_t)(l->streaming ? FW_LINK_WAYPOINTS - l->wp_count : FW_LINK_WAYPOINTS);
+  m.waypoints_free = waypoints_free(l);
   for (i = 0; i < N; ++i) {
     m.q[i] = (float)o->q[i];
     m.qd[i] = (float)o->qd[i];
@@ -704,6 +1035,10 @@ static void send_telemetry(fw_link *l) {
   m.seq_gaps = l->counts.seq_gaps;
   m.underruns = l->counts.underruns;
   m.stale_ticks = l->stale_ticks;
+  m.sigma_min = (float)l->sigma_min;
+  m.damping = (float)l->damping;
+  m.servo_scale = (float)l->servo_scale;
+  m.clearance = (float)NAN; /* no clearance in ctrl_output yet */
   send(l, FW_LINK_TELEMETRY, body, fw_link_pack_telemetry(&m, body));
 }
 
@@ -712,6 +1047,10 @@ void fw_link_output(fw_link *l, const ctrl_output *out) {
   if (l->reply_hello) {
     send_hello_reply(l);
     l->reply_hello = 0;
+  }
+  if (l->reply_ack) {
+    send_ack(l);
+    l->reply_ack = 0;
   }
   if (l->reply_telemetry || (l->session && l->telemetry_period > 0u && l->tick % l->telemetry_period == 0u)) {
     send_telemetry(l);

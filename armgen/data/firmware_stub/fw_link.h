@@ -32,9 +32,15 @@
  * (the step to the interpolated point, limited); the controller receives it as a setpoint.
  *
  * Servo: a tool twist (TWIST) followed at every tick by the resolved-rate step (the generated
- * step_gpm, damped), closed on the pose the executed twist integrates to; the joint velocities
- * are scaled down together (the tool's direction kept) so that every joint keeps its qdot_max,
- * its qddot_max and a braking distance to its limits.
+ * step_fault: gradient projection with the damping from sigma_min), closed on the pose the
+ * executed twist integrates to, with the chosen null-space criterion's self-motion; the joint
+ * velocities are scaled down together (the tool's direction kept) so that every joint keeps its
+ * qdot_max, its qddot_max and a braking distance to its limits.
+ *
+ * Pose stream: timed tool poses (POSE_WAYPOINT: pose and twist) interpolated in task space at
+ * every tick (position: cubic Hermite; orientation: a cubic Hermite of the rotation vector from
+ * the pose before) and followed by the same resolved-rate step; where the limits scale the step
+ * down the stream's clock slows alike, so the tool stays on the path.
  */
 #ifndef ARMGEN_FW_LINK_H
 #define ARMGEN_FW_LINK_H
@@ -66,18 +72,43 @@ extern "C" {
  * where the arm is, never with a jump. */
 #define FW_LINK_STREAM_START_TOL CTRL_LIT(1e-3)
 
-/* SERVO: the closed loop's gain on the tool's error from the integrated twist, 1/s (the
- * error decays as exp(-gain t); gain * dt << 1 at any tick up to 10 ms); the damping of the
- * resolved-rate step, m (finite joint speeds at a singular pose, scaled down by the limits);
- * the margin kept from a joint limit, rad (m). */
+/* SERVO and pose streams: the closed loop's gain on the tool's error from the reference pose,
+ * 1/s (the error decays as exp(-gain t); gain * dt << 1 at any tick up to 10 ms); the margin
+ * kept from a joint limit, rad (m). */
 #define FW_LINK_SERVO_GAIN CTRL_LIT(20.0)
-#define FW_LINK_SERVO_DAMPING CTRL_LIT(0.005)
 #define FW_LINK_SERVO_LIMIT_MARGIN CTRL_LIT(1e-3)
-/* SERVO's self-motion: alpha = -gain * grad H_L, the generated Zghal joint-limit criterion's
- * descent in the null space (a redundant arm drifts away from its limits while the tool follows
- * the twist; none on a zero twist, which brings the arm to rest); 1/s on the criterion's
- * gradient, the planners' order of rho_L. */
-#define FW_LINK_SERVO_NULL_GAIN CTRL_LIT(0.1)
+/* Their damping varies with sigma_min of J (the generated step_fault's rule, spec 30):
+ * lambda^2 = (1 - (sigma_min / epsilon)^2) lambda_max^2 below epsilon, 0 above it, so the step
+ * is the exact one away from singular poses and the joint speeds stay finite (at most
+ * |x_dot| / (2 lambda_max)) at one; the limits then scale the step down. sigma_min in J's
+ * units (m/rad on the position rows). */
+#define FW_LINK_SERVO_EPSILON CTRL_LIT(0.02)
+#define FW_LINK_SERVO_LAMBDA_MAX CTRL_LIT(0.02)
+/* Their self-motion (SERVO_SETUP.criterion; a redundant arm's null space; none while the
+ * reference is still, so that a zero twist or a stream's end comes to rest): the default gains,
+ * alpha = -gain grad H for the criteria minimised (joint limits, 1/s on H_L's gradient, the
+ * planners' order of rho_L; rest, 1/s: q - q_start decays as exp(-t) in the null space) and
+ * +gain grad H for those maximised (manipulability, joint manipulability: 1/s on their
+ * gradients, which are of the order of w); the manipulabilities' smoothing delta. */
+#define FW_LINK_GAIN_JOINT_LIMITS CTRL_LIT(0.1)
+#define FW_LINK_GAIN_MANIPULABILITY CTRL_LIT(1.0)
+#define FW_LINK_GAIN_JOINT_MANIPULABILITY CTRL_LIT(1.0)
+#define FW_LINK_GAIN_REST CTRL_LIT(1.0)
+#define FW_LINK_MANIPULABILITY_DELTA CTRL_LIT(1e-4)
+/* A pose stream's first pose must lie this close to the held command's tool pose (m, rad): the
+ * stream starts where the tool is, never with a jump. Consecutive poses of a stream differ by
+ * less than a quarter turn (the interpolation's rotation vector is then unique). */
+#define FW_LINK_POSE_START_TOL_M CTRL_LIT(1e-3)
+#define FW_LINK_POSE_START_TOL_RAD CTRL_LIT(1e-3)
+/* A pose's rotation must be orthonormal to this (|R^T R - I| entrywise): the wire's single
+ * precision of a double rotation is ~1e-7. */
+#define FW_LINK_POSE_ORTHO_TOL CTRL_LIT(1e-4)
+/* A pose stream has arrived when the tool is this close to its last pose (m, rad) with every
+ * joint slow enough to stop within a tick: then the command rests there. The closed loop
+ * brings the error below it in ~0.5 s from a millimetre (exp(-20 t)); the float build's FK
+ * rounds to ~1e-7 m. */
+#define FW_LINK_POSE_ARRIVE_M CTRL_LIT(1e-5)
+#define FW_LINK_POSE_ARRIVE_RAD CTRL_LIT(1e-4)
 
 /* A frame: header, body, CRC-32 (FW_LINK_MAX_RAW); COBS adds one byte per 254 and the first. */
 #define FW_LINK_MAX_RAW (FW_LINK_HEADER_SIZE + FW_LINK_MAX_BODY + FW_LINK_CRC_SIZE)
@@ -94,10 +125,18 @@ typedef struct {
   ctrl_real q[CTRL_NDOF], qd[CTRL_NDOF];
 } fw_link_waypoint_slot;
 
+/* A tool pose of a pose stream; phi: the rotation vector from the pose before to this one
+ * (base frame), computed once on arrival. */
 typedef struct {
-  /* the controller's limits (copied from its configuration) */
+  uint32_t t_us;
+  uint8_t last;
+  ctrl_real p[3], R[9], twist[6], phi[3];
+} fw_link_pose_slot;
+
+typedef struct {
+  /* the controller's limits and start (copied from its configuration) */
   ctrl_real dt;
-  ctrl_real q_min[CTRL_NDOF], q_max[CTRL_NDOF], qd_max[CTRL_NDOF], qdd_max[CTRL_NDOF];
+  ctrl_real q_min[CTRL_NDOF], q_max[CTRL_NDOF], qd_max[CTRL_NDOF], qdd_max[CTRL_NDOF], q_start[CTRL_NDOF];
   uint32_t watchdog_ticks;
   /* receive */
   uint8_t ring[FW_LINK_RX_RING];
@@ -110,7 +149,8 @@ typedef struct {
   int session;
   uint16_t rx_seq, tx_seq, ack_seq, telemetry_period;
   uint8_t result;
-  int reply_telemetry, reply_hello, hello_accepted;
+  int reply_telemetry, reply_ack, reply_hello, hello_accepted;
+  uint8_t replies; /* HELLO.replies: FW_LINK_REPLY_TELEMETRY or FW_LINK_REPLY_ACK */
   uint32_t tick, last_frame_tick;
   fw_link_counts counts;
   /* this tick's command from a frame */
@@ -118,17 +158,24 @@ typedef struct {
   ctrl_real target[16];
   ctrl_real q_target[CTRL_NDOF];
   uint32_t locked;
-  /* stream */
+  /* stream: of joint waypoints (wp) or of tool poses (pose_wp, stream_poses), one ring */
   fw_link_waypoint_slot wp[FW_LINK_WAYPOINTS];
+  fw_link_pose_slot pose_wp[FW_LINK_WAYPOINTS];
   uint32_t wp_first, wp_count, stream_k;
   int streaming, stream_ended, stream_arrived; /* ended: its last waypoint received; arrived: the arm is there */
+  int stream_poses;
+  ctrl_real pose_t; /* a pose stream's clock, s: advanced by the step's scale each tick */
   /* servo */
   int servoing;
   uint32_t servo_k;
   ctrl_real twist[6];              /* the last TWIST, [v; w] in the base frame */
   ctrl_real p_ref[3], R_ref[9];    /* the tool pose of the twist as executed (scaled), integrated */
-  ctrl_real servo_scale;           /* the scale of the last servo tick, (0, 1] */
+  ctrl_real servo_scale;           /* the scale of the last resolved-rate step, (0, 1] */
+  ctrl_real sigma_min, damping;    /* of the last resolved-rate step (sigma_min NaN before one) */
   int task_rows[CTRL_NTASK], servo_rows_known;
+  uint8_t criterion, task_criterion; /* the self-motion (FW_LINK_CRITERION_*): chosen, the task's */
+  ctrl_real null_gain, task_gain;
+  ctrl_real hm_weights[CTRL_NDOF];   /* the joint manipulability's a_i: the task's, else 1 */
   /* the watchdog's stop */
   int stale, stopping;    /* stopping: the ramp to rest runs, then stop_end goes to the controller */
   ctrl_command stop_end;  /* CTRL_CMD_STALE (the watchdog) or CTRL_CMD_STOP (a STOP frame) */

@@ -26,7 +26,9 @@ $sizes
 $results
 /* TELEMETRY.link_flags bits */
 $flags
-$structs
+/* HELLO.replies: the reply to a command frame */
+$replies/* SERVO_SETUP.criterion: the self-motion of SERVO and pose streams */
+$criteria$structs
 /* Every message in one object (the generic parser's output). */
 typedef union {
 $union_members
