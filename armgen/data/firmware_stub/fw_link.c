@@ -1038,7 +1038,11 @@ static void send_telemetry(fw_link *l) {
   m.sigma_min = (float)l->sigma_min;
   m.damping = (float)l->damping;
   m.servo_scale = (float)l->servo_scale;
-  m.clearance = (float)NAN; /* no clearance in ctrl_output yet */
+#if CTRL_HAS_COLLISION
+  m.clearance = o->clearance == CTRL_CLEARANCE_UNCHECKED ? (float)NAN : (float)o->clearance;
+#else
+  m.clearance = (float)NAN; /* a robot without a collision model: nothing computed */
+#endif
   send(l, FW_LINK_TELEMETRY, body, fw_link_pack_telemetry(&m, body));
 }
 
