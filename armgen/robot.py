@@ -406,7 +406,8 @@ class Robot(RobotDescription):
         max_iterations
             Stop after this many steps (an int, 1 to the default,
             ``armgen.symbolic.ik.MAX_ITERATIONS``): a bound on the time a solve takes, at the
-            price of more misses.
+            price of more misses. It bounds the collision search's steps too (whose solves from
+            other starts then do not run: each needs a whole ``max_iterations``).
         obstacles
             :class:`~armgen.description.collision.SphereObstacle`, ``CapsuleObstacle``,
             ``BoxObstacle``, ``PlaneObstacle`` (SI, base frame) the solution must keep clear of.
@@ -470,7 +471,7 @@ class Robot(RobotDescription):
                                pos.reshape(batch_shape), ori.reshape(batch_shape),
                                iterations.reshape(batch_shape).astype(int))
         search = _CollisionFreeSearch(self, targets, np.broadcast_to(rest, (len(targets), self.n)), use_rest,
-                                      (tol_p, tol_o, cap), *checked)
+                                      (tol_p, tol_o, cap, None if max_iterations is None else cap), *checked)
         found = search.run(q.T.copy(), success.reshape(-1) != 0, pos.reshape(-1), ori.reshape(-1),
                            iterations.reshape(-1).astype(int))
         return ik.IKResult(found.q.reshape(batch_shape + (self.n,)), found.success.reshape(batch_shape),
@@ -644,15 +645,17 @@ class _CollisionFreeSearch:
     the arm's self-motion down the collision criterion's gradient, ``Δq ∝ −(I − J⁺J) ∇H_C``,
     each step brought back onto the pose by the solver (from the moved configuration, its
     self-motion held there); when that does not clear it, the pose is solved again from the
-    solver's restart sequence and each answer repaired the same way. Deterministic."""
+    solver's restart sequence and each answer repaired the same way. Deterministic, and a pose
+    gets the answer its row of a batch gets. With a step ``budget`` (the caller's
+    max_iterations) a pose takes part in a solve only while it has that solve's steps left."""
 
     def __init__(self, robot: Robot, targets: np.ndarray, rest: np.ndarray, use_rest: float,
-                 settings: tuple[float, float, int], obstacles: tuple[Obstacle, ...], clearance: float,
+                 settings: tuple[float, float, int, int | None], obstacles: tuple[Obstacle, ...], clearance: float,
                  activation: float):
         from .description.collision import obstacle_parameters
 
         self.robot, self.targets, self.rest, self.use_rest = robot, targets, rest, use_rest
-        self.tol_position, self.tol_orientation, self.cap = settings
+        self.tol_position, self.tol_orientation, self.cap, self.budget = settings
         self.clearance, self.activation = clearance, activation
         self.parameters = obstacle_parameters(obstacles, robot.collision.slots)
         self.rows = list(robot.task_rows)
@@ -673,6 +676,10 @@ class _CollisionFreeSearch:
             return np.empty(0)
         return self._evaluate("collision_distances", q)["d"].min(axis=-1)
 
+    def affords(self, used: np.ndarray, steps: int) -> np.ndarray:
+        """Which poses, having spent ``used`` steps, may take a solve of ``steps`` more."""
+        return np.ones(len(used), bool) if self.budget is None else used + steps <= self.budget
+
     def _solve(self, index: np.ndarray, start: np.ndarray, rest: np.ndarray, use_rest: float,
                cap: int) -> tuple[np.ndarray, ...]:
         q, pos, ori, iterations, success = self.robot._ik_outputs(self.targets[index], np.ascontiguousarray(start),
@@ -680,28 +687,29 @@ class _CollisionFreeSearch:
                                                                    self.tol_position, self.tol_orientation, cap)
         return q.T, pos.reshape(-1), ori.reshape(-1), iterations.reshape(-1).astype(int), success.reshape(-1) != 0
 
-    def repair(self, index: np.ndarray, q: np.ndarray, least: np.ndarray, pos: np.ndarray,
-               ori: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Move the solutions ``q`` (least distance ``least``, pose errors ``pos``, ``ori``) of
-        poses ``index`` along the self-motion until clear: the four updated, and the iterations spent."""
+    def repair(self, index: np.ndarray, q: np.ndarray, least: np.ndarray, pos: np.ndarray, ori: np.ndarray,
+               used: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Move the solutions ``q`` (least distance ``least``, pose errors ``pos``, ``ori``, steps
+        ``used`` so far) of poses ``index`` along the self-motion until clear: the five updated."""
         robot = self.robot
-        q, least, pos, ori = q.copy(), least.copy(), pos.copy(), ori.copy()
-        spent = np.zeros(len(q), dtype=int)
+        q, least, pos, ori, used = q.copy(), least.copy(), pos.copy(), ori.copy(), used.copy()
         going = least < self.clearance
         for _ in range(REPAIR_STEPS):
+            going &= self.affords(used, POLISH_ITERATIONS)
             active = np.flatnonzero(going)
             if not active.size:
                 break
             gradient = self._evaluate("collision_criterion", q[active], clearance=self.clearance,
                                       activation=self.activation)["grad_H_C"]
             jacobian = robot.jacobian(q[active])[:, self.rows, :]
-            step = -(gradient - np.einsum("bij,bj->bi", np.linalg.pinv(jacobian),
-                                          np.einsum("bij,bj->bi", jacobian, gradient)))
+            # row by row: NumPy's stacked products round differently by the batch's size, and one
+            # pose must get the answer its row of a batch gets
+            step = -np.array([g - np.linalg.pinv(j) @ (j @ g) for j, g in zip(jacobian, gradient)])
             size = np.abs(step).max(axis=1)
             trial = np.clip(q[active] + step * (REPAIR_STEP / np.maximum(size, 1e-300))[:, None], robot.qmin, robot.qmax)
             moved, moved_pos, moved_ori, iterations, converged = self._solve(index[active], trial, trial, 1.0,
                                                                               POLISH_ITERATIONS)
-            spent[active] += iterations
+            used[active] += iterations
             moved_least = np.full(len(active), -np.inf)
             moved_least[converged] = self.least(moved[converged])
             better = converged & (moved_least >= least[active] + REPAIR_PROGRESS)
@@ -710,7 +718,7 @@ class _CollisionFreeSearch:
             pos[taken], ori[taken] = moved_pos[better], moved_ori[better]
             going[active[~better]] = False  # stalled: the self-motion does not widen the gap
             going[taken] = least[taken] < self.clearance
-        return q, least, pos, ori, spent
+        return q, least, pos, ori, used
 
     def run(self, q: np.ndarray, success: np.ndarray, pos: np.ndarray, ori: np.ndarray,
             iterations: np.ndarray) -> _Found:
@@ -722,6 +730,8 @@ class _CollisionFreeSearch:
         colliding = success & (least < self.clearance)
         for attempt in range(FALLBACK_STARTS + 1):
             index = np.flatnonzero(colliding)
+            if attempt > 0:  # a fresh start: only the poses with its steps left
+                index = index[self.affords(iterations[index], self.cap)]
             if not index.size:
                 break
             if attempt == 0:  # the solver's own answers first
@@ -737,9 +747,9 @@ class _CollisionFreeSearch:
                 start_least[converged] = self.least(start_q[converged])
             repaired = np.flatnonzero(converged)
             (start_q[repaired], start_least[repaired], start_pos[repaired], start_ori[repaired],
-             spent) = self.repair(index[repaired], start_q[repaired], start_least[repaired], start_pos[repaired],
-                                  start_ori[repaired])
-            iterations[index[repaired]] += spent
+             iterations[index[repaired]]) = self.repair(index[repaired], start_q[repaired], start_least[repaired],
+                                                        start_pos[repaired], start_ori[repaired],
+                                                        iterations[index[repaired]])
             better = start_least > least[index]  # the answer that comes least close, so far
             chosen = index[better]
             q[chosen], least[chosen] = start_q[better], start_least[better]

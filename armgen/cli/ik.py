@@ -1,7 +1,9 @@
 """``armgen ik ROBOT --xyz X Y Z --rpy R P Y``: the joint angles that put the tool at a pose
 (``docs/ik.md``). Exit 0 when found, 3 when not (the closest configuration reached is printed),
 also when the arm reaches its task rows but the pose asks for other values in the rows it does
-not control (a planar arm's z)."""
+not control (a planar arm's z), and when every configuration found that reaches the pose comes
+closer than the clearance to an obstacle of ``--obstacles`` or, for a robot with capsules, to
+the arm itself. A bad obstacle file is exit 2."""
 
 from __future__ import annotations
 
@@ -47,9 +49,12 @@ def _joints(robot, text: str, option: str, angle_scale: float) -> np.ndarray:
               help="stop after this many steps (default: the solver's cap, 450)")
 @click.option("--units", type=click.Choice(["rad", "deg"]), default="rad", show_default=True,
               help="angle unit of --rpy, --seed, --q0 and the printed joint angles")
+@click.option("--obstacles", "obstacles", type=click.Path(dir_okay=False), default=None,
+              help="a TOML file with [[obstacles]], [collision] (clearance, activation) and [units] as in a task "
+                   "file: the solution keeps the clearance from them (the robot needs [[collision]] capsules)")
 @handle_errors
 def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float, float] | None, seed: str | None,
-           q0: str | None, max_iterations: int | None, units: str) -> None:
+           q0: str | None, max_iterations: int | None, units: str, obstacles: str | None) -> None:
     """Inverse kinematics: joint values that put the tool at a pose (exit 3 when none is found)."""
     from ..api import OptionError, PlanningError, load_robot, solve_ik
     from ..description import matrix_rpy, rpy_matrix
@@ -71,11 +76,12 @@ def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float,
     # the orientation counts where the user gave one (--rpy), the position always (--xyz)
     result = solve_ik(r, pose, None if q0 is None else _joints(r, q0, "--q0", scale),
                       None if seed is None else _joints(r, seed, "--seed", scale), max_iterations,
-                      orientation_given=rpy_given is not None)
+                      orientation_given=rpy_given is not None, obstacles=obstacles)
     rows = ", ".join(TASK_ROWS[k] for k in r.task_rows)
     free_rows, free_position, free_orientation = (result.free_rows, result.free_position_error,
                                                   result.free_orientation_error)
-    click.echo(f"{'solved' if result.solved else 'closest reached'} in {result.iterations} "
+    click.echo(f"{'solved' if result.solved else 'reached, colliding,' if result.colliding else 'closest reached'} in "
+               f"{result.iterations} "
                f"iterations (task rows {rows}): position error {result.position_error:.3g} m, "
                f"orientation error {result.orientation_error:.3g} rad")
     if free_rows:
@@ -87,6 +93,14 @@ def ik_cmd(robot: str, xyz: tuple[float, float, float], rpy: tuple[float, float,
     for joint, value in zip(r.joints, result.q):
         shown, unit = (value / scale, units) if joint.revolute else (value, "m")
         click.echo(f"  {joint.name:12s} {shown: .9g} {unit}")
+    if result.clearance is not None:
+        click.echo(f"least distance {result.clearance * 1e3:.1f} mm ({result.pair}), clearance "
+                   f"{result.required_clearance * 1e3:.1f} mm")
+    if result.colliding:
+        raise PlanningError(f"no collision-free configuration of robot '{r.name}' was found for this pose: every one "
+                            f"that reaches it comes closer than the clearance ({result.required_clearance * 1e3:.1f} "
+                            f"mm); the one printed above comes to {result.clearance * 1e3:.1f} mm ({result.pair}). Move "
+                            "the pose or the obstacles, lower [collision] clearance, or try another --seed")
     if result.converged and not result.free_rows_match:
         raise PlanningError(f"robot '{r.name}' controls only the rows {rows} of the tool pose: the configuration "
                             f"found reaches those, but the pose asks for other values in the rows "

@@ -90,7 +90,9 @@ def configure_path_task(model: Any, robot: Robot, source: str) -> PathTask:
     """The shared part of a validated fault_tolerant or wgpm task (its ``start``, ``units``,
     ``path``, ``timing``, ``integrator``, ``damping`` and ``check.path_tolerance``) in SI on the
     task's loaded ``robot``; errors name ``source``'s field and the fix."""
-    q_start, label = start_configuration(model.start, model.units, robot, source, "start" in model.model_fields_set)
+    collision = configure_collision(model, robot, source)
+    q_start, label = start_configuration(model.start, model.units, robot, source, "start" in model.model_fields_set,
+                                         collision)
     ls, as_ = unit_scales(model.units)
     integ = model.integrator
     if integ.method != "euler":
@@ -103,7 +105,7 @@ def configure_path_task(model: Any, robot: Robot, source: str) -> PathTask:
                   clik_gain=integ.clik_gain, damping_epsilon=model.damping.epsilon,
                   damping_max=model.damping.lambda_max, output_every=integ.output_every,
                   tolerance=path_tolerance(model.check.path_tolerance, model.units.length, is_program),
-                  length_unit=model.units.length, collision=configure_collision(model, robot, source))
+                  length_unit=model.units.length, collision=collision)
     if is_program:  # its time comes from the program (no [timing])
         program = program_task(model.path, model.timing, robot, q_start, ls, as_, source)
         blank = PathTask(path_type="program", via=None, end=np.zeros(3), relative=False, turns=1.0, end_rotation=None,

@@ -108,7 +108,9 @@ def method_params(method: Method, angle_scale: float, source: str) -> MethodPara
 
 def configure(model: CartesianTaskFile, robot: Robot, source: str) -> CartesianTask:
     """The validated task on its loaded robot, in SI; errors name ``source``'s field and the fix."""
-    q_start, label = start_configuration(model.start, model.units, robot, source, "start" in model.model_fields_set)
+    collision = configure_collision(model, robot, source)
+    q_start, label = start_configuration(model.start, model.units, robot, source, "start" in model.model_fields_set,
+                                         collision)
     ls, as_ = unit_scales(model.units)
     program = None
     if isinstance(model.path, ProgramPath):
@@ -134,5 +136,5 @@ def configure(model: CartesianTaskFile, robot: Robot, source: str) -> CartesianT
         damping_max=float(model.damping.lambda_max), output_every=integ.output_every,
         program=None if program is None else program.spec, start_label=label,
         tolerance=path_tolerance(model.check.path_tolerance, model.units.length, program is not None or step_unset),
-        length_unit=model.units.length, source=source, collision=configure_collision(model, robot, source))
+        length_unit=model.units.length, source=source, collision=collision)
     return task if program is None else task.with_motion(program.motion)

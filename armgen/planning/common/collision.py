@@ -35,18 +35,20 @@ measures every plan's samples and :func:`enforce_clearance` refuses one below ``
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Annotated, Any, Callable, Literal, Optional, Union
 
 import casadi as ca
 import numpy as np
-from pydantic import Discriminator, Field, Tag, model_validator
+from pydantic import Discriminator, Field, Tag, ValidationError, model_validator
 
 from ...description.collision import (MAX_OBSTACLE_SLOTS, BoxObstacle, CapsuleObstacle, Obstacle, PlaneObstacle,
                                       SphereObstacle, obstacle_kind, obstacle_parameters)
 from ...description.files import ANGLE_UNITS, LENGTH_UNITS
 from ...errors import PlanningError, TaskFileError
 from ...robot import Robot
-from ...schemas import StrictModel, rule_error
+from ...schemas import (MAX_INPUT_FILE_BYTES, StrictModel, format_validation_error, parse_toml_bounded,
+                        read_input_file, rule_error)
 from ..backends import make_backend
 from .schema import NonNegative, Positive, Units, Vector3
 
@@ -199,6 +201,51 @@ def configure_collision(model: Any, robot: Robot | None, source: str) -> TaskCol
     except ValueError as exc:
         raise TaskFileError(f"{source}: field 'obstacles': {exc}") from None
     return TaskCollision(obstacles, None if settings is None else collision_si(settings, units), parameters)
+
+
+def ik_arguments(collision: TaskCollision | None) -> dict[str, Any]:
+    """The keyword arguments of :meth:`armgen.robot.Robot.ik` that keep its solutions clear of a
+    task's obstacles at its clearance (none for a task without [collision]: the robot's own
+    capsules, if any, are checked at clearance 0)."""
+    if collision is None:
+        return {}
+    settings = collision.settings
+    return {"obstacles": collision.obstacles,
+            **({} if settings is None else {"clearance": settings.clearance, "activation": settings.activation})}
+
+
+def nearest_pair(robot: Robot, q: np.ndarray, collision: TaskCollision | None) -> tuple[float, str]:
+    """The least distance (m) at ``q`` over the pairs a task checks and that pair, named as a plan
+    report names it (``"capsule 2 – obstacles[0] (sphere)"``)."""
+    obstacles = () if collision is None else collision.obstacles
+    distances = robot.collision_distances(q, obstacles)
+    entry = int(np.argmin(distances))
+    first, second = robot.collision_pairs()[entry]
+    if entry >= len(robot.collision.self_pairs()):
+        second = _pair_name(second, obstacles)
+    return float(distances[entry]), f"{first} – {second}"
+
+
+class ObstacleFile(CollisionFields):
+    """An obstacle file (``armgen ik --obstacles``): a task's ``[units]``, ``[[obstacles]]`` and
+    ``[collision]`` tables alone (``gain`` is the planners' and is not used by the IK)."""
+
+    units: Units = Field(default_factory=Units, description="length and angle units of the file")
+
+
+def load_obstacle_file(path: str | Path, robot: Robot) -> TaskCollision | None:
+    """The obstacles and clearance of an obstacle file for ``robot``, in SI; errors
+    (:class:`~armgen.errors.TaskFileError`, exit 2) name the file, the field and the fix."""
+    source = str(path)
+    document = parse_toml_bounded(read_input_file(path, MAX_INPUT_FILE_BYTES, "obstacle file", TaskFileError),
+                                  source, TaskFileError)
+    try:
+        model = ObstacleFile.model_validate(document)
+    except ValidationError as exc:
+        raise TaskFileError(format_validation_error(
+            exc, source, document, "an obstacle file holds [units], [[obstacles]] and [collision] as a task file does "
+            "(docs/collision.md)")) from None
+    return configure_collision(model, robot, source)
 
 
 # The collision criterion's inputs besides q, by the name CasADi gives them; in a kernel each

@@ -13,6 +13,7 @@ from ...description.files import ANGLE_UNITS, LENGTH_UNITS
 from ...description.model import MAX_ABS_LENGTH_M
 from ...errors import TaskFileError, excerpt
 from ...robot import Robot
+from .collision import TaskCollision, ik_arguments
 from .schema import Start, StartPose, Units
 
 
@@ -33,12 +34,13 @@ def joint_values(values: list[float], robot: Robot, field: str, source: str, len
 
 
 def start_configuration(start: Start, units: Units, robot: Robot, source: str,
-                        given: bool = True) -> tuple[np.ndarray, str]:
+                        given: bool = True, collision: TaskCollision | None = None) -> tuple[np.ndarray, str]:
     """The start configuration (SI, within the robot's limits) and its label. ``given`` False:
-    the task left ``start`` to its default (an error says so)."""
+    the task left ``start`` to its default (an error says so). A tool-pose start is solved clear
+    of the task's obstacles (``collision``) and of the arm itself."""
     ls, as_ = unit_scales(units)
     if isinstance(start, StartPose):
-        q_start, label = start_from_pose(robot, start, source, ls, as_)
+        q_start, label = start_from_pose(robot, start, source, ls, as_, collision)
     elif isinstance(start, str):
         if start not in robot.configurations:
             known = ", ".join(sorted(robot.configurations)) or "none"
@@ -62,9 +64,11 @@ def _urdf_hint(robot: Robot) -> str:
             "(urdf = \"...\" and a [configurations] table, docs/urdf.md)")
 
 
-def start_from_pose(robot: Robot, start: StartPose, source: str, ls: float, as_: float) -> tuple[np.ndarray, str]:
+def start_from_pose(robot: Robot, start: StartPose, source: str, ls: float, as_: float,
+                    collision: TaskCollision | None = None) -> tuple[np.ndarray, str]:
     """``start = { pose = { xyz, rpy }, seed = … }``: the joint values that reach the pose (the
-    robot's IK, inside the limits, its self-motion away from them), and a label saying which.
+    robot's IK, inside the limits, its self-motion away from them, clear of ``collision``'s
+    obstacles and of the arm itself at its clearance), and a label saying which.
     Without ``seed`` the IK starts from the robot's ``q0``, or, for a robot without one (a URDF
     holds no configurations), where ``armgen ik`` starts: the middle of the joint limits turned
     about the first joint's axis toward the pose; the label says so."""
@@ -84,9 +88,15 @@ def start_from_pose(robot: Robot, start: StartPose, source: str, ls: float, as_:
             f"{source}: field 'start.seed' = {excerpt(repr(seed))} is not a configuration of robot '{robot.name}' "
             f"(known: {known}); name one of them, give {robot.n} joint values, or leave start.seed out to start the "
             "IK from the robot's q0 (else from the middle of the joint limits, as armgen ik does)")
-    result = robot.ik(target, seed=seed)
+    result = robot.ik(target, seed=seed, **ik_arguments(collision))
     seed_label = (f"seed {seed!r}" if isinstance(seed, str) else "seed 'given joint values'" if seed is not None
                   else "the middle of the joint limits")
+    if result.colliding:  # reached, but only by configurations that collide
+        raise TaskFileError(
+            f"{source}: field 'start.pose': every configuration the inverse kinematics found (from {seed_label}) "
+            f"that reaches it comes closer than the clearance (the best: least distance "
+            f"{float(result.clearance) * 1e3:.1f} mm); move the pose or the obstacles, lower [collision] clearance, "
+            "or give a start.seed near a configuration clear of them")
     if not result.success:  # a pose outside the workspace: bad input (exit 2)
         raise TaskFileError(
             f"{source}: field 'start.pose' is not reachable: the inverse kinematics from {seed_label} stopped "

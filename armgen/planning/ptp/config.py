@@ -141,10 +141,11 @@ def configure(model: PtpTaskFile, robot: Robot | None, source: str) -> PtpConfig
         qlims = tuple(j.qlim for j in robot.joints)
     wp = model.waypoints
     solved = None
+    collision = configure_collision(model, robot, source)
     if wp.xyz is not None:
         assert robot is not None  # the schema refuses tool-pose waypoints without a robot
         rpy = None if wp.rpy is None else np.array(wp.rpy, dtype=float) * scale
-        solved = solve_pose_waypoints(robot, np.array(wp.xyz, dtype=float), rpy, wp.seed, source, scale)
+        solved = solve_pose_waypoints(robot, np.array(wp.xyz, dtype=float), rpy, wp.seed, source, scale, collision)
         thetas: list[Optional[np.ndarray]] = list(solved.q.T)
         omegas = (_per_joint(wp.omega, "waypoints.omega", names, single, scale, source) if wp.omega is not None
                   else [np.zeros(len(solved.q)) for _ in names])
@@ -161,7 +162,7 @@ def configure(model: PtpTaskFile, robot: Robot | None, source: str) -> PtpConfig
         None if wp.t is None else np.array(wp.t, dtype=float),
         _bounds(model.timing.omega_max, "timing.omega_max", names, nseg, scale, source),
         _bounds(model.timing.eps_max, "timing.eps_max", names, nseg, scale, source),
-        model.timing.grid, model.robot, solved, robot, configure_collision(model, robot, source))
+        model.timing.grid, model.robot, solved, robot, collision)
     if config.omega_max is not None:
         _check_bounds_against_waypoints(config)
     return config

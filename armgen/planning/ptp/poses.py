@@ -18,6 +18,7 @@ from ...description import rpy_matrix
 from ...description.model import TASK_ROWS
 from ...robot import Robot
 from ...symbolic.ik import TOL_ORIENTATION, TOL_POSITION
+from ..common.collision import TaskCollision, ik_arguments
 from ..common.start import joint_values
 
 METRES = 1.0  # a ptp task has no [units] length: its tool positions are in m
@@ -71,19 +72,25 @@ def _seed_configuration(robot: Robot, seed: str | list[float] | None, source: st
 
 
 def solve_pose_waypoints(robot: Robot, xyz: np.ndarray, rpy: np.ndarray | None, seed: str | list[float] | None,
-                         source: str, scale: float) -> SolvedPoses:
+                         source: str, scale: float, collision: TaskCollision | None = None) -> SolvedPoses:
     """The configurations of tool-pose waypoints: positions ``xyz`` (waypoints × 3, m) and
     orientations ``rpy`` (waypoints × 3, rad; None: the base frame's, and the orientation is
     free where the robot does not control it), each solved from the one before, the first from
     ``seed`` (a configuration name or joint values in the task's angle unit, ``scale`` rad per
-    unit)."""
+    unit); each clear of ``collision``'s obstacles and of the arm itself at its clearance."""
     q = _seed_configuration(robot, seed, source, scale)
     solved, position_errors, orientation_errors, iterations = [], [], [], []
     for k, (position, angles) in enumerate(zip(xyz, rpy if rpy is not None else np.zeros_like(xyz))):
         pose = np.eye(4)
         pose[:3, :3] = rpy_matrix(*angles)
         pose[:3, 3] = position
-        result = robot.ik(pose, q, seed=q)
+        result = robot.ik(pose, q, seed=q, **ik_arguments(collision))
+        if result.colliding:
+            raise PlanningError(f"{source}: waypoint {k} (waypoints.xyz[{k}] = {position.tolist()}): every "
+                                f"configuration of robot '{robot.name}' the inverse kinematics found that reaches it "
+                                f"comes closer than the clearance (the best: least distance "
+                                f"{float(result.clearance) * 1e3:.1f} mm); move the pose or the obstacles, or lower "
+                                "[collision] clearance")
         if not result.success:
             raise PlanningError(f"{source}: waypoint {k} (waypoints.xyz[{k}] = {position.tolist()}) is not reachable by "
                                 f"robot '{robot.name}' from the previous waypoint's configuration: the closest "
