@@ -134,32 +134,33 @@ def segment_box_witness(a: ca.SX, b: ca.SX, centre: ca.SX, rotation: ca.SX, half
     outside the box, and the box's signed distance of the segment's deepest point (negative)
     once it enters.
 
-    Outside: the squared distance of the segment's point ``p(t)`` from the box,
-    ``f(t) = Σ_i max(|p_i(t)| − h_i, 0)²``, is convex and C¹ in t, and its slope ``f'`` is piecewise
-    linear with its kinks where a coordinate crosses a face's plane (``p_i = ±h_i``). So the
-    slope at the two ends and the six crossings (clamped to the segment) brackets its root
-    between two neighbouring parameters with no kink between them, where one linear
-    interpolation finds it exactly. Inside, ``max_i(|p_i| − h_i)`` is convex and piecewise
-    linear along the segment, so its least value is at an end or a kink: where a coordinate
-    crosses 0, or where two of ``±p_i − h_i`` meet (15 parameters, each clamped and evaluated).
+    In the box frame the segment is ``p(t) = p0 + t d``; per axis k, with ``σ_k = ±1`` the sign of
+    ``d_k`` (+1 for 0), ``y_k(t) = σ_k p_k(t) = u_k + s_k t`` rises at ``s_k = |d_k|``.
+
+    Outside: the squared distance ``f(t) = Σ_k max(|p_k(t)| − h_k, 0)²`` is convex and C¹; its slope
+    ``f'(t)/2 = Σ_k s_k² (t − clamp(t, lo_k, hi_k))`` is nondecreasing and piecewise linear, with
+    its kinks at the ends ``lo_k, hi_k`` of the parameters where the segment is within axis k's
+    slab (``|p_k| ≤ h_k``). So the slope at the segment's ends and the six slab ends (clamped to
+    the segment) brackets its root between two neighbouring parameters with no kink between
+    them, where one linear interpolation finds it exactly.
+
+    Inside: the box's signed distance of ``p(t)``, ``g(t) = max_k(|p_k(t)| − h_k)``, is the upper
+    envelope of three rising lines ``y_k − h_k`` and three falling ones ``−y_k − h_k``, so its least
+    value on [0, 1] is the greatest, over the nine (rising i, falling j) pairs, of the pair's own
+    least value: ``max`` of the two lines at their crossing, clamped to the segment (Helly's
+    theorem in one dimension: intervals that meet pairwise all meet; a pair of two rising or two
+    falling lines is never greater than a rising–falling pair).
     """
     p0 = ca.mtimes(rotation.T, a - centre)
     direction = ca.mtimes(rotation.T, b - a)
-    nearest = _outside_parameter(p0, direction, half)
+    sigma = [2.0 * (direction[k] >= 0) - 1.0 for k in range(3)]
+    rise = [sigma[k] * direction[k] for k in range(3)]
+    start = [sigma[k] * p0[k] for k in range(3)]
+    nearest = _outside_parameter(start, rise, half)
     point = p0 + nearest * direction
     outside, away = _between(point - ca.fmin(ca.fmax(point, -half), half))
-    # the deepest point: the ends (where the face it is nearest gives the direction) and the kinks
-    # (an interior kink: its mix of two faces; one clamped to an end: that end's face)
-    deepest, deepest_at, kink, at_kink = _box_depth(p0, half), ca.SX(0.0), ca.SX.zeros(3, 1), ca.SX(0.0)
-    for raw, mix in [(ca.SX(1.0), ca.SX.zeros(3, 1))] + _kinks(p0, direction, half):
-        t = _clamp01(raw)
-        depth = _box_depth(p0 + t * direction, half)
-        deeper = depth < deepest
-        deepest, deepest_at = ca.if_else(deeper, depth, deepest), ca.if_else(deeper, t, deepest_at)
-        kink = ca.if_else(deeper, mix, kink)
-        at_kink = ca.if_else(deeper, (raw > 0) * (raw < 1), at_kink)
+    deepest, deepest_at, inward = _deepest(start, rise, sigma, half)
     inside = deepest < 0  # the axis enters the box exactly when its deepest point is inside
-    inward = ca.if_else(at_kink, kink, _face_normal(p0 + deepest_at * direction, half))
     normal = ca.if_else(inside, inward, away)
     return Witness(ca.if_else(inside, deepest, outside), ca.if_else(inside, deepest_at, nearest),
                    ca.mtimes(rotation, normal))
@@ -169,64 +170,66 @@ def segment_box(a: ca.SX, b: ca.SX, centre: ca.SX, rotation: ca.SX, half: ca.SX)
     return segment_box_witness(a, b, centre, rotation, half).distance
 
 
-def _outside_parameter(p0: ca.SX, direction: ca.SX, half: ca.SX) -> ca.SX:
-    """The t ∈ [0, 1] of the segment's point nearest the box (box frame), the root of the slope
-    of the squared distance bracketed by its values at the ends and the face crossings."""
-    def slope(t: ca.SX) -> ca.SX:
-        point = p0 + t * direction
-        return 2 * sum(ca.sign(point[k]) * ca.fmax(ca.fabs(point[k]) - half[k], 0.0) * direction[k] for k in range(3))
+def _outside_parameter(start: list[ca.SX], rise: list[ca.SX], half: ca.SX) -> ca.SX:
+    """The t ∈ [0, 1] of the segment's point nearest the box (box frame, per axis ``y = start +
+    rise t``), the root of the slope of the squared distance bracketed by its values at the ends
+    and the slab ends."""
+    inverse = [1.0 / ca.fmax(rise[k], DIVISION_FLOOR) for k in range(3)]
+    slab = [((-half[k] - start[k]) * inverse[k], (half[k] - start[k]) * inverse[k]) for k in range(3)]
+    weight = [rise[k] * rise[k] for k in range(3)]
 
-    candidates = [ca.SX(0.0), ca.SX(1.0)] + [_clamp01(_crossing(p0[k] - side * half[k], direction[k]))
-                                             for k in range(3) for side in (-1.0, 1.0)]
+    def slope(t: ca.SX) -> ca.SX:
+        return sum(weight[k] * (t - ca.fmin(ca.fmax(t, slab[k][0]), slab[k][1])) for k in range(3))
+
+    candidates = [ca.SX(0.0), ca.SX(1.0)] + [_clamp01(end) for pair in slab for end in pair]
     slopes = [slope(t) for t in candidates]
-    lo, hi, slope_lo, slope_hi = ca.SX(0.0), ca.SX(1.0), slopes[0], slopes[1]
-    for t, value in zip(candidates, slopes):  # the last parameter with slope ≤ 0, the first with slope ≥ 0
-        down, up = value <= 0, value >= 0
-        lo, slope_lo = ca.if_else(down * (t >= lo), t, lo), ca.if_else(down * (t >= lo), value, slope_lo)
-        hi, slope_hi = ca.if_else(up * (t <= hi), t, hi), ca.if_else(up * (t <= hi), value, slope_hi)
+    # the slope is nondecreasing: the last parameter where it is ≤ 0 and the first where it is ≥ 0
+    lo = hi = None
+    for t, value in zip(candidates, slopes):
+        below, above = (value <= 0) * t, 1.0 - (value >= 0) * (1.0 - t)
+        lo, hi = (below, above) if lo is None else (ca.fmax(lo, below), ca.fmin(hi, above))
+    slope_lo, slope_hi = slope(lo), slope(hi)
     # the slope is linear on [lo, hi]; a flat slope (0 on both sides) keeps lo, where f is least too
     return _clamp01(lo - slope_lo * (hi - lo) / ca.fmax(slope_hi - slope_lo, DIVISION_FLOOR))
 
 
-def _box_depth(p: ca.SX, half: ca.SX) -> ca.SX:
-    """``min(max_i(|p_i| − h_i), 0)``: minus the depth of ``p`` (box frame) inside the box, 0 outside."""
-    return ca.fmin(ca.fmax(ca.fmax(ca.fabs(p[0]) - half[0], ca.fabs(p[1]) - half[1]), ca.fabs(p[2]) - half[2]), 0.0)
+def _deepest(start: list[ca.SX], rise: list[ca.SX], sigma: list[ca.SX], half: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """(the least of ``g(t) = max_k(|p_k(t)| − h_k)`` on [0, 1], its t, the direction in which it
+    grows as the point at t moves; box frame) from the nine rising–falling pairs of lines.
+
+    At a crossing inside the segment the least value moves with the point along the mix
+    ``(s_j n_i + s_i n_j)/(s_i + s_j)`` of the two faces' normals (``n_i = σ_i e_i`` rising,
+    ``n_j = −σ_j e_j`` falling; 0 for the two faces of one axis, which balance); at a crossing
+    clamped to an end it is the greater line's face normal. Only the winning pair's axes are
+    carried through the nine comparisons; its crossing, weight and normal are computed once."""
+    best = best_i = best_j = None  # the greatest pair value; only its axes go through the selects
+    for i in range(3):
+        for j in range(3):
+            _, _, rising, falling = _meet(start[i], start[j], rise[i], rise[j], half[i], half[j])
+            value = ca.fmax(rising, falling)
+            if best is None:
+                best, best_i, best_j = value, ca.SX(i), ca.SX(j)
+                continue
+            greater = value > best
+            best, best_i, best_j = ca.fmax(value, best), ca.if_else(greater, i, best_i), ca.if_else(greater, j, best_j)
+    is_i, is_j = [best_i == k for k in range(3)], [best_j == k for k in range(3)]
+
+    def pick(mask: list[ca.SX], values: list[ca.SX] | ca.SX) -> ca.SX:
+        return mask[0] * values[0] + mask[1] * values[1] + mask[2] * values[2]
+
+    rise_i, rise_j = pick(is_i, rise), pick(is_j, rise)
+    at, t, rising, falling = _meet(pick(is_i, start), pick(is_j, start), rise_i, rise_j, pick(is_i, half),
+                                   pick(is_j, half))
+    # the rising face's share of the normal: s_j / (s_i + s_j) inside the segment, 1 or 0 at an end
+    weight = ca.if_else((at > 0) * (at < 1), rise_j / ca.fmax(rise_i + rise_j, DIVISION_FLOOR), rising >= falling)
+    normal = ca.vertcat(*[sigma[k] * (weight * is_i[k] - (1.0 - weight) * is_j[k]) for k in range(3)])
+    return best, t, normal
 
 
-def _face_normal(p: ca.SX, half: ca.SX) -> ca.SX:
-    """The outward normal of the face nearest the inside point ``p`` (box frame): ``sign(p_k) e_k``
-    for the k of the largest ``|p_k| − h_k``, the direction in which its depth falls fastest."""
-    excess = [ca.fabs(p[k]) - half[k] for k in range(3)]
-    first = (excess[0] >= excess[1]) * (excess[0] >= excess[2])
-    second = (1 - first) * (excess[1] >= excess[2])
-    third = 1 - first - second
-    return ca.vertcat(first * ca.sign(p[0]), second * ca.sign(p[1]), third * ca.sign(p[2]))
-
-
-def _crossing(offset: ca.SX, slope: ca.SX) -> ca.SX:
-    """The root t of ``offset + t slope`` (a large number of the right sign when slope is 0,
-    which the clamp to the segment then takes to an end)."""
-    return -offset * slope / ca.fmax(slope * slope, DIVISION_FLOOR)
-
-
-def _kinks(p0: ca.SX, direction: ca.SX, half: ca.SX) -> list[tuple[ca.SX, ca.SX]]:
-    """The parameters where ``max_i(|p_i(t)| − h_i)`` may kink: where two of its pieces
-    ``L = σ_i p_i − h_i`` meet, ``p_i = 0`` (3) and ``σ_i p_i − h_i = σ_j p_j − h_j`` for i < j and
-    signs σ (12); each with the direction in which the kink's value grows as the point moves,
-    ``(s₂ n₁ − s₁ n₂)/(s₂ − s₁)`` for the pieces' normals ``n = σ e_i`` and slopes along the segment
-    ``s = σ d_i``: at a kink the least value moves along the segment with it, so its derivative
-    is that mix of the two pieces' (0 where ``p_i = 0``: the two faces balance)."""
-    def unit(axis: int, sign: float) -> ca.SX:
-        out = ca.SX.zeros(3, 1)
-        out[axis] = sign
-        return out
-
-    kinks = [(_crossing(p0[k], direction[k]), ca.SX.zeros(3, 1)) for k in range(3)]
-    for i, j in ((0, 1), (0, 2), (1, 2)):
-        for si in (-1.0, 1.0):
-            for sj in (-1.0, 1.0):
-                first, second = si * direction[i], sj * direction[j]
-                spread = second - first
-                mix = (second * unit(i, si) - first * unit(j, sj)) * spread / ca.fmax(spread * spread, DIVISION_FLOOR)
-                kinks.append((_crossing(si * p0[i] - sj * p0[j] - half[i] + half[j], -spread), mix))
-    return kinks
+def _meet(start_i: ca.SX, start_j: ca.SX, rise_i: ca.SX, rise_j: ca.SX, half_i: ca.SX,
+          half_j: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+    """Where the rising line ``y_i − h_i`` meets the falling ``−y_j − h_j`` (the parameter, and
+    clamped to the segment) and the two lines' values at the clamped parameter."""
+    at = (half_i - half_j - start_i - start_j) / ca.fmax(rise_i + rise_j, DIVISION_FLOOR)
+    t = _clamp01(at)
+    return at, t, start_i - half_i + rise_i * t, -start_j - half_j - rise_j * t
