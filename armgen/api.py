@@ -344,7 +344,7 @@ class VerifyReport:
 def verify(robot: Robot | str | Path, plan: str | Path | None = None, samples: int = 10_000,
            precision: str | None = None, target: str | None = None, report: str | Path | None = None,
            echo: Callable[[str], None] | None = None, generated: str | Path | None = None,
-           run: str | Path | None = None) -> VerifyReport:
+           run: str | Path | None = None, again: bool = False) -> VerifyReport:
     """Check that generated C, fresh for the robot's file, does what the symbolic model does.
 
     Parameters
@@ -368,6 +368,9 @@ def verify(robot: Robot | str | Path, plan: str | Path | None = None, samples: i
         The folder ``armgen.generate`` wrote (default: ``./generated/<robot>/``).
     run
         What a firmware run printed (CSV), compared with ``plan``.
+    again
+        Redo every build and stage, even those whose passed verdict on the same code, plan and
+        options the kernel store holds (by default those are reused; docs/api.md#what-verify-reuses).
 
     Returns
     -------
@@ -385,7 +388,7 @@ def verify(robot: Robot | str | Path, plan: str | Path | None = None, samples: i
     config = VerifyConfig(loaded, Path(plan) if plan else None, samples, precisions, target,
                           generated=Path(generated) if generated else None,
                           robot_ref=loaded.source if isinstance(robot, Robot) else str(robot),
-                          run=Path(run) if run else None)
+                          run=Path(run) if run else None, reuse=not again)
     stages = run_pipeline(config, Path(report) if report else None, echo or (lambda _line: None))
     return VerifyReport(loaded.name, tuple(stages))
 

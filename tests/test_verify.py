@@ -76,8 +76,8 @@ def test_stale_code_is_reported_and_never_compiled(planar3_copy, monkeypatch, pr
     source = planar3_copy / "planar3.c"
     source.write_text(source.read_text() + "\n#error stale code was compiled\n")
     compiled = []
-    monkeypatch.setattr(pipeline, "build_library", lambda *a, **k: compiled.append(a))
-    monkeypatch.setattr(pipeline, "run_sanitized", lambda *a, **k: compiled.append(a))
+    monkeypatch.setattr(pipeline.reuse, "stored_library", lambda *a, **k: compiled.append(a))
+    monkeypatch.setattr(pipeline, "run_sanitized_program", lambda *a, **k: compiled.append(a))
     out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(planar3_copy), "--samples", "20"])
     assert out.exit_code == 5, out.output
     assert compiled == []
@@ -232,7 +232,7 @@ def test_every_long_stage_shows_a_progress_bar(planar3_copy, monkeypatch):
         bars[label] = (bar.count, total)
 
     monkeypatch.setattr(pipeline, "progress", recording)
-    config = VerifyConfig(load_robot("planar3"), samples=20, generated=planar3_copy)
+    config = VerifyConfig(load_robot("planar3"), samples=20, generated=planar3_copy, reuse=False)
     assert pipeline.passed(pipeline.run_pipeline(config, echo=lambda text: None))
     labels = list(bars)
     assert [label.split()[0].rstrip(",") for label in labels] == ["fresh", "compile", "callbacks"], labels
@@ -294,3 +294,63 @@ def test_float_ik_is_judged_by_its_pose_except_for_a_miss_the_double_solver_shar
     claimed = [g.copy() for g in got]
     claimed[success][:] = 1
     assert float_ik_errors(robot, inputs, claimed, refs)[0] == pytest.approx(reached, rel=1e-9)
+
+
+def _verify_report(folder: Path, report: Path, *options: str) -> dict:
+    out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(folder), "--samples", "20", "--precision", "double",
+                                   "--report", str(report), *options])
+    assert out.exit_code == 0, out.output
+    return {stage["name"]: stage for stage in json.loads(report.read_text())["stages"]}
+
+
+def test_a_second_verify_reuses_what_was_verified_and_rebuilds_a_tampered_library(planar3_copy, tmp_path, monkeypatch):
+    """The second verify of the same code and options reuses the stored verdicts (the report says
+    so); another sample count redoes the stages on the stored builds; a stored library whose
+    bytes were changed is rebuilt, not loaded; --again redoes everything."""
+    monkeypatch.setenv("ARMGEN_CACHE_DIR", str(tmp_path / "cache"))
+    report = tmp_path / "verify.json"
+    first = _verify_report(planar3_copy, report)
+    assert not first["compile"]["reused"] and not first["callbacks"]["reused"]
+    assert [row[3] for row in first["compile"]["rows"]] == [pipeline.BUILT_NOW] * 2
+
+    second = _verify_report(planar3_copy, report)
+    assert second["compile"]["reused"] and second["callbacks"]["reused"]
+    assert second["callbacks"]["rows"] == first["callbacks"]["rows"]
+    assert not second["fresh"]["reused"], "the fresh stage always runs"
+
+    (library,) = (tmp_path / "cache" / "kernels").glob("verify_planar3_double-*.so")
+    tampered = library.with_name("tampered")  # a new file, as an attacker's would be: the one loaded stays mapped
+    tampered.write_bytes(library.read_bytes() + b"\0")
+    tampered.replace(library)
+    third = _verify_report(planar3_copy, report, "--samples", "21")
+    assert not third["callbacks"]["reused"] and third["callbacks"]["rows"][0][2] == 21
+    assert [row[3] for row in third["compile"]["rows"]] == [pipeline.BUILT_NOW, pipeline.FROM_STORE]
+
+    again = _verify_report(planar3_copy, report, "--again")
+    assert not again["compile"]["reused"] and not again["callbacks"]["reused"]
+    assert [row[3] for row in again["compile"]["rows"]] == [pipeline.BUILT_NOW] * 2
+
+
+def test_a_verdict_is_not_reused_for_other_code_or_from_a_file_others_can_write(planar3_copy, tmp_path, monkeypatch):
+    """A verdict applies only to the bytes it was reached on: regenerated code of another robot
+    file is verified afresh; a stored verdict writable by group or others is not read."""
+    monkeypatch.setenv("ARMGEN_CACHE_DIR", str(tmp_path / "cache"))
+    report = tmp_path / "verify.json"
+    _verify_report(planar3_copy, report)
+    for record in (tmp_path / "cache" / "kernels").glob("verdict_c-*.json"):
+        record.chmod(0o664)
+    assert not _verify_report(planar3_copy, report)["callbacks"]["reused"]
+
+    report_first = _verify_report(planar3_copy, report)
+    assert report_first["callbacks"]["reused"], "(control: the same code is reused once its verdict is trusted)"
+
+    robot = tmp_path / "planar3.toml"  # the same arm but one limit: other code under the same names
+    robot.write_text((REPO / "robots" / "planar3.toml").read_text().replace("qlim = [-170, 170]", "qlim = [-160, 160]", 1))
+    other = tmp_path / "other"
+    assert CliRunner().invoke(cli, ["gen", str(robot), "-o", str(other)]).exit_code == 0
+    out = CliRunner().invoke(cli, ["verify", str(robot), "-o", str(other), "--samples", "20", "--precision", "double",
+                                   "--report", str(report)])
+    assert out.exit_code == 0, out.output
+    stages = {stage["name"]: stage for stage in json.loads(report.read_text())["stages"]}
+    assert not stages["compile"]["reused"] and not stages["callbacks"]["reused"]
+    assert [row[3] for row in stages["compile"]["rows"]] == [pipeline.BUILT_NOW] * 2

@@ -168,16 +168,18 @@ def plan_cmd(task_file: str, output: str | None, backend: str, overrides: tuple[
             old=("--generated",), type=click.Path(), default=None)
 @click.option("--run", "run_csv", type=click.Path(exists=True, dir_okay=False), default=None,
               help="what a firmware run printed (e.g. the demo of `armgen firmware`), compared with --plan")
+@click.option("--again", is_flag=True, default=False,
+              help="redo every build and stage (by default a passed verdict on the same code, plan and options is reused)")
 @handle_errors
 def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | None, target: str | None,
-               report: str | None, generated: str | None, run_csv: str | None) -> None:
+               report: str | None, generated: str | None, run_csv: str | None, again: bool) -> None:
     """Check that generated C (fresh for ROBOT's file) does what the symbolic reference does.
 
     Exit codes: 0 all stages passed, 2 bad input (no manifest, code generated from another
     robot file, a malformed plan), 4 a missing tool, 5 a stage failed (stale code included)."""
     from ..api import VerificationError, verify
 
-    if not verify(robot, plan_csv, samples, precision, target, report, click.echo, generated, run_csv):
+    if not verify(robot, plan_csv, samples, precision, target, report, click.echo, generated, run_csv, again):
         raise VerificationError("verification failed: see the FAIL stages above")
     click.echo("all stages passed")
 

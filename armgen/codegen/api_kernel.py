@@ -19,13 +19,13 @@ then and its values recorded in the entry (with the functions' signatures), so t
 runs the same self-test against them without building a CasADi function (~2 ms rather than
 ~0.3 s, what a one-pose ``armgen ik`` would pay). It is built in a private folder of the store and
 moved into place by ``os.replace`` (the entry last), so a reader sees a whole entry or none;
-processes building the same kernel take turns on a lock (:func:`_build_lock`), and without one
+processes building the same kernel take turns on a lock
+(:func:`~armgen.codegen.kernel_store.build_lock`), and without one
 each leaves a whole file.
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import functools
 import hashlib
@@ -42,7 +42,6 @@ import tempfile
 import warnings
 from pathlib import Path
 from types import ModuleType
-from typing import Iterator
 
 import casadi as ca
 import numpy as np
@@ -280,7 +279,7 @@ def load_api_kernel(model: SymbolicModel) -> ApiKernel | None:
             return _LOADED[digest]
         kernel = _stored(model, digest)
         if kernel is None:
-            with _build_lock(_names(model, digest)[0].with_suffix(".lock")):
+            with kernel_store.build_lock(_names(model, digest)[0].with_suffix(".lock")):
                 kernel = _stored(model, digest) or _built(model, functions, digest)  # (another process's, meanwhile)
     # (a robot the generator cannot take, CasADi's RuntimeError, a failed compile or import: the
     # reference still evaluates it)
@@ -289,25 +288,6 @@ def load_api_kernel(model: SymbolicModel) -> ApiKernel | None:
         return None
     _LOADED[digest] = kernel
     return kernel
-
-
-@contextlib.contextmanager
-def _build_lock(path: Path) -> Iterator[None]:
-    """Processes building the same kernel take turns (``flock`` on ``path``): the second then
-    finds it stored rather than building it too (a sweep's workers, pytest's). Where ``fcntl`` is
-    missing each builds; ``os.replace`` keeps the store whole either way."""
-    try:
-        import fcntl
-    except ImportError:
-        yield
-        return
-    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0), 0o600)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-        yield
-    finally:
-        fcntl.flock(fd, fcntl.LOCK_UN)
-        os.close(fd)
 
 
 def _warn_fallback(reason: str) -> None:
@@ -334,7 +314,7 @@ def _python_include() -> str:
 
 
 @functools.lru_cache(maxsize=1)
-def _code_fingerprint() -> str:
+def code_fingerprint() -> str:
     """armgen's Python sources and C templates: an edit to either builds the kernel afresh."""
     digest = hashlib.sha256(f"{API_KERNEL_FORMAT} {ca.__version__} {np.__version__}".encode())
     package = Path(__file__).resolve().parents[1]
@@ -353,7 +333,7 @@ def _kernel_digest(model: SymbolicModel, functions: tuple[str, ...]) -> str:
     fields = {f.name: getattr(model.robot, f.name) for f in dataclasses.fields(model.robot)
               if f.name not in PLACE_FIELDS}
     robot = hashlib.sha256(pickle.dumps(fields, protocol=4)).hexdigest()
-    identity = repr((_code_fingerprint(), _toolchain_identity(), robot, functions))
+    identity = repr((code_fingerprint(), _toolchain_identity(), robot, functions))
     return hashlib.sha256(identity.encode()).hexdigest()[:24]
 
 

@@ -15,7 +15,9 @@ function is deserialised), so it is used only when nobody but this user can writ
 from __future__ import annotations
 
 import atexit
+import contextlib
 import hashlib
+import json
 import os
 import re
 import shutil
@@ -23,6 +25,7 @@ import stat
 import tempfile
 import warnings
 from pathlib import Path
+from typing import Any, Callable, Iterator
 
 # The largest file the store reads back: the wgpm clamp kernel's library is ~6 MB, its
 # serialised function ~20 MB; anything far larger is not an entry this code wrote.
@@ -122,6 +125,123 @@ def read_trusted(path: Path) -> bytes | None:
 
 def digest(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
+
+
+@contextlib.contextmanager
+def build_lock(path: Path) -> Iterator[None]:
+    """Processes building the same entry take turns (``flock`` on ``path``): the second then
+    finds it stored rather than building it too (a sweep's workers, pytest's). Where ``fcntl`` is
+    missing each builds; ``os.replace`` keeps the store whole either way."""
+    try:
+        import fcntl
+    except ImportError:
+        yield
+        return
+    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0), 0o600)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+
+
+# What a content-addressed entry may be called: a readable stem and the digest of what it is made of.
+_ENTRY_STEM = re.compile(r"[A-Za-z0-9_]{1,100}")
+
+
+def _entry_paths(stem: str, key: str, suffix: str) -> tuple[Path, Path]:
+    """(entry, file) of the entry ``stem``-``key``: the JSON entry and the file it vouches for."""
+    if not _ENTRY_STEM.fullmatch(stem) or not re.fullmatch(r"[0-9a-f]{24,64}", key):
+        raise ValueError(f"not a store entry name: {stem!r}, {key!r}")
+    store = store_dir()
+    return store / f"{stem}-{key[:24]}.json", store / f"{stem}-{key[:24]}{suffix}"
+
+
+def stored_file(stem: str, key: str, suffix: str, build: Callable[[Path], Path],
+                again: bool = False) -> tuple[Path, bool]:
+    """A file made from what ``key`` digests (a compiled library or program): the stored one when
+    its entry is trusted and the file's bytes match the SHA-256 the entry records, else the one
+    ``build(folder)`` writes into a private folder of the store, sealed and moved into place (the
+    entry last). Returns (path, whether it was built now). A file that does not match its entry
+    (edited, truncated, replaced) is never used: it is built again and replaced; ``again``
+    builds and replaces it whatever the store holds."""
+    entry_path, path = _entry_paths(stem, key, suffix)
+    stored = None if again else _matching(entry_path, path, key)
+    if stored is not None:
+        return stored, False
+    with build_lock(entry_path.with_suffix(".lock")):
+        stored = None if again else _matching(entry_path, path, key)  # (another process's, meanwhile)
+        if stored is not None:
+            return stored, False
+        with tempfile.TemporaryDirectory(prefix=f"{stem}-", dir=path.parent) as tmp:
+            built = build(Path(tmp))
+            sha256 = seal(built)
+            os.replace(built, path)  # atomic: a reader sees the old file or the whole new one
+            entry = Path(tmp) / "entry.json"
+            entry.write_text(json.dumps({"key": key, "file": path.name, "sha256": sha256}), encoding="utf-8")
+            seal(entry)
+            os.replace(entry, entry_path)  # last: the entry vouches only for a whole file
+        prune(path.parent)
+    return path, True
+
+
+def _matching(entry_path: Path, path: Path, key: str) -> Path | None:
+    """``path`` when the trusted entry names it for ``key`` and its bytes have the recorded SHA-256."""
+    entry = read_record_file(entry_path)
+    if entry is None or entry.get("key") != key or entry.get("file") != path.name:
+        return None
+    data = read_trusted(path)
+    if data is None or digest(data) != entry.get("sha256"):
+        return None
+    os.utime(entry_path)  # used now: pruned last
+    os.utime(path)
+    return path
+
+
+def read_record_file(path: Path) -> dict[str, Any] | None:
+    """A JSON object the store holds at ``path``, or None (missing, untrusted, not an object)."""
+    text = read_trusted(path)
+    try:
+        value = json.loads(text) if text is not None else None
+    except ValueError:
+        return None
+    return value if isinstance(value, dict) else None
+
+
+def read_record(stem: str, key: str) -> dict[str, Any] | None:
+    """The record stored for ``key`` (:func:`write_record`), or None. It applies only to what
+    ``key`` digests: the caller composes the key from the content hashes of every input."""
+    path, _ = _entry_paths(stem, key, "")
+    record = read_record_file(path)
+    if record is None or record.get("key") != key:
+        return None
+    os.utime(path)
+    return record.get("value")
+
+
+def _plain(value: Any) -> Any:
+    """A NumPy scalar (a verdict's bool, an error's float) as the Python value JSON writes."""
+    if hasattr(value, "item"):
+        return value.item()
+    raise TypeError(f"{type(value).__name__} is not JSON")
+
+
+def write_record(stem: str, key: str, value: Any) -> None:
+    """Store ``value`` (JSON) for ``key``, replacing any record there whole (``os.replace``);
+    an unwritable store only means the work is done again next time."""
+    path, _ = _entry_paths(stem, key, "")
+    try:
+        fd, name = tempfile.mkstemp(prefix=f".{stem}-", suffix=".json", dir=path.parent)
+    except OSError:
+        return
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            json.dump({"key": key, "value": value}, handle, default=_plain)
+        seal(Path(name))
+        os.replace(name, path)
+    except OSError:
+        Path(name).unlink(missing_ok=True)
 
 
 def seal(path: Path) -> str:

@@ -3,6 +3,8 @@ executables, and a clear error when a compiler is missing."""
 
 from __future__ import annotations
 
+import functools
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -28,6 +30,17 @@ def find_tool(name: str, install_hint: str) -> str:
 
 def host_cc() -> str:
     return find_tool("gcc", "install a C compiler (apt-get install -y gcc)")
+
+
+def compiler_identity() -> str:
+    """The host compiler's path and version: a stored build of another compiler is not reused."""
+    return _identity(os.path.realpath(host_cc()))
+
+
+@functools.lru_cache(maxsize=8)
+def _identity(cc: str) -> str:
+    version = run_tool([cc, "--version"], "asking the C compiler its version", timeout=60).stdout
+    return repr((cc, version.splitlines()[:1]))
 
 
 def run_tool(cmd: Sequence[str], what: str, cwd: str | Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:

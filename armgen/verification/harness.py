@@ -4,12 +4,14 @@ out-of-bounds access or undefined behaviour in the generated code into a failing
 
 from __future__ import annotations
 
+import hashlib
 import tempfile
 from pathlib import Path
 
 import casadi as ca
 
-from ..codegen.toolchain import SANITIZER_FLAGS, STRICT_FLAGS, host_cc, run_tool
+from ..codegen import kernel_store
+from ..codegen.toolchain import SANITIZER_FLAGS, STRICT_FLAGS, compiler_identity, host_cc, run_tool
 from ..errors import ToolchainError
 
 
@@ -83,28 +85,59 @@ int main(void) {{
 
 
 def run_sanitized(gen_dir: str | Path, prefix: str, functions: dict[str, ca.Function], precision: str) -> str:
-    """Build the driver with ASan/UBSan and the strict flags, run it, return its output.
+    """Build the driver with ASan/UBSan and the strict flags (or take the stored build of the
+    same code: :func:`sanitizer_program`), run it, return its output."""
+    return run_sanitized_program(gen_dir, prefix, functions, precision)[0]
 
-    The build has no debug information: it does not change what the sanitizers instrument or
-    detect, and leaving it out halves the compile of a large generated file. Only when the run
-    fails is the driver rebuilt with ``-g`` and rerun, so the error shows source lines."""
+
+def run_sanitized_program(gen_dir: str | Path, prefix: str, functions: dict[str, ca.Function],
+                          precision: str, again: bool = False) -> tuple[str, bool]:
+    """The driver's output, and whether the program was built now (else it came from the store).
+
+    The program has no debug information: it does not change what the sanitizers instrument
+    or detect, and leaving it out halves the compile of a large generated file. Only when the
+    run fails is the driver rebuilt with ``-g`` and rerun, so the error shows source lines."""
+    program, built = sanitizer_program(gen_dir, prefix, functions, precision, again)
+    what = f"running the sanitizer driver for {prefix} ({precision})"
+    try:
+        return run_tool([str(program)], what).stdout, built
+    except ToolchainError:
+        with tempfile.TemporaryDirectory(prefix="armgen-san-") as tmp:
+            debug = _build_driver(Path(gen_dir), prefix, functions, precision, Path(tmp), ("-g",))
+            return run_tool([str(debug)], what).stdout, True  # the same failure, now with source lines
+
+
+def sanitizer_program(gen_dir: str | Path, prefix: str, functions: dict[str, ca.Function],
+                      precision: str, again: bool = False) -> tuple[Path, bool]:
+    """The sanitizer driver of the code in ``gen_dir``, from the kernel store when it holds the
+    build of the same bytes (driver, ``<prefix>.c`` and ``.h``, compiler and flags; its SHA-256
+    checked) and not ``again``, else built now and stored; and whether it was built now."""
     gen_dir = Path(gen_dir)
-    with tempfile.TemporaryDirectory(prefix="armgen-san-") as tmp:
-        work = Path(tmp)
-        driver = work / "driver.c"
-        driver.write_text(render_driver(prefix, functions), encoding="utf-8")
-        flag = 1 if precision == "float" else 0
+    driver = render_driver(prefix, functions)
+    sources = {name: (gen_dir / name).read_bytes() for name in (f"{prefix}.c", f"{prefix}.h")}
+    key = hashlib.sha256(repr((compiler_identity(), STRICT_FLAGS, SANITIZER_FLAGS, SANITIZER_OPTIMISATION, precision,
+                               prefix, driver, sorted(sources.items()))).encode()).hexdigest()
 
-        def build_and_run(debug: tuple[str, ...]) -> str:
-            exe = work / ("driver_g" if debug else "driver")
-            run_tool([host_cc(), *STRICT_FLAGS, "-O1", *debug, *SANITIZER_FLAGS, f"-D{prefix.upper()}_USE_FLOAT={flag}",
-                      f"-I{gen_dir}", str(driver), str(gen_dir / f"{prefix}.c"), "-o", str(exe), "-lm"],
-                     f"building the sanitizer driver for {prefix} ({precision})")
-            return run_tool([str(exe)], f"running the sanitizer driver for {prefix} ({precision})").stdout
+    def build(folder: Path) -> Path:
+        for name, data in sources.items():  # the bytes the key digests, whatever the folder holds now
+            (folder / name).write_bytes(data)
+        return _build_driver(folder, prefix, functions, precision, folder, (), driver)
 
-        try:
-            return build_and_run(())
-        except ToolchainError as exc:
-            if "running the sanitizer driver" not in str(exc):
-                raise
-            return build_and_run(("-g",))  # the same failure, now with source lines
+    return kernel_store.stored_file(f"sanitizer_{prefix}_{precision}", key, "", build, again)
+
+
+# -O1: the sanitizers' own advice (usable speed, reports still exact); the build costs what -O0's does.
+SANITIZER_OPTIMISATION = "-O1"
+
+
+def _build_driver(gen_dir: Path, prefix: str, functions: dict[str, ca.Function], precision: str, work: Path,
+                  debug: tuple[str, ...], driver: str | None = None) -> Path:
+    source = work / "driver.c"
+    source.write_text(driver if driver is not None else render_driver(prefix, functions), encoding="utf-8")
+    program = work / ("driver_g" if debug else "driver")
+    flag = 1 if precision == "float" else 0
+    run_tool([host_cc(), *STRICT_FLAGS, SANITIZER_OPTIMISATION, *debug, *SANITIZER_FLAGS,
+              f"-D{prefix.upper()}_USE_FLOAT={flag}", f"-I{gen_dir}", str(source), str(gen_dir / f"{prefix}.c"),
+              "-o", str(program), "-lm"],
+             f"building the sanitizer driver for {prefix} ({precision})")
+    return program

@@ -61,8 +61,11 @@ from ..symbolic.model import ModelOptions, SymbolicModel
 from .compare import ReferenceSamples, compare_model, reference_samples
 from .. import firmware as fw
 from . import firmware_compare as fwcmp
-from ..codegen.compiled import CompiledModel, build_library
-from .harness import run_sanitized
+from ..codegen.compiled import CompiledModel
+from ..codegen.toolchain import compiler_identity
+from ..planning.result import metadata_path
+from . import reuse
+from .harness import run_sanitized_program
 
 # Replaying a plan through the double C backend performs the same operations as the symbolic
 # run; libm may differ by an ulp per call, which 12 500 integration steps can amplify by at
@@ -82,6 +85,7 @@ class Stage:
     rows: list[list[Any]] = field(default_factory=list)
     message: str = ""
     skipped: bool = False
+    reused: bool = False  # the verdict of the same inputs, verified before (armgen.verification.reuse)
 
     def __post_init__(self) -> None:
         if self.skipped:
@@ -97,7 +101,8 @@ class Stage:
     def render(self) -> str:
         widths = [max(len(str(c)), *(len(_fmt(r[k])) for r in self.rows)) if self.rows else len(str(c))
                   for k, c in enumerate(self.columns)]
-        lines = [f"== {self.name}: {self.verdict}" + (f" — {self.message}" if self.message else "")]
+        lines = [f"== {self.name}: {self.verdict}" + (" (reused)" if self.reused else "")
+                 + (f" — {self.message}" if self.message else "")]
         lines.append("  " + "  ".join(str(c).ljust(w) for c, w in zip(self.columns, widths)))
         for r in self.rows:
             lines.append("  " + "  ".join(_fmt(v).ljust(w) for v, w in zip(r, widths)))
@@ -129,6 +134,7 @@ class VerifyConfig:
     generated: Path | None = None  # default ./generated/<robot>/
     run: Path | None = None  # a firmware run's printed CSV (host demo or QEMU) to compare with the plan
     robot_ref: str = ""  # how the user named the robot (for the fix in messages)
+    reuse: bool = True  # take stored builds and passed verdicts of the same inputs (False: redo everything)
 
     @property
     def gen_dir(self) -> Path:
@@ -194,13 +200,21 @@ Build = tuple[str, str, Callable[[], Any]]  # (precision, what, action)
 
 def compile_builds(config: VerifyConfig, work: Path, functions, found: GeneratedCode | None = None) -> list[Build]:
     """The compile stage's builds per precision: the strict shared library (with the batched
-    entries the callbacks stage calls) and the ASan/UBSan driver run."""
+    entries the callbacks stage calls) and the ASan/UBSan driver run; each action returns
+    (library or output, whether it was built now rather than taken from the kernel store)."""
     gen_dir = config.gen_dir
     prefix = (found or read_manifest(config)).prefix
     host_cc()  # a missing compiler is a missing tool (exit 4), not a verification failure
     return [(precision, what, action) for precision in config.precisions for what, action in (
-        ("strict -O2 shared library", lambda p=precision: build_library(gen_dir, prefix, p, work, batch=functions)),
-        ("ASan/UBSan driver", lambda p=precision: run_sanitized(gen_dir, prefix, functions, p)))]
+        (f"strict {reuse.LIBRARY_OPTIMISATION} shared library",
+         lambda p=precision: reuse.stored_library(gen_dir, prefix, p, functions, not config.reuse)),
+        ("ASan/UBSan driver",
+         lambda p=precision: run_sanitized_program(gen_dir, prefix, functions, p, not config.reuse)))]
+
+
+# The compile row's detail: where the build came from.
+BUILT_NOW = "built"
+FROM_STORE = "stored build of the same bytes (SHA-256 checked)"
 
 
 def compile_stage(builds: list[Build], futures: list[Future]) -> tuple[Stage, dict[str, Path]]:
@@ -209,15 +223,22 @@ def compile_stage(builds: list[Build], futures: list[Future]) -> tuple[Stage, di
     passed = True
     for (precision, what, _), future in zip(builds, futures):
         try:
-            out = future.result()
+            out, built = future.result()
         except ArmgenError as exc:
             passed = False
             rows.append([precision, what, False, str(exc).splitlines()[0]])
             continue
         if isinstance(out, Path):
             libraries[precision] = out
-        rows.append([precision, what, True, ""])
+        rows.append([precision, what, True, BUILT_NOW if built else FROM_STORE])
     return Stage("compile", passed, ["precision", "build", "ok", "detail"], rows), libraries
+
+
+def free_cores() -> int:
+    """Cores no process is using now (this machine's, less the last minute's load), at least 1:
+    the builds run side by side only on these."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, int(cores - os.getloadavg()[0]))
 
 
 def compile_and_prepare(config: VerifyConfig, work: Path, functions, found: GeneratedCode | None = None
@@ -227,7 +248,7 @@ def compile_and_prepare(config: VerifyConfig, work: Path, functions, found: Gene
     builds = compile_builds(config, work, functions, found)
     total = len(builds) + len(config.precisions) * len(functions)
     with progress(total, "compile, and reference samples meanwhile") as bar, \
-            ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+            ThreadPoolExecutor(max_workers=free_cores()) as pool:
         futures = [pool.submit(action) for _, _, action in builds]
         prepared = {precision: reference_samples(functions, config.robot, config.samples, config.seed, precision,
                                                  lambda: bar.update(1)) for precision in config.precisions}
@@ -497,12 +518,12 @@ def run_pipeline(config: VerifyConfig, report_path: Path | None = None,
             for name in STAGES[1:] + (("target",) if config.target else ()) + (("run",) if config.run else ()):
                 add(_not_run(name, stale))
         else:
-            compiled, libraries, prepared = compile_and_prepare(config, work, functions, found)
-            add(compiled)
-            add(stage_callbacks(config, libraries, functions, found.prefix, prepared))
+            inputs = _verified_inputs(config, found, [row[0] for row in fresh.rows])
+            for stage in verify_c(config, work, functions, found, inputs):
+                add(stage)
             builder = (fw.FirmwareBuilder(config.robot, work / "firmware", _firmware_gen_dir(config))
                        if (config.plan or config.target) else None)
-            add(stage_replay(config, work, builder))
+            add(reused_replay(config, work, builder, inputs))
             if config.target is not None:
                 add(stage_target(config, work, builder))
             if config.run is not None:
@@ -510,9 +531,73 @@ def run_pipeline(config: VerifyConfig, report_path: Path | None = None,
     if report_path is not None:
         report = {"robot": config.robot.name, "generated": str(config.gen_dir), "passed": passed(stages),
                   "stages": [{"name": s.name, "verdict": s.verdict, "passed": s.passed, "skipped": s.skipped,
-                              "message": s.message, "columns": s.columns, "rows": s.rows} for s in stages]}
+                              "reused": s.reused, "message": s.message, "columns": s.columns, "rows": s.rows}
+                             for s in stages]}
         write_text_atomic(report_path, json.dumps(report, indent=2, default=float) + "\n")
     return stages
+
+
+def _verified_inputs(config: VerifyConfig, found: GeneratedCode, files: list[str]) -> tuple:
+    """What every verdict of this run depends on besides its own options: armgen, the compiler,
+    the robot file and the bytes of the generated files (the fresh stage's, all identical to
+    what armgen generates)."""
+    return (reuse.armgen_fingerprint(), compiler_identity(), config.robot.sha256, found.prefix, found.functions,
+            reuse.file_digests(config.gen_dir, files))
+
+
+def verify_c(config: VerifyConfig, work: Path, functions, found: GeneratedCode, inputs: tuple) -> list[Stage]:
+    """The compile and callbacks stages, per precision: a precision whose verdict on the same
+    inputs (and samples, seed) is stored passed is not redone (:mod:`armgen.verification.reuse`);
+    the others are built (or their builds taken from the store) and compared now, and their
+    verdict stored when they pass."""
+    keys = {p: reuse.content_key("c", inputs, config.samples, config.seed, p) for p in config.precisions}
+    records = {p: reuse.read_verdict("c", keys[p]) if config.reuse else None for p in config.precisions}
+    todo = tuple(p for p in config.precisions if records[p] is None)
+    if todo:
+        again = dataclasses.replace(config, precisions=todo)
+        compiled, libraries, prepared = compile_and_prepare(again, work, functions, found)
+        callbacks = stage_callbacks(again, libraries, functions, found.prefix, prepared)
+        for p in todo:
+            mine = {"compile": [r for r in compiled.rows if r[0] == p], "callbacks": [r for r in callbacks.rows if r[1] == p]}
+            if compiled.passed and callbacks.passed:
+                reuse.write_verdict("c", keys[p], mine)
+            records[p] = mine
+    compile_rows = [r for p in config.precisions for r in records[p]["compile"]]
+    callback_rows = [r for p in config.precisions for r in records[p]["callbacks"]]
+    reused = [p for p in config.precisions if p not in todo]
+    note = (f"{', '.join(reused)}: reused, verified {reuse.when(records[reused[0]])} on the same code, armgen, "
+            "compiler and options" if reused else "")
+    if todo:
+        return [dataclasses.replace(compiled, rows=compile_rows, message=_joined(compiled.message, note)),
+                dataclasses.replace(callbacks, rows=callback_rows, message=_joined(callbacks.message, note))]
+    return [Stage("compile", True, ["precision", "build", "ok", "detail"], compile_rows, note, reused=True),
+            Stage("callbacks", True, ["function", "precision", "samples", "max error", "bound", "ok"], callback_rows,
+                  note, reused=True)]
+
+
+def _joined(*messages: str) -> str:
+    return "; ".join(m for m in messages if m)
+
+
+def reused_replay(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder | None, inputs: tuple) -> Stage:
+    """The replay stage, or its stored verdict on the same inputs, plan (its CSV's and plan.json's
+    bytes) and precisions; a passed replay is stored."""
+    if config.plan is None:
+        return stage_replay(config, work, builder)
+    try:
+        plan_files = tuple(reuse.file_digests(Path(), [str(config.plan), str(metadata_path(config.plan))]))
+    except OSError:
+        return stage_replay(config, work, builder)  # (it names what is missing)
+    key = reuse.content_key("replay", inputs, config.precisions, [digest for _, digest in plan_files])
+    record = reuse.read_verdict("replay", key) if config.reuse else None
+    if record is not None:
+        return Stage("replay", True, ["run", "quantity", "value", "bound", "ok"], record["rows"],
+                     f"reused, verified {reuse.when(record)} on the same plan, code, armgen, compiler and options",
+                     reused=True)
+    stage = stage_replay(config, work, builder)
+    if stage.passed:
+        reuse.write_verdict("replay", key, {"rows": stage.rows})
+    return stage
 
 
 def passed(stages: list[Stage]) -> bool:
