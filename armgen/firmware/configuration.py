@@ -17,6 +17,7 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -92,7 +93,7 @@ class FirmwareTask:
     lock_tick: int = -1  # the runners report the joints of lock_mask locked from this tick (-1: never)
     lock_mask: int = 0
     feedforward: str = ""  # FEEDFORWARD_IDS' key in the header; "" (as the adapters make it): the robot's default
-    collision: bool = False  # the controller checks the clearance (a task with [collision]: with_collision)
+    collision: Any = None  # the TaskCollision the controller checks every command against (with_collision), or None
 
     def __post_init__(self) -> None:
         if not self.feedforward:
@@ -263,7 +264,7 @@ def with_collision(task: FirmwareTask, collision) -> FirmwareTask:
     tables = collision_tables(task.robot, collision, task.mode)
     header = task.header.replace(_FW_TASK_OPENING,
                                  f"{tables}{_FW_TASK_OPENING}    .collision = &fw_task_collision,\n")
-    return dataclasses.replace(task, header=header, collision=True)
+    return dataclasses.replace(task, header=header, collision=collision)
 
 
 def program_path(duration: float) -> str:

@@ -11,6 +11,7 @@ import numpy as np
 from ..firmware.configuration import (DEFAULT_POS_ERR_MAX, PLAYBACK_SPEED_RTOL, RESOLVED_MODES, FirmwareTask,
                                      speed_guard)
 from ..firmware.output import FAULT_STATE, FirmwareRun
+from ..planning.common.collision import plan_distances
 from ..planning.limits import playback_rates
 from ..planning.result import PlanResult
 
@@ -109,13 +110,25 @@ def _expected_fault_ticks(plan: PlanResult, task: FirmwareTask,
         q = np.column_stack([plan.column(f"theta_{task.joints[i]}_rad") for i in idx])
     bad_q = ((q > robot.qmax[idx]) | (q < robot.qmin[idx])).any(axis=1)
     bad_e = plan.column("pos_err_m") > DEFAULT_POS_ERR_MAX if task.mode in RESOLVED_MODES else np.zeros_like(bad_q)
-    rows = np.flatnonzero(bad_q | bad_e)
+    bad_c = _below_clearance(task, q, idx)
+    rows = np.flatnonzero(bad_q | bad_e | bad_c)
     if not rows.size:
         return None
     r = int(rows[0])
     hi = int(plan_ticks[r])
     lo = int(plan_ticks[r - 1]) + 1 if r > 0 else hi
-    return lo, hi, "JOINT_LIMIT" if bad_q[r] else "TRACKING"
+    # a tick checks the limits, then the tracking guard, then the command's clearance (controller.c)
+    return lo, hi, "JOINT_LIMIT" if bad_q[r] else "TRACKING" if bad_e[r] else "COLLISION"
+
+
+def _below_clearance(task: FirmwareTask, q: np.ndarray, idx: list[int]) -> np.ndarray:
+    """Per plan sample: closer than the task's [collision] clearance, which the controller checks
+    every command against (COLLISION); all False without the check, or for a playback plan that
+    moves only some of the joints (the others' held values are not in the plan)."""
+    if task.collision is None or len(idx) != task.robot.n:
+        return np.zeros(len(q), dtype=bool)
+    least = plan_distances(task.robot, q, task.collision.obstacles).min(axis=1)
+    return least < task.collision.settings.clearance
 
 
 def compare_with_plan(plan: PlanResult, run: FirmwareRun, task: FirmwareTask, precision: str, label: str,
@@ -211,6 +224,7 @@ def _fault_row(run: FirmwareRun, task: FirmwareTask, fw: dict[int, np.ndarray], 
         ok = bool(np.array_equal(held, prev) and np.all(held <= robot.qmax) and np.all(held >= robot.qmin))
     where = f"tick {fault_tick}" if fault_tick is not None else "none"
     span = f"tick {hi}" if lo == hi else f"ticks {lo}..{hi}"
-    why = {"JOINT_LIMIT": "limits", "SPEED": "speed limits"}.get(expected_fault, "tracking guard")
+    why = {"JOINT_LIMIT": "limits", "SPEED": "speed limits", "COLLISION": "clearance"}.get(expected_fault,
+                                                                                       "tracking guard")
     return [label, f"end (plan leaves the {why})", f"{run.state}/{run.fault} at {where}",
             f"{expected_fault} at {span} (t = {hi * task.dt:.4g} s)", ok]
