@@ -12,8 +12,8 @@ with the configuration of examples/modular8_ptp_two_segments.toml (1 ms ticks):
    valid frame to the stop decision (timeout 500 ticks) and the peak deceleration of the stop
    over qddot_max;
 4. the Cortex-M4F (float, the firmware's own build, QEMU -icount): executed instructions per
-   received TWIST frame (the bytes into the ring, the decode and dispatch, the TELEMETRY reply)
-   and per servo tick (fw_link's step and the controller's SETPOINT tick), bench/link_bench.c.
+   received TWIST frame (the bytes into the ring, the decode and dispatch, the TELEMETRY reply, or
+   the ACK reply of a session opened with replies = ACK) and per servo tick (fw_link's step and the controller's SETPOINT tick), bench/link_bench.c.
 
     python benchmarks/bench_link.py [--chunks 1000000] [--seed 40] [--quick]
 
@@ -129,7 +129,7 @@ def m4_costs() -> dict[str, float]:
     kv = dict(line[2:].split() for line in text.splitlines() if line.startswith("# ") and len(line.split()) == 3)
     per_count = int(kv["calib_insns"]) / int(kv["calib_ticks"])
     out = {"frame_bytes": float(kv["frame_bytes"]), "sizeof_link": float(kv["sizeof_link"])}
-    for part in ("rx", "input_frame", "input_servo", "ctrl", "output_reply", "output_quiet"):
+    for part in ("rx", "input_frame", "input_servo", "ctrl", "output_reply", "output_quiet", "output_ack"):
         out[part] = int(kv[f"{part}_sum"]) / int(kv[f"{part}_count"]) * per_count
         out[part + "_max"] = int(kv[f"{part}_max"]) * per_count
     return out
@@ -177,10 +177,12 @@ def main() -> None:
     print(f"| a TWIST frame's {m['frame_bytes']:.0f} bytes into the ring (fw_link_receive) | {m['rx']:.0f} | {m['rx_max']:.0f} |")
     print(f"| decode, checks and dispatch of the frame (input on its tick - a servo step) | {decode:.0f} | |")
     print(f"| the TELEMETRY reply (tool pose, packing, CRC-32, COBS) | {m['output_reply']:.0f} | {m['output_reply_max']:.0f} |")
+    print(f"| the ACK reply instead (HELLO.replies = ACK) | {m['output_ack']:.0f} | {m['output_ack_max']:.0f} |")
     print(f"| a servo step (fw_link_input without a frame) | {m['input_servo']:.0f} | {m['input_servo_max']:.0f} |")
     print(f"| the controller's SETPOINT tick | {m['ctrl']:.0f} | {m['ctrl_max']:.0f} |")
     print(f"| fw_link_output with nothing to send | {m['output_quiet']:.0f} | {m['output_quiet_max']:.0f} |")
-    print(f"per received frame: {m['rx'] + decode + m['output_reply']:.0f} instructions; per servo tick: "
+    print(f"per received frame: {m['rx'] + decode + m['output_reply']:.0f} instructions "
+          f"({m['rx'] + decode + m['output_ack']:.0f} with ACK replies); per servo tick: "
           f"{m['input_servo'] + m['ctrl'] + m['output_quiet']:.0f} instructions; sizeof(fw_link) {m['sizeof_link']:.0f} B")
 
 

@@ -11,6 +11,9 @@ import click
 
 from .handling import handle_errors
 
+# SERVO_SETUP's criteria (armgen/link/protocol.py CRITERIA), as the command line spells them
+CRITERION_NAMES = ("task", "none", "joint_limits", "manipulability", "joint_manipulability", "rest")
+
 
 def _describe(reply) -> str:
     q = " ".join(f"{v:.6g}" for v in reply.q)
@@ -85,30 +88,41 @@ def move_to_cmd(obj: dict, joints: str | None, xyz, rpy, units: str, no_wait: bo
               help="waypoints per second (the plan's samples on this grid)")
 @click.option("--lead", type=click.FloatRange(0.0, 10), default=0.1, show_default=True,
               help="seconds each waypoint is sent ahead of its time")
+@click.option("--poses", is_flag=True, help="stream the plan's tool poses (x_m y_m z_m roll_rad pitch_rad yaw_rad) "
+                                            "instead of its joints; a pose file (t_s and those columns) always is")
+@click.option("--ack", is_flag=True, help="the board answers each waypoint with a 16-byte ACK instead of the full "
+                                          "telemetry (no deviation measured)")
 @click.pass_obj
 @handle_errors
-def stream_cmd(obj: dict, plan_csv: str, rate: float, lead: float) -> None:
-    """Stream a plan's joint samples as timed waypoints; the board interpolates them at its tick."""
+def stream_cmd(obj: dict, plan_csv: str, rate: float, lead: float, poses: bool, ack: bool) -> None:
+    """Stream a plan's joint samples (or its tool poses, or a pose file's) as timed waypoints; the
+    board interpolates them at its tick (poses in task space, followed by its resolved-rate step)."""
     from ..api import link_stream
 
-    report = link_stream(obj["port"], plan_csv, rate, lead, obj["timeout"])
-    click.echo(f"streamed {report.waypoints} waypoints at {rate:g} Hz; largest difference from the plan at the "
-               f"replies' ticks {report.max_deviation:.3g} rad|m")
+    report = link_stream(obj["port"], plan_csv, rate, lead, obj["timeout"], poses=poses,
+                         replies="ACK" if ack else "TELEMETRY")
+    what, unit = ("tool poses", "m (tool position)") if report.poses else ("waypoints", "rad|m")
+    click.echo(f"streamed {report.waypoints} {what} at {rate:g} Hz; largest difference from the plan at the "
+               f"replies' ticks {report.max_deviation:.3g} {unit}")
     click.echo(_describe(report.end))
 
 
 @link_cmd.command("servo")
 @click.argument("twists_csv", type=click.Path(dir_okay=False))
 @click.option("--rate", type=click.FloatRange(0.1, 1000), default=50.0, show_default=True, help="twists per second")
+@click.option("--criterion", type=click.Choice(CRITERION_NAMES, case_sensitive=False), default="task",
+              show_default=True, help="the self-motion of a redundant arm (task: the compiled-in task's choice)")
+@click.option("--gain", type=click.FloatRange(0.0, 1e3), default=0.0, show_default=True,
+              help="the criterion's gain, 1/s (0: its default)")
 @click.pass_obj
 @handle_errors
-def servo_cmd(obj: dict, twists_csv: str, rate: float) -> None:
+def servo_cmd(obj: dict, twists_csv: str, rate: float, criterion: str, gain: float) -> None:
     """Servo the tool through a twist trace (CSV: vx_m_s vy_m_s vz_m_s wx_rad_s wy_rad_s wz_rad_s per row)."""
     from ..api import link_servo, read_twists
 
     twists = read_twists(twists_csv)
     click.echo(f"sent {len(twists)} twists at {rate:g} Hz")
-    click.echo(_describe(link_servo(obj["port"], twists, 1.0 / rate, obj["timeout"])))
+    click.echo(_describe(link_servo(obj["port"], twists, 1.0 / rate, obj["timeout"], criterion.upper(), gain)))
 
 
 @link_cmd.command("watch")

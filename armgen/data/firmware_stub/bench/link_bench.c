@@ -12,6 +12,8 @@
  *   ctrl        ctrl_tick with the servo's SETPOINT
  *   output_reply fw_link_output with the TELEMETRY reply (tool pose, packing, CRC, COBS)
  *   output_quiet fw_link_output without a frame to send
+ * then a second session opened with HELLO.replies = ACK and as many twists again:
+ *   output_ack  fw_link_output with the ACK reply (packing, CRC, COBS; no tool pose)
  */
 #include <stdint.h>
 #include <string.h>
@@ -74,26 +76,21 @@ static void drain(void) {
   }
 }
 
-int main(void) {
-  stat rx = {0u, 0u, 0u}, input_frame = {0u, 0u, 0u}, input_servo = {0u, 0u, 0u}, control = {0u, 0u, 0u};
-  stat output_reply = {0u, 0u, 0u}, output_quiet = {0u, 0u, 0u};
+typedef struct {
+  stat rx, input_frame, input_servo, control, output_reply, output_quiet;
+} costs;
+
+/* A HELLO (replies: FW_LINK_REPLY_*), then FW_BENCH_FRAMES twists each followed by quiet ticks. */
+static void run_twists(uint8_t replies, costs *c, uint16_t *seq, ctrl_output *out) {
   fw_link_hello hello;
   fw_link_twist twist;
   uint8_t body[FW_LINK_MAX_BODY];
   ctrl_input in;
-  ctrl_output out;
-  uint32_t k, j, i, t0, t1, calib_ticks, frame_bytes = 0u;
-  uint16_t seq = 0u;
-
-  SYST_RVR = SYST_MASK;
-  SYST_CVR = 0u;
-  SYST_CSR = 5u; /* ENABLE | CLKSOURCE = processor clock, no interrupt */
-  calib_ticks = timed_calib(101000u) - timed_calib(1000u);
-
-  (void)ctrl_init(&controller, &fw_task);
-  fw_link_init(&link_state, &fw_task, 0xFFFFFFFFu); /* no watchdog: the bench sends on its own time */
+  uint32_t k, j, i, t0, t1, frame_bytes;
   hello.telemetry_period = 0u;
-  frame_bytes = (uint32_t)fw_link_frame(FW_LINK_VERSION, FW_LINK_HELLO, seq, body, fw_link_pack_hello(&hello, body),
+  hello.replies = replies;
+  *seq = (uint16_t)(*seq + 1u);
+  frame_bytes = (uint32_t)fw_link_frame(FW_LINK_VERSION, FW_LINK_HELLO, *seq, body, fw_link_pack_hello(&hello, body),
                                         frame);
   for (i = 0; i < frame_bytes; ++i) {
     (void)fw_link_receive(&link_state, frame[i]);
@@ -104,32 +101,56 @@ int main(void) {
         for (i = 0; i < 6u; ++i) {
           twist.xdot[i] = (i == 0u || i == 5u) ? 0.01f + 0.0002f * (float)k : 0.0f;
         }
-        seq = (uint16_t)(seq + 1u);
-        frame_bytes = (uint32_t)fw_link_frame(FW_LINK_VERSION, FW_LINK_TWIST, seq, body,
+        *seq = (uint16_t)(*seq + 1u);
+        frame_bytes = (uint32_t)fw_link_frame(FW_LINK_VERSION, FW_LINK_TWIST, *seq, body,
                                               fw_link_pack_twist(&twist, body), frame);
         t0 = SYST_CVR;
         for (i = 0; i < frame_bytes; ++i) {
           (void)fw_link_receive(&link_state, frame[i]);
         }
         t1 = SYST_CVR;
-        if (k > 0u) add(&rx, ELAPSED(t0, t1));
+        if (k > 0u) add(&c->rx, ELAPSED(t0, t1));
       }
       (void)memset(&in, 0, sizeof in);
       t0 = SYST_CVR;
       fw_link_input(&link_state, &in);
       t1 = SYST_CVR;
-      if (k > 0u) add(j == 0u ? &input_frame : &input_servo, ELAPSED(t0, t1));
+      if (k > 0u) add(j == 0u ? &c->input_frame : &c->input_servo, ELAPSED(t0, t1));
       t0 = SYST_CVR;
-      (void)ctrl_tick(&controller, &in, &out);
+      (void)ctrl_tick(&controller, &in, out);
       t1 = SYST_CVR;
-      if (k > 0u) add(&control, ELAPSED(t0, t1));
+      if (k > 0u) add(&c->control, ELAPSED(t0, t1));
       t0 = SYST_CVR;
-      fw_link_output(&link_state, &out);
+      fw_link_output(&link_state, out);
       t1 = SYST_CVR;
-      if (k > 0u) add(j == 0u ? &output_reply : &output_quiet, ELAPSED(t0, t1));
+      if (k > 0u) add(j == 0u ? &c->output_reply : &c->output_quiet, ELAPSED(t0, t1));
       drain();
     }
   }
+}
+
+int main(void) {
+  costs telemetry, ack;
+  ctrl_output out;
+  uint32_t calib_ticks, frame_bytes;
+  uint16_t seq = 0u;
+  fw_link_twist twist;
+  uint8_t body[FW_LINK_MAX_BODY];
+
+  (void)memset(&telemetry, 0, sizeof telemetry);
+  (void)memset(&ack, 0, sizeof ack);
+  (void)memset(&twist, 0, sizeof twist);
+  SYST_RVR = SYST_MASK;
+  SYST_CVR = 0u;
+  SYST_CSR = 5u; /* ENABLE | CLKSOURCE = processor clock, no interrupt */
+  calib_ticks = timed_calib(101000u) - timed_calib(1000u);
+
+  (void)ctrl_init(&controller, &fw_task);
+  fw_link_init(&link_state, &fw_task, 0xFFFFFFFFu); /* no watchdog: the bench sends on its own time */
+  run_twists(FW_LINK_REPLY_TELEMETRY, &telemetry, &seq, &out);
+  run_twists(FW_LINK_REPLY_ACK, &ack, &seq, &out);
+  frame_bytes = (uint32_t)fw_link_frame(FW_LINK_VERSION, FW_LINK_TWIST, seq, body, fw_link_pack_twist(&twist, body),
+                                        frame);
   sh_puts("# state ");
   sh_puts(ctrl_state_name(out.state));
   sh_puts("\n# fault ");
@@ -140,12 +161,13 @@ int main(void) {
   sh_put_kv("# frame_bytes", frame_bytes);
   sh_put_kv("# rx_frames", link_state.counts.rx_frames);
   sh_put_kv("# sizeof_link", (uint32_t)sizeof(fw_link));
-  put_stat("rx", &rx);
-  put_stat("input_frame", &input_frame);
-  put_stat("input_servo", &input_servo);
-  put_stat("ctrl", &control);
-  put_stat("output_reply", &output_reply);
-  put_stat("output_quiet", &output_quiet);
+  put_stat("rx", &telemetry.rx);
+  put_stat("input_frame", &telemetry.input_frame);
+  put_stat("input_servo", &telemetry.input_servo);
+  put_stat("ctrl", &telemetry.control);
+  put_stat("output_reply", &telemetry.output_reply);
+  put_stat("output_quiet", &telemetry.output_quiet);
+  put_stat("output_ack", &ack.output_reply);
   sh_puts("# end\n");
   return 0;
 }

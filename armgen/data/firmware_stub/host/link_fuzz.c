@@ -79,6 +79,9 @@ static size_t host_body_size(uint8_t type) {
     case FW_LINK_MOVE_TO_JOINTS: return FW_LINK_MOVE_TO_JOINTS_SIZE;
     case FW_LINK_WAYPOINT: return FW_LINK_WAYPOINT_SIZE;
     case FW_LINK_LOCK: return FW_LINK_LOCK_SIZE;
+    case FW_LINK_TWIST: return FW_LINK_TWIST_SIZE;
+    case FW_LINK_POSE_WAYPOINT: return FW_LINK_POSE_WAYPOINT_SIZE;
+    case FW_LINK_SERVO_SETUP: return FW_LINK_SERVO_SETUP_SIZE;
     default: return 0u;
   }
 }
@@ -98,7 +101,8 @@ typedef struct {
  * streams run), the other types with random bodies (finite or not, in the limits or not). */
 static size_t intact_frame(fuzz *z, uint8_t *out) {
   static const uint8_t types[] = {FW_LINK_STATUS, FW_LINK_STATUS, FW_LINK_WAYPOINT, FW_LINK_WAYPOINT, FW_LINK_START,
-                                  FW_LINK_STOP,   FW_LINK_LOCK,   FW_LINK_MOVE_TO_JOINTS, FW_LINK_MOVE_TO_POSE};
+                                  FW_LINK_STOP,   FW_LINK_LOCK,   FW_LINK_MOVE_TO_JOINTS, FW_LINK_MOVE_TO_POSE,
+                                  FW_LINK_TWIST,  FW_LINK_POSE_WAYPOINT, FW_LINK_SERVO_SETUP};
   uint8_t type = types[below(&z->rng, (uint32_t)sizeof types)], body[FW_LINK_MAX_BODY];
   size_t len = host_body_size(type), i;
   for (i = 0; i < len; ++i) body[i] = (uint8_t)next_random(&z->rng);
@@ -184,7 +188,7 @@ static void feed(fuzz *z, const uint8_t *chunk, size_t len) {
 }
 
 static void restart(fuzz *z) {
-  uint8_t frame[FW_LINK_MAX_ENCODED + 1u], body[FW_LINK_HELLO_SIZE] = {0u, 0u};
+  uint8_t frame[FW_LINK_MAX_ENCODED + 1u], body[FW_LINK_HELLO_SIZE] = {0u};
   const fw_link_counts *n = &z->l.counts;
   z->dropped[0] += n->bad_crc;
   z->dropped[1] += n->malformed;
@@ -232,7 +236,7 @@ static int run_fuzz(unsigned long chunks, uint64_t seed) {
       chunk[n++] = 0u;
       kinds[3]++;
     } else if (kind < 85u) { /* a valid CRC, another version */
-      uint8_t body[FW_LINK_HELLO_SIZE] = {0u, 0u};
+      uint8_t body[FW_LINK_HELLO_SIZE] = {0u};
       z.seq = (uint16_t)(z.seq + 1u);
       n = fw_link_frame((uint8_t)(FW_LINK_VERSION + 1u + below(&z.rng, 254u)), FW_LINK_HELLO, z.seq, body,
                         sizeof body, chunk);
