@@ -24,7 +24,8 @@ from .options import out_option, plan_robot_option, plan_with_metadata
 def animate_cmd(plan_csv: str, output: str | None, fps: float, duration: float | None, size: str,
                 robot: str | None) -> None:
     """Draw the arm moving through a plan: links between the joint frames (the arm's own forward
-    kinematics), the tool frame, the planned path, snake obstacles, and a time stamp."""
+    kinematics), the tool frame, the planned path, the arm's capsules, the task's obstacles and the
+    closest approach, snake obstacles, and a time stamp."""
     from ..api import animate_plan, parse_frame_size
 
     pixels = parse_frame_size(size)  # a bad --size fails before any work

@@ -192,7 +192,8 @@ def verify_cmd(robot: str, plan_csv: str | None, samples: int, precision: str | 
 @handle_errors
 def plot_cmd(plan_csv: str, output: str | None, robot: str | None) -> None:
     """Draw a plan: joint angles with limits, velocities with bounds, criteria, task error, tool
-    path (the arm's own forward kinematics)."""
+    path (the arm's own forward kinematics); on a robot with capsules also the arm at its closest
+    approach with its capsules and the task's obstacles."""
     from ..api import figure_format, save_plot
 
     out = Path(output) if output is not None else Path(plan_csv).with_suffix(".png")

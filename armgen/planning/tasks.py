@@ -275,7 +275,8 @@ def plot_plan(result: PlanResult, source: str, robot=None):
     """The plan's figure (a :class:`matplotlib.figure.Figure`) drawn by its planner's plots
     module; write it with :func:`armgen.planning.plotting.save_figure`. An arm is drawn through
     ``robot``'s kinematics (a :class:`~armgen.robot.Robot`; default: the one ``plan.json``
-    records, :func:`armgen.planning.plotting.plan_robot`); a PTP figure draws no arm."""
+    records, :func:`armgen.planning.plotting.plan_robot`); a PTP figure draws the arm only for a
+    robot with capsules (at its closest approach)."""
     name = result.metadata.get("planner")
     try:
         spec = planner(name, source)
