@@ -55,6 +55,10 @@ QUICK_RUNS = {
         r"\| Robotics Toolbox ikine_LM \| "
         r"(30 \| [0-9.]+ %|— \| — \| — \| — \| MISSING: roboticstoolbox-python)",
         rf"\| Pinocchio CLIK \(Python loop\) \| 30 \| {NUMBER} %"]),
+    "bench_ik_collision.py": (("gcc",), [
+        rf"\| plain \(collision_free=False\) \| 40 \| {NUMBER} % \| {NUMBER} % \(\d+\) \| \d+ \|",
+        rf"\| with the sphere, clearance 20 mm \| 40 \| {NUMBER} % \| {NUMBER} % \(\d+\) \| \d+ \| {NUMBER} ms \| "
+        rf"{NUMBER} ms \|"]),
     "bench_kernel.py": (("gcc",), [
         rf"robot\.fk_jacobian\(q\), one call, compiled kernel\s+{NUMBER} us",
         rf"Pinocchio forwardKinematics \+ computeJointJacobians \+ getFrameJacobian\s+{NUMBER} us",
