@@ -274,6 +274,7 @@ static uint8_t accept_twist(fw_link *l, const fw_link_twist *m) {
     }
     l->servoing = 1;
     l->servo_k = 0;
+    l->null_ramp = CTRL_LIT(0.0);
   }
   return FW_LINK_RESULT_OK;
 }
@@ -423,6 +424,7 @@ static uint8_t accept_pose_waypoint(fw_link *l, const fw_link_pose_waypoint *m) 
     l->stream_arrived = 0;
     l->stream_k = 0;
     l->pose_t = CTRL_LIT(0.0);
+    l->null_ramp = CTRL_LIT(0.0);
     l->wp_first = 0;
     l->wp_count = 0;
   } else {
@@ -776,12 +778,16 @@ static ctrl_real rate_step(fw_link *l, ctrl_input *in, const ctrl_real *twist, c
   for (i = 0; i < 6; ++i) {
     moving |= twist[i] != CTRL_LIT(0.0);
   }
-  if (moving) { /* a still reference means rest: no self-motion then */
+  /* the self-motion ramps in while the reference moves and out while it is still (a zero twist,
+   * a stream's end: rest), so that it never asks for a jump of velocity */
+  l->null_ramp = clamp_r(l->null_ramp + (moving ? l->dt : -l->dt) / FW_LINK_SELF_MOTION_RAMP_S, CTRL_LIT(0.0),
+                         CTRL_LIT(1.0));
+  if (l->null_ramp > CTRL_LIT(0.0)) {
     self_motion(l, J, alpha);
   }
   for (i = 0; i < N; ++i) {
     int locked = ((l->locked >> (uint32_t)i) & 1u) != 0u;
-    alpha[i] = moving && !locked ? alpha[i] : CTRL_LIT(0.0);
+    alpha[i] = l->null_ramp > CTRL_LIT(0.0) && !locked ? l->null_ramp * alpha[i] : CTRL_LIT(0.0);
     mask[i] = locked ? CTRL_LIT(0.0) : CTRL_LIT(1.0);
     W[i] = CTRL_LIT(1.0);
     v[i] = first ? CTRL_LIT(0.0) : l->last.qd[i];

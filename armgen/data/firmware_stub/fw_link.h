@@ -84,8 +84,11 @@ extern "C" {
  * units (m/rad on the position rows). */
 #define FW_LINK_SERVO_EPSILON CTRL_LIT(0.02)
 #define FW_LINK_SERVO_LAMBDA_MAX CTRL_LIT(0.02)
-/* Their self-motion (SERVO_SETUP.criterion; a redundant arm's null space; none while the
- * reference is still, so that a zero twist or a stream's end comes to rest): the default gains,
+/* Their self-motion (SERVO_SETUP.criterion; a redundant arm's null space), ramped in linearly
+ * over FW_LINK_SELF_MOTION_RAMP_S while the reference moves and out while it is still (a zero
+ * twist or a stream's end comes to rest): switched on at once, the joint-limit criterion's
+ * alpha at modular8's start asks for more than qddot_max in one tick, and the tool lagged its
+ * pose stream by 0.14 mm (2e-5 m with the ramp). The default gains,
  * alpha = -gain grad H for the criteria minimised (joint limits, 1/s on H_L's gradient, the
  * planners' order of rho_L; rest, 1/s: q - q_start decays as exp(-t) in the null space) and
  * +gain grad H for those maximised (manipulability, joint manipulability: 1/s on their
@@ -95,6 +98,7 @@ extern "C" {
 #define FW_LINK_GAIN_JOINT_MANIPULABILITY CTRL_LIT(1.0)
 #define FW_LINK_GAIN_REST CTRL_LIT(1.0)
 #define FW_LINK_MANIPULABILITY_DELTA CTRL_LIT(1e-4)
+#define FW_LINK_SELF_MOTION_RAMP_S CTRL_LIT(0.5)
 /* A pose stream's first pose must lie this close to the held command's tool pose (m, rad): the
  * stream starts where the tool is, never with a jump. Consecutive poses of a stream differ by
  * less than a quarter turn (the interpolation's rotation vector is then unique). */
@@ -172,6 +176,7 @@ typedef struct {
   ctrl_real p_ref[3], R_ref[9];    /* the tool pose of the twist as executed (scaled), integrated */
   ctrl_real servo_scale;           /* the scale of the last resolved-rate step, (0, 1] */
   ctrl_real sigma_min, damping;    /* of the last resolved-rate step (sigma_min NaN before one) */
+  ctrl_real null_ramp;             /* the self-motion's share, [0, 1] (FW_LINK_SELF_MOTION_RAMP_S) */
   int task_rows[CTRL_NTASK], servo_rows_known;
   uint8_t criterion, task_criterion; /* the self-motion (FW_LINK_CRITERION_*): chosen, the task's */
   ctrl_real null_gain, task_gain;
