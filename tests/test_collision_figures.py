@@ -221,9 +221,15 @@ def coal_pair(robot: Robot, ends: np.ndarray, pair: str, obstacles) -> tuple[flo
 # -- helpers on the drawn figure ---------------------------------------------------------------
 
 
-def scene_axes(fig: Figure):
-    (ax,) = [ax for ax in fig.axes if ax.get_title().startswith("closest approach")]
-    return ax
+def scene_axes(fig: Figure) -> list:
+    """The collision row's two 3-D panels (each draws the marker): the usual view, then the one
+    across the gap, whose camera looks at right angles to the marker."""
+    axes = [ax for ax in fig.axes if by_gid(ax, "closest approach")]
+    assert [ax.get_title().startswith("closest approach") for ax in axes] == [True, False]
+    gap = np.diff(drawn_segment(by_gid(axes[1], "closest approach")[0]), axis=0)[0]
+    camera = np.array([math.cos(math.radians(axes[1].azim)), math.sin(math.radians(axes[1].azim))])
+    assert abs(camera @ gap[:2]) <= 1e-9 * np.linalg.norm(gap)
+    return axes
 
 
 def by_gid(ax, gid: str) -> list:
@@ -350,15 +356,15 @@ def test_dh_plan_figure_draws_capsules_obstacles_and_the_closest_approach(dh_pla
     report = result.metadata["summary"]["collision"]
     assert report["pair"] == "capsule 1 – obstacles[0] (sphere)" and report["min_clearance_m"] > APART
     fig = plot_plan(result, str(dh_plan), robot)
-    ax = scene_axes(fig)
     sample = int(np.flatnonzero(result.column("t_s") == report["t_s"])[0])
     q = np.column_stack([result.column(f"q{i + 1}_rad") for i in range(robot.n)])[sample]
     obstacles = task_obstacles_si(dh_plan)
     assert len(obstacles) == len(DH_OBSTACLES)
     ends = dh_capsule_ends(dh_plan.parent / "iiwa14c.toml", q)
-    check_scene(ax, robot, q, ends, obstacles)
-    check_approach(ax, robot, ends, report, obstacles)
-    assert f"t = {report['t_s']:.2f} s" in ax.get_title()
+    for ax in scene_axes(fig):
+        check_scene(ax, robot, q, ends, obstacles)
+        check_approach(ax, robot, ends, report, obstacles)
+    assert f"t = {report['t_s']:.2f} s" in scene_axes(fig)[0].get_title()
     out = tmp_path / "plan.png"
     run = CliRunner().invoke(cli, ["plot", str(dh_plan), "-o", str(out)])
     assert run.exit_code == 0, run.output
@@ -372,13 +378,13 @@ def test_urdf_plan_figure_draws_its_collision_shapes_where_pinocchio_places_them
     assert robot.urdf is not None and robot.has_collision
     report = result.metadata["summary"]["collision"]
     assert report["pair"] == "capsule 1 – capsule 3" and report["min_clearance_m"] < 0  # an overlap
-    ax = scene_axes(plot_plan(result, str(urdf_plan), robot))
     sample = int(np.flatnonzero(result.column("t_s") == report["t_s"])[0])
     q = np.column_stack([result.column(f"q{i + 1}_rad") for i in range(robot.n)])[sample]
     obstacles = task_obstacles_si(urdf_plan)
     ends = pinocchio_capsule_ends(urdf_plan.parent / "oblique.urdf", robot, q)
-    check_scene(ax, robot, q, ends, obstacles)
-    check_approach(ax, robot, ends, report, obstacles)
+    for ax in scene_axes(plot_plan(result, str(urdf_plan), robot)):
+        check_scene(ax, robot, q, ends, obstacles)
+        check_approach(ax, robot, ends, report, obstacles)
 
 
 @pytest.mark.parametrize("fixture", ["dh_plan", "urdf_plan"])

@@ -49,6 +49,9 @@ APPROACH_COLOUR = "tab:red"
 # as round at the figures' sizes and keeps an animation frame of 20 capsules under ~4 000 facets.
 FACETS_AROUND = 16
 RINGS_PER_CAP = 6
+# The second view of the closest approach looks across the gap from this little above the
+# horizontal: low enough that the gap is seen near its true length, high enough to see the table.
+ACROSS_ELEVATION_DEG = 12.0
 # A summary pair: "capsule 2 – capsule 4" or "capsule 1 – obstacles[0] (sphere)".
 PAIR = re.compile(r"^capsule (\d+) – (?:capsule (\d+)|obstacles\[(\d+)\] \((\w+)\))$")
 
@@ -328,10 +331,13 @@ def scene_points(scene: Scene, frames: np.ndarray) -> np.ndarray:
     return np.vstack(points)
 
 
-def scene_panel(ax, scene: Scene, frames: np.ndarray, tool_path: np.ndarray | None, clearance: float | None) -> None:
+def scene_panel(ax, scene: Scene, frames: np.ndarray, tool_path: np.ndarray | None, clearance: float | None,
+                across: bool = False) -> None:
     """The arm at the closest approach (``frames``: its ``robot.frames`` there) in a 3-D axes:
     the links between the joint frames, the capsules, the obstacles, the marker, and the
-    executed tool path (m) for orientation; a cube around all of them, in mm."""
+    executed tool path (m) for orientation; a cube around all of them, in mm. With ``across``
+    the camera looks across the marker (horizontally at right angles to it, from a little above),
+    where the gap shows at its true length."""
     origins = frames[:, :3, 3]
     points = np.vstack([origins, scene_points(scene, frames)] + ([tool_path] if tool_path is not None else []))
     lo, hi = points.min(axis=0), points.max(axis=0)
@@ -352,5 +358,12 @@ def scene_panel(ax, scene: Scene, frames: np.ndarray, tool_path: np.ndarray | No
         title = f"closest approach at t = {scene.approach.t:.2f} s: {scene.approach.distance * MM:.1f} mm"
         if clearance is not None:
             title += f" (clearance {clearance * MM:.3g} mm)"
+        if across:
+            gap = scene.approach.points[1] - scene.approach.points[0]
+            # a vertical gap (a table below) shows from any side: keep the default azimuth then
+            azimuth = np.degrees(np.arctan2(gap[1], gap[0])) + 90.0 if np.hypot(gap[0], gap[1]) > 1e-9 else -60.0
+            ax.view_init(elev=ACROSS_ELEVATION_DEG, azim=azimuth)
+            title = "the same, viewed across the gap"
     ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=7, loc="upper left")
+    if not across:
+        ax.legend(fontsize=7, loc="upper left")

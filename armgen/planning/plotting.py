@@ -504,7 +504,11 @@ def collision_view(result: PlanResult, robot: Robot | None = None) -> CollisionV
 
 def collision_row(subfig, result: PlanResult, view: CollisionView) -> None:
     """The arm at the plan's closest approach (:mod:`.collision_scene`): its capsules, the task's
-    obstacles and the marker, in one 3-D panel, with the executed tool path."""
+    obstacles and the marker, with the executed tool path, in two 3-D panels: the usual view and
+    one across the gap."""
     frames = view.robot.frames(view.q[view.scene.approach.sample])
-    scene_panel(subfig.add_subplot(projection="3d"), view.scene, frames, view.robot.fk(view.q)[:, :3, 3],
-                result.metadata["summary"]["collision"].get("clearance_m"))
+    tool_path = view.robot.fk(view.q)[:, :3, 3]
+    clearance = result.metadata["summary"]["collision"].get("clearance_m")
+    for k, across in enumerate((False, True)):
+        ax = subfig.add_subplot(1, 2, k + 1, projection="3d")
+        scene_panel(ax, view.scene, frames, tool_path, clearance, across=across)
