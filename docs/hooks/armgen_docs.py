@@ -41,6 +41,8 @@ FIGURES = [
     ("snake_tank", "snake.md", "snake12 through the tank's plate openings, tip driven, exact solver"),
     ("iiwa14_weld_seam_program", "programs.md", "iiwa14 weld seam: lines and an arc, corners rounded (10 mm), start pose"),
     ("panda_polish_contour_program", "programs.md", "panda polishing contour from a 181-row CSV, approach and retract"),
+    ("iiwa14_weld_seam_pillar", "collision.md", "the weld seam beside a pillar: the collision criterion keeps the arm 57 mm clear"),
+    ("iiwa14_pick_table", "collision.md", "a pick from the table the arm stands on: the wrist 33.7 mm above it"),
 ]
 FAULT_EXAMPLES = [("iiwa14", "iiwa14_fault_circle_gpm", "iiwa14_fault_circle_wln"),
                   ("modular8", "modular8_fault_circle_gpm", "modular8_fault_circle_wln")]
