@@ -70,7 +70,7 @@ STUB_FILES = {
                    "fw_task.c", "fw_task.h", "fw_link.c", "fw_link.h", "fw_link_msgs.c", "fw_link_msgs.h"),
     "host": ("host/main.c", "host/link_main.c"),
     "arm": ("arm/fw_main.c", "arm/startup.c", "arm/semihost.c", "arm/semihost.h", "arm/fw_fastmath.c",
-            "arm/mps2_an386.ld", "arm/mps2_an505.ld"),
+            "arm/mps2_an386.ld", "arm/mps2_an505.ld", "arm/fw_link_uart.c"),
     "riscv": ("riscv/startup.c", "riscv/virt.ld"),
 }
 
