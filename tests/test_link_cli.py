@@ -18,6 +18,9 @@ from link_builds import TASK, link_executable
 NDOF = 8
 PRINT_RTOL = 5e-6  # status prints %.6g: half a unit of the sixth significant digit
 FLOAT32_ATOL = 2.4e-7  # the wire's IEEE single of a joint value below 2 rad (one ulp), for values printed near 0
+# a pose stream ends within fw_link.h's FW_LINK_POSE_ARRIVE_M (1e-5 m per axis) of its last pose;
+# status prints %.6g of ~0.5 m: 5e-7 m more
+POSE_ARRIVE_M = 1e-5 + 1e-6
 
 
 def armgen(*args: str) -> subprocess.CompletedProcess:
@@ -68,6 +71,30 @@ def test_status_move_to_stream_watch(port, tmp_path):
     assert "sent 50 twists" in served.stdout and "state DONE" in served.stdout
     watched = armgen("link", port, "watch", "--count", "3", "--period", "0.01")
     assert watched.returncode == 0 and watched.stdout.count("state DONE") == 3
+    criterion = armgen("link", port, "servo", str(trace), "--criterion", "manipulability")
+    assert criterion.returncode == 0 and "state DONE" in criterion.stdout, criterion.stderr
+    # a pose file from where the tool rests: 3 cm along x and back, 10 poses a second, rest to rest
+    from armgen.description import matrix_rpy
+    from armgen.link import LinkClient
+
+    with LinkClient(port) as link:
+        tool = np.array(link.status()["tool"])
+    rpy = matrix_rpy(tool[3:].reshape(3, 3, order="F"))
+    t = np.arange(11) * 0.1
+    x = tool[0] + 0.03 * (1 - np.cos(np.pi * t)) / 2
+    rows = [(tk, xk, tool[1], tool[2], *rpy) for tk, xk in zip(t, x)]
+    header = "t_s,x_m,y_m,z_m,roll_rad,pitch_rad,yaw_rad\n"
+    (tmp_path / "there.csv").write_text(header + "\n".join(",".join(f"{v:.9g}" for v in r) for r in rows) + "\n")
+    (tmp_path / "back.csv").write_text(header + "\n".join(",".join(f"{v:.9g}" for v in (r[0], *b[1:]))
+                                                           for r, b in zip(rows, rows[::-1])) + "\n")
+    there = armgen("link", port, "stream", str(tmp_path / "there.csv"), "--rate", "10")
+    assert there.returncode == 0, there.stderr
+    assert "streamed 11 tool poses" in there.stdout and "state DONE" in there.stdout
+    tool_there = [float(v) for v in there.stdout.split("tool [m]")[1].split("\n")[0].split()]
+    assert np.allclose(tool_there, [x[-1], tool[1], tool[2]], atol=POSE_ARRIVE_M)
+    back = armgen("link", port, "stream", str(tmp_path / "back.csv"), "--rate", "10", "--ack")
+    assert back.returncode == 0 and "state DONE" in back.stdout, back.stderr
+    assert "ticks nan" in back.stdout  # ACK replies carry no pose: nothing measured
 
 
 def test_refused_and_missing(port, tmp_path):
