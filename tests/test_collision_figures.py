@@ -252,7 +252,7 @@ def task_obstacles_si(plan: Path):
     return task_obstacles(read_plan(plan).metadata)
 
 
-def check_scene(ax, robot: Robot, q: np.ndarray, expected_ends: list[np.ndarray], obstacles) -> None:
+def check_scene(ax, robot: Robot, expected_ends: list[np.ndarray], obstacles) -> None:
     """Each capsule drawn once, its axis at ``expected_ends``, its surface ``radius`` from it; each
     obstacle drawn once where the task puts it."""
     capsules = robot.collision.capsules
@@ -362,7 +362,7 @@ def test_dh_plan_figure_draws_capsules_obstacles_and_the_closest_approach(dh_pla
     assert len(obstacles) == len(DH_OBSTACLES)
     ends = dh_capsule_ends(dh_plan.parent / "iiwa14c.toml", q)
     for ax in scene_axes(fig):
-        check_scene(ax, robot, q, ends, obstacles)
+        check_scene(ax, robot, ends, obstacles)
         check_approach(ax, robot, ends, report, obstacles)
     assert f"t = {report['t_s']:.2f} s" in scene_axes(fig)[0].get_title()
     out = tmp_path / "plan.png"
@@ -383,7 +383,7 @@ def test_urdf_plan_figure_draws_its_collision_shapes_where_pinocchio_places_them
     obstacles = task_obstacles_si(urdf_plan)
     ends = pinocchio_capsule_ends(urdf_plan.parent / "oblique.urdf", robot, q)
     for ax in scene_axes(plot_plan(result, str(urdf_plan), robot)):
-        check_scene(ax, robot, q, ends, obstacles)
+        check_scene(ax, robot, ends, obstacles)
         check_approach(ax, robot, ends, report, obstacles)
 
 
@@ -403,7 +403,7 @@ def test_animation_frames_move_the_capsules_with_the_arm(fixture, request, tmp_p
         draw(f)
         expected = (dh_capsule_ends(plan.parent / "iiwa14c.toml", q[sample]) if fixture == "dh_plan"
                     else pinocchio_capsule_ends(plan.parent / "oblique.urdf", robot, q[sample]))
-        check_scene(ax, robot, q[sample], expected, task_obstacles_si(plan))
+        check_scene(ax, robot, expected, task_obstacles_si(plan))
     assert len(by_gid(ax, "closest approach")) == 1
     out = tmp_path / "arm.gif"
     run = CliRunner().invoke(cli, ["animate", str(plan), "-o", str(out), "--fps", "2", "--duration", "1.5",
@@ -433,3 +433,77 @@ def test_a_robot_without_capsules_keeps_its_figures(tmp_path):
     scene = Figure()
     animation._serial_scene(scene, result, np.array([0, 1]), robot)(1)
     assert not any(a.get_gid() for a in (*scene.axes[0].lines, *scene.axes[0].collections))
+
+
+# -- a snake arm with capsules: the shared collision row, and its animation's outlines ---------------
+
+SNAKE_RADIUS_MM = 30.0
+
+
+@pytest.fixture(scope="module")
+def snake_plan(tmp_path_factory) -> Path:
+    """The bundled planar snake example on snake12 with a capsule around each 104 mm link: link k
+    runs from joint centre k to k + 1, the origin of DH frame 2k + 3 and 104 mm back along its x
+    (frame 2k + 2 turns by α, 2k + 3 by β and carries the link's length)."""
+    from armgen.planning.result import write_plan
+    from armgen.planning.tasks import load_task, run_task
+
+    folder = tmp_path_factory.mktemp("snake")
+    text = Path(load_robot("snake12").path).read_text(encoding="utf-8").replace('name = "snake12"', 'name = "snake12c"')
+    text = text.split("\n[[collision]]")[0]
+    for link in range(12):
+        text += f"\n[[collision]]\nlink = {2 * link + 3}\na = [-104, 0, 0]\nb = [0, 0, 0]\nradius = {SNAKE_RADIUS_MM}\n"
+    text += "\n[collision_check]\nignore = [" + ", ".join(f"[{k}, {k + 1}]" for k in range(11)) + "]\n"
+    (folder / "snake12c.toml").write_text(text, encoding="utf-8")
+    task, _ = load_task(Path(load_robot("snake12").path).parents[1] / "examples" / "snake_planar.toml")
+    task["robot"] = str(folder / "snake12c.toml")
+    csv, _ = write_plan(run_task(task, "snake.toml"), folder / "plan.csv")
+    return csv
+
+
+def snake_centres(plan: Path, robot: Robot) -> np.ndarray:
+    """The joint centres (samples × 13 × 3, m, robot base frame) by the snake planner's own numpy chain."""
+    from armgen.planning.snake.arm import snake_arm
+    from armgen.planning.snake.plots import snake_joint_values
+
+    arm = snake_arm(robot, "test")
+    return arm.joint_centres(snake_joint_values(read_plan(plan), arm))[0]
+
+
+def test_snake_figure_draws_each_link_between_its_joint_centres(snake_plan):
+    result = read_plan(snake_plan)
+    robot = plan_robot(result, snake_plan)
+    report = result.metadata["summary"]["collision"]
+    sample = int(np.flatnonzero(result.column("t_s") == report["t_s"])[0])
+    centres = snake_centres(snake_plan, robot)[sample]
+    ends = [centres[[k, k + 1]] for k in range(12)]
+    for ax in scene_axes(plot_plan(result, str(snake_plan), robot)):
+        check_scene(ax, robot, ends, ())
+        check_approach(ax, robot, ends, report, ())
+
+
+def test_snake_animation_outlines_each_link_in_its_views(snake_plan):
+    """Each frame outlines every link's capsule in the top view: the stadium of its radius around
+    the projected segment between consecutive joint centres, where the snapshots place the arm."""
+    from armgen.planning.snake.plots import animation_scene
+
+    result = read_plan(snake_plan)
+    robot = plan_robot(result, snake_plan)
+    frames = np.array([0, 500, 1000])
+    fig = Figure()
+    draw = animation_scene(fig, result, frames, robot)
+    (ax,) = fig.axes  # a planar path: the top view only
+    centres = snake_centres(snake_plan, robot)
+    from armgen.planning.snake.arm import snake_arm
+
+    place = np.asarray(result.metadata["rail"]["start_m"]) - snake_arm(robot, "test").base0
+    for f, sample in enumerate(frames):
+        draw(f)
+        for k in range(12):
+            (patch,) = [p for p in ax.patches if p.get_gid() == f"capsule {k}"]
+            a, b = (centres[sample, [k, k + 1]] + place)[:, :2]
+            outline = patch.get_xy() / MM
+            distance = point_segment_distance(np.column_stack([outline, np.zeros(len(outline))]),
+                                              np.append(a, 0.0), np.append(b, 0.0))
+            np.testing.assert_allclose(distance, SNAKE_RADIUS_MM / MM, atol=FK_TOL)
+    assert len(by_gid(ax, "closest approach")) == 1

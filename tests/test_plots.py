@@ -57,9 +57,8 @@ def test_figure_has_the_promised_panels_none_empty(plans, name):
     result, _ = plans[name]
     fig = plot_plan(result, name)
     # a plan on a robot with capsules (summary.collision) adds two 3-D panels: the arm at its closest
-    # approach, seen as usual and across the gap (tests/test_collision_figures.py); the snake
-    # figure draws its own scene
-    collision_row = result.metadata["planner"] != "snake" and "collision" in result.metadata["summary"]
+    # approach, seen as usual and across the gap (tests/test_collision_figures.py)
+    collision_row = "collision" in result.metadata["summary"]
     assert len(fig.axes) == EXPECTED_AXES[name] + 2 * collision_row
     for ax in fig.axes:
         # a panel may state its content in words (the snake's "exact to rounding")

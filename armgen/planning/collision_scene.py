@@ -27,6 +27,7 @@ from functools import lru_cache
 
 import casadi as ca
 import numpy as np
+from matplotlib.patches import Polygon
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from pydantic import ValidationError
 
@@ -84,11 +85,13 @@ class Scene:
         return self.robot.has_collision
 
 
-def plan_scene(result, robot: Robot, q: np.ndarray) -> Scene | None:
+def plan_scene(result, robot: Robot, q: np.ndarray, with_task_obstacles: bool = True) -> Scene | None:
     """The :class:`Scene` of a plan (``result``, a PlanResult, with its ``plan.json``; ``q`` its
-    joint values per sample), None when there is nothing to draw: no capsules and no obstacles."""
+    joint values per sample), None when there is nothing to draw: no capsules and no obstacles.
+    ``with_task_obstacles=False`` for a planner whose ``[[obstacles]]`` are its own vocabulary,
+    drawn by its own figures (the snake's tube obstacles)."""
     meta = result.metadata
-    obstacles = task_obstacles(meta)
+    obstacles = task_obstacles(meta) if with_task_obstacles else ()
     if not robot.has_collision and not obstacles:
         return None
     report = (meta.get("summary") or {}).get("collision")
@@ -315,6 +318,44 @@ def draw_approach(ax, approach: ClosestApproach) -> list:
     line.set_gid("closest approach")
     text = ax.text(*points.mean(axis=0), f" {approach.distance * MM:.1f} mm", color=APPROACH_COLOUR, fontsize=7)
     return [line, text]
+
+
+def capsule_outline(a: np.ndarray, b: np.ndarray, radius: float) -> np.ndarray:
+    """The outline (k × 2) of a capsule's projection onto a coordinate plane, given its projected
+    ends ``a``, ``b`` (2-D): exactly the stadium of that radius around the projected segment (a
+    disc for a zero-length one)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    axis = b - a
+    start = np.arctan2(axis[1], axis[0]) + np.pi / 2 if np.hypot(*axis) > 0 else 0.0
+    half = np.linspace(0.0, -np.pi, FACETS_AROUND // 2 + 1)  # from the left side round the end
+    around = lambda centre, angles: centre + radius * np.column_stack([np.cos(angles), np.sin(angles)])  # noqa: E731
+    return np.vstack([around(b, start + half), around(a, start - np.pi + half)])
+
+
+def draw_capsule_outlines(ax, robot: Robot, frames: np.ndarray, view: tuple[int, int], offset: np.ndarray) -> list:
+    """The arm's capsules at one configuration in a 2-D view (coordinates ``view`` of the base
+    frame shifted by ``offset``, m; drawn in mm): each the outline of its projection, light and
+    semi-transparent, with the gid ``capsule k``; returns the patches."""
+    i, j = view
+    patches = []
+    for k, ((a, b), capsule) in enumerate(zip(capsule_ends(robot, frames) + offset, robot.collision.capsules)):
+        outline = capsule_outline(a[[i, j]], b[[i, j]], capsule.radius) * MM
+        patch = Polygon(outline, closed=True, facecolor=CAPSULE_COLOUR, edgecolor=CAPSULE_COLOUR, alpha=CAPSULE_ALPHA,
+                        lw=0.6)
+        patch.set_gid(f"capsule {k}")
+        ax.add_patch(patch)
+        patches.append(patch)
+    return patches
+
+
+def draw_approach_2d(ax, approach: ClosestApproach, view: tuple[int, int], offset: np.ndarray) -> list:
+    """The closest approach's marker in a 2-D view (as :func:`draw_capsule_outlines`)."""
+    i, j = view
+    points = (approach.points + offset)[:, [i, j]] * MM
+    label = f"closest approach {approach.distance * MM:.1f} mm: {approach.pair} (t = {approach.t:.2f} s)"
+    line, = ax.plot(*points.T, "-o", color=APPROACH_COLOUR, lw=1.6, ms=3, label=label)
+    line.set_gid("closest approach")
+    return [line]
 
 
 def scene_points(scene: Scene, frames: np.ndarray) -> np.ndarray:

@@ -6,7 +6,9 @@ worst chord error, smallest clearance).
 
 The arm is redrawn from the CSV's feed and joint angles by the robot's forward kinematics (the
 same numpy chain the planner checks against), so the figure shows what the angles do, not what
-the solver intended; the path is the spline through the waypoints stored in ``plan.json``.
+the solver intended; the path is the spline through the waypoints stored in ``plan.json``. A
+snake robot with capsules adds the shared collision row (:mod:`armgen.planning.collision_scene`):
+the links' capsules at their closest approach to each other, in the robot's base frame.
 """
 
 from __future__ import annotations
@@ -18,7 +20,9 @@ from matplotlib.patches import Circle, Rectangle
 from ...errors import PlanFileError
 from ...robot import Robot
 from ..animation import SCENE_MARGIN
-from ..plotting import joint_style, limit_lines, new_figure, plan_robot
+from ..collision_scene import draw_approach_2d, draw_capsule_outlines, plan_scene
+from ..plotting import (SCENE_HEIGHT_IN, collision_row, collision_view, joint_style, limit_lines, new_figure,
+                        plan_robot)
 from ..result import PlanResult
 from .spline import HermiteSpline
 
@@ -40,12 +44,17 @@ def arm_centres(result: PlanResult, meta: dict, robot: Robot | None = None) -> n
     from .arm import snake_arm
 
     arm = snake_arm(robot if robot is not None else plan_robot(result), "plan.json")
+    place = np.asarray(meta["rail"]["start_m"], dtype=float) - arm.base0
+    return arm.joint_centres(snake_joint_values(result, arm))[0] + place
+
+
+def snake_joint_values(result: PlanResult, arm) -> np.ndarray:
+    """The robot's joint vector per sample (the rail's feed, then α and β of each link), from
+    the plan's columns (``arm``: the plan robot's :func:`~.arm.snake_arm`)."""
     n = arm.n_links
-    feed = result.column("feed_m")
     alpha = np.column_stack([result.column(f"a{i + 1}_rad") for i in range(n)])
     beta = np.column_stack([result.column(f"b{i + 1}_rad") for i in range(n)])
-    place = np.asarray(meta["rail"]["start_m"], dtype=float) - arm.base0
-    return arm.joint_centres(arm.q_vector(feed, alpha, beta))[0] + place
+    return arm.q_vector(result.column("feed_m"), alpha, beta)
 
 
 def draw_obstacles(ax, obstacles: list[dict], view: tuple[int, int]) -> None:
@@ -134,8 +143,10 @@ def plot_snake(result: PlanResult, robot: Robot | None = None) -> Figure:
     limits = {view: _view_limits(everything, *view) for view, _ in views}
     (x0, x1), (y0, y1) = limits[views[0][0]]
     panel_h = min(max(7.5 * (y1 - y0) / (x1 - x0), 1.1), 4.0) + 0.6  # the data's aspect at 7.5 in wide
-    fig = new_figure(16, rows * panel_h + 5.2)
-    snapshots, traces = fig.subfigures(2, 1, height_ratios=[rows * panel_h + 0.5, 4.7])
+    collision = _collision_view(result, robot)
+    heights = [rows * panel_h + 0.5, 4.7] + ([SCENE_HEIGHT_IN] if collision is not None else [])
+    fig = new_figure(16, sum(heights))
+    snapshots, traces, *below = fig.subfigures(len(heights), 1, height_ratios=heights)
     grid = snapshots.add_gridspec(rows, 2)
     for p, (k, (view, name)) in enumerate(panels):
         i, j = view
@@ -172,6 +183,8 @@ def plot_snake(result: PlanResult, robot: Robot | None = None) -> Figure:
     ax_angles.legend(fontsize=6, ncol=6, loc="lower left")
     ax_angles.grid(alpha=0.3)
     accuracy_panel(ax_acc, result, t)
+    if below:
+        collision_row(below[0], result, collision)
     summary = meta.get("summary", {})
     fig.suptitle(f"{meta.get('robot', {}).get('name', '')} — {summary.get('solver', '')} solver, {summary.get('driven', '')} "
                  f"driven — max tip deviation {summary.get('max_tip_deviation_mm', float('nan')):.3g} mm — max |angle| "
@@ -179,14 +192,37 @@ def plot_snake(result: PlanResult, robot: Robot | None = None) -> Figure:
     return fig
 
 
+def _collision_view(result: PlanResult, robot: Robot | None):
+    """The shared collision row's view of a snake plan on a robot with capsules (its links against
+    each other; the task's obstacles are the tube's, drawn in the snapshots), else None. Drawn in
+    the robot's base frame (the snapshots place the rail's start)."""
+    if "collision" not in result.metadata.get("summary", {}):
+        return None
+    from .arm import snake_arm
+
+    robot = robot if robot is not None else plan_robot(result)
+    return collision_view(result, robot, snake_joint_values(result, snake_arm(robot, "plan.json")),
+                          with_task_obstacles=False)
+
+
 def animation_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
     """The animation's scene of a snake plan (:func:`armgen.planning.animation.animate_plan`): the
     arm's centre line in top view (and side view when the path leaves the plane) with the path and
     the obstacles; returns the function that draws frame ``f``."""
+    from .arm import snake_arm
+
     meta = result.metadata
     centres = arm_centres(result, meta, robot)[frames] * 1e3
     wp = np.asarray(meta["path"]["waypoints_m"], dtype=float) * 1e3
     views = [(0, 1)] if np.ptp(wp[:, 2]) < PLANAR_TOL else [(0, 1), (0, 2)]
+    # a robot with capsules: its links' outlines in each view, moving with the arm, and the
+    # closest approach of its links to each other (collision_scene, in the snapshots' place)
+    arm = snake_arm(robot, "plan.json")
+    q = snake_joint_values(result, arm)
+    scene = plan_scene(result, robot, q, with_task_obstacles=False)
+    poses = robot.frames(q[frames]) if scene is not None and scene.capsules else None
+    place = np.asarray(meta["rail"]["start_m"], dtype=float) - arm.base0
+    outlines: list = []
     lines = []
     for v, (i, j) in enumerate(views):
         ax = fig.add_subplot(len(views), 1, v + 1)
@@ -198,12 +234,20 @@ def animation_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
         ax.set(xlim=(lo[i] - pad, hi[i] + pad), ylim=(lo[j] - pad, hi[j] + pad), aspect="equal",
                xlabel=f"{'xyz'[i]} [mm]", ylabel=f"{'xyz'[j]} [mm]", title=("top view", "side view")[v])
         ax.tick_params(labelsize=6)
-        arm, = ax.plot([], [], "-o", color="tab:blue", lw=2.5, ms=2.5)
+        links, = ax.plot([], [], "-o", color="tab:blue", lw=2.5, ms=2.5)
         tip, = ax.plot([], [], "*", color="tab:red", ms=10)
-        lines.append((arm, tip, i, j))
+        if scene is not None and scene.approach is not None:
+            draw_approach_2d(ax, scene.approach, (i, j), place)
+            ax.legend(fontsize=6, loc="upper left")
+        lines.append((ax, links, tip, i, j))
 
     def draw(f: int) -> None:
-        for arm, tip, i, j in lines:
-            arm.set_data(centres[f, :, i], centres[f, :, j])
+        for artist in outlines:
+            artist.remove()
+        outlines.clear()
+        for ax, links, tip, i, j in lines:
+            links.set_data(centres[f, :, i], centres[f, :, j])
             tip.set_data([centres[f, -1, i]], [centres[f, -1, j]])
+            if poses is not None:
+                outlines.extend(draw_capsule_outlines(ax, robot, poses[f], (i, j), place))
     return draw
