@@ -355,9 +355,10 @@ class Robot(RobotDescription):
         require_collision(self)
         q = np.asarray(q, dtype=float)
         parameters = obstacle_parameters(obstacles, self.collision.slots)
-        if q.ndim != 1:  # a batch takes each matrix as its column-major entries
+        kernel = self._kernel
+        if kernel is not None or q.ndim != 1:  # the kernel, and a batch, take each matrix as its column-major entries
             parameters = {k: v.reshape(-1, order="F") for k, v in parameters.items()}
-        return self._numeric.evaluate(name, q, **parameters, **scalars)
+        return (kernel or self._numeric).evaluate(name, q, **parameters, **scalars)
 
     def within_limits(self, q: ArrayLike) -> np.ndarray:
         """True where every joint value is finite and inside ``[qmin, qmax]``.
@@ -625,8 +626,9 @@ REPAIR_STEPS = 20
 REPAIR_PROGRESS = 1e-6
 POLISH_ITERATIONS = 15
 FALLBACK_STARTS = 8
-# From this many configurations on the collision functions run as one NumPy replay (a fixed
-# ~5–8 ms for a 7-DOF arm with the default slots), below it one CasADi call each (~0.25 ms).
+# Without the compiled kernel (ARMGEN_KERNEL=reference, no C compiler): from this many
+# configurations on the collision functions run as one NumPy replay (a fixed ~5–8 ms for a
+# 7-DOF arm with the default slots), below it one CasADi call each (~0.25 ms).
 REPLAY_FROM = 32
 
 
@@ -665,13 +667,17 @@ class _CollisionFreeSearch:
         self.rows = list(robot.task_rows)
 
     def _evaluate(self, name: str, q: np.ndarray, **scalars: float) -> dict[str, np.ndarray]:
-        """A collision function at the rows of ``q`` (B ≥ 1, n): a few configurations one by one
-        through CasADi, more through the NumPy replay (Robot._collision's two paths, without its checks)."""
+        """A collision function at the rows of ``q`` (B ≥ 1, n): the compiled kernel's, else a
+        few configurations one by one through CasADi and more through the NumPy replay
+        (Robot._collision's paths, without its checks)."""
+        flat = {k: v.reshape(-1, order="F") for k, v in self.parameters.items()}
+        kernel = self.robot._kernel
+        if kernel is not None:
+            return kernel.evaluate(name, q, **flat, **scalars)
         numeric = self.robot._numeric
         if len(q) < REPLAY_FROM:
             rows = [numeric.evaluate(name, row, **self.parameters, **scalars) for row in q]
             return {k: np.array([row[k] for row in rows]) for k in rows[0]}
-        flat = {k: v.reshape(-1, order="F") for k, v in self.parameters.items()}
         return numeric.evaluate(name, q, **flat, **scalars)
 
     def least(self, q: np.ndarray) -> np.ndarray:

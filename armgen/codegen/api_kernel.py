@@ -54,9 +54,11 @@ from . import kernel_store
 from .toolchain import STRICT_FLAGS, compile_shared, host_cc
 
 # The functions the kernel holds: the Robot methods' (fk, jacobian, fk_jacobian, ik), the
-# criteria and, for a robot with inertials, the dynamics; what the robot lacks is left out.
+# criteria and, for a robot with inertials, the dynamics, for one with capsules the collision
+# functions (Robot.ik checks every answer with them); what the robot lacks is left out.
 API_FUNCTIONS = ("fk", "jacobian", "fk_jacobian", "ik", "zghal", "repetitive", "manipulability",
-                 "joint_manipulability", "gravity", "rnea", "mass_matrix", "coriolis")
+                 "joint_manipulability", "gravity", "rnea", "mass_matrix", "coriolis", "collision_distances",
+                 "collision_criterion")
 # The C prefix of the kernel's generated code: fixed (internal to the extension module), so any
 # robot name builds (a robot called 'nan' would be a prefix armgen gen refuses).
 C_PREFIX = "robot"
@@ -460,7 +462,9 @@ def reference_cases(model: SymbolicModel, references: dict[str, ca.Function]) ->
             # the C refuses such a target, which the CasADi function does not check, nor Robot.ik take)
             arguments[name] = [[target, robot.qmid, robot.qmid, *settings]] if _is_pose(target) else []
         else:
-            arguments[name] = [[q, *(rng.uniform(0.1, 1.0, f.nnz_in(k)) for k in range(1, f.n_in()))] for q in samples]
+            # (shaped as the input: a matrix, such as a collision function's obstacle slots, too)
+            arguments[name] = [[q, *(rng.uniform(0.1, 1.0, f.nnz_in(k)).reshape(f.size_in(k), order="F")
+                                     for k in range(1, f.n_in()))] for q in samples]
     return {name: [{"inputs": [np.ravel(x, order="F").tolist() for x in inputs],
                     "outputs": [np.ravel(np.asarray(y.full()), order="F").tolist()
                                 for y in references[name].call(inputs)]}
