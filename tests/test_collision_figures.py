@@ -177,7 +177,8 @@ def pinocchio_capsule_ends(urdf: Path, robot: Robot, q: np.ndarray) -> list[np.n
     for capsule, placement in zip(robot.collision.capsules, geometry_data.oMg):
         axis = 1 if capsule.origin == "urdf box (enclosed)" else 2
         half = 0.5 * np.linalg.norm(np.subtract(capsule.b, capsule.a))
-        out.append(np.array([placement.translation + sign * half * placement.rotation[:, axis] for sign in (-1.0, 1.0)]))
+        out.append(np.array([placement.translation + sign * half * placement.rotation[:, axis]
+                             for sign in (-1.0, 1.0)]))
     # Pinocchio's URDF parser skips <capsule> (the tcp's, the last shape): its link frame by
     # Pinocchio, and the shape's axis composed by hand (origin z = -0.05 m, length 0.1 m along z)
     assert len(out) == len(robot.collision.capsules) - 1 and robot.collision.capsules[-1].origin == "urdf capsule"
@@ -326,7 +327,8 @@ def test_witness_points_are_coals_nearest_points_for_every_kind_of_pair(tmp_path
     path.write_text(bare_dh_text("iiwa14") + CAPSULES, encoding="utf-8")
     robot = load_robot(path)
     obstacles = (SphereObstacle((0.4, 0.2, 0.7), 0.08), CapsuleObstacle((0.5, -0.3, 0.0), (0.5, -0.3, 1.2), 0.06),
-                 BoxObstacle((-0.4, 0.3, 0.5), (0.2, 0.3, 0.4), (0.2, -0.1, 0.5)), PlaneObstacle((0, 0, 0.05), (0, 0.2, 1)))
+                 BoxObstacle((-0.4, 0.3, 0.5), (0.2, 0.3, 0.4), (0.2, -0.1, 0.5)),
+                 PlaneObstacle((0, 0, 0.05), (0, 0.2, 1)))
     names = obstacle_names(obstacles)
     pairs = [f"capsule {i} – capsule {j}" for i, j in robot.collision.self_pairs()]
     pairs += [f"capsule {i} – {name}" for i in robot.collision.moving() for name in names]
@@ -507,3 +509,61 @@ def test_snake_animation_outlines_each_link_in_its_views(snake_plan):
                                               np.append(a, 0.0), np.append(b, 0.0))
             np.testing.assert_allclose(distance, SNAKE_RADIUS_MM / MM, atol=FK_TOL)
     assert len(by_gid(ax, "closest approach")) == 1
+
+
+# -- a hand-edited plan.json ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda meta: meta["task"]["obstacles"][0].update(type="cone"), "plan.json: task.obstacles:"),
+    (lambda meta: meta["task"]["obstacles"][2].update(size=[0, 1, 1]), "plan.json: task.obstacles:"),
+    (lambda meta: meta["summary"]["collision"].update(pair="capsule 99 – capsule 1"), "summary.collision.pair"),
+    (lambda meta: meta["summary"]["collision"].update(pair="capsule 1 – obstacles[1] (sphere)"),
+     "summary.collision.pair"),
+    (lambda meta: meta["summary"]["collision"].update(pair="the elbow"), "summary.collision.pair"),
+])
+def test_a_hand_edited_collision_record_is_a_clear_error(dh_plan, tmp_path, edit, message):
+    """plan.json's obstacles or closest pair edited into nonsense: `armgen plot` and `armgen animate`
+    exit 2 naming the field and the fix (re-run armgen plan), no traceback, nothing written."""
+    import json
+    import shutil
+
+    from armgen.errors import PlanFileError
+
+    for name in ("plan.csv", "plan.json", "iiwa14c.toml"):
+        shutil.copy(dh_plan.parent / name, tmp_path / name)
+    meta = json.loads((tmp_path / "plan.json").read_text(encoding="utf-8"))
+    edit(meta)
+    (tmp_path / "plan.json").write_text(json.dumps(meta), encoding="utf-8")
+    for command, out in (("plot", "out.png"), ("animate", "out.gif")):
+        run = CliRunner().invoke(cli, [command, str(tmp_path / "plan.csv"), "-o", str(tmp_path / out)])
+        assert run.exit_code == PlanFileError.exit_code == 2, run.output
+        assert message in run.output and "re-run `armgen plan`" in run.output and "Traceback" not in run.output
+        assert not (tmp_path / out).exists()
+
+
+@pytest.fixture(scope="module")
+def pair_robot(tmp_path_factory) -> Robot:
+    """The iiwa14 with the test capsules."""
+    path = tmp_path_factory.mktemp("pair") / "iiwa14c.toml"
+    path.write_text(bare_dh_text("iiwa14") + CAPSULES, encoding="utf-8")
+    return load_robot(path)
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(pair=st.one_of(st.text(max_size=60), st.builds(lambda i, j, k, kind: f"capsule {i} – " + (
+    f"capsule {j}" if kind is None else f"obstacles[{k}] ({kind})"), st.integers(0, 9), st.integers(0, 9),
+    st.integers(0, 5), st.sampled_from([None, "sphere", "capsule", "box", "plane", "cone"]))))
+def test_any_pair_name_gives_a_marker_or_a_clear_error(pair_robot, pair):
+    """Whatever summary.collision.pair holds, the closest approach is found (for a pair the robot
+    and the task have) or a PlanFileError names the field; nothing else escapes."""
+    from armgen.errors import PlanFileError
+
+    robot = pair_robot
+    obstacles = (SphereObstacle((0.4, 0.2, 0.7), 0.08), PlaneObstacle((0, 0, 0), (0, 0, 1)))
+    try:
+        approach = closest_approach(robot, np.zeros(robot.n), obstacles, pair)
+    except PlanFileError as error:
+        assert "summary.collision.pair" in str(error)
+        return
+    assert np.isfinite(approach.distance) and np.all(np.isfinite(approach.points))

@@ -125,7 +125,7 @@ def _serial_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
     length = TOOL_AXIS_FRACTION * size
 
     def draw(f: int) -> None:
-        if scene is not None and scene.capsules:  # the capsules move with the arm: drawn again each frame
+        if scene is not None and scene.has_capsules:  # the capsules move with the arm: drawn again each frame
             for artist in capsules:
                 artist.remove()
             capsules[:] = draw_capsules(ax, robot, poses[f])

@@ -81,7 +81,7 @@ class Scene:
     approach: ClosestApproach | None
 
     @property
-    def capsules(self) -> bool:
+    def has_capsules(self) -> bool:
         return self.robot.has_collision
 
 
@@ -362,7 +362,7 @@ def scene_points(scene: Scene, frames: np.ndarray) -> np.ndarray:
     """Points (m) the scene's limits must hold besides the arm's frame origins: the capsules'
     surfaces' extremes in ``frames`` (one configuration or several) and the bounded obstacles."""
     points = [obstacle_extent(scene.obstacles)]
-    if scene.capsules:
+    if scene.has_capsules:
         radii = np.array([c.radius for c in scene.robot.collision.capsules])
         for pose in np.asarray(frames).reshape(-1, *np.shape(frames)[-3:]):
             ends = capsule_ends(scene.robot, pose)
@@ -383,14 +383,15 @@ def scene_panel(ax, scene: Scene, frames: np.ndarray, tool_path: np.ndarray | No
     points = np.vstack([origins, scene_points(scene, frames)] + ([tool_path] if tool_path is not None else []))
     lo, hi = points.min(axis=0), points.max(axis=0)
     centre, half = 0.5 * (lo + hi), max(0.5 * float(np.max(hi - lo)), 1e-3)
-    ax.set(xlim=(MM * (centre[0] - half), MM * (centre[0] + half)), ylim=(MM * (centre[1] - half), MM * (centre[1] + half)),
-           zlim=(MM * (centre[2] - half), MM * (centre[2] + half)), xlabel="x [mm]", ylabel="y [mm]", zlabel="z [mm]")
+    low, high = MM * (centre - half), MM * (centre + half)
+    ax.set(xlim=(low[0], high[0]), ylim=(low[1], high[1]), zlim=(low[2], high[2]), xlabel="x [mm]", ylabel="y [mm]",
+           zlabel="z [mm]")
     ax.set_box_aspect((1, 1, 1), zoom=0.85)
     ax.tick_params(labelsize=6)
     if tool_path is not None:
         ax.plot(*(tool_path * MM).T, color="tab:red", lw=0.8, alpha=0.6, label="executed tool path")
     ax.plot(*(origins * MM).T, "-o", color="tab:blue", lw=2.5, ms=3, label="links (joint frames)")
-    if scene.capsules:
+    if scene.has_capsules:
         draw_capsules(ax, scene.robot, frames)
     draw_obstacles(ax, scene.obstacles, centre, half)
     title = "the arm's capsules and the task's obstacles"

@@ -220,7 +220,7 @@ def animation_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
     arm = snake_arm(robot, "plan.json")
     q = snake_joint_values(result, arm)
     scene = plan_scene(result, robot, q, with_task_obstacles=False)
-    poses = robot.frames(q[frames]) if scene is not None and scene.capsules else None
+    poses = robot.frames(q[frames]) if scene is not None and scene.has_capsules else None
     place = np.asarray(meta["rail"]["start_m"], dtype=float) - arm.base0
     outlines: list = []
     lines = []
