@@ -42,6 +42,7 @@ for path in (REPO, HERE):  # a checkout without `pip install -e .`; bench_firmwa
         sys.path.insert(0, str(path))
 
 from armgen import firmware as fw  # noqa: E402
+from armgen.firmware import bound  # noqa: E402
 from armgen.codegen.toolchain import STRICT_FLAGS  # noqa: E402
 from armgen.robot import load_robot  # noqa: E402
 from armgen.symbolic import ik  # noqa: E402
@@ -52,6 +53,8 @@ DRIVER = HERE / "c" / "bench_target_fn.c"
 SEED = 42
 CONFIGURATIONS, POSES = 256, 64
 QUICK_CONFIGURATIONS, QUICK_POSES = 32, 8
+UNREACHABLE_SHARE = 8  # one unreachable pose per 8 reachable ones (each call runs all its steps)
+UNREACHABLE_FACTOR = 3.0  # an arm's reach is its links' length: three times a reached pose's distance is beyond it
 IK_TOL = {"float": 1e-4, "double": 1e-6}  # position [m] and orientation [rad]; float resolves ~1e-5 at 1 m
 MODES = ("RESOLVED_RATE", "WEIGHTED_GPM")
 M0PLUS_HZ, TICK_HZ = 133_000_000, 1000  # RP2040's clock, a 1 kHz control loop
@@ -69,12 +72,30 @@ def literal(value: float, precision: str) -> str:
     return f"{float(np.float32(value))!r}f" if precision == "float" else repr(float(value))
 
 
-def poses_header(robot, precision: str, n_qs: int, n_poses: int) -> str:
-    rng = np.random.default_rng(SEED)
+def reachable_poses(robot, n_poses: int, rng) -> list[np.ndarray]:
+    """Poses of configurations within the middle 80 % of each joint's range."""
     lo, hi = robot.qmin, robot.qmax
-    qs = rng.uniform(lo, hi, size=(n_qs, robot.n))
-    # ik targets: reachable poses of configurations within the middle 80 % of each joint's range
-    targets = [robot.fk(q) for q in rng.uniform(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo), size=(n_poses, robot.n))]
+    return [robot.fk(q) for q in rng.uniform(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo), size=(n_poses, robot.n))]
+
+
+def unreachable_poses(robot, n_poses: int, rng) -> list[np.ndarray]:
+    """The IK's worst case: reachable poses moved UNREACHABLE_FACTOR times as far from the base,
+    beyond any configuration's reach, so every call runs its max_iterations steps (restarting
+    as often as its attempts stall)."""
+    poses = reachable_poses(robot, n_poses, rng)
+    for T in poses:
+        T[:3, 3] *= UNREACHABLE_FACTOR
+    return poses
+
+
+def poses_header(robot, precision: str, n_qs: int, n_poses: int, targets: list[np.ndarray] | None = None,
+                 max_iterations: int = ik.MAX_ITERATIONS) -> str:
+    """bench_poses.h: seeded configurations for fk_jacobian; ik's targets (default: reachable
+    poses) and its max_iterations."""
+    rng = np.random.default_rng(SEED)
+    qs = rng.uniform(robot.qmin, robot.qmax, size=(n_qs, robot.n))
+    targets = reachable_poses(robot, n_poses, rng) if targets is None else targets
+    n_poses = len(targets)
     p = robot.name.lower()
 
     def row(values) -> str:
@@ -82,7 +103,7 @@ def poses_header(robot, precision: str, n_qs: int, n_poses: int) -> str:
 
     return (f"#define BENCH_QS {n_qs}u\n#define BENCH_POSES {n_poses}u\n"
             f"#define BENCH_TOL (({p}_real){literal(IK_TOL[precision], precision)})\n"
-            f"#define BENCH_MAX_ITERATIONS {ik.MAX_ITERATIONS}\n"
+            f"#define BENCH_MAX_ITERATIONS {max_iterations}\n"
             f"static const {p}_real qtab[BENCH_QS][{robot.n}] = {{\n" + ",\n".join(row(q) for q in qs) + "\n};\n"
             f"static const {p}_real pose[BENCH_POSES][16] = {{\n"
             + ",\n".join(row(T.T.reshape(16)) for T in targets) + "\n};\n"
@@ -100,14 +121,17 @@ def run_image(target: fw.Target, elf: Path) -> dict[str, int]:
             if v.isdigit()}
 
 
-def functions(target: fw.Target, robot, work: Path, n_qs: int, n_poses: int) -> dict:
-    """fk_jacobian and ik per call on the core (section 1)."""
+def calls_image(target: fw.Target, robot, work: Path, header: str, gen: Path | None = None) -> tuple[Path, list[str]]:
+    """The image of benchmarks/c/bench_target_fn.c with the robot's generated C (``gen``, default
+    the checked-in generated/<robot>) and bench_poses.h = ``header``: its path and the compile
+    flags. -g (the DWARF lines the static bound reads; it changes no instruction) and no
+    --gc-sections: every generated function stays in the image, for its bound."""
     p, precision = robot.name.lower(), target.precision
-    gen = REPO / "generated" / robot.name
+    gen = gen or REPO / "generated" / robot.name
     work.mkdir(parents=True, exist_ok=True)
-    (work / "bench_poses.h").write_text(poses_header(robot, precision, n_qs, n_poses))
+    (work / "bench_poses.h").write_text(header)
     cc = target.compiler
-    flags = [*STRICT_FLAGS, *target.cpu_flags, *target.compile_specs, "-ffunction-sections", "-fdata-sections",
+    flags = [*STRICT_FLAGS, *target.cpu_flags, *target.compile_specs, "-g", "-ffunction-sections", "-fdata-sections",
              f"-D{p.upper()}_USE_FLOAT={int(precision == 'float')}", f"-D{p.upper()}_BOUNDED_TRIG=1",
              f"-DBENCH_PREFIX={p}", f'-DBENCH_HEADER="{p}.h"', f"-DBENCH_NDOF={robot.n}",
              "-I", str(gen), "-I", str(work), "-I", str(STUB / "arm"), "-I", str(HERE / "c")]
@@ -118,17 +142,44 @@ def functions(target: fw.Target, robot, work: Path, n_qs: int, n_poses: int) -> 
         run([cc, *flags, opt, "-c", src, "-o", obj], f"compiling {src.name} for {target.name}")
         objs.append(obj)
     elf = work / "functions.elf"
-    run([cc, *flags, "-nostartfiles", *target.link_specs, "-T", STUB / target.linker_script, "-Wl,--gc-sections",
-         *objs, "-lm", "-o", elf], f"linking the {target.name} benchmark")
+    run([cc, *flags, "-nostartfiles", *target.link_specs, "-T", STUB / target.linker_script, *objs, "-lm", "-o", elf],
+        f"linking the {target.name} benchmark")
+    return elf, [*flags, "-Os"]
+
+
+def measure_calls(target: fw.Target, elf: Path) -> dict:
+    """Instructions per call of fk_jacobian and ik (mean, max), net of the harness."""
     v = run_image(target, elf)
     per = v["calib_insns"] / v["calib_ticks"]
     fk_stub, ik_stub = v["fk_stub_sum"] / v["fk_calls"], v["ik_stub_sum"] / v["ik_calls"]
-    return {"precision": precision, "instructions_per_count": per,
+    return {"instructions_per_count": per,
             "fk_jacobian": {"mean": (v["fk_sum"] / v["fk_calls"] - fk_stub) * per, "max": (v["fk_max"] - fk_stub) * per,
                             "calls": v["fk_calls"]},
             "ik": {"mean": (v["ik_sum"] / v["ik_calls"] - ik_stub) * per, "max": (v["ik_max"] - ik_stub) * per,
-                   "calls": v["ik_calls"], "success": v["ik_ok"] / v["ik_calls"], "steps_at_max": v["ik_steps_at_max"],
-                   "tolerance": IK_TOL[precision]}}
+                   "calls": v["ik_calls"], "success": v["ik_ok"] / v["ik_calls"], "steps_at_max": v["ik_steps_at_max"]}}
+
+
+def static_bounds(target: fw.Target, robot, elf: Path, flags: list[str], max_iterations: int, gen: Path) -> dict:
+    """The static worst-case bound (armgen.firmware.bound) of each generated function in the image."""
+    p = robot.name.lower()
+    analyzer = bound.analyzer(target, elf, flags, p, max_iterations)
+    return {name.removeprefix(p + "_"): analyzer.bound(name).instructions
+            for name in bound.generated_functions(analyzer, p, gen / f"{p}.h")}
+
+
+def functions(target: fw.Target, robot, work: Path, n_qs: int, n_poses: int) -> dict:
+    """fk_jacobian and ik per call on the core (section 1): ik to reachable poses and to
+    unreachable ones (every call runs ik.MAX_ITERATIONS steps); every generated function's bound."""
+    precision = target.precision
+    elf, flags = calls_image(target, robot, work / "reachable", poses_header(robot, precision, n_qs, n_poses))
+    out = {"precision": precision, **measure_calls(target, elf)}
+    out["ik"]["tolerance"] = IK_TOL[precision]
+    far = unreachable_poses(robot, max(1, n_poses // UNREACHABLE_SHARE), np.random.default_rng(SEED + 1))
+    elf_far, _ = calls_image(target, robot, work / "unreachable", poses_header(robot, precision, n_qs, n_poses, far))
+    worst = measure_calls(target, elf_far)["ik"]
+    out["ik_unreachable"] = {k: worst[k] for k in ("mean", "max", "calls", "success", "steps_at_max")}
+    out["bound"] = static_bounds(target, robot, elf, flags, ik.MAX_ITERATIONS, REPO / "generated" / robot.name)
+    return out
 
 
 def size(target: fw.Target, elf: Path) -> dict[str, int]:

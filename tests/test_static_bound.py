@@ -1,0 +1,151 @@
+"""The static worst-case instruction bound (armgen.firmware.bound, issue 42) against QEMU's
+count of executed instructions (-icount; the independent reference): the bound of each
+generated function and of the weighted-GPM tick must be at least every measured count, on
+random and adversarial inputs (an IK that runs all its max_iterations steps), and within a
+stated factor of the measured maximum (docs/targets.md, "Static bound")."""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from armgen import firmware as fw
+from armgen.firmware import bound
+from armgen.firmware.project import demo_task
+from armgen.planning.tasks import load_task
+from armgen.robot import load_robot, load_robot_any
+
+from conftest import require_tool
+
+REPO = Path(__file__).resolve().parents[1]
+BAXTER = REPO / "tests" / "data" / "baxter_arm.toml"  # a 7-DOF arm that is not a bundled robot
+SEED = 7
+
+# Bound / measured maximum: the goal of issue 42 (1.5) where the FPU computes the precision
+# the build runs; the double build's libm sin/cos (Cortex-M7) and the Cortex-M0+'s soft float
+# have long worst paths (large arguments, subnormal operands) that the control tasks never
+# take, so their bounds stand further above what runs.
+TIGHTNESS = {"cortex-m4": 1.5, "cortex-m33": 1.5, "rv32imf": 1.5, "cortex-m7": 1.8, "cortex-m0plus": 2.2}
+# The IK's adversarial run: unreachable poses, each call runs its max_iterations steps.
+IK_ITERATIONS = 30  # enough steps for two restarts per call (ITERATIONS = 15 per attempt), a short QEMU run
+IK_POSES = 4
+FK_CONFIGURATIONS = 64
+
+
+def require_target(name: str) -> fw.Target:
+    target = fw.TARGETS[name]
+    for tool in (*target.tools, target.compiler.replace("-gcc", "-objdump"), target.compiler.replace("-gcc", "-addr2line")):
+        require_tool(tool)
+    return target
+
+
+def bench_targets():
+    """benchmarks/bench_targets.py: the driver that times each call of fk_jacobian and ik."""
+    spec = importlib.util.spec_from_file_location("bench_targets", REPO / "benchmarks" / "bench_targets.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def weighted_gpm_task(robot_ref: str | Path):
+    """The weighted-GPM demo of examples/modular8_wgpm_demo.toml: modular8's own, or the same
+    method on another robot along its `armgen firmware` demo line (SI units)."""
+    task, _ = load_task(REPO / "examples" / "modular8_wgpm_demo.toml")
+    if robot_ref != "modular8":
+        robot = load_robot_any(str(robot_ref))
+        line = demo_task(robot, str(robot_ref))
+        task.update(units={"length": "m", "angle": "rad"}, robot=str(robot_ref), start=line["start"],
+                    path=line["path"], timing=dict(task["timing"], duration=5))
+    return fw.task_from_dict(task, "wgpm")
+
+
+@pytest.mark.parametrize("name", list(fw.TARGETS))
+def test_the_weighted_gpm_tick_bound_holds_on_each_core(name, tmp_path):
+    target = require_target(name)
+    check_tick("modular8", target, tmp_path)
+
+
+@pytest.mark.parametrize("name", ["cortex-m4", "rv32imf"])
+def test_the_weighted_gpm_tick_bound_holds_for_a_foreign_arm(name, tmp_path):
+    target = require_target(name)
+    check_tick(BAXTER, target, tmp_path)
+
+
+def check_tick(robot_ref, target: fw.Target, work: Path) -> None:
+    robot = load_robot_any(str(robot_ref)) if robot_ref != "modular8" else load_robot("modular8")
+    builder = fw.FirmwareBuilder(robot, work / "firmware")
+    variant = dataclasses.replace(fw.target_variant(target.name), print_rows=False)
+    task = weighted_gpm_task(robot_ref)
+    elf = builder.executable(variant, task, "wgpm")
+    static = bound.tick_bound(target, elf, builder.cflags(variant), builder.prefix, task.mode, task.header)
+    run = fw.run_qemu(elf, target=target.name)
+    assert (run.state, run.fault) == ("DONE", "NONE")
+    measured = fw.instructions_per_tick(run)
+    # a tick's count is read off a timer of `resolution` instructions a count (SysTick), so the
+    # measured maximum may stand one count above the instructions executed
+    assert static.instructions + measured["resolution"] >= measured["max"], (static.instructions, measured)
+    assert static.instructions <= TIGHTNESS[target.name] * measured["max"], (static.instructions, measured)
+
+
+@pytest.mark.parametrize("name", list(fw.TARGETS))
+def test_fk_jacobian_and_ik_bounds_hold_on_random_and_unreachable_poses(name, tmp_path):
+    """fk_jacobian on seeded random configurations; ik to reachable poses (random) and to
+    unreachable ones (adversarial: every call runs IK_ITERATIONS steps)."""
+    target = require_target(name)
+    bt = bench_targets()
+    robot = load_robot("modular8")
+    p = robot.name.lower()
+    rng = np.random.default_rng(SEED)
+    poses = bt.reachable_poses(robot, IK_POSES, rng) + bt.unreachable_poses(robot, IK_POSES, rng)
+    header = bt.poses_header(robot, target.precision, FK_CONFIGURATIONS, len(poses), poses, IK_ITERATIONS)
+    elf, flags = bt.calls_image(target, robot, tmp_path, header)
+    measured = bt.measure_calls(target, elf)
+    assert measured["ik"]["steps_at_max"] == IK_ITERATIONS  # the slowest call ran every step
+    analyzer = bound.analyzer(target, elf, flags, p, IK_ITERATIONS)
+    resolution = measured["instructions_per_count"]
+    for function in ("fk_jacobian", "ik"):
+        static = analyzer.bound(f"{p}_{function}").instructions
+        worst = measured[function]["max"]
+        assert static + resolution >= worst, (function, static, worst)
+        assert static <= TIGHTNESS[target.name] * worst, (function, static, worst)
+
+
+def test_every_generated_function_has_a_bound(tmp_path):
+    """Each function the generated header declares (kinematics, criteria, steps, ik) is
+    bounded on the Cortex-M4F: no loop in them lacks a count."""
+    target = require_target("cortex-m4")
+    bt = bench_targets()
+    robot = load_robot("modular8")
+    elf, flags = bt.calls_image(target, robot, tmp_path, bt.poses_header(robot, "float", 1, 1))
+    analyzer = bound.analyzer(target, elf, flags, "modular8", 1)
+    names = bound.generated_functions(analyzer, "modular8", REPO / "generated" / "modular8" / "modular8.h")
+    assert {"modular8_fk_jacobian", "modular8_ik", "modular8_step_wgpm_from_jacobian", "modular8_zghal"} <= set(names)
+    bounds = {name: analyzer.bound(name).instructions for name in names}
+    assert all(b > 0 for b in bounds.values()), bounds
+    # the IK's bound grows by one step's bound per step allowed
+    more = bound.analyzer(target, elf, flags, "modular8", 2).bound("modular8_ik").instructions
+    assert more > bounds["modular8_ik"]
+
+
+def test_a_loop_without_a_count_is_refused(tmp_path):
+    """A data-dependent loop (no `for` with a constant bound, no down-counter) is a BoundError
+    naming the function and the line, not a guess."""
+    target = require_target("cortex-m4")
+    src = tmp_path / "halving.c"
+    src.write_text("unsigned halvings(unsigned x) {\n  unsigned n = 0u;\n  while (x > 1u) {\n"
+                   "    x /= 2u;\n    ++n;\n  }\n  return n;\n}\n", encoding="utf-8")
+    obj = tmp_path / "halving.o"
+    flags = [*target.cpu_flags, "-O2", "-g"]
+    subprocess.run([target.compiler, *flags, "-c", str(src), "-o", str(obj)], check=True)
+    with pytest.raises(bound.BoundError, match=r"halvings: the loop at 0x[0-9a-f]+ .*halving\.c:\d"):
+        bound.analyzer(target, obj, flags).bound("halvings")
+
+
+def test_a_mode_without_a_tick_is_refused():
+    with pytest.raises(bound.BoundError, match="SAMPLED"):
+        bound.tick_avoid("modular8", "SAMPLED")
