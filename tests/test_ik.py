@@ -61,7 +61,7 @@ def test_round_trip_of_random_reachable_poses(name):
 def test_snake12_round_trip():
     robot = load_robot("snake12")
     poses = robot.fk(random_configurations(robot, 8))
-    result = robot.ik(poses)
+    result = robot.ik(poses, **PLAIN)
     assert result.success.mean() >= MIN_SUCCESS * 0.85 and robot.within_limits(result.q).all()
     pos, ori = independent_errors(robot, result.q[result.success], poses[result.success])
     assert np.all(pos <= ik.TOL_POSITION * 1.001) and np.all(ori <= ik.TOL_ORIENTATION * 1.001)
