@@ -33,6 +33,7 @@ from __future__ import annotations
 import re
 import subprocess
 from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -59,11 +60,6 @@ class Function:
     name: str
     start: int
     instructions: list[Instruction] = field(default_factory=list)
-
-    @property
-    def end(self) -> int:
-        last = self.instructions[-1]
-        return last.address + last.size
 
 
 _LINE = re.compile(r"^\s*([0-9a-f]+):\t((?:[0-9a-f]{2,8} ?)+)\s*\t(\S+)\s*(.*)$")
@@ -541,11 +537,12 @@ class Analyzer:
     """Worst-case instruction bounds of an image's functions."""
 
     def __init__(self, elf: Path, family: str, tools_prefix: str, compiler: str, flags: list[str],
-                 loop_caps: dict[str, int] | None = None, assumed: dict[str, int] | None = None):
+                 loop_caps: dict[str, int] | None = None,
+                 block_cost: Callable[[list[Instruction]], int] = len):
         """family "arm" | "riscv"; tools_prefix e.g. "arm-none-eabi-"; compiler and flags: the
-        build's (its preprocessor gives the loop bounds); loop_caps: a function
-        name -> the most iterations its `*_LOOP_COUNT` loop runs (the caller's stop); assumed:
-        a function name -> a stated bound used instead of an analysis (a library routine)."""
+        build's (its preprocessor gives the loop bounds); loop_caps: a function name -> the
+        most iterations its `*_LOOP_COUNT` loop runs (the caller's stop); block_cost: what one
+        pass through a block's instructions costs (default: their number; CortexM4Cycles)."""
         self.elf = Path(elf)
         self.by_address = disassemble(tools_prefix + "objdump", self.elf)
         self.functions = {f.name: f for f in sorted(self.by_address.values(), key=lambda f: -f.start)}  # global names
@@ -554,7 +551,7 @@ class Analyzer:
         self.family = family
         self.lines = SourceLoops(tools_prefix + "addr2line", self.elf, compiler, flags)
         self.loop_caps = dict(loop_caps or {})
-        self.assumed = dict(assumed or {})
+        self.block_cost = block_cost
         self._memo: dict[tuple[int, frozenset[str]], Bound] = {}
         self._unbounded = ""  # the lines of the last loop no source bound was found for
 
@@ -576,15 +573,13 @@ class Analyzer:
         key = (fn.start, frozenset(avoid))
         if key in self._memo:
             return self._memo[key]
-        if name in self.assumed:
-            return Bound(self.assumed[name], [f"{name}: assumed {self.assumed[name]}"])
         if fn.start in stack:
             raise BoundError(f"recursion: {' -> '.join(self.by_address[a].name for a in (*stack, fn.start))}")
         blocks = blocks_of(fn, self.isa())
         loops: list[str] = []
         cost: dict[int, int] = {}
         for a, b in blocks.items():
-            total: int | None = len(b.instructions)
+            total: int | None = self.block_cost(b.instructions)
             for dest in b.calls:
                 callee_fn = self.function_at(dest)
                 callee = callee_fn.name
@@ -618,7 +613,7 @@ class Analyzer:
         if fn is None:
             raise BoundError(f"no function {name} in {self.elf.name}")
         blocks = blocks_of(fn, self.isa())
-        cost = {a: len(b.instructions) for a, b in blocks.items()}
+        cost = {a: self.block_cost(b.instructions) for a, b in blocks.items()}
         for b in blocks.values():
             if b.calls:
                 raise BoundError(f"{name} calls {', '.join(self.function_at(d).name for d in b.calls)}: not counted")
@@ -960,12 +955,12 @@ def generated_functions(analyzer: Analyzer, prefix: str, header: Path) -> list[s
 
 
 def analyzer(target: Target, elf: Path, flags: list[str], prefix: str | None = None,
-             ik_iterations: int | None = None) -> Analyzer:
+             ik_iterations: int | None = None, block_cost: Callable[[list[Instruction]], int] = len) -> Analyzer:
     """The Analyzer of an image built for ``target`` with the compile ``flags``; with
     ``prefix`` and ``ik_iterations``, the generated IK's step loop (``<prefix>_ik_step_*_loop``,
     which stops after max_iterations steps: armgen.symbolic.ik) counted for that many steps."""
     tools = target.compiler.removesuffix("gcc")
-    a = Analyzer(elf, target.family, tools, target.compiler, flags)
+    a = Analyzer(elf, target.family, tools, target.compiler, flags, block_cost=block_cost)
     if prefix is not None and ik_iterations is not None:
         a.loop_caps.update({name: ik_iterations for name in a.functions
                             if name.startswith(f"{prefix}_ik_step_") and name.endswith("_loop")})
@@ -978,3 +973,67 @@ def tick_bound(target: Target, elf: Path, flags: list[str], prefix: str, mode: s
     compile ``flags`` (FirmwareBuilder.cflags)."""
     a = analyzer(target, elf, flags)
     return a.bound("ctrl_tick", tick_avoid(prefix, mode.upper(), "CTRL_PATH_PROGRAM" in header))
+
+
+@dataclass(frozen=True)
+class CortexM4Cycles:
+    """Processor cycles of a block on a Cortex-M4F running from flash with ``wait_states``
+    (e.g. STM32F4 at 168 MHz: 5), an upper bound under these stated assumptions:
+
+    - each instruction its worst timing of the Cortex-M4 Technical Reference Manual (r0p1,
+      3.3.1) and of the FPU's (FPv4-SP, 7.2.2): every branch taken with the longest pipeline
+      refill (1 + 3), every load 2 cycles (none pipelined with its neighbour), LDM/STM/PUSH/POP
+      1 + one per register (and the refill when it loads pc), division 12 (integer) or 14
+      (VDIV, VSQRT), multiply-accumulate 2 (integer) or 3 (VMLA, VFMA ...);
+    - the flash delivers 16-byte lines, each costing ``wait_states`` cycles, and nothing is
+      cached or prefetched (an ART accelerator or cache only removes cycles): a block fetches
+      at most its size / 16 + 1 lines, and every load may read the flash (constants, the
+      literal pools), ``wait_states`` more;
+    - no interrupt, no bus contention (DMA), zero-wait-state SRAM for the data.
+    """
+
+    wait_states: int = 5
+    line_bytes: int = 16
+
+    def __call__(self, instructions: list[Instruction]) -> int:
+        size = sum(i.size for i in instructions)
+        fetch = self.wait_states * (-(-size // self.line_bytes) + 1)
+        return fetch + sum(self.instruction(i) for i in instructions)
+
+    def instruction(self, ins: Instruction) -> int:
+        # the mnemonic as printed, and without a condition suffix (an IT block's popeq, ldrne)
+        names = (ins.mnemonic, re.sub(rf"({_ARM_COND})(?=(\.\w+)?$)", "", ins.mnemonic))
+
+        def kind(*prefixes: str) -> bool:
+            return any(n.startswith(prefixes) for n in names)
+
+        refill = 3
+        if kind("pop", "push", "ldm", "stm", "vpush", "vpop", "vldm", "vstm"):
+            span = re.search(r"\{([^}]*)\}", ins.operands)
+            words = 1  # a register list of one word at least
+            if span:  # {r4, r5, lr}, {d8-d15}: one cycle per 32-bit word moved
+                words = 0
+                for item in span.group(1).split(","):
+                    ends = [int(x) for x in re.findall(r"\d+", item)]
+                    width = 2 if item.strip().startswith("d") else 1
+                    words += width * (ends[-1] - ends[0] + 1 if len(ends) == 2 else 1)
+            loads = kind("pop", "ldm", "vpop", "vldm")
+            return 1 + words + (refill if re.search(r"\bpc\b", ins.operands) else 0) + self.wait_states * loads
+        if _ARM_B.match(ins.mnemonic) or kind("bl", "bx", "cbz", "cbnz"):
+            return 1 + refill
+        if kind("tbb", "tbh"):
+            return 1 + refill + 2 + self.wait_states  # the table's load from flash
+        if kind("ldr", "vldr"):
+            double = re.match(r"d\d", ins.operands) is not None or kind("ldrd")
+            return (3 if double else 2) + self.wait_states + (refill if ins.operands.startswith("pc") else 0)
+        if kind("str", "vstr"):
+            return 3 if kind("strd") or re.match(r"d\d", ins.operands) else 2
+        if kind("sdiv", "udiv"):
+            return 12
+        if kind("vdiv", "vsqrt"):
+            return 14
+        if kind("vmla", "vmls", "vnmla", "vnmls", "vfma", "vfms", "vfnma", "vfnms"):
+            return 3
+        if kind("mla", "mls", "smla", "umla", "smlal", "umlal"):
+            return 2
+        return 1
