@@ -339,12 +339,12 @@ static uint8_t accept_waypoint(fw_link *l, const fw_link_waypoint *m) {
     l->wp_first = 0;
     l->wp_count = 0;
   } else {
-    const fw_link_waypoint_slot *prev = &l->wp[(l->wp_first + l->wp_count - 1u) % FW_LINK_WAYPOINTS];
+    const fw_link_waypoint_slot *prev = &l->wp.joints[(l->wp_first + l->wp_count - 1u) % FW_LINK_WAYPOINTS];
     if (l->stream_poses) return FW_LINK_RESULT_REFUSED_STATE; /* a pose stream runs */
     if (l->stream_ended || w.t_us <= prev->t_us) return FW_LINK_RESULT_STREAM_ORDER;
     if (l->wp_count >= FW_LINK_WAYPOINTS) return FW_LINK_RESULT_STREAM_FULL;
   }
-  l->wp[(l->wp_first + l->wp_count) % FW_LINK_WAYPOINTS] = w;
+  l->wp.joints[(l->wp_first + l->wp_count) % FW_LINK_WAYPOINTS] = w;
   ++l->wp_count;
   l->stream_ended = w.last != 0u;
   return FW_LINK_RESULT_OK;
@@ -428,13 +428,13 @@ static uint8_t accept_pose_waypoint(fw_link *l, const fw_link_pose_waypoint *m) 
     l->wp_first = 0;
     l->wp_count = 0;
   } else {
-    const fw_link_pose_slot *prev = &l->pose_wp[(l->wp_first + l->wp_count - 1u) % FW_LINK_WAYPOINTS];
+    const fw_link_pose_slot *prev = &l->wp.poses[(l->wp_first + l->wp_count - 1u) % FW_LINK_WAYPOINTS];
     if (!l->stream_poses) return FW_LINK_RESULT_REFUSED_STATE; /* a joint stream runs */
     if (l->stream_ended || w.t_us <= prev->t_us) return FW_LINK_RESULT_STREAM_ORDER;
     if (l->wp_count >= FW_LINK_WAYPOINTS) return FW_LINK_RESULT_STREAM_FULL;
     if (!(rotation_vector(prev->R, w.R, w.phi) > CTRL_LIT(0.0))) return FW_LINK_RESULT_BAD_VALUE;
   }
-  l->pose_wp[(l->wp_first + l->wp_count) % FW_LINK_WAYPOINTS] = w;
+  l->wp.poses[(l->wp_first + l->wp_count) % FW_LINK_WAYPOINTS] = w;
   ++l->wp_count;
   l->stream_ended = w.last != 0u;
   return FW_LINK_RESULT_OK;
@@ -662,13 +662,13 @@ static void stream_tick(fw_link *l, ctrl_input *in) {
     l->streaming = 0;
     return;
   }
-  while (l->wp_count >= 2u && (ctrl_real)l->wp[(l->wp_first + 1u) % FW_LINK_WAYPOINTS].t_us * CTRL_LIT(1e-6) <= t) {
+  while (l->wp_count >= 2u && (ctrl_real)l->wp.joints[(l->wp_first + 1u) % FW_LINK_WAYPOINTS].t_us * CTRL_LIT(1e-6) <= t) {
     l->wp_first = (l->wp_first + 1u) % FW_LINK_WAYPOINTS;
     --l->wp_count;
   }
-  a = &l->wp[l->wp_first];
+  a = &l->wp.joints[l->wp_first];
   if (l->wp_count >= 2u) {
-    b = &l->wp[(l->wp_first + 1u) % FW_LINK_WAYPOINTS];
+    b = &l->wp.joints[(l->wp_first + 1u) % FW_LINK_WAYPOINTS];
     for (i = 0; i < N; ++i) {
       ref[i] = clamp_r(hermite(a, b, i, t), l->q_min[i], l->q_max[i]);
     }
@@ -880,13 +880,13 @@ static void pose_stream_tick(fw_link *l, ctrl_input *in) {
     return;
   }
   while (l->wp_count >= 2u &&
-         (ctrl_real)l->pose_wp[(l->wp_first + 1u) % FW_LINK_WAYPOINTS].t_us * CTRL_LIT(1e-6) <= l->pose_t) {
+         (ctrl_real)l->wp.poses[(l->wp_first + 1u) % FW_LINK_WAYPOINTS].t_us * CTRL_LIT(1e-6) <= l->pose_t) {
     l->wp_first = (l->wp_first + 1u) % FW_LINK_WAYPOINTS;
     --l->wp_count;
   }
-  a = &l->pose_wp[l->wp_first];
+  a = &l->wp.poses[l->wp_first];
   if (l->wp_count >= 2u) {
-    pose_between(a, &l->pose_wp[(l->wp_first + 1u) % FW_LINK_WAYPOINTS], l->pose_t, p, R, twist);
+    pose_between(a, &l->wp.poses[(l->wp_first + 1u) % FW_LINK_WAYPOINTS], l->pose_t, p, R, twist);
   } else {
     if (!l->stream_ended) {
       ++l->counts.underruns; /* the host is late: hold the last pose */

@@ -162,9 +162,12 @@ typedef struct {
   ctrl_real target[16];
   ctrl_real q_target[CTRL_NDOF];
   uint32_t locked;
-  /* stream: of joint waypoints (wp) or of tool poses (pose_wp, stream_poses), one ring */
-  fw_link_waypoint_slot wp[FW_LINK_WAYPOINTS];
-  fw_link_pose_slot pose_wp[FW_LINK_WAYPOINTS];
+  /* stream: of joint waypoints or of tool poses (stream_poses says which), one ring; a stream
+   * is of one kind, so the two share their memory */
+  union {
+    fw_link_waypoint_slot joints[FW_LINK_WAYPOINTS];
+    fw_link_pose_slot poses[FW_LINK_WAYPOINTS];
+  } wp;
   uint32_t wp_first, wp_count, stream_k;
   int streaming, stream_ended, stream_arrived; /* ended: its last waypoint received; arrived: the arm is there */
   int stream_poses;
