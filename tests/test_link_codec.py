@@ -134,6 +134,44 @@ def test_python_decoder_drops_other_versions_and_oversized_frames():
     oversized = bytes([1 + k % 255 for k in range(2 * max_body_size(NDOF_MODULAR8))]) + b"\x00"
     assert decoder.feed(other + oversized + encode("STATUS", 2, NDOF_MODULAR8)) != []
     assert decoder.counts["wrong_version"] == 1 and decoder.counts["oversized"] == 1
+    # HELLO_REPLY keeps its layout in every version: the handshake reads a board of another one
+    old_board = {"accepted": 0, "version": VERSION - 1, "ndof": 8, "dt_us": 1000, "watchdog_ticks": 100,
+                 "waypoint_capacity": 32}
+    [reply] = FrameDecoder(0).feed(encode("HELLO_REPLY", 0, 0, old_board, version=VERSION - 1))
+    assert reply.values == old_board and reply.version == VERSION - 1
+
+
+# A pose file's twists are central differences of its samples: for x = a sin(2 pi f t) and a yaw
+# at a constant rate, the difference errs by h^2 |d3x/dt3| / 6 = (0.01 s)^2 (2 pi)^3 0.1 / 6 = 4e-4
+# m/s (a = 0.1 m, f = 1 Hz) and not at all on the constant rate.
+POSE_FILE_STEP_S = 0.01
+POSE_FILE_TWIST_TOL = 5e-4
+
+
+@settings(max_examples=25, deadline=None)
+@given(roll=st.floats(-3, 3), pitch=st.floats(-1.5, 1.5), yaw0=st.floats(-3, 3), rate=st.floats(-2, 2))
+def test_pose_file_waypoints_against_the_closed_form(roll, pitch, yaw0, rate):
+    import numpy as np
+
+    from armgen.description import rpy_matrix
+    from armgen.link import plan_pose_waypoints
+
+    t = np.arange(0, 1.0 + 1e-9, POSE_FILE_STEP_S)
+    x = 0.1 * np.sin(2 * np.pi * t)
+    yaw = yaw0 + rate * t
+    columns = ["t_s", "x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad"]
+    data = np.column_stack([t, x, 0.2 + 0 * t, 0.3 + 0 * t, roll + 0 * t, pitch + 0 * t, yaw])
+    times, poses, twists = plan_pose_waypoints(columns, data, 50.0)
+    assert np.allclose(times, np.arange(51) * 0.02)
+    k = np.rint(times / POSE_FILE_STEP_S).astype(int)
+    assert np.allclose(poses[:, :3, 3], data[k, 1:4])
+    assert np.allclose(poses[:, :3, :3], [rpy_matrix(roll, pitch, y) for y in yaw[k]])
+    # R = Rz(yaw) Ry Rx: yaw turns about the base's z, so omega = (0, 0, rate) in the base frame
+    inner = slice(1, -1)
+    assert np.allclose(twists[inner, 0], 0.2 * np.pi * np.cos(2 * np.pi * times[inner]), atol=POSE_FILE_TWIST_TOL)
+    assert np.allclose(twists[inner, 1:3], 0.0)
+    assert np.allclose(twists[inner, 3:], [0.0, 0.0, rate], atol=1e-9)
+    assert np.all(twists[[0, -1]] == 0)  # rest to rest
 
 
 def test_parser_fuzz_quick():
