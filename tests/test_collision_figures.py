@@ -389,6 +389,30 @@ def test_urdf_plan_figure_draws_its_collision_shapes_where_pinocchio_places_them
         check_approach(ax, robot, ends, report, obstacles)
 
 
+def test_ptp_figure_draws_the_arm_at_its_closest_approach(tmp_path):
+    """A PTP plan names its robot: on one with capsules its figure gets the same collision row
+    (joint values from the theta_<joint>_rad columns), here the wrist above a table in m."""
+    (tmp_path / "iiwa14c.toml").write_text(bare_dh_text("iiwa14").replace('name = "iiwa14"', 'name = "iiwa14c"')
+                                           + CAPSULES, encoding="utf-8")
+    waypoints = {"t": [0, 2], "theta": {f"a{i + 1}": [0, v] for i, v in enumerate([30, 50, 0, -80, 0, 30, 0])},
+                 "omega": {f"a{i + 1}": [0, 0] for i in range(7)}}
+    task = _task_text({"planner": "ptp", "robot": "iiwa14c.toml", "method": "3-4", "step": 0.01,
+                       "units": {"angle": "deg"}, "waypoints": waypoints},
+                      [{"type": "plane", "point": [0, 0, 0.1], "normal": [0, 0, 1]}], {"activation": 0.1})
+    plan = _plan(tmp_path, task)
+    result = read_plan(plan)
+    robot = plan_robot(result, plan)
+    report = result.metadata["summary"]["collision"]
+    assert report["pair"].endswith("obstacles[0] (plane)") and report["min_clearance_m"] > APART, report
+    sample = int(np.flatnonzero(result.column("t_s") == report["t_s"])[0])
+    q = np.array([result.column(f"theta_a{i + 1}_rad")[sample] for i in range(7)])
+    ends = dh_capsule_ends(tmp_path / "iiwa14c.toml", q)
+    obstacles = task_obstacles_si(plan)
+    for ax in scene_axes(plot_plan(result, str(plan), robot)):
+        check_scene(ax, robot, ends, obstacles)
+        check_approach(ax, robot, ends, report, obstacles)
+
+
 @pytest.mark.parametrize("fixture", ["dh_plan", "urdf_plan"])
 def test_animation_frames_move_the_capsules_with_the_arm(fixture, request, tmp_path):
     """Each frame draws the capsules at that frame's configuration (the previous frame's removed);
