@@ -346,11 +346,19 @@ ignore = [[0, 1], [1, 2], [2, 3]]
 """
 
 
+# The bundled robot files end with their own capsules, from this line on.
+BUNDLED_CAPSULES = "\n# -- Collision capsules"
+
+
+def bare_robot_text(name: str) -> str:
+    """A bundled robot file's text without its collision capsules."""
+    return Path(load_robot(name).path).read_text(encoding="utf-8").split(BUNDLED_CAPSULES)[0]
+
+
 def iiwa_with_capsules(extra: str = "") -> Robot:
-    """The bundled iiwa14 with capsules around its links (DH frames 0, 2, 4, 6 hold the segments
-    from their origin along z to the next origin; a sphere beyond the flange)."""
-    text = (Path(load_robot("iiwa14").path).read_text(encoding="utf-8").replace('name = "iiwa14"', 'name = "iiwa14c"')
-            + CAPSULES + extra)
+    """The bundled iiwa14 with simpler capsules than its own around its links (DH frames 0, 2, 4, 6
+    hold the segments from their origin along z to the next origin; a sphere beyond the flange)."""
+    text = bare_robot_text("iiwa14").replace('name = "iiwa14"', 'name = "iiwa14c"') + CAPSULES + extra
     return parse_robot(text, "iiwa14c.toml")
 
 
@@ -588,7 +596,7 @@ def test_bad_ignore_pairs_are_errors():
     for ignore, message in (("[[0, 9]]", "pair [0, 9] names capsule 9, but the file has 5 [[collision]] capsules"),
                             ("[[3, 3]]", "pair [3, 3] names one capsule twice")):
         text = CAPSULES.replace("ignore = [[0, 1], [1, 2], [2, 3]]", f"ignore = {ignore}")
-        source = Path(load_robot("iiwa14").path).read_text(encoding="utf-8") + text
+        source = bare_robot_text("iiwa14") + text
         with pytest.raises(RobotFileError) as error:
             parse_robot(source, "arm.toml")
         assert message in str(error.value) and "arm.toml" in str(error.value)
@@ -816,8 +824,8 @@ def _planar_with_capsules(folder: Path) -> Path:
 
 def test_gen_emits_the_collision_functions_and_verify_compares_them(tmp_path, monkeypatch):
     """armgen gen lists them last with fixed-size obstacle arrays; armgen verify compares them
-    in double and float (the callbacks stage: bounds DOUBLE_REL_BOUND and FLOAT_BOUNDS); the
-    bundled robots (no capsules) have none."""
+    in double and float (the callbacks stage: bounds DOUBLE_REL_BOUND and FLOAT_BOUNDS); a bundled
+    robot has them when its file gives capsules (iiwa14, panda), none otherwise."""
     monkeypatch.chdir(tmp_path)
     _planar_with_capsules(tmp_path)
     out = CliRunner().invoke(cli, ["gen", "planarc.toml", "-o", "gen"])
@@ -838,9 +846,10 @@ def test_gen_emits_the_collision_functions_and_verify_compares_them(tmp_path, mo
     (callbacks,) = [stage for stage in json.loads(report.read_text())["stages"] if stage["name"] == "callbacks"]
     compared = {(row[0], row[1]) for row in callbacks["rows"] if row[5]}
     assert {(name, precision) for name in COLLISION_FUNCTIONS for precision in ("double", "float")} <= compared
-    for name in ("planar3", "iiwa14"):
+    for name in ("planar3", "modular8", "iiwa14", "panda"):
         bundled = json.loads((Path(__file__).parent.parent / "generated" / name / "manifest.json").read_text())
-        assert not set(bundled["functions"]) & set(COLLISION_FUNCTIONS)
+        emitted = set(bundled["functions"]) & set(COLLISION_FUNCTIONS)
+        assert emitted == (set(COLLISION_FUNCTIONS) if load_robot(name).has_collision else set())
 
 
 @pytest.fixture(scope="module")

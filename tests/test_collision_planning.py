@@ -20,7 +20,7 @@ from armgen.errors import PlanningError, TaskFileError
 from armgen.planning.common.collision import TaskCollision, clearance_report
 from armgen.planning.tasks import run_task
 from armgen.robot import load_robot
-from test_collision import CAPSULES
+from test_collision import CAPSULES, bare_robot_text
 
 # The sphere (mm, base frame) where the plain plan's elbow passes 6.5 s into the line, and the
 # task's [collision] (mm): the plain plan comes 27 mm into it, the criterion keeps it 54 mm off.
@@ -45,8 +45,7 @@ DISTANCE_TOL = 1e-9  # m
 
 @pytest.fixture(scope="module")
 def robot_file(tmp_path_factory) -> Path:
-    text = (Path(load_robot("iiwa14").path).read_text(encoding="utf-8").replace('name = "iiwa14"', 'name = "iiwa14c"')
-            + CAPSULES)
+    text = bare_robot_text("iiwa14").replace('name = "iiwa14"', 'name = "iiwa14c"') + CAPSULES
     path = tmp_path_factory.mktemp("robots") / "iiwa14c.toml"
     path.write_text(text, encoding="utf-8")
     return path
@@ -214,14 +213,6 @@ def test_a_ptp_plan_closer_to_itself_than_the_clearance_is_refused(robot_file):
         run_task(ptp_task(robot_file, [], {"clearance": closest + 0.01, "activation": 0.5}), "ptp.toml")
     first, second = free["self_pair"].split(" – ")
     assert f"brings {first} to {closest * 1e3:.1f} mm from {second}" in str(error.value)
-
-
-def test_the_firmware_refuses_a_task_whose_plan_bends_around_obstacles(robot_file):
-    from armgen.firmware.errors import FirmwareError
-    from armgen.firmware.tasks import task_from_dict
-
-    with pytest.raises(FirmwareError, match=r"fw\.toml: the task's \[collision\] gain = 0\.01 moves the arm around"):
-        task_from_dict(line_task(robot_file, "cartesian", "pinv", GAIN), "fw.toml")
 
 
 # -- snake plans: the links' capsules against each other at every sample --------------------------
