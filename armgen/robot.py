@@ -18,7 +18,7 @@ The description's public names (``Joint``, ``rpy_matrix``, ``matrix_rpy``, ``BUN
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import astuple, dataclass, fields
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
@@ -507,10 +507,14 @@ class Robot(RobotDescription):
             raise TypeError(f"obstacles must be a sequence of SphereObstacle, CapsuleObstacle, BoxObstacle or "
                             f"PlaneObstacle, got {excerpt(repr(obstacles))}")
         obstacles = tuple(obstacles)
-        for obstacle in obstacles:
+        for k, obstacle in enumerate(obstacles):
             if type(obstacle) not in _OBSTACLE_TYPES:
                 raise TypeError(f"obstacles: {excerpt(repr(obstacle))} is no obstacle; give SphereObstacle, "
                                 "CapsuleObstacle, BoxObstacle or PlaneObstacle (armgen.description.collision)")
+            values = _real_array(np.concatenate([np.ravel(v) for v in astuple(obstacle)]), f"obstacles[{k}]")
+            if not (np.isfinite(values).all() and (np.abs(values) <= MAX_ABS_LENGTH_M).all()):
+                raise ValueError(f"obstacles[{k}] ({type(obstacle).__name__}) holds a value that is not finite or is "
+                                 f"beyond ±{MAX_ABS_LENGTH_M:g} (m, rad), far out of any arm's reach: give it in metres")
         clearance = _length(clearance, "clearance")
         if not collision_free:
             if obstacles or clearance or activation is not None:

@@ -188,6 +188,8 @@ def test_robots_without_capsules_and_bad_arguments():
     ({"obstacles": [(0.3, 0.0, 0.5)]}, TypeError, "is no obstacle"),
     ({"obstacles": SPHERE}, TypeError, "must be a sequence"),
     ({"obstacles": [SPHERE] * 5}, ValueError, "max_obstacles.sphere"),
+    ({"obstacles": [SphereObstacle((math.nan, 0.0, 0.5), 0.1)]}, ValueError, r"obstacles\[0\] \(SphereObstacle\)"),
+    ({"obstacles": [SPHERE, CapsuleObstacle((0, 0, 0), (2e3, 0, 0), 0.1)]}, ValueError, "beyond ±1000"),
 ])
 def test_bad_collision_arguments_are_named(robot, scene, arguments, error, message):
     with pytest.raises(error, match=message):
@@ -280,6 +282,9 @@ def test_cli_solves_clear_of_the_file_obstacles_and_exits_3_when_none_is(robot_f
     (OBSTACLE_FILE + "[[obstacles]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 0, 0]\n", "normal",
      "has no direction"),
     ("[[obstacles]\n", "not valid TOML", "line 1"),
+    (OBSTACLE_FILE.replace("radius = 150", "radius = 2e6"), "'obstacles[0].radius' = 2000000.0", "beyond ±1000 m"),
+    (OBSTACLE_FILE + "[[obstacles]]\ntype = \"box\"\ncentre = [0, 0, 0]\nsize = [1, 1, 1]\nrpy = [0, 0, 1e5]\n",
+     "'obstacles[1].rpy'", "beyond ±1000 rad"),
 ])
 def test_cli_bad_obstacle_files_name_file_field_and_fix(robot_file, tmp_path, text, field, fix):
     path = tmp_path / "cell.toml"
@@ -331,5 +336,6 @@ def test_fuzzed_obstacle_files_load_or_fail_cleanly(robot, tmp_path, entries, co
         assert str(path) in str(exc)
         return
     assert loaded is not None and len(loaded.obstacles) == len(entries)
+    assert robot.ik(robot.fk(robot.qmid), obstacles=loaded.obstacles).q.shape == (robot.n,)  # Robot.ik takes them
     assert all(isinstance(o, (SphereObstacle, CapsuleObstacle, PlaneObstacle)) or type(o).__name__ == "BoxObstacle"
                for o in loaded.obstacles)

@@ -45,6 +45,7 @@ from pydantic import Discriminator, Field, Tag, ValidationError, model_validator
 from ...description.collision import (MAX_OBSTACLE_SLOTS, BoxObstacle, CapsuleObstacle, Obstacle, PlaneObstacle,
                                       SphereObstacle, obstacle_kind, obstacle_parameters)
 from ...description.files import ANGLE_UNITS, LENGTH_UNITS
+from ...description.model import MAX_ABS_ANGLE_RAD, MAX_ABS_LENGTH_M
 from ...errors import PlanningError, TaskFileError
 from ...robot import Robot
 from ...schemas import (MAX_INPUT_FILE_BYTES, StrictModel, format_validation_error, parse_toml_bounded,
@@ -245,7 +246,33 @@ def load_obstacle_file(path: str | Path, robot: Robot) -> TaskCollision | None:
         raise TaskFileError(format_validation_error(
             exc, source, document, "an obstacle file holds [units], [[obstacles]] and [collision] as a task file does "
             "(docs/collision.md)")) from None
+    _check_reach(model, source)
     return configure_collision(model, robot, source)
+
+
+def _check_reach(model: ObstacleFile, source: str) -> None:
+    """Refuse a length beyond ±MAX_ABS_LENGTH_M (after [units]), an angle beyond
+    ±MAX_ABS_ANGLE_RAD, a normal's entry beyond ±MAX_ABS_LENGTH_M: far out of any arm's reach
+    (what Robot.ik refuses), so a typo in a value or in [units] is an error naming the field."""
+    length, angle = LENGTH_UNITS[model.units.length], ANGLE_UNITS[model.units.angle]
+    # (field, its largest magnitude in SI, the bound, its unit)
+    checks = []
+    for k, entry in enumerate(model.obstacles):
+        for name, value in entry.model_dump().items():
+            if name == "rpy":
+                checks.append((f"obstacles[{k}].rpy", value, max(map(abs, value)) * angle, MAX_ABS_ANGLE_RAD, "rad"))
+            elif name == "normal":  # a direction: its length does not matter, but must stay representable
+                checks.append((f"obstacles[{k}].normal", value, max(map(abs, value)), MAX_ABS_LENGTH_M, "m"))
+            elif name != "type":
+                size = max(map(abs, value)) if isinstance(value, list) else abs(value)
+                checks.append((f"obstacles[{k}].{name}", value, size * length, MAX_ABS_LENGTH_M, "m"))
+    if model.collision is not None:
+        checks += [(f"collision.{name}", getattr(model.collision, name), getattr(model.collision, name) * length,
+                    MAX_ABS_LENGTH_M, "m") for name in ("clearance", "activation")]
+    for field, value, size, bound, unit in checks:
+        if size > bound:
+            raise TaskFileError(f"{source}: field '{field}' = {value} is beyond ±{bound:g} {unit} (after [units]), far "
+                                "out of any arm's reach: check the value and [units]")
 
 
 # The collision criterion's inputs besides q, by the name CasADi gives them; in a kernel each
