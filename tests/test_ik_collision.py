@@ -196,6 +196,27 @@ def test_bad_collision_arguments_are_named(robot, scene, arguments, error, messa
         robot.ik(scene[0], **arguments)
 
 
+@settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(fractions=st.lists(st.floats(0.05, 0.95), min_size=7, max_size=7),
+       centre=st.tuples(st.floats(-0.6, 0.6), st.floats(-0.6, 0.6), st.floats(0.2, 1.2)),
+       radius=st.floats(0.02, 0.3), clearance=st.sampled_from([0.0, 0.01, 0.05]))
+def test_whatever_the_sphere_an_answer_is_clear_or_says_why(robot, fractions, centre, radius, clearance):
+    """Property: for a reachable pose and any sphere, Robot.ik's answer reaches the pose and
+    keeps the clearance by coal's measure, or is a failure that says which of the two it missed."""
+    pose = robot.fk(robot.qmin + (robot.qmax - robot.qmin) * np.array(fractions))
+    sphere = SphereObstacle(centre, radius)
+    result = robot.ik(pose, obstacles=[sphere], clearance=clearance)
+    least = coal_least(robot, result.q[None], [sphere])[0]
+    assert result.clearance == pytest.approx(least, abs=COAL_TOL)
+    pos, ori = independent_errors(robot, result.q, pose)
+    if result.success:
+        assert least >= clearance - COAL_TOL and pos <= ik.TOL_POSITION * 1.001 and ori <= ik.TOL_ORIENTATION * 1.001
+    elif result.colliding:  # reached, not clear
+        assert least < clearance and pos <= ik.TOL_POSITION * 1.001 and "no collision-free" in result.reason
+    else:
+        assert result.reason.startswith("not reached")
+
+
 # -- the planners' own IK solves ------------------------------------------------------------------
 
 def _sphere_entry(sphere: SphereObstacle) -> dict:
