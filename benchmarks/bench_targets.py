@@ -20,6 +20,11 @@ Arm cores, mcycle on RISC-V; docs/targets.md):
    on the M0+).
 
 A missing tool leaves its core out and the run exits 4; an error is a traceback (exit 1).
+4. The static worst-case bound (armgen.firmware.bound) of every generated function and of each
+   tick, beside the measured maximum; ik also to unreachable poses (every call runs all its
+   steps: the adversarial case the bound covers); on the Cortex-M4F the tick's cycle bound at
+   0 and 5 flash wait states (STM32F4 at 168 MHz).
+
 ``--quick``: fewer configurations and poses, the resolved-rate task only.
 """
 
@@ -27,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -57,7 +63,9 @@ UNREACHABLE_SHARE = 8  # one unreachable pose per 8 reachable ones (each call ru
 UNREACHABLE_FACTOR = 3.0  # an arm's reach is its links' length: three times a reached pose's distance is beyond it
 IK_TOL = {"float": 1e-4, "double": 1e-6}  # position [m] and orientation [rad]; float resolves ~1e-5 at 1 m
 MODES = ("RESOLVED_RATE", "WEIGHTED_GPM")
-M0PLUS_HZ, TICK_HZ = 133_000_000, 1000  # RP2040's clock, a 1 kHz control loop
+M0PLUS_HZ, TICK_HZ = 133_000_000, 1000
+M4_WAIT_STATES = (0, 5)  # code in zero-wait memory (SRAM, or every fetch an ART hit); STM32F4's flash at 168 MHz
+M4_HZ = 168_000_000  # RP2040's clock, a 1 kHz control loop
 EXIT_TOOL_MISSING = 4
 
 
@@ -124,8 +132,8 @@ def run_image(target: fw.Target, elf: Path) -> dict[str, int]:
 def calls_image(target: fw.Target, robot, work: Path, header: str, gen: Path | None = None) -> tuple[Path, list[str]]:
     """The image of benchmarks/c/bench_target_fn.c with the robot's generated C (``gen``, default
     the checked-in generated/<robot>) and bench_poses.h = ``header``: its path and the compile
-    flags. -g (the DWARF lines the static bound reads; it changes no instruction) and no
-    --gc-sections: every generated function stays in the image, for its bound."""
+    flags. -g: the DWARF lines the static bound reads (it changes no instruction); every
+    function the generated header declares kept in the image (-u), for its bound."""
     p, precision = robot.name.lower(), target.precision
     gen = gen or REPO / "generated" / robot.name
     work.mkdir(parents=True, exist_ok=True)
@@ -142,8 +150,10 @@ def calls_image(target: fw.Target, robot, work: Path, header: str, gen: Path | N
         run([cc, *flags, opt, "-c", src, "-o", obj], f"compiling {src.name} for {target.name}")
         objs.append(obj)
     elf = work / "functions.elf"
-    run([cc, *flags, "-nostartfiles", *target.link_specs, "-T", STUB / target.linker_script, *objs, "-lm", "-o", elf],
-        f"linking the {target.name} benchmark")
+    keep = [f"-Wl,-u,{name}" for name in re.findall(rf"^(?!static)\w[\w ]*?\b({p}_\w+)\(",
+                                                    (gen / f"{p}.h").read_text(), re.M)]
+    run([cc, *flags, "-nostartfiles", *target.link_specs, "-T", STUB / target.linker_script, "-Wl,--gc-sections",
+         *keep, *objs, "-lm", "-o", elf], f"linking the {target.name} benchmark")
     return elf, [*flags, "-Os"]
 
 
@@ -202,8 +212,15 @@ def firmware(target: fw.Target, builder: fw.FirmwareBuilder, work: Path, modes) 
         elf = builder.executable(quiet, task, f"{target.name}_{mode}")
         run = fw.run_qemu(elf, target=target.name)
         ipt = fw.instructions_per_tick(run)
-        out[mode] = {"mean": ipt["mean"], "max": ipt["max"], "ticks": int(ipt["ticks"]), "end": f"{run.state}/{run.fault}",
-                     "stack_peak_bytes": int(run.summary["stack_peak_bytes"])}
+        flags = builder.cflags(quiet)
+        static = bound.tick_bound(target, elf, flags, builder.prefix, task.mode, task.header).instructions
+        out[mode] = {"mean": ipt["mean"], "max": ipt["max"], "bound": static, "ticks": int(ipt["ticks"]),
+                     "end": f"{run.state}/{run.fault}", "stack_peak_bytes": int(run.summary["stack_peak_bytes"])}
+        if target.name == "cortex-m4":  # cycles on an STM32F4 (docs/targets.md, "Static bound")
+            out[mode]["cycle_bound"] = {
+                f"{ws}_wait_states": bound.analyzer(target, elf, flags, block_cost=bound.CortexM4Cycles(ws)).bound(
+                    "ctrl_tick", bound.tick_avoid(builder.prefix, mode, "CTRL_PATH_PROGRAM" in task.header)).instructions
+                for ws in M4_WAIT_STATES}
         if mode == "RESOLVED_RATE":
             out["image"] = size(target, elf)
     return out
@@ -235,18 +252,31 @@ def main(argv=None) -> int:
             results["targets"][name] = r
             print(f"{name} ({target.qemu_machine}, {r['precision']}): fk_jacobian {r['fk_jacobian']['mean']:.0f} / "
                   f"{r['fk_jacobian']['max']:.0f}, ik {r['ik']['mean']:.0f} / {r['ik']['max']:.0f} instr/call", flush=True)
-    print(f"\n{robot.name}: executed instructions per call or tick (mean / max), QEMU -icount\n")
-    head = ["target", "precision", "fk_jacobian", "ik", "ik success"] + [f"tick {m}" for m in modes] + [
-        "flash [B]", "static RAM [B]", "peak stack [B]"]
+    print(f"\n{robot.name}: executed instructions per call or tick (mean / max / static bound), QEMU -icount; "
+          f"ik unreachable: {ik.MAX_ITERATIONS} steps a call\n")
+    head = ["target", "precision", "fk_jacobian", "ik", "ik success", "ik unreachable (max / bound)"] + [
+        f"tick {m}" for m in modes] + ["flash [B]", "static RAM [B]", "peak stack [B]"]
     print("| " + " | ".join(head) + " |\n|" + "---|" * len(head))
     for name, r in results["targets"].items():
-        f = r["firmware"]
-        cells = [name, r["precision"], f"{r['fk_jacobian']['mean']:.0f} / {r['fk_jacobian']['max']:.0f}",
-                 f"{r['ik']['mean']:.0f} / {r['ik']['max']:.0f}", f"{r['ik']['success']:.0%}"]
-        cells += [f"{f[m]['mean']:.0f} / {f[m]['max']:.0f}" for m in modes]
+        f, b = r["firmware"], r["bound"]
+        cells = [name, r["precision"], f"{r['fk_jacobian']['mean']:.0f} / {r['fk_jacobian']['max']:.0f} / {b['fk_jacobian']}",
+                 f"{r['ik']['mean']:.0f} / {r['ik']['max']:.0f} / {b['ik']}", f"{r['ik']['success']:.0%}",
+                 f"{r['ik_unreachable']['max']:.0f} / {b['ik']}"]
+        cells += [f"{f[m]['mean']:.0f} / {f[m]['max']:.0f} / {f[m]['bound']}" for m in modes]
         cells += [str(f["image"]["flash_bytes"]), str(f["image"]["static_ram_bytes"]),
                   str(max(f[m]["stack_peak_bytes"] for m in modes))]
         print("| " + " | ".join(cells) + " |")
+    print(f"\nStatic bound of each generated function [instructions per call; ik: {ik.MAX_ITERATIONS} steps]\n")
+    names = sorted({n for r in results["targets"].values() for n in r["bound"]})
+    print("| function | " + " | ".join(results["targets"]) + " |\n|---|" + "---|" * len(results["targets"]))
+    for n in names:
+        print(f"| `{n}` | " + " | ".join(str(r["bound"].get(n, "-")) for r in results["targets"].values()) + " |")
+    m4 = results["targets"].get("cortex-m4")
+    if m4 is not None:
+        print(f"\nCortex-M4F cycle bound per tick (docs/targets.md): at {M4_HZ // 1_000_000} MHz")
+        for m in modes:
+            for key, cycles in m4["firmware"][m]["cycle_bound"].items():
+                print(f"  {m}: {key.replace('_', ' ')}: {cycles} cycles, {cycles / M4_HZ * 1e6:.0f} µs")
     m0 = results["targets"].get("cortex-m0plus")
     if m0 is not None:
         budget = M0PLUS_HZ // TICK_HZ

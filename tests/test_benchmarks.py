@@ -83,8 +83,9 @@ QUICK_RUNS = {
     "bench_programs.py": ((), [rf"poses: \s*{NUMBER} ms for \d+ samples", rf"poses / line per sample: {NUMBER}x"]),
     "bench_snake.py": ((), [rf"planar\s+exact\s+{NUMBER}\s+{NUMBER}", rf"planar\s+BDF\s+1\s+{NUMBER}"]),
     "bench_targets.py": (("gcc", *ARM_TOOLS, "riscv64-unknown-elf-gcc", "qemu-system-riscv32"), [
-        r"^\| cortex-m7 \| double \| \d+ / \d+ \| \d+ / \d+ \| \d+% \| \d+ / \d+ \| \d+ \| \d+ \| \d+ \|$",
-        r"^\| rv32imf \| float \| \d+ / \d+ \| \d+ / \d+ \| \d+% \| \d+ / \d+ \| \d+ \| \d+ \| \d+ \|$",
+        r"^\| cortex-m7 \| double \| \d+ / \d+ / \d+ \| \d+ / \d+ / \d+ \| \d+% \| \d+ / \d+ \| \d+ / \d+ / \d+ \| \d+ \| \d+ \| \d+ \|$",
+        r"^\| rv32imf \| float \| \d+ / \d+ / \d+ \| \d+ / \d+ / \d+ \| \d+% \| \d+ / \d+ \| \d+ / \d+ / \d+ \| \d+ \| \d+ \| \d+ \|$",
+        r"^\| `ik` \| \d+ \| \d+ \| \d+ \| \d+ \| \d+ \|$",
         r"Cortex-M0\+ float \(soft float\) resolved-rate tick: max \d+ instructions against 133000 cycles"]),
     "bench_verify.py": (("gcc",), [rf"armgen verify \(fresh, compile, callbacks\)\s+wall\s+{NUMBER} s",
                                    rf"ratio batched / per sample: {NUMBER}"]),

@@ -60,6 +60,7 @@ from ..robot import Robot, load_robot
 from ..symbolic.model import ModelOptions, SymbolicModel
 from .compare import ReferenceSamples, compare_model, reference_samples
 from .. import firmware as fw
+from ..firmware import bound as static_bound
 from . import firmware_compare as fwcmp
 from ..codegen.compiled import CompiledModel
 from ..codegen.toolchain import compiler_identity
@@ -440,7 +441,8 @@ def stage_target(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder |
     builder = _firmware_builder(config, work, builder)
     rows, passed = [], True
     try:
-        run = fw.run_qemu(builder.executable(fw.target_variant(target.name), task, "target"), target=target.name)
+        elf = builder.executable(fw.target_variant(target.name), task, "target")
+        run = fw.run_qemu(elf, target=target.name)
     except ArmgenError as exc:
         return Stage("target", False, columns, [[label, "build and run", str(exc).splitlines()[0], "exit 0", False]],
                      f"the {target.name} build or the QEMU run failed")
@@ -464,6 +466,15 @@ def stage_target(config: VerifyConfig, work: Path, builder: fw.FirmwareBuilder |
     rows.append([label, "instructions per tick, mean / max", f"{ipt['mean']:.0f} / {ipt['max']:.0f}",
                  "(informative)", True])
     rows.append([label, "peak stack [bytes]", run.summary.get("stack_peak_bytes", "?"), "(informative)", True])
+    try:  # the static worst case (armgen.firmware.bound): no measured tick may exceed it
+        static = static_bound.tick_bound(target, elf, builder.cflags(fw.target_variant(target.name)), builder.prefix,
+                                  task.mode, task.header).instructions
+        holds = static + ipt["resolution"] >= ipt["max"]  # a tick is measured to one timer count
+        rows.append([label, "static bound per tick [instructions], bound / max", f"{static} ({static / ipt['max']:.2f})",
+                     ">= max", holds])
+        passed &= holds
+    except (ArmgenError, OSError) as exc:  # a mode without a tick bound (docs/targets.md), no objdump
+        rows.append([label, "static bound per tick", str(exc).splitlines()[0], "(informative)", True])
     message = "" if passed else f"the {target.name} run differs from the plan: see the rows marked FAIL"
     return Stage("target", passed, columns, rows, message)
 
