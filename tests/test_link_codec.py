@@ -255,3 +255,20 @@ def test_python_decoder_takes_any_bytes(chunks, seqs):
     for f in frames:  # a frame found in garbage (a CRC-32 collision, ~never) is still a whole message
         (again,) = FrameDecoder(NDOF_MODULAR8).feed(encode(f.name, f.seq, NDOF_MODULAR8, dict(f.values)))
         assert (again.name, again.seq) == (f.name, f.seq)
+
+
+@pytest.mark.parametrize("precision", ["0", "1"])
+def test_fw_link_builds_for_a_robot_without_step_fault(precision, tmp_path):
+    """A robot whose generated code lacks step_fault and ft_index is built with
+    -DCTRL_HAS_FAULT_TOLERANT=0: the link falls back to step_gpm (no sigma_min) under the strict
+    flags, and its object calls neither."""
+    require_tool("gcc")
+    stub = REPO / "armgen" / "data" / "firmware_stub"
+    obj = tmp_path / "fw_link.o"
+    subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-Wdouble-promotion",
+                    "-Wfloat-conversion", "-Wshadow", "-DCTRL_HAS_FAULT_TOLERANT=0", f"-DMODULAR8_USE_FLOAT={precision}",
+                    f"-I{stub}", f"-I{REPO / 'generated' / 'modular8'}", "-c", str(stub / "fw_link.c"), "-o", str(obj)],
+                   check=True, capture_output=True, text=True)
+    undefined = subprocess.run(["nm", "-u", str(obj)], check=True, capture_output=True, text=True).stdout
+    assert "modular8_step_gpm_from_jacobian" in undefined
+    assert "step_fault" not in undefined and "ft_index" not in undefined

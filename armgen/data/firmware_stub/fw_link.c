@@ -10,6 +10,14 @@
 #define N CTRL_NDOF
 #define LINK_ATAN2 CTRL_M(ATAN2)
 
+/* The generated step_fault and ft_index (spec 30) that SERVO's sigma_min damping and the
+ * manipulability criteria use: a robot whose generated code lacks them is built with
+ * -DCTRL_HAS_FAULT_TOLERANT=0 (armgen.firmware.sources), as the controller is; then the step is
+ * step_gpm with a fixed damping (protocol version 1's) and those criteria are refused. */
+#ifndef CTRL_HAS_FAULT_TOLERANT
+#define CTRL_HAS_FAULT_TOLERANT 1
+#endif
+
 typedef char fw_link_ring_is_a_power_of_two[((FW_LINK_RX_RING & (FW_LINK_RX_RING - 1u)) == 0u) ? 1 : -1];
 
 /* ------------------------------------------------------------------ framing */
@@ -443,6 +451,10 @@ static uint8_t accept_pose_waypoint(fw_link *l, const fw_link_pose_waypoint *m) 
 static uint8_t accept_servo_setup(fw_link *l, const fw_link_servo_setup *m) {
   ctrl_real gain = (ctrl_real)m->gain;
   if (m->criterion > FW_LINK_CRITERION_REST || !finite_r(gain) || gain < CTRL_LIT(0.0)) return FW_LINK_RESULT_BAD_VALUE;
+  if (!CTRL_HAS_FAULT_TOLERANT && (m->criterion == FW_LINK_CRITERION_MANIPULABILITY ||
+                                   m->criterion == FW_LINK_CRITERION_JOINT_MANIPULABILITY)) {
+    return FW_LINK_RESULT_BAD_VALUE; /* no generated ft_index */
+  }
   if (m->criterion == FW_LINK_CRITERION_TASK) {
     l->criterion = l->task_criterion;
     l->null_gain = gain > CTRL_LIT(0.0) ? gain : l->task_gain;
@@ -723,11 +735,18 @@ static ctrl_real acceleration_scale(const ctrl_real *qd, const ctrl_real *v, con
 
 /* The chosen criterion's self-motion alpha at the last command (J its Jacobian). */
 static void self_motion(const fw_link *l, const ctrl_real *J, ctrl_real *alpha) {
-  ctrl_real H, grad[N], ones[N], omega[N], grad_w[N], w, sign = -CTRL_LIT(1.0);
+  ctrl_real H, grad[N], sign = -CTRL_LIT(1.0);
+#if CTRL_HAS_FAULT_TOLERANT
+  ctrl_real ones[N], omega[N], grad_w[N], w;
+#endif
   int i;
+#if CTRL_HAS_FAULT_TOLERANT
   for (i = 0; i < N; ++i) {
     ones[i] = CTRL_LIT(1.0);
   }
+#else
+  (void)J;
+#endif
   switch (l->criterion) {
     case FW_LINK_CRITERION_JOINT_LIMITS:
       ctrl_gen_zghal(l->last.q, &H, grad);
@@ -735,6 +754,7 @@ static void self_motion(const fw_link *l, const ctrl_real *J, ctrl_real *alpha) 
     case FW_LINK_CRITERION_REST:
       ctrl_gen_repetitive(l->last.q, l->q_start, &H, grad);
       break;
+#if CTRL_HAS_FAULT_TOLERANT
     case FW_LINK_CRITERION_MANIPULABILITY:
     case FW_LINK_CRITERION_JOINT_MANIPULABILITY: /* both from one call: w and H_M, maximised */
       ctrl_gen_ft_index(J, ones, l->hm_weights, FW_LINK_MANIPULABILITY_DELTA, omega, &H, grad, &w, grad_w);
@@ -743,6 +763,7 @@ static void self_motion(const fw_link *l, const ctrl_real *J, ctrl_real *alpha) 
       }
       sign = CTRL_LIT(1.0);
       break;
+#endif
     default: /* NONE: minimum norm */
       sign = CTRL_LIT(0.0);
       for (i = 0; i < N; ++i) {
@@ -763,8 +784,12 @@ static void self_motion(const fw_link *l, const ctrl_real *J, ctrl_real *alpha) 
  * to a limit, acceleration), written to `in`. Returns the scale of the twist, (0, 1]. */
 static ctrl_real rate_step(fw_link *l, ctrl_input *in, const ctrl_real *twist, const ctrl_real *p_ref,
                            const ctrl_real *R_ref, int first) {
-  ctrl_real T[16], J[6 * N], R[9], e[6], xd[CTRL_NTASK], alpha[N], qd[N], v[N], dv[N], mask[N], W[N];
-  ctrl_real s = CTRL_LIT(1.0), lam = CTRL_LIT(0.0), sigma = CTRL_LIT(0.0);
+  ctrl_real T[16], J[6 * N], R[9], e[6], xd[CTRL_NTASK], alpha[N], qd[N], v[N], dv[N];
+  ctrl_real s = CTRL_LIT(1.0), lam, sigma;
+  ctrl_gen_status status;
+#if CTRL_HAS_FAULT_TOLERANT
+  ctrl_real mask[N], W[N];
+#endif
   int i, moving = 0;
   ctrl_gen_fk_jacobian(l->last.q, T, J);
   rotation_of(T, R);
@@ -788,13 +813,21 @@ static ctrl_real rate_step(fw_link *l, ctrl_input *in, const ctrl_real *twist, c
   for (i = 0; i < N; ++i) {
     int locked = ((l->locked >> (uint32_t)i) & 1u) != 0u;
     alpha[i] = l->null_ramp > CTRL_LIT(0.0) && !locked ? l->null_ramp * alpha[i] : CTRL_LIT(0.0);
+#if CTRL_HAS_FAULT_TOLERANT
     mask[i] = locked ? CTRL_LIT(0.0) : CTRL_LIT(1.0);
     W[i] = CTRL_LIT(1.0);
+#endif
     v[i] = first ? CTRL_LIT(0.0) : l->last.qd[i];
     dv[i] = l->qdd_max[i] * l->dt;
   }
-  if (ctrl_gen_step_fault(J, xd, mask, W, alpha, FW_LINK_SERVO_EPSILON, FW_LINK_SERVO_LAMBDA_MAX, qd, &lam, &sigma) !=
-      CTRL_GEN_OK) {
+#if CTRL_HAS_FAULT_TOLERANT
+  status = ctrl_gen_step_fault(J, xd, mask, W, alpha, FW_LINK_SERVO_EPSILON, FW_LINK_SERVO_LAMBDA_MAX, qd, &lam, &sigma);
+#else
+  lam = CTRL_LIT(0.005); /* step_gpm's fixed damping, m: finite joint speeds at a singular pose, 5 um off the path elsewhere */
+  sigma = (ctrl_real)NAN; /* not computed */
+  status = ctrl_gen_step_gpm(J, xd, alpha, lam, qd);
+#endif
+  if (status != CTRL_GEN_OK) {
     for (i = 0; i < N; ++i) {
       qd[i] = CTRL_LIT(0.0); /* a non-finite step: come to rest */
     }
