@@ -23,6 +23,12 @@ In one run, on the 7-DOF panda (``--robot``):
    time per sample (one core: the samples loop in C on the calling thread), against the same C
    called from C (benchmarks/c/bench_fk_jacobian_batch.c, the kernel's code and flags, fresh
    output arrays per repeat on both sides); the ratio and the throughput per core are CPU time.
+4. The command line, each command in its own process (what a user waits for, the interpreter's
+   start and armgen's import included), best of CLI_REPEATS after one warm-up run (the kernel
+   built or the store's checked): ``armgen ik`` of one pose and ``armgen plan`` of the bundled
+   panda polishing program (a start given as a pose, solved by the IK; then every waypoint's
+   IK), on the compiled kernel and with ``ARMGEN_KERNEL=reference`` (before issue 41): wall
+   and CPU time (the child's, from ``wait4``).
 
 Wall-clock figures on a shared machine are noisy; CPU time is printed beside the batch.
 ``--quick`` (a smoke run: 20 000 single calls, 10 poses, 3 on the reference, 10⁴ batch) prints
@@ -35,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import subprocess
 import sys
@@ -171,6 +178,51 @@ def batch_figures(robot, count: int, repeats: int) -> dict:
             "c_wall_ns": c_wall, "c_cpu_ns": c_cpu}
 
 
+# The command-line rows: the panda polishing program starts at a pose (solved by the IK).
+CLI_PROGRAM = REPO / "armgen" / "data" / "examples" / "panda_polish_contour_program.toml"
+CLI_IK_POSE = ("--xyz", "0.55", "0", "0.35", "--rpy", "180", "0", "-45", "--units", "deg")  # the program's start
+CLI_REPEATS = 3
+
+
+def _armgen_command() -> list[str]:
+    """The ``armgen`` script of this interpreter's environment."""
+    script = Path(sys.executable).with_name("armgen")
+    if not script.is_file():
+        raise SystemExit(f"no armgen command beside {sys.executable}: pip install -e . first")
+    return [str(script)]
+
+
+def _run_timed(command: list[str], env: dict[str, str]) -> tuple[float, float]:
+    """(wall, CPU) seconds of one run of ``command`` (its CPU time from wait4); a failure raises."""
+    started = time.perf_counter()
+    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(process.pid, 0)
+    wall = time.perf_counter() - started
+    process.returncode = os.waitstatus_to_exitcode(status)
+    if process.returncode != 0:
+        raise SystemExit(f"{' '.join(command)} exited {process.returncode}: {process.stderr.read().decode()[-2000:]}")
+    process.stderr.close()
+    return wall, usage.ru_utime + usage.ru_stime
+
+
+def cli_rows(robot_name: str, repeats: int) -> list[dict]:
+    """``armgen ik`` and ``armgen plan`` wall and CPU seconds, compiled kernel and CasADi reference."""
+    armgen = _armgen_command()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        commands = {f"armgen ik {robot_name} (one pose)": [*armgen, "ik", robot_name, *CLI_IK_POSE],
+                    f"armgen plan {CLI_PROGRAM.name}": [*armgen, "plan", str(CLI_PROGRAM), "-o", f"{tmp}/plan.csv"]}
+        for label, command in commands.items():
+            row = {"command": label}
+            for evaluator in ("compiled", "reference"):
+                env = {**os.environ, api_kernel.KERNEL_ENV: evaluator, "ARMGEN_NO_PROGRESS": "1"}
+                _run_timed(command, env)  # warm-up: the kernel built or found
+                best = min(_run_timed(command, env) for _ in range(repeats))
+                row[f"{evaluator}_wall_s"], row[f"{evaluator}_cpu_s"] = best
+            rows.append(row)
+    return rows
+
+
 def ik_table(rows: list[dict]) -> str:
     lines = ["| solver | poses | success | mean | max | note |", "|---|---:|---:|---:|---:|---|"]
     for r in rows:
@@ -245,11 +297,19 @@ def main(argv=None) -> int:
     print(f"  Python batch / C from C (CPU): {batch['python_cpu_ns'] / batch['c_cpu_ns']:.2f}x; throughput per core "
           f"{1e3 / batch['python_cpu_ns']:.2f} M samples/s (C from C: {1e3 / batch['c_cpu_ns']:.2f})")
 
+    cli = cli_rows(robot.name, CLI_REPEATS if not args.quick else 1)
+    print(f"\n## the command line, one process per command, best of {CLI_REPEATS if not args.quick else 1} "
+          "after a warm-up\n")
+    for row in cli:
+        print(f"  {row['command']:44s} compiled wall {row['compiled_wall_s']:6.2f} s cpu {row['compiled_cpu_s']:6.2f} s"
+              f" | reference (before) wall {row['reference_wall_s']:6.2f} s cpu {row['reference_cpu_s']:6.2f} s"
+              f" | wall ratio {row['compiled_wall_s'] / row['reference_wall_s']:.2f}x")
+
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps({"robot": robot.name, "platform": platform.platform(),
                                         "python": platform.python_version(), "single": single, "ik": rows,
-                                        "batch": batch}, indent=2) + "\n")
+                                        "batch": batch, "cli": cli}, indent=2) + "\n")
     for what in not_measured:
         print(f"NOT MEASURED (missing): {what}")
     return EXIT_TOOL_MISSING if not_measured else 0
