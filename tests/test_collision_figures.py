@@ -271,19 +271,19 @@ def check_scene(ax, robot: Robot, expected_ends: list[np.ndarray], obstacles) ->
         points = drawn_points(drawn)
         if isinstance(obstacle, SphereObstacle):
             centre = np.asarray(obstacle.centre)
-            np.testing.assert_allclose(np.linalg.norm(points - centre, axis=1), obstacle.radius, atol=FK_TOL)
+            np.testing.assert_allclose(np.linalg.norm(points - centre, axis=1), obstacle.radius, atol=FK_TOL, rtol=0)
         elif isinstance(obstacle, CapsuleObstacle):
             distance = point_segment_distance(points, np.asarray(obstacle.a), np.asarray(obstacle.b))
-            np.testing.assert_allclose(distance, obstacle.radius, atol=FK_TOL)
+            np.testing.assert_allclose(distance, obstacle.radius, atol=FK_TOL, rtol=0)
         elif isinstance(obstacle, BoxObstacle):
             rotation = Rotation.from_euler("ZYX", obstacle.rpy[::-1]).as_matrix()
             local = (points - np.asarray(obstacle.centre)) @ rotation
             np.testing.assert_allclose(np.abs(local), np.broadcast_to(0.5 * np.asarray(obstacle.size), local.shape),
-                                       atol=FK_TOL)  # every vertex is a corner
+                                       atol=FK_TOL, rtol=0)  # every vertex is a corner
             assert len({tuple(np.sign(p).astype(int)) for p in local}) == 8
         else:
             normal = np.asarray(obstacle.normal) / np.linalg.norm(obstacle.normal)
-            np.testing.assert_allclose((points - np.asarray(obstacle.point)) @ normal, 0.0, atol=FK_TOL)
+            np.testing.assert_allclose((points - np.asarray(obstacle.point)) @ normal, 0.0, atol=FK_TOL, rtol=0)
 
 
 def check_approach(ax, robot: Robot, ends: list[np.ndarray], report: dict, obstacles) -> None:
@@ -316,8 +316,8 @@ def test_capsule_surface_lies_at_its_radius_and_covers_both_caps(a, b, radius, p
     np.testing.assert_allclose(distance, radius, rtol=1e-12, atol=1e-12)
     axis = b - a
     unit = axis / np.linalg.norm(axis) if np.linalg.norm(axis) > 0 else np.array([0.0, 0.0, 1.0])
-    np.testing.assert_allclose(grid[0], np.broadcast_to(a - radius * unit, grid[0].shape), atol=1e-12)  # the poles
-    np.testing.assert_allclose(grid[-1], np.broadcast_to(b + radius * unit, grid[-1].shape), atol=1e-12)
+    np.testing.assert_allclose(grid[0], np.broadcast_to(a - radius * unit, grid[0].shape), atol=1e-12, rtol=0)  # the poles
+    np.testing.assert_allclose(grid[-1], np.broadcast_to(b + radius * unit, grid[-1].shape), atol=1e-12, rtol=0)
 
 
 def test_witness_points_are_coals_nearest_points_for_every_kind_of_pair(tmp_path):
@@ -503,9 +503,24 @@ def test_snake_figure_draws_each_link_between_its_joint_centres(snake_plan):
     sample = int(np.flatnonzero(result.column("t_s") == report["t_s"])[0])
     centres = snake_centres(snake_plan, robot)[sample]
     ends = [centres[[k, k + 1]] for k in range(12)]
-    for ax in scene_axes(plot_plan(result, str(snake_plan), robot)):
+    fig = plot_plan(result, str(snake_plan), robot)
+    for ax in scene_axes(fig):
         check_scene(ax, robot, ends, ())
         check_approach(ax, robot, ends, report, ())
+    # the snapshots outline each link at their instant, where they draw the arm's centres
+    from armgen.planning.snake.arm import snake_arm
+
+    place = np.asarray(result.metadata["rail"]["start_m"]) - snake_arm(robot, "test").base0
+    snapshots = [ax for ax in fig.axes if ax.get_title().startswith("t = ")]
+    assert snapshots
+    all_centres = snake_centres(snake_plan, robot) + place
+    for ax in snapshots:
+        (arm_line,) = [line for line in ax.get_lines() if line.get_label() == "arm"]
+        drawn = np.column_stack(arm_line.get_data()) / MM
+        # the snapshot's sample: one whose centres are the drawn ones (the arm rests at either end)
+        matches = [k for k in range(len(all_centres)) if np.allclose(all_centres[k, :, :2], drawn, rtol=0, atol=FK_TOL)]
+        assert matches
+        check_outlines(ax, all_centres[matches[0]])
 
 
 def test_snake_animation_outlines_each_link_in_its_views(snake_plan):
@@ -525,14 +540,20 @@ def test_snake_animation_outlines_each_link_in_its_views(snake_plan):
     place = np.asarray(result.metadata["rail"]["start_m"]) - snake_arm(robot, "test").base0
     for f, sample in enumerate(frames):
         draw(f)
-        for k in range(12):
-            (patch,) = [p for p in ax.patches if p.get_gid() == f"capsule {k}"]
-            a, b = (centres[sample, [k, k + 1]] + place)[:, :2]
-            outline = patch.get_xy() / MM
-            distance = point_segment_distance(np.column_stack([outline, np.zeros(len(outline))]),
-                                              np.append(a, 0.0), np.append(b, 0.0))
-            np.testing.assert_allclose(distance, SNAKE_RADIUS_MM / MM, atol=FK_TOL)
+        check_outlines(ax, centres[sample] + place)
     assert len(by_gid(ax, "closest approach")) == 1
+
+
+def check_outlines(ax, centres: np.ndarray) -> None:
+    """Each link's outline in a top view: the stadium of the capsule's radius around the segment
+    between its joint centres (m), once."""
+    for k in range(12):
+        (patch,) = [p for p in ax.patches if p.get_gid() == f"capsule {k}"]
+        a, b = centres[[k, k + 1], :2]
+        outline = patch.get_xy() / MM
+        distance = point_segment_distance(np.column_stack([outline, np.zeros(len(outline))]), np.append(a, 0.0),
+                                          np.append(b, 0.0))
+        np.testing.assert_allclose(distance, SNAKE_RADIUS_MM / MM, atol=FK_TOL, rtol=0)
 
 
 # -- a hand-edited plan.json ---------------------------------------------------------------------

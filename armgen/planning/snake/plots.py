@@ -44,8 +44,13 @@ def arm_centres(result: PlanResult, meta: dict, robot: Robot | None = None) -> n
     from .arm import snake_arm
 
     arm = snake_arm(robot if robot is not None else plan_robot(result), "plan.json")
-    place = np.asarray(meta["rail"]["start_m"], dtype=float) - arm.base0
-    return arm.joint_centres(snake_joint_values(result, arm))[0] + place
+    return arm.joint_centres(snake_joint_values(result, arm))[0] + rail_place(meta, arm)
+
+
+def rail_place(meta: dict, arm) -> np.ndarray:
+    """Where the figures put the robot's base frame (m): the rail's start from ``plan.json``
+    less the base joint's centre at feed 0 (``arm``: :func:`~.arm.snake_arm`)."""
+    return np.asarray(meta["rail"]["start_m"], dtype=float) - arm.base0
 
 
 def snake_joint_values(result: PlanResult, arm) -> np.ndarray:
@@ -144,6 +149,10 @@ def plot_snake(result: PlanResult, robot: Robot | None = None) -> Figure:
     (x0, x1), (y0, y1) = limits[views[0][0]]
     panel_h = min(max(7.5 * (y1 - y0) / (x1 - x0), 1.1), 4.0) + 0.6  # the data's aspect at 7.5 in wide
     collision = _collision_view(result, robot)
+    if collision is not None:
+        from .arm import snake_arm
+
+        place = rail_place(meta, snake_arm(collision.robot, "plan.json"))
     heights = [rows * panel_h + 0.5, 4.7] + ([SCENE_HEIGHT_IN] if collision is not None else [])
     fig = new_figure(16, sum(heights))
     snapshots, traces, *below = fig.subfigures(len(heights), 1, height_ratios=heights)
@@ -152,6 +161,8 @@ def plot_snake(result: PlanResult, robot: Robot | None = None) -> Figure:
         i, j = view
         ax = snapshots.add_subplot(grid[p // 2, p % 2])
         draw_obstacles(ax, meta.get("obstacles", []), view)
+        if collision is not None:  # the links' capsules, where the snapshots place the arm
+            draw_capsule_outlines(ax, collision.robot, collision.robot.frames(collision.q[k]), view, place)
         ax.plot(dense[:, i], dense[:, j], color="k", lw=0.8, ls="--", label="path (spline)")
         ax.plot(centres[k, :, i], centres[k, :, j], "-o", color="tab:blue", ms=2.5, lw=2.5, label="arm")
         ax.plot(centres[k, 0, i], centres[k, 0, j], "s", ms=6, color="tab:green", label="base joint")
@@ -221,7 +232,7 @@ def animation_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
     q = snake_joint_values(result, arm)
     scene = plan_scene(result, robot, q, with_task_obstacles=False)
     poses = robot.frames(q[frames]) if scene is not None and scene.has_capsules else None
-    place = np.asarray(meta["rail"]["start_m"], dtype=float) - arm.base0
+    place = rail_place(meta, arm)
     outlines: list = []
     lines = []
     for v, (i, j) in enumerate(views):
