@@ -11,6 +11,7 @@ puts the elbow or the forearm."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -160,6 +161,47 @@ def test_a_pose_with_only_colliding_solutions_is_a_clear_failure(robot, scene):
     far[:3, 3] = [3.0, 0.0, 0.5]
     miss = robot.ik(far, obstacles=[SPHERE], clearance=CLEARANCE)
     assert not miss.success and not miss.colliding and miss.reason.startswith("not reached")
+
+
+PLANAR_CAPSULES = """
+[[collision]]
+link = 1
+a = [-0.5, 0, 0]
+b = [0, 0, 0]
+radius = 0.03
+
+[[collision]]
+link = 2
+a = [-0.4, 0, 0]
+b = [0, 0, 0]
+radius = 0.03
+
+[[collision]]
+link = 3
+a = [-0.3, 0, 0]
+b = [0, 0, 0]
+radius = 0.03
+"""
+
+
+def test_a_non_redundant_arm_takes_its_other_branch(tmp_path):
+    """planar3 (3 joints, 3 task rows) has no self-motion to move along: with a sphere on the
+    plain answer's elbow, the search finds the other elbow from other starts."""
+    from armgen.robot import parse_robot
+
+    text = Path(load_robot("planar3").path).read_text(encoding="utf-8").replace('name = "planar3"', 'name = "planarc"')
+    planar = parse_robot(text + PLANAR_CAPSULES, "planarc.toml")
+    pose = planar.fk(np.radians([30.0, -45.0, 60.0]))
+    plain = planar.ik(pose, collision_free=False)
+    elbow = planar.frames(plain.q)[1, :3, 3]
+    sphere = SphereObstacle(tuple(elbow), 0.05)
+    assert coal_least(planar, plain.q[None], [sphere])[0] < 0
+    result = planar.ik(pose, obstacles=[sphere])
+    assert result.success, result.reason
+    assert np.sign(result.q[1]) != np.sign(plain.q[1])  # the other elbow
+    assert coal_least(planar, result.q[None], [sphere])[0] >= -COAL_TOL
+    pos, ori = independent_errors(planar, result.q, pose)
+    assert pos <= ik.TOL_POSITION * 1.001 and ori <= ik.TOL_ORIENTATION * 1.001
 
 
 def test_max_iterations_bounds_the_search_too(robot, scene):
