@@ -4,8 +4,9 @@ Each frame draws the arm from its own forward kinematics (``robot.frames``, DH o
 the robot ``plan.json`` records or ``--robot``): links as straight segments between consecutive
 joint-frame origins (base, each joint's frame, the tool), the tool frame's axes (x red, y green,
 z blue), the planned tool path dashed and the executed one so far, and a time stamp; for a robot
-with capsules and a task with obstacles also the capsules at each frame, the obstacles and the
-plan's closest approach (:mod:`.collision_scene`, the drawing the figures use). A planner
+with capsules the capsules at each frame and the plan's closest approach (marked throughout,
+labelled with its time), and the task's obstacles (:mod:`.collision_scene`, the drawing the
+figures use). A planner
 whose arm the joint frames do not show draws its own scene (its registry entry's
 ``animation_scene``: snake plans in top and side view with their obstacles and plate openings). Frames are plan samples picked evenly in time so that the video lasts ``duration``
 seconds at ``fps`` frames per second.

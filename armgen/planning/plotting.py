@@ -62,7 +62,7 @@ LIMIT_LABEL_LINE_FRACTION = 0.05
 # Ticks per axis of the 3-D inset: more crowd the small panel.
 INSET_TICKS = 4
 # The collision row (the arm at its closest approach) is as tall as the tool-path row and a bit
-# more: one 3-D panel whose cube holds the arm, its capsules and the obstacles.
+# more: two 3-D panels, each a cube holding the arm, its capsules and the obstacles.
 SCENE_HEIGHT_IN = 6.0
 # A path in an error is quoted up to this length: a real deep path fits, a hand-edited
 # plan.json's megabyte of name does not.
