@@ -34,3 +34,19 @@ def link_executable(runner: str) -> Path:
     """``runner``: "link" (the pty server) or "link_fuzz"."""
     variant = fw.Variant("host", "double", sanitize=True, opt="-O1", runner=runner)
     return builder().executable(variant, task(), name="ptp")
+
+
+COLLISION_TASK = REPO / "examples" / "iiwa14_pick_table.toml"
+
+
+@functools.lru_cache(maxsize=None)
+def collision_link_executable() -> Path:
+    """The pty runner on iiwa14 (capsules: -DCTRL_HAS_COLLISION=1) with the pick-from-the-table
+    task's [collision] (the table a half-space under the arm), integrated by explicit Euler as the
+    controller does; double, without the sanitizers (a second robot's build: keep it short)."""
+    os.environ["ARMGEN_NO_PROGRESS"] = "1"
+    document, _ = load_task(COLLISION_TASK)
+    document["integrator"] = {"method": "euler", "step": 0.01}
+    task = fw.task_from_dict(document, "pick_table")
+    builder = fw.FirmwareBuilder("iiwa14", tempfile.mkdtemp(prefix="armgen_link_collision_"))
+    return builder.executable(fw.Variant("host", "double", opt="-O1", runner="link"), task, name="pick")

@@ -257,18 +257,31 @@ def test_python_decoder_takes_any_bytes(chunks, seqs):
         assert (again.name, again.seq) == (f.name, f.seq)
 
 
+def _compile_fw_link(tmp_path, *defines: str) -> str:
+    """fw_link.c under the strict flags with these -D; the symbols its object needs (nm -u)."""
+    require_tool("gcc")
+    stub = REPO / "armgen" / "data" / "firmware_stub"
+    obj = tmp_path / "fw_link.o"
+    subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-Wdouble-promotion",
+                    "-Wfloat-conversion", "-Wshadow", *defines, f"-I{stub}", f"-I{REPO / 'generated' / 'modular8'}",
+                    "-c", str(stub / "fw_link.c"), "-o", str(obj)], check=True, capture_output=True, text=True)
+    return subprocess.run(["nm", "-u", str(obj)], check=True, capture_output=True, text=True).stdout
+
+
 @pytest.mark.parametrize("precision", ["0", "1"])
 def test_fw_link_builds_for_a_robot_without_step_fault(precision, tmp_path):
     """A robot whose generated code lacks step_fault and ft_index is built with
     -DCTRL_HAS_FAULT_TOLERANT=0: the link falls back to step_gpm (no sigma_min) under the strict
     flags, and its object calls neither."""
-    require_tool("gcc")
-    stub = REPO / "armgen" / "data" / "firmware_stub"
-    obj = tmp_path / "fw_link.o"
-    subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-Wdouble-promotion",
-                    "-Wfloat-conversion", "-Wshadow", "-DCTRL_HAS_FAULT_TOLERANT=0", f"-DMODULAR8_USE_FLOAT={precision}",
-                    f"-I{stub}", f"-I{REPO / 'generated' / 'modular8'}", "-c", str(stub / "fw_link.c"), "-o", str(obj)],
-                   check=True, capture_output=True, text=True)
-    undefined = subprocess.run(["nm", "-u", str(obj)], check=True, capture_output=True, text=True).stdout
+    undefined = _compile_fw_link(tmp_path, "-DCTRL_HAS_FAULT_TOLERANT=0", f"-DMODULAR8_USE_FLOAT={precision}")
     assert "modular8_step_gpm_from_jacobian" in undefined
     assert "step_fault" not in undefined and "ft_index" not in undefined
+
+
+@pytest.mark.parametrize("precision", ["0", "1"])
+def test_fw_link_builds_with_a_collision_model(precision, tmp_path):
+    """-DCTRL_HAS_COLLISION=1 (a robot with capsules): TELEMETRY.clearance reads
+    ctrl_output.clearance, under the strict flags in both precisions. (No bundled robot's capsules
+    are committed yet to run it: the value is not checked here.)"""
+    undefined = _compile_fw_link(tmp_path, "-DCTRL_HAS_COLLISION=1", f"-DMODULAR8_USE_FLOAT={precision}")
+    assert "modular8_step_fault_from_jacobian" in undefined

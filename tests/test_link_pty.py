@@ -22,7 +22,7 @@ import pytest
 from armgen.link import VERSION, LinkClient, LinkError, encode
 from armgen.planning.tasks import load_task, run_task
 
-from link_builds import TASK, link_executable
+from link_builds import TASK, collision_link_executable, link_executable
 
 DT = 0.001  # the task's step: the controller's period
 WAYPOINT_EVERY = 20  # plan samples per waypoint: 50 Hz
@@ -143,6 +143,7 @@ def test_session_rules(plan, tmp_path):
         with LinkClient(port) as link:
             start = link.status()
             assert (start.state_name, start.flags) == ("IDLE", ("SESSION",))
+            assert math.isnan(start["clearance"]) and math.isnan(start["sigma_min"])  # modular8: no capsules; no step yet
             assert np.allclose(start.q, q[0], atol=1e-6)
             off = q[0].copy()
             off[2] += 0.01
@@ -317,6 +318,9 @@ SERVO_EPSILON, SERVO_LAMBDA_MAX = 0.02, 0.02  # fw_link.h FW_LINK_SERVO_EPSILON,
 # The reported sigma_min and damping travel as IEEE single (relative 6e-8); the generated
 # step_fault finds sigma_min by bisection of J J^T's tridiagonal form to ~1e-12 (double build).
 SIGMA_RTOL = 1e-6
+# The clearance against armgen.robot's at the reported q: both travel as IEEE single (the
+# clearance 6e-8 relative; q to 1.2e-7 rad, which moves a point at a lever under 1.5 m by 2e-7 m)
+CLEARANCE_TOL_M = 1e-6
 
 
 def _angle(R: np.ndarray) -> np.ndarray:
@@ -463,3 +467,24 @@ def test_ack_replies_for_a_100_hz_stream(plan, tmp_path):
     print(f"stream at 100 Hz with ACK replies: {len(pick)} waypoints, max joint deviation {deviation:.3g} rad; "
           f"reply bodies {ack} B instead of {telemetry} B")
     assert deviation <= STREAM_DEVIATION_TOL
+
+
+def test_telemetry_reports_the_controllers_clearance():
+    """On a robot with capsules and a task with [collision] (iiwa14 over its table),
+    TELEMETRY.clearance is the controller's least distance: the least of the robot's checked
+    distances (its self pairs and the table) at the command, as armgen.robot computes them."""
+    from armgen.description.collision import PlaneObstacle
+    from armgen.robot import load_robot
+
+    proc = subprocess.Popen([str(collision_link_executable())], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        with LinkClient(proc.stdout.readline().split()[-1]) as link:
+            status = link.status()
+    finally:
+        proc.terminate()
+        proc.communicate(timeout=30)
+    table = PlaneObstacle(point=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0))  # the task's [[obstacles]], SI
+    least = float(load_robot("iiwa14").collision_distances(status.q, [table]).min())
+    print(f"clearance: TELEMETRY {status['clearance']:.9g} m, armgen.robot {least:.9g} m")
+    assert status["clearance"] == pytest.approx(least, abs=CLEARANCE_TOL_M)
