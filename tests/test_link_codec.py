@@ -281,7 +281,7 @@ def test_fw_link_builds_for_a_robot_without_step_fault(precision, tmp_path):
 @pytest.mark.parametrize("precision", ["0", "1"])
 def test_fw_link_builds_with_a_collision_model(precision, tmp_path):
     """-DCTRL_HAS_COLLISION=1 (a robot with capsules): TELEMETRY.clearance reads
-    ctrl_output.clearance, under the strict flags in both precisions. (No bundled robot's capsules
-    are committed yet to run it: the value is not checked here.)"""
+    ctrl_output.clearance, under the strict flags in both precisions (its value:
+    tests/test_link_pty.py on iiwa14)."""
     undefined = _compile_fw_link(tmp_path, "-DCTRL_HAS_COLLISION=1", f"-DMODULAR8_USE_FLOAT={precision}")
     assert "modular8_step_fault_from_jacobian" in undefined
