@@ -17,7 +17,7 @@ import pytest
 from armgen import firmware as fw
 from armgen.firmware import bound
 from armgen.firmware.project import demo_task
-from armgen.planning.tasks import load_task
+from armgen.planning.tasks import load_task, run_task
 from armgen.robot import load_robot, load_robot_any
 
 from conftest import require_tool
@@ -90,6 +90,21 @@ def check_tick(robot_ref, target: fw.Target, work: Path) -> None:
     # measured maximum may stand one count above the instructions executed
     assert static.instructions + measured["resolution"] >= measured["max"], (static.instructions, measured)
     assert static.instructions <= TIGHTNESS[target.name] * measured["max"], (static.instructions, measured)
+
+
+def test_the_playback_tick_bound_holds(tmp_path):
+    """PLAYBACK: the PTP evaluator's bisection over at most CTRL_MAX_SEGMENTS segments."""
+    target = require_target("cortex-m4")
+    task, sha = load_task(REPO / "examples" / "modular8_ptp_two_segments.toml")
+    firmware_task = fw.task_from_plan(run_task(task, "ptp", sha), "ptp")
+    builder = fw.FirmwareBuilder("modular8", tmp_path / "firmware")
+    variant = dataclasses.replace(fw.target_variant(target.name), print_rows=False)
+    elf = builder.executable(variant, firmware_task, "ptp")
+    static = bound.tick_bound(target, elf, builder.cflags(variant), builder.prefix, firmware_task.mode,
+                              firmware_task.header).instructions
+    measured = fw.instructions_per_tick(fw.run_qemu(elf, target=target.name))
+    assert static + measured["resolution"] >= measured["max"], (static, measured)
+    assert static <= TIGHTNESS[target.name] * measured["max"], (static, measured)
 
 
 @pytest.mark.parametrize("name", list(fw.TARGETS))

@@ -30,6 +30,7 @@ The bound counts instructions, the unit QEMU's ``-icount`` measures. Cycles on s
 
 from __future__ import annotations
 
+import math
 import re
 import subprocess
 from collections import defaultdict
@@ -38,6 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import FirmwareError
+from .sources import FIRMWARE_DIR
 from .targets import Target
 
 
@@ -354,7 +356,8 @@ _FOR = re.compile(r"for\s*\(\s*(?:\w+\s+)?(\w+)\s*=\s*(0[uU]?|\w+)\s*;\s*(\w+)\s
 # for (b = x; b != 0u; b &= b - 1u): clears the lowest set bit each turn
 _BITS = re.compile(r"for\s*\(\s*(\w+)\s*=[^;]+;\s*(\w+)\s*!=\s*0[uU]?\s*;\s*(\w+)\s*&=\s*(\w+)\s*-\s*1[uU]?\s*\)")
 WORD_BITS = 32
-_ENCLOSING_LINES = 10  # how far up an enclosing loop's header may be
+_ENCLOSING_LINES = 10
+_BISECTION = re.compile(r"while\s*\(\s*(\w+)\s*-\s*(\w+)\s*>\s*1\s*\)")  # how far up an enclosing loop's header may be
 
 
 @dataclass
@@ -410,6 +413,10 @@ class SourceLoops:
             path, _, number = line.rpartition(":")
             number = number.split()[0] if number.split() else ""
             current.append((path, int(number) if number.isdigit() else 0))
+
+    def frames(self, address: int) -> list[tuple[str, int]]:
+        """The (file, line) of a located address, innermost inlined function first."""
+        return self._frames.get(address, [])
 
     def where(self, address: int) -> str:
         frames = self._frames.get(address) or [("??", 0)]
@@ -552,6 +559,7 @@ class Analyzer:
         self.lines = SourceLoops(tools_prefix + "addr2line", self.elf, compiler, flags)
         self.loop_caps = dict(loop_caps or {})
         self.block_cost = block_cost
+        self.search_ranges: dict[str, int] = {}  # function -> the most entries its bisection searches
         self._memo: dict[tuple[int, frozenset[str]], Bound] = {}
         self._unbounded = ""  # the lines of the last loop no source bound was found for
 
@@ -700,6 +708,8 @@ class Analyzer:
                                       + [blocks[a].instructions[-1] for a in exits_of[h]])
                 if lb is None and fn.name in LIBRARY_LOOPS:
                     lb = LoopBound(*LIBRARY_LOOPS[fn.name])
+                if lb is None and fn.name in self.search_ranges:
+                    lb = self._search_bound(fn, blocks[h].instructions[-1], self.search_ranges[fn.name])
                 if lb is None:
                     lb = self._counter_bound(fn, blocks, h, bodies[h], latches[h], preds)
                 runs = lb.count + 1 if any(s not in bodies[h] for s in succ[h]) else max(lb.count, 1)
@@ -767,6 +777,17 @@ class Analyzer:
         if cap is not None and "_LOOP_COUNT" in best.source and cap < best.count:
             return LoopBound(cap, f"{best.source} capped at {cap} by the caller's stop")
         return best
+
+    def _search_bound(self, fn: Function, branch: Instruction, size: int) -> LoopBound | None:
+        """A bisection `while (hi - lo > 1)` whose first interval spans at most ``size``: each
+        turn halves it, so it turns at most ceil(log2(size)) times."""
+        self.lines.locate([branch.address])
+        for path, line in self.lines.frames(branch.address):
+            text = self.lines.source(path)
+            if 0 < line <= len(text) and _BISECTION.search(text[line - 1]):
+                return LoopBound(max(1, math.ceil(math.log2(size))), f"{Path(path).name}:{line} (bisection of at "
+                                                                      f"most {size})")
+        return None
 
     def _counter_bound(self, fn: Function, blocks: dict[int, Block], header: int, body: set[int], latches: set[int],
                        preds: dict[int, set[int]]) -> LoopBound:
@@ -972,6 +993,11 @@ def tick_bound(target: Target, elf: Path, flags: list[str], prefix: str, mode: s
     (FirmwareTask.mode, e.g. "weighted_gpm"; ``header`` its task_params.h): built with the
     compile ``flags`` (FirmwareBuilder.cflags)."""
     a = analyzer(target, elf, flags)
+    if mode.upper() == "PLAYBACK":  # ctrl_init refuses a plan of more segments than the build holds
+        segments = a.lines.evaluate(str(FIRMWARE_DIR / "controller.h"), "CTRL_MAX_SEGMENTS")
+        if segments is None:
+            raise BoundError("CTRL_MAX_SEGMENTS: not a constant under the build's flags")
+        a.search_ranges.update({name: segments for name in PTP_EVALUATOR})
     return a.bound("ctrl_tick", tick_avoid(prefix, mode.upper(), "CTRL_PATH_PROGRAM" in header))
 
 
