@@ -37,6 +37,12 @@ For the joint controller of firmware_stub/ running spec 20's combined plan on mo
    back with feedforward none / gravity / inverse_dynamics, against the same arm's robot file
    without its inertials (no dynamics compiled in); the image's text and sizeof(ctrl) of each,
    and the host's ns per tick (gcc -O2 double, best of 20).
+9. The collision check and criterion on board (issue 38, ``--collision-only``): the bar task of
+   benchmarks/data/collision/ (Baxter's arm, not bundled, beside a column above a table) run
+   without [collision], with the clearance check alone, and with the check and the criterion,
+   per obstacle-slot layout of the robot (its defaults, 4 slots with a box, 4 without):
+   instructions per tick (mean, max), the image's text, and the criterion run's replay error
+   against its plan (QEMU float, host double).
 
 Bars (reported, not asserted): BARS. A missing tool skips its rows and the run exits 4; a
 measurement that fails is reported FAILED and the run exits 1 (bench_kinematics.py's
@@ -267,6 +273,8 @@ def main(argv=None) -> int:
     ap.add_argument("--program-only", action="store_true", help="only section 7 (a program on board)")
     ap.add_argument("--feedforward-only", action="store_true",
                     help="only section 8 (the feed-forward torque, iiwa14)")
+    ap.add_argument("--collision-only", action="store_true",
+                    help="only section 9 (the collision check and criterion on board, Baxter's arm)")
     ap.add_argument("--quick", action="store_true", help="sections 0-4 on a 5-s plan, in seconds (a smoke run)")
     args = ap.parse_args(argv)
     if args.out is None and not args.quick:
@@ -288,6 +296,9 @@ def main(argv=None) -> int:
     state: dict = {}
     if args.feedforward_only:
         rep.section("feedforward", FEEDFORWARD_TITLE, lambda: feedforward_section(rep, work))
+        return finish(rep, args, work, started)
+    if args.collision_only:
+        rep.section("collision", COLLISION_TITLE, lambda: collision_section(rep, work))
         return finish(rep, args, work, started)
     if args.program_only:
         rep.section("program", "7. A program on board, Baxter's arm, Cortex-M4F float (QEMU -icount):",
@@ -455,6 +466,7 @@ def main(argv=None) -> int:
     rep.section("modes", "5. Every controller mode, modular8, Cortex-M4F float (QEMU -icount):",
                 lambda: modes_table(rep, work, builder))
     rep.section("feedforward", FEEDFORWARD_TITLE, lambda: feedforward_section(rep, work))
+    rep.section("collision", COLLISION_TITLE, lambda: collision_section(rep, work))
     return finish(rep, args, work, started)
 
 
@@ -692,6 +704,85 @@ def feedforward_section(rep: Report, work: Path) -> None:
         rep.rows.append((f"feed-forward (inverse dynamics), {label}: added instr/tick", f"{added:.0f}", "instr",
                          f"gravity +{by_choice['gravity']['mean'] - base['mean']:.0f}, "
                          f"none +{by_choice['none']['mean'] - base['mean']:.0f}"))
+
+
+COLLISION_TITLE = "9. The collision check and criterion on board (issue 38), Baxter's arm, Cortex-M4F float (QEMU -icount):"
+COLLISION_TASK = REPO / "benchmarks" / "data" / "collision" / "baxter_pillar_seam.toml"
+# The robot's obstacle slots per build ([collision_check] max_obstacles): the robot file's
+# defaults (12 slots, two of them boxes), four slots of each kind, four slots without a box. The
+# generated functions evaluate every slot, active or not, so their cost is the slots', not the
+# task's (its column and table fit each).
+COLLISION_SLOTS = {"default slots (4 sphere, 4 capsule, 2 box, 2 plane)": None,
+                   "4 slots (1 sphere, 1 capsule, 1 box, 1 plane)": "{ sphere = 1, capsule = 1, box = 1, plane = 1 }",
+                   "4 slots (2 sphere, 1 capsule, 1 plane)": "{ sphere = 2, capsule = 1, box = 0, plane = 1 }"}
+# The check-only task moves the column this far (mm, +x) out of the seam's way: the minimum-norm
+# plan then keeps the clearance and runs to its end (the check's cost does not depend on where
+# the obstacles are).
+COLUMN_AWAY_MM = 1000.0
+
+
+def collision_tasks(robot_ref: str) -> dict:
+    """Section 9's variants of the bar task: without [collision] (nothing checked on board), the
+    check alone (gain 0, the column moved away), and the check with the criterion (gain 0.01)."""
+    import tomllib
+
+    doc = tomllib.loads(COLLISION_TASK.read_text(encoding="utf-8"))
+    doc["robot"] = robot_ref
+    plain = copy.deepcopy(doc)
+    del plain["obstacles"], plain["collision"]
+    check = copy.deepcopy(doc)
+    check["collision"]["gain"] = 0.0
+    for key in ("a", "b"):
+        check["obstacles"][0][key][0] += COLUMN_AWAY_MM
+    return {"no [collision]": plain, "check only (gain 0)": check, "check + criterion (gain 0.01)": doc}
+
+
+def collision_section(rep: Report, work: Path) -> None:
+    """Section 9: instructions per tick of the resolved-rate tick without, with the clearance
+    check, and with the check and the criterion, per obstacle-slot layout; the image's text; the
+    criterion run's replay error (QEMU float, host double) against its plan."""
+    tool("arm-none-eabi-gcc")
+    tool("qemu-system-arm")
+    quiet = dataclasses.replace(fw.ARM_VARIANT, print_rows=False)
+    text = (COLLISION_TASK.parent / "baxter_arm_capsules.toml").read_text(encoding="utf-8")
+    data = rep.data.setdefault("collision", {})
+    for k, (slots_label, slots) in enumerate(COLLISION_SLOTS.items()):
+        robot_text = text if slots is None else text.replace(
+            "[collision_check]\n", f"[collision_check]\nmax_obstacles = {slots}\n", 1).replace(
+            'name = "baxter_arm_capsules"', f'name = "baxter_arm_capsules_s{k}"', 1)
+        robot_file = work / f"baxter_slots{k}.toml"
+        robot_file.write_text(robot_text, encoding="utf-8")
+        builder = None
+        for label, doc in collision_tasks(str(robot_file)).items():
+            plan = run_task(copy.deepcopy(doc), str(COLLISION_TASK))
+            task = fw.task_from_plan(plan, label)
+            builder = builder or fw.FirmwareBuilder(task.robot, work / f"collision_{k}")
+            name = re.sub(r"\W", "", label)
+            elf = builder.executable(quiet, task, name)
+            qrun = fw.run_qemu(elf)
+            ipt = fw.instructions_per_tick(qrun)
+            m = {"mean": ipt["mean"], "max": ipt["max"], "ticks": ipt["ticks"], "end": f"{qrun.state}/{qrun.fault}",
+                 "image_text": image_size(elf)["text"], "sizeof_ctrl": int(qrun.summary["sizeof_ctrl"]),
+                 "plan_min_clearance_m": plan.metadata["summary"]["collision"]["min_clearance_m"]}
+            if task.collision is not None and task.collision.settings.gain > 0:
+                run_rows = fw.run_qemu(builder.executable(fw.ARM_VARIANT, task, name + "_rows"))
+                host = fw.run_host(builder.executable(fw.Variant("host", "double"), task, name + "_host"))
+                m["max_dq_rad"] = fwcmp.compare_with_plan(plan, run_rows, task, "float", label).max_dq
+                m["host_double_max_dq_rad"] = fwcmp.compare_with_plan(plan, host, task, "double", label).max_dq
+                m["fw_min_clearance_m"] = float(run_rows.column("clearance_m").min())
+            data.setdefault(slots_label, {})[label] = m
+        by_task = data[slots_label]
+        base = by_task["no [collision]"]
+        print(f"  {slots_label}:")
+        for label, m in by_task.items():
+            replay = (f"; replay |dq| QEMU float {m['max_dq_rad']:.1e}, host double {m['host_double_max_dq_rad']:.1e} rad, "
+                      f"least distance {m['fw_min_clearance_m'] * 1e3:.1f} mm" if "max_dq_rad" in m else "")
+            print(f"    {label:<31} instr/tick mean {m['mean']:>7.0f} (+{m['mean'] - base['mean']:>6.0f})  max "
+                  f"{m['max']:>7.0f}  {m['end']:<10} image text {m['image_text']:>6} B{replay}", flush=True)
+        check, full = by_task["check only (gain 0)"], by_task["check + criterion (gain 0.01)"]
+        rep.rows.append((f"collision on board, {slots_label}: instr/tick", f"{full['mean']:.0f}", "instr",
+                         f"without {base['mean']:.0f}, check only {check['mean']:.0f}; criterion alone "
+                         f"+{full['mean'] - check['mean']:.0f}"))
 
 
 if __name__ == "__main__":
