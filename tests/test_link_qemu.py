@@ -1,7 +1,8 @@
 """The link on the Cortex-M4F under QEMU (mps2-an386): the firmware's float build with fw_link on
 the CMSDK UART0, which QEMU connects to a pseudo-terminal (``-serial pty``); the same client as
 for the host firmware. Then the firmware project's own UART runner (arm/fw_link_uart.c, built by
-the project's CMake) on the Cortex-M4F (mps2-an386) and the Cortex-M7 (mps2-an500). QEMU runs without -icount here, so the board's SysTick time is the wall
+the project's CMake) on the Cortex-M4F (mps2-an386), the Cortex-M7 (mps2-an500) and the
+Cortex-M0+ (mps2-an385, soft float). QEMU runs without -icount here, so the board's SysTick time is the wall
 clock's and the client's 50 Hz is the board's 50 Hz."""
 
 from __future__ import annotations
@@ -82,8 +83,9 @@ def test_stream_a_plan_over_the_emulated_uart(board):
 
 # -- the firmware project's own UART runner (arm/fw_link_uart.c): receive interrupt, SysTick ------
 
-PROJECT_CORES = {"m4": ("arm-none-eabi-cortex-m4.cmake", "mps2-an386"), "m7": ("arm-none-eabi-cortex-m7.cmake",
-                                                                              "mps2-an500")}
+PROJECT_CORES = {"m4": ("arm-none-eabi-cortex-m4.cmake", "mps2-an386"),
+                 "m7": ("arm-none-eabi-cortex-m7.cmake", "mps2-an500"),
+                 "m0plus": ("arm-none-eabi-cortex-m0plus.cmake", "mps2-an385")}
 # The demo's resolved-rate plan streamed as poses: the float build's resolved-rate step and FK
 # (single precision: 1e-7 m at 1 m) behind the closed loop; 1e-4 m as for the host's pose stream.
 POSE_STREAM_TOL_M = 1e-4
