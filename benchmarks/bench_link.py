@@ -129,7 +129,9 @@ def m4_costs() -> dict[str, float]:
     kv = dict(line[2:].split() for line in text.splitlines() if line.startswith("# ") and len(line.split()) == 3)
     per_count = int(kv["calib_insns"]) / int(kv["calib_ticks"])
     out = {"frame_bytes": float(kv["frame_bytes"]), "sizeof_link": float(kv["sizeof_link"])}
-    for part in ("rx", "input_frame", "input_servo", "ctrl", "output_reply", "output_quiet", "output_ack"):
+    if kv["pose_rejected"] != "0" or kv["state"] != "DONE":
+        raise SystemExit(f"bench/link_bench.c: the pose stream was refused or did not end: {text[-2000:]}")
+    for part in ("rx", "input_frame", "input_servo", "ctrl", "output_reply", "output_quiet", "output_ack", "input_pose"):
         out[part] = int(kv[f"{part}_sum"]) / int(kv[f"{part}_count"]) * per_count
         out[part + "_max"] = int(kv[f"{part}_max"]) * per_count
     return out
@@ -179,6 +181,8 @@ def main() -> None:
     print(f"| the TELEMETRY reply (tool pose, packing, CRC-32, COBS) | {m['output_reply']:.0f} | {m['output_reply_max']:.0f} |")
     print(f"| the ACK reply instead (HELLO.replies = ACK) | {m['output_ack']:.0f} | {m['output_ack_max']:.0f} |")
     print(f"| a servo step (fw_link_input without a frame) | {m['input_servo']:.0f} | {m['input_servo_max']:.0f} |")
+    print(f"| a pose-stream step (fw_link_input without a frame: Hermite, rotation, the servo's step) | "
+          f"{m['input_pose']:.0f} | {m['input_pose_max']:.0f} |")
     print(f"| the controller's SETPOINT tick | {m['ctrl']:.0f} | {m['ctrl_max']:.0f} |")
     print(f"| fw_link_output with nothing to send | {m['output_quiet']:.0f} | {m['output_quiet_max']:.0f} |")
     print(f"per received frame: {m['rx'] + decode + m['output_reply']:.0f} instructions "

@@ -14,6 +14,9 @@
  *   output_quiet fw_link_output without a frame to send
  * then a second session opened with HELLO.replies = ACK and as many twists again:
  *   output_ack  fw_link_output with the ACK reply (packing, CRC, COBS; no tool pose)
+ * then a zero twist until the arm rests, STOP, and a pose stream (POSE_WAYPOINT every
+ * FW_BENCH_QUIET + 1 ticks, the tool along x at 2 cm/s):
+ *   input_pose  fw_link_input on a tick without a frame: the pose stream's step alone
  */
 #include <stdint.h>
 #include <string.h>
@@ -129,7 +132,78 @@ static void run_twists(uint8_t replies, costs *c, uint16_t *seq, ctrl_output *ou
   }
 }
 
+/* One host frame of `type` with `len` body bytes into the ring, then one tick. */
+static void frame_and_tick(uint8_t type, const uint8_t *body, size_t len, uint16_t *seq, ctrl_output *out) {
+  ctrl_input in;
+  size_t i, n;
+  *seq = (uint16_t)(*seq + 1u);
+  n = fw_link_frame(FW_LINK_VERSION, type, *seq, body, len, frame);
+  for (i = 0; i < n; ++i) {
+    (void)fw_link_receive(&link_state, frame[i]);
+  }
+  (void)memset(&in, 0, sizeof in);
+  fw_link_input(&link_state, &in);
+  (void)ctrl_tick(&controller, &in, out);
+  fw_link_output(&link_state, out);
+  drain();
+}
+
+/* A tick without a frame; returns the SysTick count of fw_link_input. */
+static uint32_t quiet_tick(ctrl_output *out) {
+  ctrl_input in;
+  uint32_t t0, t1;
+  (void)memset(&in, 0, sizeof in);
+  t0 = SYST_CVR;
+  fw_link_input(&link_state, &in);
+  t1 = SYST_CVR;
+  (void)ctrl_tick(&controller, &in, out);
+  fw_link_output(&link_state, out);
+  drain();
+  return ELAPSED(t0, t1);
+}
+
+/* The servo to rest and STOP, then a pose stream from the tool's pose: input_pose. */
+static void run_poses(stat *input_pose, uint16_t *seq, ctrl_output *out) {
+  fw_link_twist still;
+  fw_link_pose_waypoint w;
+  uint8_t body[FW_LINK_MAX_BODY];
+  ctrl_real T[16], J[6 * CTRL_NDOF];
+  uint32_t k, j, i;
+  (void)memset(&still, 0, sizeof still);
+  frame_and_tick(FW_LINK_TWIST, body, fw_link_pack_twist(&still, body), seq, out);
+  for (k = 0; k < 2000u; ++k) { /* the closed loop settles */
+    (void)quiet_tick(out);
+  }
+  frame_and_tick(FW_LINK_STOP, body, 0u, seq, out);
+  for (k = 0; k < 10u; ++k) { /* the controlled stop, then DONE */
+    (void)quiet_tick(out);
+  }
+  ctrl_gen_fk_jacobian(out->q, T, J);
+  for (k = 0; k < FW_BENCH_FRAMES; ++k) {
+    w.t_us = k * (FW_BENCH_QUIET + 1u) * 1000u;
+    w.last = (uint8_t)(k + 1u == FW_BENCH_FRAMES);
+    for (i = 0; i < 3u; ++i) {
+      w.tool[i] = (float)T[12u + i] + (i == 0u ? 0.02f * (float)w.t_us * 1e-6f : 0.0f);
+      w.tool[3u + i] = (float)T[i];
+      w.tool[6u + i] = (float)T[4u + i];
+      w.tool[9u + i] = (float)T[8u + i];
+    }
+    for (i = 0; i < 6u; ++i) {
+      w.twist[i] = (i == 0u && k > 0u && k + 1u < FW_BENCH_FRAMES) ? 0.02f : 0.0f;
+    }
+    frame_and_tick(FW_LINK_POSE_WAYPOINT, body, fw_link_pack_pose_waypoint(&w, body), seq, out);
+    for (j = 0; j < FW_BENCH_QUIET; ++j) {
+      uint32_t d = quiet_tick(out);
+      if (k > 1u) add(input_pose, d); /* the stream runs from its second waypoint on */
+    }
+  }
+  for (k = 0; k < 2000u && out->state == CTRL_STATE_RUNNING; ++k) { /* to the last pose, at rest: DONE */
+    (void)quiet_tick(out);
+  }
+}
+
 int main(void) {
+  stat input_pose = {0u, 0u, 0u};
   costs telemetry, ack;
   ctrl_output out;
   uint32_t calib_ticks, frame_bytes;
@@ -149,6 +223,7 @@ int main(void) {
   fw_link_init(&link_state, &fw_task, 0xFFFFFFFFu); /* no watchdog: the bench sends on its own time */
   run_twists(FW_LINK_REPLY_TELEMETRY, &telemetry, &seq, &out);
   run_twists(FW_LINK_REPLY_ACK, &ack, &seq, &out);
+  run_poses(&input_pose, &seq, &out);
   frame_bytes = (uint32_t)fw_link_frame(FW_LINK_VERSION, FW_LINK_TWIST, seq, body, fw_link_pack_twist(&twist, body),
                                         frame);
   sh_puts("# state ");
@@ -168,6 +243,9 @@ int main(void) {
   put_stat("output_reply", &telemetry.output_reply);
   put_stat("output_quiet", &telemetry.output_quiet);
   put_stat("output_ack", &ack.output_reply);
+  put_stat("input_pose", &input_pose);
+  sh_put_kv("# pose_underruns", link_state.counts.underruns);
+  sh_put_kv("# pose_rejected", link_state.counts.rejected);
   sh_puts("# end\n");
   return 0;
 }
