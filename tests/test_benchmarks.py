@@ -38,6 +38,10 @@ QUICK_RUNS = {
         rf"x86 -O2 float CasADi C of the same fk_jacobian\s+{NUMBER} instr/call",
         rf"snake12 generation, all functions\s+{NUMBER} s",
         rf"^\s+step_wgpm(\s+\d+){{3}}\s+{NUMBER}$"]),
+    "bench_collision.py": (("gcc", *ARM_TOOLS), [
+        r"^\s+collision_criterion\s+\d+\s+\d+\s+\d+\s+\d+\s+bar <= 10000: (meets|ABOVE)$",
+        rf"coal\.distance from Python, the same \d+ pairs: {NUMBER} ns per configuration \({NUMBER} ns per query\); "
+        rf"coal / C double distances {NUMBER}x"]),
     "bench_dynamics.py": (("gcc", *ARM_TOOLS), [
         rf"foreign URDFs with inertials\s+1\d\s+bar >= 10: meets",
         rf"double vs Pinocchio, max relative error\s+{NUMBER}",
