@@ -511,7 +511,6 @@ def _not_run(name: str, reason: str) -> Stage:
 def run_pipeline(config: VerifyConfig, report_path: Path | None = None,
                  echo: Callable[[str], None] = print) -> list[Stage]:
     found = read_manifest(config)
-    functions = SymbolicModel(config.robot, ModelOptions(found.functions)).functions()
     stages: list[Stage] = []
 
     def add(stage: Stage) -> Stage:
@@ -522,7 +521,7 @@ def run_pipeline(config: VerifyConfig, report_path: Path | None = None,
     with tempfile.TemporaryDirectory(prefix="armgen-verify-") as tmp:
         work = Path(tmp)
         with progress(1, "fresh (regenerating)") as bar:
-            fresh = stage_fresh(config, work, found)
+            fresh = reused_fresh(config, work, found)
             bar.update(1)
         if not add(fresh).passed:
             stale = f"the code in {config.gen_dir} is stale; stale code is never compiled or run"
@@ -530,7 +529,7 @@ def run_pipeline(config: VerifyConfig, report_path: Path | None = None,
                 add(_not_run(name, stale))
         else:
             inputs = _verified_inputs(config, found, [row[0] for row in fresh.rows])
-            for stage in verify_c(config, work, functions, found, inputs):
+            for stage in verify_c(config, work, found, inputs):
                 add(stage)
             builder = (fw.FirmwareBuilder(config.robot, work / "firmware", _firmware_gen_dir(config))
                        if (config.plan or config.target) else None)
@@ -556,16 +555,34 @@ def _verified_inputs(config: VerifyConfig, found: GeneratedCode, files: list[str
             reuse.file_digests(config.gen_dir, files))
 
 
-def verify_c(config: VerifyConfig, work: Path, functions, found: GeneratedCode, inputs: tuple) -> list[Stage]:
+def reused_fresh(config: VerifyConfig, work: Path, found: GeneratedCode) -> Stage:
+    """The fresh stage, or its stored verdict: regenerating is a function of armgen, the robot
+    file and the manifest's options, so a folder whose files have the bytes that were found
+    identical to armgen's output before (same armgen, robot file and options) is so again."""
+    listing = sorted(f.name for f in config.gen_dir.iterdir() if f.is_file())
+    key = reuse.content_key("fresh", reuse.armgen_fingerprint(), config.robot.sha256, dataclasses.astuple(found),
+                            reuse.file_digests(config.gen_dir, listing))
+    record = reuse.read_verdict("fresh", key) if config.reuse else None
+    if record is not None:
+        return Stage("fresh", True, ["file", "state", "ok"], record["rows"],
+                     f"reused: these bytes were found identical to armgen's output {reuse.when(record)}", reused=True)
+    stage = stage_fresh(config, work, found)
+    if stage.passed:
+        reuse.write_verdict("fresh", key, {"rows": stage.rows})
+    return stage
+
+
+def verify_c(config: VerifyConfig, work: Path, found: GeneratedCode, inputs: tuple) -> list[Stage]:
     """The compile and callbacks stages, per precision: a precision whose verdict on the same
     inputs (and samples, seed) is stored passed is not redone (:mod:`armgen.verification.reuse`);
     the others are built (or their builds taken from the store) and compared now, and their
-    verdict stored when they pass."""
+    verdict stored when they pass (the CasADi functions are built only then)."""
     keys = {p: reuse.content_key("c", inputs, config.samples, config.seed, p) for p in config.precisions}
     records = {p: reuse.read_verdict("c", keys[p]) if config.reuse else None for p in config.precisions}
     todo = tuple(p for p in config.precisions if records[p] is None)
     if todo:
         again = dataclasses.replace(config, precisions=todo)
+        functions = SymbolicModel(config.robot, ModelOptions(found.functions)).functions()
         compiled, libraries, prepared = compile_and_prepare(again, work, functions, found)
         callbacks = stage_callbacks(again, libraries, functions, found.prefix, prepared)
         for p in todo:

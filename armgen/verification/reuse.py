@@ -6,13 +6,13 @@ the content hashes of everything they depend on.
   digest of the bytes it is compiled from, the compiler and its flags; it is used only when its
   bytes match the SHA-256 its entry records, else it is built again (a tampered or truncated file
   is replaced, never loaded).
-- A **verdict** (a precision's compile and callbacks rows; the replay of a plan) is stored only
+- A **verdict** (the fresh stage's; a precision's compile and callbacks rows; the replay of a plan) is stored only
   when it passed, under the digest of every input that decides it: the generated files' bytes,
   armgen itself (all its sources, templates and firmware files, CasADi's and NumPy's versions),
   the compiler, the options (samples, seed, precision) and, for the replay, the plan's CSV and
   plan.json bytes. A change to any of them is another key: the stage runs again. So
   ``armgen verify --plan P --run R`` right after ``armgen verify --plan P`` of the same folder
-  only regenerates (the fresh stage always runs) and compares the run.
+  only hashes the folder's files and the plan, and compares the run.
 """
 
 from __future__ import annotations
