@@ -22,8 +22,8 @@ Arm cores, mcycle on RISC-V; docs/targets.md):
 A missing tool leaves its core out and the run exits 4; an error is a traceback (exit 1).
 4. The static worst-case bound (armgen.firmware.bound) of every generated function and of each
    tick, beside the measured maximum; ik also to unreachable poses (every call runs all its
-   steps: the adversarial case the bound covers); on the Cortex-M4F the tick's cycle bound at
-   0 and 5 flash wait states (STM32F4 at 168 MHz).
+   steps: the adversarial case the bound covers); the tick's cycle bound on the Cortex-M4F at
+   0 and 5 flash wait states (STM32F4 at 168 MHz) and on the Cortex-M0+ from SRAM (RP2040).
 
 ``--quick``: fewer configurations and poses, the resolved-rate task only.
 """
@@ -64,8 +64,12 @@ UNREACHABLE_FACTOR = 3.0  # an arm's reach is its links' length: three times a r
 IK_TOL = {"float": 1e-4, "double": 1e-6}  # position [m] and orientation [rad]; float resolves ~1e-5 at 1 m
 MODES = ("RESOLVED_RATE", "WEIGHTED_GPM")
 M0PLUS_HZ, TICK_HZ = 133_000_000, 1000
-M4_WAIT_STATES = (0, 5)  # code in zero-wait memory (SRAM, or every fetch an ART hit); STM32F4's flash at 168 MHz
-M4_HZ = 168_000_000  # RP2040's clock, a 1 kHz control loop
+# The cores with a cycle model: (label, model) each, and the clock the figures are given at.
+# Cortex-M4F: code in zero-wait memory (SRAM, or every fetch an ART hit), and STM32F4's flash
+# at 168 MHz (5 wait states); Cortex-M0+: the RP2040's SRAM at 133 MHz.
+CYCLE_MODELS = {"cortex-m4": (("0 wait states", bound.CortexM4Cycles(0)), ("5 wait states", bound.CortexM4Cycles(5))),
+                "cortex-m0plus": (("SRAM", bound.CortexM0PlusCycles()),)}
+CYCLE_CLOCK_HZ = {"cortex-m4": 168_000_000, "cortex-m0plus": M0PLUS_HZ}  # RP2040's clock, a 1 kHz control loop
 EXIT_TOOL_MISSING = 4
 
 
@@ -216,11 +220,11 @@ def firmware(target: fw.Target, builder: fw.FirmwareBuilder, work: Path, modes) 
         static = bound.tick_bound(target, elf, flags, builder.prefix, task.mode, task.header).instructions
         out[mode] = {"mean": ipt["mean"], "max": ipt["max"], "bound": static, "ticks": int(ipt["ticks"]),
                      "end": f"{run.state}/{run.fault}", "stack_peak_bytes": int(run.summary["stack_peak_bytes"])}
-        if target.name == "cortex-m4":  # cycles on an STM32F4 (docs/targets.md, "Static bound")
-            out[mode]["cycle_bound"] = {
-                f"{ws}_wait_states": bound.analyzer(target, elf, flags, block_cost=bound.CortexM4Cycles(ws)).bound(
-                    "ctrl_tick", bound.tick_avoid(builder.prefix, mode, "CTRL_PATH_PROGRAM" in task.header)).instructions
-                for ws in M4_WAIT_STATES}
+        models = CYCLE_MODELS.get(target.name, ())  # cycles (docs/targets.md, "Static bound")
+        out[mode]["cycle_bound"] = {
+            label: bound.analyzer(target, elf, flags, block_cost=model).bound(
+                "ctrl_tick", bound.tick_avoid(builder.prefix, mode, "CTRL_PATH_PROGRAM" in task.header)).instructions
+            for label, model in models}
         if mode == "RESOLVED_RATE":
             out["image"] = size(target, elf)
     return out
@@ -271,12 +275,12 @@ def main(argv=None) -> int:
     print("| function | " + " | ".join(results["targets"]) + " |\n|---|" + "---|" * len(results["targets"]))
     for n in names:
         print(f"| `{n}` | " + " | ".join(str(r["bound"].get(n, "-")) for r in results["targets"].values()) + " |")
-    m4 = results["targets"].get("cortex-m4")
-    if m4 is not None:
-        print(f"\nCortex-M4F cycle bound per tick (docs/targets.md): at {M4_HZ // 1_000_000} MHz")
-        for m in modes:
-            for key, cycles in m4["firmware"][m]["cycle_bound"].items():
-                print(f"  {m}: {key.replace('_', ' ')}: {cycles} cycles, {cycles / M4_HZ * 1e6:.0f} µs")
+    for name, hz in CYCLE_CLOCK_HZ.items():
+        if name in results["targets"]:
+            print(f"\n{name} cycle bound per tick (docs/targets.md): at {hz // 1_000_000} MHz")
+            for m in modes:
+                for label, cycles in results["targets"][name]["firmware"][m]["cycle_bound"].items():
+                    print(f"  {m}: {label}: {cycles} cycles, {cycles / hz * 1e6:.0f} µs")
     m0 = results["targets"].get("cortex-m0plus")
     if m0 is not None:
         budget = M0PLUS_HZ // TICK_HZ
@@ -286,6 +290,10 @@ def main(argv=None) -> int:
         print(f"\nCortex-M0+ float (soft float) resolved-rate tick: max {rr['max']:.0f} instructions against "
               f"{budget} cycles per 1 kHz tick at 133 MHz: {rr['max'] / budget:.0%} of the budget "
               f"(at least; {'fits' if rr['max'] <= budget else 'does NOT fit'})")
+        worst = rr["cycle_bound"]["SRAM"]
+        results["m0plus_budget"].update(cycle_bound=worst, guaranteed_rate_hz=M0PLUS_HZ // worst)
+        print(f"Its static cycle bound from SRAM: {worst} cycles, {worst / M0PLUS_HZ * 1e3:.2f} ms: a tick rate of "
+              f"{M0PLUS_HZ // worst} Hz is guaranteed")
     out = args.out or (None if args.quick else str(HERE / "results" / "targets.json"))
     if out:
         Path(out).write_text(json.dumps(results, indent=2) + "\n")

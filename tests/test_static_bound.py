@@ -90,6 +90,11 @@ def check_tick(robot_ref, target: fw.Target, work: Path) -> None:
     # measured maximum may stand one count above the instructions executed
     assert static.instructions + measured["resolution"] >= measured["max"], (static.instructions, measured)
     assert static.instructions <= TIGHTNESS[target.name] * measured["max"], (static.instructions, measured)
+    models = {"cortex-m4": [bound.CortexM4Cycles(0), bound.CortexM4Cycles(5)], "cortex-m0plus": [bound.CortexM0PlusCycles()]}
+    cycles = [bound.analyzer(target, elf, builder.cflags(variant), block_cost=model).bound(
+        "ctrl_tick", bound.tick_avoid(builder.prefix, "WEIGHTED_GPM")).instructions for model in models.get(target.name, [])]
+    # every instruction takes a cycle at least, and wait states only add
+    assert all(c >= static.instructions for c in cycles) and cycles == sorted(cycles), (static.instructions, cycles)
 
 
 def test_the_playback_tick_bound_holds(tmp_path):

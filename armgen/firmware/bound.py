@@ -1063,3 +1063,38 @@ class CortexM4Cycles:
         if kind("mla", "mls", "smla", "umla", "smlal", "umlal"):
             return 2
         return 1
+
+
+@dataclass(frozen=True)
+class CortexM0PlusCycles:
+    """Processor cycles of a block on a Cortex-M0+ running from zero-wait-state memory (the
+    RP2040's SRAM: a copy_to_ram build; its XIP flash cache is not modelled), an upper bound
+    under these stated assumptions:
+
+    - each instruction its worst timing of the Cortex-M0+ Technical Reference Manual (3.3):
+      every branch taken (B, Bcc 2, BL 3, BX/BLX 2), every load and store 2, LDM/STM/PUSH/POP
+      1 + one per register, POP with pc 3 + one per register, MULS 1 (the single-cycle
+      multiplier of the RP2040 and the SAMD21), MRS/MSR/barriers 4;
+    - no interrupt, no bus contention (DMA, the other core).
+    """
+
+    def __call__(self, instructions: list[Instruction]) -> int:
+        return sum(self.instruction(i) for i in instructions)
+
+    @staticmethod
+    def instruction(ins: Instruction) -> int:
+        mn = ins.mnemonic
+        if mn.startswith(("pop", "push", "ldm", "stm")):
+            words = len(re.findall(r"\b(?:r\d+|lr|pc)\b", ins.operands.split("{", 1)[-1]))
+            return (3 if re.search(r"\bpc\b", ins.operands) else 1) + words
+        if mn == "bl":
+            return 3
+        if _ARM_B.match(mn) or mn in ("bx", "blx"):
+            return 2
+        if mn.startswith(("ldr", "str")):
+            return 2
+        if mn in ("mrs", "msr", "dmb", "dsb", "isb"):
+            return 4
+        if mn == "mov" and ins.operands.startswith("pc"):
+            return 2  # a jump table's branch
+        return 1
