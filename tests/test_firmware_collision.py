@@ -168,6 +168,22 @@ def test_every_resolved_rate_mode_descends_the_criterion_as_its_planner(robot_fi
     assert run.column("clearance_m").min() >= task.collision.settings.clearance
 
 
+def test_the_bundled_pillar_example_runs_on_board_as_planned(tmp_path):
+    """examples/iiwa14_weld_seam_pillar.toml (docs/collision.md's worked example): a weighted-GPM
+    program on the bundled iiwa14's capsules, bent around a pillar by the criterion."""
+    os.environ["ARMGEN_NO_PROGRESS"] = "1"
+    doc, sha = load_task(REPO / "examples" / "iiwa14_weld_seam_pillar.toml")
+    plan = run_task(doc, "iiwa14_weld_seam_pillar.toml", sha)
+    task = fw.task_from_plan(plan, "pillar")
+    assert task.mode == "weighted_gpm" and task.collision.settings.gain > 0
+    run = fw.run_host(fw.FirmwareBuilder(task.robot, tmp_path).executable(HOST_SAN, task, "pillar"))
+    cmp = fwcmp.compare_with_plan(plan, run, task, "double", "pillar")
+    assert cmp.passed, cmp.rows
+    assert cmp.max_dq <= fwcmp.FW_DOUBLE_BOUND_RAD
+    assert run.column("clearance_m").min() == pytest.approx(
+        plan.metadata["summary"]["collision"]["min_clearance_m"], abs=DISTANCE_TOL)
+
+
 MOVE_TO_DRIVER = r"""
 #include <stdio.h>
 #include "controller.h"
