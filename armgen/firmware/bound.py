@@ -1,31 +1,36 @@
 """A static worst-case bound on the instructions a function of a cross-compiled image executes
-(issue 42): counted from the object code, not measured.
+(issue 42): counted from the object code, not measured. docs/targets.md, "Static bound",
+states what it assumes and compares it with QEMU's counts.
 
 For each function: its basic blocks from the disassembly (``objdump -d``), the control-flow
-graph, its natural loops (back edges to a dominating header). Each loop's iteration bound comes
-from the source: the loop's latch branch maps through the DWARF line table (``-g``; every
-armgen build has it) to a C line ``for (i = 0; i < BOUND; ++i)`` and BOUND is evaluated with
-the macros of the compilation (``gcc -dM -E`` with the build's flags). A loop the compiler
-unrolled runs fewer times than its source loop: the source's count stays an upper bound.
-Loops whose count the caller states (the generated IK's step loop, which stops after
-``max_iterations``: ``loop_caps``) take the smaller of the two.
+graph (jump tables read from the image), its natural loops (back edges to a dominating
+header). A loop's count comes from its C source: the DWARF line (``-g``; every armgen build
+has it) of its back or exit branch is a ``for (i = 0; i < BOUND; ++i)`` and the build's own
+preprocessor (or compiler, for ``sizeof``) evaluates BOUND; a BOUND that is a parameter of an
+inlined function takes the argument of its call site. Besides: gcc's inline copies (memcpy of
+N bytes: N / 4 turns), bit-clearing loops (32 turns), a caller's stop (the generated IK's step
+loop runs at most ``max_iterations`` steps: ``loop_caps``), a bisection over a stated range
+(``search_ranges``), and in library code without source a down-counter read from the object
+code or a count stated in LIBRARY_LOOPS. A loop the compiler unrolled turns fewer times than
+its source loop: the source's count stays a bound.
 
 The bound of a function is the longest path through its graph from the entry to a return,
-every instruction of a block counted once (a predicated instruction of an IT block counts: it
+every instruction of a block counted (a predicated instruction of an IT block counts: it
 executes as a no-op), each loop collapsed, innermost first, into one node costing
 
-    (header executions - 1) × (the longest path once round the loop) + (the longest path from the header out of it)
+    (header runs - 1) × (the longest turn) + (the longest way from the header out of it)
 
-where the header executes at most BOUND + 1 times when the loop may leave from its header
-(tested at the top) and BOUND times otherwise (rotated: tested at the bottom), and each call
-(``bl``/``jal``, a tail call's branch) costs its callee's bound. Blocks that call a function
-of ``avoid`` are removed (for one controller mode's tick: the other modes' tick functions and
-the MOVE_TO planner are not reached). A recursive call, an indirect call or jump, or a loop
-whose count cannot be read from its source line is an error (BoundError naming the function,
-the address and the line): there is no silent guess.
+where the header runs at most BOUND + 1 times when the loop may leave from its header (tested
+at the top) and BOUND times otherwise (rotated: tested at the bottom), and each call (``bl``,
+``jal``, a tail call's branch) costs its callee's bound; memset/memcpy/memmove of a constant
+size n cost their straight path plus n times their longest turn. Blocks that call a function
+of ``avoid`` are no path (one controller mode's tick: the other modes' tick functions, the
+MOVE_TO planner). A recursive call, an indirect call or jump, or a loop without a count is an
+error (BoundError naming the function, the address and the line): there is no silent guess.
 
-The bound counts instructions, the unit QEMU's ``-icount`` measures. Cycles on silicon:
-``cycle_bound`` (stated assumptions, docs/targets.md).
+The bound counts instructions, the unit QEMU's ``-icount`` measures. ``block_cost`` turns it
+into a cycle bound under stated assumptions: CortexM4Cycles (flash wait states),
+CortexM0PlusCycles.
 """
 
 from __future__ import annotations
