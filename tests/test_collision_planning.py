@@ -365,3 +365,69 @@ def test_the_compiled_kernel_plans_the_same_avoidance(robot_file):
     q = [result.data[:, 1:8] for result in (symbolic, compiled)]
     assert np.max(np.abs(q[0] - q[1])) <= HOST_C_TOL
     assert compiled.metadata["summary"]["collision"]["within_clearance"]
+
+
+# -- snake plans against the task's sphere, capsule, plane and centred-box obstacles --------------
+
+# Beside the planar example's last straight (y = 300 mm, the links' centres on it): a sphere whose
+# surface is 40 mm from that line, so the 30 mm capsules pass 10 mm from it.
+SNAKE_SPHERE = {"type": "sphere", "centre": [700.0, 360.0, 0.0], "radius": 20.0}
+
+
+def test_snake_links_are_measured_against_the_task_obstacles_and_refused_below_the_clearance(tmp_path):
+    from armgen.planning.tasks import configure_task
+    from test_collision import REQUEST, _coal_capsule
+
+    coal = pytest.importorskip("coal")
+    robot_file = snake_with_capsules(tmp_path, ignore_adjacent=True)
+    task = snake_task(robot_file)
+    task["obstacles"] = task.get("obstacles", []) + [SNAKE_SPHERE]
+    index = len(task["obstacles"]) - 1  # after the example's own (tube) obstacles
+    task["collision"] = {"clearance": 5.0, "activation": 100.0}
+    result = run_task(task, "snake.toml")
+    report = result.metadata["summary"]["collision"]
+    assert report["within_clearance"] and report["obstacles"] == 1
+    # the least distance to the sphere by coal, every sample, the capsules placed in the task's frame
+    robot, config = load_robot(robot_file), configure_task(task, "snake.toml").config
+    place = config.rail_start - config.arm.base0
+    q = np.column_stack([result.column("feed_m")] + [result.column(f"{ab}{i + 1}_rad")
+                                                      for i in range(12) for ab in "ab"])
+    centre = np.array(SNAKE_SPHERE["centre"]) * 1e-3
+    sphere = (coal.Sphere(SNAKE_SPHERE["radius"] * 1e-3), coal.Transform3s(np.eye(3), centre))
+    ours = np.full(len(q), np.inf)
+    for k in range(0, len(q)):
+        frames = robot.frames(q[k])
+        for c in robot.collision.capsules:
+            ends = [frames[c.frame][:3, :3] @ np.array(end) + frames[c.frame][:3, 3] + place for end in (c.a, c.b)]
+            ours[k] = min(ours[k], coal.distance(*_coal_capsule(*ends, c.radius), *sphere, REQUEST,
+                                                 coal.DistanceResult()))
+    assert ours.min() == pytest.approx(10e-3, abs=1e-3)  # the scene as designed
+    sphere_pairs = report["pair"].endswith(f"obstacles[{index}] (sphere)")
+    if sphere_pairs:
+        assert report["min_clearance_m"] == pytest.approx(ours.min(), abs=DISTANCE_TOL)
+    else:  # the links' own least distance is smaller than the sphere's
+        assert report["min_clearance_m"] <= ours.min()
+    # above the sphere's 10 mm: refused (exit 3) naming the sphere by its index in the file; the
+    # same travel at 3/4 of the example's speed, which keeps the joints' speed limits checked first
+    task["collision"]["clearance"] = 20.0
+    task["check"] = {"limits": "error"}
+    task["motion"].update(v=90.0, duration=13.0)
+    with pytest.raises(PlanningError) as error:
+        run_task(task, "snake.toml")
+    assert error.value.exit_code == 3 and f"obstacles[{index}] (sphere)" in str(error.value)
+    assert "clearance = 20.0 mm" in str(error.value)
+
+
+def test_snake_task_obstacles_of_the_collision_vocabulary_need_capsules():
+    task = snake_task(Path(load_robot("snake12").path))
+    task["obstacles"] = task.get("obstacles", []) + [SNAKE_SPHERE]
+    task["collision"] = {"clearance": 5.0, "activation": 100.0}
+    with pytest.raises(TaskFileError, match=r"snake\.toml: field 'obstacles': robot 'snake12' has no collision "
+                                            r"capsules") as error:
+        run_task(task, "snake.toml")
+    assert error.value.exit_code == 2
+    task["robot"] = "snake12"
+    del task["collision"]
+    task["obstacles"][-1] = {"type": "sphere", "centre": [700.0, 360.0, 0.0]}
+    with pytest.raises(TaskFileError, match=r"obstacles\[\d+\]\.radius.*is missing; a sphere takes centre and radius"):
+        run_task(task, "snake.toml")

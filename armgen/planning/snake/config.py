@@ -7,15 +7,19 @@ robot (the start tangent along the rail, the link mass from the link length)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from types import SimpleNamespace
 from typing import Optional
 
 import numpy as np
 
+from ...description.collision import BoxObstacle, CapsuleObstacle, SphereObstacle, obstacle_parameters
 from ...robot import Robot
+from ..common.collision import BoxEntry, CapsuleEntry, PlaneEntry, SphereEntry, TaskCollision, configure_collision
 from .arm import SnakeArm, snake_arm
 from .obstacles import FACES, Obstacle
-from .schema import DEFAULT_OUTER_DIAMETER_M, DEFAULT_WALL_M, Obstacle as ObstacleEntry, SnakeTaskFile
+from .schema import (DEFAULT_OUTER_DIAMETER_M, DEFAULT_WALL_M, Obstacle as ObstacleEntry, SnakeTaskFile,
+                     is_capsule_checked)
 
 DEFAULT_CYLINDER_AXIS = (0.0, 0.0, 1.0)
 
@@ -93,7 +97,12 @@ class SnakeTask:
     density: float  # kg/m³
     EA: float  # N
     link_mass: float  # kg
-    obstacles: tuple[Obstacle, ...] = ()
+    obstacles: tuple[Obstacle, ...] = ()  # the tube's (box by min/max, cylinder, plate, tank)
+    # the links' capsules against the collision vocabulary's obstacles (in the robot's base frame)
+    # and [collision]'s clearance: None for a robot without capsules
+    collision: TaskCollision | None = None
+    # per obstacle of ``collision``, its index among the task's [[obstacles]]
+    collision_indices: tuple[int, ...] = ()
     source: str = ""
 
     @property
@@ -133,6 +142,45 @@ def _obstacle(entry: ObstacleEntry, k: int, ls: float) -> Obstacle:
     return Obstacle(name, entry.type, np.array(entry.point, dtype=float) * ls, _unit(entry.normal), 0.5 * opening * ls)
 
 
+_COMMON_ENTRIES = {"sphere": (SphereEntry, ("centre", "radius")), "capsule": (CapsuleEntry, ("a", "b", "radius")),
+                   "box": (BoxEntry, ("centre", "size", "rpy")), "plane": (PlaneEntry, ("point", "normal"))}
+
+
+def _collision(model: SnakeTaskFile, robot: Robot, place: np.ndarray, source: str) -> tuple[TaskCollision | None,
+                                                                                             tuple[int, ...]]:
+    """The task's collision-vocabulary obstacles and ``[collision]`` as the other planners read them
+    (:func:`~armgen.planning.common.collision.configure_collision`: a robot without capsules
+    refused, and so are such obstacles without ``[collision]`` or beyond the robot's slots), moved
+    from the task's frame into the robot's base frame (the base sits at ``place``), and their
+    indices among the task's [[obstacles]]."""
+    indices = tuple(k for k, entry in enumerate(model.obstacles) if is_capsule_checked(entry))
+    entries = []
+    for k in indices:
+        entry = model.obstacles[k]
+        kind, fields = _COMMON_ENTRIES[entry.type]
+        entries.append(kind(type=entry.type, **{f: getattr(entry, f) for f in fields if getattr(entry, f) is not None}))
+    found = configure_collision(SimpleNamespace(obstacles=entries, collision=model.collision, units=model.units),
+                                robot, source)
+    if found is None:
+        return None, ()
+    moved = tuple(_moved(obstacle, -place) for obstacle in found.obstacles)
+    return replace(found, obstacles=moved, parameters=obstacle_parameters(moved, robot.collision.slots)), indices
+
+
+def _moved(obstacle, shift: np.ndarray):
+    """An obstacle of armgen.description.collision translated by ``shift`` (m)."""
+    def by(point) -> tuple[float, float, float]:
+        return tuple(float(v) for v in np.asarray(point, dtype=float) + shift)
+
+    if isinstance(obstacle, SphereObstacle):
+        return replace(obstacle, centre=by(obstacle.centre))
+    if isinstance(obstacle, CapsuleObstacle):
+        return replace(obstacle, a=by(obstacle.a), b=by(obstacle.b))
+    if isinstance(obstacle, BoxObstacle):
+        return replace(obstacle, centre=by(obstacle.centre))
+    return replace(obstacle, point=by(obstacle.point))  # a PlaneObstacle
+
+
 def configure(model: SnakeTaskFile, robot: Robot, source: str) -> SnakeTask:
     """The task's :class:`SnakeTask` on ``robot`` (which must be a snake arm of spec 50)."""
     ls = model.length_scale
@@ -143,6 +191,7 @@ def configure(model: SnakeTaskFile, robot: Robot, source: str) -> SnakeTask:
     od = links.outer_diameter * ls if links.outer_diameter is not None else DEFAULT_OUTER_DIAMETER_M
     wall = links.wall * ls if links.wall is not None else DEFAULT_WALL_M
     mass = links.density * math.pi / 4 * (od ** 2 - (od - 2 * wall) ** 2) * arm.link
+    collision, indices = _collision(model, robot, rail_start - arm.base0, source)
     return SnakeTask(
         arm=arm, waypoints=waypoints, start_tangent=_direction(model.path.start_tangent, _unit(arm.rail_dir.tolist())),
         end_tangent=_direction(model.path.end_tangent, None), rail_start=rail_start, driven=motion.driven,
@@ -150,4 +199,6 @@ def configure(model: SnakeTaskFile, robot: Robot, source: str) -> SnakeTask:
         solver=solver.method, h=solver.h, integrator=solver.integrator or ("RK45" if solver.h > 0 else "Radau"),
         rtol=solver.rtol, atol=solver.atol, state=solver.state, max_wall_time=solver.max_wall_time,
         outer_diameter=od, wall=wall, density=links.density, EA=links.EA, link_mass=mass,
-        obstacles=tuple(_obstacle(entry, k, ls) for k, entry in enumerate(model.obstacles)), source=source)
+        obstacles=tuple(_obstacle(entry, k, ls) for k, entry in enumerate(model.obstacles)
+                        if not is_capsule_checked(entry)),
+        collision=collision, collision_indices=indices, source=source)

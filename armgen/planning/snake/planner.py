@@ -13,6 +13,7 @@ The task file may use mm/deg (``[units]``); everything is SI inside. See ``docs/
 from __future__ import annotations
 
 import math
+import re
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -200,11 +201,12 @@ def plan(task: SnakeTask, backend: str = "symbolic") -> PlanResult:
                                 fk_centres, centres, fk_check, recover_s, time.perf_counter() - started)
     result.metadata["summary"]["joint_speed"] = speed_report(arm.robot, t, playback_rates(q, task.output_step)) | {
         "enforced": False, "rate_rule": PLAYBACK_RATE_RULE}
-    if arm.robot.has_collision:  # the links' capsules against each other at every sample (the task's
-        # obstacles are the tube's, checked above); refused below the arm's contact by tasks.plan_configured
-        report = clearance_report(arm.robot, t, q, TaskCollision((), None, {}))
+    if arm.robot.has_collision:  # the links' capsules against each other and against the task's
+        # sphere, capsule, plane and centred box obstacles at every sample (the tube's obstacles are
+        # checked above); refused below [collision] clearance (0: contact) by tasks.plan_configured
+        report = clearance_report(arm.robot, t, q, task.collision or TaskCollision((), None, {}))
         if report is not None:
-            result.metadata["summary"]["collision"] = report
+            result.metadata["summary"]["collision"] = _named_as_in_the_file(report, task.collision_indices)
     return result
 
 
@@ -223,6 +225,15 @@ def _fk_cross_check(arm: SnakeArm, q: np.ndarray, tip_base: np.ndarray, backend:
     except Exception:  # a Callback without map support: evaluate sample by sample
         T = np.array([np.array(fk(qk))[:3, 3] for qk in q])
     return {"backend": backend, "max_tip_diff_m": float(np.max(np.abs(T - tip_base)))}
+
+
+def _named_as_in_the_file(report: dict[str, Any], indices: tuple[int, ...]) -> dict[str, Any]:
+    """The report with its ``obstacles[j]`` (j among the collision-vocabulary obstacles) renamed by
+    the obstacle's index among the task's [[obstacles]], where the tube's obstacles count too."""
+    def rename(text: str) -> str:
+        return re.sub(r"obstacles\[(\d+)\]", lambda m: f"obstacles[{indices[int(m.group(1))]}]", text)
+
+    return {key: rename(value) if isinstance(value, str) else value for key, value in report.items()}
 
 
 def _check_collisions(task: SnakeTask, track: Track, sol: SnakeSolution, clear: dict[str, np.ndarray]) -> None:

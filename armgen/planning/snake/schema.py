@@ -19,6 +19,7 @@ from pydantic import Discriminator, Field, StringConstraints, Tag, model_validat
 from ...description.files import LENGTH_UNITS
 from ...errors import excerpt
 from ...schemas import StrictModel, rule_error
+from ..common.collision import CollisionSettings
 from ..common.schema import Description, NonNegative, Positive, RobotReference, SpeedCheck, Vector3
 
 MAX_WAYPOINTS = 10_000
@@ -41,14 +42,32 @@ DEFAULT_WALL_M = 0.002
 Direction = Annotated[Union[Annotated[Vector3, Tag("vector")], Annotated[Literal["natural"], Tag("natural")]],
                       Discriminator(lambda value: "natural" if isinstance(value, str) else "vector")]
 Face = Literal["x-", "x+", "y-", "y+", "z-", "z+"]
-ObstacleType = Literal["box", "cylinder", "plate", "tank"]
+ObstacleType = Literal["box", "cylinder", "plate", "tank", "sphere", "capsule", "plane"]
 # The fields each obstacle type needs, and the optional ones it may have (beside name and type).
+# The tube's obstacles (box by min/max, cylinder, plate, tank) are checked against the tube of
+# radius outer_diameter / 2 around the joint centres; the collision vocabulary of the other
+# planners (sphere, capsule, box by centre/size/rpy, plane: docs/collision.md) against the links'
+# capsules, which the robot file must give.
 OBSTACLE_FIELDS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "box": (("min", "max"), ()),
     "tank": (("min", "max"), ("faces",)),
     "cylinder": (("centre", "diameter"), ("axis",)),
     "plate": (("point", "normal"), ("opening_diameter",)),
+    "sphere": (("centre", "radius"), ()),
+    "capsule": (("a", "b", "radius"), ()),
+    "plane": (("point", "normal"), ()),
 }
+# A box given by its centre is the collision vocabulary's (a turned box), one given by min/max the tube's.
+CAPSULE_BOX_FIELDS = (("centre", "size"), ("rpy",))
+
+
+def is_capsule_checked(obstacle: Obstacle) -> bool:
+    """Whether the obstacle is of the collision vocabulary (checked against the links' capsules)."""
+    return obstacle.type in ("sphere", "capsule", "plane") or (obstacle.type == "box" and obstacle.centre is not None)
+
+
+def obstacle_fields(obstacle: Obstacle) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    return CAPSULE_BOX_FIELDS if obstacle.type == "box" and obstacle.centre is not None else OBSTACLE_FIELDS[obstacle.type]
 
 
 def mm(p: np.ndarray) -> list[float]:
@@ -111,6 +130,13 @@ class Obstacle(StrictModel):
     normal: Optional[Vector3] = None
     opening_diameter: Optional[NonNegative] = Field(None, description="plate: default 0 (no opening)")
     faces: Optional[Annotated[list[Face], Field(max_length=6)]] = Field(None, description="tank: default all six")
+    radius: Optional[NonNegative] = Field(None, description="sphere, capsule")
+    a: Optional[Vector3] = Field(None, description="capsule: one end of its axis")
+    b: Optional[Vector3] = Field(None, description="capsule: the other end")
+    size: Optional[Annotated[list[Positive], Field(min_length=3, max_length=3)]] = Field(
+        None, description="box by centre: full edge lengths along its axes")
+    rpy: Optional[Vector3] = Field(None, description="box by centre: its axes, R = Rz(yaw) Ry(pitch) Rx(roll) "
+                                                     "(angle unit); default 0")
 
 
 def _fail(field: str, message: str) -> Exception:
@@ -151,6 +177,9 @@ class SnakeTaskFile(StrictModel):
     solver: Solver = Field(default_factory=Solver)
     links: Links = Field(default_factory=Links)
     obstacles: Annotated[list[Obstacle], Field(max_length=MAX_OBSTACLES)] = Field(default_factory=list)
+    collision: Optional[CollisionSettings] = Field(
+        None, description="clearance (and activation) of the links' capsules: required with sphere, capsule, plane "
+                          "or centred box obstacles; gain is not used (the path fixes every link)")
     check: SpeedCheck = Field(default_factory=SpeedCheck)
 
     @property
@@ -207,7 +236,7 @@ class SnakeTaskFile(StrictModel):
     @staticmethod
     def _check_obstacle(obstacle: Obstacle, k: int) -> None:
         where = f"obstacles[{k}]"
-        needed, optional = OBSTACLE_FIELDS[obstacle.type]
+        needed, optional = obstacle_fields(obstacle)
         given = [key for key in Obstacle.model_fields
                  if key not in ("name", "type") and getattr(obstacle, key) is not None]
         for key in needed:
