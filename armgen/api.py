@@ -828,17 +828,22 @@ def link_stream(port: str, plan_csv: str | Path, rate_hz: float = 50.0, lead_s: 
     import numpy as np
 
     from .link import plan_pose_waypoints, plan_waypoints
-    from .link.waypoints import POSE_COLUMNS, has_joints
+    from .link.waypoints import POSE_COLUMNS, StreamFileError, has_joints
 
     plan_read = read_plan(plan_csv)
     columns, data = list(plan_read.columns), plan_read.data
     with link_open(port, timeout, replies=replies) as link:
         poses = poses or not has_joints(columns, link.ndof)
+        try:
+            if poses:
+                t, tool, twists = plan_pose_waypoints(columns, data, rate_hz)
+            else:
+                t, q, qd = plan_waypoints(columns, data, link.ndof, rate_hz)
+        except StreamFileError as exc:
+            raise StreamFileError(f"{plan_csv}: {exc}") from None
         if poses:
-            t, tool, twists = plan_pose_waypoints(columns, data, rate_hz)
             answers = link.stream_poses(t, tool, twists, lead_s=lead_s)
         else:
-            t, q, qd = plan_waypoints(columns, data, link.ndof, rate_hz)
             answers = link.stream(t, q, qd, lead_s=lead_s)
         end = link.wait_idle()
     dt = link.hello["dt_us"] * 1e-6

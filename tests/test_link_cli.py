@@ -106,6 +106,9 @@ def test_refused_and_missing(port, tmp_path):
     (tmp_path / "speeds.csv").write_text("vx,vy\n1,2\n")
     bad_trace = armgen("link", port, "servo", str(tmp_path / "speeds.csv"))
     assert bad_trace.returncode == 2 and "no column vx_m_s" in bad_trace.stderr
+    (tmp_path / "times.csv").write_text("t_s,x_m\n0,0.1\n0.02,0.1\n")
+    no_pose = armgen("link", port, "stream", str(tmp_path / "times.csv"))
+    assert no_pose.returncode == 2 and "times.csv: the file has no column y_m" in no_pose.stderr, no_pose.stderr
     missing = armgen("link", "/nonexistent/tty", "status")
     assert missing.returncode == 4 and "cannot open /nonexistent/tty" in missing.stderr
 

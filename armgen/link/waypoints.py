@@ -11,6 +11,15 @@ from scipy.spatial.transform import Rotation
 from ..description import rpy_matrix
 from .client import LinkError
 
+
+
+class StreamFileError(LinkError):
+    """A plan or pose file the stream cannot use (columns missing, a value not finite, samples off
+    the rate's grid, a bad rate): exit 2, as a bad option."""
+
+    exit_code = 2
+
+
 # A plan's (and a pose file's) tool pose: position, then R = Rz(yaw) Ry(pitch) Rx(roll)
 POSE_COLUMNS = ("x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad")
 
@@ -33,7 +42,7 @@ def joint_columns(columns: list[str], ndof: int) -> tuple[list[int], list[int]]:
     theta, omega = find(r"theta_.+_(rad|m)"), find(r"omega_.+_(rad_s|m_s)")
     if len(theta) == len(omega) == ndof:
         return theta, omega
-    raise LinkError(f"the plan has no position and velocity columns for the board's {ndof} joints "
+    raise StreamFileError(f"the plan has no position and velocity columns for the board's {ndof} joints "
                     "(q1_rad ... with dq1_rad_s ..., or theta_<joint>_rad with omega_<joint>_rad_s for every joint); "
                     "plan the task for the board's robot")
 
@@ -50,7 +59,7 @@ def plan_waypoints(columns: list[str], data: np.ndarray, ndof: int, rate_hz: flo
 def has_joints(columns: list[str], ndof: int) -> bool:
     try:
         joint_columns(columns, ndof)
-    except LinkError:
+    except StreamFileError:
         return False
     return True
 
@@ -64,12 +73,12 @@ def plan_pose_waypoints(columns: list[str], data: np.ndarray, rate_hz: float
     curvature), zero at the first and the last sample: a stream starts and ends at rest."""
     missing = [c for c in ("t_s",) + POSE_COLUMNS if c not in columns]
     if missing:
-        raise LinkError(f"the file has no column {missing[0]}: a pose stream needs t_s and "
+        raise StreamFileError(f"the file has no column {missing[0]}: a pose stream needs t_s and "
                         f"{' '.join(POSE_COLUMNS)} (a resolved-rate plan's columns)")
     t_all, pick = _grid(columns, data, rate_hz)
     pose = data[:, [columns.index(c) for c in POSE_COLUMNS]]
     if not np.all(np.isfinite(pose)):
-        raise LinkError("a pose holds NaN or inf; give finite numbers")
+        raise StreamFileError("a pose holds NaN or inf; give finite numbers")
     rotations = np.array([rpy_matrix(*row[3:]) for row in pose])
     twists = np.zeros((len(t_all), 6))
     if len(t_all) > 2:
@@ -86,14 +95,14 @@ def plan_pose_waypoints(columns: list[str], data: np.ndarray, rate_hz: float
 def _grid(columns: list[str], data: np.ndarray, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
     """The times from the first sample, and the samples on the 1/rate_hz grid (with the last)."""
     if not (rate_hz > 0 and np.isfinite(rate_hz)):
-        raise LinkError(f"--rate {rate_hz}: give a positive rate in Hz")
+        raise StreamFileError(f"--rate {rate_hz}: give a positive rate in Hz")
     t = data[:, columns.index("t_s")] - data[0, columns.index("t_s")]
     phase = t * rate_hz
     on_grid = np.abs(phase - np.rint(phase)) <= GRID_TOL_S * rate_hz
     pick = np.nonzero(on_grid)[0]
     if len(pick) < 2:
         step = float(np.median(np.diff(t))) if len(t) > 1 else float("nan")
-        raise LinkError(f"the plan's samples ({step:g} s apart) are not on a {rate_hz:g} Hz grid: choose a rate whose "
+        raise StreamFileError(f"the plan's samples ({step:g} s apart) are not on a {rate_hz:g} Hz grid: choose a rate whose "
                         "period is a whole number of the plan's steps")
     if pick[-1] != len(t) - 1:
         pick = np.append(pick, len(t) - 1)
