@@ -59,6 +59,12 @@ def test_verify_passes_with_a_replayed_plan_and_cleans_up(tmp_path, monkeypatch,
     assert all(s["verdict"] == "PASS" and s["rows"] for s in data["stages"])
     replay = next(s for s in data["stages"] if s["name"] == "replay")
     assert any(r[0].startswith("host firmware") for r in replay["rows"]), "the firmware replay ran"
+    out = CliRunner().invoke(cli, ["verify", "modular8", "--plan", str(plan), "--samples", "300",
+                                   "--report", str(report)])
+    assert out.exit_code == 0, out.output
+    again = {s["name"]: s for s in json.loads(report.read_text())["stages"]}
+    assert all(again[name]["reused"] for name in ("fresh", "compile", "callbacks", "replay")), out.output
+    assert again["replay"]["rows"] == replay["rows"]
     assert list(private_tmp.iterdir()) == [], "verify left temporary folders behind"
 
 

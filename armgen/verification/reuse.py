@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import platform
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -39,8 +41,10 @@ LIBRARY_OPTIMISATION = "-O2"
 @functools.lru_cache(maxsize=1)
 def armgen_fingerprint() -> str:
     """armgen's every file (sources, templates, firmware stub, bundled data) and the versions of
-    the numerics it runs on: an edit anywhere verifies afresh (~10 ms)."""
-    digest = hashlib.sha256(f"{RECORD_FORMAT} {ca.__version__} {np.__version__}".encode())
+    the numerics it runs on (CasADi, NumPy, Python, the C library whose libm both the reference
+    and the C call): an edit anywhere verifies afresh (~10 ms)."""
+    digest = hashlib.sha256(repr((RECORD_FORMAT, ca.__version__, np.__version__, sys.version,
+                                  platform.libc_ver())).encode())
     package = Path(__file__).resolve().parents[1]
     for path in sorted(package.rglob("*")):
         if path.is_file() and "__pycache__" not in path.parts:
