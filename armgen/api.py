@@ -337,8 +337,8 @@ class VerifyReport:
     def to_dict(self) -> dict[str, Any]:
         """Plain data, as written to ``--report``."""
         return {"robot": self.robot, "passed": self.passed,
-                "stages": [{"name": s.name, "passed": s.passed, "message": s.message, "columns": s.columns,
-                            "rows": s.rows} for s in self.stages]}
+                "stages": [{"name": s.name, "passed": s.passed, "reused": s.reused, "message": s.message,
+                            "columns": s.columns, "rows": s.rows} for s in self.stages]}
 
 
 def verify(robot: Robot | str | Path, plan: str | Path | None = None, samples: int = 10_000,
