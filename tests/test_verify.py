@@ -360,3 +360,10 @@ def test_a_verdict_is_not_reused_for_other_code_or_from_a_file_others_can_write(
     stages = {stage["name"]: stage for stage in json.loads(report.read_text())["stages"]}
     assert not stages["compile"]["reused"] and not stages["callbacks"]["reused"]
     assert [row[3] for row in stages["compile"]["rows"]] == [pipeline.BUILT_NOW] * 2
+
+
+@pytest.mark.parametrize("load, free", [(0.0, 2), (0.7, 1), (1.0, 1), (5.0, 1)])
+def test_builds_run_side_by_side_only_on_free_cores(monkeypatch, load, free):
+    monkeypatch.setattr(pipeline.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.setattr(pipeline.os, "getloadavg", lambda: (load, load, load))
+    assert pipeline.free_cores() == free

@@ -9,8 +9,9 @@ Stages (each a function returning a :class:`Stage` with a table of rows):
 1. fresh    — regenerate (with the manifest's options) into a temp dir; every file must match.
    Stale code is reported and never compiled or run: the later stages are shown as not run;
 2. compile  — strict gcc flags, float and double, plus an ASan/UBSan driver run (the four
-   builds in parallel, while this process draws the callbacks stage's samples and evaluates
-   the interpreter on them);
+   builds side by side on the cores the load leaves free, while this process draws the
+   callbacks stage's samples and evaluates the interpreter on them; a build of the same bytes
+   is taken from the kernel store, its SHA-256 checked);
 3. callbacks — each compiled function against the interpreter at N seeded samples
    (near-singular and near-limit included), per-precision bounds: the samples go through a
    batched C entry compiled into the library (one call per function) and through the
@@ -31,6 +32,10 @@ Stages (each a function returning a :class:`Stage` with a table of rows):
 A stage that compared nothing is never a PASS: it is a FAIL, or SKIPPED when the user did not
 ask for it (replay without ``--plan``); skipped stages do not fail the run. Temporary build
 folders are removed however the run ends.
+
+A passed verdict of fresh, compile + callbacks (per precision) and replay is stored and reused
+for the same inputs, which its key digests (:mod:`armgen.verification.reuse`; ``reuse=False``,
+``--again``, redoes everything).
 
 Bounds of the firmware comparisons and why: :mod:`armgen.verification.firmware_compare`.
 """
