@@ -155,7 +155,8 @@ def main() -> None:
     print(f"counted by the board: bad CRC {f['bad_crc']}, malformed {f['malformed']}, oversized {f['oversized']}, "
           f"other version {f['wrong_version']}, out of order {f['out_of_order']}")
     print(f"fuzz: {f['chunks']} chunks in {f['seconds']} s: crashes {f['crashes']}, violations {f['violations']} "
-          f"(commands {f['commands']}, setpoints {f['setpoints']}, mutated but intact {f['mutated_but_intact']})")
+          f"(commands {f['commands']}, setpoints {f['setpoints']} of which {f['pose_setpoints']} of pose streams, "
+          f"mutated but intact {f['mutated_but_intact']})")
 
     plan = the_plan()
     print("\n== 2. a plan streamed over a pseudo-terminal (modular8 PTP, 3 s, commands at 1 kHz)")

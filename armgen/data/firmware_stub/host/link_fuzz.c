@@ -94,11 +94,12 @@ typedef struct {
   uint32_t stream_t_us;
   uint8_t replay[FW_LINK_MAX_ENCODED + 1u];
   size_t replay_len;
-  unsigned long commands, setpoints, dropped[5]; /* over the whole run: bad CRC, malformed, oversized, version, order */
+  unsigned long commands, setpoints, pose_setpoints, dropped[5]; /* over the whole run: bad CRC, malformed, oversized, version, order */
 } fuzz;
 
-/* An intact host frame with the next sequence number: mostly STATUS and plausible waypoints (so
- * streams run), the other types with random bodies (finite or not, in the limits or not). */
+/* An intact host frame with the next sequence number: mostly STATUS and plausible joint and pose
+ * waypoints (so streams of both kinds run), the other types with random bodies (finite or not,
+ * in the limits or not). */
 static size_t intact_frame(fuzz *z, uint8_t *out) {
   static const uint8_t types[] = {FW_LINK_STATUS, FW_LINK_STATUS, FW_LINK_WAYPOINT, FW_LINK_WAYPOINT, FW_LINK_START,
                                   FW_LINK_STOP,   FW_LINK_LOCK,   FW_LINK_MOVE_TO_JOINTS, FW_LINK_MOVE_TO_POSE,
@@ -117,6 +118,23 @@ static size_t intact_frame(fuzz *z, uint8_t *out) {
       w.qd[i] = 0.0f;
     }
     len = fw_link_pack_waypoint(&w, body);
+  }
+  if (type == FW_LINK_POSE_WAYPOINT && below(&z->rng, 2u) == 0u) { /* the tool's pose, nudged: pose streams run */
+    fw_link_pose_waypoint w;
+    ctrl_real T[16], J[6 * CTRL_NDOF];
+    ctrl_gen_fk_jacobian(z->l.last.q, T, J);
+    z->stream_t_us = z->l.streaming ? z->stream_t_us + 20000u : 0u;
+    w.t_us = z->stream_t_us;
+    w.last = (uint8_t)(below(&z->rng, 50u) == 0u);
+    for (i = 0; i < 3u; ++i) {
+      w.tool[i] = (float)T[12u + i] + (float)below(&z->rng, 100u) * 1e-5f;
+      w.tool[3u + i] = (float)T[i];
+      w.tool[6u + i] = (float)T[4u + i];
+      w.tool[9u + i] = (float)T[8u + i];
+      w.twist[i] = 0.0f;
+      w.twist[3u + i] = 0.0f;
+    }
+    len = fw_link_pack_pose_waypoint(&w, body);
   }
   z->seq = (uint16_t)(z->seq + 1u);
   return fw_link_frame(FW_LINK_VERSION, type, z->seq, body, len, out);
@@ -169,6 +187,7 @@ static void tick(fuzz *z) {
   (void)memset(&in, 0, sizeof in);
   fw_link_input(&z->l, &in);
   z->setpoints += (unsigned long)(in.command == CTRL_CMD_SETPOINT);
+  z->pose_setpoints += (unsigned long)(in.command == CTRL_CMD_SETPOINT && z->l.streaming && z->l.stream_poses);
   z->commands += (unsigned long)(in.command != CTRL_CMD_NONE && in.command != CTRL_CMD_SETPOINT);
   (void)ctrl_tick(&z->c, &in, &out);
   fw_link_output(&z->l, &out);
@@ -270,7 +289,7 @@ static int run_fuzz(unsigned long chunks, uint64_t seed) {
   restart(&z); /* adds the last counts */
   printf("# bad_crc %lu\n# malformed %lu\n# oversized %lu\n# wrong_version %lu\n# out_of_order %lu\n",
          z.dropped[0], z.dropped[1], z.dropped[2], z.dropped[3], z.dropped[4]);
-  printf("# commands %lu\n# setpoints %lu\n", z.commands, z.setpoints);
+  printf("# commands %lu\n# setpoints %lu\n# pose_setpoints %lu\n", z.commands, z.setpoints, z.pose_setpoints);
   printf("# mutated_but_intact %lu\n", mutated_intact); /* a 0x00 inserted beside the frame */
   printf("# violations %lu\n", violations);
   return 0;
