@@ -63,10 +63,10 @@ def short_plan(short_task):
 
 def assert_never_nan(run: fw.FirmwareRun, robot="modular8") -> None:
     """Every value finite, in the CSV's columns: tick, t, q, qd, errors, windows, the feed-forward
-    torques of a robot with inertials, locked, state, fault."""
+    torques of a robot with inertials, the clearance of a robot with capsules, locked, state, fault."""
     robot = load_robot(robot) if isinstance(robot, str) else robot
     assert np.all(np.isfinite(run.data)), "the firmware wrote a non-finite value"
-    assert run.data.shape[1] == 2 + (4 if robot.has_dynamics else 3) * robot.n + 5
+    assert run.data.shape[1] == 2 + (4 if robot.has_dynamics else 3) * robot.n + 5 + int(robot.has_collision)
 
 
 # --------------------------------------------------------------------------- replay on the host

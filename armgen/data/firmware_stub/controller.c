@@ -435,7 +435,9 @@ static ctrl_real least_distance(const ctrl_collision *coll, const ctrl_real *q) 
  * planner's check: a plan closer than it is infeasible), NONFINITE_OUTPUT for NaN. */
 static ctrl_fault check_clearance(const ctrl_collision *coll, const ctrl_real *q, ctrl_real *clearance) {
   *clearance = least_distance(coll, q);
-  if (!finite_r(*clearance)) return CTRL_FAULT_NONFINITE_OUTPUT;
+  if (!finite_r(*clearance)) {
+    return CTRL_FAULT_NONFINITE_OUTPUT;
+  }
   return *clearance < coll->clearance ? CTRL_FAULT_COLLISION : CTRL_FAULT_NONE;
 }
 
@@ -462,7 +464,9 @@ static void collision_term(const ctrl *c, const ctrl_real *q, ctrl_real *term) {
 static void add_collision_term(const ctrl *c, const ctrl_real *q, ctrl_real *alpha) {
   ctrl_real term[N];
   int i;
-  if (c->cfg.collision == NULL || c->cfg.collision->gain == CTRL_LIT(0.0)) return;
+  if (c->cfg.collision == NULL || c->cfg.collision->gain == CTRL_LIT(0.0)) {
+    return;
+  }
   collision_term(c, q, term);
   for (i = 0; i < N; ++i) {
     alpha[i] = alpha[i] + term[i];
@@ -474,7 +478,9 @@ static void add_collision_term(const ctrl *c, const ctrl_real *q, ctrl_real *alp
  * in the task's obstacle slots show there). The held command's clearance. */
 static int init_collision(ctrl *c) {
   const ctrl_collision *coll = c->cfg.collision;
-  if (coll == NULL) return 1;
+  if (coll == NULL) {
+    return 1;
+  }
   if (coll->distances == NULL || !nonneg(coll->clearance) || !finite_r(coll->activation) ||
       !(coll->activation > coll->clearance) || !nonneg(coll->gain) ||
       (coll->gain > CTRL_LIT(0.0) && coll->criterion == NULL)) {
@@ -921,7 +927,9 @@ static ctrl_fault accept(ctrl *c, ctrl_real t, const ctrl_real *q, const ctrl_re
   ctrl_real clearance = CTRL_CLEARANCE_UNCHECKED;
   if (c->cfg.collision != NULL) {
     ctrl_fault fc = check_clearance(c->cfg.collision, q, &clearance);
-    if (fc != CTRL_FAULT_NONE) return fc;
+    if (fc != CTRL_FAULT_NONE) {
+      return fc;
+    }
   }
 #endif
 #if CTRL_HAS_DYNAMICS
@@ -1237,7 +1245,9 @@ static ctrl_fault add_wgpm_collision_term(const ctrl *c, const ctrl_real *J, con
                                           ctrl_real rho, ctrl_real *qd) {
   ctrl_real alpha[N], Jw[6 * N], zero[CTRL_NTASK], r[N];
   int i, k;
-  if (c->cfg.collision == NULL || c->cfg.collision->gain == CTRL_LIT(0.0)) return CTRL_FAULT_NONE;
+  if (c->cfg.collision == NULL || c->cfg.collision->gain == CTRL_LIT(0.0)) {
+    return CTRL_FAULT_NONE;
+  }
   collision_term(c, q, alpha);
   for (i = 0; i < N; ++i) {
     for (k = 0; k < 6; ++k) {
@@ -1247,7 +1257,9 @@ static ctrl_fault add_wgpm_collision_term(const ctrl *c, const ctrl_real *J, con
   for (k = 0; k < CTRL_NTASK; ++k) {
     zero[k] = CTRL_LIT(0.0);
   }
-  if (ctrl_gen_step_gpm(Jw, zero, alpha, rho, r) != CTRL_GEN_OK) return CTRL_FAULT_NONFINITE_OUTPUT;
+  if (ctrl_gen_step_gpm(Jw, zero, alpha, rho, r) != CTRL_GEN_OK) {
+    return CTRL_FAULT_NONFINITE_OUTPUT;
+  }
   for (i = 0; i < N; ++i) {
     qd[i] = qd[i] + (CTRL_LIT(1.0) - w_c[i]) * r[i];
   }
@@ -1282,7 +1294,9 @@ static ctrl_fault tick_weighted_gpm(ctrl *c, const ctrl_input *in, ctrl_real t, 
   }
 #if CTRL_HAS_COLLISION
   f = add_wgpm_collision_term(c, J, q, w_c, rho, qd);
-  if (f != CTRL_FAULT_NONE) return f;
+  if (f != CTRL_FAULT_NONE) {
+    return f;
+  }
 #endif
   f = limit_speed(c, J, qd);
   if (f != CTRL_FAULT_NONE) return f;
