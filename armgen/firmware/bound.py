@@ -439,6 +439,8 @@ class SourceLoops:
             if not 0 < line <= len(text):
                 continue
             copy = _COPY.search(text[line - 1])
+            if copy and re.search(r"\b(for|while)\b", text[line - 1]):
+                return None  # a copy and a loop on one line: which of them turns is unknown
             if copy:  # gcc's inline expansion of a fixed-size copy: a loop moving a word or more a turn
                 size = self.evaluate(path, _arguments(text[line - 1][copy.end():])[2])
                 if size is not None:
