@@ -95,7 +95,7 @@ QUICK_RUNS = {
         r"Cortex-M0\+ float \(soft float\) resolved-rate tick: max \d+ instructions against 133000 cycles"]),
     "bench_verify.py": (("gcc",), [rf"armgen verify \(fresh, compile, callbacks\)\s+wall\s+{NUMBER} s",
                                    rf"armgen verify planar3, cold store\s+wall\s+{NUMBER} s\s+cpu\s+{NUMBER} s\s+stages reused 0",
-                                   rf"armgen verify planar3, repeated\s+wall\s+{NUMBER} s\s+cpu\s+{NUMBER} s\s+stages reused 2",
+                                   rf"armgen verify planar3, repeated\s+wall\s+{NUMBER} s\s+cpu\s+{NUMBER} s\s+stages reused 3",
                                    rf"ratio batched / per sample: {NUMBER}"]),
     "fuzz.py": ((), [r"\| robot files \| \d+ \|", r"\| task files \| \d+ \|",
                      r"\| URDF files \| \d+ \|", r"\| sweep options \| \d+ \|"]),
