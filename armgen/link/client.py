@@ -298,9 +298,14 @@ class LinkClient:
         return sorted(replies, key=lambda r: sent[r["ack_seq"]])
 
     def _collect(self, sent: dict[int, int], replies: list[Telemetry]) -> None:
+        """The replies to the frames ``sent``: the first frame naming each (an unsolicited
+        TELEMETRY of ``telemetry_period`` names the last frame too, after its reply)."""
+        answered = {r["ack_seq"] for r in replies}
         for frame in self.poll():
-            if frame.name in REPLY_MESSAGES and frame.values["ack_seq"] in sent:
+            seq = frame.values.get("ack_seq")
+            if frame.name in REPLY_MESSAGES and seq in sent and seq not in answered:
                 replies.append(Telemetry(frame.seq, frame.values))
+                answered.add(seq)
 
     def servo_setup(self, criterion: str = "TASK", gain: float = 0.0) -> Telemetry:
         """The self-motion of SERVO and pose streams from now on: a criterion of
