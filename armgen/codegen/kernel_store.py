@@ -146,14 +146,13 @@ def build_lock(path: Path) -> Iterator[None]:
         os.close(fd)
 
 
-# What a content-addressed entry may be called: a readable stem and the digest of what it is made of.
-_ENTRY_STEM = re.compile(r"[A-Za-z0-9_]{1,100}")
-
-
 def _entry_paths(stem: str, key: str, suffix: str) -> tuple[Path, Path]:
-    """(entry, file) of the entry ``stem``-``key``: the JSON entry and the file it vouches for."""
-    if not _ENTRY_STEM.fullmatch(stem) or not re.fullmatch(r"[0-9a-f]{24,64}", key):
-        raise ValueError(f"not a store entry name: {stem!r}, {key!r}")
+    """(entry, file) of the entry ``stem``-``key``: the JSON entry and the file it vouches for,
+    named by the stem (letters, digits and _, for whoever lists the store) and the first 24 hex
+    digits of the key (what identifies the content)."""
+    if not re.fullmatch(r"[0-9a-f]{24,64}", key):
+        raise ValueError(f"not a store key: {key!r}")
+    stem = re.sub(r"[^A-Za-z0-9_]", "_", stem)[:80]
     store = store_dir()
     return store / f"{stem}-{key[:24]}.json", store / f"{stem}-{key[:24]}{suffix}"
 
