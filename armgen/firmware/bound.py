@@ -711,8 +711,11 @@ class Analyzer:
                 turns.append(once_round or 0)
                 weight[h] = out_path
             else:
-                lb = self._loop_bound(fn, h, [blocks[t].instructions[-1] for t in sorted(latches[h])]
-                                      + [blocks[a].instructions[-1] for a in exits_of[h]])
+                # the branches of this loop's own blocks: one in an inner loop may be the inner
+                # loop's test, whose count is not this loop's
+                own = bodies[h] - set().union(*(bodies[g] for g in headers if g != h and bodies[g] < bodies[h]))
+                lb = self._loop_bound(fn, h, [blocks[a].instructions[-1] for a in sorted(latches[h] & own)]
+                                      + [blocks[a].instructions[-1] for a in exits_of[h] if a in own])
                 if lb is None and fn.name in LIBRARY_LOOPS:
                     lb = LoopBound(*LIBRARY_LOOPS[fn.name])
                 if lb is None and fn.name in self.search_ranges:
