@@ -221,11 +221,12 @@ SNAKE_LINK_RADIUS_MM = 30.0
 
 
 def snake_with_capsules(tmp_path: Path, ignore_adjacent: bool) -> Path:
-    """snake12 with a capsule around each 104 mm link: link i runs from the origin of DH frame
-    2i back along its x axis (a = 104 mm) to frame 2i + 2's origin."""
+    """snake12 with a capsule around each 104 mm link: link k runs from joint centre k to k + 1,
+    the origin of DH frame 2k + 3 and 104 mm back along its x (frame 1 is the rail's, frame 2k + 2
+    turns by alpha, 2k + 3 by beta and carries the link's length)."""
     text = Path(load_robot("snake12").path).read_text(encoding="utf-8").replace('name = "snake12"', 'name = "snake12c"')
     for link in range(12):
-        text += f"\n[[collision]]\nlink = {2 * link + 2}\na = [-104, 0, 0]\nb = [0, 0, 0]\nradius = {SNAKE_LINK_RADIUS_MM}\n"
+        text += f"\n[[collision]]\nlink = {2 * link + 3}\na = [-104, 0, 0]\nb = [0, 0, 0]\nradius = {SNAKE_LINK_RADIUS_MM}\n"
     if ignore_adjacent:  # neighbours meet at their universal joint by construction
         text += "\n[collision_check]\nignore = [" + ", ".join(f"[{k}, {k + 1}]" for k in range(11)) + "]\n"
     path = tmp_path / "snake12c.toml"
