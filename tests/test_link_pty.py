@@ -488,3 +488,26 @@ def test_telemetry_reports_the_controllers_clearance():
     least = float(load_robot("iiwa14").collision_distances(status.q, [table]).min())
     print(f"clearance: TELEMETRY {status['clearance']:.9g} m, armgen.robot {least:.9g} m")
     assert status["clearance"] == pytest.approx(least, abs=CLEARANCE_TOL_M)
+
+
+def test_watchdog_stops_a_cut_pose_stream_within_the_acceleration_limits(plan, tmp_path):
+    from armgen.robot import load_robot
+
+    t, q, qd = plan
+    robot = load_robot("modular8")
+    pick = np.arange(0, len(t), WAYPOINT_EVERY)
+    cut = random.Random(SEED + 1).randrange(15, 120)  # while the arm moves
+    with board(tmp_path) as (port, csv):
+        with LinkClient(port) as link:
+            link.stream_poses(t[pick], robot.fk(q[pick]), np.einsum("kij,kj->ki", robot.jacobian(q[pick]), qd[pick]),
+                              lead_s=LEAD_S, stop_after=cut)
+            time.sleep(LEAD_S + (WATCHDOG_TICKS + 200) * DT)
+            after = link.status()
+    assert (after.state_name, after.fault_name) == ("FAULT", "STALE") and after["stale_ticks"] == WATCHDOG_TICKS + 1
+    run = read_run(csv)
+    decision = int(np.nonzero(run.link_flags.to_numpy() & 4)[0][0])
+    q_cmd, qd_cmd = commands(run)
+    assert np.abs(qd_cmd[decision - 1]).max() > 0.01  # it was moving
+    assert_within_speed_and_acceleration(qd_cmd)
+    held = run[run.state == 3]
+    assert len(held) > 0 and np.all(commands(held)[1] == 0)
