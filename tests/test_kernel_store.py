@@ -252,3 +252,33 @@ def test_serialised_text_check_accepts_sx_and_refuses_others():
     mx = ca.MX.sym("x", 2)
     assert not kernel_store.sx_function_text_loads_no_code(ca.Function("f", [mx], [ca.sin(mx)]).serialize().encode())
     assert not kernel_store.sx_function_text_loads_no_code(b"not casadi text")
+
+
+def test_a_stored_file_is_used_only_while_its_bytes_match_its_entry(tmp_path):
+    """stored_file builds once and hands the stored file back after; a file replaced by other
+    bytes, or by a symlink to the same bytes, is not trusted: built again and replaced."""
+    key = hashlib.sha256(b"what the file is made of").hexdigest()
+    builds = []
+
+    def build(folder: Path) -> Path:
+        builds.append(folder)
+        (folder / "made").write_bytes(b"the build's bytes")
+        return folder / "made"
+
+    path, built = kernel_store.stored_file("probe", key, ".bin", build)
+    assert built and path.read_bytes() == b"the build's bytes" and len(builds) == 1
+    assert kernel_store.stored_file("probe", key, ".bin", build) == (path, False) and len(builds) == 1
+
+    other = tmp_path / "other"
+    other.write_bytes(b"someone else's bytes!")
+    other.replace(path)
+    assert kernel_store.stored_file("probe", key, ".bin", build) == (path, True) and len(builds) == 2
+    assert path.read_bytes() == b"the build's bytes"
+
+    twin = tmp_path / "twin"
+    twin.write_bytes(b"the build's bytes")
+    path.unlink()
+    path.symlink_to(twin)
+    assert kernel_store.stored_file("probe", key, ".bin", build) == (path, True) and len(builds) == 3
+    assert not path.is_symlink()
+    assert kernel_store.stored_file("probe", key, ".bin", build, again=True)[1] and len(builds) == 4
