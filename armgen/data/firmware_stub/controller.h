@@ -42,6 +42,11 @@
  *       repulsion, damping, criteria gains and the ramp in/out of the secondary terms;
  *       reproduces planning/wgpm/planner.py. It cannot mask a locked joint (a lock faults).
  *
+ * Collision (a robot with capsules, CTRL_HAS_COLLISION, and a task with [collision]: cfg.collision):
+ * every resolved-rate mode adds the planners' -gain grad H_C to its null-space term, and every
+ * command of every mode (MOVE_TO and SETPOINT included) is checked against the clearance
+ * (CTRL_FAULT_COLLISION); ctrl_output.clearance reports its least distance (docs/collision.md).
+ *
  * Every output is finite and inside the joint limits: on a fault the controller holds the
  * last command it emitted (velocity 0) and reports the cause; it never writes NaN.
  *
