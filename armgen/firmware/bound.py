@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 import re
 import subprocess
-from collections import defaultdict
+from collections import Counter, defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -750,8 +750,8 @@ class Analyzer:
         (as a natural loop's), so it costs (BOUND + 1) × the sum of its nodes. Returns the region
         with the collapsed nodes."""
         for scc in _cycles(region, {a: {s for s in graph[a] if s in region and s != start} for a in region}):
-            members = [b for b, r in rep.items() if r in scc]
-            branches = [blocks[b].instructions[-1] for b in sorted(members)]
+            stands_for = Counter(rep.values())  # a collapsed inner loop's branches test that loop: not these
+            branches = [blocks[b].instructions[-1] for b in sorted(scc) if stands_for[b] == 1]
             self.lines.locate([i.address for i in branches])
             lb = self._loop_bound(fn, min(scc), branches)
             if lb is None:
