@@ -321,6 +321,11 @@ SIGMA_RTOL = 1e-6
 # The clearance against armgen.robot's at the reported q: both travel as IEEE single (the
 # clearance 6e-8 relative; q to 1.2e-7 rad, which moves a point at a lever under 1.5 m by 2e-7 m)
 CLEARANCE_TOL_M = 1e-6
+# Reversed at the reach, 1 s at 0.1 m/s: the tool comes back at once (the reference waited at
+# most FW_LINK_SERVO_MAX_LAG_M = 10 mm ahead) but leaves the singular pose slowly while sigma_min
+# is small; half the 100 mm (a reference left 285 mm beyond the reach would bring none).
+REVERSED_TWISTS = 50
+REVERSED_MIN_M = 0.05
 
 
 def _angle(R: np.ndarray) -> np.ndarray:
@@ -409,17 +414,20 @@ def test_servo_criteria_move_the_arm_in_its_null_space_only(tmp_path):
 
 def test_servo_into_a_singular_pose_damps_by_sigma_min_and_keeps_the_limits(tmp_path):
     """A twist that stretches the arm out of its workspace: sigma_min falls to ~0, the damping
-    rises as lambda^2 = (1 - (sigma/eps)^2) lambda_max^2, the step is scaled into the limits."""
+    rises as lambda^2 = (1 - (sigma/eps)^2) lambda_max^2, the step is scaled into the limits; the
+    reversed twist brings the tool back at once (the reference waited at the reach)."""
     from armgen.robot import load_robot
 
     robot = load_robot("modular8")
     with board(tmp_path) as (port, csv):
         with LinkClient(port) as link:
             tool = np.array(link.status()["tool"][:3])
-            n = 200  # 4 s at 50 Hz, 0.1 m/s: 0.4 m outward, beyond the reach
-            ramp = np.minimum(1.0, np.arange(n) * SERVO_PERIOD_S / SERVO_RAMP_S)[:, None]
-            twists = np.zeros((n, 6))
-            twists[:, :3] = 0.1 * tool / np.linalg.norm(tool) * ramp
+            n = 200  # 4 s at 50 Hz, 0.1 m/s: 0.4 m outward, beyond the reach; then 1 s back
+            ramp = np.minimum(1.0, np.arange(n + REVERSED_TWISTS) * SERVO_PERIOD_S / SERVO_RAMP_S)[:, None]
+            twists = np.zeros((n + REVERSED_TWISTS, 6))
+            outward = tool / np.linalg.norm(tool)
+            twists[:, :3] = 0.1 * outward * ramp
+            twists[n:, :3] *= -1
             replies = link.servo(twists, SERVO_PERIOD_S)
             end = link.status()
     assert (end.state_name, end.fault_name) == ("DONE", "NONE")
@@ -442,6 +450,11 @@ def test_servo_into_a_singular_pose_damps_by_sigma_min_and_keeps_the_limits(tmp_
     assert np.allclose(sigma, svd, rtol=SIGMA_RTOL)
     assert np.allclose(damping, expected, rtol=SIGMA_RTOL, atol=SIGMA_RTOL * SERVO_LAMBDA_MAX)
     assert np.all(damping[sigma > SERVO_EPSILON] == 0)  # the exact step away from singular poses
+    along = np.array([np.dot(np.array(r["tool"][:3]) - tool, outward) for r in replies])
+    back = along[n - 1] - along[-1]
+    print(f"servo reversed at the reach ({along[n - 1] * 1e3:.0f} mm out of the 400 mm asked): "
+          f"{back * 1e3:.0f} mm back in {REVERSED_TWISTS * SERVO_PERIOD_S:g} s at 100 mm/s")
+    assert back >= REVERSED_MIN_M
 
 
 def test_ack_replies_for_a_100_hz_stream(plan, tmp_path):

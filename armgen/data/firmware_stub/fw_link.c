@@ -833,6 +833,7 @@ static ctrl_real rate_step(fw_link *l, ctrl_input *in, const ctrl_real *twist, c
     }
   }
   l->sigma_min = sigma;
+  (void)memcpy(l->ref_err, e, sizeof l->ref_err);
   l->damping = lam;
   for (i = 0; i < N; ++i) { /* each joint's speed cap: its limit, and stopping before its joint limit */
     ctrl_real room = (qd[i] > CTRL_LIT(0.0) ? l->q_max[i] - l->last.q[i] : l->last.q[i] - l->q_min[i]) -
@@ -857,13 +858,29 @@ static ctrl_real rate_step(fw_link *l, ctrl_input *in, const ctrl_real *twist, c
 
 /* The servo's command of this tick; the reference then moves by the twist as executed. */
 static void servo_tick(fw_link *l, ctrl_input *in) {
-  ctrl_real s;
+  ctrl_real s, lag, back[3];
   int i;
   if (l->servo_k > 0u && !arm_moves(l->last.state)) { /* the controller stopped it (a fault) */
     l->servoing = 0;
     return;
   }
   s = rate_step(l, in, l->twist, l->p_ref, l->R_ref, l->servo_k == 0u);
+  /* where the arm cannot follow (a singular pose, a joint limit), the reference waits for the
+   * tool instead of running away: drawn back to FW_LINK_SERVO_MAX_LAG of it, so that the arm
+   * answers a reversed twist at once rather than after unwinding the lag */
+  lag = CTRL_SQRT(l->ref_err[0] * l->ref_err[0] + l->ref_err[1] * l->ref_err[1] + l->ref_err[2] * l->ref_err[2]);
+  if (lag > FW_LINK_SERVO_MAX_LAG_M) {
+    for (i = 0; i < 3; ++i) {
+      l->p_ref[i] -= l->ref_err[i] * (CTRL_LIT(1.0) - FW_LINK_SERVO_MAX_LAG_M / lag);
+    }
+  }
+  lag = CTRL_SQRT(l->ref_err[3] * l->ref_err[3] + l->ref_err[4] * l->ref_err[4] + l->ref_err[5] * l->ref_err[5]);
+  if (lag > FW_LINK_SERVO_MAX_LAG_RAD) {
+    for (i = 0; i < 3; ++i) {
+      back[i] = -l->ref_err[3 + i] * (CTRL_LIT(1.0) - FW_LINK_SERVO_MAX_LAG_RAD / lag);
+    }
+    rotate(l->R_ref, back, CTRL_LIT(1.0));
+  }
   for (i = 0; i < 3; ++i) {
     l->p_ref[i] += s * l->twist[i] * l->dt;
   }

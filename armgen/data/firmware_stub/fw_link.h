@@ -77,6 +77,13 @@ extern "C" {
  * kept from a joint limit, rad (m). */
 #define FW_LINK_SERVO_GAIN CTRL_LIT(20.0)
 #define FW_LINK_SERVO_LIMIT_MARGIN CTRL_LIT(1e-3)
+/* SERVO's reference never lags the tool by more than this (m, rad): where the arm cannot follow
+ * the twist (a singular pose, a joint limit) the reference waits for it. Within reach the twist
+ * is fed forward and the lag is what the acceleration limit delays (micrometres on a 5 cm/s
+ * trace; the twist scaled to a joint's speed does not add to it), so the bound acts only where
+ * the arm is stuck. */
+#define FW_LINK_SERVO_MAX_LAG_M CTRL_LIT(0.01)
+#define FW_LINK_SERVO_MAX_LAG_RAD CTRL_LIT(0.02)
 /* Their damping varies with sigma_min of J (the generated step_fault's rule, spec 30):
  * lambda^2 = (1 - (sigma_min / epsilon)^2) lambda_max^2 below epsilon, 0 above it, so the step
  * is the exact one away from singular poses and the joint speeds stay finite (at most
@@ -179,6 +186,7 @@ typedef struct {
   ctrl_real p_ref[3], R_ref[9];    /* the tool pose of the twist as executed (scaled), integrated */
   ctrl_real servo_scale;           /* the scale of the last resolved-rate step, (0, 1] */
   ctrl_real sigma_min, damping;    /* of the last resolved-rate step (sigma_min NaN before one) */
+  ctrl_real ref_err[6];            /* that step's reference minus the tool: position, orientation */
   ctrl_real null_ramp;             /* the self-motion's share, [0, 1] (FW_LINK_SELF_MOTION_RAMP_S) */
   int task_rows[CTRL_NTASK], servo_rows_known;
   uint8_t criterion, task_criterion; /* the self-motion (FW_LINK_CRITERION_*): chosen, the task's */
