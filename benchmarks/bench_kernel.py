@@ -118,11 +118,14 @@ def ik_rows(robot, reference, count: int, reference_count: int) -> list[dict]:
 
     start = robot.qmid  # (a property computed on each access: once, outside the timing)
 
-    def one_per_call(solver, selected):
+    # The bar and the peers are the plain solver (collision_free=False: neither Robotics Toolbox
+    # nor the Pinocchio loop checks collisions); the default, with the arm's self-collision check
+    # (issue 38), gets a row of its own.
+    def one_per_call(solver, selected, collision_free=False):
         qs, times, cpu = [], [], []
         for pose in selected:
             started, started_cpu = time.perf_counter(), time.process_time()
-            qs.append(solver.ik(pose, seed=start).q)
+            qs.append(solver.ik(pose, seed=start, collision_free=collision_free).q)
             times.append(time.perf_counter() - started)
             cpu.append(time.process_time() - started_cpu)
         return np.array(qs), np.array(times), float(np.mean(cpu) * 1e6)
@@ -136,8 +139,13 @@ def ik_rows(robot, reference, count: int, reference_count: int) -> list[dict]:
                              bench_ik.judged(robot, q_ref, poses[:reference_count], bench_ik.SUCCESS_TOL), times_ref,
                              f"CPU mean {cpu_ref:.1f} µs; same answers as compiled on these poses: "
                              f"max |dq| {np.abs(q_ref - q[:reference_count]).max():.1e}") | {"cpu_mean_us": cpu_ref})
+    if robot.has_collision:
+        q_checked, times_checked, cpu_checked = one_per_call(robot, poses, collision_free=True)
+        rows.append(bench_ik.row("robot.ik(pose), compiled kernel, self-collision checked (the default)",
+                                 bench_ik.judged(robot, q_checked, poses, bench_ik.SUCCESS_TOL), times_checked,
+                                 f"CPU mean {cpu_checked:.1f} µs") | {"cpu_mean_us": cpu_checked})
     started = time.perf_counter()
-    batch = robot.ik(poses, seed=start)
+    batch = robot.ik(poses, seed=start, collision_free=False)
     per_pose = (time.perf_counter() - started) / count
     entry = bench_ik.row("robot.ik(poses), compiled kernel, one batched call",
                          bench_ik.judged(robot, batch.q, poses, bench_ik.SUCCESS_TOL), np.array([per_pose]))
