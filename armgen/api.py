@@ -618,7 +618,7 @@ def solve_ik(robot: Robot | str | Path, pose: Any, q0: Any = None, seed: Any = N
 
 def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None = None,
                      plan: str | Path | None = None, overrides: tuple[str, ...] | list[str] = (),
-                     feedforward: str | None = None) -> tuple[Robot, list[Path]]:
+                     feedforward: str | None = None, bound: tuple[str, ...] | list[str] = ()) -> tuple[Robot, list[Path]]:
     """Write a self-contained firmware project (``armgen firmware``): the robot's generated C,
     the controller, a CMake host demo, the Cortex-M4F toolchain file and a README.
 
@@ -641,6 +641,12 @@ def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None
         ``"none"``, ``"gravity"`` or ``"inverse_dynamics"``: each command's feed-forward torque
         (``ctrl_output.tau_ff``, checked against ``taumax``: the ``TORQUE`` fault). Default: the
         inverse dynamics for a robot with inertials; a robot without has no feed-forward.
+    bound
+        Cores of ``armgen.firmware.TARGETS`` (names, or comma lists of them): the project is
+        built for each with its cross toolchain, and the static worst-case bounds of each
+        generated function in the image and of a running tick of the task's mode (instructions,
+        and cycles where the core has a cycle model) go into the manifest (``"bounds"``) and a
+        table of the README (docs/targets.md, "Static bound"). Default: none, no toolchain needed.
 
     Returns
     -------
@@ -659,6 +665,9 @@ def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None
         The task (or the demo) cannot be planned, or its plan leaves the joint limits (exit 3).
     OutputError
         ``out`` cannot be written (exit 4).
+    ToolchainError
+        A core of ``bound`` whose cross compiler or binutils are missing: the message names the
+        packages to install; checked before anything is planned or written (exit 4).
     RobotMismatchError
         The task (or the task the plan records) names another robot, refused before it is
         planned (exit 5).
@@ -672,7 +681,7 @@ def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None
         raise OptionError("give --task or --plan, not both (a task is planned here; a plan was made from one)")
     if overrides and task is None:
         raise OptionError("--set changes a task file: give --task (a plan was made already; re-plan its task instead)")
-    return write_firmware_project(robot, out, task, plan, tuple(overrides), feedforward)
+    return write_firmware_project(robot, out, task, plan, tuple(overrides), feedforward, tuple(bound))
 
 
 def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path | None = None,

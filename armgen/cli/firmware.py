@@ -26,9 +26,13 @@ from .options import out_option
               help="a plan CSV (with its plan.json) made by `armgen plan`: its task is planned again, must give "
                    "the CSV's samples, and the project's demo runs it")
 @click.option("--feedforward", type=click.Choice(FEEDFORWARD_CHOICES), default=None, help=FEEDFORWARD_HELP)
+@click.option("--bound", "bound_targets", multiple=True, metavar="TARGET",
+              help="also build the project for this core (cortex-m4, cortex-m7, cortex-m33, cortex-m0plus, rv32imf; "
+                   "repeat it or give a comma list) and write the static worst-case bounds of each generated "
+                   "function and of the task's tick into the manifest and the README (needs its cross toolchain)")
 @handle_errors
 def firmware_cmd(robot: str, out_dir: str, task_file: str | None, plan_csv: str | None,
-                 feedforward: str | None) -> None:
+                 feedforward: str | None, bound_targets: tuple[str, ...]) -> None:
     """Write a firmware project for ROBOT (a bundled name or a robot file) into --out; its demo
     runs --task or --plan, else a short built-in line.
 
@@ -36,13 +40,18 @@ def firmware_cmd(robot: str, out_dir: str, task_file: str | None, plan_csv: str 
     be planned or its plan leaves the joint limits (also under [check] limits = "report"), 4 the
     folder cannot be written (a file, a foreign non-empty folder, read-only, a symbolic link in
     the project's paths), 5 the controller cannot run the task (another robot's, refused before
-    planning, or a mode it does not have) or a --plan its recorded task does not plan to."""
+    planning, or a mode it does not have) or a --plan its recorded task does not plan to; with
+    --bound: 2 an unknown core, 4 its cross toolchain missing (the message names the packages;
+    nothing was written), 5 the image holds code the static bound cannot count."""
     from ..api import firmware_project
 
-    r, paths = firmware_project(robot, out_dir, task_file, plan_csv, feedforward=feedforward)
+    r, paths = firmware_project(robot, out_dir, task_file, plan_csv, feedforward=feedforward, bound=bound_targets)
     click.echo(f"wrote {len(paths)} files of the firmware project of '{r.name}' into {out_dir}")
     click.echo(f"build the host demo:  cmake -S {out_dir} -B {out_dir}/build && cmake --build {out_dir}/build")
     click.echo(f"see {out_dir}/README.md for the Cortex-M4F image and the controller's API")
+    if bound_targets:
+        click.echo(f"static worst-case bounds ({', '.join(bound_targets)}): {out_dir}/README.md, \"Worst case per "
+                   "tick\", and the manifest's \"bounds\"")
 
 
 @click.command("firmware-task")

@@ -47,6 +47,8 @@ from ..schemas import MAX_INPUT_FILE_BYTES, parse_toml_bounded, read_input_file
 from .configuration import FirmwareTask, check_feedforward, with_feedforward, write_task_files
 from .tasks import REPLANNED_SAMPLE_TOL, refusal, task_from_plan, task_source
 from .errors import FirmwareError
+from .project_bound import bound_targets, project_bounds, readme_table, require_bound_tools
+from .targets import TARGETS
 
 DEMO_DURATION_S = 1.0
 DEMO_STEP_S = 0.01  # the controller's tick: 100 ticks, a short demo and a small CSV
@@ -434,7 +436,7 @@ def _robot_rows(robot_files: dict[str, bytes]) -> str:
 
 def write_firmware_project(robot_ref: str | Path, out: str | Path, task: str | Path | None = None,
                            plan: str | Path | None = None, overrides: Sequence[str] = (),
-                           feedforward: str | None = None) -> tuple[Robot, list[Path]]:
+                           feedforward: str | None = None, bound: Sequence[str] = ()) -> tuple[Robot, list[Path]]:
     """Write the project into ``out`` (new, empty, or a project this command wrote earlier:
     its own files are updated, the user's left alone), its demo running ``task`` (a task file,
     planned here, with ``overrides`` as ``--set``) or ``plan`` (a plan CSV), else the built-in
@@ -442,8 +444,14 @@ def write_firmware_project(robot_ref: str | Path, out: str | Path, task: str | P
     ``plan``. The robot file and the task file are each read once; the task must name the robot
     (checked before it is planned). ``feedforward`` (one of :data:`FEEDFORWARD_IDS`, default the
     robot's: the inverse dynamics with inertials, none without) is each command's feed-forward
-    torque; asking for one of a robot without inertials is refused first (OptionError)."""
+    torque; asking for one of a robot without inertials is refused first (OptionError).
+    ``bound``: cores of targets.TARGETS (names or comma lists) the project is built for, whose
+    static worst-case bounds (:func:`project_bounds`) go into the manifest's ``"bounds"`` and a
+    table of the README; their cross toolchains are checked before anything is planned."""
     out = Path(out)
+    targets = [TARGETS[name] for name in bound_targets(bound)]
+    for target in targets:
+        require_bound_tools(target)
     owned = _owned_files(out)
     _check_writable(out)
     robot_path = resolve_robot_path(robot_ref)
@@ -469,6 +477,9 @@ def write_firmware_project(robot_ref: str | Path, out: str | Path, task: str | P
                           "folder (nothing was written)") from None
     try:
         _assemble(stage, robot_file, robot_files, job)
+        bounds = [project_bounds(target, job.firmware.robot, stage / "generated", job.firmware) for target in targets]
+        if bounds:
+            _add_bounds_table(stage / "README.md", readme_table(bounds))
         _apply_umask(stage)
         new = sorted(p.relative_to(stage).as_posix() for p in stage.rglob("*") if p.is_file())
         _check_no_links(out, new)
@@ -480,6 +491,8 @@ def write_firmware_project(robot_ref: str | Path, out: str | Path, task: str | P
                               "files) and run again (nothing was written)")
         manifest = {"armgen": __version__, "robot": robot.name,
                     "files": {name: _digest(stage / name) for name in new}}
+        if bounds:
+            manifest["bounds"] = bounds
         (stage / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
         _apply_umask(stage)
         _move_in(stage, out, new + [MANIFEST], [name for name in owned if name not in new])
@@ -489,6 +502,18 @@ def write_firmware_project(robot_ref: str | Path, out: str | Path, task: str | P
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     return robot, [out / name for name in new + [MANIFEST]]
+
+
+README_BOUND_SECTION = "## Worst case per tick"  # README.md.in's section the bounds' table ends
+
+
+def _add_bounds_table(readme: Path, table: str) -> None:
+    """Append ``table`` to the README's worst-case section (before the next section)."""
+    text = readme.read_text(encoding="utf-8")
+    start = text.index(README_BOUND_SECTION)
+    end = text.find("\n## ", start + len(README_BOUND_SECTION))
+    end = len(text) if end < 0 else end + 1
+    readme.write_text(text[:end] + table + "\n" + text[end:], encoding="utf-8")
 
 
 def _move_in(stage: Path, out: Path, names: list[str], dropped: list[str]) -> None:
