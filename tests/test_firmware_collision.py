@@ -22,6 +22,7 @@ import pytest
 from armgen import firmware as fw
 from armgen.codegen import toolchain
 from armgen.description.collision import SphereObstacle
+from armgen.planning.result import read_plan, write_plan
 from armgen.planning.tasks import load_task, run_task
 from armgen.verification import firmware_compare as fwcmp
 
@@ -106,6 +107,20 @@ def test_an_obstacle_on_the_path_is_the_collision_fault_and_the_arm_holds(baxter
     assert np.array_equal(held[2:2 + robot.n], before[2:2 + robot.n])  # the arm holds the last safe command
     assert held[run.columns.index("clearance_m")] == before[run.columns.index("clearance_m")] >= clearance
     assert np.all(run.data[-1][2 + robot.n:2 + 2 * robot.n] == 0.0)  # at rest
+
+
+def test_a_plan_read_from_disk_expects_the_collision_stop(baxter, tmp_path):
+    """`armgen verify --run`'s way: the plan CSV and its plan.json, the task configured again from
+    the recorded document, compared with the firmware's run (its COLLISION stop expected)."""
+    plan = run_task(dict(bar_document(gain=0.0), check={"limits": "report"}), "plain")
+    write_plan(plan, tmp_path / "plain.csv")
+    read = read_plan(tmp_path / "plain.csv")
+    task = fw.task_from_plan(read, str(tmp_path / "plain.csv"))
+    assert task.collision is not None
+    run = fw.run_host(baxter.executable(HOST_SAN, task, "plain_read"))
+    cmp = fwcmp.compare_with_plan(read, run, task, "double", "plain.csv")
+    assert cmp.passed, cmp.rows
+    assert run.fault == "COLLISION" and any("COLLISION at tick" in str(row[3]) for row in cmp.rows)
 
 
 def test_without_collision_table_nothing_is_checked_on_board(baxter):
