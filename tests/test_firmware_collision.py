@@ -166,20 +166,47 @@ def test_a_non_finite_obstacle_is_refused(bar_plan, baxter):
     assert (run.state, run.fault) == ("FAULT", "BAD_CONFIG")
 
 
-@pytest.mark.parametrize("planner, method", [("fault_tolerant", "gpm"), ("wgpm", "wgpm"), ("cartesian", "zghal")])
-def test_every_resolved_rate_mode_descends_the_criterion_as_its_planner(robot_file, tmp_path_factory,  # noqa: F811
-                                                                          planner, method):
+MODES = [("fault_tolerant", "gpm"), ("wgpm", "wgpm"), ("cartesian", "zghal")]
+
+
+@pytest.fixture(scope="module")
+def mode_plans(robot_file, tmp_path_factory):  # noqa: F811
     """tests/test_collision_planning.py's scene (the iiwa14 with capsules beside a sphere its
-    minimum-norm elbow passes through): each planner's avoiding plan, replayed on the host."""
+    minimum-norm elbow passes through): each planner's avoiding plan and its firmware task, and
+    one firmware builder for that robot."""
     os.environ["ARMGEN_NO_PROGRESS"] = "1"
-    plan = run_task(line_task(robot_file, planner, method, GAIN, limits="error"), f"{planner}.toml")
-    task = fw.task_from_plan(plan, planner)
+    plans = {}
+    for planner, method in MODES:
+        plan = run_task(line_task(robot_file, planner, method, GAIN, limits="error"), f"{planner}.toml")
+        plans[planner] = (plan, fw.task_from_plan(plan, planner))
+    robot = plans["cartesian"][1].robot
+    return plans, fw.FirmwareBuilder(robot, tmp_path_factory.mktemp("fw_collision_iiwa14c"))
+
+
+@pytest.mark.parametrize("planner", [planner for planner, _ in MODES])
+def test_every_resolved_rate_mode_descends_the_criterion_as_its_planner(mode_plans, planner):
+    plans, builder = mode_plans
+    plan, task = plans[planner]
     assert task.mode == {"fault_tolerant": "fault_tolerant", "wgpm": "weighted_gpm"}.get(planner, "resolved_rate")
-    builder = fw.FirmwareBuilder(task.robot, tmp_path_factory.mktemp(f"fw_collision_{planner}"))
     run = fw.run_host(builder.executable(HOST_SAN, task, planner))
     cmp = fwcmp.compare_with_plan(plan, run, task, "double", planner)
     assert cmp.passed, cmp.rows
     assert cmp.max_dq <= fwcmp.FW_DOUBLE_BOUND_RAD
+    assert run.column("clearance_m").min() >= task.collision.settings.clearance
+
+
+@pytest.mark.arm
+@pytest.mark.parametrize("planner", [planner for planner, _ in MODES])
+def test_every_resolved_rate_mode_with_the_criterion_replays_on_the_cortex_m4f(mode_plans, planner):
+    """The same plans on the Cortex-M4F (float) within verify's float replay bound."""
+    require_tool("arm-none-eabi-gcc")
+    require_tool("qemu-system-arm")
+    plans, builder = mode_plans
+    plan, task = plans[planner]
+    run = fw.run_qemu(builder.executable(fw.ARM_VARIANT, task, planner + "_m4"))
+    cmp = fwcmp.compare_with_plan(plan, run, task, "float", planner)
+    assert cmp.passed, cmp.rows
+    assert cmp.max_dq <= fwcmp.FW_FLOAT_BOUND_RAD
     assert run.column("clearance_m").min() >= task.collision.settings.clearance
 
 
