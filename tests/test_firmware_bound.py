@@ -56,6 +56,22 @@ def test_an_unknown_target_is_refused(tmp_path):
     assert not (tmp_path / "p").exists()
 
 
+def test_an_uncountable_image_writes_nothing(tmp_path, monkeypatch):
+    """The bounds are computed in the staging folder's turn: a BoundError (exit 5) leaves no
+    project behind (the toolchain check and the count stand in for a build that cannot be counted)."""
+    from armgen.firmware import project
+
+    def uncountable(target, *args):
+        raise bound.BoundError(f"{target.name}: the loop at 0x100 has no count")
+
+    monkeypatch.setattr(project, "require_bound_tools", lambda target: None)
+    monkeypatch.setattr(project, "project_bounds", uncountable)
+    result = firmware("--out", str(tmp_path / "p"), "--bound", "cortex-m4")
+    assert result.exit_code == 5, result.output
+    assert "has no count" in result.output
+    assert list(tmp_path.iterdir()) == [], list(tmp_path.iterdir())
+
+
 @pytest.mark.parametrize("task", [None, PTP_TASK], ids=["demo_resolved_rate", "ptp_playback"])
 def test_the_project_bounds_are_bound_py_s_and_hold_under_qemu(task, tmp_path, monkeypatch):
     target = require_target("cortex-m4")
