@@ -686,7 +686,8 @@ def firmware_project(robot: str | Path, out: str | Path, task: str | Path | None
 
 def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path | None = None,
                   overrides: tuple[str, ...] | list[str] = (), gen_dir: str | Path | None = None,
-                  lock: str | None = None, feedforward: str | None = None) -> list[Path]:
+                  lock: str | None = None, feedforward: str | None = None,
+                  bound: tuple[str, ...] | list[str] = ()) -> list[Path]:
     """Write the controller's task files (``armgen firmware-task``, used by the firmware stub's
     Makefile): ``task_params.h``, the PTP evaluator ``fw_ptp.{h,c}`` and ``robot_fw.c``.
 
@@ -708,6 +709,11 @@ def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path
         on, a fault the plan does not know.
     feedforward
         Each command's feed-forward torque, as :func:`firmware_project`'s.
+    bound
+        Cores, as :func:`firmware_project`'s: the task's build for each is bounded and the
+        bounds (the list a project's manifest holds as ``"bounds"``) written to ``bounds.json``
+        in ``out``; a missing cross toolchain is a ToolchainError (exit 4) before any file is
+        written.
 
     Returns
     -------
@@ -727,7 +733,8 @@ def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path
     ArmgenError
         ``armgen.firmware.FirmwareError`` (exit 5): a task the controller cannot run.
     """
-    from .firmware.configuration import schedule_lock, with_feedforward, write_task_files
+    from .firmware.configuration import schedule_lock, with_feedforward
+    from .firmware.project_bound import write_task_files_with_bounds
     from .firmware.tasks import task_from_file
 
     controller = task_from_file(source, load_robot_any(robot) if robot is not None else None, tuple(overrides))
@@ -735,7 +742,7 @@ def firmware_task(source: str | Path, out: str | Path, robot: Robot | str | Path
         controller = schedule_lock(controller, lock)
     if feedforward is not None:
         controller = with_feedforward(controller, feedforward)
-    return write_task_files(controller, out, gen_dir)
+    return write_task_files_with_bounds(controller, out, gen_dir, tuple(bound))
 
 
 # -- C of the PTP playback, input schemas, files --------------------------------------------------

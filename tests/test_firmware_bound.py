@@ -1,9 +1,10 @@
 """``armgen firmware --bound TARGET`` (issue 42): the static worst-case bounds written into the
-project's manifest and README are those armgen.firmware.bound computes directly from the
-project's own files built for the core, and the tick's bound holds against QEMU's count of the
-instructions each tick of that build executes (-icount: the independent reference). Without
---bound the project is unchanged and needs no cross toolchain; with a core whose toolchain is
-missing, nothing is written and the error names the packages."""
+project's manifest and README (and ``armgen firmware-task --bound``'s bounds.json) are those
+armgen.firmware.bound computes directly from the project's own files built for the core, and
+the tick's bound holds against QEMU's count of the instructions each tick of that build
+executes (-icount: the independent reference). Without --bound the project is unchanged and
+needs no cross toolchain; with a core whose toolchain is missing, nothing is written and the
+error names the packages."""
 
 from __future__ import annotations
 
@@ -108,6 +109,12 @@ def test_the_project_bounds_are_bound_py_s_and_hold_under_qemu(task, tmp_path, m
     measured = fw.instructions_per_tick(run)
     # a tick is read off a timer of `resolution` instructions a count (test_static_bound)
     assert written["tick"]["instructions"] + measured["resolution"] >= measured["max"], (written["tick"], measured)
+
+    # `armgen firmware-task --bound` of the project's plan and generated code: the same bounds
+    task_files = CliRunner().invoke(cli, ["firmware-task", "demo/plan.csv", "-o", str(tmp_path / "task"), "--robot",
+                                          "robot.toml", "--gen-dir", "generated", "--bound", "cortex-m4"])
+    assert task_files.exit_code == 0, task_files.output
+    assert json.loads((tmp_path / "task" / "bounds.json").read_text(encoding="utf-8")) == [written]
 
     readme = (out / "README.md").read_text(encoding="utf-8")
     section = readme[readme.index("## Worst case per tick"):readme.index("## Other cores")]

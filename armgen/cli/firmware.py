@@ -15,6 +15,11 @@ FEEDFORWARD_HELP = ("a robot with inertials: each command's feed-forward torque 
                     "taumax: fault TORQUE); default inverse_dynamics; a robot without inertials has none")
 from .options import out_option
 
+# armgen.firmware.TARGETS' names (the CLI imports only the API and the description)
+BOUND_HELP = ("also build the task for this core (cortex-m4, cortex-m7, cortex-m33, cortex-m0plus, rv32imf; repeat "
+              "it or give a comma list) and write the static worst-case bounds of each generated function and of "
+              "the task's tick (needs the core's cross toolchain)")
+
 
 @click.command("firmware")
 @click.argument("robot")
@@ -27,9 +32,7 @@ from .options import out_option
                    "the CSV's samples, and the project's demo runs it")
 @click.option("--feedforward", type=click.Choice(FEEDFORWARD_CHOICES), default=None, help=FEEDFORWARD_HELP)
 @click.option("--bound", "bound_targets", multiple=True, metavar="TARGET",
-              help="also build the project for this core (cortex-m4, cortex-m7, cortex-m33, cortex-m0plus, rv32imf; "
-                   "repeat it or give a comma list) and write the static worst-case bounds of each generated "
-                   "function and of the task's tick into the manifest and the README (needs its cross toolchain)")
+              help=BOUND_HELP + ": into the manifest and the README")
 @handle_errors
 def firmware_cmd(robot: str, out_dir: str, task_file: str | None, plan_csv: str | None,
                  feedforward: str | None, bound_targets: tuple[str, ...]) -> None:
@@ -65,16 +68,18 @@ def firmware_cmd(robot: str, out_dir: str, task_file: str | None, plan_csv: str 
 @click.option("--lock", default=None, metavar="JOINTS@TIME",
               help="the drives report these joints locked from TIME s on (e.g. 5@1.38), unknown to the plan")
 @click.option("--feedforward", type=click.Choice(FEEDFORWARD_CHOICES), default=None, help=FEEDFORWARD_HELP)
+@click.option("--bound", "bound_targets", multiple=True, metavar="TARGET", help=BOUND_HELP + ": into bounds.json")
 @handle_errors
 def firmware_task_cmd(source: str, out_dir: str, robot: str | None, overrides: tuple[str, ...], gen_dir: str | None,
-                      lock: str | None, feedforward: str | None) -> None:
+                      lock: str | None, feedforward: str | None, bound_targets: tuple[str, ...]) -> None:
     """Write the controller's task for SOURCE (a task file or a plan CSV): task_params.h, the PTP
     evaluator fw_ptp.{h,c} and robot_fw.c (the generated functions the controller calls).
 
     Used by firmware_stub/Makefile. Exit codes: 2 bad task file (or --feedforward for a robot without
     inertials), 4 unwritable output, 5 a task
-    the controller cannot run (e.g. one for another --robot)."""
+    the controller cannot run (e.g. one for another --robot); with --bound: 2 an unknown core, 4 its
+    cross toolchain missing (nothing written), 5 an image the static bound cannot count."""
     from ..api import firmware_task
 
-    for path in firmware_task(source, out_dir, robot, overrides, gen_dir, lock, feedforward):
+    for path in firmware_task(source, out_dir, robot, overrides, gen_dir, lock, feedforward, bound_targets):
         click.echo(f"wrote {path}")

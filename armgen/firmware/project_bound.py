@@ -1,5 +1,5 @@
 """The static worst-case bounds of a firmware project (``armgen firmware --bound TARGET``, issue
-42): the project's own generated code and task built for a core of targets.TARGETS as armgen's
+42; ``armgen firmware-task --bound TARGET`` writes them beside the task files, :data:`BOUNDS_FILE`): the project's own generated code and task built for a core of targets.TARGETS as armgen's
 verify builds it (FirmwareBuilder, target_variant), and armgen.firmware.bound's count of each
 generated function in that image and of a running tick of the task's mode, with the cycle
 bound where the core has a cycle model. The result goes into the project's manifest
@@ -11,18 +11,23 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import json
 import tempfile
 from pathlib import Path
 from typing import Any
 
+from ..codegen.generate import GENERATED_DIR
 from ..codegen.toolchain import find_tool
+from ..fileio import write_text_atomic
 from ..errors import OptionError
 from ..robot import Robot
 from . import bound
 from .builder import FirmwareBuilder, target_variant
-from .configuration import FirmwareTask
+from .configuration import FirmwareTask, write_task_files
 from .sources import FIRMWARE_DIR
 from .targets import TARGETS, Target
+
+BOUNDS_FILE = "bounds.json"  # `armgen firmware-task --bound`'s: the manifest's "bounds" list
 
 # The cycle models of bound.py, per core, each with the assumption that tells them apart; the
 # Cortex-M4F's at no flash wait state (SRAM, or a flash accelerator that always hits) and at 5
@@ -129,3 +134,21 @@ def readme_table(bounds: list[dict[str, Any]]) -> str:
             lines.append("")
     lines += ["Library assumptions:", ""] + [f"- {a}" for a in LIBRARY_ASSUMPTIONS]
     return "\n".join(lines) + "\n"
+
+
+def write_task_files_with_bounds(task: FirmwareTask, out_dir: str | Path, gen_dir: str | Path | None,
+                                 bound: list[str] | tuple[str, ...]) -> list[Path]:
+    """configuration.write_task_files, and with cores in ``bound`` (as ``--bound``) the bounds
+    of the task's build for each (:func:`project_bounds`) in :data:`BOUNDS_FILE`: toolchains
+    checked and bounds computed before any file is written."""
+    targets = [TARGETS[name] for name in bound_targets(bound)]
+    for target in targets:
+        require_bound_tools(target)
+    generated = Path(gen_dir) if gen_dir is not None else GENERATED_DIR / task.robot.name
+    bounds = [project_bounds(target, task.robot, generated, task) for target in targets]
+    paths = write_task_files(task, out_dir, gen_dir)
+    if bounds:
+        path = Path(out_dir) / BOUNDS_FILE
+        write_text_atomic(path, json.dumps(bounds, indent=1) + "\n")
+        paths.append(path)
+    return paths
