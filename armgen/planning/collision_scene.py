@@ -30,6 +30,7 @@ import numpy as np
 from matplotlib.patches import Polygon
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from pydantic import ValidationError
+from scipy.spatial import ConvexHull
 
 from ..description.collision import (BoxObstacle, CapsuleObstacle, Obstacle, PlaneObstacle, SphereObstacle,
                                      obstacle_kind)
@@ -53,6 +54,10 @@ RINGS_PER_CAP = 6
 # The second view of the closest approach looks across the gap from this little above the
 # horizontal: low enough that the gap is seen near its true length, high enough to see the table.
 ACROSS_ELEVATION_DEG = 12.0
+# A half-space whose unit normal leans out of a 2-D view's plane by more than this is not seen
+# edge-on: its projection covers the whole view, and the view does not draw it. Rounding of a
+# normal given in the view's plane stays far below.
+EDGE_ON_TOL = 1e-9
 # A summary pair: "capsule 2 – capsule 4" or "capsule 1 – obstacles[0] (sphere)".
 PAIR = re.compile(r"^capsule (\d+) – (?:capsule (\d+)|obstacles\[(\d+)\] \((\w+)\))$")
 
@@ -79,27 +84,37 @@ class Scene:
     robot: Robot
     obstacles: tuple[Obstacle, ...]
     approach: ClosestApproach | None
+    # each obstacle's index among the task's [[obstacles]] (None: 0, 1, …), for a planner whose
+    # [[obstacles]] also hold its own vocabulary (the snake's tube obstacles)
+    indices: tuple[int, ...] | None = None
 
     @property
     def has_capsules(self) -> bool:
         return self.robot.has_collision
 
+    @property
+    def names(self) -> list[str]:
+        return obstacle_names(self.obstacles, self.indices)
 
-def plan_scene(result, robot: Robot, q: np.ndarray, with_task_obstacles: bool = True) -> Scene | None:
+
+def plan_scene(result, robot: Robot, q: np.ndarray, obstacles: tuple[Obstacle, ...] | None = None,
+               indices: tuple[int, ...] | None = None) -> Scene | None:
     """The :class:`Scene` of a plan (``result``, a PlanResult, with its ``plan.json``; ``q`` its
     joint values per sample), None when there is nothing to draw: no capsules and no obstacles.
-    ``with_task_obstacles=False`` for a planner whose ``[[obstacles]]`` are its own vocabulary,
-    drawn by its own figures (the snake's tube obstacles)."""
+    ``obstacles`` (SI, base frame) with their ``indices`` among the task's ``[[obstacles]]`` for a
+    planner whose ``[[obstacles]]`` also hold its own vocabulary, drawn by its own figures (the
+    snake's tube obstacles); default: the task's, all of the collision vocabulary."""
     meta = result.metadata
-    obstacles = task_obstacles(meta) if with_task_obstacles else ()
+    obstacles = task_obstacles(meta) if obstacles is None else obstacles
     if not robot.has_collision and not obstacles:
         return None
     report = (meta.get("summary") or {}).get("collision")
     approach = None
     if isinstance(report, dict) and robot.has_collision and "pair" in report and "t_s" in report:
         sample = int(np.argmin(np.abs(result.column("t_s") - float(report["t_s"]))))
-        approach = closest_approach(robot, q[sample], obstacles, str(report["pair"]), sample, float(report["t_s"]))
-    return Scene(robot, obstacles, approach)
+        approach = closest_approach(robot, q[sample], obstacles, str(report["pair"]), sample, float(report["t_s"]),
+                                    indices)
+    return Scene(robot, obstacles, approach, indices)
 
 
 def task_obstacles(meta: dict) -> tuple[Obstacle, ...]:
@@ -118,9 +133,11 @@ def task_obstacles(meta: dict) -> tuple[Obstacle, ...]:
     return obstacles_si(fields.obstacles, units)
 
 
-def obstacle_names(obstacles: tuple[Obstacle, ...]) -> list[str]:
-    """Each obstacle as the task and ``summary.collision`` name it: ``obstacles[2] (box)``."""
-    return [f"obstacles[{k}] ({obstacle_kind(o)})" for k, o in enumerate(obstacles)]
+def obstacle_names(obstacles: tuple[Obstacle, ...], indices: tuple[int, ...] | None = None) -> list[str]:
+    """Each obstacle as the task and ``summary.collision`` name it: ``obstacles[2] (box)``, by its
+    index among the task's [[obstacles]] (``indices``; default 0, 1, …)."""
+    indices = range(len(obstacles)) if indices is None else indices
+    return [f"obstacles[{k}] ({obstacle_kind(o)})" for k, o in zip(indices, obstacles)]
 
 
 # -- the closest approach ------------------------------------------------------------------
@@ -157,8 +174,9 @@ def capsule_ends(robot: Robot, frames: np.ndarray) -> np.ndarray:
 
 
 def closest_approach(robot: Robot, q: np.ndarray, obstacles: tuple[Obstacle, ...], pair: str, sample: int = 0,
-                     t: float = 0.0) -> ClosestApproach:
-    """The witness points of ``pair`` (``summary.collision``'s name of it) at joint values ``q``."""
+                     t: float = 0.0, indices: tuple[int, ...] | None = None) -> ClosestApproach:
+    """The witness points of ``pair`` (``summary.collision``'s name of it) at joint values ``q``;
+    ``indices`` as in :func:`obstacle_names`."""
     match = PAIR.match(pair)
     if match is None:
         raise PlanFileError(f"plan.json: summary.collision.pair = {pair!r} names no pair of capsules or obstacles; "
@@ -168,8 +186,11 @@ def closest_approach(robot: Robot, q: np.ndarray, obstacles: tuple[Obstacle, ...
     ends = capsule_ends(robot, robot.frames(np.asarray(q, dtype=float)))
     i = int(first)
     j = int(second) if second is not None else None
+    indices = list(range(len(obstacles)) if indices is None else indices)
+    if index is not None:  # the obstacle's place in ``obstacles`` (past the end: not there)
+        index = indices.index(int(index)) if int(index) in indices else len(obstacles)
     if i >= len(capsules) or (j is not None and j >= len(capsules)) or (
-            index is not None and (int(index) >= len(obstacles) or obstacle_kind(obstacles[int(index)]) != kind)):
+            index is not None and (index >= len(obstacles) or obstacle_kind(obstacles[index]) != kind)):
         raise PlanFileError(f"plan.json: summary.collision.pair = {pair!r} names a capsule or obstacle the robot "
                             f"'{robot.name}' and the task do not have; re-run `armgen plan`")
     functions = _witness_functions()
@@ -178,7 +199,7 @@ def closest_approach(robot: Robot, q: np.ndarray, obstacles: tuple[Obstacle, ...
         axis, point, normal = functions["segment"](a, b, *ends[j])
         radii = capsules[j].radius
     else:
-        obstacle = obstacles[int(index)]
+        obstacle = obstacles[index]
         if isinstance(obstacle, SphereObstacle):
             axis, point, normal = functions["segment"](a, b, obstacle.centre, obstacle.centre)
             radii = obstacle.radius
@@ -287,12 +308,13 @@ def obstacle_extent(obstacles: tuple[Obstacle, ...]) -> np.ndarray:
     return np.array(points, dtype=float).reshape(-1, 3)
 
 
-def draw_obstacles(ax, obstacles: tuple[Obstacle, ...], centre: np.ndarray, half: float) -> list:
+def draw_obstacles(ax, obstacles: tuple[Obstacle, ...], centre: np.ndarray, half: float,
+                   names: list[str] | None = None) -> list:
     """The task's obstacles (m) drawn in mm, each with the gid of its task name
-    (``obstacles[0] (sphere)``); a half-space as its boundary plane's square around the scene's
-    ``centre`` (m), ``2 half`` (m) on a side."""
+    (``obstacles[0] (sphere)``, or ``names``); a half-space as its boundary plane's square around
+    the scene's ``centre`` (m), ``2 half`` (m) on a side."""
     artists = []
-    for obstacle, name in zip(obstacles, obstacle_names(obstacles)):
+    for obstacle, name in zip(obstacles, names if names is not None else obstacle_names(obstacles)):
         if isinstance(obstacle, SphereObstacle):
             artists += draw_capsule(ax, obstacle.centre, obstacle.centre, obstacle.radius, name, OBSTACLE_COLOUR,
                                     OBSTACLE_ALPHA, axis=False)
@@ -358,6 +380,60 @@ def draw_approach_2d(ax, approach: ClosestApproach, view: tuple[int, int], offse
     return [line]
 
 
+def obstacle_outline(obstacle: Obstacle, view: tuple[int, int], limits: np.ndarray) -> np.ndarray | None:
+    """The outline (k × 2, m) of an obstacle's projection onto the coordinate plane ``view``: a
+    sphere's disc and a capsule's stadium (:func:`capsule_outline`), a box's the convex hull of its
+    corners' projections; a half-space seen edge-on (its normal in the view's plane) the part of
+    ``limits`` (the view's ``[[x0, x1], [y0, y1]]``, m) on its solid side. None where nothing
+    shows: a half-space seen otherwise, whose projection covers the whole view, or one whose solid
+    side misses ``limits``."""
+    i, j = view
+    if isinstance(obstacle, SphereObstacle):
+        centre = np.asarray(obstacle.centre, dtype=float)[[i, j]]
+        return capsule_outline(centre, centre, obstacle.radius)
+    if isinstance(obstacle, CapsuleObstacle):
+        return capsule_outline(np.asarray(obstacle.a, dtype=float)[[i, j]], np.asarray(obstacle.b, dtype=float)[[i, j]],
+                               obstacle.radius)
+    if isinstance(obstacle, BoxObstacle):
+        corners = box_faces(obstacle).reshape(-1, 3)[:, [i, j]]
+        return corners[ConvexHull(corners).vertices]
+    normal = np.asarray(obstacle.normal, dtype=float) / np.linalg.norm(obstacle.normal)
+    if abs(normal[3 - i - j]) > EDGE_ON_TOL:
+        return None
+    across = normal[[i, j]] / np.linalg.norm(normal[[i, j]])
+    height = lambda p: float((p - np.asarray(obstacle.point, dtype=float)[[i, j]]) @ across)  # noqa: E731
+    (x0, x1), (y0, y1) = limits
+    rectangle = [np.array(corner) for corner in ((x0, y0), (x1, y0), (x1, y1), (x0, y1))]
+    kept = []  # the rectangle clipped to the solid side (height ≤ 0), corner by corner
+    for p, q in zip(rectangle, rectangle[1:] + rectangle[:1]):
+        if height(p) <= 0:
+            kept.append(p)
+        if height(p) * height(q) < 0:  # the boundary crosses this edge
+            kept.append(p + height(p) / (height(p) - height(q)) * (q - p))
+    return np.array(kept) if len(kept) >= 3 else None
+
+
+def draw_obstacles_2d(ax, obstacles: tuple[Obstacle, ...], view: tuple[int, int], offset: np.ndarray,
+                      names: list[str] | None = None) -> list:
+    """The task's obstacles in a 2-D view (as :func:`draw_capsule_outlines`: coordinates ``view`` of
+    the base frame shifted by ``offset``, m; drawn in mm), each the outline of its projection
+    (:func:`obstacle_outline`; a half-space within the axes' current limits, so set them first)
+    with the gid of its task name (or ``names``, as :func:`draw_obstacles`); returns the patches."""
+    i, j = view
+    limits = np.array([ax.get_xlim(), ax.get_ylim()]) / MM - np.asarray(offset, dtype=float)[[i, j]][:, None]
+    patches = []
+    for obstacle, name in zip(obstacles, names if names is not None else obstacle_names(obstacles)):
+        outline = obstacle_outline(obstacle, view, limits)
+        if outline is None:
+            continue
+        patch = Polygon((outline + np.asarray(offset, dtype=float)[[i, j]]) * MM, closed=True,
+                        facecolor=OBSTACLE_COLOUR, edgecolor="0.3", alpha=OBSTACLE_ALPHA, lw=0.6)
+        patch.set_gid(name)
+        ax.add_patch(patch)
+        patches.append(patch)
+    return patches
+
+
 def scene_points(scene: Scene, frames: np.ndarray) -> np.ndarray:
     """Points (m) the scene's limits must hold besides the arm's frame origins: the capsules'
     surfaces' extremes in ``frames`` (one configuration or several) and the bounded obstacles."""
@@ -393,7 +469,7 @@ def scene_panel(ax, scene: Scene, frames: np.ndarray, tool_path: np.ndarray | No
     ax.plot(*(origins * MM).T, "-o", color="tab:blue", lw=2.5, ms=3, label="links (joint frames)")
     if scene.has_capsules:
         draw_capsules(ax, scene.robot, frames)
-    draw_obstacles(ax, scene.obstacles, centre, half)
+    draw_obstacles(ax, scene.obstacles, centre, half, scene.names)
     title = "the arm's capsules and the task's obstacles"
     if scene.approach is not None:
         draw_approach(ax, scene.approach)

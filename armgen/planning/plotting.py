@@ -491,17 +491,17 @@ class CollisionView:
 
 
 def collision_view(result: PlanResult, robot: Robot | None = None, q: np.ndarray | None = None,
-                   with_task_obstacles: bool = True) -> CollisionView | None:
+                   obstacles: tuple | None = None, indices: tuple[int, ...] | None = None) -> CollisionView | None:
     """The plan's :class:`CollisionView` when ``plan.json`` reports ``summary.collision`` (every
     plan on a robot with capsules), else None: the figure gets no collision row. ``robot`` as in
     :func:`plan_robot` (default: the one ``plan.json`` records); ``q`` the robot's joint values
-    per sample (default: :func:`plan_joint_angles`); ``with_task_obstacles`` as in
+    per sample (default: :func:`plan_joint_angles`); ``obstacles`` and ``indices`` as in
     :func:`~armgen.planning.collision_scene.plan_scene`."""
     if not isinstance((result.metadata.get("summary") or {}).get("collision"), dict):
         return None
     robot = robot if robot is not None else plan_robot(result)
     q = q if q is not None else plan_joint_angles(result, robot)
-    scene = plan_scene(result, robot, q, with_task_obstacles)
+    scene = plan_scene(result, robot, q, obstacles, indices)
     return None if scene is None or scene.approach is None else CollisionView(robot, q, scene)
 
 

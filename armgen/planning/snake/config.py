@@ -163,11 +163,11 @@ def _collision(model: SnakeTaskFile, robot: Robot, place: np.ndarray, source: st
                                 robot, source)
     if found is None:
         return None, ()
-    moved = tuple(_moved(obstacle, -place) for obstacle in found.obstacles)
+    moved = tuple(translated(obstacle, -place) for obstacle in found.obstacles)
     return replace(found, obstacles=moved, parameters=obstacle_parameters(moved, robot.collision.slots)), indices
 
 
-def _moved(obstacle, shift: np.ndarray):
+def translated(obstacle, shift: np.ndarray):
     """An obstacle of armgen.description.collision translated by ``shift`` (m)."""
     def by(point) -> tuple[float, float, float]:
         return tuple(float(v) for v in np.asarray(point, dtype=float) + shift)

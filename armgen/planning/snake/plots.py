@@ -8,7 +8,10 @@ The arm is redrawn from the CSV's feed and joint angles by the robot's forward k
 same numpy chain the planner checks against), so the figure shows what the angles do, not what
 the solver intended; the path is the spline through the waypoints stored in ``plan.json``. A
 snake robot with capsules adds the shared collision row (:mod:`armgen.planning.collision_scene`):
-the links' capsules at their closest approach to each other, in the robot's base frame.
+the links' capsules at their closest approach, to each other or to the task's obstacles of the
+collision vocabulary (sphere, capsule, box by centre, plane: docs/collision.md), in the robot's
+base frame. Those obstacles are drawn in the snapshots and the animation too, by the same module
+(the outline of each one's projection), where the task file puts them.
 """
 
 from __future__ import annotations
@@ -17,13 +20,19 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Rectangle
 
+from pydantic import ValidationError
+
+from ...description.collision import Obstacle
 from ...errors import PlanFileError
 from ...robot import Robot
 from ..animation import SCENE_MARGIN
-from ..collision_scene import draw_approach_2d, draw_capsule_outlines, plan_scene
+from ..collision_scene import (draw_approach_2d, draw_capsule_outlines, draw_obstacles_2d, obstacle_names, plan_scene,
+                               task_obstacles)
 from ..plotting import (SCENE_HEIGHT_IN, collision_row, collision_view, joint_style, limit_lines, new_figure,
                         plan_robot)
 from ..result import PlanResult
+from .config import translated
+from .schema import Obstacle as ObstacleEntry, is_capsule_checked
 from .spline import HermiteSpline
 
 INSTANTS = 6  # arm poses drawn, evenly spaced over the motion
@@ -60,6 +69,25 @@ def snake_joint_values(result: PlanResult, arm) -> np.ndarray:
     alpha = np.column_stack([result.column(f"a{i + 1}_rad") for i in range(n)])
     beta = np.column_stack([result.column(f"b{i + 1}_rad") for i in range(n)])
     return arm.q_vector(result.column("feed_m"), alpha, beta)
+
+
+def vocabulary_obstacles(meta: dict, place: np.ndarray) -> tuple[tuple[Obstacle, ...], tuple[int, ...]]:
+    """The task's obstacles of the collision vocabulary as ``plan.json`` records the task (its
+    ``[[obstacles]]`` in its units), SI, moved into the robot's base frame as the planner measures
+    them (the base at ``place``, :func:`rail_place`), with their indices among the task's
+    ``[[obstacles]]`` (where the tube's count too)."""
+    task = meta.get("task")
+    entries = task.get("obstacles") if isinstance(task, dict) else None
+    if not entries:
+        return (), ()
+    try:
+        checked = [k for k, entry in enumerate(entries) if is_capsule_checked(ObstacleEntry.model_validate(entry))]
+    except ValidationError as exc:
+        raise PlanFileError(f"plan.json: task.obstacles: {exc.errors()[0]['msg']}; it is not what `armgen plan` "
+                            "wrote: re-run `armgen plan`") from None
+    fields = [{key: value for key, value in entries[k].items() if key != "name"} for k in checked]
+    obstacles = task_obstacles({"task": {"obstacles": fields, "units": task.get("units") or {}}})
+    return tuple(translated(obstacle, -np.asarray(place, dtype=float)) for obstacle in obstacles), tuple(checked)
 
 
 def draw_obstacles(ax, obstacles: list[dict], view: tuple[int, int]) -> None:
@@ -128,9 +156,14 @@ def accuracy_panel(ax, result: PlanResult, t: np.ndarray) -> None:
 
 def plot_snake(result: PlanResult, robot: Robot | None = None) -> Figure:
     """The figure; the arm through ``robot``'s kinematics (default: the plan's, :func:`plan_robot`)."""
+    from .arm import snake_arm
+
     meta = result.metadata
     if "rail" not in meta or "path" not in meta:
         raise PlanFileError("plan.json lacks the snake planner's rail/path metadata; re-run `armgen plan`")
+    robot = robot if robot is not None else plan_robot(result)
+    place = rail_place(meta, snake_arm(robot, "plan.json"))
+    obstacles, indices = vocabulary_obstacles(meta, place)
     t = result.column("t_s")
     centres = arm_centres(result, meta, robot) * 1e3
     path = meta["path"]
@@ -148,11 +181,7 @@ def plot_snake(result: PlanResult, robot: Robot | None = None) -> Figure:
     limits = {view: _view_limits(everything, *view) for view, _ in views}
     (x0, x1), (y0, y1) = limits[views[0][0]]
     panel_h = min(max(7.5 * (y1 - y0) / (x1 - x0), 1.1), 4.0) + 0.6  # the data's aspect at 7.5 in wide
-    collision = _collision_view(result, robot)
-    if collision is not None:
-        from .arm import snake_arm
-
-        place = rail_place(meta, snake_arm(collision.robot, "plan.json"))
+    collision = _collision_view(result, robot, obstacles, indices)
     heights = [rows * panel_h + 0.5, 4.7] + ([SCENE_HEIGHT_IN] if collision is not None else [])
     fig = new_figure(16, sum(heights))
     snapshots, traces, *below = fig.subfigures(len(heights), 1, height_ratios=heights)
@@ -160,15 +189,16 @@ def plot_snake(result: PlanResult, robot: Robot | None = None) -> Figure:
     for p, (k, (view, name)) in enumerate(panels):
         i, j = view
         ax = snapshots.add_subplot(grid[p // 2, p % 2])
+        xlim, ylim = limits[view]
+        ax.set(xlim=xlim, ylim=ylim, aspect="equal")  # first: a half-space seen edge-on fills them
         draw_obstacles(ax, meta.get("obstacles", []), view)
+        draw_obstacles_2d(ax, obstacles, view, place, obstacle_names(obstacles, indices))
         if collision is not None:  # the links' capsules, where the snapshots place the arm
             draw_capsule_outlines(ax, collision.robot, collision.robot.frames(collision.q[k]), view, place)
         ax.plot(dense[:, i], dense[:, j], color="k", lw=0.8, ls="--", label="path (spline)")
         ax.plot(centres[k, :, i], centres[k, :, j], "-o", color="tab:blue", ms=2.5, lw=2.5, label="arm")
         ax.plot(centres[k, 0, i], centres[k, 0, j], "s", ms=6, color="tab:green", label="base joint")
         ax.plot(centres[k, -1, i], centres[k, -1, j], "*", ms=11, color="tab:red", label="tip")
-        xlim, ylim = limits[view]
-        ax.set(xlim=xlim, ylim=ylim, aspect="equal")
         ax.set_title(f"t = {t[k]:.1f} s, {name}", fontsize=9)
         ax.tick_params(labelsize=7)
         ax.set_xlabel(f"{'xyz'[i]} [mm]", fontsize=8)
@@ -203,36 +233,37 @@ def plot_snake(result: PlanResult, robot: Robot | None = None) -> Figure:
     return fig
 
 
-def _collision_view(result: PlanResult, robot: Robot | None):
+def _collision_view(result: PlanResult, robot: Robot, obstacles: tuple[Obstacle, ...], indices: tuple[int, ...]):
     """The shared collision row's view of a snake plan on a robot with capsules (its links against
-    each other; the task's obstacles are the tube's, drawn in the snapshots), else None. Drawn in
-    the robot's base frame (the snapshots place the rail's start)."""
+    each other and the task's ``obstacles`` of the collision vocabulary, base frame, with their
+    ``indices`` in the file: :func:`vocabulary_obstacles`; the tube's obstacles are drawn in the
+    snapshots), else None. Drawn in the robot's base frame (the snapshots place the rail's start)."""
     if "collision" not in result.metadata.get("summary", {}):
         return None
     from .arm import snake_arm
 
-    robot = robot if robot is not None else plan_robot(result)
-    return collision_view(result, robot, snake_joint_values(result, snake_arm(robot, "plan.json")),
-                          with_task_obstacles=False)
+    return collision_view(result, robot, snake_joint_values(result, snake_arm(robot, "plan.json")), obstacles, indices)
 
 
 def animation_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
     """The animation's scene of a snake plan (:func:`armgen.planning.animation.animate_plan`): the
     arm's centre line in top view (and side view when the path leaves the plane) with the path and
-    the obstacles; returns the function that draws frame ``f``."""
+    the obstacles (the tube's, and those of the collision vocabulary); returns the function that
+    draws frame ``f``."""
     from .arm import snake_arm
 
     meta = result.metadata
     centres = arm_centres(result, meta, robot)[frames] * 1e3
     wp = np.asarray(meta["path"]["waypoints_m"], dtype=float) * 1e3
     views = [(0, 1)] if np.ptp(wp[:, 2]) < PLANAR_TOL else [(0, 1), (0, 2)]
-    # a robot with capsules: its links' outlines in each view, moving with the arm, and the
-    # closest approach of its links to each other (collision_scene, in the snapshots' place)
+    # a robot with capsules: its links' outlines in each view, moving with the arm, the task's
+    # obstacles of the collision vocabulary and the closest approach of its links to each other or
+    # to them (collision_scene, in the snapshots' place)
     arm = snake_arm(robot, "plan.json")
     q = snake_joint_values(result, arm)
-    scene = plan_scene(result, robot, q, with_task_obstacles=False)
-    poses = robot.frames(q[frames]) if scene is not None and scene.has_capsules else None
     place = rail_place(meta, arm)
+    scene = plan_scene(result, robot, q, *vocabulary_obstacles(meta, place))
+    poses = robot.frames(q[frames]) if scene is not None and scene.has_capsules else None
     outlines: list = []
     lines = []
     for v, (i, j) in enumerate(views):
@@ -240,10 +271,12 @@ def animation_scene(fig, result: PlanResult, frames: np.ndarray, robot: Robot):
         everything = np.vstack([centres.reshape(-1, 3), wp])
         lo, hi = everything.min(axis=0), everything.max(axis=0)
         pad = SCENE_MARGIN * float(np.max(hi - lo))
-        draw_obstacles(ax, meta.get("obstacles", []), (i, j))
-        ax.plot(wp[:, i], wp[:, j], "k--", lw=0.8, label="path")
         ax.set(xlim=(lo[i] - pad, hi[i] + pad), ylim=(lo[j] - pad, hi[j] + pad), aspect="equal",
                xlabel=f"{'xyz'[i]} [mm]", ylabel=f"{'xyz'[j]} [mm]", title=("top view", "side view")[v])
+        draw_obstacles(ax, meta.get("obstacles", []), (i, j))
+        if scene is not None:  # after the limits: a half-space seen edge-on fills them
+            draw_obstacles_2d(ax, scene.obstacles, (i, j), place, scene.names)
+        ax.plot(wp[:, i], wp[:, j], "k--", lw=0.8, label="path")
         ax.tick_params(labelsize=6)
         links, = ax.plot([], [], "-o", color="tab:blue", lw=2.5, ms=2.5)
         tip, = ax.plot([], [], "*", color="tab:red", ms=10)
