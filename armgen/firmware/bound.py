@@ -363,6 +363,13 @@ _BITS = re.compile(r"for\s*\(\s*(\w+)\s*=[^;]+;\s*(\w+)\s*!=\s*0[uU]?\s*;\s*(\w+
 WORD_BITS = 32
 _ENCLOSING_LINES = 10
 _BISECTION = re.compile(r"while\s*\(\s*(\w+)\s*-\s*(\w+)\s*>\s*1\s*\)")  # how far up an enclosing loop's header may be
+# The program evaluator's searches (fw_program.c): a line `DEFINE_SEARCH(name, type, key)` is
+# the code of one search (gcc's line of a macro's code is the line that expands it), and the
+# macro's body halves the n entries it searches, n -= n / 2, until one is left.
+_SEARCH_EXPANSION = re.compile(r"^\s*DEFINE_SEARCH\(\s*(\w+)\s*,")
+_HALVING_SEARCH = re.compile(r"#define DEFINE_SEARCH\(name, type, key\) static int name\(const type \*a, int n, "
+                             r"ctrl_real x\) \{ int lo = 0; while \(n > 1\) \{ int half = n / 2; lo = [^;{}]+; "
+                             r"n -= half; \} return lo; \}")
 
 
 @dataclass
@@ -567,6 +574,7 @@ class Analyzer:
         self.loop_caps = dict(loop_caps or {})
         self.block_cost = block_cost
         self.search_ranges: dict[str, int] = {}  # function -> the most entries its bisection searches
+        self.halving_ranges: dict[str, int] = {}  # fw_program.c's search -> the most entries it searches
         self._memo: dict[tuple[int, frozenset[str]], Bound] = {}
         self._unbounded = ""  # the lines of the last loop no source bound was found for
 
@@ -720,6 +728,9 @@ class Analyzer:
                     lb = LoopBound(*LIBRARY_LOOPS[fn.name])
                 if lb is None and fn.name in self.search_ranges:
                     lb = self._search_bound(fn, blocks[h].instructions[-1], self.search_ranges[fn.name])
+                if lb is None and self.halving_ranges:
+                    lb = self._halving_bound([blocks[a].instructions[-1] for a in sorted(latches[h] | set(exits_of[h]))
+                                              if a in own])
                 if lb is None:
                     lb = self._counter_bound(fn, blocks, h, bodies[h], latches[h], preds)
                 runs = lb.count + 1 if any(s not in bodies[h] for s in succ[h]) else max(lb.count, 1)
@@ -797,6 +808,28 @@ class Analyzer:
             if 0 < line <= len(text) and _BISECTION.search(text[line - 1]):
                 return LoopBound(max(1, math.ceil(math.log2(size))), f"{Path(path).name}:{line} (bisection of at "
                                                                       f"most {size})")
+        return None
+
+    def _halving_bound(self, branches: list[Instruction]) -> LoopBound | None:
+        """A search of fw_program.c (its branches on a `DEFINE_SEARCH(name, ...)` line, name in
+        ``halving_ranges``) over at most N entries: each turn leaves ceil(n / 2) of n, so it
+        turns at most ceil(log2(N)) times."""
+        for branch in branches:
+            frames = self.lines.frames(branch.address)
+            if not frames:
+                continue
+            path, line = frames[0]
+            text = self.lines.source(path)
+            m = _SEARCH_EXPANSION.match(text[line - 1]) if 0 < line <= len(text) else None
+            if m is None or m.group(1) not in self.halving_ranges:
+                continue
+            definition = " ".join(" ".join(text).replace("\\", " ").split())
+            if not _HALVING_SEARCH.search(definition):
+                raise BoundError(f"{Path(path).name}: DEFINE_SEARCH is not the halving search bound.py counts "
+                                 "(while (n > 1) {{ int half = n / 2; ...; n -= half; }})")
+            size = self.halving_ranges[m.group(1)]
+            return LoopBound(math.ceil(math.log2(max(size, 1))),
+                             f"{Path(path).name}:{line} ({m.group(1)} of at most {size} entries, halved each turn)")
         return None
 
     def _counter_bound(self, fn: Function, blocks: dict[int, Block], header: int, body: set[int], latches: set[int],
@@ -998,16 +1031,43 @@ def analyzer(target: Target, elf: Path, flags: list[str], prefix: str | None = N
     return a
 
 
+# fw_program.c's searches, each with the size macro of the table it searches (program_table.h)
+# and what it searches less: search_map searches a curve's rows - 1 intervals, and a curve has
+# at most the table's rows (fw_program_check).
+PROGRAM_SEARCHES = {"search_segment": ("FW_PROGRAM_SEGMENTS", 0), "search_piece": ("FW_PROGRAM_PIECES", 0),
+                    "search_map": ("FW_PROGRAM_MAPS", -1), "search_knot": ("FW_PROGRAM_KNOTS", 0)}
+
+
+def program_search_ranges(header: str) -> dict[str, int]:
+    """The most entries each search of fw_program.c searches in a tick of the task whose
+    task_params.h is ``header``: the sizes of its program table. Stated assumption: the
+    controller's program is that table (path_program.h's `.program`, nothing replaces it)."""
+    sizes = dict(re.findall(r"^#define (FW_PROGRAM_[A-Z]+) (\d+)\s*$", header, re.M))
+    missing = [macro for macro, _ in PROGRAM_SEARCHES.values() if macro not in sizes]
+    if missing:
+        raise BoundError(f"the task's program table defines no {', '.join(missing)} (program_table.h's size macros)")
+    return {search: int(sizes[macro]) + less for search, (macro, less) in PROGRAM_SEARCHES.items()}
+
+
+def set_tick_ranges(a: Analyzer, mode: str, header: str) -> None:
+    """The ranges of the searches a running tick of ``mode`` makes, in ``a``: PLAYBACK's PTP
+    evaluator bisects at most CTRL_MAX_SEGMENTS segments (ctrl_init refuses a plan of more than
+    the build holds); a program task's evaluator searches its table (``header``: task_params.h)."""
+    if mode.upper() == "PLAYBACK":
+        segments = a.lines.evaluate(str(FIRMWARE_DIR / "controller.h"), "CTRL_MAX_SEGMENTS")
+        if segments is None:
+            raise BoundError("CTRL_MAX_SEGMENTS: not a constant under the build's flags")
+        a.search_ranges.update({name: segments for name in PTP_EVALUATOR})
+    if "CTRL_PATH_PROGRAM" in header:
+        a.halving_ranges.update(program_search_ranges(header))
+
+
 def tick_bound(target: Target, elf: Path, flags: list[str], prefix: str, mode: str, header: str) -> Bound:
     """The static bound of one ``ctrl_tick`` of a firmware image running a task of ``mode``
     (FirmwareTask.mode, e.g. "weighted_gpm"; ``header`` its task_params.h): built with the
     compile ``flags`` (FirmwareBuilder.cflags)."""
     a = analyzer(target, elf, flags)
-    if mode.upper() == "PLAYBACK":  # ctrl_init refuses a plan of more segments than the build holds
-        segments = a.lines.evaluate(str(FIRMWARE_DIR / "controller.h"), "CTRL_MAX_SEGMENTS")
-        if segments is None:
-            raise BoundError("CTRL_MAX_SEGMENTS: not a constant under the build's flags")
-        a.search_ranges.update({name: segments for name in PTP_EVALUATOR})
+    set_tick_ranges(a, mode, header)
     return a.bound("ctrl_tick", tick_avoid(prefix, mode.upper(), "CTRL_PATH_PROGRAM" in header))
 
 

@@ -24,7 +24,6 @@ from ..robot import Robot
 from . import bound
 from .builder import FirmwareBuilder, target_variant
 from .configuration import FirmwareTask, write_task_files
-from .sources import FIRMWARE_DIR
 from .targets import TARGETS, Target
 
 BOUNDS_FILE = "bounds.json"  # `armgen firmware-task --bound`'s: the manifest's "bounds" list
@@ -90,12 +89,8 @@ def project_bounds(target: Target, robot: Robot, gen_dir: Path, task: FirmwareTa
         names = bound.generated_functions(analyzers[0][1], builder.prefix, Path(gen_dir) / f"{builder.prefix}.h")
         mode = task.mode.upper()
         avoid = bound.tick_avoid(builder.prefix, mode, "CTRL_PATH_PROGRAM" in task.header)
-        if mode == "PLAYBACK":  # as bound.tick_bound: the PTP evaluator's bisection over the build's segments
-            segments = analyzers[0][1].lines.evaluate(str(FIRMWARE_DIR / "controller.h"), "CTRL_MAX_SEGMENTS")
-            if segments is None:
-                raise bound.BoundError("CTRL_MAX_SEGMENTS: not a constant under the build's flags")
-            for _, a in analyzers:
-                a.search_ranges.update({name: segments for name in bound.PTP_EVALUATOR})
+        for _, a in analyzers:  # as bound.tick_bound: PLAYBACK's bisection, a program's searches
+            bound.set_tick_ranges(a, mode, task.header)
 
         def entry(function: str, avoided: tuple[str, ...] = ()) -> dict[str, Any]:
             counts = {name: a.bound(function, avoided).instructions for name, a in analyzers}
