@@ -21,6 +21,7 @@ from armgen.planning.tasks import load_task, run_task
 from armgen.robot import load_robot, load_robot_any
 
 from conftest import require_tool
+from test_programs import bar_task
 
 REPO = Path(__file__).resolve().parents[1]
 BAXTER = REPO / "tests" / "data" / "baxter_arm.toml"  # a 7-DOF arm that is not a bundled robot
@@ -110,6 +111,42 @@ def test_the_playback_tick_bound_holds(tmp_path):
     measured = fw.instructions_per_tick(fw.run_qemu(elf, target=target.name))
     assert static + measured["resolution"] >= measured["max"], (static, measured)
     assert static <= TIGHTNESS[target.name] * measured["max"], (static, measured)
+
+
+def halvings(n: int) -> int:
+    """The turns fw_program.c's search takes over n entries, by running its loop."""
+    turns = 0
+    while n > 1:
+        n -= n // 2
+        turns += 1
+    return turns
+
+
+def test_the_program_tick_bound_holds(tmp_path):
+    """A program task's tick (issue 26's seam program, weighted GPM, on Baxter: lines, an arc,
+    rounded corners): the evaluator's searches counted over the task's table sizes, each as
+    many turns as the search's own loop takes on that many entries."""
+    target = require_target("cortex-m4")
+    source = tmp_path / "seam.toml"
+    source.write_text(bar_task("wgpm", BAXTER), encoding="utf-8")
+    task, sha = load_task(source)
+    firmware_task = fw.task_from_plan(run_task(task, str(source), sha), str(source), load_robot_any(str(BAXTER)))
+    assert "CTRL_PATH_PROGRAM" in firmware_task.header
+    builder = fw.FirmwareBuilder(firmware_task.robot, tmp_path / "firmware")
+    variant = dataclasses.replace(fw.target_variant(target.name), print_rows=False)
+    elf = builder.executable(variant, firmware_task, "program")
+    static = bound.tick_bound(target, elf, builder.cflags(variant), builder.prefix, firmware_task.mode,
+                              firmware_task.header)
+    ranges = bound.program_search_ranges(firmware_task.header)
+    assert ranges["search_map"] > 1 and ranges["search_segment"] > 1  # corners and a time law to search
+    for search, entries in ranges.items():
+        counted = [line for line in static.loops if f"({search} of at most {entries} entries" in line]
+        assert counted and all(line.endswith(f": {halvings(entries)}") for line in counted), (search, static.loops)
+    run = fw.run_qemu(elf, target=target.name)
+    assert (run.state, run.fault) == ("DONE", "NONE")
+    measured = fw.instructions_per_tick(run)
+    assert static.instructions + measured["resolution"] >= measured["max"], (static.instructions, measured)
+    assert static.instructions <= TIGHTNESS[target.name] * measured["max"], (static.instructions, measured)
 
 
 @pytest.mark.parametrize("name", list(fw.TARGETS))
