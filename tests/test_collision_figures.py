@@ -193,12 +193,13 @@ def point_segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> 
     return np.linalg.norm(a + t[:, None] * ab - points, axis=1)
 
 
-def coal_shape(robot: Robot, ends: np.ndarray, name: str, obstacles) -> tuple:
-    """(shape, transform) of coal for a pair's side: ``capsule k`` at ``ends[k]`` or a task obstacle."""
+def coal_shape(robot: Robot, ends: np.ndarray, name: str, obstacles, names=None) -> tuple:
+    """(shape, transform) of coal for a pair's side: ``capsule k`` at ``ends[k]`` or a task obstacle
+    (named as summary.collision names it: ``names``, default obstacles[0], obstacles[1], …)."""
     if name.startswith("capsule"):
         k = int(name.split()[1])
         return _coal_capsule(*ends[k], robot.collision.capsules[k].radius)
-    obstacle = obstacles[obstacle_names(obstacles).index(name)]
+    obstacle = obstacles[(names or obstacle_names(obstacles)).index(name)]
     if isinstance(obstacle, SphereObstacle):
         return coal.Sphere(obstacle.radius), coal.Transform3s(np.eye(3), np.asarray(obstacle.centre))
     if isinstance(obstacle, CapsuleObstacle):
@@ -210,12 +211,12 @@ def coal_shape(robot: Robot, ends: np.ndarray, name: str, obstacles) -> tuple:
     return _coal_halfspace(normal, float(normal @ np.asarray(obstacle.point)))
 
 
-def coal_pair(robot: Robot, ends: np.ndarray, pair: str, obstacles) -> tuple[float, np.ndarray]:
+def coal_pair(robot: Robot, ends: np.ndarray, pair: str, obstacles, names=None) -> tuple[float, np.ndarray]:
     """coal's signed distance and nearest points (2 × 3) of a pair named as summary.collision names it."""
     first, second = pair.split(" – ")
     result = coal.DistanceResult()
-    distance = coal.distance(*coal_shape(robot, ends, first, obstacles), *coal_shape(robot, ends, second, obstacles),
-                             REQUEST, result)
+    distance = coal.distance(*coal_shape(robot, ends, first, obstacles, names),
+                             *coal_shape(robot, ends, second, obstacles, names), REQUEST, result)
     return distance, np.array([result.getNearestPoint1(), result.getNearestPoint2()])
 
 
@@ -253,9 +254,9 @@ def task_obstacles_si(plan: Path):
     return task_obstacles(read_plan(plan).metadata)
 
 
-def check_scene(ax, robot: Robot, expected_ends: list[np.ndarray], obstacles) -> None:
+def check_scene(ax, robot: Robot, expected_ends: list[np.ndarray], obstacles, names=None) -> None:
     """Each capsule drawn once, its axis at ``expected_ends``, its surface ``radius`` from it; each
-    obstacle drawn once where the task puts it."""
+    obstacle drawn once where the task puts it (named ``names``, as in :func:`coal_shape`)."""
     capsules = robot.collision.capsules
     assert len(expected_ends) == len(capsules)
     for k, (ends, capsule) in enumerate(zip(expected_ends, capsules)):
@@ -266,7 +267,7 @@ def check_scene(ax, robot: Robot, expected_ends: list[np.ndarray], obstacles) ->
         distance = point_segment_distance(drawn_points(surface), *ends)
         np.testing.assert_allclose(distance, capsule.radius, atol=FK_TOL, rtol=0)
     assert not by_gid(ax, f"capsule {len(capsules)}")
-    for obstacle, name in zip(obstacles, obstacle_names(obstacles)):
+    for obstacle, name in zip(obstacles, names or obstacle_names(obstacles)):
         (drawn,) = [a for a in by_gid(ax, name)]
         points = drawn_points(drawn)
         if isinstance(obstacle, SphereObstacle):
@@ -286,7 +287,7 @@ def check_scene(ax, robot: Robot, expected_ends: list[np.ndarray], obstacles) ->
             np.testing.assert_allclose((points - np.asarray(obstacle.point)) @ normal, 0.0, atol=FK_TOL, rtol=0)
 
 
-def check_approach(ax, robot: Robot, ends: list[np.ndarray], report: dict, obstacles) -> None:
+def check_approach(ax, robot: Robot, ends: list[np.ndarray], report: dict, obstacles, names=None) -> None:
     """The marker joins the pair's nearest points: as far apart as summary.collision says, that
     distance is coal's for the pair at the sample (the capsules at ``ends``, from an independent
     chain), and (apart) its points are coal's nearest points."""
@@ -295,7 +296,7 @@ def check_approach(ax, robot: Robot, ends: list[np.ndarray], report: dict, obsta
     distance = report["min_clearance_m"]
     assert np.linalg.norm(points[1] - points[0]) == pytest.approx(abs(distance), abs=COAL_TOL)
     assert report["pair"] in marker.get_label() and f"{distance * MM:.1f} mm" in marker.get_label()
-    theirs, nearest = coal_pair(robot, ends, report["pair"], obstacles)
+    theirs, nearest = coal_pair(robot, ends, report["pair"], obstacles, names)
     assert distance == pytest.approx(theirs, abs=COAL_TOL)
     if distance > APART:
         np.testing.assert_allclose(points, nearest, atol=WITNESS_TOL, rtol=0)
@@ -466,15 +467,12 @@ def test_a_robot_without_capsules_keeps_its_figures(tmp_path):
 SNAKE_RADIUS_MM = 30.0
 
 
-@pytest.fixture(scope="module")
-def snake_plan(tmp_path_factory) -> Path:
+def snake_task_with_capsules(folder: Path) -> dict:
     """The bundled planar snake example on snake12 with a capsule around each 104 mm link: link k
     runs from joint centre k to k + 1, the origin of DH frame 2k + 3 and 104 mm back along its x
     (frame 2k + 2 turns by α, 2k + 3 by β and carries the link's length)."""
-    from armgen.planning.result import write_plan
-    from armgen.planning.tasks import load_task, run_task
+    from armgen.planning.tasks import load_task
 
-    folder = tmp_path_factory.mktemp("snake")
     text = Path(load_robot("snake12").path).read_text(encoding="utf-8").replace('name = "snake12"', 'name = "snake12c"')
     text = text.split("\n[[collision]]")[0]
     for link in range(12):
@@ -483,7 +481,17 @@ def snake_plan(tmp_path_factory) -> Path:
     (folder / "snake12c.toml").write_text(text, encoding="utf-8")
     task, _ = load_task(Path(load_robot("snake12").path).parents[1] / "examples" / "snake_planar.toml")
     task["robot"] = str(folder / "snake12c.toml")
-    csv, _ = write_plan(run_task(task, "snake.toml"), folder / "plan.csv")
+    return task
+
+
+@pytest.fixture(scope="module")
+def snake_plan(tmp_path_factory) -> Path:
+    """:func:`snake_task_with_capsules`, planned."""
+    from armgen.planning.result import write_plan
+    from armgen.planning.tasks import run_task
+
+    folder = tmp_path_factory.mktemp("snake")
+    csv, _ = write_plan(run_task(snake_task_with_capsules(folder), "snake.toml"), folder / "plan.csv")
     return csv
 
 
@@ -554,6 +562,142 @@ def check_outlines(ax, centres: np.ndarray) -> None:
         distance = point_segment_distance(np.column_stack([outline, np.zeros(len(outline))]), np.append(a, 0.0),
                                           np.append(b, 0.0))
         np.testing.assert_allclose(distance, SNAKE_RADIUS_MM / MM, atol=FK_TOL, rtol=0)
+
+
+# -- a snake task with obstacles of the collision vocabulary ------------------------------------
+
+# Beside the example's tube obstacles (mm, the task's frame): a sphere whose surface is 32 mm from
+# the last straight (y = 300 mm), so the 30 mm capsules pass 2 mm from it, the least distance of
+# the plan (the links' own least is 44 mm) with a unique pair of nearest points; a pillar below
+# the rail, a box turned 30° about z beside the wall, a wall half-space (solid above y = 400 mm,
+# seen edge-on in the top view) and a floor (seen face-on from above: not in the top view).
+SNAKE_OBSTACLES = [
+    {"type": "sphere", "centre": [700.0, 360.0, 0.0], "radius": 28.0},
+    {"type": "capsule", "a": [-300.0, -120.0, -200.0], "b": [-300.0, -120.0, 200.0], "radius": 40.0},
+    {"type": "box", "centre": [150.0, -150.0, 0.0], "size": [100.0, 80.0, 60.0], "rpy": [0.0, 0.0, 30.0]},
+    {"type": "plane", "point": [0.0, 400.0, 0.0], "normal": [0.0, -1.0, 0.0]},
+    {"type": "plane", "point": [0.0, 0.0, -200.0], "normal": [0.0, 0.0, 1.0]},
+]
+
+
+@pytest.fixture(scope="module")
+def snake_obstacle_plan(tmp_path_factory) -> Path:
+    """:func:`snake_task_with_capsules` with :data:`SNAKE_OBSTACLES` after its own (tube) obstacles."""
+    from armgen.planning.result import write_plan
+    from armgen.planning.tasks import run_task
+
+    folder = tmp_path_factory.mktemp("snake_obstacles")
+    task = snake_task_with_capsules(folder)
+    task["obstacles"] = task["obstacles"] + SNAKE_OBSTACLES
+    task["collision"] = {"clearance": 1.0, "activation": 100.0}
+    csv, _ = write_plan(run_task(task, "snake.toml"), folder / "plan.csv")
+    return csv
+
+
+def snake_obstacles_by_hand(result) -> tuple[tuple, list[str], np.ndarray]:
+    """:data:`SNAKE_OBSTACLES` in the robot's base frame (m: the task's numbers × 1e-3 less where
+    the base sits, the rail's start less the base joint's centre at feed 0), their names as
+    summary.collision names them (their index in the task file), and that place (m)."""
+    from armgen.planning.snake.arm import snake_arm
+
+    robot = plan_robot(result)
+    place = np.asarray(result.metadata["rail"]["start_m"]) - snake_arm(robot, "test").base0
+    first = len(result.metadata["obstacles"])  # the tube's come first in the task file
+
+    def at(point) -> tuple:
+        return tuple(np.asarray(point) * 1e-3 - place)
+
+    obstacles = []
+    for o in SNAKE_OBSTACLES:
+        if o["type"] == "sphere":
+            obstacles.append(SphereObstacle(at(o["centre"]), o["radius"] * 1e-3))
+        elif o["type"] == "capsule":
+            obstacles.append(CapsuleObstacle(at(o["a"]), at(o["b"]), o["radius"] * 1e-3))
+        elif o["type"] == "box":
+            obstacles.append(BoxObstacle(at(o["centre"]), tuple(np.asarray(o["size"]) * 1e-3),
+                                         tuple(np.radians(o["rpy"]))))
+        else:
+            obstacles.append(PlaneObstacle(at(o["point"]), tuple(o["normal"])))
+    names = [f"obstacles[{first + k}] ({o['type']})" for k, o in enumerate(SNAKE_OBSTACLES)]
+    return tuple(obstacles), names, place
+
+
+def drawn_outline(ax, name: str) -> np.ndarray:
+    (patch,) = [p for p in ax.patches if p.get_gid() == name]
+    return patch.get_xy() / MM
+
+
+def check_obstacle_outlines(ax, names: list[str]) -> None:
+    """A top view (x–y, the task's frame, mm) outlines each of :data:`SNAKE_OBSTACLES` where the
+    task file puts it: the sphere's disc and the vertical pillar's (its radius around the centre),
+    the box's turned rectangle (its corners by SciPy's rotation, its area the product of its two
+    horizontal sides), the wall's part of the view on its solid side; the floor is not drawn."""
+    sphere, pillar, box, wall, floor = SNAKE_OBSTACLES
+    for obstacle, name in ((sphere, names[0]), (pillar, names[1])):
+        centre = np.asarray(obstacle.get("centre", obstacle.get("a")))[:2] * 1e-3
+        np.testing.assert_allclose(np.linalg.norm(drawn_outline(ax, name) - centre, axis=1), obstacle["radius"] * 1e-3,
+                                   atol=FK_TOL, rtol=0)
+    rotation = Rotation.from_euler("ZYX", np.radians(box["rpy"][::-1])).as_matrix()
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    corners = ((signs * np.asarray(box["size"]) / 2) @ rotation.T + box["centre"])[:, :2] * 1e-3
+    outline = drawn_outline(ax, names[2])
+    assert all(np.min(np.linalg.norm(corners - p, axis=1)) <= FK_TOL for p in outline)  # each vertex a corner
+    x, y = outline[:-1].T  # the closing vertex repeats the first
+    area = 0.5 * abs(x @ np.roll(y, -1) - y @ np.roll(x, -1))
+    assert area == pytest.approx(box["size"][0] * box["size"][1] * 1e-6, abs=FK_TOL)
+    outline = drawn_outline(ax, names[3])
+    boundary = wall["point"][1] * 1e-3  # the solid side is y above it (the normal points away from it)
+    assert np.sum(np.abs(outline[:-1, 1] - boundary) <= FK_TOL) == 2
+    assert np.all(outline[:, 1] >= boundary - FK_TOL)
+    assert np.max(outline[:, 1]) == pytest.approx(ax.get_ylim()[1] / MM, abs=FK_TOL)  # to the view's edge
+    assert (np.min(outline[:, 0]), np.max(outline[:, 0])) == pytest.approx(np.array(ax.get_xlim()) / MM, abs=FK_TOL)
+    assert not [p for p in ax.patches if p.get_gid() == names[4]]
+
+
+def test_snake_figure_draws_the_task_obstacles_and_the_approach_to_them(snake_obstacle_plan):
+    """The collision row (base frame) draws the collision vocabulary's obstacles where the task
+    puts them and the marker against the sphere at coal's distance; the snapshots (the task's
+    frame) outline them there too."""
+    result = read_plan(snake_obstacle_plan)
+    robot = plan_robot(result, snake_obstacle_plan)
+    obstacles, names, place = snake_obstacles_by_hand(result)
+    report = result.metadata["summary"]["collision"]
+    assert report["pair"] == f"capsule 11 – {names[0]}" and report["min_clearance_m"] > APART, report
+    sample = int(np.flatnonzero(result.column("t_s") == report["t_s"])[0])
+    centres = snake_centres(snake_obstacle_plan, robot)[sample]
+    ends = [centres[[k, k + 1]] for k in range(12)]
+    fig = plot_plan(result, str(snake_obstacle_plan), robot)
+    for ax in scene_axes(fig):
+        check_scene(ax, robot, ends, obstacles, names)
+        check_approach(ax, robot, ends, report, obstacles, names)
+    snapshots = [ax for ax in fig.axes if ax.get_title().startswith("t = ")]
+    assert len(snapshots) == 6
+    for ax in snapshots:
+        check_obstacle_outlines(ax, names)
+
+
+def test_snake_animation_draws_the_task_obstacles_and_the_approach_to_them(snake_obstacle_plan):
+    """The animation's top view outlines the obstacles where the task puts them, and its marker
+    joins coal's nearest points of the pair (the plan is planar: the top view shows the gap whole)."""
+    from armgen.planning.snake.plots import animation_scene
+
+    result = read_plan(snake_obstacle_plan)
+    robot = plan_robot(result, snake_obstacle_plan)
+    obstacles, names, place = snake_obstacles_by_hand(result)
+    report = result.metadata["summary"]["collision"]
+    fig = Figure()
+    draw = animation_scene(fig, result, np.array([0, 500, 1000]), robot)
+    (ax,) = fig.axes
+    for f in range(3):
+        draw(f)
+        check_obstacle_outlines(ax, names)
+    (marker,) = by_gid(ax, "closest approach")
+    drawn = np.column_stack(marker.get_data()) / MM
+    sample = int(np.flatnonzero(result.column("t_s") == report["t_s"])[0])
+    centres = snake_centres(snake_obstacle_plan, robot)[sample]
+    theirs, nearest = coal_pair(robot, [centres[[k, k + 1]] for k in range(12)], report["pair"], obstacles, names)
+    assert np.linalg.norm(drawn[1] - drawn[0]) == pytest.approx(theirs, abs=COAL_TOL)
+    np.testing.assert_allclose(drawn, (nearest + place)[:, :2], atol=WITNESS_TOL, rtol=0)
 
 
 # -- a hand-edited plan.json ---------------------------------------------------------------------
