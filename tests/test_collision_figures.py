@@ -700,6 +700,71 @@ def test_snake_animation_draws_the_task_obstacles_and_the_approach_to_them(snake
     np.testing.assert_allclose(drawn, (nearest + place)[:, :2], atol=WITNESS_TOL, rtol=0)
 
 
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(angle=st.floats(0, 2 * math.pi), point=st.lists(st.floats(-2, 2), min_size=3, max_size=3),
+       rpy=st.lists(st.floats(-math.pi, math.pi), min_size=3, max_size=3),
+       size=st.lists(st.floats(0.01, 1), min_size=3, max_size=3), view=st.sampled_from([(0, 1), (0, 2), (1, 2)]))
+def test_outlines_of_a_wall_and_a_box_in_any_view(angle, point, rpy, size, view):
+    """In a 2-D view: a half-space seen edge-on is the part of the view's rectangle on its solid
+    side (every vertex inside the rectangle and on that side, every corner of the rectangle on
+    that side among them, two vertices on the boundary where it crosses the rectangle); a box is
+    the outline of its corners' projections (SciPy's rotation): each vertex a corner, every corner
+    inside or on it."""
+    from matplotlib.path import Path as Outline
+
+    from armgen.planning.collision_scene import obstacle_outline
+
+    i, j = view
+    limits = np.array([[-1.0, 1.5], [-0.5, 1.0]])
+    normal = np.zeros(3)
+    normal[[i, j]] = math.cos(angle), math.sin(angle)
+    outline = obstacle_outline(PlaneObstacle(tuple(point), tuple(normal)), view, limits)
+    corners = np.array([[x, y] for x in limits[0] for y in limits[1]])
+    height = (corners - np.asarray(point)[[i, j]]) @ normal[[i, j]]
+    if np.all(height > 0):  # the solid side misses the view
+        assert outline is None
+    if np.any(height < 0):
+        assert outline is not None
+        inside = (outline >= limits[:, 0] - FK_TOL) & (outline <= limits[:, 1] + FK_TOL)
+        assert np.all(inside)
+        vertex_height = (outline - np.asarray(point)[[i, j]]) @ normal[[i, j]]
+        assert np.all(vertex_height <= FK_TOL)
+        for corner in corners[height <= 0]:
+            assert np.min(np.linalg.norm(outline - corner, axis=1)) <= FK_TOL
+        if np.any(height > 0):
+            assert np.sum(np.abs(vertex_height) <= FK_TOL) >= 2
+    tilted = normal + np.eye(3)[3 - i - j]  # leaning out of the view: its projection covers it
+    assert obstacle_outline(PlaneObstacle(tuple(point), tuple(tilted)), view, limits) is None
+    box = BoxObstacle(tuple(point), tuple(size), tuple(rpy))
+    outline = obstacle_outline(box, view, limits)
+    rotation = Rotation.from_euler("ZYX", rpy[::-1]).as_matrix()
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    projected = ((signs * np.asarray(size) / 2) @ rotation.T + point)[:, [i, j]]
+    assert all(np.min(np.linalg.norm(projected - vertex, axis=1)) <= FK_TOL for vertex in outline)
+    assert np.all(Outline(outline).contains_points(projected, radius=FK_TOL)
+                  | Outline(outline).contains_points(projected, radius=-FK_TOL))
+
+
+def test_a_hand_edited_snake_obstacle_is_a_clear_error(snake_obstacle_plan, tmp_path):
+    """A snake plan.json whose task obstacle is edited into nonsense: `armgen plot` and `armgen
+    animate` exit 2 naming task.obstacles and the fix, nothing written."""
+    import json
+    import shutil
+
+    from armgen.errors import PlanFileError
+
+    for name in ("plan.csv", "plan.json"):
+        shutil.copy(snake_obstacle_plan.parent / name, tmp_path / name)
+    meta = json.loads((tmp_path / "plan.json").read_text(encoding="utf-8"))
+    meta["task"]["obstacles"][-5]["radius"] = -1.0  # the sphere
+    (tmp_path / "plan.json").write_text(json.dumps(meta), encoding="utf-8")
+    for command, out in (("plot", "out.png"), ("animate", "out.gif")):
+        run = CliRunner().invoke(cli, [command, str(tmp_path / "plan.csv"), "-o", str(tmp_path / out)])
+        assert run.exit_code == PlanFileError.exit_code == 2, run.output
+        assert "plan.json: task.obstacles:" in run.output and "re-run `armgen plan`" in run.output
+        assert not (tmp_path / out).exists()
+
+
 # -- a hand-edited plan.json ---------------------------------------------------------------------
 
 
