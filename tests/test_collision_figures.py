@@ -8,7 +8,8 @@ Checked against independent sources: the capsules' drawn axes against the segmen
 hand-written standard-DH chain (DH) and Pinocchio's placements of the URDF's collision shapes
 (URDF); the drawn surfaces against the closed-form distance of a point to a segment; the box's
 faces against SciPy's rotation; the closest approach's witness points and distance against
-coal's nearest points and distance."""
+coal's nearest points and distance. A snake plan with obstacles of the collision vocabulary: its
+2-D views outline them where the task file's numbers put them."""
 
 from __future__ import annotations
 

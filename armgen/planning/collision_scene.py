@@ -12,6 +12,11 @@ the one drawing of the collision model (docs/collision.md) that every planner's 
   plan's samples and checked pairs), the pair's two witness points (on the two surfaces; for an
   overlap, the deepest points) joined by a line, labelled with the pair and the distance.
 
+A planner that draws its arm in 2-D views (the snake's top and side views) gets the same shapes
+as the outlines of their projections (:func:`draw_capsule_outlines`, :func:`draw_obstacles_2d`,
+:func:`draw_approach_2d`), with obstacles named by their index among the task's ``[[obstacles]]``
+where its own vocabulary shares that list (``indices``).
+
 The witness points come from the same geometry as the collision functions
 (:mod:`armgen.symbolic.collision_geometry`), evaluated at the plan's sample, so the marker's
 length is the distance ``plan.json`` reports. Everything is drawn in mm, as the other 3-D panels.
