@@ -399,28 +399,75 @@ def _arguments(text: str) -> list[str]:
     return args
 
 
+@dataclass(frozen=True)
+class InputSection:
+    start: int  # its address in the image
+    size: int
+    name: str  # e.g. .text.map_w (-ffunction-sections)
+    object: Path  # the object file it came from
+
+
+def input_sections(map_file: Path) -> list[InputSection]:
+    """The code sections of the object files an image was linked from, by address, as the
+    linker's map (``-Wl,-Map``) places them; archive members (the C library) aside. Empty
+    without a map."""
+    if not map_file.is_file():
+        return []
+    text = map_file.read_text(encoding="utf-8", errors="replace")
+    text = text[text.find("Linker script and memory map"):]  # not the discarded sections listed before it
+    text = re.sub(r"^( \.\S+)\n\s+(?=0x)", r"\1 ", text, flags=re.M)  # a long name's address on its next line
+    found = [InputSection(int(m.group(2), 16), int(m.group(3), 16), m.group(1), Path(m.group(4)))
+             for m in re.finditer(r"^ (\.text\S*)\s+0x([0-9a-f]+)\s+0x([0-9a-f]+) (\S+\.o)$", text, re.M)]
+    return sorted((f for f in found if f.size > 0), key=lambda f: f.start)
+
+
 class SourceLoops:
     """Loop counts read from the C source: the DWARF lines of an address (the inlining chain,
     innermost first), the first that is a `for` header, its bound evaluated by the build's
     preprocessor; a bound that is a parameter of an inlined function takes the argument at the
-    call site, one frame out."""
+    call site, one frame out.
 
-    def __init__(self, addr2line: str, elf: Path, compiler: str, flags: list[str]):
+    With ``by_object`` (an Arm image, linked from address 0), an address is looked up in the
+    object file it came from (the linker's map beside the image): in the image, the line table
+    of a function ``--gc-sections`` dropped still describes addresses from 0 on (the relocation
+    of a discarded section resolves to 0), and a large one (a robot's collision criterion,
+    130 KB) covers the code linked there. Not on RISC-V: its linker relaxes calls, so code moves
+    from its object's offsets, and its image lies at 0x80000000, clear of those tables."""
+
+    def __init__(self, addr2line: str, elf: Path, compiler: str, flags: list[str], by_object: bool = False):
         self.addr2line, self.elf, self.compiler, self.flags = addr2line, elf, compiler, list(flags)
         self._frames: dict[int, list[tuple[str, int]]] = {}
         self._files: dict[str, list[str]] = {}
         self._values: dict[tuple[str, str], int | None] = {}
+        self._sections = input_sections(Path(elf).with_suffix(".map")) if by_object else []
+
+    def _section_of(self, address: int) -> InputSection | None:
+        for section in self._sections:  # few lookups a function: a scan is enough
+            if section.start <= address < section.start + section.size:
+                return section
+        return None
 
     def locate(self, addresses: list[int]) -> None:
         todo = sorted({a for a in addresses if a not in self._frames})
         if not todo:
             return
-        out = subprocess.run([self.addr2line, "-a", "-i", "-e", str(self.elf), *(f"{a:#x}" for a in todo)],
-                             capture_output=True, text=True, check=True).stdout.splitlines()
+        by_section: dict[InputSection | None, list[int]] = defaultdict(list)
+        for a in todo:
+            by_section[self._section_of(a)].append(a)
+        for section, group in by_section.items():
+            if section is None or not section.object.is_file():
+                self._read_frames([self.addr2line, "-a", "-i", "-e", str(self.elf), *(f"{a:#x}" for a in group)], 0)
+            else:
+                self._read_frames([self.addr2line, "-a", "-i", "-e", str(section.object), "-j", section.name,
+                                   *(f"{a - section.start:#x}" for a in group)], section.start)
+
+    def _read_frames(self, command: list[str], base: int) -> None:
+        """addr2line's answer for each address (printed relative to ``base``)."""
+        out = subprocess.run(command, capture_output=True, text=True, check=True).stdout.splitlines()
         current: list[tuple[str, int]] = []
         for line in out:
             if line.startswith("0x"):
-                current = self._frames.setdefault(int(line, 16), [])
+                current = self._frames.setdefault(base + int(line, 16), [])
                 continue
             path, _, number = line.rpartition(":")
             number = number.split()[0] if number.split() else ""
@@ -570,7 +617,7 @@ class Analyzer:
         memory = Memory(tools_prefix + "objdump", self.elf) if family == "arm" else None
         self.isa = (lambda: ArmIsa(memory)) if family == "arm" else RiscvIsa
         self.family = family
-        self.lines = SourceLoops(tools_prefix + "addr2line", self.elf, compiler, flags)
+        self.lines = SourceLoops(tools_prefix + "addr2line", self.elf, compiler, flags, by_object=family == "arm")
         self.loop_caps = dict(loop_caps or {})
         self.block_cost = block_cost
         self.search_ranges: dict[str, int] = {}  # function -> the most entries its bisection searches
