@@ -22,7 +22,8 @@ from armgen.firmware.project import MANIFEST
 from armgen.firmware.tasks import task_from_file
 from armgen.robot import load_robot_any
 
-from test_static_bound import require_target
+from test_programs import bar_task
+from test_static_bound import BAXTER, require_target
 
 REPO = Path(__file__).resolve().parents[1]
 PTP_TASK = REPO / "examples" / "modular8_ptp_two_segments.toml"  # a PLAYBACK tick (the PTP evaluator's bisection)
@@ -119,3 +120,30 @@ def test_the_project_bounds_are_bound_py_s_and_hold_under_qemu(task, tmp_path, m
     readme = (out / "README.md").read_text(encoding="utf-8")
     section = readme[readme.index("## Worst case per tick"):readme.index("## Other cores")]
     assert f"| `ctrl_tick` ({written['mode']} mode, running) | {tick.instructions} |" in section
+
+
+def test_a_program_task_s_bound_counts_its_table(tmp_path, monkeypatch):
+    """A program task (issue 26's seam program, weighted GPM, on Baxter): the project's tick
+    bound is bound.tick_bound's of the same build (the evaluator's searches over the task's
+    table) and holds under QEMU."""
+    target = require_target("cortex-m4")
+    source = tmp_path / "seam.toml"
+    source.write_text(bar_task("wgpm", BAXTER), encoding="utf-8")
+    out = tmp_path / "p"
+    result = CliRunner().invoke(cli, ["firmware", str(BAXTER), "--task", str(source), "--out", str(out),
+                                      "--bound", "cortex-m4"])
+    assert result.exit_code == 0, result.output
+    (written,) = json.loads((out / MANIFEST).read_text(encoding="utf-8"))["bounds"]
+    monkeypatch.chdir(out)  # the plan's task names the project's robot.toml
+    robot = load_robot_any("robot.toml")
+    firmware_task = task_from_file(Path("demo") / "plan.csv", robot)
+    assert "CTRL_PATH_PROGRAM" in firmware_task.header and written["mode"] == firmware_task.mode.upper()
+    builder = fw.FirmwareBuilder(robot, tmp_path / "build", out / "generated")
+    variant = dataclasses.replace(fw.target_variant(target.name), print_rows=False)
+    elf = builder.executable(variant, firmware_task, "direct")
+    tick = bound.tick_bound(target, elf, builder.cflags(variant), builder.prefix, firmware_task.mode,
+                            firmware_task.header)
+    assert written["tick"]["instructions"] == tick.instructions
+    assert any("search_segment of at most" in line for line in tick.loops), tick.loops
+    measured = fw.instructions_per_tick(fw.run_qemu(elf, target=target.name))
+    assert tick.instructions + measured["resolution"] >= measured["max"], (tick.instructions, measured)
