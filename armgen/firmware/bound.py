@@ -404,20 +404,20 @@ class InputSection:
     start: int  # its address in the image
     size: int
     name: str  # e.g. .text.map_w (-ffunction-sections)
-    object: Path  # the object file it came from
+    object: Path  # the object file it came from, or the archive's member: lib.a(member.o)
 
 
 def input_sections(map_file: Path) -> list[InputSection]:
-    """The code sections of the object files an image was linked from, by address, as the
-    linker's map (``-Wl,-Map``) places them; archive members (the C library) aside. Empty
-    without a map."""
+    """The code sections of the object files and archive members (the C library) an image was
+    linked from, by address, as the linker's map (``-Wl,-Map``) places them. Empty without a
+    map."""
     if not map_file.is_file():
         return []
     text = map_file.read_text(encoding="utf-8", errors="replace")
     text = text[text.find("Linker script and memory map"):]  # not the discarded sections listed before it
     text = re.sub(r"^( \.\S+)\n\s+(?=0x)", r"\1 ", text, flags=re.M)  # a long name's address on its next line
     found = [InputSection(int(m.group(2), 16), int(m.group(3), 16), m.group(1), Path(m.group(4)))
-             for m in re.finditer(r"^ (\.text\S*)\s+0x([0-9a-f]+)\s+0x([0-9a-f]+) (\S+\.o)$", text, re.M)]
+             for m in re.finditer(r"^ (\.text\S*)\s+0x([0-9a-f]+)\s+0x([0-9a-f]+) (\S+\.o\)?)$", text, re.M)]
     return sorted((f for f in found if f.size > 0), key=lambda f: f.start)
 
 
@@ -431,8 +431,10 @@ class SourceLoops:
     object file it came from (the linker's map beside the image): in the image, the line table
     of a function ``--gc-sections`` dropped still describes addresses from 0 on (the relocation
     of a discarded section resolves to 0), and a large one (a robot's collision criterion,
-    130 KB) covers the code linked there. Not on RISC-V: its linker relaxes calls, so code moves
-    from its object's offsets, and its image lies at 0x80000000, clear of those tables."""
+    130 KB) covers the code linked there, the C library's too (which has no source lines:
+    LIBRARY_LOOPS and down-counters count its loops). Not on RISC-V: its linker relaxes calls,
+    so code moves from its object's offsets, and its image lies at 0x80000000, clear of those
+    tables."""
 
     def __init__(self, addr2line: str, elf: Path, compiler: str, flags: list[str], by_object: bool = False):
         self.addr2line, self.elf, self.compiler, self.flags = addr2line, elf, compiler, list(flags)
@@ -455,7 +457,9 @@ class SourceLoops:
         for a in todo:
             by_section[self._section_of(a)].append(a)
         for section, group in by_section.items():
-            if section is None or not section.object.is_file():
+            if section is not None and section.object.name.endswith(")"):  # the library's: no source read
+                self._frames.update({a: [] for a in group})
+            elif section is None or not section.object.is_file():
                 self._read_frames([self.addr2line, "-a", "-i", "-e", str(self.elf), *(f"{a:#x}" for a in group)], 0)
             else:
                 self._read_frames([self.addr2line, "-a", "-i", "-e", str(section.object), "-j", section.name,
