@@ -203,6 +203,25 @@ def test_a_loop_without_a_count_is_refused(tmp_path):
         bound.analyzer(target, obj, flags).bound("halvings")
 
 
+def test_a_loop_s_line_is_its_own_beside_a_dropped_function(tmp_path):
+    """A function --gc-sections drops keeps its line table in the image, at addresses from 0,
+    where the code that is linked lies: the loop's count must come from its own `for` line (the
+    object file's), not from the dropped function's line at the same address."""
+    target = require_target("cortex-m4")
+    body = "\n".join(f"  a[{k % 50}] = a[{k * 7 % 50}] * {k} + a[{k * 3 % 50}];" for k in range(400))
+    src = tmp_path / "dropped.c"
+    src.write_text(f"void dropped(int *a) {{\n{body}\n}}\n\nint used(const int *a) {{\n  int s = 0, i;\n"
+                   "  for (i = 0; i < 5; ++i) {\n    s += a[i] * a[i + 1];\n  }\n  return s;\n}\n", encoding="utf-8")
+    for_line = src.read_text(encoding="utf-8").splitlines().index("  for (i = 0; i < 5; ++i) {") + 1
+    flags = [*target.cpu_flags, "-O2", "-g", "-ffunction-sections"]
+    obj, elf = tmp_path / "dropped.o", tmp_path / "dropped.elf"
+    subprocess.run([target.compiler, *flags, "-c", str(src), "-o", str(obj)], check=True)
+    subprocess.run([target.compiler, *flags, "-nostdlib", "-Wl,--gc-sections", "-Wl,-e,used", "-Wl,-Ttext=0",
+                    f"-Wl,-Map={elf.with_suffix('.map')}", str(obj), "-o", str(elf)], check=True)
+    loops = bound.analyzer(target, elf, flags).bound("used").loops
+    assert len(loops) == 1 and f"dropped.c:{for_line} (5): 5" in loops[0], loops
+
+
 def test_a_mode_without_a_tick_is_refused():
     with pytest.raises(bound.BoundError, match="SAMPLED"):
         bound.tick_avoid("modular8", "SAMPLED")
