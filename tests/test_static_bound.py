@@ -222,6 +222,38 @@ def test_a_loop_s_line_is_its_own_beside_a_dropped_function(tmp_path):
     assert len(loops) == 1 and f"dropped.c:{for_line} (5): 5" in loops[0], loops
 
 
+def search_image(target: fw.Target, work: Path, macro: str) -> tuple[Path, list[str]]:
+    """An object file whose function `find` runs fw_program.c's search macro ``macro``."""
+    src = work / "search.c"
+    src.write_text(f"typedef float ctrl_real;\ntypedef struct {{ ctrl_real t; }} row;\n{macro}\n"
+                   "DEFINE_SEARCH(search_segment, row, t)\n"
+                   "int find(const row *a, int n, ctrl_real x) { return search_segment(a, n, x); }\n", encoding="utf-8")
+    flags = [*target.cpu_flags, "-Os", "-g"]
+    subprocess.run([target.compiler, *flags, "-c", str(src), "-o", str(work / "search.o")], check=True)
+    return work / "search.o", flags
+
+
+def test_the_program_search_counts_its_halvings_and_nothing_else(tmp_path):
+    """fw_program.c's DEFINE_SEARCH over N entries counts as many turns as its loop takes; the
+    same macro searching one entry less a turn (linear) is refused, not counted as halving."""
+    target = require_target("cortex-m4")
+    text = (REPO / "armgen" / "data" / "firmware_stub" / "fw_program.c").read_text(encoding="utf-8")
+    macro = text[text.index("#define DEFINE_SEARCH"):text.index("DEFINE_SEARCH(search_segment")]
+    entries = 100
+    obj, flags = search_image(target, tmp_path, macro)
+    analyzer = bound.analyzer(target, obj, flags)
+    analyzer.halving_ranges["search_segment"] = entries
+    (loop,) = analyzer.bound("find").loops
+    assert loop.endswith(f"(search_segment of at most {entries} entries, halved each turn): {halvings(entries)}"), loop
+    linear = tmp_path / "linear"
+    linear.mkdir()
+    obj, flags = search_image(target, linear, macro.replace("n -= half;", "n -= 1;  "))
+    analyzer = bound.analyzer(target, obj, flags)
+    analyzer.halving_ranges["search_segment"] = entries
+    with pytest.raises(bound.BoundError, match="not the halving search"):
+        analyzer.bound("find")
+
+
 def test_a_mode_without_a_tick_is_refused():
     with pytest.raises(bound.BoundError, match="SAMPLED"):
         bound.tick_avoid("modular8", "SAMPLED")
