@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 import re
 import subprocess
+import tempfile
 from collections import Counter, defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -573,8 +574,10 @@ class SourceLoops:
 
     def _compile(self, path: str, expression: str) -> int | None:
         probe = f'#include "{path}"\nconst long armgen_bound_probe = (long)({expression});\n'
-        done = subprocess.run([self.compiler, *self.flags, "-O0", "-w", "-S", "-o", "-", "-x", "c", "-"], input=probe,
-                              capture_output=True, text=True)
+        # (in a scratch folder: the build's -fstack-usage writes "-.su" beside an output to stdout)
+        with tempfile.TemporaryDirectory(prefix="armgen-bound-") as scratch:
+            done = subprocess.run([self.compiler, *self.flags, "-O0", "-w", "-S", "-o", "-", "-x", "c", "-"],
+                                  input=probe, capture_output=True, text=True, cwd=scratch)
         m = re.search(r"^armgen_bound_probe:\s*\n\s*\.(?:word|4byte|long)\s+(-?\d+)", done.stdout, re.M)
         return int(m.group(1)) if done.returncode == 0 and m else None
 
