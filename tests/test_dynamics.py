@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from armgen.description import Inertial
+from armgen.description.collision import CollisionModel
 from armgen.errors import RobotFileError
 from armgen.robot import Robot, load_robot
 from armgen.symbolic.dynamics import DYNAMIC_FUNCTIONS
@@ -255,7 +256,9 @@ def _small_arms(tmp_path) -> dict[str, Robot]:
     base[:3, :3], base[:3, 3] = _rotation(np.random.default_rng(SEED)), [0.1, -0.2, 0.3]
     standard = dataclasses.replace(modular, joints=(modular.joints[0], _prismatic_dh(modular.joints[1]),
                                                     modular.joints[2]), base=base)
-    modified = dataclasses.replace(panda, joints=(*panda.joints[:2], _prismatic_dh(panda.joints[2])))
+    # (without the Panda's capsules: they sit on frames beyond these three joints)
+    modified = dataclasses.replace(panda, joints=(*panda.joints[:2], _prismatic_dh(panda.joints[2])),
+                                   collision=CollisionModel())
     return {"standard DH": _with_inertials(standard), "modified DH": _with_inertials(modified),
             "URDF": _with_inertials(dataclasses.replace(oblique, joints=oblique.joints[1:4]))}
 
