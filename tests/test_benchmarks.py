@@ -76,7 +76,8 @@ QUICK_RUNS = {
         rf"CasADi C double \(jacobian\(\)\) instructions\s+{NUMBER} instr/call",
         rf"M4F -Os float fk_jacobian executed instr\s+{NUMBER} instr/call",
         rf"cross-check: -singlestep -d exec trace\s+{NUMBER} instr/call"]),
-    "bench_link.py": (("gcc", *ARM_TOOLS), [rf"per received frame: {NUMBER} instructions; per servo tick: {NUMBER}",rf"fuzz: \d+ chunks in {NUMBER} s: crashes 0, violations 0",
+    "bench_link.py": (("gcc", *ARM_TOOLS), [rf"per received frame: {NUMBER} instructions \({NUMBER} with ACK replies\); per servo tick: {NUMBER}",
+                                 rf"fuzz: \d+ chunks in {NUMBER} s: crashes 0, violations 0",
                                  rf"\| 50 \| 151 \| {NUMBER} \|", rf"\| \d+ \| 501 \| {NUMBER} \|"]),
     "bench_planner.py": (("gcc",), [
         rf"host firmware \(gcc -O2, double\): {NUMBER} us/tick",
