@@ -31,3 +31,29 @@ def require_tool(name: str) -> str:
             pytest.fail(f"{message}: CI must install it (.ci/run)")
         pytest.skip(message)
     return path
+
+
+def terminal_sigint() -> None:
+    """SIGINT as a terminal's shell leaves it: default action, not blocked. The Ctrl-C tests
+    start from this state: in CI's xdist worker the sweep's tests found SIGINT no longer default
+    (an earlier test in the same worker changed it; not yet found), so the sweep never saw the
+    interrupt. For ``preexec_fn`` of a subprocess, or around an in-process sweep."""
+    import signal
+
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+@pytest.fixture
+def python_sigint():
+    """The main thread's SIGINT as a fresh Python has it (KeyboardInterrupt), restored after."""
+    import signal
+
+    previous = signal.getsignal(signal.SIGINT)
+    mask = signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)

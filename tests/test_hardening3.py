@@ -19,7 +19,7 @@ import pytest
 from click.testing import CliRunner
 
 from armgen.cli.main import cli
-from conftest import require_tool
+from conftest import require_tool, terminal_sigint
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -115,7 +115,8 @@ def test_ctrl_c_stops_the_sweep_and_keeps_the_finished_rows(tmp_path, workers):
     proc = subprocess.Popen([sys.executable, "-m", "armgen.cli.main", "sweep", str(FAULT_TASK), "-o", str(out),
                              "--set", "timing.duration=1", "--set", "fault.time=0.5", "--set", "path.turns=0.5",
                              "--grid", f"method.K=[{values}]", "--workers", workers],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True,
+        preexec_fn=terminal_sigint)
     time.sleep(SWEEP_INTERRUPT_AFTER_S)
     os.killpg(proc.pid, signal.SIGINT)
     try:

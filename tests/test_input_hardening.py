@@ -243,7 +243,7 @@ def _stand_in_run(task, source, sha256, index, fields, backend):
             "message": ""}
 
 
-def test_interrupted_worker_sweep_keeps_its_finished_runs(tmp_path, monkeypatch):
+def test_interrupted_worker_sweep_keeps_its_finished_runs(tmp_path, monkeypatch, python_sigint):
     """Ctrl-C 1.5 s into a 2-worker sweep of 8000 runs of 20 ms: the runs finished by then are
     written, and --resume runs only the rest (with batches of 250 runs, 5 s each, none had come
     back)."""
