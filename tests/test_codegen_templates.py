@@ -32,7 +32,8 @@ def _render_everything() -> None:
     kernel_source(ca.Function("demo", [x], [ca.sin(x) * x[1]]), "armgen_kernel")
     batch_source("planar3", SymbolicModel(load_robot("planar3")).functions())
     extension_source("planar3", "armgen_api_demo",
-                     {name: Signature.of(f) for name, f in SymbolicModel(load_robot("planar3")).functions().items()})
+                     {name: Signature.of(f) for name, f in SymbolicModel(load_robot("planar3")).functions().items()},
+                     "double")
 
 
 def test_every_template_is_rendered_with_exactly_its_placeholders(monkeypatch):

@@ -82,7 +82,7 @@ def test_stale_code_is_reported_and_never_compiled(planar3_copy, monkeypatch, pr
     source = planar3_copy / "planar3.c"
     source.write_text(source.read_text() + "\n#error stale code was compiled\n")
     compiled = []
-    monkeypatch.setattr(pipeline.reuse, "stored_library", lambda *a, **k: compiled.append(a))
+    monkeypatch.setattr(pipeline, "kernel_library", lambda *a, **k: compiled.append(a))
     monkeypatch.setattr(pipeline, "run_sanitized_program", lambda *a, **k: compiled.append(a))
     out = CliRunner().invoke(cli, ["verify", "planar3", "-o", str(planar3_copy), "--samples", "20"])
     assert out.exit_code == 5, out.output
@@ -165,7 +165,7 @@ def test_a_stage_that_checked_nothing_is_not_a_pass():
     assert Stage("x", True, ["a"], []).verdict == "FAIL"
     assert not Stage("x", True, ["a"], []).passed
     assert Stage("x", False, ["a"], [], "why", skipped=True).verdict == "SKIPPED"
-    nothing_built = stage_callbacks(VerifyConfig(load_robot("planar3")), {}, {}, "planar3")
+    nothing_built = stage_callbacks(VerifyConfig(load_robot("planar3")), {}, {})
     assert not nothing_built.passed and "nothing compared" in nothing_built.message
     assert not pipeline.passed([Stage("x", True, ["a"], [], skipped=True)]), "a run of only skipped stages"
 
@@ -324,7 +324,7 @@ def test_a_second_verify_reuses_what_was_verified_and_rebuilds_a_tampered_librar
     assert second["callbacks"]["rows"] == first["callbacks"]["rows"]
     assert second["fresh"]["reused"] and second["fresh"]["rows"] == first["fresh"]["rows"]
 
-    (library,) = (tmp_path / "cache" / "kernels").glob("verify_planar3_double-*.so")
+    (library,) = (tmp_path / "cache" / "kernels").glob("kernel_planar3_double-*.so")
     tampered = library.with_name("tampered")  # a new file, as an attacker's would be: the one loaded stays mapped
     tampered.write_bytes(library.read_bytes() + b"\0")
     tampered.replace(library)
@@ -335,6 +335,28 @@ def test_a_second_verify_reuses_what_was_verified_and_rebuilds_a_tampered_librar
     again = _verify_report(planar3_copy, report, "--again")
     assert not again["compile"]["reused"] and not again["callbacks"]["reused"]
     assert [row[3] for row in again["compile"]["rows"]] == [pipeline.BUILT_NOW] * 2
+
+
+def test_the_api_kernel_and_verify_share_one_build(planar3_copy, tmp_path, monkeypatch):
+    """The robot's API kernel is the double build of armgen gen's default C: verify of that
+    folder takes it from the store (not compiled again), and an API kernel made after a verify
+    compiles nothing either (the store then holds one double library of planar3)."""
+    from armgen.codegen import api_kernel
+
+    monkeypatch.setenv("ARMGEN_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(api_kernel, "_LOADED", {})
+    assert load_robot("planar3")._kernel is not None
+    report = _verify_report(planar3_copy, tmp_path / "verify.json")
+    assert [row[1:] for row in report["compile"]["rows"]] == [
+        [f"strict {api_kernel.OPTIMISATION} kernel library", True, pipeline.FROM_STORE],
+        ["ASan/UBSan driver", True, pipeline.BUILT_NOW]]
+
+    monkeypatch.setenv("ARMGEN_CACHE_DIR", str(tmp_path / "second"))
+    monkeypatch.setattr(api_kernel, "_LOADED", {})
+    _verify_report(planar3_copy, tmp_path / "verify.json")
+    monkeypatch.setattr(api_kernel, "compile_shared", lambda *_, **__: pytest.fail("the API compiled its own"))
+    assert load_robot("planar3")._kernel is not None
+    assert len(list((tmp_path / "second" / "kernels").glob("kernel_planar3_double-*.so"))) == 1
 
 
 def test_a_verdict_is_not_reused_for_other_code_or_from_a_file_others_can_write(planar3_copy, tmp_path, monkeypatch):

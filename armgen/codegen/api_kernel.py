@@ -1,27 +1,30 @@
-"""The compiled kernel behind the Python API (issue 41): a robot's generated C (double), built
-once into a CPython extension module in the kernel store and called in-process, one call per
-batch (the samples loop in C).
+"""The compiled kernel (issue 41): generated C built into a CPython extension module in the
+kernel store and called in-process, one call per batch (the samples loop in C).
+
+One build serves every caller of the same C bytes: :func:`kernel_library` names a build by the
+digest of what it is made from (the ``.c`` and ``.h`` bytes, the prefix, the precision, the
+extension's entries, the compiler, its flags and the Python ABI), so the double build of a
+robot's default generated code is at once the robot's API kernel (:func:`load_api_kernel`, what
+``Robot.fk``, ``ik``, the criteria, dynamics and collision functions and the ``c`` planning
+backend call) and the library ``armgen verify``'s callbacks stage checks for the folder that
+``armgen gen`` wrote with its default options (the same bytes): built by whichever comes first,
+taken from the store by the other (its SHA-256 checked; a mismatch is built again).
 
 :func:`load_api_kernel` gives a robot's :class:`ApiKernel`, or None when the CasADi reference
 is to be used instead: ``ARMGEN_KERNEL=reference`` asks for it, and it is the fallback when no
 kernel can be built (no C compiler, no Python headers, a failed build or self-test), which one
-warning says, once per process.
-
-What is trusted follows :mod:`armgen.codegen.kernel_store`: an entry ``<prefix>_api-<digest>.json``
-(the library's file name and SHA-256) beside the library ``<prefix>_api-<digest24>.so``, found
-by a digest of everything the library is made from (armgen's sources and C templates, the
-robot's description but where it was read from, the functions, the compiler and its flags, the
-Python ABI), read only when this user's
-alone and loaded only when its bytes match the entry's digest. A library is used only after it
-reproduces the CasADi reference on :data:`SELF_TEST_SAMPLES` seeded inputs per function
-(:data:`REFERENCE_AGREEMENT`; :func:`reference_cases`): when built, the reference is evaluated
-then and its values recorded in the entry (with the functions' signatures), so that loading
-runs the same self-test against them without building a CasADi function (~2 ms rather than
-~0.3 s, what a one-pose ``armgen ik`` would pay). It is built in a private folder of the store and
-moved into place by ``os.replace`` (the entry last), so a reader sees a whole entry or none;
-processes building the same kernel take turns on a lock
-(:func:`~armgen.codegen.kernel_store.build_lock`), and without one
-each leaves a whole file.
+warning says, once per process. Finding a robot's build without generating its C first (~0.5 s
+for a 7-DOF arm) takes an entry ``<robot>_api-<digest>.json``, found by a digest of the robot's
+description (but where it was read from), armgen's sources and templates and the toolchain,
+read only when this user's alone: it names the build and its SHA-256, the functions'
+signatures and the self-test. A build is used by the API only after it reproduces the CasADi
+reference on :data:`SELF_TEST_SAMPLES` seeded inputs per function (:data:`REFERENCE_AGREEMENT`;
+:func:`reference_cases`): when the entry is made, the reference is evaluated then and its
+values recorded in the entry, so that loading runs the same self-test against them without
+building a CasADi function (~2 ms rather than ~0.3 s, what a one-pose ``armgen ik`` would pay).
+Builds and entries are made in private folders of the store and moved into place by
+``os.replace`` (the entry last), so a reader sees a whole file or none; processes making the
+same one take turns on a lock (:func:`~armgen.codegen.kernel_store.build_lock`).
 """
 
 from __future__ import annotations
@@ -53,24 +56,21 @@ from ..symbolic.model import SymbolicModel
 from . import kernel_store
 from .toolchain import STRICT_FLAGS, compile_shared, host_cc
 
-# The functions the kernel holds: the Robot methods' (fk, jacobian, fk_jacobian, ik), the
-# criteria and, for a robot with inertials, the dynamics, for one with capsules the collision
-# functions (Robot.ik checks every answer with them); what the robot lacks is left out.
-API_FUNCTIONS = ("fk", "jacobian", "fk_jacobian", "ik", "zghal", "repetitive", "manipulability",
-                 "joint_manipulability", "gravity", "rnea", "mass_matrix", "coriolis", "collision_distances",
-                 "collision_criterion")
-# The C prefix of the kernel's generated code: fixed (internal to the extension module), so any
-# robot name builds (a robot called 'nan' would be a prefix armgen gen refuses).
-C_PREFIX = "robot"
+# The C prefix of a robot's API kernel is armgen gen's default (the robot's name), so that its build
+# is the one of the robot's default generated folder; a name that is no C prefix (a robot called
+# 'nan', a C keyword) gets this one instead (only the extension module sees it).
+FALLBACK_PREFIX = "robot"
 # ARMGEN_KERNEL selects the evaluator of the Robot methods: the compiled kernel (the default) or
 # the CasADi reference.
 KERNEL_ENV = "ARMGEN_KERNEL"
 KERNEL_CHOICES = ("compiled", "reference")
 # Bumped when the entry's layout or the extension's calling convention changes.
-API_KERNEL_FORMAT = 1
+API_KERNEL_FORMAT = 2
 # -O1: as fast as -O2 on these straight-line functions (panda: fk_jacobian 0.81 µs a call from
-# Python either way, the IK 4.7 against 5.1 µs a pose in a batch) for 30 % less compile time
-# (0.72 against 1.06 CPU-s), which every robot's first use pays (a test suite's many arms).
+# Python either way, the IK 4.7 against 5.1 µs a pose in a batch) for 30–40 % less compile time
+# (modular8's whole C: 1.06 against 1.66 CPU-s), which every robot's first use and a cold
+# `armgen verify` pay. The strict flags' warnings stay on (-Wmaybe-uninitialized runs from -O1;
+# the firmware's cross builds compile the same C at -O2 with the same flags).
 # -ffp-contract=off: no fused multiply-add, so the C rounds each operation as CasADi's
 # interpreter does (the same SX operations in the same order): the two agree to the bit.
 OPTIMISATION = "-O1"
@@ -266,7 +266,65 @@ def _unpacked(value: np.ndarray, rows: int, cols: int) -> np.ndarray:
     return value.swapaxes(-1, -2)
 
 
-# -- building, storing, loading ------------------------------------------------------------------
+# -- one build of generated C, shared by every caller of the same bytes --------------------------
+
+# The extension's buffers per precision: (the buffer format the C checks, its NumPy type).
+BUFFER_TYPES = {"double": ("d", np.float64), "float": ("f", np.float32)}
+
+
+@dataclasses.dataclass(frozen=True)
+class KernelLibrary:
+    """One build of generated C (:func:`kernel_library`): the library file, its module and the
+    signatures of the functions it holds, in one precision."""
+
+    path: Path
+    module: ModuleType
+    precision: str
+    signatures: dict[str, Signature]
+
+    def batch(self, name: str, inputs: list[np.ndarray]) -> list[np.ndarray]:
+        """Function ``name`` on ``n`` samples in one call: ``inputs[k]`` has shape ``(n, size_k)``
+        (each row a sample's input, column-major); outputs ``(n, rows, cols)`` in double."""
+        real = BUFFER_TYPES[self.precision][1]
+        count = len(inputs[0])
+        buffers = [np.ascontiguousarray(np.asarray(value, dtype=float).reshape(count, -1), dtype=real)
+                   for value in inputs]
+        outputs = [np.empty((count, rows * cols), dtype=real) for _, rows, cols in self.signatures[name].outputs]
+        getattr(self.module, name)(count, *buffers, *outputs)
+        return [out.astype(float).reshape(count, cols, rows).transpose(0, 2, 1)
+                for out, (_, rows, cols) in zip(outputs, self.signatures[name].outputs)]
+
+
+def kernel_library(sources: dict[str, bytes], prefix: str, precision: str, signatures: dict[str, Signature],
+                   again: bool = False) -> tuple[KernelLibrary, bool]:
+    """``<prefix>.c`` and ``<prefix>.h`` (``sources``: their bytes) built in ``precision`` with the
+    batched entry of each function of ``signatures`` into an extension module, with the strict
+    flags: the store's build of the same bytes, compiler, flags and entries when it holds one
+    whose SHA-256 matches (and not ``again``), else built now and stored; and whether it was built now."""
+    key = hashlib.sha256(repr((API_KERNEL_FORMAT, _toolchain_identity(), precision, prefix,
+                               extension_source(prefix, "armgen_kernel", signatures, precision),
+                               sorted(sources.items()))).encode()).hexdigest()
+    module_name = f"armgen_kernel_{key[:24]}"  # the key names the module: the glue itself needs no key
+
+    def build(folder: Path) -> Path:
+        for name, data in sources.items():  # the bytes the key digests, whatever the caller's folder holds now
+            (folder / name).write_bytes(data)
+        glue = folder / f"{prefix}_kernel.c"
+        glue.write_text(extension_source(prefix, module_name, signatures, precision), encoding="utf-8")
+        return compile_shared([folder / f"{prefix}.c", glue], folder / f"{module_name}.so",
+                              defines=[f"{prefix.upper()}_USE_FLOAT={int(precision == 'float')}"],
+                              extra=[f"-I{folder}", f"-I{_python_include()}", *FLOATING_POINT_FLAGS], opt=OPTIMISATION)
+
+    path, built = kernel_store.stored_file(f"kernel_{prefix}_{precision}", key, ".so", build, again)
+    return KernelLibrary(path, _import(path, module_name), precision, signatures), built
+
+
+def folder_sources(folder: Path, prefix: str) -> dict[str, bytes]:
+    """The bytes :func:`kernel_library` builds from, of a folder ``armgen gen`` wrote."""
+    return {name: (folder / name).read_bytes() for name in (f"{prefix}.c", f"{prefix}.h")}
+
+
+# -- a robot's API kernel: found by the robot, self-tested ---------------------------------------
 
 def load_api_kernel(model: SymbolicModel) -> ApiKernel | None:
     """The robot's compiled kernel (from this process, the store, or built now), or None for the
@@ -275,14 +333,13 @@ def load_api_kernel(model: SymbolicModel) -> ApiKernel | None:
     if kernel_choice() == "reference":
         return None
     try:
-        functions = tuple(name for name in API_FUNCTIONS if name in model.available())
-        digest = _kernel_digest(model, functions)
+        digest = _kernel_digest(model)
         if digest in _LOADED:
             return _LOADED[digest]
         kernel = _stored(model, digest)
         if kernel is None:
-            with kernel_store.build_lock(_names(model, digest)[0].with_suffix(".lock")):
-                kernel = _stored(model, digest) or _built(model, functions, digest)  # (another process's, meanwhile)
+            with kernel_store.build_lock(_entry_path(model, digest).with_suffix(".lock")):
+                kernel = _stored(model, digest) or _built(model, digest)  # (another process's, meanwhile)
     # (a robot the generator cannot take, CasADi's RuntimeError, a failed compile or import: the
     # reference still evaluates it)
     except (ArmgenError, OSError, ImportError, subprocess.SubprocessError, ValueError, KeyError, RuntimeError) as exc:
@@ -331,37 +388,38 @@ def code_fingerprint() -> str:
 PLACE_FIELDS = frozenset({"source", "sha256", "description", "units", "urdf", "path"})
 
 
-def _kernel_digest(model: SymbolicModel, functions: tuple[str, ...]) -> str:
+def _kernel_digest(model: SymbolicModel) -> str:
     fields = {f.name: getattr(model.robot, f.name) for f in dataclasses.fields(model.robot)
               if f.name not in PLACE_FIELDS}
     robot = hashlib.sha256(pickle.dumps(fields, protocol=4)).hexdigest()
-    identity = repr((code_fingerprint(), _toolchain_identity(), robot, functions))
+    identity = repr((code_fingerprint(), _toolchain_identity(), robot))
     return hashlib.sha256(identity.encode()).hexdigest()[:24]
 
 
-def _names(model: SymbolicModel, digest: str) -> tuple[Path, Path, str]:
-    """(entry, library, module name) of the kernel ``digest`` in the store (the files named
-    after the robot, for whoever lists the store)."""
+def _entry_path(model: SymbolicModel, digest: str) -> Path:
+    """The robot's entry in the store (named after the robot, for whoever lists the store)."""
     stem = re.sub(r"[^A-Za-z0-9_]", "_", model.robot.name)[:60] + "_api"
-    store = kernel_store.store_dir()
-    return store / f"{stem}-{digest}.json", store / f"{stem}-{digest}.so", f"armgen_api_{digest}"
+    return kernel_store.store_dir() / f"{stem}-{digest}.json"
 
 
 def _stored(model: SymbolicModel, digest: str) -> ApiKernel | None:
-    """The kernel from the store when its entry is trusted, its library matches the entry's
-    digest and it reproduces the reference values the entry recorded; else None (the caller
-    builds it). No CasADi function is built: the entry holds the signatures and the cases."""
-    entry_path, library, module_name = _names(model, digest)
+    """The kernel from the store when the robot's entry is trusted, the build it names matches
+    the entry's SHA-256 and reproduces the reference values the entry recorded; else None (the
+    caller makes it). No CasADi function is built: the entry holds the signatures and the cases."""
+    entry_path = _entry_path(model, digest)
     text = kernel_store.read_trusted(entry_path)
     try:
         entry = json.loads(text) if text is not None else None
-        if entry is None or entry["library"] != library.name or entry["module"] != module_name:
+        if (entry is None or entry["format"] != API_KERNEL_FORMAT
+                or not kernel_store.LIBRARY_NAME.fullmatch(entry["library"])
+                or not re.fullmatch(r"armgen_kernel_[0-9a-f]{24}", entry["module"])):
             return None
+        library = entry_path.parent / entry["library"]
         binary = kernel_store.read_trusted(library)
         if binary is None or kernel_store.digest(binary) != entry["library_sha256"]:
             return None
         signatures = {name: Signature.from_json(value) for name, value in entry["signatures"].items()}
-        kernel = ApiKernel(_import(library, module_name), signatures, model.n, model.robot.name, model.robot.qmid)
+        kernel = ApiKernel(_import(library, entry["module"]), signatures, model.n, model.robot.name, model.robot.qmid)
         if not _reproduces(kernel, entry["self_test"]):
             return None
     except (ValueError, KeyError, TypeError, ImportError, AttributeError):
@@ -371,42 +429,48 @@ def _stored(model: SymbolicModel, digest: str) -> ApiKernel | None:
     return kernel
 
 
-def _built(model: SymbolicModel, functions: tuple[str, ...], digest: str) -> ApiKernel:
-    """Generate, compile, self-test (against the CasADi reference evaluated now) and store the kernel."""
-    from .generate import CodegenConfig, generate, write
-
+def _built(model: SymbolicModel, digest: str) -> ApiKernel:
+    """Generate the robot's C as ``armgen gen`` does by default (double, every function), take its
+    build from the store or build it (:func:`kernel_library`), self-test it against the CasADi
+    reference evaluated now, and store the robot's entry."""
+    code = _generated(model)
+    functions = tuple(code.manifest["options"]["functions"])
     references = {name: model.function(name) for name in functions}
     signatures = {name: Signature.of(f) for name, f in references.items()}
+    sources = {name: code.files[name].encode("utf-8") for name in (f"{code.prefix}.c", f"{code.prefix}.h")}
+    library, _ = kernel_library(sources, code.prefix, "double", signatures)
     cases = reference_cases(model, references)
-    entry_path, library, module_name = _names(model, digest)
-    store = library.parent
-    with tempfile.TemporaryDirectory(prefix="armgen-api-", dir=store) as tmp:
-        work = Path(tmp)
-        code = generate(CodegenConfig(model.robot, "double", C_PREFIX, tuple(references)))
-        write(code, work)
-        glue = work / f"{code.prefix}_api.c"
-        glue.write_text(extension_source(code.prefix, module_name, signatures), encoding="utf-8")
-        built = compile_shared([work / f"{code.prefix}.c", glue], work / library.name,
-                               defines=[f"{code.prefix.upper()}_USE_FLOAT=0"],
-                               extra=[f"-I{work}", f"-I{_python_include()}", *FLOATING_POINT_FLAGS], opt=OPTIMISATION)
-        sha256 = kernel_store.seal(built)
-        kernel = ApiKernel(_import(built, module_name), signatures, model.n, model.robot.name, model.robot.qmid)
-        if not _reproduces(kernel, cases):
-            raise ArmgenError(f"the compiled kernel of robot '{model.robot.name}' disagrees with the CasADi reference "
-                              f"(beyond {REFERENCE_AGREEMENT:g}); please report it")
-        entry = {"format": API_KERNEL_FORMAT, "library": library.name, "library_sha256": sha256, "module": module_name,
-                 "signatures": {name: {"inputs": sig.inputs, "outputs": sig.outputs}
-                                for name, sig in signatures.items()},
-                 "self_test": cases}
-        try:
-            os.replace(built, library)  # atomic: concurrent builders each leave a whole file
-            (work / "entry.json").write_text(json.dumps(entry), encoding="utf-8")
-            kernel_store.seal(work / "entry.json")
-            os.replace(work / "entry.json", entry_path)  # last: the entry is whole
-            kernel_store.prune(store)
-        except OSError:
-            pass  # an unwritable store only costs the next process the build
+    kernel = ApiKernel(library.module, signatures, model.n, model.robot.name, model.robot.qmid)
+    if not _reproduces(kernel, cases):
+        raise ArmgenError(f"the compiled kernel of robot '{model.robot.name}' disagrees with the CasADi reference "
+                          f"(beyond {REFERENCE_AGREEMENT:g}); please report it")
+    entry = {"format": API_KERNEL_FORMAT, "library": library.path.name,
+             "library_sha256": kernel_store.digest(library.path.read_bytes()),
+             "module": library.module.__name__,
+             "signatures": {name: {"inputs": sig.inputs, "outputs": sig.outputs} for name, sig in signatures.items()},
+             "self_test": cases}
+    entry_path = _entry_path(model, digest)
+    try:
+        with tempfile.TemporaryDirectory(prefix="armgen-api-", dir=entry_path.parent) as tmp:
+            staged = Path(tmp) / "entry.json"
+            staged.write_text(json.dumps(entry), encoding="utf-8")
+            kernel_store.seal(staged)
+            os.replace(staged, entry_path)  # the entry appears whole
+    except OSError:
+        pass  # an unwritable store only costs the next process the generation
     return kernel
+
+
+def _generated(model: SymbolicModel):
+    """The robot's C as ``armgen gen`` writes it with its default options (the prefix is the robot's
+    name, :data:`FALLBACK_PREFIX` for a name that is no C prefix)."""
+    from .generate import CodegenConfig, generate, make_consistent
+
+    try:
+        config = make_consistent(CodegenConfig(model.robot))
+    except OptionError:
+        config = CodegenConfig(model.robot, prefix=FALLBACK_PREFIX)
+    return generate(config)
 
 
 def _import(library: Path, module_name: str) -> ModuleType:
@@ -420,9 +484,9 @@ def _import(library: Path, module_name: str) -> ModuleType:
     return module
 
 
-def extension_source(prefix: str, module_name: str, signatures: dict[str, Signature]) -> str:
-    """C99 of the extension module: for each function ``f(count, inputs…, outputs…)``
-    (api_kernel.c; buffers described there)."""
+def extension_source(prefix: str, module_name: str, signatures: dict[str, Signature], precision: str) -> str:
+    """C99 of the extension module: for each function ``f(count, inputs…, outputs…)`` on buffers
+    of the precision's type (api_kernel.c; buffers described there)."""
     entries, methods = [], []
     for name, signature in signatures.items():
         sizes = signature.sizes()
@@ -439,14 +503,16 @@ def extension_source(prefix: str, module_name: str, signatures: dict[str, Signat
                                        arity=len(sizes), sizes=", ".join(map(str, sizes)), names=names,
                                        inputs=n_in, call=", ".join(call)))
         methods.append(render_template("codegen/api_kernel_method.c", p=prefix, function=name, names=names))
+    buffer_format, real_type = BUFFER_TYPES[precision]
     return render_template("codegen/api_kernel.c", p=prefix, P=prefix.upper(), module=module_name,
+                           precision=precision, format=buffer_format, dtype=np.dtype(real_type).name,
                            entries="\n\n".join(entries), methods="\n".join(methods)) + "\n"
 
 
 def reference_cases(model: SymbolicModel, references: dict[str, ca.Function]) -> dict[str, list[dict]]:
     """The self-test: per function, the CasADi reference's outputs on :data:`SELF_TEST_SAMPLES`
-    seeded inputs (configurations inside the limits; a criterion's weights, delta, q_init in
-    [0.1, 1]); the IK's on one pose (the FK of the first configuration, from the middle of the
+    seeded inputs (configurations inside the limits; every other input, a criterion's weights,
+    a step's task velocity, a twin's J, in [0.1, 1]); the IK's on one pose (the FK of the first configuration, from the middle of the
     limits). Each case: ``inputs`` and ``outputs``, the flat column-major values of each argument."""
     rng = np.random.default_rng(SELF_TEST_SEED)
     robot = model.robot
@@ -462,9 +528,10 @@ def reference_cases(model: SymbolicModel, references: dict[str, ca.Function]) ->
             # the C refuses such a target, which the CasADi function does not check, nor Robot.ik take)
             arguments[name] = [[target, robot.qmid, robot.qmid, *settings]] if _is_pose(target) else []
         else:
-            # (shaped as the input: a matrix, such as a collision function's obstacle slots, too)
-            arguments[name] = [[q, *(rng.uniform(0.1, 1.0, f.nnz_in(k)).reshape(f.size_in(k), order="F")
-                                     for k in range(1, f.n_in()))] for q in samples]
+            # (shaped as the input: a matrix, such as a twin's J or a collision function's obstacle slots, too)
+            arguments[name] = [[q if f.name_in(k) == "q" else
+                                rng.uniform(0.1, 1.0, f.nnz_in(k)).reshape(f.size_in(k), order="F")
+                                for k in range(f.n_in())] for q in samples]
     return {name: [{"inputs": [np.ravel(x, order="F").tolist() for x in inputs],
                     "outputs": [np.ravel(np.asarray(y.full()), order="F").tolist()
                                 for y in references[name].call(inputs)]}

@@ -155,6 +155,10 @@ class CompiledModel:
     def function(self, name: str) -> ca.Function:
         return self.callbacks[name]
 
+    def batch(self, name: str, inputs: list[np.ndarray]) -> list[np.ndarray]:
+        """Function ``name`` on many samples in one call (:meth:`CompiledFunction.batch`)."""
+        return self.raw[name].batch(inputs)
+
 
 # -- one fused SX function as native code, called on NumPy buffers ---------------------------
 

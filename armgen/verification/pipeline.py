@@ -67,7 +67,7 @@ from .compare import ReferenceSamples, compare_model, reference_samples
 from .. import firmware as fw
 from ..firmware import bound as static_bound
 from . import firmware_compare as fwcmp
-from ..codegen.compiled import CompiledModel
+from ..codegen.api_kernel import OPTIMISATION, KernelLibrary, Signature, folder_sources, kernel_library
 from ..codegen.toolchain import compiler_identity
 from ..planning.result import metadata_path
 from . import reuse
@@ -205,15 +205,18 @@ Build = tuple[str, str, Callable[[], Any]]  # (precision, what, action)
 
 
 def compile_builds(config: VerifyConfig, work: Path, functions, found: GeneratedCode | None = None) -> list[Build]:
-    """The compile stage's builds per precision: the strict shared library (with the batched
-    entries the callbacks stage calls) and the ASan/UBSan driver run; each action returns
-    (library or output, whether it was built now rather than taken from the kernel store)."""
+    """The compile stage's builds per precision: the kernel library of the folder's C (the
+    extension module the callbacks stage calls, with the strict flags; its double build is the
+    robot's API kernel when the folder holds armgen gen's default output) and the ASan/UBSan
+    driver run; each action returns (library or output, whether it was built now rather than
+    taken from the kernel store)."""
     gen_dir = config.gen_dir
     prefix = (found or read_manifest(config)).prefix
     host_cc()  # a missing compiler is a missing tool (exit 4), not a verification failure
+    signatures = {name: Signature.of(f) for name, f in functions.items()}
     return [(precision, what, action) for precision in config.precisions for what, action in (
-        (f"strict {reuse.LIBRARY_OPTIMISATION} shared library",
-         lambda p=precision: reuse.stored_library(gen_dir, prefix, p, functions, not config.reuse)),
+        (f"strict {OPTIMISATION} kernel library",
+         lambda p=precision: kernel_library(folder_sources(gen_dir, prefix), prefix, p, signatures, not config.reuse)),
         ("ASan/UBSan driver",
          lambda p=precision: run_sanitized_program(gen_dir, prefix, functions, p, not config.reuse)))]
 
@@ -223,7 +226,7 @@ BUILT_NOW = "built"
 FROM_STORE = "stored build of the same bytes (SHA-256 checked)"
 
 
-def compile_stage(builds: list[Build], futures: list[Future]) -> tuple[Stage, dict[str, Path]]:
+def compile_stage(builds: list[Build], futures: list[Future]) -> tuple[Stage, dict[str, KernelLibrary]]:
     """The compile stage's verdict from its finished builds (rows in the builds' order)."""
     rows, libraries = [], {}
     passed = True
@@ -234,7 +237,7 @@ def compile_stage(builds: list[Build], futures: list[Future]) -> tuple[Stage, di
             passed = False
             rows.append([precision, what, False, str(exc).splitlines()[0]])
             continue
-        if isinstance(out, Path):
+        if isinstance(out, KernelLibrary):
             libraries[precision] = out
         rows.append([precision, what, True, BUILT_NOW if built else FROM_STORE])
     return Stage("compile", passed, ["precision", "build", "ok", "detail"], rows), libraries
@@ -248,7 +251,7 @@ def free_cores() -> int:
 
 
 def compile_and_prepare(config: VerifyConfig, work: Path, functions, found: GeneratedCode | None = None
-                        ) -> tuple[Stage, dict[str, Path], dict[str, dict[str, ReferenceSamples]]]:
+                        ) -> tuple[Stage, dict[str, KernelLibrary], dict[str, dict[str, ReferenceSamples]]]:
     """The compile stage, its builds in parallel (compilers are processes), and meanwhile, on
     this thread, the callbacks stage's seeded inputs and interpreter outputs per precision."""
     builds = compile_builds(config, work, functions, found)
@@ -264,7 +267,7 @@ def compile_and_prepare(config: VerifyConfig, work: Path, functions, found: Gene
     return stage, libraries, prepared
 
 
-def stage_callbacks(config: VerifyConfig, libraries: dict[str, Path], functions, prefix: str = "",
+def stage_callbacks(config: VerifyConfig, libraries: dict[str, KernelLibrary], functions,
                     prepared: dict[str, dict[str, ReferenceSamples]] | None = None) -> Stage:
     """Every compiled function against the symbolic one at ``config.samples`` seeded inputs,
     per precision, evaluated in batches (one C call per function); ``prepared`` are the
@@ -272,8 +275,7 @@ def stage_callbacks(config: VerifyConfig, libraries: dict[str, Path], functions,
     rows, passed = [], True
     with progress(len(libraries) * len(functions), "callbacks") as bar:
         for precision, library in libraries.items():
-            compiled = CompiledModel(library, prefix or fw.robot_prefix(config.robot), functions, precision)
-            for r in compare_model(compiled, functions, config.robot, config.samples, config.seed,
+            for r in compare_model(library, functions, config.robot, config.samples, config.seed,
                                    lambda: bar.update(1), (prepared or {}).get(precision)):
                 rows.append([r.name, precision, r.samples, r.max_error, r.bound, r.passed])
                 passed &= r.passed
@@ -589,7 +591,7 @@ def verify_c(config: VerifyConfig, work: Path, found: GeneratedCode, inputs: tup
         again = dataclasses.replace(config, precisions=todo)
         functions = SymbolicModel(config.robot, ModelOptions(found.functions)).functions()
         compiled, libraries, prepared = compile_and_prepare(again, work, functions, found)
-        callbacks = stage_callbacks(again, libraries, functions, found.prefix, prepared)
+        callbacks = stage_callbacks(again, libraries, functions, prepared)
         for p in todo:
             mine = {"compile": [r for r in compiled.rows if r[0] == p], "callbacks": [r for r in callbacks.rows if r[1] == p]}
             if compiled.passed and callbacks.passed:

@@ -2,10 +2,10 @@
 (:mod:`armgen.codegen.kernel_store`: this user's alone, every file's SHA-256 checked), keyed by
 the content hashes of everything they depend on.
 
-- A **build** (the strict shared library of a precision, the sanitizer driver) is named by the
-  digest of the bytes it is compiled from, the compiler and its flags; it is used only when its
-  bytes match the SHA-256 its entry records, else it is built again (a tampered or truncated file
-  is replaced, never loaded).
+- A **build** (the kernel library of a precision: :func:`armgen.codegen.api_kernel.kernel_library`,
+  shared with the API; the sanitizer driver) is named by the digest of the bytes it is compiled
+  from, the compiler and its flags; it is used only when its bytes match the SHA-256 its entry
+  records, else it is built again (a tampered or truncated file is replaced, never loaded).
 - A **verdict** (the fresh stage's; a precision's compile and callbacks rows; the replay of a plan) is stored only
   when it passed, under the digest of every input that decides it: the generated files' bytes,
   armgen itself (all its sources, templates and firmware files, CasADi's and NumPy's versions),
@@ -29,13 +29,9 @@ import casadi as ca
 import numpy as np
 
 from ..codegen import kernel_store
-from ..codegen.compiled import batch_source, build_library
-from ..codegen.toolchain import STRICT_FLAGS, compiler_identity
 
 # Bumped when a record's layout or what a verdict means changes: older records are not read.
 RECORD_FORMAT = 1
-# The strict library's optimisation: -O2 runs the flow analyses behind some -Wall warnings.
-LIBRARY_OPTIMISATION = "-O2"
 
 
 @functools.lru_cache(maxsize=1)
@@ -60,22 +56,6 @@ def content_key(*parts: Any) -> str:
 def file_digests(folder: Path, names: list[str]) -> tuple[tuple[str, str], ...]:
     """(name, SHA-256 of its bytes) of each file, in order."""
     return tuple((name, kernel_store.digest((folder / name).read_bytes())) for name in names)
-
-
-def stored_library(gen_dir: Path, prefix: str, precision: str, functions, again: bool = False) -> tuple[Path, bool]:
-    """The strict shared library of ``<gen_dir>/<prefix>.c`` in ``precision`` with the batched
-    entries of ``functions`` (:func:`~armgen.codegen.compiled.build_library`): from the store when
-    it holds the build of the same bytes (and not ``again``), else built now; and whether it was built now."""
-    sources = {name: (gen_dir / name).read_bytes() for name in (f"{prefix}.c", f"{prefix}.h")}
-    key = content_key(compiler_identity(), STRICT_FLAGS, LIBRARY_OPTIMISATION, precision, prefix,
-                      batch_source(prefix, functions), sorted(sources.items()))
-
-    def build(folder: Path) -> Path:
-        for name, data in sources.items():  # the bytes the key digests, whatever the folder holds now
-            (folder / name).write_bytes(data)
-        return build_library(folder, prefix, precision, folder, LIBRARY_OPTIMISATION, batch=functions)
-
-    return kernel_store.stored_file(f"verify_{prefix}_{precision}", key, ".so", build, again)
 
 
 def read_verdict(kind: str, key: str) -> dict[str, Any] | None:

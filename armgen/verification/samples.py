@@ -25,6 +25,7 @@ from ..description.frames import rpy_matrix
 from ..robot import Robot
 from ..symbolic import ik
 from ..symbolic.model import FROM_JACOBIAN
+from ..symbolic.numeric import NumericModel
 
 NEAR_LIMIT_FRACTION = 0.15
 NEAR_SINGULAR_FRACTION = 0.15
@@ -87,6 +88,12 @@ class _Batch:
     def count(self) -> int:
         return len(self.q)
 
+    def reference(self, name: str) -> np.ndarray:
+        """The symbolic model's function ``name`` at the configurations (its only output): what
+        derives from q is drawn from the reference, never from the compiled code under test."""
+        (value,) = NumericModel(self.robot.symbolic).evaluate(name, self.q).values()
+        return value
+
     def earlier(self, name: str) -> np.ndarray:
         return self.args[self.func.name_in().index(name)]
 
@@ -143,8 +150,8 @@ def _ik_tolerance(double: float) -> Callable[[_Batch, int], np.ndarray]:
 # The configuration, what derives from it, and the ik solver's inputs (a seed near q, IK_SEED_SPREAD).
 _CONFIGURATION_DRAWS: dict[str, Callable[[_Batch, int], np.ndarray]] = {
     "q": lambda b, rows: b.q,
-    "J": lambda b, rows: b.robot.jacobian(b.q).reshape(b.count, 6, b.robot.n),
-    "T_target": lambda b, rows: b.robot.fk(b.q).reshape(b.count, 4, 4),
+    "J": lambda b, rows: b.reference("jacobian").reshape(b.count, 6, b.robot.n),
+    "T_target": lambda b, rows: b.reference("fk").reshape(b.count, 4, 4),
     "q_seed": lambda b, rows: np.clip(b.q + b.rng.normal(scale=IK_SEED_SPREAD, size=(b.count, b.robot.n)),
                                       b.robot.qmin, b.robot.qmax),
     "q_rest": lambda b, rows: b.rng.uniform(b.robot.qmin, b.robot.qmax, size=(b.count, b.robot.n)),
@@ -195,7 +202,7 @@ ACTIVATION_BAND = (0.05, 0.3)
 
 
 def _reach(b: _Batch) -> float:
-    return float(np.max(np.linalg.norm(b.robot.fk(b.q)[..., :3, 3], axis=-1)))
+    return float(np.max(np.linalg.norm(b.reference("fk")[..., :3, 3], axis=-1)))
 
 
 def _points(b: _Batch, slots: int) -> np.ndarray:

@@ -1,8 +1,9 @@
-/* The compiled kernel behind armgen's Python API for robot ${p}: each function of ${p}.c
- * evaluated on `count` samples in one call, as a CPython extension module (written by armgen
- * into its kernel store; not part of the generated code). Every argument after `count` is a
- * C-contiguous buffer of doubles: an input holds one sample's values (used for every sample) or
- * `count` samples' one after another, an output `count` samples'; each sample column-major. */
+/* The compiled kernel of ${p}.c (${precision}): each function evaluated on `count` samples in one
+ * call, as a CPython extension module (written by armgen into its kernel store; not part of the
+ * generated code): behind armgen's Python API (double) and the verifier's callbacks stage. Every
+ * argument after `count` is a C-contiguous buffer of ${p}_real: an input holds one sample's values
+ * (used for every sample) or `count` samples' one after another, an output `count` samples';
+ * each sample column-major. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <string.h>
@@ -20,8 +21,8 @@ static int ${p}_api_view(PyObject *object, Py_buffer *view, int output, Py_ssize
   if (PyObject_GetBuffer(object, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (output ? PyBUF_WRITABLE : 0)) != 0) {
     return -1;
   }
-  values = view->len / (Py_ssize_t)sizeof(double);
-  if ((view->itemsize == (Py_ssize_t)sizeof(double)) && (view->format != NULL) && (strcmp(view->format, "d") == 0)) {
+  values = view->len / (Py_ssize_t)sizeof(${p}_real);
+  if ((view->itemsize == (Py_ssize_t)sizeof(${p}_real)) && (view->format != NULL) && (strcmp(view->format, "${format}") == 0)) {
     if ((size == 0) ? (values == 0) : ((values % size == 0) && (values / size == count))) {
       *stride = size;
       return 0;
@@ -32,7 +33,7 @@ static int ${p}_api_view(PyObject *object, Py_buffer *view, int output, Py_ssize
     }
   }
   PyErr_Format(PyExc_ValueError,
-               "argument %zd: a contiguous float64 buffer of %zd samples of %zd values%s expected, got %zd bytes of format '%s'",
+               "argument %zd: a contiguous ${dtype} buffer of %zd samples of %zd values%s expected, got %zd bytes of format '%s'",
                position, count, size, output ? "" : " (or of one sample)", view->len,
                view->format != NULL ? view->format : "B");
   PyBuffer_Release(view);
@@ -47,7 +48,7 @@ $methods
 };
 
 static struct PyModuleDef ${p}_api_module = {
-  PyModuleDef_HEAD_INIT, "$module", "armgen's compiled kernel of robot ${p} (f(count, inputs..., outputs...))", -1,
+  PyModuleDef_HEAD_INIT, "$module", "armgen's compiled kernel of ${p}.c, ${precision} (f(count, inputs..., outputs...))", -1,
   ${p}_api_methods, NULL, NULL, NULL, NULL
 };
 
