@@ -157,7 +157,7 @@ def ik_rows(robot, reference, count: int, reference_count: int) -> list[dict]:
 
 def c_batch_ns(robot, q: np.ndarray, work: Path, repeats: int) -> tuple[float, float]:
     """(wall, CPU) ns per sample of the kernel's fk_jacobian called from C on ``q`` (count, n)."""
-    code = generate(CodegenConfig(robot, "double", api_kernel.C_PREFIX, ("fk_jacobian",)))
+    code = generate(CodegenConfig(robot, "double", "", ("fk_jacobian",)))
     write(code, work)
     binary = work / "bench_batch"
     subprocess.run([host_cc(), *STRICT_FLAGS, api_kernel.OPTIMISATION, *api_kernel.FLOATING_POINT_FLAGS,

@@ -9,20 +9,20 @@ includes the compilers; a shared machine inflates wall time, not CPU time):
 1. The whole ``armgen verify <robot>`` pipeline (fresh, compile, callbacks), in this process.
    Then ``armgen verify <robot>`` as a command, each run its own process, its CPU time (user +
    sys, the compilers included, from ``wait4``) on a private, empty kernel store (issue 41): cold
-   (nothing stored: the compilers run, and the robot's API kernel is built), with the builds
+   (nothing stored: the compilers run; the double library is the one the robot's API kernel then takes), with the builds
    stored but no verdict (what an armgen edit that leaves the generated code alone costs), and
    repeated (the verdicts reused). With cmake (not in --quick): a firmware project of
    ``armgen firmware`` built and run, ``verify --plan`` of its demo plan, then ``verify --plan
    --run`` of what it printed (bar: ≤ 3 s). Bar for the cold-store command: ≤ 12 CPU-s
    (reported, never asserted; it was 32 before issue 41's caches).
-2. The compile stage's four builds (strict -O2 library and ASan/UBSan driver, double and float;
+2. The compile stage's four builds (strict -O1 kernel library and ASan/UBSan driver, double and float;
    built again, not taken from the store) one after another, and in parallel as the pipeline
    runs them (the pipeline uses only the cores the load leaves free).
-3. The callbacks stage's C evaluations: every sample through the library's batched entry (what
-   the pipeline does) against one ctypes call per sample (what it did), same inputs.
+3. The callbacks stage's C evaluations: every sample through the kernel library's batched entry
+   (what the pipeline does) against one call per sample, same inputs.
 4. The callbacks stage's inputs: drawn for all samples at once (``batch_inputs``) against one
-   sample at a time (``function_inputs``, what it did), and the interpreter's ``Function.map``
-   on them.
+   sample at a time (``function_inputs``, what it did), and the references on them: the
+   interpreter's ``Function.map`` (double's) against the NumPy replay (float's).
 
 The bar (reported, never asserted): the whole pipeline on modular8 in ≤ 15 s on an idle
 2-core machine (it took 57 s before issue 29). A pipeline stage that does not pass, or any
@@ -51,11 +51,11 @@ if str(REPO) not in sys.path:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(REPO))
 os.environ.setdefault("ARMGEN_NO_PROGRESS", "1")
 
-from armgen.codegen.compiled import CompiledModel  # noqa: E402
+from armgen.codegen.api_kernel import KernelLibrary  # noqa: E402
 from armgen.robot import load_robot  # noqa: E402
-from armgen.symbolic.model import SymbolicModel  # noqa: E402
+from armgen.symbolic.model import IK_FUNCTIONS, SymbolicModel  # noqa: E402
 from armgen.verification import pipeline  # noqa: E402
-from armgen.verification.compare import _batched_reference, _per_sample, reference_samples  # noqa: E402
+from armgen.verification.compare import _batched_reference, _per_sample, _replayed_reference, reference_samples  # noqa: E402
 from armgen.verification.samples import batch_inputs, function_inputs, joint_samples  # noqa: E402
 
 BAR_SECONDS = 15.0
@@ -100,6 +100,12 @@ def command_time(command: list[str], env: dict[str, str], cwd: Path | None = Non
     return wall, usage.ru_utime + usage.ru_stime, output
 
 
+# A process's first call of the API on the robot (argv[1]): loads the robot's compiled kernel.
+API_FIRST_USE = ("import sys, warnings; warnings.simplefilter('error', RuntimeWarning); "
+                 "from armgen.robot import load_robot; robot = load_robot(sys.argv[1]); robot.fk(robot.qmid); "
+                 "assert robot._kernel is not None")
+
+
 def verify_commands(robot_ref: str, gen_dir: Path, samples: int, with_firmware: bool) -> None:
     """Section 1's command runs on a private, empty kernel store."""
     armgen = _armgen()
@@ -116,6 +122,14 @@ def verify_commands(robot_ref: str, gen_dir: Path, samples: int, with_firmware: 
             reused = output.count("(reused)")
             print(f"  armgen verify {robot_ref}, {label:28s} wall {wall:7.2f} s   cpu {cpu:7.2f} s   "
                   f"stages reused {reused}")
+        # the robot's API kernel after the verify: generated and self-tested, its double library
+        # the store's (one double build of the robot in the store, not two)
+        wall, cpu, _ = command_time([sys.executable, "-c", API_FIRST_USE, robot_ref], env)
+        doubles = len(list(Path(store, "kernels").glob("kernel_*_double-*.so")))
+        print(f"  Robot API kernel's first use after it          wall {wall:7.2f} s   cpu {cpu:7.2f} s   "
+              f"double builds in the store: {doubles}")
+        if doubles != 1:
+            raise SystemExit(f"the API kernel built its own double library ({doubles} in the store)")
         print(f"  bar: cold-store command ≤ {BAR_COLD_CPU_SECONDS:g} CPU-s -> "
               f"{'met' if runs['cold store'] <= BAR_COLD_CPU_SECONDS else 'not met'}; "
               f"builds stored {runs['builds stored, no verdict']:.2f}, repeated {runs['repeated']:.2f} CPU-s")
@@ -180,24 +194,23 @@ def main() -> None:
 
         print("3. the callbacks stage's C evaluations (double)")
         library = next(out for (precision, _, _), (out, _) in zip(builds, results)
-                       if precision == "double" and isinstance(out, Path))
-        compiled = CompiledModel(library, found.prefix, functions, "double")
+                       if precision == "double" and isinstance(out, KernelLibrary))
         prepared = reference_samples(functions, robot, args.samples, config.seed, "double")
         subset = min(PER_SAMPLE_SUBSET, args.samples)
+        per_sample_inputs = {name: [_per_sample(a, func.sparsity_in(k).shape) for k, a in enumerate(prepared[name].inputs)]
+                             for name, func in functions.items()}
 
         def batched():
-            for name, func in functions.items():
-                inputs = prepared[name].inputs
-                compiled.raw[name].batch([_per_sample(a, func.sparsity_in(k).shape) for k, a in enumerate(inputs)])
+            for name in functions:
+                library.batch(name, per_sample_inputs[name])
 
         def per_sample():
             for name in functions:
-                inputs = prepared[name].inputs
                 for s in range(subset):
-                    compiled.raw[name](*[a[s] for a in inputs])
+                    library.batch(name, [a[s:s + 1] for a in per_sample_inputs[name]])
 
         _, fast = timed("batched entry, one call per function", batched)
-        _, slow = timed("one ctypes call per sample", per_sample, args.samples / subset)
+        _, slow = timed("one call per sample", per_sample, args.samples / subset)
         print(f"  ratio batched / per sample: {fast / slow:.3f}")
 
         print("4. the callbacks stage's inputs and reference (double)")
@@ -216,8 +229,12 @@ def main() -> None:
         inputs, fast = timed("inputs drawn for all samples at once", all_at_once)
         _, slow = timed("inputs drawn one sample at a time", one_at_a_time, args.samples / subset)
         print(f"  ratio at once / one at a time: {fast / slow:.3f}")
-        timed("interpreter outputs (Function.map)",
-              lambda: [_batched_reference(func, inputs[name]) for name, func in functions.items()])
+        _, interpreter = timed("interpreter outputs (Function.map; the double comparison's reference)",
+                               lambda: [_batched_reference(func, inputs[name]) for name, func in functions.items()])
+        _, replay = timed("NumPy replay outputs (the float comparison's reference)",
+                          lambda: [_replayed_reference(func, inputs[name]) for name, func in functions.items()
+                                   if name not in IK_FUNCTIONS])
+        print(f"  ratio replay / interpreter: {replay / interpreter:.3f}")
 
 
 if __name__ == "__main__":
