@@ -333,6 +333,23 @@ def test_any_batch_layout_and_dtype_gives_the_reference(store, shape, dtype, lay
     assert_agrees(robot.joint_limit_gradient(q), ref.joint_limit_gradient(q))
 
 
+def test_a_robot_whose_name_is_no_c_prefix_gets_a_kernel(store, tmp_path):
+    """Its kernel is built with the fallback prefix: a robot called 'r' (whose R_OK would be
+    <unistd.h>'s) or 'nan' is evaluated by the compiled kernel, with the reference's values."""
+    from armgen.description import BUNDLED_DIR
+
+    text = (BUNDLED_DIR / "planar3.toml").read_text()
+    for name in ("r", "nan"):
+        path = tmp_path / f"{name}.toml"
+        path.write_text(text.replace('name = "planar3"', f'name = "{name}"'))
+        robot = load_robot(path)
+        assert robot.name == name
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            assert robot._kernel is not None
+        assert_agrees(robot.fk(robot.qmid), reference("planar3").fk(robot.qmid))
+
+
 def test_the_digest_names_what_the_kernel_computes_not_where_the_robot_was_read(tmp_path):
     from armgen.description import BUNDLED_DIR
 

@@ -174,6 +174,10 @@ def test_bad_prefix_is_exit_2_and_writes_nothing(tmp_path):
     out = CliRunner().invoke(cli, ["gen", "planar3", "--prefix", "9lives", "--out", str(tmp_path / "out")])
     assert out.exit_code == 2 and "--prefix" in out.output, out.output
     assert not (tmp_path / "out").exists()
+    # R_OK, the result code of prefix r, is <unistd.h>'s access() mode (Python.h includes it)
+    out = CliRunner().invoke(cli, ["gen", "planar3", "--prefix", "r", "--out", str(tmp_path / "out")])
+    assert out.exit_code == 2 and "R_OK is a POSIX macro" in out.output, out.output
+    assert not (tmp_path / "out").exists()
 
 
 def test_replay_detects_a_tampered_plan(tmp_path):

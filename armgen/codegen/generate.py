@@ -58,6 +58,9 @@ STANDARD_NAMES = frozenset(
     "sin cos tan asin acos atan atan2 sinh cosh tanh exp log log10 pow sqrt hypot fabs floor ceil fmod fmin fmax "
     "copysign round trunc nan isnan isfinite isinf signbit abs div exit free malloc calloc realloc printf main "
     "errno_t size_t ptrdiff_t null".split())
+# Prefixes whose generated result code <PREFIX>_OK is a POSIX macro: <unistd.h>'s access() modes
+# (F_OK, R_OK, W_OK, X_OK), which a caller's translation unit (Python.h among them) often includes.
+POSIX_CLASHES = frozenset("f r w x".split())
 # Outputs go where the user is: ./generated/<name>/ under the current directory (at the
 # repository root that is the checked-in generated/).
 GENERATED_DIR = Path("generated")
@@ -91,6 +94,9 @@ def make_consistent(config: CodegenConfig) -> CodegenConfig:
     if prefix in C_KEYWORDS or prefix in STANDARD_NAMES:
         raise OptionError(f"--prefix {excerpt(repr(prefix))} is a C keyword or a standard-library name: choose another "
                           f"(e.g. --prefix {prefix}_arm)")
+    if prefix in POSIX_CLASHES:
+        raise OptionError(f"--prefix {excerpt(repr(prefix))}: the generated {prefix.upper()}_OK is a POSIX macro (<unistd.h>'s "
+                          f"access() mode); choose a longer prefix (e.g. --prefix {prefix}_arm)")
     if prefix.startswith("_"):
         raise OptionError(f"--prefix {excerpt(repr(prefix))}: identifiers starting with '_' are reserved in C (the generated "
                           f"macros would be _<NAME>); start with a letter (e.g. --prefix arm{prefix})")
