@@ -282,6 +282,52 @@ def test_interrupted_worker_sweep_keeps_its_finished_runs(tmp_path, monkeypatch,
     assert [r["run"] for r in rows] == list(range(8000))
 
 
+def _sigint_state() -> tuple[bool, bool, object]:
+    """SIGINT of this process: ignored and blocked as the kernel has them (/proc/self/status;
+    signal.getsignal does not see a change made in C), and the main thread's Python handler."""
+    import signal
+
+    sigint_bit = 1 << (signal.SIGINT - 1)
+    masks = {}
+    with open("/proc/self/status") as status:
+        for line in status:
+            key, _, value = line.partition(":")
+            if key in ("SigIgn", "SigBlk"):
+                masks[key] = bool(int(value, 16) & sigint_bit)
+    return masks["SigIgn"], masks["SigBlk"], signal.getsignal(signal.SIGINT)
+
+
+@pytest.mark.parametrize("workers, interrupt", [(1, False), (1, True), (2, False)])
+def test_sweep_leaves_the_callers_sigint_as_it_found_it(tmp_path, monkeypatch, python_sigint, workers, interrupt):
+    """A library must not change its caller's Ctrl-C: the in-process sweep defers SIGINT only
+    while it runs (also when interrupted), and the pool's workers ignore it in their own process
+    only. The Ctrl-C tests failed in CI's xdist worker because SIGINT was ignored there."""
+    import signal
+
+    import armgen.planning.sweep as module
+    from armgen.errors import Interrupted
+    from armgen.planning.sweep import SweepSpec, sweep
+    from armgen.planning.tasks import load_task
+
+    def run_interrupted_at_the_second(task, source, sha256, index, fields, backend):
+        if index == 1:
+            os.kill(os.getpid(), signal.SIGINT)
+        return _stand_in_run(task, source, sha256, index, fields, backend)
+
+    monkeypatch.setenv("ARMGEN_NO_PROGRESS", "1")
+    monkeypatch.setattr(module, "run_one", run_interrupted_at_the_second if interrupt else _stand_in_run)
+    task, sha = load_task(PTP_TASK)
+    spec = SweepSpec([("step", [0.001, 0.002, 0.003, 0.004])])
+    before = _sigint_state()
+    assert before == (False, False, signal.default_int_handler)  # what python_sigint set up
+    if interrupt:
+        with pytest.raises(Interrupted):
+            sweep(task, "t.toml", sha, spec, tmp_path / "t.csv", workers=workers)
+    else:
+        assert len(sweep(task, "t.toml", sha, spec, tmp_path / "t.csv", workers=workers)) == 4
+    assert _sigint_state() == before
+
+
 @pytest.mark.parametrize("keyword", ["seed", "q0"])
 def test_ik_joint_values_must_fit_the_batch(keyword):
     """Found by the IK fuzzer: two seeds for one pose was NumPy's broadcasting error."""
