@@ -35,9 +35,11 @@ def require_tool(name: str) -> str:
 
 def terminal_sigint() -> None:
     """SIGINT as a terminal's shell leaves it: default action, not blocked. The Ctrl-C tests
-    start from this state: in CI's xdist worker the sweep's tests found SIGINT no longer default
-    (an earlier test in the same worker changed it; not yet found), so the sweep never saw the
-    interrupt. For ``preexec_fn`` of a subprocess, or around an in-process sweep."""
+    start from this state: in CI's xdist worker the sweep's tests found SIGINT ignored, so the
+    sweep never saw the interrupt. No test leaves it so (a serial run of the whole suite read
+    /proc/self/status after every test); a shell without job control starts a background job
+    (`.ci/run &`) with SIGINT ignored, and pytest and its workers inherit that. For
+    ``preexec_fn`` of a subprocess, or around an in-process sweep."""
     import signal
 
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
