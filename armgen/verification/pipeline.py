@@ -214,9 +214,10 @@ def compile_builds(config: VerifyConfig, work: Path, functions, found: Generated
     prefix = (found or read_manifest(config)).prefix
     host_cc()  # a missing compiler is a missing tool (exit 4), not a verification failure
     signatures = {name: Signature.of(f) for name, f in functions.items()}
+    sources = folder_sources(gen_dir, prefix)  # read once for both precisions
     return [(precision, what, action) for precision in config.precisions for what, action in (
         (f"strict {OPTIMISATION} kernel library",
-         lambda p=precision: kernel_library(folder_sources(gen_dir, prefix), prefix, p, signatures, not config.reuse)),
+         lambda p=precision: kernel_library(sources, prefix, p, signatures, not config.reuse)),
         ("ASan/UBSan driver",
          lambda p=precision: run_sanitized_program(gen_dir, prefix, functions, p, not config.reuse)))]
 
